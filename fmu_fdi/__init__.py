@@ -1,0 +1,19 @@
+"""fmu-fdi: model-based fault detection and isolation for linear systems, shipped as FMUs."""
+from .analysis import (detectability, fault_gains, fault_noise_gap, fault_sensitivity_condition, hinf_minus,
+                       isolability, leakage, structure_matrix)
+from .design import dedicated_bank, generalized_bank, nullspace_design, structured_bank
+from .errors import DesignError, ModelError
+from .faults import FaultSpec, actuator_fault, component_fault, parametric_fault, sensor_fault
+from .generator import ResidualBank, ResidualGenerator
+from .lti import LTI
+from .model import FDIModel
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "FDIModel", "FaultSpec", "actuator_fault", "sensor_fault", "component_fault", "parametric_fault",
+    "LTI", "ResidualGenerator", "ResidualBank", "DesignError", "ModelError",
+    "nullspace_design", "structured_bank", "dedicated_bank", "generalized_bank",
+    "structure_matrix", "fault_gains", "hinf_minus", "fault_sensitivity_condition", "fault_noise_gap",
+    "leakage", "detectability", "isolability",
+]

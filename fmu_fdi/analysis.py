@@ -1,0 +1,209 @@
+"""Analysis of models and residual generators: structure, sensitivity, gaps, leakage.
+
+Definitions (Varga 2017, ch. 3 and 5; acceptance.md):
+
+- weak structure matrix: ``S[i, j] = 1`` when the block of ``Rf`` from fault j to
+  residual group i is not identically zero;
+- strong structure matrix at frequencies Ω: ``S[i, j] = 1`` when ``|Rf_ij(jω)| > tol``
+  for every ω in Ω (block 2-norm);
+- H∞− index: ``min_j ||Rf_j||∞`` over the fault column blocks;
+- fault sensitivity condition: H∞− index over ``max_j ||Rf_j||∞`` (1 is ideal);
+- fault-to-noise gap: H∞− index over ``||[Rd Rw]||∞``; per row of a structure matrix S,
+  the faults with ``S[i, j] = 0`` count as noise of row i (Varga's ``fdif2ngap``);
+- leakage: ``max(||Ru||∞, ||Rd||∞)`` — zero for an exact design.
+
+Any function taking a generator also takes a :class:`~fmu_fdi.model.FDIModel` (then Gf,
+the plant's own fault response, is analysed) or an :class:`~fmu_fdi.lti.LTI` /
+python-control system (each column a fault, each row a residual).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .design._basis import normal_rank
+from .generator import ResidualGenerator
+from .lti import LTI
+from .model import FDIModel
+
+DEFAULT_GAIN_TOL = 0.01  # Varga's FDGainTol: absolute gain for strong structure
+
+
+def _fault_system(obj) -> tuple[LTI, list[list[int]], list[np.ndarray], list[str]]:
+    """(Rf, residual groups, fault column blocks, fault names) of any analysable object."""
+    if isinstance(obj, ResidualGenerator):
+        Rf = obj.Rf
+        m = obj.model
+        return Rf, obj.groups, [np.arange(m.nf)[f.columns] for f in m.faults], m.fault_names
+    if isinstance(obj, FDIModel):
+        Gf = obj.lti("f")
+        return Gf, [[i] for i in range(obj.ny)], [np.arange(obj.nf)[f.columns] for f in obj.faults], obj.fault_names
+    sys = obj if isinstance(obj, LTI) else LTI.from_control(obj)
+    return sys, [[i] for i in range(sys.p)], [np.array([j]) for j in range(sys.m)], [f"f{j + 1}" for j in range(sys.m)]
+
+
+def _block_norms(Rf: LTI, groups, blocks) -> np.ndarray:
+    out = np.zeros((len(groups), len(blocks)))
+    for i, g in enumerate(groups):
+        for j, cols in enumerate(blocks):
+            out[i, j] = Rf[g, cols].minreal().hinfnorm()[0]
+    return out
+
+
+def fault_gains(obj, freqs, block: bool = False) -> np.ndarray:
+    """Gains ``||Rf_ij(jω)||_2`` of every (residual group, fault) block: shape (len(freqs), groups, faults).
+
+    ``freqs`` in rad/s (``inf`` allowed in continuous time); ``block=True`` treats all
+    residuals as one group (the norm over all outputs).
+    """
+    Rf, groups, blocks, _ = _fault_system(obj)
+    if block:
+        groups = [list(range(Rf.p))]
+    H = Rf.freqresp(np.atleast_1d(np.asarray(freqs, float)))
+    out = np.zeros((H.shape[0], len(groups), len(blocks)))
+    for i, g in enumerate(groups):
+        for j, cols in enumerate(blocks):
+            out[:, i, j] = np.linalg.norm(H[:, g][:, :, cols].reshape(H.shape[0], -1), axis=1)
+    return out
+
+
+def structure_matrix(obj, freqs=None, tol: float | None = None, block: bool = False) -> np.ndarray:
+    """Weak (``freqs=None``) or strong (at every frequency in ``freqs``) structure matrix.
+
+    Parameters
+    ----------
+    obj : ResidualGenerator, FDIModel, LTI or python-control system
+    freqs : float or array_like, optional
+        Frequencies Ω (rad/s) for the strong structure matrix.
+    tol : float, optional
+        Strong: absolute gain threshold (default 0.01, Varga's ``FDGainTol``). Weak:
+        absolute H∞-norm threshold (default ``1e-9`` times the largest block norm, i.e.
+        only rounding-level blocks count as zero).
+    block : bool
+        Treat all residual outputs as one group.
+    """
+    Rf, groups, blocks, _ = _fault_system(obj)
+    if block:
+        groups = [list(range(Rf.p))]
+    if freqs is None:
+        norms = _block_norms(Rf, groups, blocks)
+        thr = tol if tol is not None else 1e-9 * max(norms.max(initial=0.0), np.finfo(float).tiny)
+        return (norms > thr).astype(int)
+    gains = fault_gains(obj, freqs, block)
+    thr = DEFAULT_GAIN_TOL if tol is None else tol
+    return np.all(gains > thr, axis=0).astype(int)
+
+
+def _column_norms(obj, freqs=None, faults=None) -> np.ndarray:
+    Rf, _, blocks, names = _fault_system(obj)
+    if faults is not None:
+        blocks = [b for b, nm in zip(blocks, names) if nm in set(faults)]
+    if freqs is None:
+        return np.array([Rf[:, cols].minreal().hinfnorm()[0] for cols in blocks])
+    H = Rf.freqresp(np.atleast_1d(np.asarray(freqs, float)))
+    return np.array([np.max(np.linalg.norm(H[:, :, cols].reshape(H.shape[0], -1), axis=1)) for cols in blocks])
+
+
+def hinf_minus(obj, freqs=None, faults=None) -> float:
+    """H∞− index: ``min_j ||Rf_j||∞`` (over the frequencies ``freqs`` when given)."""
+    norms = _column_norms(obj, freqs, faults)
+    return float(norms.min()) if norms.size else 0.0
+
+
+def fault_sensitivity_condition(obj, freqs=None) -> float:
+    """``min_j ||Rf_j|| / max_j ||Rf_j||`` (H∞ norms, or peak gains over ``freqs``)."""
+    norms = _column_norms(obj, freqs)
+    if not norms.size or norms.max() == 0:
+        return 0.0
+    return float(norms.min() / norms.max())
+
+
+def fault_noise_gap(gen: ResidualGenerator, S=None, atol: float = np.sqrt(np.finfo(float).eps)):
+    """Fault-to-noise gap ``H∞−(Rf) / ||[Rd Rw]||∞`` (∞ when the denominator is 0).
+
+    With a structure matrix ``S`` (one row per residual group), returns the per-row gaps
+    where the faults with ``S[i, j] = 0`` join the noise of row i. Denominators at or
+    below ``atol`` count as zero.
+    """
+    R = gen.internal_form()
+    m = gen.model
+    blocks = [np.arange(m.nf)[f.columns] for f in m.faults]
+    Rdw_cols = (R["d"], R["w"])
+    if S is None:
+        beta = hinf_minus(gen)
+        noise = _hstack_norm([X for X in Rdw_cols if X.m])
+        return float("inf") if noise <= atol else beta / noise
+    S = np.asarray(S).astype(bool)
+    if S.shape != (len(gen.groups), len(blocks)):
+        raise ValueError(f"S must have shape {(len(gen.groups), len(blocks))}, got {S.shape}")
+    gaps = []
+    for i, g in enumerate(gen.groups):
+        Rf_i = R["f"][g, :]
+        beta = min((Rf_i[:, blocks[j]].minreal().hinfnorm()[0] for j in range(len(blocks)) if S[i, j]),
+                   default=0.0)
+        others = [Rf_i[:, blocks[j]] for j in range(len(blocks)) if not S[i, j]]
+        others += [X[g, :] for X in Rdw_cols if X.m]
+        noise = _hstack_norm(others)
+        gaps.append(float("inf") if noise <= atol else beta / noise)
+    return np.array(gaps)
+
+
+def _hstack_norm(systems: list[LTI]) -> float:
+    systems = [s for s in systems if s.m]
+    if not systems:
+        return 0.0
+    from .lti import hstack
+
+    return hstack(systems).minreal().hinfnorm()[0]
+
+
+def leakage(gen: ResidualGenerator) -> float:
+    """``max(||Ru||∞, ||Rd||∞)``: how much of the known and unknown inputs leaks into r."""
+    R = gen.internal_form()
+    return float(max(R["u"].hinfnorm()[0] if R["u"].m else 0.0, R["d"].hinfnorm()[0] if R["d"].m else 0.0))
+
+
+def detectability(model: FDIModel, freqs=None) -> dict[str, dict]:
+    """Per fault: is it detectable once d is decoupled (``rank [Gd Gf_j] > rank Gd``)?
+
+    With ``freqs``, also whether it is strongly detectable at each frequency (the same
+    rank condition on the frequency responses).
+    """
+    G = model.lti("d", "f")
+    rd = normal_rank(model.lti("d")) if model.nd else 0
+    out = {}
+    for spec in model.faults:
+        cols = list(range(model.nd)) + list(model.nd + np.arange(model.nf)[spec.columns])
+        rdf = normal_rank(G[:, cols])
+        entry = {"detectable": rdf > rd, "rank_Gd": rd, "rank_Gd_Gf": rdf}
+        if freqs is not None:
+            strong = {}
+            for w in np.atleast_1d(freqs):
+                H = G[:, cols].freqresp([w])[0]
+                Hd = H[:, : model.nd]
+                from .linalg import rank
+
+                strong[float(w)] = rank(H) > (rank(Hd) if model.nd else 0)
+            entry["strong"] = strong
+        out[spec.name] = entry
+    return out
+
+
+def isolability(model: FDIModel) -> dict:
+    """Pairwise isolability: ``matrix[i, j]`` is True when fault i stays detectable with
+    fault j decoupled too (``rank [Gd Gf_j Gf_i] > rank [Gd Gf_j]``), so a residual can
+    see i but not j. ``fully_isolable`` is True when the structure matrix I is
+    achievable: ``rank [Gd Gf] = rank Gd + Σ_j rank Gf_j``."""
+    G = model.lti("d", "f")
+    nd = model.nd
+    cols = [list(nd + np.arange(model.nf)[f.columns]) for f in model.faults]
+    k = len(model.faults)
+    M = np.zeros((k, k), dtype=bool)
+    for i in range(k):
+        for j in range(k):
+            if i == j:
+                continue
+            base = list(range(nd)) + cols[j]
+            M[i, j] = normal_rank(G[:, base + cols[i]]) > normal_rank(G[:, base])
+    rd = normal_rank(model.lti("d")) if nd else 0
+    full = normal_rank(G) == rd + sum(normal_rank(G[:, c]) for c in cols) if k else True
+    return {"faults": model.fault_names, "matrix": M, "fully_isolable": bool(full)}

@@ -1,0 +1,261 @@
+"""Minimal polynomial bases of the left null space of ``G(λ) = [Gu Gd; I 0]``.
+
+A row ``N(λ) = [V(λ)  -W(λ)]`` with ``V(λ) = Σ v_k λ^k`` is a left annihilator of
+``[Gu Gd; I 0]`` exactly when its coefficients form a *parity vector* (Chow and
+Willsky 1984; Frank, section 4): with the observability matrix ``O_s`` and the
+block-Toeplitz matrices of Markov parameters ``H_{d,s}``, ``H_{u,s}``,
+
+    v [O_s  H_{d,s}] = 0,        w = v H_{u,s},
+
+because then ``Σ v_k y^(k) - Σ w_k u^(k) = v H_{d,s} D_s = 0`` for every state. (λ is the
+derivative operator in continuous time and the forward shift in discrete time.)
+
+The parity vectors of order s contain the shifts ``λ^j N_i(λ)`` of every lower-order
+vector; the vectors that are new at order s — an orthonormal complement of the
+shifts inside ``null([O_s H_{d,s}]^T)`` — have degree exactly s. Collecting them for
+s = 0, 1, ... until ``p - rank Gd`` vectors are found gives a minimal (row-reduced,
+least total degree) polynomial basis; its degrees are the left Kronecker indices of
+the controllable part of ``[Gu Gd]`` (Varga 2017, sec. 7.4; Varga 2003).
+
+Numerics: states are balanced (TB01ID), the operator is scaled ``λ = ρ μ`` with ρ a
+power of two near ``||A||`` so that the block rows of ``O_s`` have comparable size, and
+columns are normalised before every SVD (which leaves a left null space unchanged).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import DesignError
+from ..linalg import complement_rows, left_null, rank
+from ..lti import LTI
+from ..model import FDIModel
+
+
+@dataclass
+class PolyRow:
+    """One polynomial row ``N(μ) = Σ_k coef[k] μ^k`` acting on ``[y; u]``."""
+
+    degree: int
+    coef: np.ndarray  # (degree + 1, p + m)
+
+    def at(self, mu: np.ndarray) -> np.ndarray:
+        """Values at the points ``mu``: shape (len(mu), p + m)."""
+        powers = np.power.outer(np.asarray(mu, complex), np.arange(self.degree + 1))
+        return powers @ self.coef
+
+    def padded(self, degree: int) -> np.ndarray:
+        out = np.zeros((degree + 1, self.coef.shape[1]))
+        out[: self.degree + 1] = self.coef
+        return out
+
+
+@dataclass
+class NullspaceBasis:
+    """A minimal polynomial left null-space basis, in the scaled operator ``μ = λ / ρ``."""
+
+    rows: list[PolyRow]
+    rho: float
+    dt: float
+    p: int
+    m: int
+    rank_d: int
+    info: dict = field(default_factory=dict)
+
+    @property
+    def degrees(self) -> list[int]:
+        return [r.degree for r in self.rows]
+
+
+def _colnormalize(M: np.ndarray) -> np.ndarray:
+    norms = np.linalg.norm(M, axis=0)
+    keep = norms > 0
+    return M[:, keep] / norms[keep]
+
+
+def _block_toeplitz(markov: list[np.ndarray], s: int) -> np.ndarray:
+    """Lower block-triangular Toeplitz matrix with blocks ``markov[i - j]``."""
+    p, m = markov[0].shape
+    H = np.zeros(((s + 1) * p, (s + 1) * m))
+    for i in range(s + 1):
+        for j in range(i + 1):
+            H[i * p:(i + 1) * p, j * m:(j + 1) * m] = markov[i - j]
+    return H
+
+
+def normal_rank(G: LTI, rtol: float | None = None, points: int = 3, seed: int = 0) -> int:
+    """Normal rank of a transfer matrix from its values at random complex points."""
+    if G.m == 0 or G.p == 0:
+        return 0
+    rng = np.random.default_rng(seed)
+    scale = max(1.0, float(np.max(np.abs(G.poles()), initial=0.0)))
+    best = 0
+    for _ in range(points):
+        lam = scale * (rng.uniform(0.5, 2.0) + 1j * rng.uniform(0.5, 2.0))
+        if G.is_discrete:
+            lam = np.exp(1j * rng.uniform(0.3, 2.8)) * rng.uniform(1.1, 1.5)
+        best = max(best, rank(G.evalfr(lam), rtol))
+    return best
+
+
+class ParityData:
+    """Scaled state-space data of ``[Gu Gd]`` and its parity matrices of growing order."""
+
+    def __init__(self, model: FDIModel, reduce: bool = True):
+        G = model.lti("u", "d")
+        self.p, self.m, self.md = model.ny, model.nu, model.nd
+        if G.n and G.m and reduce:
+            G = G.minreal(job="C")  # modes no u or d excites need no annihilating
+        elif not G.m:
+            G = LTI.static(G.D, G.dt)
+        if G.n and G.m:
+            G, _ = G.balanced()
+        self.G = G
+        normA = float(np.linalg.norm(G.A, 2)) if G.n else 0.0
+        self.rho = float(2.0 ** np.round(np.log2(normA))) if normA > 0 else 1.0
+        self.A = G.A / self.rho
+        B = G.B / self.rho
+        self.Bu, self.Bd = B[:, : self.m], B[:, self.m:]
+        self.C = G.C
+        self.Du, self.Dd = G.D[:, : self.m], G.D[:, self.m:]
+        self.n = G.n
+        self._O = [self.C]
+        self._mu = [self.Du]
+        self._md = [self.Dd]
+
+    def _grow(self, s: int):
+        while len(self._O) <= s:
+            k = len(self._O)
+            CAk1 = self._O[k - 1]  # C A^{k-1}
+            self._mu.append(CAk1 @ self.Bu)
+            self._md.append(CAk1 @ self.Bd)
+            self._O.append(CAk1 @ self.A)
+
+    def O(self, s: int) -> np.ndarray:
+        self._grow(s)
+        return np.vstack(self._O[: s + 1])
+
+    def Hu(self, s: int) -> np.ndarray:
+        self._grow(s)
+        return _block_toeplitz(self._mu[: s + 1], s)
+
+    def Hd(self, s: int) -> np.ndarray:
+        self._grow(s)
+        return _block_toeplitz(self._md[: s + 1], s)
+
+    def parity_vectors(self, s: int, rtol: float | None = None) -> np.ndarray:
+        """Orthonormal rows spanning ``{v : v [O_s H_{d,s}] = 0}``."""
+        M = np.hstack([self.O(s), self.Hd(s)]) if self.n or self.md else np.zeros(((s + 1) * self.p, 0))
+        return left_null(_colnormalize(M), rtol) if M.shape[1] else np.eye((s + 1) * self.p)
+
+    def row(self, v: np.ndarray, s: int) -> PolyRow:
+        """Polynomial row ``[V(μ), -W(μ)]`` of the parity vector ``v`` of order s."""
+        W = v @ self.Hu(s) if self.m else np.zeros(0)
+        coef = np.hstack([v.reshape(s + 1, self.p), -W.reshape(s + 1, self.m)])
+        return PolyRow(s, coef)
+
+
+def minimal_basis(model: FDIModel, rtol: float | None = None) -> NullspaceBasis:
+    """Minimal polynomial basis of the left null space of ``[Gu Gd; I 0]``."""
+    data = ParityData(model)
+    p = model.ny
+    rank_d = normal_rank(model.lti("d"), rtol) if model.nd else 0
+    target = p - rank_d
+    rows: list[PolyRow] = []
+    vecs: list[tuple[int, np.ndarray]] = []
+    for s in range(0, data.n + 2):
+        if len(rows) >= target:
+            break
+        N = data.parity_vectors(s, rtol)
+        shifts = []
+        for deg, v in vecs:
+            for j in range(s - deg + 1):
+                row = np.zeros((s + 1) * p)
+                row[j * p:(j + deg + 1) * p] = v
+                shifts.append(row)
+        S = np.array(shifts) if shifts else np.zeros((0, (s + 1) * p))
+        new = complement_rows(N, S, rtol)
+        for v in new:
+            vecs.append((s, v))
+            rows.append(data.row(v, s))
+    if len(rows) != target:
+        raise DesignError(
+            f"the null-space computation found {len(rows)} basis vectors where the normal rank condition "
+            f"p - rank(Gd) = {p} - {rank_d} = {target} requires {target}; the rank decisions are ill "
+            f"conditioned for this model — scale the model or pass a looser tol"
+        )
+    return NullspaceBasis(rows, data.rho, model.dt, p, model.nu, rank_d,
+                          info={"controllable_order": data.n})
+
+
+def default_poles(dt: float, rho: float) -> float:
+    """Default filter pole: as fast as the plant (continuous), deadbeat (discrete)."""
+    return 0.0 if dt else -max(1.0, rho)
+
+
+def pick_poles(poles, sdeg: float, count: int) -> np.ndarray:
+    """``count`` poles closed under conjugation: the given ones first, then ``sdeg``."""
+    poles = [] if poles is None else list(np.atleast_1d(np.asarray(poles, complex)))
+    out: list[complex] = []
+    i = 0
+    while len(out) < count and i < len(poles):
+        pole = poles[i]
+        if abs(pole.imag) > 1e-12 * max(1.0, abs(pole)):
+            if len(out) + 2 > count:
+                i += 1
+                continue
+            out.extend([pole, np.conj(pole)])
+            # skip the conjugate if it is listed next
+            if i + 1 < len(poles) and abs(poles[i + 1] - np.conj(pole)) < 1e-9 * max(1.0, abs(pole)):
+                i += 1
+        else:
+            out.append(complex(pole.real, 0.0))
+        i += 1
+    out.extend([complex(sdeg, 0.0)] * (count - len(out)))
+    return np.array(out[:count])
+
+
+def check_poles(poles, dt: float) -> None:
+    poles = np.atleast_1d(np.asarray(poles, complex)) if poles is not None else np.zeros(0)
+    if poles.size and not np.all(np.isfinite(poles)):
+        raise DesignError("poles must be finite numbers")
+    bad = poles[np.abs(poles) >= 1.0] if dt else poles[poles.real >= 0]
+    if bad.size:
+        region = "inside the unit circle" if dt else "in the open left half-plane"
+        raise DesignError(f"poles {bad.tolist()} are not stable: residual generator poles must lie {region}")
+
+
+def realize_rows(coefs: list[np.ndarray], dens: list[np.ndarray], rho: float, dt: float) -> LTI:
+    """State-space realisation of rows ``N_i(μ) / d_i(μ)`` in the operator ``λ = ρ μ``.
+
+    Row i has numerator coefficients ``coefs[i]`` (ν+1, q) in ascending powers of μ
+    and monic denominator with roots ``dens[i]`` (ν of them, in μ). Each row is an
+    observer-canonical block; ``A_λ = ρ A_μ``, ``B_λ = ρ B_μ`` undo the scaling.
+    """
+    As, Bs, Cs, Ds = [], [], [], []
+    q = coefs[0].shape[1]
+    for N, roots in zip(coefs, dens):
+        nu = N.shape[0] - 1
+        a = np.real_if_close(np.poly(roots)) if nu else np.array([1.0])  # [1, a_{ν-1}, ..., a_0]
+        a = np.real(a)
+        a_asc = a[::-1]  # a_0 ... a_{ν-1}, 1
+        Dq = N[nu:nu + 1, :]
+        A = np.zeros((nu, nu))
+        if nu:
+            A[1:, :-1] = np.eye(nu - 1)
+            A[:, -1] = -a_asc[:nu]
+        B = N[:nu, :] - np.outer(a_asc[:nu], Dq[0])
+        C = np.zeros((1, nu))
+        if nu:
+            C[0, -1] = 1.0
+        As.append(A * rho)
+        Bs.append(B * rho)
+        Cs.append(C)
+        Ds.append(Dq)
+    n_tot = sum(A.shape[0] for A in As)
+    return LTI(sla.block_diag(*As) if n_tot else np.zeros((0, 0)),
+               np.vstack(Bs) if n_tot else np.zeros((0, q)),
+               sla.block_diag(*Cs) if n_tot else np.zeros((len(coefs), 0)),
+               np.vstack(Ds), dt)

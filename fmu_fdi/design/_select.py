@@ -1,0 +1,81 @@
+"""Choosing linear combinations of null-space basis rows.
+
+A least-order scalar residual is a constant combination ``h N(μ) / d(μ)`` of the basis
+rows of degree ≤ ν (Varga 2003). Among the combinations, we pick the one with the best
+*fault sensitivity condition* — the smallest fault gain over the largest, both measured
+as peak gains on a frequency grid — which also keeps every fault visible, and, with
+frequencies Ω for strong detectability, the smallest gain at Ω counts too. The search is
+deterministic (fixed seed): a spread of starting directions, then Nelder–Mead on the
+unit sphere for small dimensions.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+import scipy.optimize as sopt
+
+
+def _normalize(h: np.ndarray) -> np.ndarray:
+    nrm = np.linalg.norm(h)
+    return h / nrm if nrm > 0 else h
+
+
+def maximize_on_sphere(objective: Callable[[np.ndarray], float], k: int, seed: int = 0,
+                       starts: int = 48, extra_starts=(), refine_dim: int = 12) -> tuple[np.ndarray, float]:
+    """Maximise a scale-invariant objective over unit vectors in R^k."""
+    if k == 1:
+        h = np.ones(1)
+        return h, objective(h)
+    rng = np.random.default_rng(seed)
+    cands = [np.eye(k)[i] for i in range(k)] + [np.ones(k) / np.sqrt(k)]
+    cands += [_normalize(np.asarray(c, float)) for c in extra_starts]
+    cands += [_normalize(rng.standard_normal(k)) for _ in range(starts)]
+    scored = sorted(((objective(c), i, c) for i, c in enumerate(cands)), key=lambda t: -t[0])
+    best_val, _, best = scored[0]
+    if k <= refine_dim:
+        for val0, _, c in scored[:4]:
+            res = sopt.minimize(lambda x: -objective(_normalize(x)), c, method="Nelder-Mead",
+                                options={"xatol": 1e-10, "fatol": 1e-12, "maxiter": 400 * k, "maxfev": 400 * k})
+            h = _normalize(res.x)
+            val = objective(h)
+            if val > best_val:
+                best_val, best = val, h
+    return best, best_val
+
+
+def sensitivity_objective(P: list[np.ndarray], strong: list[np.ndarray] | None = None):
+    """Fault sensitivity condition of a combination ``h`` of rows.
+
+    ``P[j]`` has shape (points, rows, cols_j): the responses of every row to fault j on
+    a frequency grid; ``strong[j]`` the same at the strong-detectability frequencies.
+    """
+
+    def objective(h: np.ndarray) -> float:
+        peaks = np.array([np.max(np.linalg.norm(np.einsum("r,krc->kc", h, Pj), axis=1)) for Pj in P])
+        top = peaks.max()
+        if top <= 0:
+            return 0.0
+        worst = peaks.min()
+        if strong is not None:
+            lows = [np.min(np.linalg.norm(np.einsum("r,krc->kc", h, Sj), axis=1)) for Sj in strong]
+            worst = min(worst, min(lows))
+        return float(worst / top)
+
+    return objective
+
+
+def greedy_combinations(objective: Callable[[np.ndarray], float], k: int, rdim: int,
+                        seed: int = 0) -> np.ndarray:
+    """``rdim`` orthonormal combination rows, each the best in the orthogonal complement
+    of the previous ones (``objective`` acts on a full combination vector in R^k)."""
+    if rdim >= k:
+        return np.eye(k)
+    H = np.zeros((0, k))
+    Z = np.eye(k)
+    for _ in range(rdim):
+        c, _ = maximize_on_sphere(lambda x: objective(x @ Z), Z.shape[0], seed)
+        H = np.vstack([H, c @ Z])
+        _, _, Vh = np.linalg.svd(H, full_matrices=True)
+        Z = Vh[H.shape[0]:]
+    return H

@@ -1,0 +1,102 @@
+"""Banks of residual generators for fault isolation: DOS, GOS and any structure matrix.
+
+Structured residuals (Frank, section 5.3; Varga 2017, Procedure EFDI/AFDI): residual i
+must respond to the faults with ``S[i, j] = 1`` and must not respond to those with
+``S[i, j] = 0``. Each row is a fault detection problem in its own right in which the
+faults to be ignored are treated as unknown inputs and decoupled exactly:
+
+    Q_i [Gu Gd Gf_{S_i=0}; I 0 0] = 0,    Q_i [Gf_j; 0] ≠ 0 for S[i, j] = 1.
+
+- Dedicated observer scheme (DOS; Clark 1978): S = I over the faults of one kind —
+  each residual sees exactly one fault.
+- Generalised observer scheme (GOS; Frank 1987): S = 1 - I — each residual sees all
+  faults but one, which makes it robust to that fault; a single fault leaves exactly
+  one residual silent.
+
+A fault is isolated when the pattern of alarms matches exactly one column of S.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import DesignError
+from ..generator import ResidualBank, ResidualGenerator
+from ..model import FDIModel
+from .nullspace import nullspace_design
+
+
+def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, noise: str = "optimize",
+                    FDtol: float = 1e-4, tol: float | None = None, seed: int = 0) -> ResidualBank:
+    """One least-order residual per row of the structure matrix ``S``.
+
+    Parameters
+    ----------
+    model : FDIModel
+    S : array_like of 0/1, shape (rows, len(faults))
+        Row i: 1 where residual i must see the fault, 0 where it must not.
+    faults : list of str, optional
+        The faults the columns of S refer to (default: all faults of the model, in order).
+        Faults not listed are neither required nor decoupled.
+    poles, sdeg, noise, FDtol, tol, seed
+        As in :func:`~fmu_fdi.design.nullspace.nullspace_design`, per row.
+
+    Raises
+    ------
+    DesignError
+        Naming every row that cannot be achieved and why.
+    """
+    names = list(model.fault_names if faults is None else faults)
+    for nm in names:
+        model.fault(nm)
+    S = np.asarray(S)
+    if S.ndim != 2 or S.shape[1] != len(names):
+        raise DesignError(f"structure matrix must have {len(names)} columns (faults {names}), got shape {S.shape}")
+    if not np.all(np.isin(S, (0, 1))):
+        raise DesignError("structure matrix entries must be 0 or 1")
+    members, failures = [], []
+    for i, row in enumerate(S.astype(int)):
+        if not row.any():
+            failures.append(f"row {i + 1} {row.tolist()}: a residual that sees no fault detects nothing")
+            continue
+        ignore = [nm for nm, s in zip(names, row) if s == 0]
+        keep = [nm for nm, s in zip(names, row) if s == 1]
+        mi = model.with_disturbances(ignore)
+        # faults outside the structure are don't-care for this row
+        extra = [f.name for f in mi.faults if f.name not in keep]
+        mi_design = mi._replace(faults=[f for f in mi.faults if f.name in keep]) if extra else mi
+        try:
+            g = nullspace_design(mi_design, rdim=1, poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol, tol=tol,
+                                 seed=seed)
+        except DesignError as exc:
+            failures.append(f"row {i + 1} {row.tolist()} (decoupling {ignore or 'nothing'}): {exc}")
+            continue
+        members.append(ResidualGenerator(g.Q, model, "structured", info=g.info))
+    if failures:
+        raise DesignError("structure matrix cannot be achieved: " + " | ".join(failures))
+    return ResidualBank(members, "structured", info={"structure": S.astype(int).tolist(), "faults": names})
+
+
+def _faults_of_kind(model: FDIModel, kind: str) -> list[str]:
+    if kind not in ("sensor", "actuator"):
+        raise DesignError(f"kind must be 'sensor' or 'actuator', got {kind!r}")
+    names = [f.name for f in model.faults if f.kind == kind]
+    if len(names) < 2:
+        raise DesignError(f"a {kind} bank needs at least two {kind} faults in the model; it has {names}")
+    return names
+
+
+def dedicated_bank(model: FDIModel, kind: str = "sensor", **kwargs) -> ResidualBank:
+    """Dedicated observer scheme: residual i sees only fault i of the given kind (S = I)."""
+    names = _faults_of_kind(model, kind)
+    bank = structured_bank(model, np.eye(len(names), dtype=int), faults=names, **kwargs)
+    bank.method = "dos"
+    return bank
+
+
+def generalized_bank(model: FDIModel, kind: str = "sensor", **kwargs) -> ResidualBank:
+    """Generalised observer scheme: residual i sees every fault of the kind but fault i (S = 1 - I)."""
+    names = _faults_of_kind(model, kind)
+    S = np.ones((len(names), len(names)), dtype=int) - np.eye(len(names), dtype=int)
+    bank = structured_bank(model, S, faults=names, **kwargs)
+    bank.method = "gos"
+    return bank

@@ -1,0 +1,101 @@
+"""Orthogonal rank and subspace helpers with tolerances relative to the data's norm.
+
+Every rank decision in fmu-fdi goes through :func:`rank_tol`, so one rule holds
+everywhere: a singular value counts when it exceeds ``rtol * sigma_max`` (plus an
+optional absolute floor). The default ``rtol = max(shape) * eps * 1e3`` follows
+LAPACK practice (``max(m, n) * eps * ||M||``) with three digits of headroom for data
+that went through a few orthogonal transformations before the test.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+EPS = np.finfo(float).eps
+
+
+def default_rtol(shape) -> float:
+    """Relative rank tolerance for a matrix of the given shape."""
+    return max(1, *shape) * EPS * 1e3
+
+
+def rank_tol(s: np.ndarray, shape, rtol: float | None = None, atol: float = 0.0) -> float:
+    """Threshold below which singular values ``s`` (descending) count as zero."""
+    if rtol is None:
+        rtol = default_rtol(shape)
+    smax = s[0] if s.size else 0.0
+    return max(rtol * smax, atol)
+
+
+def rank(M: np.ndarray, rtol: float | None = None, atol: float = 0.0) -> int:
+    """Numerical rank by SVD with a tolerance relative to ``||M||_2``."""
+    M = np.atleast_2d(np.asarray(M))
+    if M.size == 0:
+        return 0
+    s = sla.svd(M, compute_uv=False)
+    return int(np.sum(s > rank_tol(s, M.shape, rtol, atol)))
+
+
+def left_null(M: np.ndarray, rtol: float | None = None, atol: float = 0.0) -> np.ndarray:
+    """Orthonormal rows ``N`` spanning the left null space: ``N @ M ~ 0``.
+
+    Returned as a (k, rows) array; ``k = rows - rank(M)``.
+    """
+    M = np.atleast_2d(np.asarray(M, dtype=float))
+    rows = M.shape[0]
+    if M.shape[1] == 0 or not np.any(M):
+        return np.eye(rows)
+    U, s, _ = sla.svd(M, full_matrices=True)
+    r = int(np.sum(s > rank_tol(s, M.shape, rtol, atol)))
+    return U[:, r:].T.copy()
+
+
+def right_null(M: np.ndarray, rtol: float | None = None, atol: float = 0.0) -> np.ndarray:
+    """Orthonormal columns spanning the right null space: ``M @ N ~ 0``."""
+    return left_null(np.asarray(M).T, rtol, atol).T
+
+
+def orth_rows(M: np.ndarray, rtol: float | None = None, atol: float = 0.0) -> np.ndarray:
+    """Orthonormal rows spanning the row space of ``M``."""
+    M = np.atleast_2d(np.asarray(M, dtype=float))
+    if M.size == 0:
+        return np.zeros((0, M.shape[1]))
+    _, s, Vh = sla.svd(M, full_matrices=False)
+    r = int(np.sum(s > rank_tol(s, M.shape, rtol, atol)))
+    return Vh[:r]
+
+
+def complement_rows(N: np.ndarray, S: np.ndarray, rtol: float | None = None) -> np.ndarray:
+    """Orthonormal rows of ``span(N)`` orthogonal to ``span(S)``.
+
+    ``N`` must have orthonormal rows and ``span(S) ⊂ span(N)`` (numerically). The
+    result has ``dim span(N) - rank(S)`` rows.
+    """
+    if S.shape[0] == 0:
+        return N.copy()
+    Sorth = orth_rows(S, rtol)
+    Z = N - (N @ Sorth.T) @ Sorth
+    k = N.shape[0] - Sorth.shape[0]
+    if k <= 0:
+        return np.zeros((0, N.shape[1]))
+    _, _, Vh = sla.svd(Z, full_matrices=False)
+    return Vh[:k]
+
+
+def is_finite(*arrays) -> bool:
+    return all(np.all(np.isfinite(np.asarray(a, dtype=float))) for a in arrays)
+
+
+def sqrtm_psd(M: np.ndarray) -> np.ndarray:
+    """Symmetric square root of a positive semidefinite matrix (via eigh)."""
+    w, V = sla.eigh((M + M.T) / 2)
+    w = np.clip(w, 0.0, None)
+    return (V * np.sqrt(w)) @ V.T
+
+
+def inv_sqrtm_pd(M: np.ndarray) -> np.ndarray:
+    """Symmetric inverse square root of a positive definite matrix (via eigh)."""
+    w, V = sla.eigh((M + M.T) / 2)
+    if w[0] <= EPS * max(1.0, w[-1]) * M.shape[0]:
+        raise np.linalg.LinAlgError("matrix is not positive definite")
+    return (V / np.sqrt(w)) @ V.T

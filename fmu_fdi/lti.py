@@ -1,0 +1,417 @@
+"""A small state-space toolkit: the LTI object every design returns and analysis reads.
+
+``LTI(A, B, C, D, dt)`` is ``x' = A x + B v, r = C x + D v`` in continuous time
+(``dt == 0``) or ``x[k+1] = A x[k] + B v[k]`` in discrete time (``dt > 0``).
+Products, stacking, minimal realisation (SLICOT TB01PD, orthogonal staircase),
+H-infinity norms (SLICOT AB13DD, Bruinsma–Steinbuch) and exact zero-order-hold
+discretisation live here so that design code never hand-rolls them twice.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable, Sequence
+
+import numpy as np
+import scipy.linalg as sla
+
+from .linalg import EPS, is_finite
+
+
+def _as2d(X, shape_if_empty: tuple[int, int], name: str) -> np.ndarray:
+    X = np.asarray(X, dtype=float)
+    if X.size == 0:
+        return np.zeros(shape_if_empty)
+    if X.ndim == 0:
+        return X.reshape(1, 1)
+    if X.ndim != 2:
+        raise ValueError(f"{name} must be a 2-D matrix, got shape {X.shape}")
+    return X
+
+
+@dataclass(frozen=True, eq=False)
+class LTI:
+    """Linear time-invariant system in state-space form.
+
+    Parameters
+    ----------
+    A, B, C, D : array_like
+        State-space matrices of shapes (n, n), (n, m), (p, n), (p, m).
+    dt : float
+        0 for continuous time, the sample time for discrete time.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    dt: float = 0.0
+
+    # numpy must defer to LTI for ``ndarray @ LTI`` (constant pre-multiplication)
+    __array_ufunc__ = None
+
+    def __post_init__(self):
+        D = np.asarray(self.D, dtype=float)
+        if D.ndim == 0:
+            D = D.reshape(1, 1)
+        if D.ndim != 2:
+            raise ValueError(f"D must be a 2-D matrix, got shape {D.shape}")
+        p, m = D.shape
+        A = _as2d(self.A, (0, 0), "A")
+        n = A.shape[0]
+        B = _as2d(self.B, (n, m), "B")
+        C = _as2d(self.C, (p, n), "C")
+        if A.shape != (n, n) or B.shape != (n, m) or C.shape != (p, n):
+            raise ValueError(
+                f"inconsistent state-space shapes: A {A.shape}, B {B.shape}, C {C.shape}, D {D.shape}"
+            )
+        if not is_finite(A, B, C, D):
+            raise ValueError("state-space matrices contain NaN or Inf")
+        dt = float(self.dt)
+        if not np.isfinite(dt) or dt < 0:
+            raise ValueError(f"dt must be 0 (continuous) or a positive sample time, got {self.dt!r}")
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "B", B)
+        object.__setattr__(self, "C", C)
+        object.__setattr__(self, "D", D)
+        object.__setattr__(self, "dt", dt)
+
+    # ------------------------------------------------------------------ basics
+    @property
+    def n(self) -> int:
+        return self.A.shape[0]
+
+    @property
+    def m(self) -> int:
+        return self.B.shape[1]
+
+    @property
+    def p(self) -> int:
+        return self.C.shape[0]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.p, self.m
+
+    @property
+    def is_discrete(self) -> bool:
+        return self.dt > 0
+
+    @classmethod
+    def static(cls, D, dt: float = 0.0) -> "LTI":
+        D = np.atleast_2d(np.asarray(D, dtype=float))
+        return cls(np.zeros((0, 0)), np.zeros((0, D.shape[1])), np.zeros((D.shape[0], 0)), D, dt)
+
+    @classmethod
+    def zero(cls, p: int, m: int, dt: float = 0.0) -> "LTI":
+        return cls.static(np.zeros((p, m)), dt)
+
+    def __repr__(self) -> str:
+        kind = f"discrete, dt={self.dt:g}" if self.is_discrete else "continuous"
+        return f"LTI(n={self.n}, inputs={self.m}, outputs={self.p}, {kind})"
+
+    def __getitem__(self, idx) -> "LTI":
+        rows, cols = idx if isinstance(idx, tuple) else (idx, slice(None))
+        rows = _index(rows, self.p)
+        cols = _index(cols, self.m)
+        return LTI(self.A, self.B[:, cols], self.C[rows, :], self.D[np.ix_(rows, cols)], self.dt)
+
+    # ----------------------------------------------------------- evaluation
+    def evalfr(self, lam: complex) -> np.ndarray:
+        """Transfer matrix ``C (lam I - A)^{-1} B + D`` at one complex point."""
+        if self.n == 0:
+            return self.D.astype(complex)
+        X = np.linalg.solve(lam * np.eye(self.n) - self.A, self.B.astype(complex))
+        return self.C @ X + self.D
+
+    def freq_points(self, omega) -> np.ndarray:
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        if self.is_discrete:
+            return np.exp(1j * omega * self.dt)
+        return 1j * omega
+
+    def freqresp(self, omega) -> np.ndarray:
+        """Frequency response at real frequencies ``omega`` (rad/s): shape (len, p, m).
+
+        ``omega = inf`` gives D in continuous time.
+        """
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        out = np.empty((omega.size, self.p, self.m), dtype=complex)
+        if self.n == 0:
+            out[:] = self.D
+            return out
+        # One Hessenberg reduction makes every frequency an O(n^2) solve.
+        H, Z = sla.hessenberg(self.A, calc_q=True)
+        Bh = Z.T @ self.B
+        Ch = self.C @ Z
+        eye = np.eye(self.n)
+        for k, w in enumerate(omega):
+            if not self.is_discrete and np.isinf(w):
+                out[k] = self.D
+                continue
+            lam = np.exp(1j * w * self.dt) if self.is_discrete else 1j * w
+            out[k] = Ch @ sla.solve(lam * eye - H, Bh.astype(complex)) + self.D
+        return out
+
+    def dcgain(self) -> np.ndarray:
+        return self.freqresp([0.0])[0].real
+
+    def poles(self) -> np.ndarray:
+        return np.linalg.eigvals(self.A) if self.n else np.zeros(0, complex)
+
+    def is_stable(self, margin: float = 0.0) -> bool:
+        """All poles in Re < -margin (continuous) or |z| < 1 - margin (discrete)."""
+        p = self.poles()
+        if p.size == 0:
+            return True
+        if self.is_discrete:
+            return bool(np.all(np.abs(p) < 1.0 - margin))
+        return bool(np.all(p.real < -margin))
+
+    # -------------------------------------------------------- interconnection
+    def _check_dt(self, other: "LTI"):
+        if abs(self.dt - other.dt) > 1e-12 * max(1.0, self.dt):
+            raise ValueError(f"cannot connect systems with sample times {self.dt} and {other.dt}")
+
+    def __matmul__(self, other: "LTI") -> "LTI":
+        """Series connection ``self(λ) · other(λ)`` (other acts first)."""
+        if isinstance(other, np.ndarray):
+            return LTI(self.A, self.B @ other, self.C, self.D @ other, self.dt)
+        self._check_dt(other)
+        if self.m != other.p:
+            raise ValueError(f"series connection: {self.m} inputs vs {other.p} outputs")
+        n1, n2 = self.n, other.n
+        A = np.block([[other.A, np.zeros((n2, n1))], [self.B @ other.C, self.A]])
+        B = np.vstack([other.B, self.B @ other.D])
+        C = np.hstack([self.D @ other.C, self.C])
+        return LTI(A, B, C, self.D @ other.D, self.dt)
+
+    def __rmatmul__(self, other) -> "LTI":
+        other = np.asarray(other, dtype=float)
+        return LTI(self.A, self.B, other @ self.C, other @ self.D, self.dt)
+
+    def __mul__(self, k) -> "LTI":
+        k = float(k)
+        return LTI(self.A, self.B, k * self.C, k * self.D, self.dt)
+
+    __rmul__ = __mul__
+
+    def __neg__(self) -> "LTI":
+        return self * -1.0
+
+    def __add__(self, other: "LTI") -> "LTI":
+        if isinstance(other, (int, float, np.ndarray)):
+            other = LTI.static(np.broadcast_to(np.asarray(other, float), self.shape), self.dt)
+        self._check_dt(other)
+        if self.shape != other.shape:
+            raise ValueError(f"cannot add systems of shapes {self.shape} and {other.shape}")
+        return LTI(
+            sla.block_diag(self.A, other.A),
+            np.vstack([self.B, other.B]),
+            np.hstack([self.C, other.C]),
+            self.D + other.D,
+            self.dt,
+        )
+
+    def __sub__(self, other: "LTI") -> "LTI":
+        return self + (-other)
+
+    def transpose(self) -> "LTI":
+        return LTI(self.A.T, self.C.T, self.B.T, self.D.T, self.dt)
+
+    # --------------------------------------------------------- realisation
+    def minreal(self, tol: float | None = None, job: str = "M") -> "LTI":
+        """Minimal (or controllable 'C' / observable 'O') realisation by SLICOT TB01PD.
+
+        The orthogonal staircase keeps the computation backward stable; ``tol`` is the
+        rank tolerance of the staircase (SLICOT's default ``n*n*eps*||[A B; C 0]||`` when
+        None).
+        """
+        n, m, p = self.n, self.m, self.p
+        if n == 0:
+            return self
+        if m == 0 and job in "MC" or p == 0 and job in "MO":
+            return LTI.static(self.D, self.dt)
+        import slycot
+
+        mp = max(m, p, 1)
+        B = np.zeros((n, mp))
+        B[:, :m] = self.B
+        C = np.zeros((mp, n))
+        C[:p, :] = self.C
+        Ar, Br, Cr, nr = slycot.tb01pd(n, m, p, self.A.copy(), B, C, job=job, equil="N",
+                                       tol=0.0 if tol is None else tol)
+        return LTI(Ar[:nr, :nr], Br[:nr, :m], Cr[:p, :nr], self.D, self.dt)
+
+    def to_discrete(self, Ts: float) -> "LTI":
+        """Exact zero-order-hold discretisation: ``Ad = e^{A Ts}``, ``Bd = ∫ e^{A t} dt B``."""
+        if self.is_discrete:
+            raise ValueError("system is already discrete")
+        Ts = float(Ts)
+        if not np.isfinite(Ts) or Ts <= 0:
+            raise ValueError(f"sample time must be positive, got {Ts!r}")
+        n, m = self.n, self.m
+        M = np.zeros((n + m, n + m))
+        M[:n, :n] = self.A * Ts
+        M[:n, n:] = self.B * Ts
+        E = sla.expm(M)
+        return LTI(E[:n, :n], E[:n, n:], self.C, self.D, Ts)
+
+    def balanced(self) -> tuple["LTI", np.ndarray]:
+        """Diagonal-similarity balancing of ``[A B; C 0]`` (SLICOT TB01ID): returns (sys, scale).
+
+        The state is ``x_bal = diag(scale)^{-1} x``.
+        """
+        n, m, p = self.n, self.m, self.p
+        if n == 0 or m == 0 or p == 0:
+            return self, np.ones(n)
+        import slycot
+
+        _, A, B, C, scale = slycot.tb01id(n, m, p, 0.0, self.A.copy(), self.B.copy(), self.C.copy(), job="A")
+        return LTI(A, B, C, self.D, self.dt), np.asarray(scale)
+
+    # ---------------------------------------------------------------- norms
+    def hinfnorm(self) -> tuple[float, float]:
+        """L-infinity norm and peak frequency (H-infinity norm for stable systems).
+
+        Uses SLICOT AB13DD. Returns ``(inf, freq)`` for a pole on the stability boundary.
+        """
+        if self.m == 0 or self.p == 0:
+            return 0.0, 0.0
+        if self.n == 0 or not np.any(self.B) or not np.any(self.C):
+            return float(np.linalg.norm(self.D, 2)), float("inf")
+        import slycot
+
+        dico = "D" if self.is_discrete else "C"
+        poles = self.poles()
+        boundary = np.abs(np.abs(poles) - 1.0) if self.is_discrete else np.abs(poles.real)
+        scale = max(1.0, float(np.max(np.abs(poles))))
+        if np.any(boundary < 1e3 * EPS * scale):
+            return float("inf"), 0.0
+        g, f = slycot.ab13dd(dico, "I", "N", "D", self.n, self.m, self.p, self.A.copy(),
+                             np.eye(self.n), self.B.copy(), self.C.copy(), self.D.copy())
+        g, f = float(g), float(f)
+        if self.is_discrete and np.isfinite(f):
+            f = f / self.dt
+        return g, f
+
+    def h2norm(self) -> float:
+        """H2 norm (system must be stable; D must be 0 in continuous time)."""
+        if self.m == 0 or self.p == 0:
+            return 0.0
+        if self.is_discrete:
+            if self.n == 0:
+                return float(np.linalg.norm(self.D))
+            P = sla.solve_discrete_lyapunov(self.A, self.B @ self.B.T)
+            return float(np.sqrt(np.trace(self.C @ P @ self.C.T + self.D @ self.D.T)))
+        if np.any(self.D):
+            return float("inf")
+        if self.n == 0:
+            return 0.0
+        P = sla.solve_continuous_lyapunov(self.A, -self.B @ self.B.T)
+        return float(np.sqrt(max(np.trace(self.C @ P @ self.C.T), 0.0)))
+
+    def scale_of(self) -> float:
+        """A size of the data used for relative tolerances: ``||[A B; C D]||_F``."""
+        return float(np.sqrt(sum(np.sum(X * X) for X in (self.A, self.B, self.C, self.D))))
+
+    # --------------------------------------------------------------- python-control
+    def to_control(self):
+        import control
+
+        return control.ss(self.A, self.B, self.C, self.D, self.dt if self.is_discrete else 0)
+
+    @classmethod
+    def from_control(cls, sys) -> "LTI":
+        import control
+
+        if isinstance(sys, control.TransferFunction):
+            sys = control.tf2ss(sys)
+        if not isinstance(sys, control.StateSpace):
+            raise TypeError(f"expected a python-control StateSpace or TransferFunction, got {type(sys).__name__}")
+        dt = sys.dt
+        if dt is True:
+            raise ValueError("discrete system with unspecified sample time (dt=True): give a numeric dt")
+        return cls(sys.A, sys.B, sys.C, sys.D, float(dt or 0.0))
+
+
+def _index(idx, size: int) -> np.ndarray:
+    if isinstance(idx, slice):
+        return np.arange(size)[idx]
+    idx = np.atleast_1d(np.asarray(idx))
+    if idx.dtype == bool:
+        return np.flatnonzero(idx)
+    return idx.astype(int)
+
+
+def hstack(systems: Sequence[LTI]) -> LTI:
+    """``[G1 G2 ...]``: shared outputs, concatenated inputs (block-diagonal states)."""
+    systems = list(systems)
+    dt = systems[0].dt
+    p = systems[0].p
+    for s in systems:
+        systems[0]._check_dt(s)
+        if s.p != p:
+            raise ValueError("hstack: all systems need the same number of outputs")
+    return LTI(
+        sla.block_diag(*[s.A for s in systems]) if any(s.n for s in systems) else np.zeros((0, 0)),
+        sla.block_diag(*[s.B for s in systems]),
+        np.hstack([s.C for s in systems]),
+        np.hstack([s.D for s in systems]),
+        dt,
+    )
+
+
+def vstack(systems: Sequence[LTI]) -> LTI:
+    """``[G1; G2; ...]``: shared inputs, concatenated outputs."""
+    systems = list(systems)
+    m = systems[0].m
+    for s in systems:
+        systems[0]._check_dt(s)
+        if s.m != m:
+            raise ValueError("vstack: all systems need the same number of inputs")
+    return LTI(
+        sla.block_diag(*[s.A for s in systems]) if any(s.n for s in systems) else np.zeros((0, 0)),
+        np.vstack([s.B for s in systems]),
+        sla.block_diag(*[s.C for s in systems]),
+        np.vstack([s.D for s in systems]),
+        systems[0].dt,
+    )
+
+
+def blockdiag(systems: Iterable[LTI]) -> LTI:
+    systems = list(systems)
+    for s in systems:
+        systems[0]._check_dt(s)
+    return LTI(
+        sla.block_diag(*[s.A for s in systems]),
+        sla.block_diag(*[s.B for s in systems]),
+        sla.block_diag(*[s.C for s in systems]),
+        sla.block_diag(*[s.D for s in systems]),
+        systems[0].dt,
+    )
+
+
+def _pole_scales(poles, dt: float) -> np.ndarray:
+    p = np.asarray(poles, complex)
+    p = p[np.abs(p) > 0]
+    return np.abs(np.log(p)) / dt if dt else np.abs(p)
+
+
+def frequency_grid(systems: Sequence[LTI], num: int = 400, extra=(), poles=()) -> np.ndarray:
+    """Log-spaced frequencies (rad/s) spanning two decades beyond every pole scale, plus 0.
+
+    ``poles`` adds further pole locations (in the systems' domain). For discrete systems
+    the grid stops at the Nyquist frequency.
+    """
+    dt = next((s.dt for s in systems if s.dt), 0.0)
+    mags = np.concatenate([_pole_scales(s.poles(), s.dt) for s in systems] + [_pole_scales(poles, dt)])
+    mags = mags[np.isfinite(mags) & (mags > 0)]
+    lo = mags.min() / 100 if mags.size else 1e-3
+    hi = mags.max() * 100 if mags.size else 1e3
+    if dt > 0:
+        hi = min(hi, np.pi / dt)
+        lo = min(lo, hi / 1e4)
+    grid = np.concatenate([[0.0], np.logspace(np.log10(lo), np.log10(hi), num), np.asarray(extra, float)])
+    if dt > 0:
+        grid = np.append(grid, np.pi / dt)
+    return np.unique(grid)

@@ -1,0 +1,521 @@
+"""The FDI synthesis model (Frank, eqs. 4-6).
+
+    x' = A x + Bu u + Bd d + Bw w + Bf f
+    y  = C x + Du u + Dd d + Dw w + Df f
+
+continuous (``dt = 0``) or discrete (``dt > 0``), with a name for every known input u,
+measured output y, unknown input d (decoupled exactly), noise input w (decoupled
+approximately) and fault. The fault columns ``Bf``, ``Df`` are assembled from the named
+:class:`~fmu_fdi.faults.FaultSpec` entries; a fault may occupy several columns.
+"""
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from .faults import FaultSpec, ModelError, _matrix, check_name
+from .lti import LTI
+
+FORMAT = "fmu-fdi-model/1"
+GROUPS = ("u", "d", "w", "f")
+_TOP_KEYS = {"format", "name", "dt", "signals", "units", "matrices", "faults", "description"}
+_MATRIX_KEYS = {"A", "Bu", "C", "Du", "Bd", "Dd", "Bw", "Dw"}
+
+
+class FDIModel:
+    """Linear plant with named known inputs, outputs, disturbances, noise and faults.
+
+    Build it with :meth:`from_matrices`, :meth:`from_control` or :meth:`from_file`.
+    The object is immutable in practice: the transformations (:meth:`discretize`,
+    :meth:`with_disturbances`) return new models.
+    """
+
+    def __init__(self, A, Bu, C, Du=None, *, Bd=None, Dd=None, Bw=None, Dw=None,
+                 faults: Iterable[FaultSpec | dict] = (), dt: float = 0.0,
+                 u_names: Sequence[str] | None = None, y_names: Sequence[str] | None = None,
+                 d_names: Sequence[str] | None = None, w_names: Sequence[str] | None = None,
+                 units: dict | None = None, name: str = "plant", description: str = ""):
+        A = _matrix(A, "A")
+        n = A.shape[0]
+        if A.shape != (n, n):
+            raise ModelError(f"A must be square, got shape {A.shape}")
+        C = _matrix(C, "C", cols=n) if np.size(C) else np.zeros((0, n))
+        p = C.shape[0]
+        if p == 0:
+            raise ModelError("the model has no measured outputs (C has no rows)")
+        Bu = _opt(Bu, "Bu", n, len(u_names) if u_names is not None else None)
+        m = Bu.shape[1]
+        Du = _opt(Du, "Du", p, m)
+        if Du.shape[1] != m:
+            raise ModelError(f"Du must be {p}x{m} to match Bu, got shape {Du.shape}")
+        Bd = _opt(Bd, "Bd", n, len(d_names) if d_names is not None else None)
+        Dd = _opt(Dd, "Dd", p, Bd.shape[1])
+        Bw = _opt(Bw, "Bw", n, len(w_names) if w_names is not None else None)
+        Dw = _opt(Dw, "Dw", p, Bw.shape[1])
+        if Dd.shape[1] != Bd.shape[1] and not np.any(Bd):
+            Bd = np.zeros((n, Dd.shape[1]))
+        if Dw.shape[1] != Bw.shape[1] and not np.any(Bw):
+            Bw = np.zeros((n, Dw.shape[1]))
+        for key, B, D in (("d", Bd, Dd), ("w", Bw, Dw)):
+            if B.shape[1] != D.shape[1]:
+                raise ModelError(f"B{key} has {B.shape[1]} columns but D{key} has {D.shape[1]}")
+        try:
+            dt = float(dt)
+        except (TypeError, ValueError):
+            raise ModelError(f"dt must be a number (0 for continuous time), got {dt!r}") from None
+        if not np.isfinite(dt) or dt < 0:
+            raise ModelError(f"dt must be 0 (continuous) or a positive sample time, got {dt!r}")
+
+        self.name = check_name(name, "model")
+        self.description = description
+        self.dt = dt
+        self.A, self.Bu, self.C, self.Du = A, Bu, C, Du
+        self.Bd, self.Dd, self.Bw, self.Dw = Bd, Dd, Bw, Dw
+        self.u_names = _names(u_names, m, "u", "u")
+        self.y_names = _names(y_names, p, "y", "y")
+        self.d_names = _names(d_names, Bd.shape[1], "d", "d")
+        self.w_names = _names(w_names, Bw.shape[1], "w", "w")
+        seen: dict[str, str] = {}
+        for group, names in (("u", self.u_names), ("y", self.y_names), ("d", self.d_names),
+                             ("w", self.w_names)):
+            for nm in names:
+                if nm in seen:
+                    raise ModelError(f"signal name '{nm}' is used twice (in {seen[nm]} and {group})")
+                seen[nm] = group
+        self.units = dict(units or {})
+        for key, unit in self.units.items():
+            if key not in seen:
+                raise ModelError(f"units given for unknown signal '{key}'; signals are {sorted(seen)}")
+            if not isinstance(unit, str):
+                raise ModelError(f"unit of '{key}' must be a string, got {unit!r}")
+
+        self.faults: list[FaultSpec] = []
+        cols_B, cols_D = [], []
+        start = 0
+        for spec in faults:
+            spec = FaultSpec.from_dict(spec) if isinstance(spec, dict) else copy.deepcopy(spec)
+            if not isinstance(spec, FaultSpec):
+                raise ModelError(f"faults must be FaultSpec objects or dicts, got {type(spec).__name__}")
+            if spec.name in seen:
+                raise ModelError(f"fault name '{spec.name}' is already used by {seen[spec.name]}")
+            seen[spec.name] = "faults"
+            Bf, Df = spec.additive_columns(A, Bu, C, Du, self.u_names, self.y_names)
+            spec.columns = slice(start, start + Bf.shape[1])
+            start += Bf.shape[1]
+            cols_B.append(Bf)
+            cols_D.append(Df)
+            self.faults.append(spec)
+        self.Bf = np.hstack(cols_B) if cols_B else np.zeros((n, 0))
+        self.Df = np.hstack(cols_D) if cols_D else np.zeros((p, 0))
+
+    # ------------------------------------------------------------ constructors
+    @classmethod
+    def from_matrices(cls, A, Bu, C, Du=None, **kwargs) -> "FDIModel":
+        """Build a model from matrices; keywords as in the class signature.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from fmu_fdi import FDIModel, sensor_fault
+        >>> m = FDIModel.from_matrices(-np.eye(1), [[1.0]], [[1.0]], faults=[sensor_fault("s", "y0")])
+        >>> m.fault_names
+        ['s']
+        """
+        return cls(A, Bu, C, Du, **kwargs)
+
+    @classmethod
+    def from_control(cls, sys, *, u=None, d=None, w=None, f=None, ignore=None,
+                     faults: Iterable[FaultSpec | dict] = (), y_names=None, name: str = "plant",
+                     units: dict | None = None) -> "FDIModel":
+        """Build a model from a python-control ``StateSpace``/``TransferFunction`` (or :class:`LTI`).
+
+        The input groups ``u``, ``d``, ``w``, ``f`` are lists of input indices or input
+        names. Inputs in ``f`` become component faults named after the inputs. Inputs
+        not assigned are known inputs ``u`` when ``u`` is not given; otherwise they must
+        be listed in ``ignore`` (so a forgotten input is an error, not a silent drop).
+        Extra ``faults`` (actuator/sensor specs) are appended.
+        """
+        import control
+
+        labels_in = labels_out = None
+        if isinstance(sys, LTI):
+            lti = sys
+        else:
+            if isinstance(sys, control.TransferFunction):
+                labels_in, labels_out = list(sys.input_labels), list(sys.output_labels)
+            elif isinstance(sys, control.StateSpace):
+                labels_in, labels_out = list(sys.input_labels), list(sys.output_labels)
+            lti = LTI.from_control(sys)
+        labels_in = [_sanitize(s) for s in labels_in] if labels_in else [f"u{i}" for i in range(lti.m)]
+        labels_out = [_sanitize(s) for s in labels_out] if labels_out else [f"y{i}" for i in range(lti.p)]
+
+        def resolve(group, key):
+            if group is None:
+                return []
+            group = [group] if isinstance(group, (int, str, np.integer)) else list(group)
+            out = []
+            for g in group:
+                if isinstance(g, (int, np.integer)):
+                    if not 0 <= g < lti.m:
+                        raise ModelError(f"input index {g} in group '{key}' is out of range 0..{lti.m - 1}")
+                    out.append(int(g))
+                elif g in labels_in:
+                    out.append(labels_in.index(g))
+                else:
+                    raise ModelError(f"input '{g}' in group '{key}' is not an input of the system {labels_in}")
+            return out
+
+        groups = {k: resolve(v, k) for k, v in (("u", u), ("d", d), ("w", w), ("f", f), ("ignore", ignore))}
+        used: dict[int, str] = {}
+        for k, idx in groups.items():
+            for i in idx:
+                if i in used:
+                    raise ModelError(f"input {labels_in[i]!r} is assigned to both '{used[i]}' and '{k}'")
+                used[i] = k
+        rest = [i for i in range(lti.m) if i not in used]
+        if rest:
+            if u is None:
+                groups["u"] = sorted(groups["u"] + rest)
+            else:
+                raise ModelError(
+                    f"inputs {[labels_in[i] for i in rest]} are in no group: assign them to u, d, w or f, "
+                    f"or list them in ignore"
+                )
+        fault_specs = [
+            FaultSpec(name=labels_in[i], kind="component", Bf=lti.B[:, [i]], Df=lti.D[:, [i]])
+            for i in groups["f"]
+        ]
+        return cls(
+            lti.A, lti.B[:, groups["u"]], lti.C, lti.D[:, groups["u"]],
+            Bd=lti.B[:, groups["d"]], Dd=lti.D[:, groups["d"]],
+            Bw=lti.B[:, groups["w"]], Dw=lti.D[:, groups["w"]],
+            faults=fault_specs + list(faults), dt=lti.dt,
+            u_names=[labels_in[i] for i in groups["u"]],
+            y_names=list(y_names) if y_names is not None else labels_out,
+            d_names=[labels_in[i] for i in groups["d"]],
+            w_names=[labels_in[i] for i in groups["w"]],
+            units=units, name=name,
+        )
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def n(self) -> int:
+        return self.A.shape[0]
+
+    @property
+    def nu(self) -> int:
+        return self.Bu.shape[1]
+
+    @property
+    def ny(self) -> int:
+        return self.C.shape[0]
+
+    @property
+    def nd(self) -> int:
+        return self.Bd.shape[1]
+
+    @property
+    def nw(self) -> int:
+        return self.Bw.shape[1]
+
+    @property
+    def nf(self) -> int:
+        """Number of additive fault columns (a fault may have several)."""
+        return self.Bf.shape[1]
+
+    @property
+    def fault_names(self) -> list[str]:
+        return [f.name for f in self.faults]
+
+    @property
+    def is_discrete(self) -> bool:
+        return self.dt > 0
+
+    def fault(self, name: str) -> FaultSpec:
+        for f in self.faults:
+            if f.name == name:
+                return f
+        raise KeyError(f"no fault named {name!r}; faults are {self.fault_names}")
+
+    def fault_index(self, name: str) -> int:
+        return self.fault_names.index(self.fault(name).name)
+
+    def __repr__(self) -> str:
+        kind = f"discrete, dt={self.dt:g}" if self.is_discrete else "continuous"
+        return (f"FDIModel('{self.name}', n={self.n}, u={self.u_names}, y={self.y_names}, d={self.d_names}, "
+                f"w={self.w_names}, faults={self.fault_names}, {kind})")
+
+    # --------------------------------------------------------------- systems
+    def matrices(self, group: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(B, D)`` of an input group: 'u', 'd', 'w' or 'f'."""
+        try:
+            return {"u": (self.Bu, self.Du), "d": (self.Bd, self.Dd), "w": (self.Bw, self.Dw),
+                    "f": (self.Bf, self.Df)}[group]
+        except KeyError:
+            raise ValueError(f"unknown input group {group!r}; use one of {GROUPS}") from None
+
+    def lti(self, *groups: str) -> LTI:
+        """Transfer from the given input groups (default all, in order u, d, w, f) to y."""
+        groups = groups or GROUPS
+        Bs, Ds = zip(*(self.matrices(g) for g in groups))
+        return LTI(self.A, np.hstack(Bs), self.C, np.hstack(Ds), self.dt)
+
+    def augmented(self) -> LTI:
+        """``Ge = [Gu Gd Gw Gf; I 0 0 0]``: from [u; d; w; f] to [y; u].
+
+        A residual generator ``Q`` acting on ``[y; u]`` has internal form ``R = Q Ge``.
+        """
+        G = self.lti()
+        m = self.nu
+        tot = G.m
+        Dlow = np.zeros((m, tot))
+        Dlow[:, :m] = np.eye(m)
+        return LTI(G.A, G.B, np.vstack([G.C, np.zeros((m, self.n))]), np.vstack([G.D, Dlow]), self.dt)
+
+    def group_slices(self) -> dict[str, slice]:
+        """Column ranges of u, d, w, f in :meth:`lti`/:meth:`augmented` inputs."""
+        out, start = {}, 0
+        for g, k in zip(GROUPS, (self.nu, self.nd, self.nw, self.nf)):
+            out[g] = slice(start, start + k)
+            start += k
+        return out
+
+    # -------------------------------------------------------- transformations
+    def _replace(self, **changes) -> "FDIModel":
+        kw = dict(A=self.A, Bu=self.Bu, C=self.C, Du=self.Du, Bd=self.Bd, Dd=self.Dd, Bw=self.Bw,
+                  Dw=self.Dw, faults=self.faults, dt=self.dt, u_names=self.u_names, y_names=self.y_names,
+                  d_names=self.d_names, w_names=self.w_names, units=self.units, name=self.name,
+                  description=self.description)
+        kw.update(changes)
+        return FDIModel(**kw)
+
+    def discretize(self, Ts: float) -> "FDIModel":
+        """Exact zero-order-hold discretisation of every input channel (u, d, w, f).
+
+        Additive faults keep their kind (actuator and sensor faults resolve against the
+        discretised Bu/Du); component and parametric faults become component faults with
+        the discretised columns — exact for a piecewise-constant fault signal.
+        """
+        if self.is_discrete:
+            raise ModelError("the model is already discrete")
+        D = self.lti().to_discrete(Ts)
+        sl = self.group_slices()
+        faults = []
+        for spec in self.faults:
+            if spec.kind in ("actuator", "sensor"):
+                faults.append(spec)
+            else:
+                faults.append(FaultSpec(name=spec.name, kind="component", Bf=D.B[:, sl["f"]][:, spec.columns],
+                                        Df=self.Df[:, spec.columns], description=spec.description))
+        return self._replace(A=D.A, Bu=D.B[:, sl["u"]], Bd=D.B[:, sl["d"]], Bw=D.B[:, sl["w"]],
+                             faults=faults, dt=D.dt)
+
+    def with_disturbances(self, faults: Sequence[str] = (), noise: bool = False) -> "FDIModel":
+        """A model where the named faults (and, with ``noise=True``, the noise inputs) are
+        unknown inputs to decouple exactly. Used for fault isolation and exact designs."""
+        faults = list(faults)
+        for nm in faults:
+            self.fault(nm)
+        moved = [f for f in self.faults if f.name in faults]
+        Bd = [self.Bd] + [self.Bf[:, f.columns] for f in moved]
+        Dd = [self.Dd] + [self.Df[:, f.columns] for f in moved]
+        d_names = list(self.d_names) + [f"{f.name}_{k}" if f.columns.stop - f.columns.start > 1 else f.name
+                                        for f in moved for k in range(f.columns.stop - f.columns.start)]
+        w_names = self.w_names
+        if noise:
+            Bd.append(self.Bw)
+            Dd.append(self.Dw)
+            d_names += list(self.w_names)
+            w_names = []
+        faults_left = [f for f in self.faults if f.name not in faults]
+        return self._replace(
+            Bd=np.hstack(Bd), Dd=np.hstack(Dd), d_names=d_names,
+            Bw=np.zeros((self.n, 0)) if noise else self.Bw, Dw=np.zeros((self.ny, 0)) if noise else self.Dw,
+            w_names=w_names, faults=faults_left,
+            units={k: v for k, v in self.units.items() if k in set(self.u_names) | set(self.y_names)
+                   | set(self.d_names) | set(self.w_names)},
+        )
+
+    # ------------------------------------------------------------------ files
+    def to_dict(self) -> dict:
+        mats = {"A": self.A, "Bu": self.Bu, "C": self.C}
+        for key in ("Du", "Bd", "Dd", "Bw", "Dw"):
+            val = getattr(self, key)
+            if val.size and np.any(val):
+                mats[key] = val
+        d = {
+            "format": FORMAT,
+            "name": self.name,
+            "dt": self.dt,
+            "signals": {"u": list(self.u_names), "y": list(self.y_names), "d": list(self.d_names),
+                        "w": list(self.w_names)},
+            "matrices": {k: np.asarray(v, float).tolist() for k, v in mats.items()},
+            "faults": [f.to_dict() for f in self.faults],
+        }
+        if self.description:
+            d["description"] = self.description
+        if self.units:
+            d["units"] = dict(self.units)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "model") -> "FDIModel":
+        if not isinstance(d, dict):
+            raise ModelError(f"{source}: the top level must be a table/object")
+        fmt = d.get("format")
+        if fmt is None:
+            raise ModelError(f"{source}: missing key 'format' (expected {FORMAT!r})")
+        if fmt != FORMAT:
+            raise ModelError(f"{source}: unsupported format {fmt!r}; this version reads {FORMAT!r}")
+        unknown = set(d) - _TOP_KEYS
+        if unknown:
+            raise ModelError(f"{source}: unknown keys {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
+        sig = d.get("signals")
+        if not isinstance(sig, dict) or "y" not in sig:
+            raise ModelError(f"{source}: [signals] with at least 'y' is required")
+        bad = set(sig) - {"u", "y", "d", "w"}
+        if bad:
+            raise ModelError(f"{source}: unknown signal groups {sorted(bad)}; use u, y, d, w")
+        for key, names in sig.items():
+            if not isinstance(names, list):
+                raise ModelError(f"{source}: signals.{key} must be a list of names")
+        mats = d.get("matrices")
+        if not isinstance(mats, dict):
+            raise ModelError(f"{source}: [matrices] is required")
+        bad = set(mats) - _MATRIX_KEYS
+        if bad:
+            raise ModelError(f"{source}: unknown matrices {sorted(bad)}; allowed: {sorted(_MATRIX_KEYS)}")
+        for key in ("A", "C"):
+            if key not in mats:
+                raise ModelError(f"{source}: matrix {key} is required")
+        u = sig.get("u", [])
+        if u and "Bu" not in mats:
+            raise ModelError(f"{source}: matrix Bu is required when there are inputs u")
+        try:
+            n = len(mats["A"])
+            p = len(sig["y"])
+
+            def get(key, rows, cols):
+                if key not in mats:
+                    return np.zeros((rows, cols))
+                val = mats[key]
+                if isinstance(val, list) and len(val) == 0:
+                    return np.zeros((rows, cols))
+                return _matrix(val, f"{source}: matrix {key}", rows=rows, cols=cols)
+
+            A = _matrix(mats["A"], f"{source}: matrix A", rows=n, cols=n)
+            C = _matrix(mats["C"], f"{source}: matrix C", rows=p, cols=n)
+            nd, nw = len(sig.get("d", [])), len(sig.get("w", []))
+            return cls(
+                A, get("Bu", n, len(u)), C, get("Du", p, len(u)),
+                Bd=get("Bd", n, nd), Dd=get("Dd", p, nd), Bw=get("Bw", n, nw), Dw=get("Dw", p, nw),
+                faults=d.get("faults", []), dt=d.get("dt", 0.0),
+                u_names=u, y_names=sig["y"], d_names=sig.get("d", []), w_names=sig.get("w", []),
+                units=d.get("units"), name=d.get("name", "plant"), description=d.get("description", ""),
+            )
+        except ModelError as exc:
+            msg = str(exc)
+            raise ModelError(msg if msg.startswith(source) else f"{source}: {msg}") from None
+
+    @classmethod
+    def from_file(cls, path) -> "FDIModel":
+        """Read a model file (``.json`` or ``.toml``; format ``fmu-fdi-model/1``)."""
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ModelError(f"cannot read model file {path}: {exc.strerror}") from None
+        suffix = path.suffix.lower()
+        try:
+            if suffix == ".json":
+                data = json.loads(text)
+            elif suffix == ".toml":
+                data = _toml_loads(text)
+            else:
+                raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
+        except (json.JSONDecodeError, ValueError) as exc:
+            if isinstance(exc, ModelError):
+                raise
+            raise ModelError(f"{path}: not valid {suffix[1:].upper()}: {exc}") from None
+        return cls.from_dict(data, source=str(path))
+
+    def to_file(self, path) -> Path:
+        """Write the model as JSON or TOML (by extension); floats round-trip exactly."""
+        path = Path(path)
+        d = self.to_dict()
+        suffix = path.suffix.lower()
+        if suffix == ".json":
+            text = json.dumps(d, indent=2)
+        elif suffix == ".toml":
+            text = _toml_dumps(d)
+        else:
+            raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
+        path.write_text(text, encoding="utf-8")
+        return path
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(float(v)) if isinstance(v, float) else str(v)
+    if isinstance(v, str):
+        return json.dumps(v)  # a JSON string is a valid TOML basic string
+    if isinstance(v, list) and v and isinstance(v[0], list):
+        # A matrix: one row per line, so the file reads like the matrix it holds.
+        return "[\n    " + ",\n    ".join(_toml_value(row) for row in v) + ",\n]"
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def _toml_dumps(d: dict) -> str:
+    """TOML writer for the model schema: scalars, then tables, matrices row by row."""
+    lines = []
+    for key, val in d.items():
+        if not isinstance(val, (dict, list)) or (isinstance(val, list) and key != "faults"):
+            lines.append(f"{key} = {_toml_value(val)}")
+    for key in ("signals", "units", "matrices"):
+        if key in d:
+            lines.append(f"\n[{key}]")
+            lines.extend(f"{k} = {_toml_value(v)}" for k, v in d[key].items())
+    for fault in d.get("faults", []):
+        lines.append("\n[[faults]]")
+        lines.extend(f"{k} = {_toml_value(v)}" for k, v in fault.items())
+    return "\n".join(lines) + "\n"
+
+
+def _toml_loads(text: str) -> dict:
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+    return tomllib.loads(text)
+
+
+def _opt(X, name: str, rows: int, cols: int | None) -> np.ndarray:
+    if X is None or (np.size(X) == 0):
+        return np.zeros((rows, cols or 0))
+    return _matrix(X, name, rows=rows, cols=cols)
+
+
+def _names(names, count: int, group: str, prefix: str) -> list[str]:
+    if names is None:
+        return [f"{prefix}{i}" for i in range(count)]
+    names = list(names)
+    if len(names) != count:
+        raise ModelError(f"{len(names)} names given for {group} but the matrices have {count} {group} channels")
+    for nm in names:
+        check_name(nm, f"signal ({group})")
+    return names
+
+
+def _sanitize(label: str) -> str:
+    out = "".join(ch if ch.isalnum() or ch == "_" else "_" for ch in str(label)).strip("_")
+    if not out or out[0].isdigit():
+        out = "s_" + out
+    return out
