@@ -130,6 +130,14 @@ class ResidualGenerator:
                                 continuous=gen if not gen.dt else gen.continuous)
         return out
 
+    def runtime_spec(self) -> dict:
+        """The discrete filter as the numpy runtime reads it (see :mod:`fmu_fdi.runtime`)."""
+        if not self.dt:
+            raise ValueError("the runtime needs a discrete generator: call to_discrete(Ts) first")
+        Q = self.Q
+        return {"kind": "lti", "A": Q.A.tolist(), "B": Q.B.tolist(), "C": Q.C.tolist(), "D": Q.D.tolist(),
+                "dt": Q.dt}
+
     def simulate(self, y, u, x0=None) -> np.ndarray:
         """Residuals of a discrete generator for sampled ``y`` (N×ny) and ``u`` (N×nu)."""
         if not self.dt:

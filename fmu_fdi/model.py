@@ -5,7 +5,9 @@
 
 continuous (``dt = 0``) or discrete (``dt > 0``), with a name for every known input u,
 measured output y, unknown input d (decoupled exactly), noise input w (decoupled
-approximately) and fault. The fault columns ``Bf``, ``Df`` are assembled from the named
+approximately) and fault. A linearised plant may carry its operating point
+``(u0, y0)``: the matrices then describe deviations ``u - u0``, ``y - y0``, and a
+diagnoser fed with absolute signals subtracts the point first. The fault columns ``Bf``, ``Df`` are assembled from the named
 :class:`~fmu_fdi.faults.FaultSpec` entries; a fault may occupy several columns.
 """
 from __future__ import annotations
@@ -22,7 +24,7 @@ from .lti import LTI
 
 FORMAT = "fmu-fdi-model/1"
 GROUPS = ("u", "d", "w", "f")
-_TOP_KEYS = {"format", "name", "dt", "signals", "units", "matrices", "faults", "description"}
+_TOP_KEYS = {"format", "name", "dt", "signals", "units", "matrices", "faults", "description", "operating_point"}
 _MATRIX_KEYS = {"A", "Bu", "C", "Du", "Bd", "Dd", "Bw", "Dw"}
 
 
@@ -38,7 +40,8 @@ class FDIModel:
                  faults: Iterable[FaultSpec | dict] = (), dt: float = 0.0,
                  u_names: Sequence[str] | None = None, y_names: Sequence[str] | None = None,
                  d_names: Sequence[str] | None = None, w_names: Sequence[str] | None = None,
-                 units: dict | None = None, name: str = "plant", description: str = ""):
+                 units: dict | None = None, name: str = "plant", description: str = "",
+                 operating_point: dict | None = None):
         A = _matrix(A, "A")
         n = A.shape[0]
         if A.shape != (n, n):
@@ -92,6 +95,13 @@ class FDIModel:
                 raise ModelError(f"units given for unknown signal '{key}'; signals are {sorted(seen)}")
             if not isinstance(unit, str):
                 raise ModelError(f"unit of '{key}' must be a string, got {unit!r}")
+
+        op = dict(operating_point or {})
+        bad = set(op) - {"u", "y"}
+        if bad:
+            raise ModelError(f"operating_point has unknown keys {sorted(bad)}; use 'u' and 'y'")
+        self.u0 = _matrix(op["u"], "operating_point.u", rows=m).ravel() if "u" in op and m else np.zeros(m)
+        self.y0 = _matrix(op["y"], "operating_point.y", rows=p).ravel() if "y" in op else np.zeros(p)
 
         self.faults: list[FaultSpec] = []
         cols_B, cols_D = [], []
@@ -289,7 +299,7 @@ class FDIModel:
         kw = dict(A=self.A, Bu=self.Bu, C=self.C, Du=self.Du, Bd=self.Bd, Dd=self.Dd, Bw=self.Bw,
                   Dw=self.Dw, faults=self.faults, dt=self.dt, u_names=self.u_names, y_names=self.y_names,
                   d_names=self.d_names, w_names=self.w_names, units=self.units, name=self.name,
-                  description=self.description)
+                  description=self.description, operating_point={"u": self.u0, "y": self.y0})
         kw.update(changes)
         return FDIModel(**kw)
 
@@ -360,6 +370,8 @@ class FDIModel:
             d["description"] = self.description
         if self.units:
             d["units"] = dict(self.units)
+        if np.any(self.u0) or np.any(self.y0):
+            d["operating_point"] = {"u": self.u0.tolist(), "y": self.y0.tolist()}
         return d
 
     @classmethod
@@ -416,6 +428,7 @@ class FDIModel:
                 faults=d.get("faults", []), dt=d.get("dt", 0.0),
                 u_names=u, y_names=sig["y"], d_names=sig.get("d", []), w_names=sig.get("w", []),
                 units=d.get("units"), name=d.get("name", "plant"), description=d.get("description", ""),
+                operating_point=d.get("operating_point"),
             )
         except ModelError as exc:
             msg = str(exc)
@@ -477,9 +490,9 @@ def _toml_dumps(d: dict) -> str:
     """TOML writer for the model schema: scalars, then tables, matrices row by row."""
     lines = []
     for key, val in d.items():
-        if not isinstance(val, (dict, list)) or (isinstance(val, list) and key != "faults"):
+        if not isinstance(val, (dict, list)):
             lines.append(f"{key} = {_toml_value(val)}")
-    for key in ("signals", "units", "matrices"):
+    for key in ("signals", "units", "operating_point", "matrices"):
         if key in d:
             lines.append(f"\n[{key}]")
             lines.extend(f"{k} = {_toml_value(v)}" for k, v in d[key].items())
