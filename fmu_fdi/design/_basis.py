@@ -23,6 +23,7 @@ columns are normalised before every SVD (which leaves a left null space unchange
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -106,12 +107,18 @@ class ParityData:
     def __init__(self, model: FDIModel, reduce: bool = True):
         G = model.lti("u", "d")
         self.p, self.m, self.md = model.ny, model.nu, model.nd
-        if G.n and G.m and reduce:
-            G = G.minreal(job="C")  # modes no u or d excites need no annihilating
-        elif not G.m:
-            G = LTI.static(G.D, G.dt)
+        # x_data = T x_model; unknown (None) after a controllable-part reduction
+        self.T: np.ndarray | None = np.eye(G.n)
+        if reduce:
+            if G.n and G.m:
+                G = G.minreal(job="C")  # modes no u or d excites need no annihilating
+            elif not G.m:
+                G = LTI.static(G.D, G.dt)
+            self.T = None
         if G.n and G.m:
-            G, _ = G.balanced()
+            G, scale = G.balanced()
+            if self.T is not None:
+                self.T = np.diag(1.0 / scale)
         self.G = G
         normA = float(np.linalg.norm(G.A, 2)) if G.n else 0.0
         self.rho = float(2.0 ** np.round(np.log2(normA))) if normA > 0 else 1.0
@@ -124,6 +131,18 @@ class ParityData:
         self._O = [self.C]
         self._mu = [self.Du]
         self._md = [self.Dd]
+
+    def markov(self, B: np.ndarray, D: np.ndarray, s: int) -> list[np.ndarray]:
+        """Markov parameters ``D, C B, C A B, ...`` of another input channel ``(B, D)`` of
+        the model (in model coordinates), expressed in this data's state and scaling."""
+        if self.T is None:
+            raise ValueError("extra channels need the unreduced parity data (reduce=False)")
+        Bs = self.T @ B / self.rho
+        out = [D]
+        self._grow(s)
+        for k in range(1, s + 1):
+            out.append(self._O[k - 1] @ Bs)
+        return out
 
     def _grow(self, s: int):
         while len(self._O) <= s:
@@ -214,6 +233,11 @@ def pick_poles(poles, sdeg: float, count: int) -> np.ndarray:
             out.append(complex(pole.real, 0.0))
         i += 1
     out.extend([complex(sdeg, 0.0)] * (count - len(out)))
+    unused = [p for p in poles if not np.any(np.isclose(np.array(out, complex), p))]
+    if unused and count:
+        why = " (a complex pole needs its conjugate and two states)" if any(np.iscomplex(unused)) else ""
+        warnings.warn(f"poles {[complex(p) for p in unused]} not used: the filter has order {count}{why}",
+                      UserWarning, stacklevel=4)
     return np.array(out[:count])
 
 
@@ -227,15 +251,40 @@ def check_poles(poles, dt: float) -> None:
         raise DesignError(f"poles {bad.tolist()} are not stable: residual generator poles must lie {region}")
 
 
+def realize_fir(coefs: list[np.ndarray], rho: float, dt: float) -> LTI:
+    """Shift-register realisation of FIR rows ``N_i(μ) / μ^s`` (discrete, ``z = ρ μ``).
+
+    The state holds the past inputs ``[v(k-1); ...; v(k-s)]``, so A is an exact 0/1
+    shift matrix (all poles exactly at 0) and the order is ``q s`` whatever the number
+    of rows: ``r(k) = Σ_i c_{s-i} ρ^i v(k-i)``.
+    """
+    s = coefs[0].shape[0] - 1
+    q = coefs[0].shape[1]
+    taps = [np.vstack([c[s - i] for c in coefs]) * rho**i for i in range(s + 1)]
+    A = np.zeros((q * s, q * s))
+    if s > 1:
+        A[q:, :-q] = np.eye(q * (s - 1))
+    B = np.zeros((q * s, q))
+    if s:
+        B[:q] = np.eye(q)
+    C = np.hstack(taps[1:]) if s else np.zeros((len(coefs), 0))
+    return LTI(A, B, C, taps[0], dt)
+
+
 def realize_rows(coefs: list[np.ndarray], dens: list[np.ndarray], rho: float, dt: float) -> LTI:
     """State-space realisation of rows ``N_i(μ) / d_i(μ)`` in the operator ``λ = ρ μ``.
 
     Row i has numerator coefficients ``coefs[i]`` (ν+1, q) in ascending powers of μ
     and monic denominator with roots ``dens[i]`` (ν of them, in μ). Each row is an
-    observer-canonical block; ``A_λ = ρ A_μ``, ``B_λ = ρ B_μ`` undo the scaling.
+    observer-canonical block; ``A_λ = ρ A_μ``, ``B_λ = ρ B_μ`` undo the scaling. Several
+    discrete FIR rows of one order (all roots 0) share a shift register when that is
+    smaller.
     """
-    As, Bs, Cs, Ds = [], [], [], []
     q = coefs[0].shape[1]
+    degs = {c.shape[0] - 1 for c in coefs}
+    if (dt and len(degs) == 1 and len(coefs) > q and all(not np.any(d) for d in dens)):
+        return realize_fir(coefs, rho, dt)
+    As, Bs, Cs, Ds = [], [], [], []
     for N, roots in zip(coefs, dens):
         nu = N.shape[0] - 1
         a = np.real_if_close(np.poly(roots)) if nu else np.array([1.0])  # [1, a_{ν-1}, ..., a_0]

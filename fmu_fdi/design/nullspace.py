@@ -214,6 +214,8 @@ def _exact(model, basis, seen, rdim, poles, sdeg, freqs, FDGainTol, seed) -> Res
 
     if rdim == "all":
         dens = [pick_poles(poles, sdeg, r.degree) / basis.rho for r in rows]
+        # Each row has its own denominator of its degree: the stacked order Σ ν_i is the
+        # McMillan degree of a minimal basis, so no reduction is needed.
         Q = realize_rows([r.coef for r in rows], dens, basis.rho, model.dt)
         return _finish(model, Q, basis, "nullspace", {"order": int(sum(degrees)), "rdim": len(rows)},
                        [r.degree for r in rows], poles, sdeg)
@@ -260,8 +262,6 @@ def _exact(model, basis, seen, rdim, poles, sdeg, freqs, FDGainTol, seed) -> Res
             fsc = None
         coefs = [sum(h[i] * cand[i].padded(nu) for i in range(k)) for h in H]
         Q = realize_rows(coefs, [den_mu] * len(coefs), basis.rho, model.dt)
-        if len(coefs) > 1:
-            Q = Q.minreal()
         info = {"order": int(Q.n), "rdim": len(coefs), "combination": H.tolist(),
                 "fault_sensitivity_estimate": fsc}
         gen = _finish(model, Q, basis, "nullspace", info, degrees, roots, sdeg)

@@ -1,0 +1,141 @@
+"""Parity space residual generation (Chow and Willsky 1984; Frank, section 4).
+
+Over a window of s+1 samples the discrete plant satisfies
+
+    Y_s(k) = O_s x(k-s) + H_{u,s} U_s(k) + H_{d,s} D_s(k) + H_{f,s} F_s(k)
+
+with the stacked samples ``Y_s(k) = [y(k-s); ...; y(k)]``, the observability matrix
+``O_s = [C; CA; ...; CA^s]`` and lower block-triangular Toeplitz matrices of Markov
+parameters. A *parity vector* v with ``v [O_s H_{d,s}] = 0`` gives the finite-memory
+residual
+
+    r(k) = v (Y_s(k) - H_{u,s} U_s(k)) = v H_{f,s} F_s(k),
+
+exactly decoupled from the state, the known inputs and the unknown inputs. All rows
+of ``null([O_s H_{d,s}]^T)`` form the Chow–Willsky parity relations of order s.
+
+When no parity vector of order s exists or none sees every fault, the optimal robust
+parity vector (Lou, Willsky and Verghese 1986; Ding 2008, sec. 6.3) still removes the
+state, ``v O_s = 0``, and minimises the ratio of disturbance to fault energy
+
+    J(v) = ||v H_{d,s}||^2 / ||v H_{f,s}||^2,
+
+a generalised symmetric eigenvalue problem (noise inputs w count as disturbances
+here). The filter is the FIR realisation ``Q(z) = N(z) / z^s`` (all poles at 0).
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import DesignError
+from ..generator import ResidualGenerator
+from ..linalg import left_null, rank_tol
+from ..lti import LTI
+from ..model import FDIModel
+from ._basis import NullspaceBasis, ParityData, PolyRow, _block_toeplitz, realize_rows
+from .nullspace import _exact, detectability_by_rows, undetectable_error
+
+
+def parity_space(model: FDIModel, order: int, *, Ts: float | None = None, rdim: int | None = None,
+                 robust: str | bool = "auto", FDtol: float = 1e-4, tol: float | None = None,
+                 seed: int = 0) -> ResidualGenerator:
+    """Finite-memory parity-space residual generator of order ``order``.
+
+    Parameters
+    ----------
+    model : FDIModel
+        A discrete model, or a continuous one together with ``Ts`` (it is then
+        discretised exactly with a zero-order hold of every input).
+    order : int
+        The parity order s (window of s+1 samples), ``0 <= s``.
+    Ts : float, optional
+        Sample time for a continuous model.
+    rdim : int, optional
+        Number of residuals. Exact design: default all parity relations of order s (the
+        Chow–Willsky residual vector); a smaller number selects the combinations with the
+        best fault sensitivity condition. Robust design: default 1 (the optimal vector).
+    robust : {'auto', True, False}
+        'auto' uses exact decoupling when a parity vector of order s sees every fault and
+        the optimal robust vector otherwise; True forces the robust design; False raises
+        a DesignError when exact decoupling is impossible at this order.
+    FDtol, tol, seed
+        Detectability threshold, rank tolerance, seed of the combination search.
+
+    Returns
+    -------
+    ResidualGenerator
+        Discrete, poles at 0. ``info['parity_matrix']`` holds the parity vectors (in the
+        scaled operator of ``info['rho']``) and ``info['mode']`` is 'exact' or 'robust'
+        (with ``info['robustness_ratio'] = sqrt(J)``).
+    """
+    if not isinstance(order, (int, np.integer)) or order < 0:
+        raise DesignError(f"parity order must be a non-negative integer, got {order!r}")
+    if robust not in ("auto", True, False):
+        raise DesignError(f"robust must be 'auto', True or False, got {robust!r}")
+    if rdim is not None and (not isinstance(rdim, (int, np.integer)) or rdim < 1):
+        raise DesignError(f"rdim must be a positive integer, got {rdim!r}")
+    if not model.is_discrete:
+        if Ts is None:
+            raise DesignError("parity_space is a finite-memory (discrete-time) design: pass Ts=... to sample "
+                              "the continuous model, or use nullspace_design for a continuous filter")
+        model = model.discretize(Ts)
+    elif Ts is not None and abs(Ts - model.dt) > 1e-12 * model.dt:
+        raise DesignError(f"Ts={Ts} differs from the discrete model's sample time {model.dt}")
+    s = int(order)
+    data = ParityData(model, reduce=False)  # annihilate the whole state: no initial-state transient
+    if robust is not True:
+        N = data.parity_vectors(s, tol)
+        rows = [data.row(v, s) for v in N]
+        if rows:
+            basis = NullspaceBasis(rows, data.rho, model.dt, model.ny, model.nu, 0)
+            seen = detectability_by_rows(model, basis, FDtol) > FDtol
+            if not model.faults or np.all(seen.max(axis=0)):
+                k = len(rows) if rdim is None else int(rdim)
+                if k > len(rows):
+                    raise DesignError(f"rdim = {k} but there are only {len(rows)} parity relations of order {s}")
+                gen = _exact(model, basis, seen, k if k < len(rows) else "all", np.zeros(s), 0.0, None, 0.01,
+                             seed)
+                gen.method = "parity"
+                gen.info.update({"mode": "exact", "parity_order": s,
+                                 "parity_matrix": np.array([r.coef[:, : model.ny].ravel() for r in rows]).tolist()})
+                return gen
+        if robust is False:
+            if not rows:
+                raise DesignError(f"no parity relation of order {s} decouples the state and d: "
+                                  f"[O_s H_d,s] has full row rank; increase the order or allow robust=True")
+            raise undetectable_error(model, seen, what=f"d is decoupled by parity relations of order {s}")
+    return _robust(model, data, s, 1 if rdim is None else int(rdim), tol)
+
+
+def _robust(model: FDIModel, data: ParityData, s: int, rdim: int, tol) -> ResidualGenerator:
+    if not model.faults:
+        raise DesignError("the robust parity vector maximises fault sensitivity: the model has no faults")
+    sl = model.group_slices()
+    G = model.lti()
+    dw = np.r_[np.arange(G.m)[sl["d"]], np.arange(G.m)[sl["w"]]].astype(int)
+    Hdw = (_block_toeplitz(data.markov(G.B[:, dw], G.D[:, dw], s), s) if dw.size
+           else np.zeros(((s + 1) * model.ny, 0)))
+    Hf = _block_toeplitz(data.markov(G.B[:, sl["f"]], G.D[:, sl["f"]], s), s)
+    Z = left_null(data.O(s), tol) if data.n else np.eye((s + 1) * model.ny)
+    if Z.shape[0] == 0:
+        raise DesignError(f"no parity vector of order {s} removes the state (O_s has full row rank): increase "
+                          f"the order above {s}")
+    Wf = Z @ Hf
+    U, sv, _ = sla.svd(Wf, full_matrices=False)
+    r = int(np.sum(sv > rank_tol(sv, Wf.shape, None)))
+    if r == 0:
+        raise DesignError(f"no fault reaches the parity space of order {s}: Z H_f,s = 0 (increase the order)")
+    T = U[:, :r] / sv[:r]  # c = x T^T makes ||c Z H_f||^2 = ||x||^2
+    Wd = Z @ Hdw
+    M = T.T @ Wd @ Wd.T @ T
+    lam, X = sla.eigh((M + M.T) / 2)
+    rdim = min(rdim, r)
+    V = (X[:, :rdim].T @ T.T) @ Z  # parity vectors, rows
+    ratio = float(np.sqrt(max(lam[0], 0.0)))
+    rows = [data.row(v, s) for v in V]
+    Q = realize_rows([r_.coef for r_ in rows], [np.zeros(s)] * len(rows), data.rho, model.dt)
+    gen = ResidualGenerator(Q, model, "parity")
+    gen.info.update({"mode": "robust", "parity_order": s, "robustness_ratio": ratio,
+                     "parity_matrix": V.tolist(), "rho": data.rho, "poles": [0.0] * (s * len(rows))})
+    return gen
