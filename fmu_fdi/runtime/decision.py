@@ -1,0 +1,114 @@
+"""Decision logic: alarms, persistence, latching and fault isolation (Frank, section 7).
+
+Per residual group i the raw test is ``J_i(k) ≥ J_th,i(k)`` (as Varga's FDSystem).
+With persistence (k of n) the alarm rises when at least k of the last n raw tests
+fired; a latched alarm stays up until reset. ``fault_detected`` is any alarm.
+
+Isolation:
+
+- ``structure``: the alarm pattern is matched against the columns of the structure
+  matrix S (groups × faults); a fault is isolated when exactly one column matches.
+  No alarm gives 0; no or several matching columns give -1 (status 'unknown' or
+  'several').
+- ``direction`` (Beard–Jones fault detection filter): the residual direction is compared
+  with each fault's output direction; the closest fault is isolated when the angle gap
+  to the second closest is at least ``min_margin`` (radians); the margin is reported.
+- ``none``: detection only (isolated index stays 0/-1 = unknown when alarmed).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+ISOLATION = ("structure", "direction", "none")
+
+
+class Decision:
+    def __init__(self, spec: dict, n_groups: int, n_faults: int):
+        self.n_groups = n_groups
+        pers = spec.get("persistence", [1, 1])
+        self.k_of, self.n_of = int(pers[0]), int(pers[1])
+        if not 1 <= self.k_of <= self.n_of:
+            raise ValueError(f"persistence must be [k, n] with 1 <= k <= n, got {pers}")
+        self.latch = bool(spec.get("latch", False))
+        self.mode = spec.get("isolation", "none")
+        if self.mode not in ISOLATION:
+            raise ValueError(f"unknown isolation {self.mode!r}; use one of {ISOLATION}")
+        self.S = None
+        if self.mode == "structure":
+            S = np.asarray(spec["structure"], dtype=int)
+            if S.shape != (n_groups, n_faults):
+                raise ValueError(f"structure matrix must be {n_groups}x{n_faults} (groups x faults), got {S.shape}")
+            self.S = S.astype(bool)
+        if self.mode == "direction":
+            D = np.asarray(spec["directions"], float)
+            if D.ndim != 2 or D.shape[1] != n_faults:
+                raise ValueError(f"fault directions must be (residuals x {n_faults}), got {D.shape}")
+            norms = np.linalg.norm(D, axis=0)
+            if np.any(norms == 0):
+                raise ValueError("a fault direction is zero")
+            self.D = D / norms
+            self.min_margin = float(spec.get("min_margin", 0.1))
+        self.reset()
+
+    def reset(self) -> None:
+        self.raw_hist = [[False] * self.n_of for _ in range(self.n_groups)]
+        self.alarms = [False] * self.n_groups
+        self.latched = [False] * self.n_groups
+        self.isolated = 0
+        self.status = "none"
+        self.margin = float("nan")
+
+    def get_state(self) -> dict:
+        return {"raw_hist": [list(h) for h in self.raw_hist], "alarms": list(self.alarms),
+                "latched": list(self.latched), "isolated": self.isolated, "status": self.status,
+                "margin": self.margin}
+
+    def set_state(self, s: dict) -> None:
+        self.raw_hist = [list(map(bool, h)) for h in s["raw_hist"]]
+        self.alarms = list(map(bool, s["alarms"]))
+        self.latched = list(map(bool, s["latched"]))
+        self.isolated = int(s["isolated"])
+        self.status = str(s["status"])
+        self.margin = float(s["margin"])
+
+    def step(self, evaluations, thresholds, residual: np.ndarray) -> None:
+        for i in range(self.n_groups):
+            h = self.raw_hist[i]
+            h.pop(0)
+            h.append(bool(evaluations[i] >= thresholds[i]))
+            up = sum(h) >= self.k_of
+            if self.latch:
+                self.latched[i] = self.latched[i] or up
+                up = self.latched[i]
+            self.alarms[i] = up
+        self._isolate(residual)
+
+    def _isolate(self, residual: np.ndarray) -> None:
+        self.margin = float("nan")
+        if not any(self.alarms):
+            self.isolated, self.status = 0, "none"
+            return
+        if self.mode == "structure":
+            pattern = np.array(self.alarms)
+            matches = np.flatnonzero(np.all(self.S == pattern[:, None], axis=0))
+            if matches.size == 1:
+                self.isolated, self.status = int(matches[0]) + 1, "isolated"
+            else:
+                self.isolated, self.status = -1, "several" if matches.size > 1 else "unknown"
+        elif self.mode == "direction":
+            nr = float(np.linalg.norm(residual))
+            if nr == 0.0:
+                self.isolated, self.status = -1, "unknown"
+                return
+            cosines = np.clip(np.abs(self.D.T @ residual) / nr, 0.0, 1.0)
+            angles = np.arccos(cosines)
+            order = np.argsort(angles, kind="stable")
+            self.margin = float(angles[order[1]] - angles[order[0]]) if angles.size > 1 else math.pi / 2
+            if self.margin >= self.min_margin:
+                self.isolated, self.status = int(order[0]) + 1, "isolated"
+            else:
+                self.isolated, self.status = -1, "unknown"
+        else:
+            self.isolated, self.status = -1, "unknown"

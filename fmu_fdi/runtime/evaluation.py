@@ -1,0 +1,242 @@
+"""Residual evaluation functions (Frank, section 7; Basseville & Nikiforov 1993).
+
+Each evaluator turns the residual vector r(k) of one residual group into a scalar
+evaluation J(k), one sample at a time, with O(1) (or O(window)) work per step:
+
+=========  =====================================================================
+kind       J(k)
+=========  =====================================================================
+norm       ``||r(k)||``
+rms        ``sqrt(1/N Σ_{i=k-N+1..k} ||r(i)||²)`` (sliding window, running sum)
+ewrms      ``sqrt((1-λ) Σ_{i≤k} λ^{k-i} ||r(i)||²)`` (exponentially weighted)
+peak       ``max_{i=k-N+1..k} ||r(i)||`` (monotonic deque)
+narendra   ``α ||r(k)|| + β re(k)``, ``re(k+1) = γ re(k) + ||r(k)||`` (Varga's FDSystem)
+chi2       ``Σ_{i=k-N+1..k} ||W r(i)||²`` with ``W = Σ^{-1/2}`` (χ² with N·dim dof under H0)
+cusum      two-sided CUSUM for a mean jump of known size δ (in σ units) per whitened
+           component: ``g± = max(0, g± ± δ z - δ²/2)``, J = max over components and signs
+glr        ``max_{k-M<j≤k} ||Σ_{i=j..k} W r(i)||² / (2 (k-j+1))``: GLR for a jump of
+           unknown magnitude and onset within the last M samples
+=========  =====================================================================
+
+All are monotone in the sequence ``||r||`` except the statistical tests, which is what
+the adaptive threshold selector relies on. The state (``get_state``) is complete and
+JSON-serialisable; ``reset`` returns to the state after construction.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+KINDS = ("norm", "rms", "ewrms", "peak", "narendra", "chi2", "cusum", "glr")
+MONOTONE = ("norm", "rms", "ewrms", "peak", "narendra")
+
+
+class _Ring:
+    """Fixed-length ring buffer of floats with an exact running sum.
+
+    The sum is recomputed from the buffer once per wrap-around so rounding cannot
+    accumulate (amortised O(1) per push).
+    """
+
+    def __init__(self, n: int):
+        self.buf = [0.0] * n
+        self.i = 0
+        self.count = 0
+        self.sum = 0.0
+
+    def push(self, x: float) -> None:
+        n = len(self.buf)
+        self.sum += x - self.buf[self.i]
+        self.buf[self.i] = x
+        self.i += 1
+        self.count = min(self.count + 1, n)
+        if self.i == n:
+            self.i = 0
+            self.sum = math.fsum(self.buf)
+
+    def state(self) -> dict:
+        return {"buf": list(self.buf), "i": self.i, "count": self.count, "sum": self.sum}
+
+    def load(self, s: dict) -> None:
+        self.buf, self.i, self.count, self.sum = list(map(float, s["buf"])), int(s["i"]), int(s["count"]), float(s["sum"])
+
+
+def _window(spec: dict) -> int:
+    n = int(spec.get("window", 1))
+    if n < 1:
+        raise ValueError(f"evaluation window must be at least 1 sample, got {n}")
+    return n
+
+
+def _whitener(spec: dict, dim: int) -> np.ndarray:
+    if "W" in spec:
+        W = np.atleast_2d(np.asarray(spec["W"], float))
+    elif "sigma" in spec:
+        W = np.diag(1.0 / np.broadcast_to(np.asarray(spec["sigma"], float), (dim,)))
+    else:
+        W = np.eye(dim)
+    if W.shape != (dim, dim):
+        raise ValueError(f"whitening matrix must be {dim}x{dim}, got {W.shape}")
+    return W
+
+
+class Evaluator:
+    """One evaluation function for a residual group of dimension ``dim``."""
+
+    def __init__(self, spec: dict, dim: int):
+        kind = spec.get("kind")
+        if kind not in KINDS:
+            raise ValueError(f"unknown evaluation kind {kind!r}; use one of {KINDS}")
+        self.kind, self.spec, self.dim = kind, dict(spec), dim
+        if kind in ("rms", "chi2"):
+            self.n = _window(spec)
+        if kind == "ewrms":
+            self.lam = float(spec["lambda"])
+            if not 0.0 < self.lam < 1.0:
+                raise ValueError(f"ewrms forgetting factor must be in (0, 1), got {self.lam}")
+        if kind == "peak":
+            self.n = _window(spec)
+        if kind == "narendra":
+            self.alpha, self.beta, self.gamma = (float(spec.get(k, d)) for k, d in
+                                                 (("alpha", 0.0), ("beta", 1.0), ("gamma", 0.9)))
+            if not 0.0 <= self.gamma < 1.0 or self.alpha < 0 or self.beta < 0:
+                raise ValueError("narendra needs alpha >= 0, beta >= 0 and 0 <= gamma < 1")
+        if kind in ("chi2", "cusum", "glr"):
+            self.W = _whitener(spec, dim)
+        if kind == "cusum":
+            self.delta = float(spec.get("delta", 1.0))
+            if self.delta <= 0:
+                raise ValueError("cusum change magnitude delta must be positive")
+        if kind == "glr":
+            self.n = _window(spec)
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        k = self.kind
+        self.value = 0.0
+        if k in ("rms", "chi2"):
+            self.ring = _Ring(self.n)
+        elif k == "ewrms":
+            self.acc = 0.0
+        elif k == "peak":
+            self.deque: list[list[float]] = []  # [sample index, value], values decreasing
+            self.k = 0
+        elif k == "narendra":
+            self.re = 0.0
+        elif k == "cusum":
+            self.gp = [0.0] * self.dim
+            self.gm = [0.0] * self.dim
+        elif k == "glr":
+            self.hist: list[list[float]] = []  # last n whitened vectors, oldest first
+
+    def get_state(self) -> dict:
+        k = self.kind
+        s: dict = {"value": self.value}
+        if k in ("rms", "chi2"):
+            s["ring"] = self.ring.state()
+        elif k == "ewrms":
+            s["acc"] = self.acc
+        elif k == "peak":
+            s["deque"] = [list(e) for e in self.deque]
+            s["k"] = self.k
+        elif k == "narendra":
+            s["re"] = self.re
+        elif k == "cusum":
+            s["gp"], s["gm"] = list(self.gp), list(self.gm)
+        elif k == "glr":
+            s["hist"] = [list(h) for h in self.hist]
+        return s
+
+    def set_state(self, s: dict) -> None:
+        k = self.kind
+        self.value = float(s["value"])
+        if k in ("rms", "chi2"):
+            self.ring.load(s["ring"])
+        elif k == "ewrms":
+            self.acc = float(s["acc"])
+        elif k == "peak":
+            self.deque = [[float(a), float(b)] for a, b in s["deque"]]
+            self.k = int(s["k"])
+        elif k == "narendra":
+            self.re = float(s["re"])
+        elif k == "cusum":
+            self.gp, self.gm = list(map(float, s["gp"])), list(map(float, s["gm"]))
+        elif k == "glr":
+            self.hist = [list(map(float, h)) for h in s["hist"]]
+
+    # ------------------------------------------------------------------- step
+    def step(self, r: np.ndarray) -> float:
+        k = self.kind
+        if k == "norm":
+            v = float(np.linalg.norm(r))
+        elif k == "rms":
+            self.ring.push(float(r @ r))
+            v = math.sqrt(max(self.ring.sum, 0.0) / self.n)
+        elif k == "ewrms":
+            self.acc = self.lam * self.acc + (1.0 - self.lam) * float(r @ r)
+            v = math.sqrt(self.acc)
+        elif k == "peak":
+            x = float(np.linalg.norm(r))
+            while self.deque and self.deque[-1][1] <= x:
+                self.deque.pop()
+            self.deque.append([float(self.k), x])
+            while self.deque[0][0] <= self.k - self.n:
+                self.deque.pop(0)
+            self.k += 1
+            v = self.deque[0][1]
+        elif k == "narendra":
+            x = float(np.linalg.norm(r))
+            v = self.alpha * x + self.beta * self.re
+            self.re = self.gamma * self.re + x
+        elif k == "chi2":
+            w = self.W @ r
+            self.ring.push(float(w @ w))
+            v = max(self.ring.sum, 0.0)
+        elif k == "cusum":
+            z = self.W @ r
+            d = self.delta
+            for i in range(self.dim):
+                self.gp[i] = max(0.0, self.gp[i] + d * z[i] - 0.5 * d * d)
+                self.gm[i] = max(0.0, self.gm[i] - d * z[i] - 0.5 * d * d)
+            v = max(max(self.gp), max(self.gm))
+        else:  # glr
+            w = self.W @ r
+            self.hist.append(w.tolist())
+            if len(self.hist) > self.n:
+                self.hist.pop(0)
+            acc = np.zeros(self.dim)
+            best = 0.0
+            for j, h in enumerate(reversed(self.hist)):
+                acc += h
+                best = max(best, float(acc @ acc) / (2.0 * (j + 1)))
+            v = best
+        self.value = v
+        return v
+
+    def run(self, R: np.ndarray) -> np.ndarray:
+        """Evaluate a whole record (rows are samples): identical to repeated ``step``."""
+        return np.array([self.step(np.asarray(r, float)) for r in np.atleast_2d(R)])
+
+    # --------------------------------------------------------- resampling
+    def resampled(self, ratio: float) -> "Evaluator":
+        """The same evaluation for a sample time ``ratio`` times the design's.
+
+        Windows keep their duration (``N → round(N / ratio)``), forgetting factors their
+        time constant (``λ → λ^ratio``, ``γ → γ^ratio``) and the Narendra filter its
+        steady-state gain (``β → β (1-γ') / (1-γ)``). The statistical tests are defined
+        per sample of a whitened sequence and cannot be resampled.
+        """
+        s = dict(self.spec)
+        if self.kind in ("chi2", "cusum", "glr"):
+            raise ValueError(f"the '{self.kind}' test is defined per design sample and cannot run at another step size")
+        if self.kind in ("rms", "peak"):
+            s["window"] = max(1, int(round(self.n / ratio)))
+        elif self.kind == "ewrms":
+            s["lambda"] = self.lam ** ratio
+        elif self.kind == "narendra":
+            g2 = self.gamma ** ratio
+            s["gamma"] = g2
+            s["beta"] = self.beta * (1 - g2) / (1 - self.gamma) if self.gamma < 1 else self.beta
+        return Evaluator(s, self.dim)

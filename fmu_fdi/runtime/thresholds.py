@@ -1,0 +1,95 @@
+"""Decision thresholds evaluated at run time (Frank, section 7; Ding 2008, ch. 10).
+
+=============  ==================================================================
+kind           J_th(k)
+=============  ==================================================================
+fixed          ``value``
+adaptive       ``J0 + a · E_u(k)``: Frank's adaptive threshold; ``E_u`` is an
+               evaluator (normally the residual's own) applied to ``||u(k) - u0||``
+majorant       ``J0 + E(b)(k)`` with ``b(k) = Σ_{j<M} m_j ||u(k-j)|| + t · max_{i≤k-M} ||u(i)||``:
+               a pointwise bound ``||r(k)|| ≤ b(k)`` pushed through the residual's own
+               (monotone) evaluator E — the ℓ∞ counterpart of ``adaptive``
+=============  ==================================================================
+
+The design-time threshold selector (:mod:`fmu_fdi.evaluation.selector`) computes
+``a`` / ``m``, ``t`` and ``J0`` and documents the guarantee each one gives.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .evaluation import Evaluator
+
+KINDS = ("fixed", "adaptive", "majorant")
+
+
+class Threshold:
+    def __init__(self, spec: dict, residual_eval: dict):
+        kind = spec.get("kind")
+        if kind not in KINDS:
+            raise ValueError(f"unknown threshold kind {kind!r}; use one of {KINDS}")
+        self.kind, self.spec = kind, dict(spec)
+        if kind == "fixed":
+            self.value0 = float(spec["value"])
+            if not np.isfinite(self.value0) or self.value0 < 0:
+                raise ValueError(f"fixed threshold must be finite and >= 0, got {self.value0}")
+        else:
+            self.J0 = float(spec.get("J0", 0.0))
+            if not np.isfinite(self.J0) or self.J0 < 0:
+                raise ValueError(f"threshold offset J0 must be finite and >= 0, got {self.J0}")
+        if kind == "adaptive":
+            self.a = float(spec["a"])
+            self.u_eval = Evaluator(spec.get("evaluation", residual_eval), 1)
+        if kind == "majorant":
+            self.taps = np.asarray(spec["taps"], float)
+            self.tail = float(spec.get("tail", 0.0))
+            if self.taps.ndim != 1 or self.taps.size < 1 or np.any(self.taps < 0) or self.tail < 0:
+                raise ValueError("majorant taps must be a non-empty list of non-negative numbers, tail >= 0")
+            self.b_eval = Evaluator(residual_eval, 1)
+        self.reset()
+
+    def reset(self) -> None:
+        self.value = self.value0 if self.kind == "fixed" else self.J0
+        if self.kind == "adaptive":
+            self.u_eval.reset()
+        if self.kind == "majorant":
+            self.b_eval.reset()
+            self.hist = [0.0] * self.taps.size  # ||u(k-j)||, j = 0..M-1
+            self.old_max = 0.0
+
+    def step(self, unorm: float) -> float:
+        if self.kind == "adaptive":
+            self.value = self.J0 + self.a * self.u_eval.step(np.array([unorm]))
+        elif self.kind == "majorant":
+            M = self.taps.size
+            self.old_max = max(self.old_max, self.hist[-1]) if M else self.old_max
+            self.hist = [unorm] + self.hist[:-1]
+            b = float(np.dot(self.taps, self.hist)) + self.tail * self.old_max
+            self.value = self.J0 + self.b_eval.step(np.array([b]))
+        return self.value
+
+    def get_state(self) -> dict:
+        s: dict = {"value": self.value}
+        if self.kind == "adaptive":
+            s["u_eval"] = self.u_eval.get_state()
+        if self.kind == "majorant":
+            s.update({"b_eval": self.b_eval.get_state(), "hist": list(self.hist), "old_max": self.old_max})
+        return s
+
+    def set_state(self, s: dict) -> None:
+        self.value = float(s["value"])
+        if self.kind == "adaptive":
+            self.u_eval.set_state(s["u_eval"])
+        if self.kind == "majorant":
+            self.b_eval.set_state(s["b_eval"])
+            self.hist = list(map(float, s["hist"]))
+            self.old_max = float(s["old_max"])
+
+    def resampled(self, ratio: float, residual_eval: dict) -> "Threshold":
+        if self.kind == "majorant":
+            raise ValueError("a majorant threshold is an impulse-response bound at the design sample time and "
+                             "cannot run at another step size")
+        s = dict(self.spec)
+        if self.kind == "adaptive":
+            s["evaluation"] = self.u_eval.resampled(ratio).spec
+        return Threshold(s, residual_eval)
