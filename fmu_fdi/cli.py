@@ -1,10 +1,43 @@
-"""Command line: a thin layer over the library (``fmu-fdi --help``)."""
+"""fmu-fdi command line: a thin layer over the library.
+
+  fmu-fdi analyze MODEL                    detectability / isolability table
+  fmu-fdi design MODEL --method M ... -o DESIGN.json
+"""
 from __future__ import annotations
 
 import argparse
 import sys
 
+import numpy as np
+
 from .errors import DesignError, ModelError
+
+METHODS = {
+    # name: (design function, options it takes from the command line)
+    "nullspace": ("nullspace_design", ("poles", "rdim")),
+    "parity": ("parity_space", ("order", "rdim", "ts_design")),
+    "luenberger": ("luenberger", ("poles",)),
+    "kalman": ("kalman", ("Qw", "Rv")),
+    "uio": ("unknown_input_observer", ("poles",)),
+    "fdf": ("fault_detection_filter", ("poles",)),
+    "factorized": ("factorized", ("poles",)),
+    "dos": ("dedicated_bank", ("kind", "poles")),
+    "gos": ("generalized_bank", ("kind", "poles")),
+    "structured": ("structured_bank", ("structure", "poles")),
+    "rls": ("rls_estimator", ("order", "ts_design")),
+}
+
+DESIGN_HELP = """\
+Defaults (no options): the method's own defaults (null-space: one least-order residual,
+poles at -max(1, ||A||) in continuous time, deadbeat in discrete time); evaluation
+'rms:10' (RMS over 10 samples); threshold 'fault-size:1' (half the steady-state
+evaluation of a unit step of the weakest fault each residual sees); sample time: the
+model's for a discrete model, otherwise --ts is required.
+
+--evaluation  norm | rms:N | ewrms:LAMBDA | peak:N | narendra:ALPHA,BETA,GAMMA | chi2:N
+--threshold   fault-size:F | fixed:V | sensor-gain:DELTA,J0 (adaptive, from ±DELTA level-
+              sensor gain errors via the threshold selector)
+"""
 
 
 def _analyze(args) -> int:
@@ -27,12 +60,115 @@ def _analyze(args) -> int:
     return 0
 
 
+def parse_evaluation(text: str) -> dict:
+    kind, _, arg = text.partition(":")
+    try:
+        if kind == "norm":
+            return {"kind": "norm"}
+        if kind in ("rms", "peak", "chi2"):
+            return {"kind": kind, "window": int(arg)}
+        if kind == "ewrms":
+            return {"kind": "ewrms", "lambda": float(arg)}
+        if kind == "narendra":
+            a, b, g = (float(x) for x in arg.split(","))
+            return {"kind": "narendra", "alpha": a, "beta": b, "gamma": g}
+    except ValueError:
+        pass
+    raise DesignError(f"cannot read evaluation {text!r}: use norm, rms:N, ewrms:LAMBDA, peak:N, "
+                      f"narendra:ALPHA,BETA,GAMMA or chi2:N")
+
+
+def _thresholds(text: str, gen, evaluation: dict):
+    from .evaluation import fault_size_thresholds, sensor_gain_plants, threshold_selector
+
+    kind, _, arg = text.partition(":")
+    try:
+        if kind == "fixed":
+            return float(arg)
+        if kind == "fault-size":
+            return fault_size_thresholds(gen, evaluation, float(arg or 1.0))
+        if kind == "sensor-gain":
+            delta, J0 = (float(x) for x in arg.split(","))
+            plants = sensor_gain_plants(gen.model, delta)
+            return [threshold_selector(gen, evaluation, J0=J0, plants=plants)] * len(gen.groups)
+    except ValueError as exc:
+        if isinstance(exc, (DesignError, ModelError)):
+            raise
+    raise DesignError(f"cannot read threshold {text!r}: use fault-size:F, fixed:V or sensor-gain:DELTA,J0")
+
+
+def _design(args) -> int:
+    from . import design as design_pkg
+    from .diagnoser import Diagnoser
+    from .model import FDIModel
+
+    model = FDIModel.from_file(args.model)
+    fname, takes = METHODS[args.method]
+    fn = getattr(design_pkg, fname, None)
+    if fn is None:
+        raise DesignError(f"method '{args.method}' is not available in this installation")
+    kw = {}
+    if "poles" in takes and args.poles is not None:
+        kw["poles"] = args.poles
+    if "rdim" in takes and args.rdim is not None:
+        kw["rdim"] = args.rdim
+    if "order" in takes and args.order is not None:
+        kw["order"] = args.order
+    if "kind" in takes:
+        kw["kind"] = args.kind
+    if "structure" in takes:
+        if not args.structure:
+            raise DesignError("--method structured needs --structure '1,0,1;0,1,1' (rows ; separated)")
+        kw["S"] = np.array([[int(x) for x in row.split(",")] for row in args.structure.split(";")])
+    if "Qw" in takes:
+        kw["Qw"] = np.diag(args.Qw) if args.Qw else None
+        kw["Rv"] = np.diag(args.Rv) if args.Rv else None
+    if "ts_design" in takes and not model.is_discrete:
+        if args.ts is None:
+            raise DesignError(f"--method {args.method} designs in discrete time: give --ts for a continuous model")
+        kw["Ts"] = args.ts
+    gen = fn(model, **kw)
+    if gen.dt == 0.0:
+        if args.ts is None:
+            raise DesignError("the model is continuous: give the diagnosis sample time --ts")
+        gen = gen.to_discrete(args.ts)
+    evaluation = parse_evaluation(args.evaluation)
+    thresholds = _thresholds(args.threshold, gen, evaluation)
+    decision = {"persistence": [int(x) for x in args.persistence.split("/")], "latch": args.latch}
+    dg = Diagnoser(gen, evaluation=evaluation, thresholds=thresholds, decision=decision, name=args.name)
+    path = dg.save(args.output)
+    print(f"wrote {path}: method {gen.method}, {gen.n_residuals} residual(s) in {len(gen.groups)} group(s), "
+          f"order {gen.Q.n if hasattr(gen, 'Q') else '-'}, Ts = {gen.dt:g} s, isolation "
+          f"'{dg.design['decision']['isolation']}'")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="fmu-fdi", description=__doc__)
+    p = argparse.ArgumentParser(prog="fmu-fdi", description="Model-based fault detection and isolation as FMUs.")
     sub = p.add_subparsers(dest="command", required=True)
     a = sub.add_parser("analyze", help="detectability / isolability table of a model file")
     a.add_argument("model", help="model file (.toml or .json)")
     a.set_defaults(func=_analyze)
+
+    d = sub.add_parser("design", help="design a diagnoser and write its design file",
+                       formatter_class=argparse.RawDescriptionHelpFormatter, epilog=DESIGN_HELP)
+    d.add_argument("model", help="model file (.toml or .json)")
+    d.add_argument("--method", required=True, choices=sorted(METHODS))
+    d.add_argument("-o", "--output", required=True, help="design file to write (.json)")
+    d.add_argument("--ts", type=float, help="diagnosis sample time for a continuous model (s)")
+    d.add_argument("--poles", type=float, nargs="+", help="filter poles (real)")
+    d.add_argument("--rdim", type=int, help="number of residuals")
+    d.add_argument("--order", type=int, help="parity order / ARX order")
+    d.add_argument("--kind", default="sensor", choices=("sensor", "actuator"), help="faults of a DOS/GOS bank")
+    d.add_argument("--structure", help="structure matrix for --method structured, rows separated by ';'")
+    d.add_argument("--Qw", type=float, nargs="+", help="Kalman: noise variances (diagonal of Qw)")
+    d.add_argument("--Rv", type=float, nargs="+", help="Kalman: measurement noise variances (diagonal of Rv)")
+    d.add_argument("--evaluation", default="rms:10", help="evaluation function (default rms:10)")
+    d.add_argument("--threshold", default="fault-size:1", help="threshold (default fault-size:1)")
+    d.add_argument("--persistence", default="1/1", help="alarm persistence k/n (default 1/1)")
+    d.add_argument("--latch", action="store_true", help="latch alarms until reset")
+    d.add_argument("--name", help="diagnoser name (default MODEL_METHOD)")
+    d.set_defaults(func=_design)
     return p
 
 

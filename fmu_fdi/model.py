@@ -19,6 +19,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from ._schema import check_format, check_keys
 from .faults import FaultSpec, ModelError, _matrix, check_name
 from .lti import LTI
 
@@ -376,16 +377,8 @@ class FDIModel:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "model") -> "FDIModel":
-        if not isinstance(d, dict):
-            raise ModelError(f"{source}: the top level must be a table/object")
-        fmt = d.get("format")
-        if fmt is None:
-            raise ModelError(f"{source}: missing key 'format' (expected {FORMAT!r})")
-        if fmt != FORMAT:
-            raise ModelError(f"{source}: unsupported format {fmt!r}; this version reads {FORMAT!r}")
-        unknown = set(d) - _TOP_KEYS
-        if unknown:
-            raise ModelError(f"{source}: unknown keys {sorted(unknown)}; allowed: {sorted(_TOP_KEYS)}")
+        check_format(d, FORMAT, source, ModelError)
+        check_keys(d, (), _TOP_KEYS, source, ModelError)
         sig = d.get("signals")
         if not isinstance(sig, dict) or "y" not in sig:
             raise ModelError(f"{source}: [signals] with at least 'y' is required")

@@ -66,3 +66,16 @@ def a6_model():
     C = np.array([[1.0, 0, 0], [0, 0, 1]])
     return FDIModel.from_matrices(A, B, C, Bd=B, u_names=["u"], y_names=["y1", "y2"], d_names=["d"],
                                   faults=[sensor_fault("s1", "y1"), sensor_fault("s2", "y2")], name="a6")
+
+
+def three_tank_like(dt=0.0, leak=True) -> FDIModel:
+    """A linearised three-tank (coupled first-order tanks), 3 sensors, 2 pumps, 1 leak d."""
+    a = 0.0158
+    A = np.array([[-a, 0, a], [0, -0.0227, 0.0151], [a, 0.0151, -0.0309]])
+    B = np.array([[1, 0], [0, 1], [0, 0]]) / 154
+    model = FDIModel.from_matrices(A, B, np.eye(3), Bd=[[0], [0], [-0.01]] if leak else None,
+                                   u_names=["Q1", "Q2"], y_names=["h1", "h2", "h3"],
+                                   d_names=["leak3"] if leak else [], faults=[
+                                       sensor_fault("s1", "h1"), sensor_fault("s2", "h2"), sensor_fault("s3", "h3"),
+                                       actuator_fault("p1", "Q1"), actuator_fault("p2", "Q2")], name="tanks")
+    return model.discretize(dt) if dt else model

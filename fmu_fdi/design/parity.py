@@ -37,7 +37,7 @@ from ._basis import NullspaceBasis, ParityData, PolyRow, _block_toeplitz, realiz
 from .nullspace import _exact, detectability_by_rows, undetectable_error
 
 
-def parity_space(model: FDIModel, order: int, *, Ts: float | None = None, rdim: int | None = None,
+def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None = None, rdim: int | None = None,
                  robust: str | bool = "auto", FDtol: float = 1e-4, tol: float | None = None,
                  seed: int = 0) -> ResidualGenerator:
     """Finite-memory parity-space residual generator of order ``order``.
@@ -47,8 +47,10 @@ def parity_space(model: FDIModel, order: int, *, Ts: float | None = None, rdim: 
     model : FDIModel
         A discrete model, or a continuous one together with ``Ts`` (it is then
         discretised exactly with a zero-order hold of every input).
-    order : int
-        The parity order s (window of s+1 samples), ``0 <= s``.
+    order : int, optional
+        The parity order s (window of s+1 samples), ``0 <= s``. Default: the smallest order
+        with an exact parity relation that sees every fault (the robust design at order n
+        when there is none).
     Ts : float, optional
         Sample time for a continuous model.
     rdim : int, optional
@@ -69,7 +71,7 @@ def parity_space(model: FDIModel, order: int, *, Ts: float | None = None, rdim: 
         scaled operator of ``info['rho']``) and ``info['mode']`` is 'exact' or 'robust'
         (with ``info['robustness_ratio'] = sqrt(J)``).
     """
-    if not isinstance(order, (int, np.integer)) or order < 0:
+    if order is not None and (not isinstance(order, (int, np.integer)) or order < 0):
         raise DesignError(f"parity order must be a non-negative integer, got {order!r}")
     if robust not in ("auto", True, False):
         raise DesignError(f"robust must be 'auto', True or False, got {robust!r}")
@@ -82,6 +84,15 @@ def parity_space(model: FDIModel, order: int, *, Ts: float | None = None, rdim: 
         model = model.discretize(Ts)
     elif Ts is not None and abs(Ts - model.dt) > 1e-12 * model.dt:
         raise DesignError(f"Ts={Ts} differs from the discrete model's sample time {model.dt}")
+    if order is None:
+        for s in range(model.n + 2):
+            try:
+                return parity_space(model, s, rdim=rdim, robust=False, FDtol=FDtol, tol=tol, seed=seed)
+            except DesignError:
+                continue
+        if robust is False:
+            raise DesignError(f"no exact parity relation of any order up to n+1 = {model.n + 1} sees every fault")
+        order = max(model.n, 1)
     s = int(order)
     data = ParityData(model, reduce=False)  # annihilate the whole state: no initial-state transient
     if robust is not True:

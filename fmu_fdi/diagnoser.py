@@ -1,0 +1,269 @@
+"""The Diagnoser: residual generator + evaluation + thresholds + decision logic.
+
+A ``Diagnoser`` is configuration (what to compute) around one numpy-only runtime
+(:class:`~fmu_fdi.runtime.engine.DiagnoserRuntime`) that does the computing; the same
+runtime runs inside the diagnostic FMU, so ``Diagnoser.step``/``run`` and the FMU give
+the same numbers.
+"""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+
+from .analysis import structure_matrix
+from .designfile import FORMAT, load_design, save_design, validate_design
+from .errors import DesignError
+from .evaluation.selector import ThresholdDesign
+from .generator import ResidualGenerator
+from .lti import LTI
+from .model import FDIModel
+from .runtime.engine import DiagnoserRuntime
+
+DEFAULT_EVALUATION = {"kind": "rms", "window": 10}
+
+
+def _lti_dict(Q: LTI) -> dict:
+    return {"A": Q.A.tolist(), "B": Q.B.tolist(), "C": Q.C.tolist(), "D": Q.D.tolist()}
+
+
+def _threshold_spec(t) -> dict:
+    if isinstance(t, ThresholdDesign):
+        return dict(t.spec)
+    if isinstance(t, (int, float, np.floating, np.integer)):
+        return {"kind": "fixed", "value": float(t)}
+    if isinstance(t, dict):
+        return dict(t)
+    if hasattr(t, "value"):  # a statistical threshold estimate
+        return {"kind": "fixed", "value": float(t.value)}
+    raise DesignError(f"a threshold must be a number, a spec dict or a ThresholdDesign, got {type(t).__name__}")
+
+
+class Diagnoser:
+    """Residual generator, evaluation functions, thresholds and isolation logic.
+
+    Parameters
+    ----------
+    generator : ResidualGenerator, ResidualBank or RLSEstimator
+        A continuous generator needs ``Ts`` (it is discretised exactly with a zero-order
+        hold and kept for re-discretisation at other step sizes).
+    Ts : float, optional
+        Sample time of the diagnosis (defaults to the generator's).
+    evaluation : dict or list of dict
+        Evaluator spec(s), one for all groups or one per residual group
+        (default ``{"kind": "rms", "window": 10}``).
+    thresholds : number, dict, ThresholdDesign, or a list of these (one per group)
+        Required: fixed values, runtime specs, or results of the threshold designers.
+    decision : dict, optional
+        ``persistence`` ([k, n]), ``latch`` (bool), ``isolation`` ('auto', 'structure',
+        'direction', 'none'), ``structure`` (groups × faults; default: the generator's weak
+        structure matrix), ``min_margin`` for directional isolation (radians).
+    name : str, optional
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fmu_fdi import FDIModel, sensor_fault, nullspace_design, Diagnoser
+    >>> m = FDIModel.from_matrices([[-1.0]], [[1.0]], [[1.0], [1.0]], faults=[sensor_fault("s", "y0")])
+    >>> dg = Diagnoser(nullspace_design(m, poles=[-2.0]), Ts=0.1, thresholds=0.1)
+    >>> out = dg.run(np.arange(5) * 0.1, np.ones((5, 1)), np.zeros((5, 2)))
+    >>> out.dtype.names[:2]
+    ('time', 'residual_1')
+    """
+
+    def __init__(self, generator, *, Ts: float | None = None, evaluation=None, thresholds=None,
+                 decision: dict | None = None, name: str | None = None):
+        if thresholds is None:
+            raise DesignError("thresholds are required: give a number per residual group, a spec, or a threshold "
+                              "design (threshold_selector, analytic_threshold, data_driven_threshold)")
+        gen = generator
+        cont = None
+        if getattr(gen, "dt", 0.0) == 0.0:
+            if Ts is None:
+                raise DesignError("the generator is continuous: give the diagnosis sample time Ts")
+            cont = gen
+            gen = gen.to_discrete(Ts)
+        else:
+            if Ts is not None and abs(Ts - gen.dt) > 1e-12 * gen.dt:
+                raise DesignError(f"Ts={Ts} differs from the discrete generator's sample time {gen.dt}")
+            cont = getattr(gen, "continuous", None)
+        self.generator = gen
+        self.continuous = cont
+        self.Ts = gen.dt
+        model: FDIModel = gen.model
+        groups = gen.groups
+        ng = len(groups)
+        evals = evaluation if isinstance(evaluation, list) else [evaluation or DEFAULT_EVALUATION] * ng
+        thrs = thresholds if isinstance(thresholds, list) else [thresholds] * ng
+        if len(evals) != ng or len(thrs) != ng:
+            raise DesignError(f"the generator has {ng} residual groups: give one evaluation and threshold each "
+                              f"(got {len(evals)} and {len(thrs)})")
+        self.design = self._build_design(gen, cont, model, [dict(e) for e in evals],
+                                         [_threshold_spec(t) for t in thrs], dict(decision or {}), name)
+        validate_design(self.design, "diagnoser")
+        self.runtime = DiagnoserRuntime(self.design)
+
+    # ----------------------------------------------------------------- design
+    def _build_design(self, gen, cont, model: FDIModel, evals, thrs, decision, name) -> dict:
+        isolation = decision.pop("isolation", "auto")
+        info = dict(getattr(gen, "info", {}))
+        nf = len(model.faults)
+        if isolation == "auto":
+            if "fault_directions" in info and nf:
+                isolation = "direction"
+            elif len(gen.groups) > 1 and nf:
+                isolation = "structure"
+            else:
+                isolation = "none"
+        dec = {"persistence": list(decision.pop("persistence", [1, 1])), "latch": bool(decision.pop("latch", False)),
+               "isolation": isolation}
+        if isolation == "structure":
+            S = decision.pop("structure", None)
+            if S is None:
+                S = structure_matrix(gen)
+            dec["structure"] = np.asarray(S, int).tolist()
+        elif isolation == "direction":
+            dirs = decision.pop("directions", info.get("fault_directions"))
+            if dirs is None:
+                raise DesignError("directional isolation needs fault directions (a fault detection filter design)")
+            dec["directions"] = np.asarray(dirs, float).tolist()
+            dec["min_margin"] = float(decision.pop("min_margin", 0.1))
+        if decision:
+            raise DesignError(f"unknown decision options {sorted(decision)}")
+        units = {k: v for k, v in model.units.items()}
+        return {
+            "format": FORMAT,
+            "name": name or f"{model.name}_{gen.method}",
+            "created_by": f"fmu-fdi {_version()}",
+            "signals": {"u": list(model.u_names), "y": list(model.y_names)},
+            "units": units,
+            "operating_point": {"u": model.u0.tolist(), "y": model.y0.tolist()},
+            "faults": [{"name": f.name, "kind": f.kind, "description": f.description} for f in model.faults],
+            "generator": {
+                "method": gen.method, "dt": gen.dt, "discrete": gen.runtime_spec(),
+                "continuous": _lti_dict(cont.Q) if isinstance(cont, ResidualGenerator) else None,
+                "residual_names": list(gen.residual_names), "groups": [list(g) for g in gen.groups],
+                "info": _jsonable_info(info),
+            },
+            "evaluation": [{"evaluator": e, "threshold": t} for e, t in zip(evals, thrs)],
+            "decision": dec,
+            "model": model.to_dict(),
+        }
+
+    # ------------------------------------------------------------------- run
+    @property
+    def output_names(self) -> list[str]:
+        return list(self.runtime.names)
+
+    @property
+    def fault_names(self) -> list[str]:
+        return [f["name"] for f in self.design["faults"]]
+
+    def fault_name(self, index: int) -> str:
+        """Name of an ``isolated_fault`` value: '' for 0, 'unknown' for -1."""
+        if index == 0:
+            return ""
+        if index < 0:
+            return "unknown"
+        return self.fault_names[index - 1]
+
+    def reset(self) -> None:
+        self.runtime.reset()
+
+    def _dtype(self) -> np.dtype:
+        fields = [("time", "f8")]
+        for nm in self.runtime.names:
+            if nm.startswith("alarm_") or nm in ("fault_detected", "input_invalid"):
+                fields.append((nm, "?"))
+            elif nm == "isolated_fault":
+                fields.append((nm, "i4"))
+            else:
+                fields.append((nm, "f8"))
+        return np.dtype(fields)
+
+    def step(self, u, y) -> dict:
+        """Process one sample; returns the FMU outputs by name (plus ``isolated_name``)."""
+        vals = self.runtime.advance(u, y)
+        out = {}
+        for nm, v in zip(self.runtime.names, vals):
+            out[nm] = bool(v) if nm.startswith("alarm_") or nm in ("fault_detected", "input_invalid") else \
+                (int(v) if nm == "isolated_fault" else float(v))
+        out["isolated_name"] = self.fault_name(out["isolated_fault"])
+        return out
+
+    def run(self, t, u, y, reset: bool = True) -> np.ndarray:
+        """Process a record: ``t`` (N,), ``u`` (N × inputs), ``y`` (N × outputs).
+
+        Returns a structured array with ``time`` and the FMU output names. The sample
+        spacing must be uniform; a spacing other than Ts is served like an FMU
+        communication step (sub-steps or exact re-discretisation). Identical to calling
+        :meth:`step` on each row after :meth:`reset`.
+        """
+        t = np.asarray(t, float).ravel()
+        N = t.size
+        u = np.asarray(u, float).reshape(N, -1) if self.runtime.nu else np.zeros((N, 0))
+        y = np.asarray(y, float).reshape(N, -1)
+        if u.shape[1] != self.runtime.nu or y.shape[1] != self.runtime.ny:
+            raise ValueError(f"u must be N x {self.runtime.nu} and y N x {self.runtime.ny}; got {u.shape}, {y.shape}")
+        if reset:
+            self.runtime.reset()
+        h = None
+        if N > 1:
+            dt = np.diff(t)
+            h = float(np.median(dt))
+            if not np.all(np.abs(dt - h) <= 1e-9 * max(h, 1e-300)):
+                raise ValueError("the sample times t must be uniformly spaced")
+        out = np.zeros(N, dtype=self._dtype())
+        out["time"] = t
+        names = self.runtime.names
+        rows = np.empty((N, len(names)))
+        for k in range(N):
+            rows[k] = self.runtime.advance(u[k], y[k], h)
+        for j, nm in enumerate(names):
+            out[nm] = rows[:, j]
+        return out
+
+    # ------------------------------------------------------------------ files
+    def save(self, path) -> Path:
+        """Write the versioned JSON design file (schema: docs/design-file.md)."""
+        return save_design(self.design, path)
+
+    @classmethod
+    def load(cls, path) -> "Diagnoser":
+        """Read a design file. The returned diagnoser runs exactly as the saved one;
+        its ``generator`` is rebuilt from the embedded model when the design is LTI."""
+        design = load_design(path)
+        return cls.from_design(design)
+
+    @classmethod
+    def from_design(cls, design: dict) -> "Diagnoser":
+        self = cls.__new__(cls)
+        self.design = copy.deepcopy(design)
+        self.runtime = DiagnoserRuntime(self.design)
+        self.Ts = float(design["generator"]["dt"])
+        self.generator = self.continuous = None
+        g = design["generator"]
+        if "model" in design and g["discrete"].get("kind") == "lti":
+            model = FDIModel.from_dict(design["model"], source="design model")
+            Qd = LTI(g["discrete"]["A"], g["discrete"]["B"], g["discrete"]["C"], g["discrete"]["D"], self.Ts)
+            md = model if model.is_discrete else model.discretize(self.Ts)
+            self.generator = ResidualGenerator(Qd, md, g["method"], g["residual_names"], g["groups"], g.get("info"))
+            if g.get("continuous") is not None and not model.is_discrete:
+                c = g["continuous"]
+                self.continuous = ResidualGenerator(LTI(c["A"], c["B"], c["C"], c["D"]), model, g["method"],
+                                                    g["residual_names"], g["groups"], g.get("info"))
+        return self
+
+
+def _version() -> str:
+    from . import __version__
+
+    return __version__
+
+
+def _jsonable_info(info: dict) -> dict:
+    from .designfile import _clean
+
+    return _clean({k: v for k, v in info.items() if isinstance(v, (int, float, str, list, dict, bool, np.ndarray,
+                                                                    np.floating, np.integer, type(None)))})

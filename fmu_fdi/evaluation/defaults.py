@@ -1,0 +1,47 @@
+"""Default threshold when nothing else is known: sized by the smallest fault to detect.
+
+For a step fault of size F on fault j, residual group i settles at ``|Rf_ij(1)| F``
+(discrete DC gain, block 2-norm); the evaluation functions settle at that value
+(``norm``, ``rms``, ``ewrms``, ``peak``) or at ``(α + β / (1 - γ))`` times it (``narendra``).
+The default threshold of group i is half the smallest settled evaluation over the faults
+the group sees, so every step fault of size ≥ F is detected at steady state with a
+factor-2 margin against modelling error. It assumes no noise or uncertainty: with
+either, design the threshold (threshold_selector, analytic or data-driven thresholds).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import DesignError
+
+
+def _settled_gain(evaluation: dict) -> float:
+    kind = evaluation.get("kind")
+    if kind in ("norm", "rms", "ewrms", "peak"):
+        return 1.0
+    if kind == "narendra":
+        g = float(evaluation.get("gamma", 0.9))
+        return float(evaluation.get("alpha", 0.0)) + float(evaluation.get("beta", 1.0)) / (1.0 - g)
+    raise DesignError(f"no fault-size default for the '{kind}' evaluation (a statistical test): give a threshold")
+
+
+def fault_size_thresholds(gen, evaluation: dict | list, size: float = 1.0) -> list[float]:
+    """One fixed threshold per residual group (see module docstring); ``gen`` discrete."""
+    if not gen.dt:
+        raise DesignError("fault_size_thresholds needs the discrete generator")
+    if not (size > 0 and np.isfinite(size)):
+        raise DesignError(f"fault size must be positive, got {size!r}")
+    model = gen.model
+    if not model.faults:
+        raise DesignError("the model has no faults to size a threshold by: give a threshold")
+    evals = evaluation if isinstance(evaluation, list) else [evaluation] * len(gen.groups)
+    dc = gen.Rf.dcgain() if gen.Rf.m else np.zeros((gen.Q.p, 0))
+    out = []
+    for i, grp in enumerate(gen.groups):
+        settled = [np.linalg.norm(dc[np.ix_(grp, np.arange(model.nf)[f.columns])], 2) for f in model.faults]
+        seen = [v for v in settled if v > 1e-9 * max(settled + [1e-300])]
+        if not seen:
+            raise DesignError(f"residual group {i + 1} has zero steady-state response to every fault: "
+                              f"give a threshold")
+        out.append(0.5 * size * min(seen) * _settled_gain(evals[i]))
+    return out
