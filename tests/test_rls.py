@@ -162,6 +162,40 @@ def test_continuous_model_via_svf_converges_to_continuous_coefficients():
     assert np.max(np.abs(R)) < 1e-3  # as in the ARX test: rounding over the √eps floor
 
 
+def test_mimo_continuous_model_with_feedthrough_and_complex_poles():
+    """One SVF estimator per output; p has a feedthrough from u1, so b1_0 is estimated for p only."""
+    A = np.array([[0.0, 1.0], [-4.0, -0.8]])  # poles -0.4 ± 1.96j
+    m = FDIModel.from_matrices(A, [[0.0, 1.0], [1.0, 0.5]], [[1.0, 0.0], [0.5, 1.0]], [[0.3, 0.0], [0.0, 0.0]],
+                               u_names=["u1", "u2"], y_names=["p", "q"])
+    Ts = 0.02
+    est = rls_estimator(m, Ts=Ts)
+    assert est.groups == [list(range(7)), list(range(7, 13))]
+    th_c = est.info["theta_continuous"]
+    # p = (0.3 s² + 0.24 s + 2.2) u1 / (s² + 0.8 s + 4) + (s + 1.3) u2 / (s² + 0.8 s + 4)
+    assert np.allclose([th_c[k] for k in ("p.a1", "p.a2", "p.b1_0", "p.b1_1", "p.b1_2", "p.b2_1", "p.b2_2")],
+                       [0.8, 4.0, 0.3, 0.24, 2.2, 1.0, 1.3], atol=1e-12)
+    assert json.loads(json.dumps(est.info)) == est.info
+    rng = np.random.default_rng(10)
+    u = np.repeat(rng.standard_normal((160, 2)), 25, axis=0)  # 4000 samples, held 0.5 s
+    R, TH = est.simulate(zoh_outputs(m, Ts, u), u, return_estimates=True)
+    # As in the SISO SVF test: exact sampled relation, rounding only.
+    assert np.max(np.abs(TH[-1] - list(est.info["theta0"].values()))) < 1e-10
+    assert np.max(np.abs(R)) < 1e-3
+
+
+def test_static_output_estimates_its_gain():
+    m = FDIModel.from_matrices([[0.5]], [[1.0]], [[0.0]], [[2.0]], dt=1.0)  # y = 2 u, no dynamics
+    est = rls_estimator(m)
+    assert est.residual_names == ["b1_0"] and est.info["order"] == [0]
+    u = np.random.default_rng(11).standard_normal((200, 1))
+    gain = np.where(np.arange(200) < 100, 2.0, 2.2)[:, None]  # 10 % high from sample 100
+    R = est.simulate(gain * u, u)
+    assert np.max(np.abs(R[:100])) < 1e-3  # rounding over the √eps floor, as above
+    # Noise-free: σ sits on the √eps floor and the 3σ clip keeps the fault's errors out of
+    # it, so the change is an enormous residual from the first faulty sample on.
+    assert np.all(R[100:] > 1e3)
+
+
 def test_rls_solves_the_regularised_exponentially_weighted_least_squares_problem():
     """θ̂_k = argmin μ^k/P0 |θ - θ0|² + Σ μ^{k-i} (ψ_i - φ_iᵀθ)² (no trace bound, no reset)."""
     rng = np.random.default_rng(3)

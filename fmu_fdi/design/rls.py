@@ -35,7 +35,7 @@ forms one residual group, named ``<y>.a1``, ``<y>.b1_0``, ... (plain ``a1``, ``b
 output is estimated). Unknown inputs d and noise w are not modelled: they enter the
 equation error. Least squares is consistent for white *equation* error; white
 *measurement* noise on y makes the equation error coloured and biases the estimates by
-O(noise/signal power) (Ljung 1999, sec. 7.3) — the thresholds must absorb that bias.
+O(noise/signal power) (Ljung 1999, ch. 7) — the thresholds must absorb that bias.
 
 References
 ----------
@@ -243,6 +243,12 @@ def rls_estimator(model: FDIModel, *, output=None, order=None, Ts: float | None 
 
     Notes
     -----
+    Isolation: a parametric fault moves the residuals of the coefficients it changes. In
+    the first ~1/(1-μ) samples after an abrupt change the estimator's memory holds data of
+    two plants, and the least-squares estimate of mixed data is a *matrix*-weighted mean of
+    the two parameter vectors: the other coefficients move transiently too. Read the
+    pattern of residuals once that transient has passed (the tests use 5/(1-μ)).
+
     Runtime spec (``runtime_spec()``, kind ``"rls"``, version 1): ``dt``, ``n_inputs``
     (ny + nu), ``forgetting``, ``P0``, ``reset`` (``{"policy"}`` plus ``"period"`` for
     ``"periodic"``), ``noise_forgetting``, ``sigma_clip``, ``sigma_rel`` (relative floor of

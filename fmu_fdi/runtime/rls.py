@@ -11,7 +11,7 @@ that turns the samples ``w = [y_i; u]`` into the target ψ and the regressor φ 
 linear-in-parameters equation ``ψ[k] = φ[k]ᵀ θ + e[k]``: shift registers for an ARX
 model, a state-variable filter for a continuous model. The parameters are tracked by
 recursive least squares with exponential forgetting μ (Ljung 1999, sec. 11.2;
-Isermann & Münchhof 2011, sec. 9.4):
+Isermann & Münchhof 2011):
 
     ε    = ψ - φᵀ θ̂                       a priori equation error
     s    = μ + φᵀ P φ
@@ -62,7 +62,7 @@ every direction, so the estimates and their deviations mean nothing yet).
 References
 ----------
 Ljung, L. (1999). *System Identification: Theory for the User*, 2nd ed., ch. 11.
-Isermann, R., Münchhof, M. (2011). *Identification of Dynamic Systems*, ch. 9, 15.
+Isermann, R., Münchhof, M. (2011). *Identification of Dynamic Systems*. Springer.
 Young, P. (1981). Parameter estimation for continuous-time models — a survey.
 Automatica 17(1), 23-39 (state-variable filters).
 """
@@ -228,11 +228,10 @@ class RLSStep:
         v = np.asarray(v, float).reshape(-1)
         if v.shape != (self.n_inputs,):
             raise ValueError(f"rls step: expected {self.n_inputs} values [y; u], got {v.shape[0]}")
-        if not np.all(np.isfinite(v)):
-            raise ValueError(f"rls step: input sample contains NaN or Inf at {np.flatnonzero(~np.isfinite(v)).tolist()}")
-        out = []
-        for i, est in enumerate(self.estimators):
-            out.append(self._step_one(i, est, v[est.inputs]))
+        bad = ~np.isfinite(v)
+        if bad.any():
+            raise ValueError(f"rls step: input sample contains NaN or Inf at {np.flatnonzero(bad).tolist()}")
+        out = [self._step_one(i, est, v[est.inputs]) for i, est in enumerate(self.estimators)]
         self.k += 1
         return np.concatenate(out)
 
