@@ -37,6 +37,8 @@ def _fault_system(obj) -> tuple[LTI, list[list[int]], list[np.ndarray], list[str
     if isinstance(obj, FDIModel):
         Gf = obj.lti("f")
         return Gf, [[i] for i in range(obj.ny)], [np.arange(obj.nf)[f.columns] for f in obj.faults], obj.fault_names
+    if hasattr(obj, "runtime_spec"):
+        raise TypeError(f"{type(obj).__name__} is not an LTI residual generator: it has no internal form to analyse")
     sys = obj if isinstance(obj, LTI) else LTI.from_control(obj)
     return sys, [[i] for i in range(sys.p)], [np.array([j]) for j in range(sys.m)], [f"f{j + 1}" for j in range(sys.m)]
 

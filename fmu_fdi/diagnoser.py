@@ -110,7 +110,9 @@ class Diagnoser:
         info = dict(getattr(gen, "info", {}))
         nf = len(model.faults)
         if isolation == "auto":
-            if "fault_directions" in info and nf:
+            if not isinstance(gen, ResidualGenerator):
+                isolation = "none"  # no LTI internal form to read a structure from (e.g. RLS)
+            elif "fault_directions" in info and nf:
                 isolation = "direction"
             elif len(gen.groups) > 1 and nf:
                 isolation = "structure"

@@ -209,3 +209,30 @@ def test_diagnoser_argument_errors(a7_generator):
         dg.run(np.arange(3) * TS, np.zeros((3, 2)), np.zeros((3, 2)))
     with pytest.raises(ValueError, match="uniformly spaced"):
         dg.run(np.array([0, 0.01, 0.03]), np.zeros((3, 1)), np.zeros((3, 2)))
+
+
+def test_rls_estimator_runs_in_a_diagnoser_and_round_trips(tmp_path):
+    """A parameter-estimation diagnoser: the RLS runtime behind the same Diagnoser/design file."""
+    from fmu_fdi import parametric_fault, rls_estimator
+
+    A = np.array([[1.5, 1.0], [-0.7, 0.0]])
+    model = FDIModel.from_matrices(A, [[1.0], [0.5]], [[1.0, 0.0]], dt=1.0, u_names=["u"], y_names=["y"],
+                                   faults=[parametric_fault("gain", dB=[[0.2], [0.1]])])
+    est = rls_estimator(model, noise_std=0.01)
+    # |r_i| is a deviation in standard deviations: 6 keeps the per-sample false-alarm
+    # probability of a Gaussian below 2e-9 (Bonferroni over 4 parameters x 400 samples: < 4e-6)
+    dg = Diagnoser(est, evaluation={"kind": "norm"}, thresholds=6.0)
+    rng = np.random.default_rng(0)
+    N = 400
+    u = rng.standard_normal((N, 1))
+    x = np.zeros(2)
+    y = np.empty((N, 1))
+    for k in range(N):
+        y[k] = x[0] + 0.01 * rng.standard_normal()
+        x = A @ x + np.array([1.0, 0.5]) * u[k, 0]
+    t = np.arange(N) * 1.0
+    out = dg.run(t, u, y)
+    assert not out["fault_detected"].any()
+    again = Diagnoser.load(dg.save(tmp_path / "rls.json")).run(t, u, y)
+    for nm in out.dtype.names:
+        assert np.array_equal(out[nm], again[nm]), nm
