@@ -183,13 +183,6 @@ class ObserverGain:
         self.method = method
 
 
-def assignable_modes(A: np.ndarray, C: np.ndarray) -> tuple[int, np.ndarray]:
-    """``(n_o, unobservable eigenvalues)`` of the pair ``(A, C)``."""
-    Z, n_o = observable_staircase(A, C)
-    At = Z.T @ A @ Z
-    return n_o, np.linalg.eigvals(At[n_o:, n_o:]) if n_o < A.shape[0] else np.zeros(0, complex)
-
-
 def detectable_split(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)",
                      fixed_reason: str = "") -> tuple[np.ndarray, int, np.ndarray]:
     """Staircase ``(Z, n_o, unobservable eigenvalues)``; a DesignError naming the
@@ -332,17 +325,21 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
     (Laub 1979; Arnold & Laub 1984), which raise when no stabilising solution exists.
     """
     n = A.shape[0]
+
+    def no_solution(detail: str) -> DesignError:
+        return DesignError(
+            f"{what}: the filter Riccati equation has no stabilising solution ({detail}). It needs (A, C) "
+            f"detectable and no mode on the stability boundary that the process noise cannot reach "
+            f"(the pair (A − S R⁻¹ C, Qx − S R⁻¹ Sᵀ) must have no uncontrollable mode with "
+            f"{'|z| = 1' if dt else 'Re s = 0'})")
+
     try:
         if dt:
             P = sla.solve_discrete_are(A.T, C.T, Qx, R, s=S)
         else:
             P = sla.solve_continuous_are(A.T, C.T, Qx, R, s=S)
     except (np.linalg.LinAlgError, ValueError) as exc:
-        raise DesignError(
-            f"{what}: the filter Riccati equation has no stabilising solution ({exc}). It needs (A, C) "
-            f"detectable and no mode on the stability boundary that the process noise cannot reach "
-            f"(the pair (A − S R⁻¹ C, Qx − S R⁻¹ Sᵀ) must have no uncontrollable mode with "
-            f"{'|z| = 1' if dt else 'Re s = 0'})") from None
+        raise no_solution(str(exc)) from None
     P = (P + P.T) / 2
     if dt:
         Sigma = C @ P @ C.T + R
@@ -356,8 +353,7 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
     poles = np.linalg.eigvals(A - L @ C) if n else np.zeros(0)
     bad = unstable(poles, dt, max(1.0, float(np.linalg.norm(A, 2)) if n else 1.0))
     if bad.size:
-        raise DesignError(f"{what}: the Riccati solution does not stabilise the filter (modes {fmt_modes(bad)}); "
-                          f"the problem is too close to undetectable")
+        raise no_solution(f"the solver's solution leaves the modes {fmt_modes(bad)} of A − L C unstable")
     return RiccatiFilter(P, L, Kf, Sigma)
 
 
