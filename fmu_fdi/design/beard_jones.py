@@ -72,7 +72,15 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
         ``detection_orders`` {name: k_i}, ``fault_directions`` {name: unit vector C f_i*/‖C f_i*‖
         (sign: largest entry positive)}, ``detector_directions`` {name: f_i*}, ``gain`` D,
         ``poles`` (detection-space roots then the remainder), ``fixed_modes``,
-        ``detected_faults``.
+        ``eigenvector_condition`` (of A − D C), ``detected_faults``.
+
+    Notes
+    -----
+    Zero-order-hold sampling destroys the structural zeros ``C A^j f_i = 0``: a fault with
+    index 2 in continuous time has index 1 on the sampled model, with a small ``C Γ f_i``,
+    and the filter needs a large gain (large ``eigenvector_condition``). Prefer a
+    discrete model that keeps the structure, or the continuous design (whose sampled
+    version keeps the directions only approximately).
 
     Raises
     ------
@@ -153,6 +161,9 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
         "poles": np.concatenate([detection_roots, gain.poles]).tolist(),
         "fixed_modes": match_modes(gain.fixed, detection_roots).tolist(),
         "placement": gain.method,
+        # Large values (≳ 1e6) mean a fault direction is nearly invisible: the exact
+        # directions then rest on a large gain, and rounding in r grows with it.
+        "eigenvector_condition": float(np.linalg.cond(np.linalg.eig(Q.A)[1])) if n else 1.0,
     }
     return observer_generator(model, Q, "fault_detection_filter", info, residual_names(model))
 
