@@ -51,8 +51,8 @@ def factorized(model: FDIModel, poles=None, normalized: bool = False, post_filte
         Use the normalised left coprime factorisation (``M̂ M̂~ + N̂ N̂~ = I``).
     post_filter : LTI, python-control system or array_like, optional
         The free stable filter ``R(p)`` with p inputs (default the identity). A static
-        matrix is a constant R; a python-control system with ``dt=True`` takes the model's
-        sample time.
+        matrix is a constant R; a python-control system with an unspecified time base
+        (``dt=True`` or ``None``) takes the model's sample time.
 
     Returns
     -------
@@ -123,10 +123,10 @@ def _post_filter(post, model: FDIModel) -> LTI | None:
     if isinstance(post, LTI):
         R = post
     elif hasattr(post, "dt") and hasattr(post, "ninputs"):  # a python-control system
-        if post.dt is True:
-            if not dt:
-                raise DesignError("post_filter is discrete with an unspecified sample time (dt=True) but the "
-                                  "model is continuous")
+        if post.dt is True and not dt:
+            raise DesignError("post_filter is discrete with an unspecified sample time (dt=True) but the "
+                              "model is continuous")
+        if (post.dt is True or post.dt is None) and dt:  # unspecified time base: take the model's
             import control
 
             post = control.ss(post)
