@@ -26,6 +26,7 @@ The methods differ only in how ``L`` and ``W`` are chosen, so they share this mo
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
@@ -173,14 +174,14 @@ def observable_staircase(A: np.ndarray, C: np.ndarray, tol: float | None = None)
 
 
 # -------------------------------------------------------------------- placement
+@dataclass
 class ObserverGain:
     """Result of :func:`observer_gain`: ``L`` with ``eig(A − L C) = poles ∪ fixed``."""
 
-    def __init__(self, L: np.ndarray, poles: np.ndarray, fixed: np.ndarray, method: str):
-        self.L = L
-        self.poles = poles
-        self.fixed = fixed
-        self.method = method
+    L: np.ndarray
+    poles: np.ndarray   # the assigned eigenvalues
+    fixed: np.ndarray   # the unobservable (stable) eigenvalues no gain moves
+    method: str         # which placement algorithm ran
 
 
 def detectable_split(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)",
@@ -298,14 +299,14 @@ def _ordered(poles: np.ndarray) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------- Riccati
+@dataclass
 class RiccatiFilter:
     """Steady-state Kalman filter data (see :func:`filter_riccati`)."""
 
-    def __init__(self, P, L, Kf, Sigma):
-        self.P = P          # prior (predicted) error covariance; the CARE solution in continuous time
-        self.L = L          # observer gain of the predictor form: eig(A − L C) stable
-        self.Kf = Kf        # filter (measurement-update) gain, discrete time; equals L in continuous time
-        self.Sigma = Sigma  # innovation covariance (discrete) or intensity (continuous)
+    P: np.ndarray      # prior (predicted) error covariance; the CARE solution in continuous time
+    L: np.ndarray      # observer gain of the predictor form: eig(A − L C) stable
+    Kf: np.ndarray     # filter (measurement-update) gain, discrete time; equals L in continuous time
+    Sigma: np.ndarray  # innovation covariance (discrete) or intensity (continuous)
 
 
 def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -> RiccatiFilter:
@@ -322,7 +323,9 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
 
     ``Qx``, ``R``, ``S`` are the covariances of the process noise, the measurement noise and
     their cross-covariance. Solved by the Schur/QZ methods of ``scipy.linalg``
-    (Laub 1979; Arnold & Laub 1984), which raise when no stabilising solution exists.
+    (Laub 1979; Arnold & Laub 1984). Those raise for most problems without a stabilising
+    solution but can return a non-stabilising one (e.g. an undamped mode no noise
+    reaches), so the closed loop is checked as well.
     """
     n = A.shape[0]
 

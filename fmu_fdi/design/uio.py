@@ -63,7 +63,7 @@ def unknown_input_observer(model: FDIModel, poles=None) -> ResidualGenerator:
     ------
     DesignError
         ``Dd ≠ 0``; ``rank(C E) < rank(E)`` (names the unknown-input directions C does not
-        see); ``(C, T A)`` not detectable (names the unstable modes, i.e. the unstable
+        see); ``rank(E) ≥ p`` (no residual remains); ``(C, T A)`` not detectable (names the unstable modes, i.e. the unstable
         invariant zeros of the disturbance channel); poles invalid or of the wrong count.
 
     References
@@ -90,6 +90,11 @@ def unknown_input_observer(model: FDIModel, poles=None) -> ResidualGenerator:
     rank_CE = int(np.sum(s > atol))
     if rank_CE < rank_E:
         raise DesignError(_rank_message(model, rank_CE, rank_E, atol))
+    if rank_E >= p:
+        raise DesignError(
+            f"no residual remains: rank(E) = {rank_E} ≥ {p} outputs, so the unknown inputs span every output "
+            f"direction; the UIO can estimate the state, but I − C H = 0 and every residual decoupled from d is "
+            f"identically zero (p − rank Gd = 0)")
     H = E0 @ np.linalg.pinv(CE) if rank_E else np.zeros((n, p))
     T = np.eye(n) - H @ C
     A1 = T @ A
