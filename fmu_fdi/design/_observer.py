@@ -1,0 +1,406 @@
+"""Shared machinery of the observer-based designs: gains, Riccati filters, the residual filter.
+
+Every observer-based residual generator of :mod:`fmu_fdi.design` is an output observer
+
+    x̂' = A x̂ + Bu u + L (y − C x̂ − Du u),        r = W (y − C x̂ − Du u)
+
+(a forward shift instead of the derivative in discrete time), i.e. the LTI filter from
+``[y; u]``
+
+    Q = (A − L C,  [L,  Bu − L Du],  −W C,  [W,  −W Du]),
+
+whose internal form has ``Ru = 0`` exactly: the error ``e = x − x̂`` obeys
+``e' = (A − L C) e + (Bd − L Dd) d + (Bw − L Dw) w + (Bf − L Df) f`` and
+``r = W (C e + Dd d + Dw w + Df f)`` (Frank, section 5; Chen & Patton 1999, ch. 2).
+The methods differ only in how ``L`` and ``W`` are chosen, so they share this module:
+
+- :func:`observer_gain` — pole placement by orthogonal methods on the dual pair.
+  ``(A, C)`` is split by an orthogonal observability staircase into its observable
+  part, whose eigenvalues are assigned, and its unobservable part, whose eigenvalues
+  no gain can move and which must therefore be stable (detectability).
+- :func:`filter_riccati` — the steady-state Kalman filter (CARE/DARE) with correlated
+  noise; also the normalised left coprime factorisation.
+- :func:`output_observer` / :func:`observer_generator` — the filter above and the
+  :class:`~fmu_fdi.generator.ResidualGenerator` around it.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import DesignError
+from ..generator import ResidualGenerator
+from ..linalg import EPS, default_rtol
+from ..lti import LTI
+from ..model import FDIModel
+
+
+# ------------------------------------------------------------------------ formatting
+def fmt_modes(values) -> str:
+    """Eigenvalues as a short readable list: ``[-1, 0.5±2j]``."""
+    values = np.asarray(values, complex)
+    out, skip = [], set()
+    for i, v in enumerate(values):
+        if i in skip:
+            continue
+        if abs(v.imag) > 1e-12 * max(1.0, abs(v)):
+            j = next((k for k in range(i + 1, values.size) if k not in skip
+                      and abs(values[k] - np.conj(v)) <= 1e-9 * max(1.0, abs(v))), None)
+            if j is not None:
+                skip.add(j)
+                out.append(f"{v.real:.6g}±{abs(v.imag):.6g}j")
+                continue
+            out.append(f"{v:.6g}")
+        else:
+            out.append(f"{v.real:.6g}")
+    return "[" + ", ".join(out) + "]"
+
+
+def unstable(values, dt: float, scale: float = 1.0) -> np.ndarray:
+    """The eigenvalues on or outside the stability boundary.
+
+    A margin of ``1e3 eps`` times the data scale keeps an integrator that rounding moved
+    to ``-1e-17`` from counting as stable.
+    """
+    values = np.asarray(values, complex)
+    margin = 1e3 * EPS * max(1.0, scale)
+    if dt:
+        return values[np.abs(values) >= 1.0 - margin]
+    return values[values.real >= -margin]
+
+
+# ---------------------------------------------------------------------- pole sets
+def check_pole_set(poles, dt: float, count: int | None = None, what: str = "poles") -> np.ndarray:
+    """Validate a requested pole set: finite, stable, closed under conjugation, ``count`` long."""
+    try:
+        p = np.atleast_1d(np.asarray(poles, dtype=complex))
+    except (TypeError, ValueError):
+        raise DesignError(f"{what} must be a list of numbers, got {poles!r}") from None
+    if p.ndim != 1:
+        raise DesignError(f"{what} must be a 1-D list of numbers, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise DesignError(f"{what} must be finite numbers, got {p.tolist()}")
+    bad = unstable(p, dt)
+    if bad.size:
+        region = "inside the unit circle (|z| < 1)" if dt else "in the open left half-plane (Re s < 0)"
+        raise DesignError(f"{what} {fmt_modes(bad)} are not stable: observer poles must lie {region}")
+    if not _conjugate_closed(p):
+        raise DesignError(f"{what} {fmt_modes(p)} are not closed under complex conjugation: a real gain "
+                          f"places every complex pole together with its conjugate")
+    if count is not None and p.size != count:
+        raise DesignError(f"{count} {what} are needed, got {p.size}")
+    return p
+
+
+def _conjugate_closed(p: np.ndarray) -> bool:
+    rest = list(p[np.abs(p.imag) > 1e-12 * np.maximum(1.0, np.abs(p))])
+    while rest:
+        v = rest.pop()
+        j = np.argmin([abs(w - np.conj(v)) for w in rest]) if rest else None
+        if j is None or abs(rest[j] - np.conj(v)) > 1e-9 * max(1.0, abs(v)):
+            return False
+        rest.pop(j)
+    return True
+
+
+def default_poles(count: int, dt: float, A: np.ndarray) -> np.ndarray:
+    """Distinct real poles: ``-ρ (1 + k/count)`` with ρ = max(1, ||A||₂) in continuous
+    time (about as fast as the fastest plant mode), radii ``k / (2 count)`` in discrete time
+    (the first deadbeat). Distinct values keep the placement free of Jordan blocks."""
+    k = np.arange(count)
+    if dt:
+        return (k / (2.0 * max(count, 1))).astype(complex)
+    rho = max(1.0, float(np.linalg.norm(A, 2)) if A.size else 1.0)
+    return (-rho * (1.0 + k / max(count, 1))).astype(complex)
+
+
+def match_modes(values, targets) -> np.ndarray:
+    """``values`` with one nearest entry removed for each target (multiset difference)."""
+    rest = list(np.asarray(values, complex))
+    for t in np.asarray(targets, complex):
+        if rest:
+            rest.pop(int(np.argmin([abs(v - t) for v in rest])))
+    return np.array(rest, complex)
+
+
+def pole_error(achieved, requested) -> float:
+    """Largest distance between achieved and requested poles after nearest matching."""
+    rest = list(np.asarray(achieved, complex))
+    worst = 0.0
+    for t in np.asarray(requested, complex):
+        j = int(np.argmin([abs(v - t) for v in rest]))
+        worst = max(worst, abs(rest.pop(j) - t))
+    return worst
+
+
+# ------------------------------------------------------------------- staircase
+def observable_staircase(A: np.ndarray, C: np.ndarray, tol: float | None = None) -> tuple[np.ndarray, int]:
+    """Orthogonal ``Z`` and the observable order ``n_o`` of ``(A, C)``.
+
+    In the coordinates ``x = Z ξ``,
+
+        Zᵀ A Z = [Ao 0; A21 Auo],     C Z = [Co 0],
+
+    with ``(Co, Ao)`` observable (n_o states) and ``Auo`` the unobservable dynamics. This is
+    the dual of the controllability staircase (Van Dooren 1981; Varga 1981): each step
+    compresses the current output block by an SVD, so only orthogonal transformations are
+    used and a rank decision compares singular values with ``tol`` (default ``1e3 max(n, p)
+    eps ||[A; C]||₂``).
+    """
+    n, p = A.shape[0], C.shape[0]
+    Z = np.eye(n)
+    if n == 0:
+        return Z, 0
+    if tol is None:
+        tol = default_rtol((n, n + p)) * max(float(np.linalg.norm(np.vstack([A, C]), 2)), np.finfo(float).tiny)
+    At = A.T.copy()
+    Bk = C.T.copy()  # the block of the dual input acting on the not yet reached states
+    n_o = 0
+    while n_o < n and Bk.size:
+        U, s, _ = sla.svd(Bk, full_matrices=True)
+        r = int(np.sum(s > tol))
+        if r == 0:
+            break
+        Zk = np.eye(n)
+        Zk[n_o:, n_o:] = U
+        Z = Z @ Zk
+        At = Zk.T @ At @ Zk
+        Bk = At[n_o + r:, n_o:n_o + r]
+        n_o += r
+    return Z, n_o
+
+
+# -------------------------------------------------------------------- placement
+@dataclass
+class ObserverGain:
+    """Result of :func:`observer_gain`: ``L`` with ``eig(A − L C) = poles ∪ fixed``."""
+
+    L: np.ndarray
+    poles: np.ndarray   # the assigned eigenvalues
+    fixed: np.ndarray   # the unobservable (stable) eigenvalues no gain moves
+    method: str         # which placement algorithm ran
+
+
+def detectable_split(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)",
+                     fixed_reason: str = "") -> tuple[np.ndarray, int, np.ndarray]:
+    """Staircase ``(Z, n_o, unobservable eigenvalues)``; a DesignError naming the
+    unobservable modes that are unstable when ``(A, C)`` is not detectable."""
+    n = A.shape[0]
+    Z, n_o = observable_staircase(A, C)
+    At = Z.T @ A @ Z
+    fixed = np.linalg.eigvals(At[n_o:, n_o:]) if n_o < n else np.zeros(0, complex)
+    bad = unstable(fixed, dt, float(np.linalg.norm(A, 2)) if n else 1.0)
+    if bad.size:
+        region = "|z| ≥ 1" if dt else "Re ≥ 0"
+        raise DesignError(
+            f"{what} is not detectable: the modes {fmt_modes(bad)} are unobservable from the outputs and "
+            f"unstable ({region}), so no observer gain can stabilise the estimation error"
+            + (f"; {fixed_reason}" if fixed_reason else ""))
+    return Z, n_o, fixed
+
+
+def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str = "(A, C)",
+                  fixed_reason: str = "") -> ObserverGain:
+    """Output-injection gain ``L`` placing the observable eigenvalues of ``A − L C``.
+
+    The pair is split by :func:`observable_staircase`; the ``n_o`` observable eigenvalues
+    are assigned to ``poles`` (exactly ``n_o`` of them, or ``None`` for
+    :func:`default_poles`) and the unobservable ones stay where they are, which requires
+    them to be stable (``(A, C)`` detectable). Placement on the dual pair uses the robust
+    method of Kautsky, Nichols and Van Dooren (1985) with Tits–Yang updates
+    (``scipy.signal.place_poles``), which maximises the conditioning of the closed-loop
+    eigenvectors; when a pole is repeated more often than ``rank C`` (e.g. a deadbeat
+    observer with one output), where that method does not apply, Varga's Schur method
+    (SLICOT SB01BD) is used instead.
+
+    Raises
+    ------
+    DesignError
+        Unstable unobservable modes (named, with ``fixed_reason`` appended); a pole count
+        that differs from the number of observable modes; a placement that misses the
+        requested poles.
+    """
+    n = A.shape[0]
+    Z, n_o, fixed = detectable_split(A, C, dt, what=what, fixed_reason=fixed_reason)
+    At = Z.T @ A @ Z
+    Ct = C @ Z
+    scale = max(1.0, float(np.linalg.norm(A, 2)) if n else 1.0)
+    if poles is None:
+        poles = default_poles(n_o, dt, A)
+    poles = check_pole_set(poles, dt)
+    if poles.size != n_o:
+        fixed_txt = (f"; the {n - n_o} unobservable modes {fmt_modes(fixed)} are fixed (stable)"
+                     if n_o < n else "")
+        raise DesignError(f"{poles.size} poles given but {what} has {n_o} observable (assignable) modes"
+                          f"{fixed_txt}: give exactly {n_o} poles")
+    if n_o == 0:
+        return ObserverGain(np.zeros((n, C.shape[0])), poles, fixed, "none")
+    Ao, Co = At[:n_o, :n_o], Ct[:, :n_o]
+    Lo, method = _place_dual(Ao, Co, poles, dt)
+    Acl = Ao - Lo @ Co
+    achieved, X = np.linalg.eig(Acl)
+    # Bauer–Fike: rounding of size eps ||Acl|| moves a simple eigenvalue by at most
+    # cond(X) eps ||Acl||, but the gain itself is computed through X, so the achieved error
+    # can be a few digits above that; sqrt(eps) relative still separates a correct placement
+    # from a failed one (nearly unobservable pairs miss by orders of magnitude more). A pole
+    # of multiplicity k sits in a Jordan block and moves by O((eps ||Acl||)^(1/k)).
+    mult = max(int(np.sum(np.abs(poles - q) <= 1e-12 * max(1.0, abs(q)))) for q in poles)
+    size = max(scale, float(np.linalg.norm(Acl, 2)))
+    kappa = np.linalg.cond(X) if mult == 1 else np.inf
+    tol = (max(1e3 * EPS * kappa, np.sqrt(EPS)) if np.isfinite(kappa) else 1e3 * EPS ** (1.0 / mult)) * size
+    err = pole_error(achieved, poles)
+    if err > tol:
+        raise DesignError(f"pole placement for {what} missed the requested poles by {err:.3g} (tolerance {tol:.3g}): "
+                          f"the pair is too close to unobservable for the poles {fmt_modes(poles)}; "
+                          f"choose poles nearer the plant's modes or rescale the model")
+    L = Z[:, :n_o] @ Lo
+    return ObserverGain(L, poles, fixed, method)
+
+
+def _place_dual(Ao: np.ndarray, Co: np.ndarray, poles: np.ndarray, dt: float) -> tuple[np.ndarray, str]:
+    """``Lo`` with ``eig(Ao − Lo Co) = poles`` for an observable pair."""
+    from scipy.signal import place_poles
+
+    rank_c = np.linalg.matrix_rank(Co)
+    mult = max(int(np.sum(poles == q)) for q in poles)
+    if mult <= rank_c:
+        with warnings.catch_warnings():
+            # "convergence not reached" only means the eigenvector conditioning could be
+            # improved further; the poles themselves are placed exactly (checked by the caller).
+            warnings.simplefilter("ignore", UserWarning)
+            res = place_poles(Ao.T, Co.T, _ordered(poles), method="YT")
+        return res.gain_matrix.T, "KNV/YT (scipy place_poles)"
+    import slycot
+
+    n_o, p = Co.shape[1], Co.shape[0]
+    eig = np.linalg.eigvals(Ao)
+    # SB01BD leaves eigenvalues with Re < alpha (|z| < alpha) alone: put alpha below them all.
+    alpha = 0.0 if dt else float(np.min(eig.real)) - 1.0
+    w = _ordered(poles)
+    _, _, _, nap, nup, F, _ = slycot.sb01bd(n_o, p, n_o, alpha, Ao.T.copy(), Co.T.copy(), w.copy(),
+                                            "D" if dt else "C")
+    if nap != n_o:
+        raise DesignError(f"Schur pole placement assigned only {nap} of {n_o} poles ({nup} modes detected "
+                          f"as unobservable): the pair is too close to unobservable")
+    return -F.T, "Schur (SLICOT SB01BD)"
+
+
+def _ordered(poles: np.ndarray) -> np.ndarray:
+    """Real poles first, then complex pairs with the conjugates adjacent."""
+    real = [complex(q.real, 0.0) for q in poles if abs(q.imag) <= 1e-12 * max(1.0, abs(q))]
+    upper = sorted((q for q in poles if q.imag > 1e-12 * max(1.0, abs(q))), key=lambda q: (q.real, q.imag))
+    out = real[:]
+    for q in upper:
+        out.extend([q, np.conj(q)])
+    return np.array(out, complex)
+
+
+# ----------------------------------------------------------------------- Riccati
+@dataclass
+class RiccatiFilter:
+    """Steady-state Kalman filter data (see :func:`filter_riccati`)."""
+
+    P: np.ndarray      # prior (predicted) error covariance; the CARE solution in continuous time
+    L: np.ndarray      # observer gain of the predictor form: eig(A − L C) stable
+    Kf: np.ndarray     # filter (measurement-update) gain, discrete time; equals L in continuous time
+    Sigma: np.ndarray  # innovation covariance (discrete) or intensity (continuous)
+
+
+def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -> RiccatiFilter:
+    """Stabilising solution of the filter Riccati equation and the gains built from it.
+
+    Continuous time (CARE), with ``Σ = R``:
+
+        A P + P Aᵀ − (P Cᵀ + S) R⁻¹ (C P + Sᵀ) + Qx = 0,     L = (P Cᵀ + S) R⁻¹.
+
+    Discrete time (DARE), ``P`` the covariance of ``x_k − x̂_{k|k−1}``:
+
+        P = A P Aᵀ + Qx − (A P Cᵀ + S) Σ⁻¹ (A P Cᵀ + S)ᵀ,    Σ = C P Cᵀ + R,
+        K_f = P Cᵀ Σ⁻¹,    L = A K_f + S Σ⁻¹ = (A P Cᵀ + S) Σ⁻¹.
+
+    ``Qx``, ``R``, ``S`` are the covariances of the process noise, the measurement noise and
+    their cross-covariance. Solved by the Schur/QZ methods of ``scipy.linalg``
+    (Laub 1979; Arnold & Laub 1984). Those raise for most problems without a stabilising
+    solution but can return a non-stabilising one (e.g. an undamped mode no noise
+    reaches), so the closed loop is checked as well.
+    """
+    n = A.shape[0]
+
+    def no_solution(detail: str) -> DesignError:
+        return DesignError(
+            f"{what}: the filter Riccati equation has no stabilising solution ({detail}). It needs (A, C) "
+            f"detectable and no mode on the stability boundary that the process noise cannot reach "
+            f"(the pair (A − S R⁻¹ C, Qx − S R⁻¹ Sᵀ) must have no uncontrollable mode with "
+            f"{'|z| = 1' if dt else 'Re s = 0'})")
+
+    try:
+        if dt:
+            P = sla.solve_discrete_are(A.T, C.T, Qx, R, s=S)
+        else:
+            P = sla.solve_continuous_are(A.T, C.T, Qx, R, s=S)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise no_solution(str(exc)) from None
+    P = (P + P.T) / 2
+    if dt:
+        Sigma = C @ P @ C.T + R
+        Sigma = (Sigma + Sigma.T) / 2
+        Kf = sla.solve(Sigma, C @ P, assume_a="pos").T
+        L = sla.solve(Sigma, (A @ P @ C.T + S).T, assume_a="pos").T
+    else:
+        Sigma = (R + R.T) / 2
+        L = sla.solve(Sigma, (P @ C.T + S).T, assume_a="pos").T
+        Kf = L
+    poles = np.linalg.eigvals(A - L @ C) if n else np.zeros(0)
+    bad = unstable(poles, dt, max(1.0, float(np.linalg.norm(A, 2)) if n else 1.0))
+    if bad.size:
+        raise no_solution(f"the solver's solution leaves the modes {fmt_modes(bad)} of A − L C unstable")
+    return RiccatiFilter(P, L, Kf, Sigma)
+
+
+# ------------------------------------------------------------------------ filters
+def output_observer(model: FDIModel, L: np.ndarray, W: np.ndarray | None = None) -> LTI:
+    """The filter ``r = W (y − C x̂ − Du u)`` of the observer with gain ``L``, from ``[y; u]``."""
+    A, Bu, C, Du = model.A, model.Bu, model.C, model.Du
+    W = np.eye(model.ny) if W is None else np.asarray(W, float)
+    return LTI(A - L @ C, np.hstack([L, Bu - L @ Du]), -W @ C, np.hstack([W, -W @ Du]), model.dt)
+
+
+def residual_names(model: FDIModel, W: np.ndarray | None = None) -> list[str] | None:
+    """``r_<output>`` when residual i is the output error of output i, else the default names."""
+    return [f"r_{y}" for y in model.y_names] if W is None else None
+
+
+def observer_generator(model: FDIModel, Q: LTI, method: str, info: dict, names=None) -> ResidualGenerator:
+    """Wrap an observer residual filter; the residual vector is one group.
+
+    ``info['detected_faults']`` lists the faults whose response ``Rf_j`` is not identically
+    zero (weak structure of the whole residual vector, :func:`~fmu_fdi.analysis.structure_matrix`).
+    """
+    from ..analysis import structure_matrix
+
+    gen = ResidualGenerator(Q, model, method, names, groups=[list(range(Q.p))], info=info)
+    if model.faults:
+        seen = structure_matrix(gen)[0]
+        gen.info["detected_faults"] = [nm for nm, s in zip(model.fault_names, seen) if s]
+    else:
+        gen.info["detected_faults"] = []
+    return gen
+
+
+def as_matrix(X, what: str, rows: int | None = None, cols: int | None = None) -> np.ndarray:
+    """A finite 2-D float matrix of the given shape, or a DesignError naming ``what``."""
+    try:
+        M = np.asarray(X, dtype=float)
+    except (TypeError, ValueError):
+        raise DesignError(f"{what} must be a numeric matrix, got {X!r}") from None
+    if M.ndim != 2:
+        raise DesignError(f"{what} must be a 2-D matrix, got shape {M.shape}")
+    if (rows is not None and M.shape[0] != rows) or (cols is not None and M.shape[1] != cols):
+        want = f"{rows if rows is not None else 'k'}x{cols if cols is not None else 'k'}"
+        raise DesignError(f"{what} must be {want}, got shape {M.shape}")
+    if not np.all(np.isfinite(M)):
+        raise DesignError(f"{what} contains NaN or Inf")
+    return M
