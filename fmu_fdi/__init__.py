@@ -1,8 +1,9 @@
 """fmu-fdi: model-based fault detection and isolation for linear systems, shipped as FMUs."""
 from .analysis import (detectability, fault_gains, fault_noise_gap, fault_sensitivity_condition, hinf_minus,
                        isolability, leakage, structure_matrix)
-from .design import (RLSEstimator, dedicated_bank, generalized_bank, nullspace_design, parity_space, rls_estimator,
-                     structured_bank)
+from .design import (RLSEstimator, dedicated_bank, factorized, fault_detection_filter, generalized_bank, kalman,
+                     luenberger, nullspace_design, parity_space, rls_estimator, structured_bank,
+                     unknown_input_observer)
 from .diagnoser import Diagnoser
 from .evaluation import ThresholdDesign, fault_size_thresholds, sensor_gain_plants, threshold_selector
 from .errors import DesignError, ModelError
@@ -16,6 +17,7 @@ __version__ = "0.1.0"
 __all__ = [
     "FDIModel", "FaultSpec", "actuator_fault", "sensor_fault", "component_fault", "parametric_fault",
     "LTI", "ResidualGenerator", "ResidualBank", "DesignError", "ModelError",
+    "luenberger", "kalman", "unknown_input_observer", "fault_detection_filter", "factorized",
     "nullspace_design", "parity_space", "rls_estimator", "RLSEstimator", "structured_bank", "dedicated_bank", "generalized_bank",
     "Diagnoser", "threshold_selector", "ThresholdDesign", "sensor_gain_plants", "fault_size_thresholds",
     "structure_matrix", "fault_gains", "hinf_minus", "fault_sensitivity_condition", "fault_noise_gap",

@@ -29,7 +29,8 @@ METHODS = {
 
 DESIGN_HELP = """\
 Defaults (no options): the method's own defaults (null-space: one least-order residual,
-poles at -max(1, ||A||) in continuous time, deadbeat in discrete time); evaluation
+poles at the plant's median eigenvalue magnitude; parity: the smallest exact order,
+finite memory); evaluation
 'rms:10' (RMS over 10 samples); threshold 'fault-size:1' (half the steady-state
 evaluation of a unit step of the weakest fault each residual sees); sample time: the
 model's for a discrete model, otherwise --ts is required.

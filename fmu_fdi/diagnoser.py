@@ -95,6 +95,7 @@ class Diagnoser:
         groups = gen.groups
         ng = len(groups)
         evals = evaluation if isinstance(evaluation, list) else [evaluation or DEFAULT_EVALUATION] * ng
+        evals = [_whitened(e, gen, grp) for e, grp in zip(evals, groups)]
         thrs = thresholds if isinstance(thresholds, list) else [thresholds] * ng
         if len(evals) != ng or len(thrs) != ng:
             raise DesignError(f"the generator has {ng} residual groups: give one evaluation and threshold each "
@@ -129,6 +130,9 @@ class Diagnoser:
             dirs = decision.pop("directions", info.get("fault_directions"))
             if dirs is None:
                 raise DesignError("directional isolation needs fault directions (a fault detection filter design)")
+            if isinstance(dirs, dict):  # {fault name: direction}; faults without one get a zero column
+                cols = [np.asarray(dirs.get(f.name, np.zeros(gen.Q.p)), float) for f in model.faults]
+                dirs = np.column_stack(cols)
             dec["directions"] = np.asarray(dirs, float).tolist()
             dec["min_margin"] = float(decision.pop("min_margin", 0.1))
         if decision:
@@ -185,13 +189,17 @@ class Diagnoser:
         return np.dtype(fields)
 
     def step(self, u, y) -> dict:
-        """Process one sample; returns the FMU outputs by name (plus ``isolated_name``)."""
+        """Process one sample; returns the FMU outputs by name, plus ``isolated_name``,
+        ``isolation_status`` ('none', 'isolated', 'unknown', 'several') and
+        ``isolation_margin`` (radians, directional isolation only)."""
         vals = self.runtime.advance(u, y)
         out = {}
         for nm, v in zip(self.runtime.names, vals):
             out[nm] = bool(v) if nm.startswith("alarm_") or nm in ("fault_detected", "input_invalid") else \
                 (int(v) if nm == "isolated_fault" else float(v))
         out["isolated_name"] = self.fault_name(out["isolated_fault"])
+        out["isolation_status"] = self.runtime.decision.status
+        out["isolation_margin"] = self.runtime.decision.margin
         return out
 
     def run(self, t, u, y, reset: bool = True) -> np.ndarray:
@@ -256,6 +264,17 @@ class Diagnoser:
                 self.continuous = ResidualGenerator(LTI(c["A"], c["B"], c["C"], c["D"]), model, g["method"],
                                                     g["residual_names"], g["groups"], g.get("info"))
         return self
+
+
+def _whitened(evaluation: dict, gen, group) -> dict:
+    """Statistical tests on a discrete Kalman innovation use its whitening Σ^{-1/2} by default."""
+    evaluation = dict(evaluation)
+    info = getattr(gen, "info", {})
+    if (evaluation.get("kind") in ("chi2", "cusum", "glr") and "W" not in evaluation and "sigma" not in evaluation
+            and info.get("innovation_kind") == "covariance" and "whitening" in info):
+        W = np.asarray(info["whitening"], float)
+        evaluation["W"] = W[np.ix_(group, group)].tolist()
+    return evaluation
 
 
 def _version() -> str:

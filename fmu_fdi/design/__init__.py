@@ -1,7 +1,16 @@
 """Residual generator design: one function per method, each returning a ResidualGenerator."""
 from .banks import dedicated_bank, generalized_bank, structured_bank
+from .beard_jones import fault_detection_filter
+from .coprime import factorized, left_coprime_factors
+from .kalman_filter import kalman
 from .nullspace import nullspace_design
+from .output_observer import luenberger
 from .parity import parity_space
 from .rls import RLSEstimator, rls_estimator
+from .uio import unknown_input_observer
 
-__all__ = ["nullspace_design", "parity_space", "rls_estimator", "RLSEstimator", "structured_bank", "dedicated_bank", "generalized_bank"]
+__all__ = [
+    "parity_space", "luenberger", "kalman", "unknown_input_observer", "fault_detection_filter", "factorized",
+    "left_coprime_factors", "nullspace_design", "dedicated_bank", "generalized_bank", "structured_bank",
+    "rls_estimator", "RLSEstimator",
+]

@@ -209,9 +209,20 @@ def minimal_basis(model: FDIModel, rtol: float | None = None) -> NullspaceBasis:
                           info={"controllable_order": data.n})
 
 
-def default_poles(dt: float, rho: float) -> float:
-    """Default filter pole: as fast as the plant (continuous), deadbeat (discrete)."""
-    return 0.0 if dt else -max(1.0, rho)
+def default_poles(A: np.ndarray, dt: float) -> float:
+    """Default filter pole: at the plant's own speed, the median eigenvalue magnitude.
+
+    A residual row ``N(λ)/d(λ)`` responds to a fault with the plant's dynamics in N and the
+    filter's in d; with d as fast as the plant the response is roughly flat over
+    frequency, neither a spike that dies away (a filter much faster than a slow plant)
+    nor a sluggish integrator. Continuous: ``-median |λ_i(A)|`` (−1 if A is 0); discrete:
+    ``median |λ_i(A)|`` capped at 0.99 (0, the finite-memory filter, for a deadbeat plant).
+    """
+    eig = np.abs(np.linalg.eigvals(A)) if A.size else np.zeros(0)
+    if dt:
+        return float(min(np.median(eig), 0.99)) if eig.size else 0.0
+    eig = eig[eig > 0]
+    return -float(np.median(eig)) if eig.size else -1.0
 
 
 def pick_poles(poles, sdeg: float, count: int) -> np.ndarray:

@@ -137,8 +137,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     poles : array_like, optional
         Poles of the filter (a conjugate-closed set); missing ones are placed at ``sdeg``.
     sdeg : float, optional
-        Default pole: ``-max(1, ρ)`` with ρ ≈ ||A|| in continuous time, 0 (finite memory,
-        the parity-space filter) in discrete time.
+        Default pole: at the plant's speed, ``-median |λ_i(A)|`` in continuous time and
+        ``median |λ_i(A)|`` (at most 0.99) in discrete time (see ``_basis.default_poles``).
     freqs : array_like, optional
         Frequencies (rad/s) at which every fault must be *strongly* detectable
         (``|Rf_j(jω)| > 0``); the combination is chosen with these gains in its objective.
@@ -182,7 +182,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
             f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
             f"output direction (normal rank of Gd = {basis.rank_d} = number of outputs {model.ny})"
         )
-    sdeg = default_poles(model.dt, basis.rho) if sdeg is None else float(sdeg)
+    sdeg = default_poles(model.A, model.dt) if sdeg is None else float(sdeg)
     seen = detectability_by_rows(model, basis, FDtol)
     if model.faults and not np.all(seen.max(axis=0) > FDtol):
         raise undetectable_error(model, seen > FDtol)

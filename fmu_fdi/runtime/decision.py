@@ -46,9 +46,11 @@ class Decision:
             if D.ndim != 2 or D.shape[1] != n_faults:
                 raise ValueError(f"fault directions must be (residuals x {n_faults}), got {D.shape}")
             norms = np.linalg.norm(D, axis=0)
-            if np.any(norms == 0):
-                raise ValueError("a fault direction is zero")
-            self.D = D / norms
+            if not np.any(norms > 0):
+                raise ValueError("every fault direction is zero: nothing to isolate by direction")
+            # a zero column marks a fault without a fixed direction: never chosen
+            self.valid = norms > 0
+            self.D = D / np.where(self.valid, norms, 1.0)
             self.min_margin = float(spec.get("min_margin", 0.1))
         self.reset()
 
@@ -103,9 +105,10 @@ class Decision:
                 self.isolated, self.status = -1, "unknown"
                 return
             cosines = np.clip(np.abs(self.D.T @ residual) / nr, 0.0, 1.0)
-            angles = np.arccos(cosines)
+            angles = np.where(self.valid, np.arccos(cosines), np.inf)
             order = np.argsort(angles, kind="stable")
-            self.margin = float(angles[order[1]] - angles[order[0]]) if angles.size > 1 else math.pi / 2
+            second = angles[order[1]] if angles.size > 1 and np.isfinite(angles[order[1]]) else math.pi / 2
+            self.margin = float(second - angles[order[0]])
             if self.margin >= self.min_margin:
                 self.isolated, self.status = int(order[0]) + 1, "isolated"
             else:
