@@ -83,6 +83,7 @@ class FMUInstance:
         self.log = collections.deque(maxlen=_LOG_LINES)
         self._slave = None
         self._unzipdir = None
+        self._status = 0  # worst FMI status returned so far (0 OK ... 4 Fatal)
 
     # -- variables -------------------------------------------------------------------------------
 
@@ -142,6 +143,7 @@ class FMUInstance:
         except SimulationFailed:
             raise
         except Exception as exc:
+            self._status = max(self._status, getattr(exc, "status", 3))
             raise self._failure(f"failed to initialise at t={start_time:g}: {exc}", start_time) from exc
 
     def _start2(self, kwargs, start_time, stop_time, values):
@@ -160,7 +162,8 @@ class FMUInstance:
         except Exception:  # no proxy for this platform: messages arrive unformatted, still useful
             pass
         self._slave = FMU2Slave(**kwargs)
-        self._slave.instantiate(callbacks=self._callbacks, loggingOn=False)
+        # logging on: the messages only go to the bounded buffer, and they are what explains a failure
+        self._slave.instantiate(callbacks=self._callbacks, loggingOn=True)
         self._slave.setupExperiment(startTime=start_time, stopTime=stop_time)
         self._write(values)
         self._slave.enterInitializationMode()
@@ -170,7 +173,7 @@ class FMUInstance:
         from fmpy.fmi3 import FMU3Slave
 
         self._slave = FMU3Slave(**kwargs)
-        self._slave.instantiate(loggingOn=False, logMessage=self._log3)
+        self._slave.instantiate(loggingOn=True, logMessage=self._log3)
         self._write(values)
         self._slave.enterInitializationMode(startTime=start_time, stopTime=stop_time)
         self._slave.exitInitializationMode()
@@ -188,6 +191,7 @@ class FMUInstance:
             _, terminate, early, last = self._slave.doStep(currentCommunicationPoint=time,
                                                            communicationStepSize=step)
         except Exception as exc:
+            self._status = max(self._status, getattr(exc, "status", 3))
             raise self._failure(f"doStep from t={time:g} (step {step:g}) failed: {exc}", time) from exc
         if terminate:
             raise self._failure(f"asked to terminate the simulation in doStep from t={time:g}", time)
@@ -195,19 +199,25 @@ class FMUInstance:
             raise self._failure(f"returned early from doStep at t={last:g} (step from t={time:g})", time)
 
     def close(self):
-        """Terminate and free the instance (errors of a failed FMU ignored), delete the extraction."""
-        if self._slave is not None:
-            try:
-                if self._slave.component:
-                    try:
-                        self._slave.terminate()
-                    except Exception:  # allowed to fail after Error; freeing is what matters
-                        pass
-                    self._slave.freeInstance()
-                else:
-                    self._slave.freeLibrary()
-            finally:
-                self._slave = None
+        """End the instance as the FMI state machine allows, then delete the extraction.
+
+        OK, Warning or Discard: terminate and free. Error: free only (terminate is not allowed).
+        Fatal: no call at all. After Error or Fatal the shared library also stays loaded: objects
+        the FMU created may outlive it (an in-process Python FMU leaves its exception's
+        traceback in the interpreter), and unloading their code would crash the host later.
+        """
+        slave, self._slave = self._slave, None
+        if slave is not None and slave.component:
+            if self._status < 3:
+                try:
+                    slave.terminate()
+                except Exception:  # a refusal to terminate is no reason to keep the instance
+                    pass
+                slave.freeInstance()
+            elif self._status == 3:
+                getattr(slave, f"fmi{self.fmi_version}FreeInstance")(slave.component)
+        elif slave is not None:
+            slave.freeLibrary()
         if self._unzipdir is not None:
             shutil.rmtree(self._unzipdir, ignore_errors=True)
             self._unzipdir = None
@@ -221,7 +231,8 @@ class FMUInstance:
     def _failure(self, what: str, time: float) -> SimulationFailed:
         log = list(self.log)
         tail = (" Last FMU messages: " + " | ".join(log[-3:])) if log else ""
-        return SimulationFailed(f"FMU '{self.name}' {what}.{tail}", fmu=self.name, time=time, log=log)
+        return SimulationFailed(f"FMU '{self.name}' {what.rstrip('.')}.{tail}", fmu=self.name, time=time,
+                                log=log)
 
     def _log2(self, env, instance, status, category, message):
         self._record(status, message)
