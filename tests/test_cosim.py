@@ -287,6 +287,7 @@ def test_bad_fault_specs_say_what_is_wrong(spec, message):
     (dict(faults=[Fault.abrupt("plant.y", 1, 1), Fault.gain("plant.y", 1, 1, name="abrupt_plant_y")]),
      CoSimulationError, "two faults are named"),
     (dict(parameters={"plant.y": 1.0}), CoSimulationError, "only parameters and inputs"),
+    (dict(parameters={"plant.a": "fast"}), CoSimulationError, r"plant.a: 'fast' is not a number \(Real\)"),
     (dict(inputs=InputSignals([0], {"v": [1]})), CoSimulationError, "'v' matches no unconnected input"),
     (dict(inputs=InputSignals([0], {"diag.y": [1]})), CoSimulationError, "already connected"),
 ])
@@ -381,6 +382,17 @@ def test_fmi3_plant_with_fmi2_consumer(fmi3_plant, fmus):
     ja = CoSimulation({"plant": fmi3_plant, "diag": fmus["consumer"]}, step=H, stop=N * H,
                       order="jacobi").run()
     np.testing.assert_array_equal(ja["diag.z"][1:], 2 * ja["plant.y"][:-1])
+
+
+def test_fmi3_plant_agrees_with_fmpys_own_master(fmi3_plant):
+    import fmpy
+
+    theirs = fmpy.simulate_fmu(str(fmi3_plant), stop_time=N * H, output_interval=H,
+                               start_values={"a": 2.0}, output=["y"])
+    ours = CoSimulation({"plant": fmi3_plant}, step=H, stop=N * H, parameters={"plant.a": 2.0}).run()
+    np.testing.assert_allclose(theirs["time"], ours["time"], rtol=0, atol=TOL)
+    # fmpy derives its step sizes from its own time grid, ulps away from H: ulp-level differences
+    np.testing.assert_allclose(theirs["y"], ours["plant.y"], rtol=0, atol=TOL)
 
 
 def test_fmi3_tunable_parameter_fault(fmi3_plant):

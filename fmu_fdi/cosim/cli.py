@@ -15,13 +15,22 @@ from .spec import __doc__ as _SPEC_DOC
 from .spec import parse_fault
 
 
+_DESCRIPTION = """\
+Co-simulate plant FMU(s) and a diagnostic FMU (FMI 2 or 3 co-simulation) on a fixed
+communication step. Outputs are connected to the same-named inputs of the other FMUs unless
+--connect is given; --input signals feed every unconnected input of their name. The result CSV
+holds every output of every FMU ("fmu.var") and each fault's true signal ("fault.NAME",
+"fault.NAME.active"). Exit status: 0 done; 1 an FMU failed (the rows so far are written);
+2 a set-up error."""
+
+
 def add_parser(subparsers):
     """Add the ``simulate`` command to an ``argparse`` sub-parser set; returns the parser."""
     import argparse
 
     p = subparsers.add_parser(
         "simulate", help="co-simulate plant FMU(s) with a diagnostic FMU and fault scenarios",
-        description=__doc__, epilog="fault SPEC:" + _SPEC_DOC.split("::", 1)[1],
+        description=_DESCRIPTION, epilog="fault SPEC:" + _SPEC_DOC.split("::", 1)[1].replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--plant", action="append", required=True, metavar="[NAME=]P.fmu",
                    help="plant FMU (repeatable; instance name 'plant', 'plant2', ... unless NAME= given)")

@@ -141,7 +141,7 @@ class CoSimulation:
                 run.start(stack)
                 run.record(result, 0, self.times[0])
                 for row in range(1, len(self.times)):
-                    run.advance(self.times[row - 1])
+                    run.advance(self.times[row - 1], self.times[row])
                     run.record(result, row, self.times[row])
                 row += 1
             except SimulationFailed as exc:
@@ -215,7 +215,8 @@ class _Run:
         if feeds:
             self.setters[name].write([self.chain(fd, t)[-1] for fd in feeds])
 
-    def advance(self, t):
+    def advance(self, t, t_next):
+        """One communication step from ``t`` to ``t_next`` (the FMUs get the exact step ``h``)."""
         sim, h = self.sim, self.sim.step
         names = list(sim.fmus)
         if sim.order == "jacobi":
@@ -224,12 +225,12 @@ class _Run:
             for name in names:
                 sim.fmus[name].do_step(t, h)
             for name in names:
-                self.read(name, t + h)
+                self.read(name, t_next)
         else:
             for name in names:
                 self.set_inputs(name, t)
                 sim.fmus[name].do_step(t, h)
-                self.read(name, t + h)
+                self.read(name, t_next)
 
     def record(self, result, row, t):
         data = result[row]

@@ -10,8 +10,13 @@
 - ``TARGET``: ``fmu.variable``, e.g. ``plant.h1`` or ``diagnoser.h1`` (variable names that
   contain ``:`` or ``,`` cannot be written here; use the Python API).
 - ``ONSET``, ``END``: seconds; ``END`` may be left empty or written ``inf`` for a permanent fault.
-- ``MAGNITUDE``: offset, factor, rate or value as the kind says; for ``stuck`` the word
-  ``hold`` freezes the signal at its value at onset.
+- ``MAGNITUDE``: the offset added (``abrupt``; ``incipient``: reached after ``ramp`` seconds,
+  default ``END − ONSET``; ``intermittent``: while on, for the first ``duty`` (default 0.5) of
+  every ``period`` seconds), the factor (``gain``), the rate per second (``drift``), the value
+  taken (``parameter``, ``stuck``); for ``stuck`` the word ``hold`` freezes the signal at its
+  value at onset.
+- ``name=``: the result columns are ``fault.<name>`` and ``fault.<name>.active``; default
+  ``<kind>_<fmu>_<variable>``.
 
 Examples::
 

@@ -142,8 +142,14 @@ def wire(fmus, connections, signal_names, faults, parameters, start: float) -> W
             raise CoSimulationError(f"parameter {key}: only parameters and inputs can be set before "
                                     f"initialisation ({key} has causality {var.causality}, "
                                     f"variability {var.variability})")
-        if fmus[f].kind(v) is None:
+        kind = fmus[f].kind(v)
+        if kind is None:
             raise CoSimulationError(f"parameter {key}: type {var.type} is not supported")
+        if kind in ("real", "integer"):
+            try:
+                float(value)
+            except (TypeError, ValueError):
+                raise CoSimulationError(f"parameter {key}: {value!r} is not a number ({var.type})") from None
         initial[f][v] = value
 
     feeds = {}
