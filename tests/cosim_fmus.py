@@ -92,6 +92,10 @@ class {cls}(Fmi2Slave):
         self.y = 0.0
         self.register_variable(Real("y", causality=Fmi2Causality.output))
 
+    def exit_initialization_mode(self):
+        if {at} < 0:
+            raise RuntimeError("cannot initialise")
+
     def do_step(self, t, h):
         if t >= {at} - 1e-12:
             {action}
@@ -103,8 +107,9 @@ class {cls}(Fmi2Slave):
 def _pythonfmu(tmp_path: Path, template: str, prefix: str, **fmt) -> Path:
     from pythonfmu import FmuBuilder
 
-    tag = f"{prefix}{next(_serial)}"
-    cls = tag.capitalize()
+    # a prefix no other test file uses: module names must be unique in the whole pytest process
+    tag = f"cosimtest_{prefix}{next(_serial)}"
+    cls = "".join(part.capitalize() for part in tag.split("_"))
     script = Path(tmp_path) / f"{tag}.py"
     script.write_text(template.format(cls=cls, **fmt))
     return FmuBuilder.build_FMU(script, dest=tmp_path, needsExecutionTool="false")
@@ -121,7 +126,8 @@ def build_consumer(tmp_path) -> Path:
 
 
 def build_failing(tmp_path, at: float, how: str) -> Path:
-    """FMI 2 FMU whose do_step returns False (``how="discard"``) or raises (``"error"``) from ``at``."""
+    """FMI 2 FMU whose do_step returns False (``how="discard"``) or raises (``"error"``) from
+    ``at``; with ``at < 0`` its initialisation fails."""
     action = "return False" if how == "discard" else "raise RuntimeError('broken valve model')"
     return _pythonfmu(tmp_path, FAILING, "failing", at=repr(at), action=action,
                       how="returns False" if how == "discard" else "raises")

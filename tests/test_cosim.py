@@ -296,6 +296,15 @@ def test_setup_errors_name_the_failing_item(fmus, kwargs, error, message):
         sim(fmus, **kwargs)
 
 
+def test_failed_initialisation_names_the_fmu_and_frees_the_others(fmus, tmp_path):
+    bad = build_failing(tmp_path, at=-1.0, how="error")
+    s = CoSimulation({"plant": fmus["plant"], "valve": bad}, step=H, stop=N * H)
+    with pytest.raises(SimulationFailed, match="FMU 'valve' failed to initialise at t=0") as info:
+        s.run()
+    assert len(info.value.result) == 0 and any("cannot initialise" in m for m in info.value.log)
+    assert len(CoSimulation({"plant": fmus["plant"]}, step=H, stop=N * H).run()) == N + 1
+
+
 def test_missing_fmu_file(tmp_path):
     with pytest.raises(FileNotFoundError, match="FMU 'plant': no such file"):
         CoSimulation({"plant": tmp_path / "nope.fmu"}, step=1, stop=2)

@@ -165,7 +165,7 @@ class FMUInstance:
         # logging on: the messages only go to the bounded buffer, and they are what explains a failure
         self._slave.instantiate(callbacks=self._callbacks, loggingOn=True)
         self._slave.setupExperiment(startTime=start_time, stopTime=stop_time)
-        self._write(values)
+        self._write(values, start_time)
         self._slave.enterInitializationMode()
         self._slave.exitInitializationMode()
 
@@ -174,13 +174,13 @@ class FMUInstance:
 
         self._slave = FMU3Slave(**kwargs)
         self._slave.instantiate(loggingOn=True, logMessage=self._log3)
-        self._write(values)
+        self._write(values, start_time)
         self._slave.enterInitializationMode(startTime=start_time, stopTime=stop_time)
         self._slave.exitInitializationMode()
 
-    def _write(self, values: dict):
+    def _write(self, values: dict, time: float):
         if values:
-            self.accessor(list(values)).write(list(values.values()))
+            self.accessor(list(values)).write(list(values.values()), time)
 
     def do_step(self, time: float, step: float):
         """Advance from ``time`` by ``step``; raise :class:`SimulationFailed` if the FMU refuses."""
@@ -269,18 +269,30 @@ class Accessor:
             group[1].append(pos)
         self._groups = [(call, vrs, pos, _CAST[kind]) for call, (vrs, pos, kind) in groups.items()]
 
-    def read(self) -> list:
-        """Current values, in the order of ``names``."""
+    def read(self, time: float | None = None) -> list:
+        """Current values, in the order of ``names``; ``time`` only labels a failure."""
         out = [None] * len(self.names)
         slave = self.fmu._slave
         for call, vrs, positions, cast in self._groups:
-            values = getattr(slave, "get" + call)(vrs)
+            try:
+                values = getattr(slave, "get" + call)(vrs)
+            except Exception as exc:
+                raise self._failed("get" + call, positions, time, exc) from exc
             for p, value in zip(positions, values):
                 out[p] = cast(value.decode() if isinstance(value, bytes) else value)
         return out
 
-    def write(self, values):
+    def write(self, values, time: float | None = None):
         """Set the variables to ``values`` (same order as ``names``), converted to their kinds."""
         slave = self.fmu._slave
         for call, vrs, positions, cast in self._groups:
-            getattr(slave, "set" + call)(vrs, [cast(values[p]) for p in positions])
+            try:
+                getattr(slave, "set" + call)(vrs, [cast(values[p]) for p in positions])
+            except Exception as exc:
+                raise self._failed("set" + call, positions, time, exc) from exc
+
+    def _failed(self, call, positions, time, exc):
+        self.fmu._status = max(self.fmu._status, getattr(exc, "status", 3))
+        names = ", ".join(self.names[p] for p in positions)
+        at = "" if time is None else f" at t={time:g}"
+        return self.fmu._failure(f"{call}({names}){at} failed: {exc}", time)

@@ -183,7 +183,7 @@ class _Run:
         self.setters = {n: sim.fmus[n].accessor([fd.var for fd in fds]) for n, fds in self.feeds.items()}
         for feed in w.feeds:  # a fixed source is the value the variable has after initialisation
             if feed.source == ("fixed", None):
-                self.fixed[(feed.fmu, feed.var)] = sim.fmus[feed.fmu].accessor([feed.var]).read()[0]
+                self.fixed[(feed.fmu, feed.var)] = sim.fmus[feed.fmu].accessor([feed.var]).read(t0)[0]
         self.columns = {key: f"{key[0]}.{key[1]}" for name in sim.fmus
                         for key in ((name, v) for v in self.outputs[name].names)}
         for name in sim.fmus:
@@ -191,7 +191,7 @@ class _Run:
 
     def read(self, name, t):
         acc = self.outputs[name]
-        for var, value in zip(acc.names, acc.read()):
+        for var, value in zip(acc.names, acc.read(t)):
             self.values[(name, var)] = value
         self.when[name] = t
 
@@ -213,7 +213,7 @@ class _Run:
     def set_inputs(self, name, t):
         feeds = self.feeds[name]
         if feeds:
-            self.setters[name].write([self.chain(fd, t)[-1] for fd in feeds])
+            self.setters[name].write([self.chain(fd, t)[-1] for fd in feeds], t)
 
     def advance(self, t, t_next):
         """One communication step from ``t`` to ``t_next`` (the FMUs get the exact step ``h``)."""
