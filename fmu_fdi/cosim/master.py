@@ -14,6 +14,11 @@ Communication points are ``t_k = start + k·h``, ``k = 0 … N`` with ``N = (sto
 
 External signals and fixed sources are sampled at the step's start ``t_k`` in both orders.
 A fault on a connection is evaluated at the time of the value it corrupts.
+
+Initialisation: parameters, start values and the external signals at ``t_0`` are set before
+each FMU initialises; connected inputs keep their start values through initialisation and get
+the source outputs (as they are after every FMU initialised) for the first step. Row 0 of the
+result holds the outputs after initialisation.
 """
 from __future__ import annotations
 

@@ -22,6 +22,8 @@ connector at 0.0 rather than at the FMUs' initial outputs, labels the row comput
 ``[t_k, t_{k+1}]`` with ``t_k``, and ignores the SSD's parameter bindings; pass
 ``parameter_set=ssp_parameter_set(path)`` to apply them. So its row ``k`` equals row ``k + 1``
 of this package's ``order="jacobi"`` result when the initial outputs feeding connections are 0.
+A system input passes through one more connection there, so external signals reach the
+components one step later (and 0.0 in the first step) than in this package's master.
 """
 from __future__ import annotations
 
