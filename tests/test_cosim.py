@@ -72,6 +72,13 @@ def test_parameters_are_set_before_initialisation(fmus):
     np.testing.assert_allclose(r["plant.y"], plant_exact(H, N, a=2.0, b=3.0, u=[0.5] * N), atol=TOL)
 
 
+def test_two_instances_of_one_fmu_keep_separate_states(fmus):
+    r = CoSimulation({"p1": fmus["plant"], "p2": fmus["plant"]}, connections=None, step=H, stop=N * H,
+                     parameters={"p2.a": 2.0}).run()
+    np.testing.assert_allclose(r["p1.y"], plant_exact(H, N), atol=TOL)
+    np.testing.assert_allclose(r["p2.y"], plant_exact(H, N, a=2.0), atol=TOL)
+
+
 def test_explicit_connections_and_none(fmus):
     s = sim(fmus, connections=[("plant.y", "diag.u")])
     assert s.connections == [("plant.y", "diag.u")]
