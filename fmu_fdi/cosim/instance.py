@@ -130,6 +130,8 @@ class FMUInstance:
         """
         import fmpy
 
+        self._status = 0
+        self.log.clear()
         md = self.model_description
         kwargs = dict(guid=md.guid, unzipDirectory=None, instanceName=self.name,
                       modelIdentifier=md.coSimulation.modelIdentifier)
