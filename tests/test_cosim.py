@@ -435,14 +435,16 @@ def test_cli_simulate_writes_the_result(fmus, tmp_path, capsys):
     csv.write_text('"time","u"\n0,2\n')
     args = parse(["simulate", "--plant", str(fmus["plant"]), "--diagnoser", str(fmus["consumer"]),
                   "--stop", "2", "--step", "0.1", "--input", str(csv), "--fault", "stuck:plant.y:0.5:hold",
-                  "--fault", "abrupt:plant.f:1:0.5,name=pump", "-o", str(out)])
+                  "--fault", "abrupt:plant.f:1:0.5,name=pump", "--ssp", str(tmp_path / "s.ssp"), "-o", str(out)])
     assert args.func(args) == 0
+    assert (tmp_path / "s.ssp").is_file()
     r = Result.from_csv(out)
     assert "fault.pump" in r.names and "diagnoser.z" in r.names
     u = [2.0 + 0.5 * (t >= 1 - 1e-9) for t in T[:-1]]
     np.testing.assert_allclose(r["plant.y"], plant_exact(H, N, u=u), atol=TOL)
     np.testing.assert_array_equal(r["diagnoser.z"][5:], 2 * r["plant.y"][5])
-    assert "21 rows" in capsys.readouterr().out
+    printed = capsys.readouterr()
+    assert "21 rows" in printed.out and "describes the fault-free system" in printed.err
 
 
 def test_cli_exit_codes(fmus, tmp_path, capsys):

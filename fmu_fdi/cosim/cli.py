@@ -51,7 +51,8 @@ def add_parser(subparsers):
     p.add_argument("--param", action="append", default=[], metavar="FMU.VAR=VALUE",
                    help="parameter or start value set before initialisation (repeatable)")
     p.add_argument("--order", choices=ORDERS, default="gauss-seidel", help="stepping order")
-    p.add_argument("--ssp", metavar="OUT.ssp", help="also export the connected system as SSP")
+    p.add_argument("--ssp", metavar="OUT.ssp",
+                   help="also export the connected system (without the faults) as SSP")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv", help="result CSV")
     p.set_defaults(func=run)
     return p
@@ -62,7 +63,10 @@ def run(args) -> int:
     try:
         sim = _build(args)
         if args.ssp:
-            sim.export_ssp(args.ssp)
+            sim.export_ssp(args.ssp, drop_faults=True)
+            if sim.faults:
+                print(f"fmu-fdi simulate: note: {args.ssp} describes the fault-free system "
+                      f"(SSP cannot express the fault scenarios)", file=sys.stderr)
     except (CoSimulationError, FileNotFoundError) as exc:
         print(f"fmu-fdi simulate: error: {exc}", file=sys.stderr)
         return 2
