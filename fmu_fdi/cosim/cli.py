@@ -1,0 +1,131 @@
+"""``fmu-fdi simulate``: plant FMU(s) + diagnostic FMU, faults, CSV out — a veneer over
+:class:`~fmu_fdi.cosim.master.CoSimulation`.
+
+Exit status: 0 on success; 1 if an FMU failed during the run (the rows completed so far are
+still written to ``-o``); 2 for a set-up error (bad file, name, type, step or fault SPEC).
+"""
+from __future__ import annotations
+
+import sys
+
+from .errors import CoSimulationError, SimulationFailed
+from .master import ORDERS, CoSimulation
+from .signals import INTERPOLATIONS, InputSignals
+from .spec import __doc__ as _SPEC_DOC
+from .spec import parse_fault
+
+
+_DESCRIPTION = """\
+Co-simulate plant FMU(s) and a diagnostic FMU (FMI 2 or 3 co-simulation) on a fixed
+communication step. Outputs are connected to the same-named inputs of the other FMUs unless
+--connect is given; --input signals feed every unconnected input of their name. The result CSV
+holds every output of every FMU ("fmu.var") and each fault's true signal ("fault.NAME",
+"fault.NAME.active"). Exit status: 0 done; 1 an FMU failed (the rows so far are written);
+2 a set-up error."""
+
+
+def add_parser(subparsers):
+    """Add the ``simulate`` command to an ``argparse`` sub-parser set; returns the parser."""
+    import argparse
+
+    p = subparsers.add_parser(
+        "simulate", help="co-simulate plant FMU(s) with a diagnostic FMU and fault scenarios",
+        description=_DESCRIPTION, epilog="fault SPEC:" + _SPEC_DOC.split("::", 1)[1].replace("``", ""),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--plant", action="append", required=True, metavar="[NAME=]P.fmu",
+                   help="plant FMU (repeatable; instance name 'plant', 'plant2', ... unless NAME= given)")
+    p.add_argument("--diagnoser", metavar="[NAME=]FDI.fmu",
+                   help="diagnostic FMU (instance name 'diagnoser'); stepped after the plants")
+    p.add_argument("--stop", type=float, required=True, help="stop time (s)")
+    p.add_argument("--step", type=float, required=True, help="communication step (s)")
+    p.add_argument("--start", type=float, default=0.0, help="start time (s), default 0")
+    p.add_argument("--input", metavar="CSV", help="external input signals: a 'time' column and one "
+                   "column per signal, fed to every unconnected input of that name")
+    p.add_argument("--interpolation", choices=INTERPOLATIONS, default="zoh",
+                   help="how --input is read between its samples (default zoh)")
+    p.add_argument("--fault", action="append", default=[], metavar="SPEC",
+                   help="fault scenario KIND:TARGET:ONSET[:END]:MAGNITUDE[,opt=val...] (repeatable)")
+    p.add_argument("--connect", action="append", metavar="SRC=DST",
+                   help="explicit connection, e.g. plant.y=diagnoser.y (repeatable; replaces the "
+                        "default: connect outputs to same-named inputs)")
+    p.add_argument("--param", action="append", default=[], metavar="FMU.VAR=VALUE",
+                   help="parameter or start value set before initialisation (repeatable)")
+    p.add_argument("--order", choices=ORDERS, default="gauss-seidel", help="stepping order")
+    p.add_argument("--ssp", metavar="OUT.ssp",
+                   help="also export the connected system (without the faults) as SSP")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.csv", help="result CSV")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args) -> int:
+    """Execute ``fmu-fdi simulate`` with parsed ``args``; returns the exit status."""
+    try:
+        sim = _build(args)
+        if args.ssp:
+            sim.export_ssp(args.ssp, drop_faults=True)
+            if sim.faults:
+                print(f"fmu-fdi simulate: note: {args.ssp} describes the fault-free system "
+                      f"(SSP cannot express the fault scenarios)", file=sys.stderr)
+    except (CoSimulationError, FileNotFoundError) as exc:
+        print(f"fmu-fdi simulate: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        result = sim.run()
+    except SimulationFailed as exc:
+        if exc.result is not None:
+            exc.result.to_csv(args.output)
+        rows = 0 if exc.result is None else len(exc.result)
+        print(f"fmu-fdi simulate: {exc} ({rows} rows written to {args.output})", file=sys.stderr)
+        return 1
+    result.to_csv(args.output)
+    print(f"{len(result)} rows x {len(result.names)} columns written to {args.output}")
+    return 0
+
+
+def _build(args) -> CoSimulation:
+    fmus = {}
+    for i, text in enumerate(args.plant):
+        _named(fmus, text, "plant" if i == 0 else f"plant{i + 1}")
+    if args.diagnoser:
+        _named(fmus, args.diagnoser, "diagnoser")
+    connections = "auto"
+    if args.connect:
+        connections = [_pair(c, "--connect", "SRC=DST") for c in args.connect]
+    params = {}
+    for text in args.param:
+        key, value = _pair(text, "--param", "FMU.VAR=VALUE")
+        params[key] = _literal(value)
+    inputs = InputSignals.from_csv(args.input, args.interpolation) if args.input else None
+    return CoSimulation(fmus, connections, inputs, step=args.step, stop=args.stop, start=args.start,
+                        order=args.order, faults=[parse_fault(s) for s in args.fault], parameters=params)
+
+
+def _named(fmus, text, default):
+    name, sep, path = text.partition("=")
+    if not sep or name.endswith((".fmu", "/")) or not name.isidentifier():
+        name, path = default, text
+    if name in fmus:
+        raise CoSimulationError(f"two FMUs are named {name!r}")
+    fmus[name] = path
+
+
+def _pair(text, option, form):
+    a, sep, b = text.partition("=")
+    if not sep or not a.strip() or not b.strip():
+        raise CoSimulationError(f"{option} {text!r} must read {form}")
+    return a.strip(), b.strip()
+
+
+def _literal(text):
+    low = text.lower()
+    if low in ("true", "false"):
+        return low == "true"
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text

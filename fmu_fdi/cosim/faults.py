@@ -1,0 +1,244 @@
+"""Fault scenarios: what a faulty signal or parameter looks like over time.
+
+A :class:`Fault` turns the nominal value ``v(t)`` of its target into the faulty value
+``v_f(t)``. It is active for ``onset <= t < end`` (``end`` None: to the end of the run); outside
+that window ``v_f = v``. With ``m`` the magnitude and ``t0`` the onset, while active:
+
+============  ===========================================  ====================================
+kind          faulty value ``v_f(t)``                      magnitude ``m``
+============  ===========================================  ====================================
+abrupt        ``v + m``                                    offset (bias)
+incipient     ``v + m · min(1, (t − t0) / ramp)``          offset reached after ``ramp`` seconds
+intermittent  ``v + m`` while on, ``v`` while off; on for  offset while on
+              the first ``duty · period`` of every
+              ``period`` from ``t0``
+stuck         ``v(t0)`` (frozen at onset) if ``m`` None,   frozen value, or None
+              else ``m``
+gain          ``m · v``                                    factor
+drift         ``v + m · (t − t0)``                         rate (units per second)
+parameter     ``m``                                        new value
+============  ===========================================  ====================================
+
+The master evaluates faults at communication points only, so ``t0`` and ``end`` take effect at
+the first point at or after them, and the frozen value of a stuck fault is the nominal value at
+that point. Comparisons allow a relative 1e-9 so that a grid point such as ``100 × 0.1``
+counts as ``10``. The target (``"fmu.variable"``) and how the master applies the fault are
+described in :class:`~fmu_fdi.cosim.master.CoSimulation`.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+from .errors import CoSimulationError
+
+KINDS = ("abrupt", "incipient", "intermittent", "stuck", "gain", "drift", "parameter")
+ALIASES = {"step": "abrupt", "bias": "abrupt", "ramp": "incipient", "stuck-at": "stuck",
+           "frozen": "stuck", "set": "parameter"}
+_EPS = 1e-9  # relative slack of time comparisons (see module docstring)
+
+
+def _slack(t: float) -> float:
+    return _EPS * max(1.0, abs(t))
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One fault scenario on one target variable.
+
+    Parameters
+    ----------
+    kind : str
+        One of ``abrupt``, ``incipient``, ``intermittent``, ``stuck``, ``gain``, ``drift``,
+        ``parameter`` (aliases: ``step``/``bias``, ``ramp``, ``stuck-at``/``frozen``, ``set``).
+    target : str
+        ``"fmu.variable"``: an output (the master alters the value it passes on along every
+        connection from it), an input (the value the FMU receives), or a parameter.
+    onset : float
+        Time the fault appears.
+    magnitude : float or None
+        See the table in the module docstring; None only for ``stuck`` (freeze at onset).
+    end : float or None
+        Time the fault disappears; None for a permanent fault.
+    name : str or None
+        Name of the recorded columns ``fault.<name>``; default ``<kind>_<fmu>_<variable>``.
+    ramp : float or None
+        ``incipient`` only: time to reach the magnitude; default ``end − onset``.
+    period, duty : float
+        ``intermittent`` only: pattern period (required) and on-fraction in (0, 1] (default 0.5).
+
+    Examples
+    --------
+    >>> Fault("gain", "plant.h1", onset=10.0, magnitude=0.8, end=20.0).apply(15.0, 2.0)
+    1.6
+    """
+
+    kind: str
+    target: str
+    onset: float
+    magnitude: float | None = None
+    end: float | None = None
+    name: str | None = None
+    ramp: float | None = None
+    period: float | None = None
+    duty: float = 0.5
+
+    def __post_init__(self):
+        kind = ALIASES.get(self.kind, self.kind)
+        if kind not in KINDS:
+            raise CoSimulationError(f"fault kind {self.kind!r} is unknown; use one of {', '.join(KINDS)}")
+        object.__setattr__(self, "kind", kind)
+        if not isinstance(self.target, str) or "." not in self.target:
+            raise CoSimulationError(f"fault target {self.target!r} must read 'fmu.variable'")
+        onset = _number(self.onset, "onset", self.target)
+        object.__setattr__(self, "onset", onset)
+        if self.end is not None:
+            end = _number(self.end, "end", self.target)
+            if not end > onset:
+                raise CoSimulationError(f"fault on {self.target}: end {end:g} must be after onset {onset:g}")
+            object.__setattr__(self, "end", end)
+        if self.magnitude is None:
+            if kind != "stuck":
+                raise CoSimulationError(f"{kind} fault on {self.target} needs a magnitude")
+        else:
+            object.__setattr__(self, "magnitude", _number(self.magnitude, "magnitude", self.target))
+        self._check_shape(kind)
+        name = self.name if self.name is not None else f"{kind}_{self.target.replace('.', '_')}"
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
+            raise CoSimulationError(f"fault name {name!r} is not valid: use letters, digits and '_'")
+        object.__setattr__(self, "name", name)
+
+    def _check_shape(self, kind):
+        if kind == "incipient":
+            ramp = self.ramp if self.ramp is not None else (
+                None if self.end is None else self.end - self.onset)
+            if ramp is None or not _number(ramp, "ramp", self.target) > 0:
+                raise CoSimulationError(f"incipient fault on {self.target} needs ramp > 0 "
+                                        f"(or an end, giving ramp = end − onset)")
+            object.__setattr__(self, "ramp", float(ramp))
+        elif self.ramp is not None:
+            raise CoSimulationError(f"{kind} fault on {self.target}: 'ramp' applies to incipient faults only")
+        if kind == "intermittent":
+            if self.period is None or not _number(self.period, "period", self.target) > 0:
+                raise CoSimulationError(f"intermittent fault on {self.target} needs period > 0")
+            if not 0 < _number(self.duty, "duty", self.target) <= 1:
+                raise CoSimulationError(f"intermittent fault on {self.target}: duty {self.duty} "
+                                        f"must lie in (0, 1]")
+            object.__setattr__(self, "period", float(self.period))
+            object.__setattr__(self, "duty", float(self.duty))
+        elif self.period is not None:
+            raise CoSimulationError(f"{kind} fault on {self.target}: 'period' applies to "
+                                    f"intermittent faults only")
+
+    # -- shorthands ------------------------------------------------------------------------------
+
+    @classmethod
+    def abrupt(cls, target, onset, magnitude, end=None, name=None):
+        """Step (bias) ``v + magnitude`` from ``onset``."""
+        return cls("abrupt", target, onset, magnitude, end, name)
+
+    @classmethod
+    def incipient(cls, target, onset, magnitude, ramp=None, end=None, name=None):
+        """Ramp from 0 to ``magnitude`` over ``ramp`` seconds, then hold."""
+        return cls("incipient", target, onset, magnitude, end, name, ramp=ramp)
+
+    @classmethod
+    def intermittent(cls, target, onset, magnitude, period, duty=0.5, end=None, name=None):
+        """Offset ``magnitude`` during the first ``duty · period`` of every ``period``."""
+        return cls("intermittent", target, onset, magnitude, end, name, period=period, duty=duty)
+
+    @classmethod
+    def stuck(cls, target, onset, value=None, end=None, name=None):
+        """Frozen at its value at onset, or at ``value``."""
+        return cls("stuck", target, onset, value, end, name)
+
+    @classmethod
+    def gain(cls, target, onset, factor, end=None, name=None):
+        """Multiplied by ``factor``."""
+        return cls("gain", target, onset, factor, end, name)
+
+    @classmethod
+    def drift(cls, target, onset, rate, end=None, name=None):
+        """``v + rate · (t − onset)``."""
+        return cls("drift", target, onset, rate, end, name)
+
+    @classmethod
+    def parameter(cls, target, onset, value, end=None, name=None):
+        """Replaced by ``value`` (a parameter change such as a drop in efficiency)."""
+        return cls("parameter", target, onset, value, end, name)
+
+    # -- evaluation ------------------------------------------------------------------------------
+
+    @property
+    def fmu(self) -> str:
+        """Instance name part of the target."""
+        return self.target.split(".", 1)[0]
+
+    @property
+    def variable(self) -> str:
+        """Variable name part of the target."""
+        return self.target.split(".", 1)[1]
+
+    def active(self, t: float) -> bool:
+        """True while the fault acts at time ``t`` (the intermittent pattern included)."""
+        if t < self.onset - _slack(self.onset):
+            return False
+        if self.end is not None and t >= self.end - _slack(self.end):
+            return False
+        if self.kind == "intermittent":
+            cycles = (t - self.onset) / self.period
+            phase = cycles - math.floor(cycles + _slack(cycles))
+            return phase < self.duty - _slack(cycles)
+        return True
+
+    def apply(self, t: float, value: float, at_onset: float | None = None) -> float:
+        """Faulty value at time ``t`` of a target whose nominal value is ``value``.
+
+        ``at_onset`` is the nominal value when the fault appeared (used by ``stuck`` without a
+        magnitude; defaults to ``value``).
+        """
+        if not self.active(t):
+            return value
+        m = self.magnitude
+        if self.kind in ("abrupt", "intermittent"):
+            return value + m
+        if self.kind == "incipient":
+            return value + m * min(1.0, max(0.0, t - self.onset) / self.ramp)
+        if self.kind == "stuck":
+            return (value if at_onset is None else at_onset) if m is None else m
+        if self.kind == "gain":
+            return m * value
+        if self.kind == "drift":
+            return value + m * max(0.0, t - self.onset)
+        return m  # parameter
+
+    def constant_from(self, t: float) -> bool:
+        """True if the faulty value is the same function of ``v`` at every time from ``t`` on
+        (so it can be applied once, e.g. to a fixed parameter before initialisation)."""
+        return (self.kind in ("abrupt", "stuck", "gain", "parameter") and self.end is None
+                and self.active(t))
+
+
+class FaultChannel:
+    """A :class:`Fault` during one run: remembers the nominal value at onset for ``stuck``."""
+
+    def __init__(self, fault: Fault):
+        self.fault = fault
+        self.at_onset = None
+
+    def apply(self, t: float, value: float) -> float:
+        """Faulty value at ``t``; the first active call fixes the value frozen by ``stuck``."""
+        if self.at_onset is None and self.fault.active(t):
+            self.at_onset = value
+        return self.fault.apply(t, value, self.at_onset)
+
+
+def _number(x, what: str, target: str) -> float:
+    try:
+        value = float(x)
+    except (TypeError, ValueError):
+        raise CoSimulationError(f"fault on {target}: {what} {x!r} is not a number") from None
+    if not math.isfinite(value):
+        raise CoSimulationError(f"fault on {target}: {what} must be finite, got {x!r}")
+    return value

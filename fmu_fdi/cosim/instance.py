@@ -1,0 +1,300 @@
+"""One co-simulation FMU as the master sees it: variables by name, one running instance.
+
+A thin layer over fmpy's low-level classes (:class:`fmpy.fmi2.FMU2Slave`,
+:class:`fmpy.fmi3.FMU3Slave`) that hides the two things the FMI versions spell differently:
+the typed get/set calls (``getReal`` vs ``getFloat64``) and the life cycle
+(``setupExperiment`` exists only in FMI 2; FMI 3's ``doStep`` reports a termination request).
+Everything else in the master speaks of variables by name and of four value kinds:
+``"real"``, ``"integer"``, ``"boolean"`` and ``"string"``.
+"""
+from __future__ import annotations
+
+import collections
+import difflib
+import re
+import shutil
+from ctypes import byref
+from pathlib import Path
+
+from .errors import CoSimulationError, SimulationFailed
+
+# FMI type name -> the master's value kind. Enumerations travel as integers in both versions.
+_KIND = {
+    "Real": "real", "Float64": "real", "Float32": "real",
+    "Integer": "integer", "Enumeration": "integer",
+    "Int8": "integer", "UInt8": "integer", "Int16": "integer", "UInt16": "integer",
+    "Int32": "integer", "UInt32": "integer", "Int64": "integer", "UInt64": "integer",
+    "Boolean": "boolean", "String": "string",
+}
+# FMI 2 groups all integer-like types under one call; FMI 3 has a call per type.
+_FMI2_CALL = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
+              "String": "String"}
+_CAST = {"real": float, "integer": int, "boolean": bool, "string": str}
+_INSTANCE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_RESERVED = {"time", "fault"}  # would clash with the Result's own columns
+_LOG_LINES = 20
+
+
+def check_instance_name(name) -> str:
+    """Return ``name`` if it can name an FMU instance (an identifier, not ``time``/``fault``)."""
+    if not isinstance(name, str) or not _INSTANCE_NAME.match(name) or name in _RESERVED:
+        raise CoSimulationError(
+            f"FMU instance name {name!r} is not valid: use letters, digits and '_' (no dots, since "
+            f"'name.variable' addresses a variable), and not one of {sorted(_RESERVED)}")
+    return name
+
+
+class FMUInstance:
+    """An FMI 2 or FMI 3 co-simulation FMU under an instance name.
+
+    Construction reads ``modelDescription.xml`` only; :meth:`start` extracts, instantiates and
+    initialises; :meth:`close` terminates and frees. Between the two, :meth:`accessor` gives
+    batched typed access to a list of variables and :meth:`do_step` advances time.
+
+    Parameters
+    ----------
+    name : str
+        Instance name, used in column names (``name.variable``) and messages.
+    path : str or Path
+        The ``.fmu`` file.
+    """
+
+    def __init__(self, name: str, path):
+        from fmpy import read_model_description
+
+        self.name = check_instance_name(name)
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise FileNotFoundError(f"FMU '{name}': no such file {str(self.path)!r}")
+        try:
+            md = read_model_description(str(self.path), validate=False)
+        except Exception as exc:  # fmpy raises bare Exceptions for broken archives and XML
+            raise CoSimulationError(f"FMU '{name}' ({self.path}): cannot read its modelDescription.xml: "
+                                    f"{exc}") from exc
+        if md.fmiVersion not in ("2.0", "3.0"):
+            raise CoSimulationError(f"FMU '{name}' ({self.path}) is FMI {md.fmiVersion}; "
+                                    f"only FMI 2.0 and 3.0 are supported")
+        if md.coSimulation is None:
+            raise CoSimulationError(f"FMU '{name}' ({self.path}) has no co-simulation interface "
+                                    f"(model exchange only)")
+        self.model_description = md
+        self.fmi_version = int(md.fmiVersion[0])
+        self.variables = {v.name: v for v in md.modelVariables}
+        self.log = collections.deque(maxlen=_LOG_LINES)
+        self._slave = None
+        self._unzipdir = None
+        self._status = 0  # worst FMI status returned so far (0 OK ... 4 Fatal)
+
+    # -- variables -------------------------------------------------------------------------------
+
+    def variable(self, var: str):
+        """The model variable ``var``; raises :class:`CoSimulationError` naming close matches."""
+        try:
+            return self.variables[var]
+        except KeyError:
+            near = difflib.get_close_matches(var, list(self.variables), n=3)
+            hint = f" (did you mean {', '.join(repr(n) for n in near)}?)" if near else ""
+            raise CoSimulationError(f"FMU '{self.name}' has no variable {var!r}{hint}") from None
+
+    def kind(self, var: str):
+        """Value kind of ``var`` (``"real"``, ...), or None for arrays, binaries and clocks."""
+        v = self.variable(var)
+        if v.dimensions:
+            return None
+        return _KIND.get(v.type)
+
+    def names(self, causality: str) -> list:
+        """Scalar variables of a causality (``"output"``, ``"input"``, ``"parameter"``) in file order."""
+        return [v.name for v in self.variables.values()
+                if v.causality == causality and self.kind(v.name) is not None]
+
+    def start_value(self, var: str):
+        """The ``start`` attribute of ``var`` converted to its kind, or None if it has none."""
+        v = self.variable(var)
+        if v.start is None:
+            return None
+        kind = self.kind(var)
+        if kind == "boolean":
+            return str(v.start).strip().lower() in ("true", "1")
+        return _CAST[kind](float(v.start)) if kind == "integer" else _CAST[kind](v.start)
+
+    # -- life cycle ------------------------------------------------------------------------------
+
+    def start(self, start_time: float, stop_time: float, values: dict):
+        """Extract, instantiate, apply ``values`` (parameters and start values), initialise.
+
+        Raises
+        ------
+        SimulationFailed
+            If the FMU refuses any call of the sequence.
+        """
+        import fmpy
+
+        self._status = 0
+        self.log.clear()
+        md = self.model_description
+        kwargs = dict(guid=md.guid, unzipDirectory=None, instanceName=self.name,
+                      modelIdentifier=md.coSimulation.modelIdentifier)
+        try:
+            self._unzipdir = fmpy.extract(str(self.path))
+            kwargs["unzipDirectory"] = self._unzipdir
+            if self.fmi_version == 2:
+                self._start2(kwargs, start_time, stop_time, values)
+            else:
+                self._start3(kwargs, start_time, stop_time, values)
+        except SimulationFailed:
+            raise
+        except Exception as exc:
+            self._status = max(self._status, getattr(exc, "status", 3))
+            raise self._failure(f"failed to initialise at t={start_time:g}: {exc}", start_time) from exc
+
+    def _start2(self, kwargs, start_time, stop_time, values):
+        from fmpy import calloc, free
+        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+
+        # FMI 2 log messages are printf formats; fmpy's native proxy formats them for Python.
+        self._callbacks = fmi2CallbackFunctions()
+        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log2)
+        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        try:
+            from fmpy.logging import addLoggerProxy
+            addLoggerProxy(byref(self._callbacks))
+        except Exception:  # no proxy for this platform: messages arrive unformatted, still useful
+            pass
+        self._slave = FMU2Slave(**kwargs)
+        # logging on: the messages only go to the bounded buffer, and they are what explains a failure
+        self._slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+        self._slave.setupExperiment(startTime=start_time, stopTime=stop_time)
+        self._write(values, start_time)
+        self._slave.enterInitializationMode()
+        self._slave.exitInitializationMode()
+
+    def _start3(self, kwargs, start_time, stop_time, values):
+        from fmpy.fmi3 import FMU3Slave
+
+        self._slave = FMU3Slave(**kwargs)
+        self._slave.instantiate(loggingOn=True, logMessage=self._log3)
+        self._write(values, start_time)
+        self._slave.enterInitializationMode(startTime=start_time, stopTime=stop_time)
+        self._slave.exitInitializationMode()
+
+    def _write(self, values: dict, time: float):
+        if values:
+            self.accessor(list(values)).write(list(values.values()), time)
+
+    def do_step(self, time: float, step: float):
+        """Advance from ``time`` by ``step``; raise :class:`SimulationFailed` if the FMU refuses."""
+        try:
+            if self.fmi_version == 2:
+                self._slave.doStep(currentCommunicationPoint=time, communicationStepSize=step)
+                return
+            _, terminate, early, last = self._slave.doStep(currentCommunicationPoint=time,
+                                                           communicationStepSize=step)
+        except Exception as exc:
+            self._status = max(self._status, getattr(exc, "status", 3))
+            raise self._failure(f"doStep from t={time:g} (step {step:g}) failed: {exc}", time) from exc
+        if terminate:
+            raise self._failure(f"asked to terminate the simulation in doStep from t={time:g}", time)
+        if early:
+            raise self._failure(f"returned early from doStep at t={last:g} (step from t={time:g})", time)
+
+    def close(self):
+        """End the instance as the FMI state machine allows, then delete the extraction.
+
+        OK, Warning or Discard: terminate and free. Error: free only (terminate is not allowed).
+        Fatal: no call at all. After Error or Fatal the shared library also stays loaded: objects
+        the FMU created may outlive it (an in-process Python FMU leaves its exception's
+        traceback in the interpreter), and unloading their code would crash the host later.
+        """
+        slave, self._slave = self._slave, None
+        if slave is not None and slave.component:
+            if self._status < 3:
+                try:
+                    slave.terminate()
+                except Exception:  # a refusal to terminate is no reason to keep the instance
+                    pass
+                slave.freeInstance()
+            elif self._status == 3:
+                getattr(slave, f"fmi{self.fmi_version}FreeInstance")(slave.component)
+        elif slave is not None:
+            slave.freeLibrary()
+        if self._unzipdir is not None:
+            shutil.rmtree(self._unzipdir, ignore_errors=True)
+            self._unzipdir = None
+
+    # -- values ----------------------------------------------------------------------------------
+
+    def accessor(self, names) -> "Accessor":
+        """Batched typed get/set of ``names`` (one FMI call per type, not per variable)."""
+        return Accessor(self, list(names))
+
+    def _failure(self, what: str, time: float) -> SimulationFailed:
+        log = list(self.log)
+        tail = (" Last FMU messages: " + " | ".join(log[-3:])) if log else ""
+        return SimulationFailed(f"FMU '{self.name}' {what.rstrip('.')}.{tail}", fmu=self.name, time=time,
+                                log=log)
+
+    def _log2(self, env, instance, status, category, message):
+        self._record(status, message)
+
+    def _log3(self, env, status, category, message):
+        self._record(status, message)
+
+    def _record(self, status, message):
+        labels = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
+        label = labels[status] if 0 <= status < len(labels) else str(status)
+        text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+        self.log.append(f"[{label}] {text.strip()}")
+
+
+class Accessor:
+    """Reads and writes a fixed list of scalar variables of one running :class:`FMUInstance`."""
+
+    def __init__(self, fmu: FMUInstance, names: list):
+        self.fmu = fmu
+        self.names = names
+        groups: dict = {}
+        self.kinds = []
+        for pos, name in enumerate(names):
+            kind = fmu.kind(name)
+            if kind is None:
+                raise CoSimulationError(f"FMU '{fmu.name}': variable {name!r} is not a scalar of a "
+                                        f"supported type (Real/Float, Integer, Boolean, String)")
+            self.kinds.append(kind)
+            v = fmu.variables[name]
+            call = _FMI2_CALL[v.type] if fmu.fmi_version == 2 else (
+                "Int64" if v.type == "Enumeration" else v.type)
+            group = groups.setdefault(call, ([], [], kind))
+            group[0].append(v.valueReference)
+            group[1].append(pos)
+        self._groups = [(call, vrs, pos, _CAST[kind]) for call, (vrs, pos, kind) in groups.items()]
+
+    def read(self, time: float | None = None) -> list:
+        """Current values, in the order of ``names``; ``time`` only labels a failure."""
+        out = [None] * len(self.names)
+        slave = self.fmu._slave
+        for call, vrs, positions, cast in self._groups:
+            try:
+                values = getattr(slave, "get" + call)(vrs)
+            except Exception as exc:
+                raise self._failed("get" + call, positions, time, exc) from exc
+            for p, value in zip(positions, values):
+                out[p] = cast(value.decode() if isinstance(value, bytes) else value)
+        return out
+
+    def write(self, values, time: float | None = None):
+        """Set the variables to ``values`` (same order as ``names``), converted to their kinds."""
+        slave = self.fmu._slave
+        for call, vrs, positions, cast in self._groups:
+            try:
+                getattr(slave, "set" + call)(vrs, [cast(values[p]) for p in positions])
+            except Exception as exc:
+                raise self._failed("set" + call, positions, time, exc) from exc
+
+    def _failed(self, call, positions, time, exc):
+        self.fmu._status = max(self.fmu._status, getattr(exc, "status", 3))
+        names = ", ".join(self.names[p] for p in positions)
+        at = "" if time is None else f" at t={time:g}"
+        return self.fmu._failure(f"{call}({names}){at} failed: {exc}", time)

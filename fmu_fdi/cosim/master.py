@@ -1,0 +1,278 @@
+"""The fixed-step co-simulation master: plant FMU(s) and a diagnostic FMU on one time grid.
+
+Communication points are ``t_k = start + k·h``, ``k = 0 … N`` with ``N = (stop − start)/h``
+(a whole number). Over each step every FMU input is held at the value set at the step's start
+(zero-order hold). Two orders:
+
+- ``"gauss-seidel"`` (default): the FMUs are stepped one after the other in the order of the
+  ``fmus`` mapping — list the plant(s) first — and each one's inputs are set just before its
+  step, from outputs that earlier FMUs have already advanced to ``t_{k+1}``. The diagnoser thus
+  reads ``y(t_{k+1})`` while computing its step to ``t_{k+1}``: no delay.
+- ``"jacobi"``: all inputs are set from the outputs at ``t_k``, then all FMUs step (as if in
+  parallel). Every connection carries a delay of one step: the diagnoser's step to ``t_{k+1}``
+  reads ``y(t_k)``.
+
+External signals and fixed sources are sampled at the step's start ``t_k`` in both orders.
+A fault on a connection is evaluated at the time of the value it corrupts.
+
+Initialisation: parameters, start values and the external signals at ``t_0`` are set before
+each FMU initialises; connected inputs keep their start values through initialisation and get
+the source outputs (as they are after every FMU initialised) for the first step. Row 0 of the
+result holds the outputs after initialisation.
+"""
+from __future__ import annotations
+
+import contextlib
+import math
+
+from .errors import CoSimulationError, SimulationFailed
+from .faults import Fault, FaultChannel
+from .instance import FMUInstance
+from .result import Result
+from .signals import InputSignals
+from .wiring import wire
+
+ORDERS = ("gauss-seidel", "jacobi")
+
+
+class CoSimulation:
+    """Plant FMU(s) and a diagnostic FMU connected and stepped together, with fault scenarios.
+
+    The constructor reads the model descriptions and checks the whole set-up (names, types,
+    step, faults) without instantiating anything; :meth:`run` does the work.
+
+    Parameters
+    ----------
+    fmus : mapping of str to path
+        Instance name -> ``.fmu`` file (FMI 2.0 or 3.0 co-simulation). The mapping's order is
+        the Gauss–Seidel stepping order: plants first, diagnoser last.
+    connections : "auto", None or list of (str, str)
+        ``"auto"``: every input takes the output of the same name of another FMU (an error if
+        several FMUs have it). None: no connections. A list: ``("plant.y", "diagnoser.y")``
+        pairs, output first.
+    inputs : InputSignals, path, structured array or None
+        External signals (see :mod:`fmu_fdi.cosim.signals`; a path is a CSV read with
+        zero-order hold). A column ``Q1`` feeds every unconnected input named ``Q1``; a column
+        ``plant.Q1`` feeds that input only.
+    step : float
+        Communication step ``h > 0``.
+    stop : float
+        Stop time; ``stop − start`` must be a whole number of steps.
+    start : float
+        Start time.
+    order : {"gauss-seidel", "jacobi"}
+        See the module docstring.
+    faults : sequence of Fault
+        Scenarios (see :class:`~fmu_fdi.cosim.faults.Fault`). A fault on an *output* is applied
+        by the master to the value it passes along every connection from that output, so any
+        third-party plant FMU can be given sensor faults; the output column keeps the true
+        value. A fault on an *input* changes the value that FMU receives (connected, external
+        or its own start value); on a *tunable parameter* the master sets the faulty value
+        before each step; a *fixed parameter* only accepts a fault that is constant from the
+        start, applied before initialisation. Several faults on one target act in list order,
+        those on a source output before those on the receiving input.
+    parameters : mapping of str to value, optional
+        ``{"plant.a": 2.0}``: parameter and input start values set before initialisation.
+
+    Attributes
+    ----------
+    fmus : dict of str to FMUInstance
+    connections : list of (str, str)
+        The resolved connections, e.g. ``[("plant.y", "diagnoser.y")]``.
+    times : list of float
+        The communication points ``start + k·step``.
+
+    Examples
+    --------
+    >>> sim = CoSimulation({"plant": "P.fmu", "diagnoser": "FDI.fmu"}, step=0.1, stop=100,
+    ...                    faults=[Fault.stuck("plant.h1", onset=50)])   # doctest: +SKIP
+    >>> result = sim.run()                                                # doctest: +SKIP
+    >>> result.to_csv("out.csv")                                          # doctest: +SKIP
+    """
+
+    def __init__(self, fmus, connections="auto", inputs=None, *, step, stop, start=0.0,
+                 order="gauss-seidel", faults=(), parameters=None):
+        if order not in ORDERS:
+            raise CoSimulationError(f"order {order!r} is not one of {ORDERS}")
+        self.start, self.stop, self.step = _grid(start, stop, step)
+        self.order = order
+        if not fmus:
+            raise CoSimulationError("no FMUs given")
+        self.fmus = {name: FMUInstance(name, path) for name, path in dict(fmus).items()}
+        self.inputs = _signals(inputs)
+        self.faults = tuple(faults)
+        for f in self.faults:
+            if not isinstance(f, Fault):
+                raise CoSimulationError(f"faults must be Fault objects (see parse_fault), got {f!r}")
+        self.parameters = dict(parameters or {})
+        self._wiring = wire(self.fmus, connections, self.inputs.names if self.inputs else (),
+                            self.faults, self.parameters, self.start)
+        self.connections = [(f"{a}.{b}", f"{c}.{d}") for a, b, c, d in self._wiring.connections]
+        n = round((self.stop - self.start) / self.step)
+        self.times = [self.start + k * self.step for k in range(n + 1)]
+
+    # -- running ---------------------------------------------------------------------------------
+
+    def columns(self) -> list:
+        """``(name, kind)`` of every column of the :class:`Result`, in order."""
+        cols = [("time", "real")]
+        for name, fmu in self.fmus.items():
+            cols += [(f"{name}.{v}", fmu.kind(v)) for v in fmu.names("output") if fmu.kind(v) != "string"]
+        for f in self.faults:
+            cols += [(f"fault.{f.name}", "real"), (f"fault.{f.name}.active", "boolean")]
+        return cols
+
+    def run(self) -> Result:
+        """Instantiate, initialise and step all FMUs from start to stop; record every row.
+
+        Returns
+        -------
+        Result
+            One row per communication point (columns in :mod:`fmu_fdi.cosim.result`).
+
+        Raises
+        ------
+        SimulationFailed
+            If an FMU fails to initialise or its ``doStep`` returns Discard/Error/Fatal (or, in
+            FMI 3, asks to terminate). The message names the FMU and the time; the rows
+            completed so far are in the exception's ``result``. The FMUs are always freed.
+        """
+        cols = self.columns()
+        result = Result.empty([c for c, _ in cols], [k for _, k in cols], len(self.times))
+        run = _Run(self)
+        row = 0
+        with contextlib.ExitStack() as stack:
+            try:
+                run.start(stack)
+                run.record(result, 0, self.times[0])
+                for row in range(1, len(self.times)):
+                    run.advance(self.times[row - 1], self.times[row])
+                    run.record(result, row, self.times[row])
+                row += 1
+            except SimulationFailed as exc:
+                exc.result = result[:row]
+                raise
+        return result
+
+    def export_ssp(self, path, *, drop_faults: bool = False):
+        """Write the connected system as an SSP file; see :func:`fmu_fdi.cosim.ssp.export_ssp`."""
+        from .ssp import export_ssp
+
+        return export_ssp(self, path, drop_faults=drop_faults)
+
+
+class _Run:
+    """The state of one :meth:`CoSimulation.run`: values, value times, fault channels."""
+
+    def __init__(self, sim: CoSimulation):
+        self.sim = sim
+        self.channels = {f.name: FaultChannel(f) for f in sim.faults}
+        self.values = {}     # (fmu, var) -> latest output value
+        self.when = {}       # fmu -> time of its latest outputs
+        self.fixed = {}      # (fmu, var) -> value after initialisation, for ("fixed", None) sources
+
+    def start(self, stack):
+        sim, w = self.sim, self.sim._wiring
+        t0 = sim.start
+        for name, fmu in sim.fmus.items():
+            initial = dict(w.initial[name])
+            # external signals are known before initialisation: let the FMU initialise with them
+            for feed in w.feeds:
+                if feed.fmu == name and feed.source[0] == "signal":
+                    initial[feed.var] = self.chain(feed, t0)[-1]
+            stack.callback(fmu.close)
+            fmu.start(t0, sim.stop, initial)
+        self.outputs = {n: f.accessor([v for v in f.names("output") if f.kind(v) != "string"])
+                        for n, f in sim.fmus.items()}
+        self.feeds = {n: [fd for fd in w.feeds if fd.fmu == n and fd.runtime] for n in sim.fmus}
+        self.setters = {n: sim.fmus[n].accessor([fd.var for fd in fds]) for n, fds in self.feeds.items()}
+        for feed in w.feeds:  # a fixed source is the value the variable has after initialisation
+            if feed.source == ("fixed", None):
+                self.fixed[(feed.fmu, feed.var)] = sim.fmus[feed.fmu].accessor([feed.var]).read(t0)[0]
+        self.columns = {key: f"{key[0]}.{key[1]}" for name in sim.fmus
+                        for key in ((name, v) for v in self.outputs[name].names)}
+        for name in sim.fmus:
+            self.read(name, t0)
+
+    def read(self, name, t):
+        acc = self.outputs[name]
+        for var, value in zip(acc.names, acc.read(t)):
+            self.values[(name, var)] = value
+        self.when[name] = t
+
+    def chain(self, feed, t) -> list:
+        """Values along a feed's chain: the nominal source value, then after each fault."""
+        kind = feed.source[0]
+        if kind == "output":
+            t = self.when[feed.source[1]]
+            value = self.values[feed.source[1:]]
+        elif kind == "signal":
+            value = self.sim.inputs.value(feed.source[1], t)
+        else:
+            value = feed.source[1] if feed.source[1] is not None else self.fixed[(feed.fmu, feed.var)]
+        out = [value]
+        for fault in feed.faults:
+            out.append(self.channels[fault.name].apply(t, out[-1]))
+        return out
+
+    def set_inputs(self, name, t):
+        feeds = self.feeds[name]
+        if feeds:
+            self.setters[name].write([self.chain(fd, t)[-1] for fd in feeds], t)
+
+    def advance(self, t, t_next):
+        """One communication step from ``t`` to ``t_next`` (the FMUs get the exact step ``h``)."""
+        sim, h = self.sim, self.sim.step
+        names = list(sim.fmus)
+        if sim.order == "jacobi":
+            for name in names:
+                self.set_inputs(name, t)
+            for name in names:
+                sim.fmus[name].do_step(t, h)
+            for name in names:
+                self.read(name, t_next)
+        else:
+            for name in names:
+                self.set_inputs(name, t)
+                sim.fmus[name].do_step(t, h)
+                self.read(name, t_next)
+
+    def record(self, result, row, t):
+        data = result[row]
+        data["time"] = t
+        for key, value in self.values.items():
+            data[self.columns[key]] = value
+        for fault in self.sim.faults:
+            feed, pos = self.sim._wiring.fault_feed[fault.name]
+            vals = self.chain(feed, t)
+            data[f"fault.{fault.name}"] = vals[pos + 1] - vals[pos]
+            data[f"fault.{fault.name}.active"] = fault.active(t)
+
+
+def _grid(start, stop, step):
+    try:
+        start, stop, step = float(start), float(stop), float(step)
+    except (TypeError, ValueError):
+        raise CoSimulationError(f"start, stop and step must be numbers, got {start!r}, {stop!r}, {step!r}") from None
+    if not all(map(math.isfinite, (start, stop, step))):
+        raise CoSimulationError("start, stop and step must be finite")
+    if not step > 0:
+        raise CoSimulationError(f"step must be positive, got {step:g}")
+    if not stop > start:
+        raise CoSimulationError(f"stop ({stop:g}) must be after start ({start:g})")
+    n = (stop - start) / step
+    if abs(n - round(n)) > 1e-9 * max(1.0, n):
+        raise CoSimulationError(f"stop − start = {stop - start:g} is not a whole number of steps "
+                                f"{step:g} ({n:.6g}); choose stop = start + N·step")
+    return start, stop, step
+
+
+def _signals(inputs):
+    if inputs is None or isinstance(inputs, InputSignals):
+        return inputs
+    if isinstance(inputs, (str, bytes)) or hasattr(inputs, "__fspath__"):
+        return InputSignals.from_csv(inputs)
+    if getattr(getattr(inputs, "dtype", None), "names", None):
+        return InputSignals.from_array(inputs)
+    raise CoSimulationError(f"inputs must be InputSignals, a CSV path or a structured array, "
+                            f"got {type(inputs).__name__}")

@@ -1,0 +1,80 @@
+"""Co-simulation results: a numpy structured array with one row per communication point.
+
+Columns: ``time``; ``<fmu>.<output>`` for every scalar output of every FMU (Real as float64,
+Integer and Enumeration as int64, Boolean as bool; String outputs are not recorded); for every
+fault ``fault.<name>`` (float64:
+the faulty minus the nominal value of its target, i.e. the true additive fault signal) and
+``fault.<name>.active`` (bool: the fault acts at that time). Row ``k`` holds the outputs at
+``t_k`` and the fault signals applied at ``t_k``.
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+
+class Result(np.ndarray):
+    """Structured array of a co-simulation run, saved with :meth:`to_csv`.
+
+    ``result["plant.y"]`` is a plain float array; slicing rows keeps the type.
+
+    Examples
+    --------
+    >>> r = Result.empty(["time", "plant.y"], ["real", "real"], 2)
+    >>> r.names
+    ('time', 'plant.y')
+    """
+
+    def __new__(cls, data):
+        arr = np.asarray(data)
+        if arr.dtype.names is None or "time" not in arr.dtype.names:
+            raise ValueError("a Result needs a structured array with a 'time' field")
+        return arr.view(cls)
+
+    @classmethod
+    def empty(cls, names, kinds, rows: int) -> "Result":
+        """Zeros with ``rows`` rows and a column per name; kinds are ``real``/``integer``/``boolean``."""
+        dtype = {"real": np.float64, "integer": np.int64, "boolean": np.bool_}
+        return cls(np.zeros(rows, dtype=[(n, dtype[k]) for n, k in zip(names, kinds)]))
+
+    def __getitem__(self, key):
+        out = super().__getitem__(key)
+        # a single column is a signal, not a result: hand out a plain array
+        return out.view(np.ndarray) if isinstance(key, str) else out
+
+    @property
+    def names(self) -> tuple:
+        """Column names, ``time`` first."""
+        return self.dtype.names
+
+    def to_csv(self, path) -> Path:
+        """Write the FMI cross-check CSV style: a header ``"time","var1",...`` then one row per
+        time; floats in the shortest form that reads back exactly, Booleans as 0/1."""
+        path = Path(path)
+        columns = []
+        for name in self.names:
+            col = self[name]
+            if col.dtype == np.bool_:
+                columns.append(["1" if v else "0" for v in col.tolist()])
+            elif np.issubdtype(col.dtype, np.integer):
+                columns.append([str(v) for v in col.tolist()])
+            else:
+                columns.append([repr(v) for v in col.tolist()])
+        with open(path, "w", newline="") as f:
+            f.write(",".join(f'"{n}"' for n in self.names) + "\n")
+            f.writelines(",".join(row) + "\n" for row in zip(*columns))
+        return path
+
+    @classmethod
+    def from_csv(cls, path) -> "Result":
+        """Read a CSV written by :meth:`to_csv` (every column comes back as float64)."""
+        with open(path, newline="") as f:
+            rows = list(csv.reader(f))
+        names = [h.strip().strip('"') for h in rows[0]]
+        data = np.array([[float(x) for x in r] for r in rows[1:] if r], dtype=float).reshape(-1, len(names))
+        out = np.zeros(len(data), dtype=[(n, np.float64) for n in names])
+        for j, n in enumerate(names):
+            out[n] = data[:, j]
+        return cls(out)
