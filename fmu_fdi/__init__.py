@@ -4,6 +4,7 @@ from .analysis import (detectability, fault_gains, fault_noise_gap, fault_sensit
 from .design import (RLSEstimator, dedicated_bank, factorized, fault_detection_filter, generalized_bank, kalman,
                      luenberger, nullspace_design, parity_space, rls_estimator, structured_bank,
                      unknown_input_observer)
+from .cosim import CoSimulation, Fault, InputSignals, Result, SimulationFailed, export_ssp, parse_fault
 from .diagnoser import Diagnoser
 from .evaluation import ThresholdDesign, fault_size_thresholds, sensor_gain_plants, threshold_selector
 from .errors import DesignError, ModelError
@@ -22,4 +23,5 @@ __all__ = [
     "Diagnoser", "threshold_selector", "ThresholdDesign", "sensor_gain_plants", "fault_size_thresholds",
     "structure_matrix", "fault_gains", "hinf_minus", "fault_sensitivity_condition", "fault_noise_gap",
     "leakage", "detectability", "isolability",
+    "CoSimulation", "Result", "Fault", "parse_fault", "InputSignals", "export_ssp", "SimulationFailed",
 ]

@@ -2,6 +2,7 @@
 
   fmu-fdi analyze MODEL                    detectability / isolability table
   fmu-fdi design MODEL --method M ... -o DESIGN.json
+  fmu-fdi simulate --plant P.fmu --diagnoser FDI.fmu --stop T --step Ts [--fault SPEC ...] -o OUT.csv
 """
 from __future__ import annotations
 
@@ -150,6 +151,10 @@ def build_parser() -> argparse.ArgumentParser:
     a = sub.add_parser("analyze", help="detectability / isolability table of a model file")
     a.add_argument("model", help="model file (.toml or .json)")
     a.set_defaults(func=_analyze)
+
+    from .cosim import cli as cosim_cli
+
+    cosim_cli.add_parser(sub)
 
     d = sub.add_parser("design", help="design a diagnoser and write its design file",
                        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=DESIGN_HELP)
