@@ -36,6 +36,28 @@ BASE_MODULES = ("slave_base.py", "slave_state.py")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
+# The class is *defined* here, not just imported, and its methods matter: on every
+# fmi2Instantiate pythonfmu 0.7.0 (findClass in PySlaveInstance.cpp) re-executes this file into
+# the module's namespace and then Py_DECREFs that namespace dict although it only borrowed it.
+# Functions created by the re-execution keep a reference to the dict each, so two methods
+# more than balance the stray decrement; a loader that only imports the class loses the dict
+# on the second instantiation in a process ("module has no attribute ...", fmi2Instantiate
+# returns NULL).
+_LOADER = '''"""Loader for pythonfmu (generated): the slave code lives in the package {lib}."""
+from {lib}.{module} import {cls} as _Slave
+
+
+class {cls}(_Slave):
+    """The slave class pythonfmu instantiates (see fmu_fdi.fmu.packaging for why it is here)."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+
+    def _loader_namespace(self):
+        return globals()
+'''
+
+
 def unique_bundle_name(prefix: str, *parts: str) -> str:
     """``<prefix>_<10 hex digits>`` from a hash of ``parts`` (stable for equal content)."""
     h = hashlib.sha256("\0".join(parts).encode("utf-8")).hexdigest()[:10]
@@ -99,11 +121,7 @@ def build_slave_fmu(
         for name, data in (data_files or {}).items():
             (pkg / name).write_bytes(data)
         script = tmp / f"{bundle_name}.py"
-        script.write_text(
-            '"""Loader for pythonfmu: the slave class lives in the package of the same name."""\n'
-            f"from {lib}.{module} import {class_name}\n"
-            f"__all__ = [{class_name!r}]\n"
-        )
+        script.write_text(_LOADER.format(lib=lib, module=module, cls=class_name))
         before = set(sys.modules)
         path_before = list(sys.path)
         try:

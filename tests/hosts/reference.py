@@ -95,3 +95,13 @@ def assert_matches(result, reference, rows=slice(None), atol=1e-12):
         else:
             bad = np.flatnonzero(got.astype(reference.dtype[name]) != want)
             assert bad.size == 0, f"{name}: differs at rows {bad[:10]} (got {got[bad[:5]]}, want {want[bad[:5]]})"
+
+
+def plant(times, h, bias=0.6):
+    """Reference of the plant stand-in: rows (u1, u2, y1) at ``times`` = t_0 + k h from t_0 = 0."""
+    times = np.asarray(times, float)
+    z = np.zeros(len(times))
+    b = math.exp(-h / 0.3)
+    for k in range(1, len(times)):
+        z[k] = b * z[k - 1] + (1.0 - b) * math.sin(2.0 * times[k - 1])
+    return np.column_stack([np.sin(2 * times), np.cos(times), z + bias * (times >= 1.0)])
