@@ -320,16 +320,25 @@ def test_c_host_without_python_in_the_process(work, tmp_path):
     assert f"numpy {np.__version__} at {site}/numpy" in stdout  # numpy of this environment
 
 
-def test_c_host_needs_libpython_preloaded(work, tmp_path):
+def test_c_host_environment_is_needed(work, tmp_path):
     exe = _c_host_or_skip(tmp_path)
     unzip = tmp_path / "unzipped"
     with zipfile.ZipFile(work["standin"]) as zf:
         zf.extractall(unzip)
-    env = hosts.c_host_env()
-    del env["LD_PRELOAD"]
-    proc = subprocess.run([str(exe), str(unzip), str(work["csv"]), str(tmp_path / "o.csv"), repr(H)], env=env,
-                          capture_output=True, text=True, timeout=60)
+
+    def run_without(name):
+        env = hosts.c_host_env()
+        del env[name]
+        return subprocess.run([str(exe), str(unzip), str(work["csv"]), str(tmp_path / "o.csv"), repr(H)], env=env,
+                              capture_output=True, text=True, timeout=60)
+
+    proc = run_without("LD_PRELOAD")
     assert proc.returncode == 2 and "undefined symbol: _Py" in proc.stderr
+    # without PYTHONPATH the embedded interpreter does not see this environment's site-packages:
+    # it either fails to import numpy or takes another numpy (the base interpreter's)
+    proc = run_without("PYTHONPATH")
+    site = hosts.c_host_env()["PYTHONPATH"].split(":")[0]
+    assert f"at {site}/numpy" not in proc.stdout
 
 
 def test_module_names_must_be_unique_per_fmu(work, tmp_path):

@@ -34,7 +34,8 @@ class Plant(FdiSlave):
                                     variability=Fmi2Variability.fixed, description="sensor fault size"))
 
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.time = float(start_time)
+        super().setup_experiment(start_time, stop_time, tolerance)  # guarded; sets start_time
+        self.time = getattr(self, "start_time", 0.0)
 
     def update_outputs(self):
         t = self.time
