@@ -12,8 +12,9 @@ What it adds to :class:`pythonfmu.Fmi2Slave`, and why:
 * **The whole instance is the FMU state.** pythonfmu saves only registered variables by
   default. Here ``fmi2GetFMUstate`` deep-copies every instance attribute except pythonfmu's
   own bookkeeping (numpy arrays and nested runtime objects included), ``fmi2SetFMUstate``
-  restores a fresh deep copy (so one saved state can be restored any number of times) and
-  removes attributes created after the save. Serialization uses :mod:`.slave_state`
+  restores a fresh deep copy (so one saved state can be restored any number of times),
+  in place for lists, dicts, same-shape arrays and plain objects (getters registered as
+  closures over them keep working), and removes attributes created after the save. Serialization uses :mod:`.slave_state`
   (exact, pickle-free).
 * **Outputs follow the current inputs.** Subclasses compute outputs in ``update_outputs`` from
   the state and the inputs as currently set; it runs lazily before the first get after any
@@ -211,7 +212,8 @@ class FdiSlave(Fmi2Slave):
             restored = copy.deepcopy(state["attributes"])  # the saved state stays reusable
             for name in [k for k in self._model_state() if k not in restored]:
                 delattr(self, name)
-            self.__dict__.update(restored)
+            for name, value in restored.items():
+                _restore_attribute(self, name, value)
             self.log_event("FMU state restored", category="logFdiState")
         except BaseException as exc:
             self._fail("fmi2SetFMUstate", exc)
@@ -231,3 +233,31 @@ class FdiSlave(Fmi2Slave):
             return decode_state(data)
         except BaseException as exc:
             return {_ERROR_STATE: f"deserialization failed: {type(exc).__name__}: {exc}"}
+
+
+def _restore_attribute(owner, name, value):
+    """Set ``owner.name = value``, in place where the current object allows it.
+
+    Registered getters/setters are often closures over a list or array taken in ``__init__``
+    (``getter=lambda: self._u[i]`` is safe, ``getter=partial(getitem, self._u, i)`` is not):
+    rebinding the attribute would leave them on the old object. So containers and plain
+    objects of the same kind (and arrays of the same shape and dtype) are overwritten in place.
+    """
+    current = owner.__dict__.get(name, None)
+    if type(current) is not type(value) or current is None:
+        owner.__dict__[name] = value
+    elif isinstance(value, np.ndarray):
+        if current.shape == value.shape and current.dtype == value.dtype and current.flags.writeable:
+            np.copyto(current, value)
+        else:
+            owner.__dict__[name] = value
+    elif type(value) is list:
+        current[:] = value
+    elif type(value) is dict:
+        current.clear()
+        current.update(value)
+    elif hasattr(value, "__dict__") and not isinstance(value, type) and not callable(value):
+        current.__dict__.clear()
+        current.__dict__.update(value.__dict__)
+    else:
+        owner.__dict__[name] = value

@@ -31,9 +31,9 @@ class StandIn(FdiSlave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self.u1 = 0.0
-        self.u2 = 0.0
-        self.y1 = 0.0
+        # the inputs live in one list that the registered getters/setters close over (the
+        # pattern of the real slave template): a state restore must write into this list
+        self.v = [0.0, 0.0, 0.0]
         self.threshold_scale = 1.0
         self.tau = 0.5
         self.fail_at_step = -1
@@ -51,8 +51,9 @@ class StandIn(FdiSlave):
         self.input_invalid = False
 
         inp, out, par = Fmi2Causality.input, Fmi2Causality.output, Fmi2Causality.parameter
-        for name in ("u1", "u2", "y1"):
-            self.register_variable(Real(name, causality=inp, description=f"plant signal {name}"))
+        for i, name in enumerate(("u1", "u2", "y1")):
+            self.register_variable(Real(name, causality=inp, description=f"plant signal {name}",
+                                        getter=_item(self.v, i), setter=_set_item(self.v, i)), nested=False)
         self.register_variable(Real("threshold_scale", causality=par, variability=Fmi2Variability.tunable,
                                     description="factor on every threshold"))
         self.register_variable(Real("tau", causality=par, variability=Fmi2Variability.fixed,
@@ -70,7 +71,7 @@ class StandIn(FdiSlave):
         self.register_variable(Boolean("input_invalid", causality=out, description="an input is not finite"))
 
     def _inputs(self):
-        return np.array([self.u1, self.u2, self.y1], dtype=float)
+        return np.array(self.v, dtype=float)
 
     def update_outputs(self):
         v = self._inputs()
@@ -107,3 +108,13 @@ class StandIn(FdiSlave):
             self.x = a * self.x + (1.0 - a) * e
         self.n_steps += 1
         return True
+
+
+def _item(values, i):
+    return lambda: values[i]
+
+
+def _set_item(values, i):
+    def set_(value):
+        values[i] = value
+    return set_
