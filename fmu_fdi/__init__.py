@@ -8,6 +8,7 @@ from .cosim import CoSimulation, Fault, InputSignals, Result, SimulationFailed, 
 from .diagnoser import Diagnoser
 from .evaluation import ThresholdDesign, fault_size_thresholds, sensor_gain_plants, threshold_selector
 from .errors import DesignError, ModelError
+from .fmu import build_fmu
 from .faults import FaultSpec, actuator_fault, component_fault, parametric_fault, sensor_fault
 from .generator import ResidualBank, ResidualGenerator
 from .lti import LTI
@@ -20,7 +21,7 @@ __all__ = [
     "LTI", "ResidualGenerator", "ResidualBank", "DesignError", "ModelError",
     "luenberger", "kalman", "unknown_input_observer", "fault_detection_filter", "factorized",
     "nullspace_design", "parity_space", "rls_estimator", "RLSEstimator", "structured_bank", "dedicated_bank", "generalized_bank",
-    "Diagnoser", "threshold_selector", "ThresholdDesign", "sensor_gain_plants", "fault_size_thresholds",
+    "Diagnoser", "build_fmu", "threshold_selector", "ThresholdDesign", "sensor_gain_plants", "fault_size_thresholds",
     "structure_matrix", "fault_gains", "hinf_minus", "fault_sensitivity_condition", "fault_noise_gap",
     "leakage", "detectability", "isolability",
     "CoSimulation", "Result", "Fault", "parse_fault", "InputSignals", "export_ssp", "SimulationFailed",

@@ -59,6 +59,9 @@ class Diagnoser:
         ``persistence`` ([k, n]), ``latch`` (bool), ``isolation`` ('auto', 'structure',
         'direction', 'none'), ``structure`` (groups × faults; default: the generator's weak
         structure matrix), ``min_margin`` for directional isolation (radians).
+    groups : 'each' or list of list of int, optional
+        Regroup the residuals for evaluation (default: the generator's groups, e.g. one
+        group per bank member); 'each' evaluates every residual on its own.
     name : str, optional
 
     Examples
@@ -73,11 +76,11 @@ class Diagnoser:
     """
 
     def __init__(self, generator, *, Ts: float | None = None, evaluation=None, thresholds=None,
-                 decision: dict | None = None, name: str | None = None):
+                 decision: dict | None = None, groups=None, name: str | None = None):
         if thresholds is None:
             raise DesignError("thresholds are required: give a number per residual group, a spec, or a threshold "
                               "design (threshold_selector, analytic_threshold, data_driven_threshold)")
-        gen = generator
+        gen = generator if groups is None else _regrouped(generator, groups)
         cont = None
         if getattr(gen, "dt", 0.0) == 0.0:
             if Ts is None:
@@ -264,6 +267,16 @@ class Diagnoser:
                 self.continuous = ResidualGenerator(LTI(c["A"], c["B"], c["C"], c["D"]), model, g["method"],
                                                     g["residual_names"], g["groups"], g.get("info"))
         return self
+
+
+def _regrouped(gen, groups):
+    if not isinstance(gen, ResidualGenerator):
+        raise DesignError(f"residual groups can only be changed for LTI generators, not {type(gen).__name__}")
+    groups = [[k] for k in range(gen.n_residuals)] if groups == "each" else [list(g) for g in groups]
+    cont = gen.continuous
+    if cont is not None:
+        cont = ResidualGenerator(cont.Q, cont.model, cont.method, cont.residual_names, groups, cont.info)
+    return ResidualGenerator(gen.Q, gen.model, gen.method, gen.residual_names, groups, gen.info, continuous=cont)
 
 
 def _whitened(evaluation: dict, gen, group) -> dict:

@@ -1,5 +1,4 @@
-"""The diagnostic FMU: pythonfmu slave base, packaging, modelDescription post-processing, hosts.
+"""The diagnostic FMU: build it from a Diagnoser, and run it in FMI hosts (see docs/fmu-hosts.md)."""
+from .builder import build_fmu
 
-Modules bundled *into* FMUs (``slave_base``, ``slave_state``) import only numpy, the standard
-library and pythonfmu; the others run in the building or hosting process.
-"""
+__all__ = ["build_fmu"]

@@ -1,30 +1,30 @@
 """Build the diagnostic FMU (FMI 2.0 co-simulation, pythonfmu) from a Diagnoser or design file.
 
-The FMU carries in ``resources/``: the design file, the numpy-only runtime copied as a
-package whose name is unique to this FMU (``fdirt_<hash>``), and the slave script (module
-``fdi_<hash>``). Several diagnostic FMUs therefore load in one process without module
-clashes (pythonfmu issue 228), and the FMU never imports scipy, control or an installed
-``fmu_fdi``. After pythonfmu writes the archive, the model description is completed
-(units, variabilities, ModelStructure with dependencies, capability flags) so that
-``fmpy validate`` reports no problem.
+The FMU's ``resources/`` hold a package whose name is unique to the FMU (a hash of the
+design and the code, see :mod:`.packaging`) with: the numpy-only runtime
+(:mod:`fmu_fdi.runtime`, copied as it is), the slave module (:mod:`.slave_template`), the
+slave base and state codec, and ``design.json``. Several diagnostic FMUs therefore load in
+one process without module clashes (pythonfmu issue 228), and the FMU never imports
+scipy, control or an installed ``fmu_fdi``. The model description is completed so that
+``fmpy validate`` reports no problem: units, descriptions, discrete variability of
+outputs, no direct feedthrough (outputs are updated at ``fmi2DoStep``), the
+``DefaultExperiment`` step size Ts, and capability flags that tell the truth.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import re
-import shutil
-import sys
-import tempfile
 from pathlib import Path
 
 from ..designfile import DesignFileError, load_design, validate_design
 from ..runtime.engine import output_names
+from .packaging import build_slave_fmu, unique_bundle_name
 from .slave_template import TEMPLATE
 
 RUNTIME_DIR = Path(__file__).resolve().parent.parent / "runtime"
 RESERVED = re.compile(r"^(residual|evaluation|threshold|alarm)_\d+$|^(fault_detected|isolated_fault|input_invalid|"
                       r"threshold_scale)$")
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
 def _design_of(diagnoser_or_path) -> dict:
@@ -37,11 +37,25 @@ def _design_of(diagnoser_or_path) -> dict:
     return load_design(diagnoser_or_path)
 
 
-def _identifier(name: str, digest: str) -> str:
-    base = re.sub(r"[^A-Za-z0-9_]", "_", name) or "fdi"
-    if base[0].isdigit():
-        base = "fdi_" + base
-    return f"{base}_{digest[:8]}"
+def _descriptions(design: dict) -> dict[str, str]:
+    sig, g = design["signals"], design["generator"]
+    faults = [f["name"] for f in design["faults"]]
+    out = {n: f"plant input {n}" for n in sig["u"]}
+    out.update({n: f"plant output (measurement) {n}" for n in sig["y"]})
+    out["threshold_scale"] = "factor on every threshold (>= 0)"
+    for k, name in enumerate(g["residual_names"]):
+        out[f"residual_{k + 1}"] = f"residual {name}"
+    for i, grp in enumerate(g["groups"]):
+        ev = design["evaluation"][i]
+        members = ", ".join(g["residual_names"][j] for j in grp)
+        out[f"evaluation_{i + 1}"] = f"{ev['evaluator']['kind']} evaluation of residual group {i + 1} ({members})"
+        out[f"threshold_{i + 1}"] = f"{ev['threshold']['kind']} threshold of group {i + 1} (times threshold_scale)"
+        out[f"alarm_{i + 1}"] = f"evaluation_{i + 1} >= threshold_{i + 1} (with persistence/latching)"
+    out["fault_detected"] = "any alarm"
+    legend = ", ".join(f"{j + 1} = {nm}" for j, nm in enumerate(faults)) or "no faults modelled"
+    out["isolated_fault"] = f"0 none, -1 unknown or several, else the fault: {legend}"
+    out["input_invalid"] = "the last input sample had NaN/Inf (diagnosis held)"
+    return out
 
 
 def build_fmu(diagnoser_or_path, fmu_path) -> Path:
@@ -60,64 +74,38 @@ def build_fmu(diagnoser_or_path, fmu_path) -> Path:
     Raises
     ------
     DesignFileError
-        The design is malformed, or a signal name collides with an FMU output name.
+        The design is malformed, or a signal name is no valid FMU variable name or
+        collides with one of the FMU's own outputs.
     """
     design = _design_of(diagnoser_or_path)
     fmu_path = Path(fmu_path)
     if fmu_path.suffix != ".fmu":
         raise DesignFileError(f"the FMU file name must end in .fmu, got {fmu_path.name}")
     signals = list(design["signals"]["u"]) + list(design["signals"]["y"])
+    bad = [s for s in signals if not _IDENT.match(s)]
+    if bad:
+        raise DesignFileError(f"signal names {bad} are not valid FMU variable names")
     clash = [s for s in signals if RESERVED.match(s)]
     if clash:
         raise DesignFileError(f"signal names {clash} collide with the diagnostic FMU's own variable names")
-    bad = [s for s in signals if not re.match(r"^[A-Za-z_][A-Za-z0-9_]*$", s)]
-    if bad:
-        raise DesignFileError(f"signal names {bad} are not valid FMU variable names")
-    runtime_src = sorted(RUNTIME_DIR.glob("*.py"))
-    h = hashlib.sha256(json.dumps(design, sort_keys=True).encode())
-    for f in runtime_src:
-        h.update(f.read_bytes())
-    digest = h.hexdigest()
-    ident = _identifier(design["name"], digest)
-    rt_pkg = f"fdirt_{digest[:12]}"
-    module = f"fdi_{digest[:12]}"
-    design_name = f"design_{digest[:12]}.json"
-
-    from pythonfmu.builder import FmuBuilder
-
-    saved_path = list(sys.path)
-    with tempfile.TemporaryDirectory(prefix="fmu_fdi_build_") as tmp:
-        tmp = Path(tmp)
-        src = tmp / "src"
-        src.mkdir()
-        pkg = src / rt_pkg
-        pkg.mkdir()
-        for f in runtime_src:
-            shutil.copy2(f, pkg / f.name)
-        (src / design_name).write_text(json.dumps(design), encoding="utf-8")
-        code = (TEMPLATE.replace("__RT__", rt_pkg).replace("__CLASS__", ident)
-                .replace("__DESIGN__", design_name)
-                .replace("__DESCRIPTION__", repr(f"fmu-fdi diagnoser '{design['name']}' "
-                                                 f"({design['generator']['method']}, Ts={design['generator']['dt']:g} s)")))
-        script = src / f"{module}.py"
-        script.write_text(code, encoding="utf-8")
-        out_dir = tmp / "out"
-        try:
-            built = FmuBuilder.build_FMU(script, dest=out_dir / f"{ident}.fmu", project_files=[pkg, src / design_name],
-                                         needsExecutionTool="true", canHandleVariableCommunicationStepSize="true",
-                                         canGetAndSetFMUstate="true", canSerializeFMUstate="true")
-        finally:
-            sys.path[:] = saved_path
-            for name in [m for m in sys.modules if m == module or m == rt_pkg or m.startswith(rt_pkg + ".")]:
-                del sys.modules[name]
-        from .model_description import finalize_model_description
-
-        finalize_model_description(built, design)
-        fmu_path.parent.mkdir(parents=True, exist_ok=True)
-        shutil.move(str(built), fmu_path)
-    return fmu_path
-
-
-def fmu_output_names(design: dict) -> list[str]:
+    design_bytes = json.dumps(design, sort_keys=True).encode("utf-8")
+    modules = {f.name: f.read_text(encoding="utf-8") for f in sorted(RUNTIME_DIR.glob("*.py"))
+               if f.name != "__init__.py"}
+    base = re.sub(r"[^A-Za-z0-9_]", "_", design["name"]) or "fdi"
+    ident = unique_bundle_name(base if base[0].isalpha() else "fdi_" + base, design_bytes.decode(),
+                               *(modules[k] for k in sorted(modules)))
     g = design["generator"]
-    return output_names(len(g["residual_names"]), len(g["groups"]))
+    modules["diagnoser_slave.py"] = TEMPLATE.replace("__CLASS__", ident).replace(
+        "__DESCRIPTION__", repr(f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {g['dt']:g} s)"))
+    names = output_names(len(g["residual_names"]), len(g["groups"]))
+    units = {k: v for k, v in (design.get("units") or {}).items() if k in signals}
+    return build_slave_fmu(
+        modules, f"diagnoser_slave:{ident}", fmu_path, bundle_name=f"{ident}_fmu",
+        data_files={"design.json": design_bytes},
+        units=units, descriptions=_descriptions(design),
+        output_dependencies={n: [] for n in names},
+        capabilities={"canGetAndSetFMUstate": True, "canSerializeFMUstate": True,
+                      "canHandleVariableCommunicationStepSize": True},
+        default_experiment={"startTime": 0.0, "stepSize": float(g["dt"])},
+        model_description=f"fmu-fdi diagnoser '{design['name']}'",
+    )

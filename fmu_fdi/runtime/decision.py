@@ -75,7 +75,13 @@ class Decision:
         self.status = str(s["status"])
         self.margin = float(s["margin"])
 
-    def step(self, evaluations, thresholds, residual: np.ndarray) -> None:
+    def step(self, evaluations, thresholds, residual) -> None:
+        """``evaluations``/``thresholds``: per group; ``residual``: the residual vector."""
+        if self.n_of == 1 and not self.latch:  # the common case: alarm = raw test
+            self.alarms = [e >= t for e, t in zip(evaluations, thresholds)]
+            self.raw_hist = [[a] for a in self.alarms]
+            self._isolate(residual)
+            return
         for i in range(self.n_groups):
             h = self.raw_hist[i]
             h.pop(0)
@@ -100,6 +106,7 @@ class Decision:
             else:
                 self.isolated, self.status = -1, "several" if matches.size > 1 else "unknown"
         elif self.mode == "direction":
+            residual = np.asarray(residual, float)
             nr = float(np.linalg.norm(residual))
             if nr == 0.0:
                 self.isolated, self.status = -1, "unknown"

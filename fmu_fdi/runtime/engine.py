@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from .decision import Decision
-from .evaluation import Evaluator
+from .evaluation import MONOTONE, Evaluator
 from .expm import zoh
 from .generators import make_generator
 from .thresholds import Threshold
@@ -45,13 +45,13 @@ class DiagnoserRuntime:
     def __init__(self, design: dict):
         if design.get("format") != FORMAT:
             raise ValueError(f"design format must be {FORMAT!r}, got {design.get('format')!r}")
-        self.design = design
         sig = design["signals"]
         self.u_names, self.y_names = list(sig["u"]), list(sig["y"])
         self.nu, self.ny = len(self.u_names), len(self.y_names)
         op = design.get("operating_point") or {}
         self.u0 = np.asarray(op.get("u", [0.0] * self.nu), float).reshape(self.nu)
         self.y0 = np.asarray(op.get("y", [0.0] * self.ny), float).reshape(self.ny)
+        self._u0, self._y0 = self.u0.tolist(), self.y0.tolist()
         g = design["generator"]
         self.Ts = float(g["dt"])
         if not (self.Ts > 0 and math.isfinite(self.Ts)):
@@ -91,6 +91,12 @@ class DiagnoserRuntime:
             self.evaluators = [Evaluator(s, len(g)).resampled(ratio) for s, g in zip(self.eval_specs, self.groups)]
             self.thresholds = [Threshold(t, s).resampled(ratio, e.spec)
                                for t, s, e in zip(self.thr_specs, self.eval_specs, self.evaluators)]
+        self._bind_stage()
+
+    def _bind_stage(self) -> None:
+        """Per group: (single residual index or -1, indices, evaluator, norm-based?, threshold)."""
+        self._stage = [(g[0] if len(g) == 1 else -1, g, e, e.kind in MONOTONE, t)
+                       for g, e, t in zip(self.groups, self.evaluators, self.thresholds)]
 
     def _plan(self, h: float):
         """(substeps, generator) for communication step h; raises StepSizeError."""
@@ -130,7 +136,7 @@ class DiagnoserRuntime:
         The generator state carries over; evaluation windows restart when the effective
         sample time changes (a re-discretised design evaluates at h, not Ts).
         """
-        _, gen, ratio = self._plan(h)
+        substeps, gen, ratio = self._plan(h)
         if h == self.h:
             return
         prev_ratio = self._plan(self.h)[2]
@@ -141,6 +147,7 @@ class DiagnoserRuntime:
         if ratio != prev_ratio:
             self._build_stage(ratio)
         self.h = h
+        self._substeps = substeps
 
     # ----------------------------------------------------------------- state
     def reset(self) -> None:
@@ -149,14 +156,15 @@ class DiagnoserRuntime:
         self.h = self.Ts
         self._build_stage(1.0)
         self.decision.reset()
-        self.outputs = np.zeros(len(self.names))
+        self.outputs = [0.0] * len(self.names)
         self.n_samples = 0
+        self._substeps = 1
 
     def get_state(self) -> dict:
         return {"h": self.h, "generator": self.generator.get_state(),
                 "evaluators": [e.get_state() for e in self.evaluators],
                 "thresholds": [t.get_state() for t in self.thresholds],
-                "decision": self.decision.get_state(), "outputs": self.outputs.tolist(),
+                "decision": self.decision.get_state(), "outputs": list(self.outputs),
                 "n_samples": self.n_samples, "threshold_scale": self.threshold_scale}
 
     def set_state(self, s: dict) -> None:
@@ -167,43 +175,59 @@ class DiagnoserRuntime:
         for t, ts in zip(self.thresholds, s["thresholds"]):
             t.set_state(ts)
         self.decision.set_state(s["decision"])
-        self.outputs = np.array(s["outputs"], float)
+        self.outputs = [float(x) for x in s["outputs"]]
         self.n_samples = int(s["n_samples"])
         self.threshold_scale = float(s["threshold_scale"])
 
     # ------------------------------------------------------------------ step
-    def _sample(self, v: np.ndarray, unorm: float) -> None:
+    def _sample(self, v, unorm: float) -> None:
         r = self.generator.step(v)
-        nr, ng = self.n_residuals, self.n_groups
+        rl = r.tolist()
         out = self.outputs
-        out[:nr] = r
+        nr, ng = self.n_residuals, self.n_groups
+        out[:nr] = rl
         scale = self.threshold_scale
-        for i, grp in enumerate(self.groups):
-            out[nr + i] = self.evaluators[i].step(r[grp])
-            out[nr + ng + i] = scale * self.thresholds[i].step(unorm)
-        self.decision.step(out[nr:nr + ng], out[nr + ng:nr + 2 * ng], r)
-        out[nr + 2 * ng:nr + 3 * ng] = self.decision.alarms
-        out[-3] = float(any(self.decision.alarms))
-        out[-2] = float(self.decision.isolated)
+        evals, thrs = [], []
+        for single, grp, ev, norm_based, thr in self._stage:
+            if single >= 0:
+                x = rl[single]
+                evals.append(ev.step_sq(x * x) if norm_based else ev.step(r[grp]))
+            elif norm_based:
+                evals.append(ev.step_sq(sum(rl[j] * rl[j] for j in grp)))
+            else:
+                evals.append(ev.step(r[grp]))
+            thrs.append(scale * thr.step(unorm))
+        dec = self.decision
+        dec.step(evals, thrs, rl)
+        out[nr:nr + ng] = evals
+        out[nr + ng:nr + 2 * ng] = thrs
+        alarms = dec.alarms
+        out[nr + 2 * ng:nr + 3 * ng] = [1.0 if a else 0.0 for a in alarms]
+        out[-3] = 1.0 if True in alarms else 0.0
+        out[-2] = float(dec.isolated)
 
-    def advance(self, u, y, h: float | None = None) -> np.ndarray:
-        """Diagnose the sample (u, y) over a communication step h (default: Ts)."""
+    def advance(self, u, y, h: float | None = None) -> list:
+        """Diagnose the sample (u, y) over a communication step h (default: Ts).
+
+        Returns the outputs (a new list, in the order of :attr:`names`).
+        """
         if h is not None and h != self.h:
             self.set_step(h)
-        substeps = self._plan(self.h)[0]
-        u = np.asarray(u, float).reshape(self.nu)
-        y = np.asarray(y, float).reshape(self.ny)
-        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
+        u = list(map(float, u))
+        y = list(map(float, y))
+        if len(u) != self.nu or len(y) != self.ny:
+            raise ValueError(f"expected {self.nu} inputs and {self.ny} outputs, got {len(u)} and {len(y)}")
+        if not (all(map(math.isfinite, u)) and all(map(math.isfinite, y))):
             self.outputs[-1] = 1.0
-            return self.outputs.copy()
-        du = u - self.u0
-        v = np.concatenate([y - self.y0, du])
-        unorm = float(np.linalg.norm(du))
-        for _ in range(substeps):
+            return list(self.outputs)
+        du = [a - b for a, b in zip(u, self._u0)]
+        v = [a - b for a, b in zip(y, self._y0)] + du
+        unorm = math.sqrt(sum(d * d for d in du))
+        for _ in range(self._substeps):
             self._sample(v, unorm)
         self.outputs[-1] = 0.0
         self.n_samples += 1
-        return self.outputs.copy()
+        return list(self.outputs)
 
-    def step(self, u, y) -> np.ndarray:
+    def step(self, u, y) -> list:
         return self.advance(u, y, None)

@@ -46,14 +46,16 @@ class _Ring:
         self.sum = 0.0
 
     def push(self, x: float) -> None:
-        n = len(self.buf)
-        self.sum += x - self.buf[self.i]
-        self.buf[self.i] = x
-        self.i += 1
-        self.count = min(self.count + 1, n)
-        if self.i == n:
-            self.i = 0
-            self.sum = math.fsum(self.buf)
+        buf, i = self.buf, self.i
+        self.sum += x - buf[i]
+        buf[i] = x
+        i += 1
+        if self.count < i:
+            self.count = i
+        if i == len(buf):
+            i = 0
+            self.sum = math.fsum(buf)
+        self.i = i
 
     def state(self) -> dict:
         return {"buf": list(self.buf), "i": self.i, "count": self.count, "sum": self.sum}
@@ -167,30 +169,42 @@ class Evaluator:
             self.hist = [list(map(float, h)) for h in s["hist"]]
 
     # ------------------------------------------------------------------- step
-    def step(self, r: np.ndarray) -> float:
+    def step_sq(self, sq: float) -> float:
+        """Step a norm-based evaluator (``MONOTONE`` kinds) with ``sq = ||r||²``."""
         k = self.kind
-        if k == "norm":
-            v = float(np.linalg.norm(r))
-        elif k == "rms":
-            self.ring.push(float(r @ r))
+        if k == "rms":
+            self.ring.push(sq)
             v = math.sqrt(max(self.ring.sum, 0.0) / self.n)
+        elif k == "norm":
+            v = math.sqrt(sq)
         elif k == "ewrms":
-            self.acc = self.lam * self.acc + (1.0 - self.lam) * float(r @ r)
+            self.acc = self.lam * self.acc + (1.0 - self.lam) * sq
             v = math.sqrt(self.acc)
-        elif k == "peak":
-            x = float(np.linalg.norm(r))
-            while self.deque and self.deque[-1][1] <= x:
-                self.deque.pop()
-            self.deque.append([float(self.k), x])
-            while self.deque[0][0] <= self.k - self.n:
-                self.deque.pop(0)
-            self.k += 1
-            v = self.deque[0][1]
         elif k == "narendra":
-            x = float(np.linalg.norm(r))
+            x = math.sqrt(sq)
             v = self.alpha * x + self.beta * self.re
             self.re = self.gamma * self.re + x
-        elif k == "chi2":
+        elif k == "peak":
+            x = math.sqrt(sq)
+            dq = self.deque
+            while dq and dq[-1][1] <= x:
+                dq.pop()
+            dq.append([float(self.k), x])
+            while dq[0][0] <= self.k - self.n:
+                dq.pop(0)
+            self.k += 1
+            v = dq[0][1]
+        else:
+            raise ValueError(f"the '{k}' evaluation needs the residual vector, not its norm")
+        self.value = v
+        return v
+
+    def step(self, r: np.ndarray) -> float:
+        """Step with the residual vector r of the group (any kind)."""
+        k = self.kind
+        if k in MONOTONE:
+            return self.step_sq(sum(x * x for x in np.asarray(r, float).tolist()))
+        if k == "chi2":
             w = self.W @ r
             self.ring.push(float(w @ w))
             v = max(self.ring.sum, 0.0)

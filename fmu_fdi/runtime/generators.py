@@ -30,21 +30,34 @@ class LTIStep:
         self.B = np.asarray(spec["B"], float).reshape(n, m)
         self.C = np.asarray(spec["C"], float).reshape(p, n)
         self.n_inputs, self.n_outputs = m, p
-        self.x = np.zeros(n)
+        # one product per sample: [r; x+] = [[C, D], [A, B]] [x; v], with [x; v] kept in a buffer
+        self.M = np.block([[self.C, self.D], [self.A, self.B]])
+        self._xv = np.zeros(n + m)
+        self._n = n
 
-    def step(self, v: np.ndarray) -> np.ndarray:
-        r = self.C @ self.x + self.D @ v
-        self.x = self.A @ self.x + self.B @ v
-        return r
+    @property
+    def x(self) -> np.ndarray:
+        return self._xv[: self._n]
+
+    def step(self, v) -> np.ndarray:
+        xv = self._xv
+        xv[self._n:] = v
+        z = self.M.dot(xv)
+        p = self.n_outputs
+        xv[: self._n] = z[p:]
+        return z[:p]
 
     def get_state(self) -> dict:
         return {"x": self.x.tolist()}
 
     def set_state(self, state: dict) -> None:
-        self.x = np.array(state["x"], float)
+        x = np.array(state["x"], float)
+        if x.shape != (self._n,):
+            raise ValueError(f"generator state must have {self._n} entries, got {x.shape}")
+        self._xv[: self._n] = x
 
     def reset(self) -> None:
-        self.x = np.zeros(self.A.shape[0])
+        self._xv[:] = 0.0
 
 
 def make_generator(spec: dict):

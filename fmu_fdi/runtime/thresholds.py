@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .evaluation import Evaluator
+from .evaluation import MONOTONE, Evaluator
 
 KINDS = ("fixed", "adaptive", "majorant")
 
@@ -37,8 +37,15 @@ class Threshold:
             self.J0 = float(spec.get("J0", 0.0))
             if not np.isfinite(self.J0) or self.J0 < 0:
                 raise ValueError(f"threshold offset J0 must be finite and >= 0, got {self.J0}")
+        if kind in ("adaptive", "majorant"):
+            ev = spec.get("evaluation", residual_eval) if kind == "adaptive" else residual_eval
+            if ev.get("kind") not in MONOTONE:
+                raise ValueError(f"an {kind} threshold needs a norm-based evaluation ({', '.join(MONOTONE)}), "
+                                 f"not {ev.get('kind')!r}")
         if kind == "adaptive":
             self.a = float(spec["a"])
+            if not (self.a >= 0 and np.isfinite(self.a)):
+                raise ValueError(f"adaptive threshold gain a must be finite and >= 0, got {self.a}")
             self.u_eval = Evaluator(spec.get("evaluation", residual_eval), 1)
         if kind == "majorant":
             self.taps = np.asarray(spec["taps"], float)
@@ -58,14 +65,16 @@ class Threshold:
             self.old_max = 0.0
 
     def step(self, unorm: float) -> float:
+        if self.kind == "fixed":
+            return self.value
         if self.kind == "adaptive":
-            self.value = self.J0 + self.a * self.u_eval.step(np.array([unorm]))
+            self.value = self.J0 + self.a * self.u_eval.step_sq(unorm * unorm)
         elif self.kind == "majorant":
             M = self.taps.size
             self.old_max = max(self.old_max, self.hist[-1]) if M else self.old_max
             self.hist = [unorm] + self.hist[:-1]
             b = float(np.dot(self.taps, self.hist)) + self.tail * self.old_max
-            self.value = self.J0 + self.b_eval.step(np.array([b]))
+            self.value = self.J0 + self.b_eval.step_sq(b * b)
         return self.value
 
     def get_state(self) -> dict:

@@ -79,7 +79,9 @@ class Instance:
 
 
 def rows(data, start, stop):
-    return [{n: data[n][k] for n in ("u1", "u2", "y1", "threshold_scale")} for k in range(start, stop)]
+    """Input rows by name: every field of ``data`` but ``time``."""
+    names = [n for n in data.dtype.names if n != "time"]
+    return [{n: data[n][k] for n in names} for k in range(start, stop)]
 
 
 def state(spec):

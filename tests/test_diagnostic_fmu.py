@@ -1,0 +1,214 @@
+"""The diagnostic FMU as shipped, in every host, against Diagnoser.run.
+
+Each host runs in its own process (fmu_fdi.fmu.hosts), so the test process's imports cannot
+stand in for what the FMU bundles. Timing convention of the FMU: fmi2DoStep(t_k) consumes
+the inputs set for t_k and makes the outputs the diagnosis of that sample, so an output read
+after the step for t_k (row k+1 of a host that reads before stepping) equals row k of
+Diagnoser.run. Outputs must agree to 1e-12 (the same runtime code on the same floats; the
+bound only absorbs the host's float formatting of CSV files, which is exact with repr).
+"""
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import published as pub
+from fdi_plant import build_plant
+from fmu_fdi import Diagnoser, build_fmu, nullspace_design, parity_space
+from fmu_fdi.designfile import DesignFileError
+from fmu_fdi.fmu import hosts
+from simulate import plant_outputs
+
+TS = 0.01
+N = 200
+NARENDRA = {"kind": "narendra", "alpha": 0.0, "beta": 10.0, "gamma": 0.9}
+TOL = 1e-12
+HOSTS_DIR = Path(__file__).parent / "hosts"
+
+
+def a7_record():
+    t = np.arange(N) * TS
+    u = np.sin(2 * np.pi * t)[:, None]
+    d = np.random.default_rng(0).standard_normal((N, 1))
+    f = np.zeros((N, 2))
+    f[5:] = 0.5
+    y = plant_outputs(pub.ex5_3(), N, TS, u=u, d=d, f=f)
+    return t, u, y
+
+
+def as_inputs(t, u, y, names=("u", "y1", "y2")):
+    arr = np.zeros(t.size, dtype=[("time", "f8")] + [(n, "f8") for n in names])
+    arr["time"] = t
+    cols = np.hstack([u, y])
+    for j, n in enumerate(names):
+        arr[n] = cols[:, j]
+    return arr
+
+
+def assert_matches(host, ref, names, shift=1):
+    """host row k+shift == ref row k for every output (bool/int exactly, reals to TOL)."""
+    n = min(len(host[names[0]]) - shift, len(ref))
+    assert n > 10
+    for nm in names:
+        h = np.asarray(host[nm][shift:shift + n], float)
+        r = np.asarray(ref[nm][:n], float)
+        assert np.allclose(h, r, rtol=0, atol=TOL * max(1.0, np.abs(r).max())), nm
+
+
+@pytest.fixture(scope="module")
+def ex53(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("ex53")
+    gen = nullspace_design(pub.ex5_3(), poles=[-3])
+    dg = Diagnoser(gen, Ts=TS, evaluation=NARENDRA, thresholds=1.0)
+    fmu = build_fmu(dg, tmp / "ex53_fdi.fmu")
+    t, u, y = a7_record()
+    return {"dg": dg, "fmu": fmu, "t": t, "u": u, "y": y, "ref": dg.run(t, u, y), "tmp": tmp,
+            "outputs": dg.output_names}
+
+
+def test_fmpy_validate_finds_no_problem(ex53):
+    res = subprocess.run([sys.executable, "-m", "fmpy", "validate", str(ex53["fmu"])], capture_output=True, text=True)
+    assert res.returncode == 0 and "No problems found" in res.stdout, res.stdout + res.stderr
+
+
+def test_fmu2slave_loop_matches_diagnoser_run(ex53):
+    ans = hosts.run_fmu2slave(ex53["fmu"], as_inputs(ex53["t"], ex53["u"], ex53["y"]), step=TS,
+                              outputs=ex53["outputs"])
+    assert_matches(ans["result"], ex53["ref"], ex53["outputs"])
+    assert ex53["ref"]["fault_detected"].any()  # the record does exercise the alarm path
+
+
+def test_fmpy_simulate_offline_csv_matches(ex53, tmp_path):
+    csv_in = hosts.write_csv(tmp_path / "log.csv", as_inputs(ex53["t"], ex53["u"], ex53["y"]))
+    res, _ = hosts.run_fmpy_cli(ex53["fmu"], input_csv=csv_in, output_csv=tmp_path / "out.csv",
+                                output_interval=TS, stop_time=ex53["t"][-1])
+    assert_matches(res, ex53["ref"], ex53["outputs"])
+
+
+def test_c_host_without_python_in_the_process(ex53, tmp_path):
+    exe = hosts.compile_c_host(HOSTS_DIR / "c_host.c", tmp_path / "c_host")
+    csv_in = hosts.write_csv(tmp_path / "log.csv", as_inputs(ex53["t"], ex53["u"], ex53["y"]))
+    res, _ = hosts.run_c_host(exe, ex53["fmu"], csv_in, tmp_path / "out.csv", step=TS)
+    assert_matches(res, ex53["ref"], ex53["outputs"])
+
+
+@pytest.fixture(scope="module")
+def plant_fmu(ex53):
+    return build_plant(ex53["tmp"] / "ex53_plant.fmu", TS)
+
+
+def test_libcosim_with_a_plant_fmu(ex53, plant_fmu):
+    pytest.importorskip("libcosimpy", reason="libcosimpy (DNV OSP libcosim) is a test extra")
+    conn = [("plant", n, "fdi", n) for n in ("u", "y1", "y2")]
+    ans = hosts.run_libcosim({"plant": plant_fmu, "fdi": ex53["fmu"]}, conn, step=TS, stop_time=0.8,
+                             observe={"plant": ["u", "y1", "y2"], "fdi": ex53["outputs"]})
+    plant, fdi = ans["plant"], ans["fdi"]
+    ref = ex53["dg"].run(plant["time"], np.c_[plant["u"]], np.c_[plant["y1"], plant["y2"]])
+    # libcosim reads after each step; whichever one-sample alignment it has, it is one for all rows
+    shifts = [s for s in (0, 1, 2) if np.allclose(fdi["evaluation_1"][s:s + 50], ref["evaluation_1"][:50],
+                                                   rtol=0, atol=TOL)]
+    assert shifts, "no consistent alignment between libcosim rows and Diagnoser.run"
+    assert_matches(fdi, ref, ex53["outputs"], shift=shifts[0])
+    assert fdi["fault_detected"].any()
+
+
+def test_container_fmu_holding_plant_and_diagnoser(ex53, plant_fmu, tmp_path):
+    conn = [("plant", n, "fdi", n) for n in ("u", "y1", "y2")]
+    exposed = [("plant", n) for n in ("u", "y1", "y2")] + [("fdi", n) for n in ex53["outputs"]]
+    container = hosts.build_container_fmu({"plant": plant_fmu, "fdi": ex53["fmu"]}, conn, exposed,
+                                          tmp_path / "container.fmu", step=TS)
+    res, _ = hosts.run_fmpy_cli(container, input_csv=None, output_csv=tmp_path / "out.csv", output_interval=TS,
+                                stop_time=0.8)
+    ref = ex53["dg"].run(res["time"], np.c_[res["plant.u"]], np.c_[res["plant.y1"], res["plant.y2"]])
+    renamed = {n: res[f"fdi.{n}"] for n in ex53["outputs"]}
+    shifts = [s for s in (0, 1, 2) if np.allclose(renamed["evaluation_1"][s:s + 50], ref["evaluation_1"][:50],
+                                                   rtol=0, atol=TOL)]
+    assert shifts, "no consistent alignment between container rows and Diagnoser.run"
+    assert_matches(renamed, ref, ex53["outputs"], shift=shifts[0])
+
+
+def test_state_save_restore_reset_and_two_fmus_in_one_process(ex53, tmp_path):
+    """save → 100 steps → restore → the same 100 steps bit-identical (twice; also from bytes
+    into a second instance); fmi2Reset returns to a fresh instance's behaviour."""
+    data = as_inputs(ex53["t"], ex53["u"], ex53["y"])
+    spec_in = tmp_path / "inputs.npy"
+    np.save(spec_in, data, allow_pickle=False)
+    script = HOSTS_DIR / "scenarios.py"
+
+    def scenario(name, spec):
+        import json
+
+        spec = dict(spec, workdir=str(tmp_path / name))
+        Path(spec["workdir"]).mkdir()
+        (tmp_path / f"{name}.json").write_text(json.dumps(spec))
+        proc = subprocess.run([sys.executable, "-I", str(script), name, str(tmp_path / f"{name}.json")],
+                              capture_output=True, text=True, env=hosts.python_env(), timeout=300)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        return {p.stem: np.load(p) for p in Path(spec["workdir"]).glob("*.npy")}
+
+    out = scenario("state", {"fmu": str(ex53["fmu"]), "inputs": str(spec_in), "step": TS})
+    for other in ("repeat1", "repeat2", "second"):
+        assert np.array_equal(out["first"], out[other]), other
+    assert np.array_equal(out["after_reset"], out["fresh"])
+
+    # two *different* diagnostic FMUs with the same interface in one process: each must run
+    # its own design (with a module clash the second would silently run the first's)
+    other = Diagnoser(nullspace_design(pub.ex5_3(), poles=[-5]), Ts=TS, evaluation={"kind": "rms", "window": 4},
+                      thresholds=0.05)
+    other_fmu = build_fmu(other, tmp_path / "other.fmu")
+    both = scenario("clash", {"fmus": [str(ex53["fmu"]), str(other_fmu)], "inputs": str(spec_in), "step": TS})
+    for arr, dg in ((both["fmu0"], ex53["dg"]), (both["fmu1"], other)):
+        ref = dg.run(ex53["t"], ex53["u"], ex53["y"])
+        host = {nm: arr[:, j] for j, nm in enumerate(dg.output_names)}
+        assert_matches(host, ref, dg.output_names)
+    assert not np.allclose(both["fmu0"], both["fmu1"])
+
+
+def test_nan_burst_sets_input_invalid_and_recovers(ex53):
+    y = ex53["y"].copy()
+    y[30:36, 0] = np.nan
+    y[40, 1] = np.inf
+    ref = ex53["dg"].run(ex53["t"], ex53["u"], y)
+    ans = hosts.run_fmu2slave(ex53["fmu"], as_inputs(ex53["t"], ex53["u"], y), step=TS, outputs=ex53["outputs"])
+    res = ans["result"]
+    assert_matches(res, ref, ex53["outputs"])
+    assert res["input_invalid"][31:37].all() and res["input_invalid"][41] and not res["input_invalid"][50:].any()
+    assert np.all(np.isfinite(res["residual_1"]))
+
+
+def test_odd_step_sizes(ex53, tmp_path):
+    """A non-multiple step re-discretises the continuous design exactly (as Diagnoser.run does
+    for that spacing); a multiple runs sub-steps; a discrete-only design refuses with Discard."""
+    h = 0.013
+    t = np.arange(60) * h
+    u = np.sin(2 * np.pi * t)[:, None]
+    y = np.c_[np.cos(t), 0.5 * np.sin(3 * t)]
+    for step in (h, 3 * TS):
+        tt = np.arange(60) * step
+        ref = ex53["dg"].run(tt, u, y)
+        ans = hosts.run_fmu2slave(ex53["fmu"], as_inputs(tt, u, y), step=step, outputs=ex53["outputs"])
+        assert_matches(ans["result"], ref, ex53["outputs"])
+    parity = Diagnoser(parity_space(pub.ex5_3().discretize(TS), 1), thresholds=1.0)
+    fmu = build_fmu(parity, tmp_path / "parity.fmu")
+    ans = hosts.run_fmu2slave(fmu, as_inputs(t, u, y), step=h, log_categories=[])
+    assert ans["statuses"] == [2]  # the first step is answered with fmi2Discard
+    text = " ".join(str(m) for entry in ans["log"] for m in entry)
+    assert "not an integer multiple" in text and "exists only in discrete time" in text
+
+
+def test_malformed_design_file_gives_clear_error_and_no_fmu(ex53, tmp_path):
+    import json
+
+    d = json.loads(json.dumps(ex53["dg"].design))
+    d["generator"]["discrete"]["C"] = [[1.0, 2.0, 3.0]]
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(d))
+    with pytest.raises(DesignFileError, match="generator.discrete.C must be"):
+        build_fmu(bad, tmp_path / "bad.fmu")
+    assert not (tmp_path / "bad.fmu").exists()
+    d = json.loads(json.dumps(ex53["dg"].design))
+    d["signals"]["y"][0] = "residual_1"
+    with pytest.raises(DesignFileError, match="collide"):
+        build_fmu(d, tmp_path / "clash.fmu")
