@@ -2,6 +2,7 @@
 
   fmu-fdi analyze MODEL                    detectability / isolability table
   fmu-fdi design MODEL --method M ... -o DESIGN.json
+  fmu-fdi build DESIGN.json -o FDI.fmu
   fmu-fdi simulate --plant P.fmu --diagnoser FDI.fmu --stop T --step Ts [--fault SPEC ...] -o OUT.csv
 """
 from __future__ import annotations
@@ -145,6 +146,14 @@ def _design(args) -> int:
     return 0
 
 
+def _build(args) -> int:
+    from .fmu import build_fmu
+
+    path = build_fmu(args.design, args.output)
+    print(f"wrote {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="fmu-fdi", description="Model-based fault detection and isolation as FMUs.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -175,6 +184,11 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--latch", action="store_true", help="latch alarms until reset")
     d.add_argument("--name", help="diagnoser name (default MODEL_METHOD)")
     d.set_defaults(func=_design)
+
+    b = sub.add_parser("build", help="build the diagnostic FMU (FMI 2.0 co-simulation) from a design file")
+    b.add_argument("design", help="design file (.json) written by 'fmu-fdi design' or Diagnoser.save")
+    b.add_argument("-o", "--output", required=True, help="FMU to write (.fmu)")
+    b.set_defaults(func=_build)
     return p
 
 

@@ -44,3 +44,20 @@ def test_cli_errors_are_clear_and_exit_2(tmp_path):
               "--threshold", "bogus", "-o", tmp_path / "x.json")
     assert res.returncode == 2 and "cannot read threshold" in res.stderr
     assert not (tmp_path / "x.json").exists()
+
+
+def test_build_writes_a_valid_fmu_and_refuses_a_bad_design(tmp_path):
+    design = tmp_path / "d.json"
+    assert cli("design", EXAMPLES / "varga_ex5_4.toml", "--method", "nullspace", "--ts", "0.01",
+               "-o", design).returncode == 0
+    res = cli("build", design, "-o", tmp_path / "fdi.fmu")
+    assert res.returncode == 0, res.stderr
+    val = subprocess.run([sys.executable, "-m", "fmpy", "validate", str(tmp_path / "fdi.fmu")], capture_output=True,
+                         text=True)
+    assert "No problems found" in val.stdout
+    d = json.loads(design.read_text())
+    d["generator"]["dt"] = -1
+    design.write_text(json.dumps(d))
+    res = cli("build", design, "-o", tmp_path / "bad.fmu")
+    assert res.returncode == 2 and "generator.dt must be a positive sample time" in res.stderr
+    assert not (tmp_path / "bad.fmu").exists()
