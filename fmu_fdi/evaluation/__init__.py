@@ -2,8 +2,15 @@
 
 The per-sample logic lives in :mod:`fmu_fdi.runtime`; this package computes the
 parameters (thresholds from uncertainty, statistics or data) that the runtime reads.
+
+- :func:`analytic_threshold`: a fixed threshold for a false-alarm probability α of a
+  Gaussian residual, from the generator's internal form and the noise covariance;
+  :func:`residual_autocovariance` is the stationary autocovariance behind it.
 """
+from .analytic import analytic_threshold
+from .covariance import residual_autocovariance
 from .defaults import fault_size_thresholds
 from .selector import ThresholdDesign, sensor_gain_plants, threshold_selector
 
-__all__ = ["ThresholdDesign", "threshold_selector", "sensor_gain_plants", "fault_size_thresholds"]
+__all__ = ["ThresholdDesign", "threshold_selector", "sensor_gain_plants", "fault_size_thresholds",
+           "analytic_threshold", "residual_autocovariance"]

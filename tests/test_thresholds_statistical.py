@@ -1,0 +1,243 @@
+"""Statistical thresholds meet their false-alarm targets on simulated fault-free data.
+
+How the checks are made exact enough to be binomial:
+
+- exceedances are counted on samples spaced by a gap G after which the evaluation is
+  independent (disjoint windows of a white residual) or its correlation is below 1e-3
+  (coloured residuals), so the count is binomial and the Clopper–Pearson interval
+  applies; every interval is two-sided at 99 %, so each assertion fails by chance with
+  probability 1 % for a correct implementation (the seeds are fixed, so the outcome is
+  deterministic);
+- long records are simulated with vectorised filters (scipy.signal.lfilter); that they
+  equal the runtime evaluators is checked on a prefix, to rounding (1e-12).
+"""
+import numpy as np
+import pytest
+import scipy.linalg as sla
+from scipy import signal, stats
+
+from fmu_fdi import FDIModel, LTI, ResidualGenerator
+from fmu_fdi.evaluation import analytic_threshold, residual_autocovariance
+from fmu_fdi.evaluation.quadform import imhof_sf
+from fmu_fdi.runtime.evaluation import Evaluator
+from simulate import cascade_residual
+
+LEVEL = 0.99  # two-sided Clopper–Pearson level of every simulation check
+
+
+def clopper_pearson(count: int, n: int) -> tuple[float, float]:
+    ci = stats.binomtest(count, n).proportion_ci(LEVEL, method="exact")
+    return ci.low, ci.high
+
+
+# --------------------------------------------------------------------- plants
+POLE, MEAS = 0.9, 0.5  # AR(1) pole of the coloured residual; measurement-noise variance
+
+
+def observer_generator(pole=POLE, dt=1.0) -> ResidualGenerator:
+    """x+ = a x + u + w1, y = x + w2; r = y − (open-loop model output): r = AR(1) + white."""
+    m = FDIModel.from_matrices([[pole]], [[1.0]], [[1.0]], Bw=[[1.0, 0.0]], Dw=[[0.0, 1.0]], dt=dt)
+    Q = LTI([[pole]], [[0.0, 1.0]], [[-1.0]], [[1.0, 0.0]], dt)
+    return ResidualGenerator(Q, m, "open-loop observer")
+
+
+def coloured_residual(n: int, rng, pole=POLE) -> np.ndarray:
+    """Stationary samples of that residual (the AR part starts from its stationary law)."""
+    w = rng.standard_normal(n)
+    w[0] /= np.sqrt(1 - pole**2)
+    return signal.lfilter([1.0], [1.0, -pole], w) + np.sqrt(MEAS) * rng.standard_normal(n)
+
+
+def rms_of(r, N):
+    return np.sqrt(np.convolve(r * r, np.ones(N))[: r.size] / N)
+
+
+def ewrms_of(r, lam):
+    return np.sqrt(signal.lfilter([1.0 - lam], [1.0, -lam], r * r))
+
+
+def kalman_generator():
+    """A Kalman predictor whose innovations, scaled by S^{-1/2}, are the residual."""
+    A = np.array([[0.8, 0.2], [-0.1, 0.7]])
+    Bu = np.array([[1.0], [0.5]])
+    C = np.eye(2)
+    G, H = 0.5 * np.eye(2), 0.3 * np.eye(2)
+    m = FDIModel.from_matrices(A, Bu, C, Bw=np.hstack([G, np.zeros((2, 2))]), Dw=np.hstack([np.zeros((2, 2)), H]),
+                               dt=1.0)
+    P = sla.solve_discrete_are(A.T, C.T, G @ G.T, H @ H.T)
+    S = C @ P @ C.T + H @ H.T
+    K = A @ P @ C.T @ np.linalg.inv(S)
+    ev, V = np.linalg.eigh(S)
+    W = V @ np.diag(ev ** -0.5) @ V.T
+    Q = LTI(A - K @ C, np.hstack([K, Bu]), -W @ C, np.hstack([W, np.zeros((2, 1))]), 1.0)
+    return ResidualGenerator(Q, m, "kalman", groups=[[0, 1]])
+
+
+def stacked_eigenvalues(gen, weights, noise_cov):
+    """Eigenvalues of c^{1/2} Σ_z c^{1/2} built here from the public autocovariance."""
+    N = len(weights)
+    G = residual_autocovariance(gen, N - 1, noise_cov=noise_cov)[:, 0, 0]
+    S = sla.toeplitz(G)
+    s = np.sqrt(weights)
+    return np.linalg.eigvalsh(s[:, None] * S * s[None, :])
+
+
+# ------------------------------------------------------ covariance (exact checks)
+def markov_autocovariance(sys: LTI, V, lags, terms=3000):
+    """Γ(k) = Σ_j h_{j+k} V h_jᵀ from the Markov parameters h_0 = D, h_j = C A^{j−1} B."""
+    h = [sys.D]
+    X = sys.B
+    for _ in range(terms + lags):
+        h.append(sys.C @ X)
+        X = sys.A @ X
+    return np.array([sum(h[j + k] @ V @ h[j].T for j in range(terms)) for k in range(lags + 1)])
+
+
+def test_autocovariance_equals_the_markov_parameter_sum():
+    gen = kalman_generator()
+    V = np.diag([1.0, 2.0, 0.5, 1.5])
+    R = (gen.Q @ gen.model.augmented())[:, 1:5]  # columns of w (one u column first)
+    # terms: the slowest mode is |eig(A)| ≈ 0.77, 0.77^3000 is far below rounding
+    ref = markov_autocovariance(R, V, 6)
+    got = residual_autocovariance(gen, 6, noise_cov=V)
+    assert np.allclose(got, ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
+
+
+def test_continuous_generator_is_sampled_with_held_noise():
+    """Continuous plant and filter, Ts = 0.5: the runtime filters the samples with Qd = ZOH(Q)."""
+    Ts = 0.5
+    m = FDIModel.from_matrices([[-1.0]], [[1.0]], [[1.0]], Bw=[[1.0, 0.0]], Dw=[[0.0, 1.0]])
+    gen = ResidualGenerator(LTI([[-1.0]], [[0.0, 1.0]], [[-1.0]], [[1.0, 0.0]]), m, "open-loop observer")
+    plant = m.lti("u", "w").to_discrete(Ts)  # exact samples of y under held inputs
+    filt = gen.Q.to_discrete(Ts)
+    aug = LTI(plant.A, plant.B, np.vstack([plant.C, np.zeros((1, 1))]),
+              np.vstack([plant.D, [[1.0, 0.0, 0.0]]]), Ts)  # [y; u] from [u; w]
+    ref = markov_autocovariance((filt @ aug)[:, 1:], np.diag([0.4, 0.1]), 4)
+    got = residual_autocovariance(gen, 4, noise_cov=[0.4, 0.1], Ts=Ts)
+    assert np.allclose(got, ref, rtol=1e-10, atol=1e-14)
+
+
+def test_kalman_innovations_are_white_with_unit_covariance():
+    cov = residual_autocovariance(kalman_generator(), 10, noise_cov=1.0)
+    assert np.allclose(cov[0], np.eye(2), atol=1e-10)
+    assert np.abs(cov[1:]).max() < 1e-10
+
+
+@pytest.mark.parametrize("spec, weights", [
+    ({"kind": "rms", "window": 7}, np.full(7, 1 / 7)),
+    ({"kind": "ewrms", "lambda": 0.9}, 0.1 * 0.9 ** np.arange(200)),  # 0.9^200 ≈ 7e-10 of the weight left out
+])
+def test_satterthwaite_uses_the_exact_moments(spec, weights):
+    """Closed-form mean and variance (ewrms: a Lyapunov sum) equal Σλ_j and 2Σλ_j² of the stacked window."""
+    lam = stacked_eigenvalues(observer_generator(), weights, [1.0, MEAS])
+    mean, var = lam.sum(), 2 * np.sum(lam**2)
+    expected = np.sqrt(var / (2 * mean) * stats.chi2.isf(0.01, 2 * mean**2 / var))
+    got = analytic_threshold(observer_generator(), spec, 0.01, noise_cov=[1.0, MEAS], method="satterthwaite")
+    assert got == pytest.approx(expected, rel=1e-8)
+
+
+def test_scalar_norm_threshold_is_sigma_z():
+    sigma = np.sqrt(1.0 / (1 - POLE**2) + MEAS)
+    for method in ("exact", "satterthwaite"):
+        thr = analytic_threshold(observer_generator(), {"kind": "norm"}, 0.003, noise_cov=[1.0, MEAS], method=method)
+        assert thr == pytest.approx(sigma * stats.norm.isf(0.0015), rel=1e-10)
+
+
+def test_peak_threshold_is_the_union_bound():
+    sigma = np.sqrt(1.0 / (1 - POLE**2) + MEAS)
+    thr = analytic_threshold(observer_generator(), {"kind": "peak", "window": 10}, 0.01, noise_cov=[1.0, MEAS])
+    assert thr == pytest.approx(sigma * stats.norm.isf(0.01 / 20), rel=1e-9)
+
+
+# ------------------------------------------------- analytic thresholds on data
+def test_chi2_on_kalman_innovations_gives_alpha():
+    gen, N, alpha = kalman_generator(), 5, 0.01
+    thr = analytic_threshold(gen, {"kind": "chi2", "window": N}, alpha)
+    assert thr == pytest.approx(stats.chi2.isf(alpha, 2 * N))
+    # with the noise covariance the exact route finds the same χ² law (innovations are white)
+    thr_cov = analytic_threshold(gen, {"kind": "chi2", "window": N}, alpha, noise_cov=1.0)
+    assert thr_cov == pytest.approx(thr, rel=1e-6)
+    n, burn = 60_000, 200  # burn-in: the filter starts from x̂ = 0, P0 = 0
+    w = np.random.default_rng(11).standard_normal((n, 4))
+    r = cascade_residual(gen, n, w=w)
+    J = Evaluator({"kind": "chi2", "window": N}, 2).run(r)
+    # disjoint windows of a white Gaussian sequence are independent: exact binomial count
+    x = J[burn + N - 1::N]
+    lo, hi = clopper_pearson(int(np.sum(x >= thr)), x.size)
+    assert lo <= alpha <= hi
+
+
+def _thinned(make_J, gap, n_rec=4, length=1_000_000, seed=21):
+    rng = np.random.default_rng(seed)
+    return np.concatenate([make_J(coloured_residual(length, rng))[gap::gap] for _ in range(n_rec)])
+
+
+def test_evaluator_formulas_used_below_match_the_runtime():
+    r = coloured_residual(3000, np.random.default_rng(3))
+    assert np.allclose(Evaluator({"kind": "rms", "window": 20}, 1).run(r[:, None]), rms_of(r, 20), atol=1e-12)
+    assert np.allclose(Evaluator({"kind": "ewrms", "lambda": 0.95}, 1).run(r[:, None]), ewrms_of(r, 0.95),
+                       atol=1e-12)
+
+
+def test_rms_of_coloured_residual_exact_and_satterthwaite():
+    N, alpha = 20, 0.01
+    spec = {"kind": "rms", "window": N}
+    gen = observer_generator()
+    exact = analytic_threshold(gen, spec, alpha, noise_cov=[1.0, MEAS], method="exact")
+    satt = analytic_threshold(gen, spec, alpha, noise_cov=[1.0, MEAS], method="satterthwaite")
+    assert analytic_threshold(gen, spec, alpha, noise_cov=[1.0, MEAS]) == exact  # auto: window small enough
+    # gap: window + 66 samples, where the AR correlation 0.9^66 < 1e-3
+    x = _thinned(lambda r: rms_of(r, N), N + 66)
+    lo, hi = clopper_pearson(int(np.sum(x >= exact)), x.size)
+    assert lo <= alpha <= hi
+    # Satterthwaite's tail is too light: its threshold's true rate is the exact tail at it
+    p_satt = imhof_sf(satt**2, stacked_eigenvalues(gen, np.full(N, 1.0 / N), [1.0, MEAS]))
+    assert 1.2 * alpha < p_satt < 1.6 * alpha  # the documented 1.41 α
+    lo, hi = clopper_pearson(int(np.sum(x >= satt)), x.size)
+    assert lo <= p_satt <= hi and lo > alpha  # the simulation sees the bias
+
+
+def test_ewrms_of_coloured_residual_exact():
+    lam, alpha = 0.95, 0.01
+    thr = analytic_threshold(observer_generator(), {"kind": "ewrms", "lambda": lam}, alpha, noise_cov=[1.0, MEAS])
+    # gap: 0.95^200 < 4e-5 (memory of the evaluator) + 66 (AR correlation < 1e-3)
+    x = _thinned(lambda r: ewrms_of(r, lam), 266)
+    lo, hi = clopper_pearson(int(np.sum(x >= thr)), x.size)
+    assert lo <= alpha <= hi
+
+
+@pytest.mark.parametrize("spec", [{"kind": "narendra"}, {"kind": "cusum"}, {"kind": "glr", "window": 5}])
+def test_no_analytic_threshold_for_non_quadratic_evaluators(spec):
+    with pytest.raises(ValueError, match="data_driven_threshold"):
+        analytic_threshold(observer_generator(), spec, 0.01, noise_cov=1.0)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"evaluation": {"kind": "rms", "window": 5}}, "noise_cov and/or disturbance_cov"),
+    ({"noise_cov": [[1.0, 0.0]]}, "must be a scalar"),
+    ({"noise_cov": -1.0}, "positive semidefinite"),
+    ({"disturbance_cov": 1.0}, "no disturbance inputs"),
+    ({"alpha": 1.0, "noise_cov": 1.0}, r"alpha must be a probability"),
+    ({"noise_cov": 1.0, "Ts": 0.5}, "differs from the discrete generator"),
+    ({"noise_cov": 1.0, "method": "mc"}, "unknown method"),
+    ({"evaluation": {"kind": "rms", "window": 3000}, "noise_cov": 1.0, "method": "exact"}, "limit 2000"),
+])
+def test_analytic_threshold_errors(kwargs, message):
+    args = {"evaluation": {"kind": "norm"}, "alpha": 0.01, **kwargs}
+    with pytest.raises(ValueError, match=message):
+        analytic_threshold(observer_generator(), args.pop("evaluation"), args.pop("alpha"), **args)
+
+
+def test_analytic_threshold_structural_errors():
+    cont = ResidualGenerator(LTI([[-1.0]], [[0.0, 1.0]], [[-1.0]], [[1.0, 0.0]]),
+                             FDIModel.from_matrices([[-1.0]], [[1.0]], [[1.0]], Bw=[[1.0]]), "obs")
+    with pytest.raises(ValueError, match="give the sample time Ts"):
+        analytic_threshold(cont, {"kind": "norm"}, 0.01, noise_cov=1.0)
+    with pytest.raises(ValueError, match="choose one with group="):
+        analytic_threshold(ResidualGenerator(kalman_generator().Q, kalman_generator().model, "k"), {"kind": "norm"},
+                           0.01, noise_cov=1.0)
+    unstable = observer_generator(pole=1.2)
+    with pytest.raises(ValueError, match="not stable"):
+        analytic_threshold(unstable, {"kind": "norm"}, 0.01, noise_cov=1.0)
+    with pytest.warns(RuntimeWarning, match="Satterthwaite"):
+        analytic_threshold(observer_generator(), {"kind": "rms", "window": 2500}, 0.01, noise_cov=1.0)
