@@ -9,7 +9,9 @@ How the checks are made exact enough to be binomial:
   probability 1 % for a correct implementation (the seeds are fixed, so the outcome is
   deterministic);
 - long records are simulated with vectorised filters (scipy.signal.lfilter); that they
-  equal the runtime evaluators is checked on a prefix, to rounding (1e-12).
+  equal the runtime evaluators is checked on a prefix, to rounding (1e-12);
+- the data-driven thresholds are trained on one set of seeds and scored on fresh runs
+  with other seeds.
 """
 import numpy as np
 import pytest
@@ -17,7 +19,8 @@ import scipy.linalg as sla
 from scipy import signal, stats
 
 from fmu_fdi import FDIModel, LTI, ResidualGenerator
-from fmu_fdi.evaluation import analytic_threshold, residual_autocovariance
+from fmu_fdi.evaluation import analytic_threshold, data_driven_threshold, residual_autocovariance
+from fmu_fdi.evaluation.datadriven import decorrelation_length
 from fmu_fdi.evaluation.quadform import imhof_sf
 from fmu_fdi.runtime.evaluation import Evaluator
 from simulate import cascade_residual
@@ -241,3 +244,105 @@ def test_analytic_threshold_structural_errors():
         analytic_threshold(unstable, {"kind": "norm"}, 0.01, noise_cov=1.0)
     with pytest.warns(RuntimeWarning, match="Satterthwaite"):
         analytic_threshold(observer_generator(), {"kind": "rms", "window": 2500}, 0.01, noise_cov=1.0)
+
+
+# ---------------------------------------------------------- data-driven thresholds
+RMS_N = 10
+
+
+def rms_records(seeds, length, burn=200):
+    """Fault-free rms evaluations of the coloured residual, one record per seed."""
+    return [rms_of(coloured_residual(length + burn, np.random.default_rng(s)), RMS_N)[burn:] for s in seeds]
+
+
+@pytest.fixture(scope="module")
+def training():
+    return rms_records(range(1, 5), 20_000)
+
+
+@pytest.fixture(scope="module")
+def fresh():
+    # 10 fresh runs of 1e6 samples: ≈ 7.7e5 thinned samples, ≈ 77 exceedances at 1e-4
+    return rms_records(range(100, 110), 1_000_000)
+
+
+def _fresh_rate(records, thr, gap):
+    x = np.concatenate([r[::gap] for r in records])
+    return clopper_pearson(int(np.sum(x >= thr)), x.size)
+
+
+def test_empirical_threshold_meets_its_rate_on_fresh_runs(training, fresh):
+    rate = 0.01
+    est = data_driven_threshold(training, rate)
+    assert est.method == "empirical" and est.confidence >= 0.95
+    assert est.n_effective == pytest.approx(est.n_samples / est.decorrelation_length, rel=1e-3)
+    lo, hi = _fresh_rate(fresh, est.value, est.decorrelation_length)
+    assert lo <= rate  # not significantly above the target
+    # not needlessly conservative: with n_eff ≈ 6000 the relative s.e. of the rate of an
+    # order statistic is sqrt((1-p)/(n p)) ≈ 0.13; the 95 % bound sits 1.645 s.e. low, and
+    # 99 % of the time the rate is above 1 - (1.645 + 2.576)·0.13 ≈ 0.45 of the target
+    assert hi >= 0.45 * rate
+
+
+def test_extreme_value_threshold_meets_its_rate_on_fresh_runs(training, fresh):
+    rate = 1e-4  # below 1/n_eff ≈ 1.6e-4: no order statistic can bound it
+    est = data_driven_threshold(training, rate)
+    assert est.method == "gpd" and est.details["excesses"] >= 30
+    assert est.value >= est.point
+    lo, hi = _fresh_rate(fresh, est.value, est.decorrelation_length)
+    assert lo <= rate
+    # extrapolating 500x beyond the fitted tail, the bootstrap bound is conservative by up
+    # to an order of magnitude in rate (about +10 % in threshold); more is a regression
+    assert hi >= rate / 20
+
+
+def test_thresholds_against_a_known_law():
+    """chi2 of a white residual: J(k) ~ χ²_8 exactly, so the true rate is chi2.sf(threshold)."""
+    N = 8
+    recs = []
+    for s in range(31, 35):
+        z2 = np.random.default_rng(s).standard_normal(20_000 + N) ** 2
+        recs.append(np.convolve(z2, np.ones(N))[N - 1: 20_000 + N - 1][N:])
+    for rate, method in ((0.01, "empirical"), (1e-4, "gpd")):
+        est = data_driven_threshold(recs, rate)
+        assert est.method == method
+        # holds with probability 0.95 over the training data (seeds fixed); the factor 20
+        # as in the fresh-run test above
+        assert rate / 20 <= stats.chi2.sf(est.value, N) <= rate
+
+
+def test_empirical_bound_has_its_coverage():
+    """Over 200 independent training sets the bound holds in ≥ the achieved confidence."""
+    rate, n, reps = 0.01, 1000, 200
+    rng = np.random.default_rng(7)
+    ok, achieved = 0, None
+    for _ in range(reps):
+        est = data_driven_threshold(rng.standard_normal(n), rate, confidence=0.9, thin=1)
+        ok += stats.norm.sf(est.value) <= rate
+        achieved = est.confidence
+    assert ok >= stats.binom.ppf(0.005, reps, achieved)  # one-sided 99.5 % lower limit
+
+
+def test_decorrelation_length_of_a_moving_sum():
+    """A window-20 moving sum of white noise has ACF (20 - k)/20: first below 0.05 at k = 20.
+
+    The ACF estimate from 2e5 samples has s.e. ≈ 0.01, so the crossing lands in 19..21.
+    """
+    z2 = np.random.default_rng(5).standard_normal(200_020) ** 2
+    J = np.convolve(z2, np.ones(20))[19:200_019]
+    assert 19 <= decorrelation_length([J]) <= 21
+    assert decorrelation_length([np.random.default_rng(6).standard_normal(10_000)]) == 1
+
+
+@pytest.mark.parametrize("args, kwargs, message", [
+    ((np.zeros((3, 100)), 0.01), {}, "must be 1-D"),
+    ((np.array([1.0, np.nan, 2.0]), 0.01), {}, "NaN"),
+    ((np.ones(1000), 0.01), {}, "constant"),
+    ((np.random.default_rng(0).standard_normal(500), 1e-3), {"method": "empirical"}, "at least 2995"),
+    ((np.random.default_rng(0).standard_normal(500), 0.0), {}, "rate must be in"),
+    ((np.random.default_rng(0).standard_normal(50), 1e-3), {"method": "gpd", "thin": 1}, "too few"),
+    ((np.random.default_rng(0).standard_normal(500), 0.01), {"skip": 600}, "no samples left"),
+])
+def test_data_driven_errors(args, kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        data_driven_threshold(*args, **kwargs)

@@ -6,11 +6,14 @@ parameters (thresholds from uncertainty, statistics or data) that the runtime re
 - :func:`analytic_threshold`: a fixed threshold for a false-alarm probability α of a
   Gaussian residual, from the generator's internal form and the noise covariance;
   :func:`residual_autocovariance` is the stationary autocovariance behind it.
+- :func:`data_driven_threshold`: a fixed threshold for a false-alarm rate, with a stated
+  confidence, from fault-free evaluation records.
 """
 from .analytic import analytic_threshold
 from .covariance import residual_autocovariance
+from .datadriven import ThresholdEstimate, data_driven_threshold
 from .defaults import fault_size_thresholds
 from .selector import ThresholdDesign, sensor_gain_plants, threshold_selector
 
 __all__ = ["ThresholdDesign", "threshold_selector", "sensor_gain_plants", "fault_size_thresholds",
-           "analytic_threshold", "residual_autocovariance"]
+           "analytic_threshold", "residual_autocovariance", "data_driven_threshold", "ThresholdEstimate"]
