@@ -346,3 +346,13 @@ def test_decorrelation_length_of_a_moving_sum():
 def test_data_driven_errors(args, kwargs, message):
     with pytest.raises(ValueError, match=message):
         data_driven_threshold(*args, **kwargs)
+
+
+def test_docstring_examples():
+    import doctest
+
+    import fmu_fdi.evaluation.analytic
+    import fmu_fdi.evaluation.datadriven
+
+    for mod in (fmu_fdi.evaluation.analytic, fmu_fdi.evaluation.datadriven):
+        assert doctest.testmod(mod).failed == 0
