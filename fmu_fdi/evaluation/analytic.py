@@ -167,7 +167,8 @@ def analytic_threshold(gen, evaluation: dict, alpha: float, *, noise_cov=None, d
     ``method="satterthwaite"``: the exact mean and variance of Q (module docstring)
     are matched by ``g χ²_h`` (Satterthwaite–Welch), ``g = Var/(2E)``, ``h = 2E²/Var``.
     Exact for equal λ_j (a white isotropic residual and a flat window: ``norm``,
-    ``rms``, ``chi2``); otherwise the χ² tail is too light and the threshold too low.
+    ``rms``, ``chi2``); otherwise, in every case measured, the matched χ² tail is
+    lighter than Q's, so the threshold is too low.
     Measured false-alarm probability over α (exact tail at the Satterthwaite
     threshold), residual ``r`` = AR(1) with pole 0.9 plus white noise of half the
     driving variance, or white:
