@@ -145,13 +145,34 @@ class _Grid:
         return max(float(self.t[k[0]]), lo) if k.size else _INF
 
 
+def _resolve(fields: list[str], name: str, what: str) -> str:
+    """A field by exact name, else the one field ``<instance>.<name>`` (a co-simulation column)."""
+    if name in fields:
+        return name
+    hits = [f for f in fields if f.endswith("." + name)]
+    if len(hits) == 1:
+        return hits[0]
+    if hits:
+        raise ValueError(f"several {what} fields {hits}: choose one by its full name")
+    raise KeyError(f"result has no field {name!r} (nor one ending in '.{name}'); fields are {fields}")
+
+
 def _schedule_from_indicator(result, fields, n, indicator):
     """(t_on, t_off) from a fault indicator column; (None, inf) when it never switches on."""
-    if indicator is None:
-        cands = [f for f in fields if f.startswith("fault.")]
-        active = [f for f in cands if np.any(_column(result, f, n, fields) != 0)]
+    if indicator is not None:
+        # a column, or a fault name of a co-simulation result: fault.<name>.active, fault.<name>
+        named = [c for c in (indicator, f"fault.{indicator}.active", f"fault.{indicator}") if c in fields]
+        if not named:
+            raise KeyError(f"no indicator column {indicator!r} (nor fault.{indicator}.active, fault.{indicator}); "
+                           f"fields are {fields}")
+        indicator = named[0]
+    else:
+        # the co-simulation's activity flags when present: a fault's value column can be zero while it acts
+        cands = [f for f in fields if f.startswith("fault.") and f.endswith(".active")]
+        cands = cands or [f for f in fields if f.startswith("fault.")]
         if not cands:
             return None, _INF, None
+        active = [f for f in cands if np.any(_column(result, f, n, fields) != 0)]
         if len(active) > 1:
             raise ValueError(f"several fault indicator columns switch on ({active}); choose one with indicator=")
         indicator = active[0] if active else cands[0]
@@ -180,7 +201,9 @@ def metrics(result, *, t_on: float | None = None, t_off: float | None = None, fa
     ----------
     result : numpy structured array or mapping of 1-D arrays
         The run: a ``time`` field (strictly increasing, any spacing) and the diagnoser
-        outputs named by ``alarm`` and ``isolation``.
+        outputs named by ``alarm`` and ``isolation`` — as :meth:`Diagnoser.run` returns
+        them, or as a co-simulation :class:`~fmu_fdi.cosim.Result` records them
+        (``<instance>.fault_detected``: a unique field with that suffix is found).
     t_on, t_off : float, optional
         When the fault is switched on and (optionally) off again. Without ``t_on`` the
         schedule is read from a fault indicator column (see ``indicator``); without
@@ -195,9 +218,11 @@ def metrics(result, *, t_on: float | None = None, t_off: float | None = None, fa
         holds for one more (last) step. Must lie inside the record and, when a fault is
         scheduled inside it, start no later than ``t_on``.
     indicator : str, optional
-        Name of a column that is nonzero while the fault is present (e.g.
-        ``"fault.leak_T1"``). Default: the one ``fault.*`` column that switches on, if
-        any. It must switch on at most once. Ignored when ``t_on`` is given.
+        Column that is nonzero while the fault is present, or the name of a
+        co-simulation fault (``"leak"`` reads ``fault.leak.active``, else
+        ``fault.leak``). Default: the one ``fault.*.active`` column (else ``fault.*``
+        column) that switches on, if any. It must switch on at most once. Ignored
+        when ``t_on`` is given.
     alarm, isolation : str
         Fields holding the alarm (nonzero = alarm) and the isolation output; pass
         e.g. ``alarm="alarm_2"`` to score one residual group.
@@ -243,6 +268,7 @@ def metrics(result, *, t_on: float | None = None, t_off: float | None = None, fa
     if n > 1 and not np.all(np.diff(t) > 0):
         k = int(np.flatnonzero(np.diff(t) <= 0)[0])
         raise ValueError(f"time must be strictly increasing; t[{k + 1}] = {t[k + 1]} follows t[{k}] = {t[k]}")
+    alarm, isolation = _resolve(fields, alarm, "alarm"), _resolve(fields, isolation, "isolation")
     a = _column(result, alarm, n, fields) != 0
     iso_raw = _column(result, isolation, n, fields)
     iso = np.rint(iso_raw).astype(int)

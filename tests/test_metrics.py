@@ -174,44 +174,53 @@ def test_structured_array_and_mapping_agree():
     assert metrics(rec, t_on=3.0, fault=1).to_dict() == metrics(d, t_on=3.0, fault=1).to_dict()
 
 
-def test_scores_the_runtime_engine_outputs():
-    """End to end: the numpy runtime diagnoses a sensor bias; metrics reads its outputs by name."""
-    from fmu_fdi import FDIModel, LTI, ResidualGenerator, sensor_fault
+def test_scores_a_diagnoser_run():
+    """End to end: a Diagnoser with an analytic threshold diagnoses a sensor bias; metrics reads its output."""
+    from fmu_fdi import Diagnoser, FDIModel, LTI, ResidualGenerator, sensor_fault
     from fmu_fdi.evaluation import analytic_threshold
-    from fmu_fdi.runtime.engine import DiagnoserRuntime
 
     model = FDIModel.from_matrices([[0.9]], [[1.0]], [[1.0]], Bw=[[1.0, 0.0]], Dw=[[0.0, 1.0]], dt=1.0,
                                    u_names=["u"], y_names=["y"], faults=[sensor_fault("bias_y", "y")])
     gen = ResidualGenerator(LTI([[0.9]], [[0.0, 1.0]], [[-1.0]], [[1.0, 0.0]], 1.0), model, "open-loop observer")
     spec = {"kind": "rms", "window": 10}
     thr = analytic_threshold(gen, spec, 1e-4, noise_cov=[1.0, 0.5])
-    design = {"format": "fmu-fdi-design/1", "signals": {"u": ["u"], "y": ["y"]},
-              "generator": {"dt": 1.0, "discrete": gen.runtime_spec(), "groups": [[0]]},
-              "faults": [{"name": "bias_y"}],
-              "evaluation": [{"evaluator": spec, "threshold": {"kind": "fixed", "value": thr}}],
-              "decision": {"isolation": "structure", "structure": [[1]]}}
-    rt = DiagnoserRuntime(design)
+    dg = Diagnoser(gen, evaluation=spec, thresholds=thr, decision={"isolation": "structure", "structure": [[1]]})
     rng = np.random.default_rng(2)
     # bias 20 ≈ 8.5 σ of the residual: two faulty samples lift the rms of 10 above the
     # threshold (≈ 7.8), and the AR part (s.d. of a window mean ≈ 1.8) never pulls it back
     n, k_on, bias = 3000, 2000, 20.0
-    x, rows = 0.0, []
+    u, w = rng.standard_normal(n), rng.standard_normal((n, 2)) * [1.0, np.sqrt(0.5)]
+    x, y = 0.0, np.empty(n)
     for k in range(n):
-        u, w1, w2 = rng.standard_normal(), rng.standard_normal(), np.sqrt(0.5) * rng.standard_normal()
-        y = x + w2 + (bias if k >= k_on else 0.0)
-        rows.append(rt.step([u], [y]))
-        x = 0.9 * x + u + w1
-    out = np.array(rows)
-    rec = np.zeros(n, dtype=[("time", float)] + [(nm, float) for nm in rt.names])
-    rec["time"] = np.arange(n, dtype=float)
-    for j, nm in enumerate(rt.names):
-        rec[nm] = out[:, j]
-    m = metrics(rec, t_on=float(k_on), fault=1)
+        y[k] = x + w[k, 1] + (bias if k >= k_on else 0.0)
+        x = 0.9 * x + u[k] + w[k, 0]
+    m = metrics(dg.run(np.arange(n, dtype=float), u, y), t_on=float(k_on), fault=1)
     assert m.missed_detection is False and m.t_dt <= 3 and m.t_it == m.t_dt
     assert m.r_td == 1.0 - m.t_dt / 1000 and m.r_ti == m.r_td and m.r_mi == 0.0
-    # α = 1e-4 per sample over 2000 fault-free samples: a false alarm is unlikely (≈ 0.2 alarms
-    # expected, and alarms come in clusters); a rate above 1 % would mean a wrong threshold
+    # α = 1e-4 per sample over 2000 fault-free samples: a false alarm is unlikely (≈ 0.2
+    # alarmed samples expected); a rate above 1 % would mean a wrong threshold
     assert m.r_fd < 0.01
+
+
+def test_reads_a_co_simulation_result():
+    """Columns as CoSimulation records them: <instance>.<output>, fault.<name>, fault.<name>.active."""
+    rec = np.zeros(10, dtype=[("time", float), ("plant.y", float), ("fdi.fault_detected", bool),
+                              ("fdi.isolated_fault", np.int64), ("fault.stuck", float), ("fault.stuck.active", bool)])
+    rec["time"] = T
+    rec["fault.stuck.active"] = T >= 4
+    rec["fault.stuck"] = np.where(T >= 6, 0.3, 0.0)  # stuck at the nominal value at first: zero offset
+    rec["fdi.fault_detected"] = T >= 6
+    rec["fdi.isolated_fault"] = np.where(T >= 7, 1, 0)
+    m = metrics(rec, fault=1)
+    assert m.t_on == 4.0 and m.t_dt == 2.0 and m.t_it == 3.0
+    assert metrics(rec, indicator="stuck", fault=1).to_dict() == m.to_dict()
+    assert metrics(rec, indicator="fault.stuck", fault=1).t_on == 6.0  # the value column, when asked for
+    two = {**{k: rec[k] for k in rec.dtype.names}, "fdi2.fault_detected": rec["fdi.fault_detected"]}
+    with pytest.raises(ValueError, match="several alarm fields"):
+        metrics(two)
+    assert metrics(two, alarm="fdi2.fault_detected").t_dt == 2.0
+    with pytest.raises(KeyError, match="no indicator column 'leak'"):
+        metrics(rec, indicator="leak")
 
 
 def test_docstring_examples():

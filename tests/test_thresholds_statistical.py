@@ -18,10 +18,11 @@ import pytest
 import scipy.linalg as sla
 from scipy import signal, stats
 
-from fmu_fdi import FDIModel, LTI, ResidualGenerator
+from fmu_fdi import FDIModel, LTI, ResidualGenerator, kalman
 from fmu_fdi.evaluation import analytic_threshold, data_driven_threshold, residual_autocovariance
 from fmu_fdi.evaluation.datadriven import decorrelation_length
 from fmu_fdi.evaluation.quadform import imhof_sf
+from fmu_fdi.lti import hstack
 from fmu_fdi.runtime.evaluation import Evaluator
 from simulate import cascade_residual
 
@@ -59,21 +60,14 @@ def ewrms_of(r, lam):
     return np.sqrt(signal.lfilter([1.0 - lam], [1.0, -lam], r * r))
 
 
+RV = 0.09  # measurement noise variance of the Kalman example (outside the model's w)
+
+
 def kalman_generator():
-    """A Kalman predictor whose innovations, scaled by S^{-1/2}, are the residual."""
+    """The library's steady-state Kalman filter: innovations white with covariance Σ."""
     A = np.array([[0.8, 0.2], [-0.1, 0.7]])
-    Bu = np.array([[1.0], [0.5]])
-    C = np.eye(2)
-    G, H = 0.5 * np.eye(2), 0.3 * np.eye(2)
-    m = FDIModel.from_matrices(A, Bu, C, Bw=np.hstack([G, np.zeros((2, 2))]), Dw=np.hstack([np.zeros((2, 2)), H]),
-                               dt=1.0)
-    P = sla.solve_discrete_are(A.T, C.T, G @ G.T, H @ H.T)
-    S = C @ P @ C.T + H @ H.T
-    K = A @ P @ C.T @ np.linalg.inv(S)
-    ev, V = np.linalg.eigh(S)
-    W = V @ np.diag(ev ** -0.5) @ V.T
-    Q = LTI(A - K @ C, np.hstack([K, Bu]), -W @ C, np.hstack([W, np.zeros((2, 1))]), 1.0)
-    return ResidualGenerator(Q, m, "kalman", groups=[[0, 1]])
+    m = FDIModel.from_matrices(A, [[1.0], [0.5]], np.eye(2), Bw=0.5 * np.eye(2), dt=1.0)
+    return kalman(m, Qw=1.0, Rv=RV)
 
 
 def stacked_eigenvalues(gen, weights, noise_cov):
@@ -98,11 +92,12 @@ def markov_autocovariance(sys: LTI, V, lags, terms=3000):
 
 def test_autocovariance_equals_the_markov_parameter_sum():
     gen = kalman_generator()
-    V = np.diag([1.0, 2.0, 0.5, 1.5])
-    R = (gen.Q @ gen.model.augmented())[:, 1:5]  # columns of w (one u column first)
-    # terms: the slowest mode is |eig(A)| ≈ 0.77, 0.77^3000 is far below rounding
-    ref = markov_autocovariance(R, V, 6)
-    got = residual_autocovariance(gen, 6, noise_cov=V)
+    Vw, Vv = np.diag([1.0, 2.0]), np.array([[0.5, 0.1], [0.1, 1.5]])
+    Rw = (gen.Q @ gen.model.augmented())[:, 1:3]  # columns of w (after the one u column)
+    Rv = gen.Q[:, :2]  # a measurement noise enters where y does
+    # terms: the slowest mode is |eig(A)| < 0.8, 0.8^3000 is far below rounding
+    ref = markov_autocovariance(hstack([Rw, Rv]), sla.block_diag(Vw, Vv), 6)
+    got = residual_autocovariance(gen, 6, noise_cov=Vw, measurement_cov=Vv)
     assert np.allclose(got, ref, rtol=1e-10, atol=1e-12 * np.abs(ref).max())
 
 
@@ -120,9 +115,10 @@ def test_continuous_generator_is_sampled_with_held_noise():
     assert np.allclose(got, ref, rtol=1e-10, atol=1e-14)
 
 
-def test_kalman_innovations_are_white_with_unit_covariance():
-    cov = residual_autocovariance(kalman_generator(), 10, noise_cov=1.0)
-    assert np.allclose(cov[0], np.eye(2), atol=1e-10)
+def test_kalman_innovations_are_white():
+    gen = kalman_generator()
+    cov = residual_autocovariance(gen, 10, noise_cov=1.0, measurement_cov=RV)
+    assert np.allclose(cov[0], gen.info["innovation_covariance"], atol=1e-10)
     assert np.abs(cov[1:]).max() < 1e-10
 
 
@@ -155,15 +151,17 @@ def test_peak_threshold_is_the_union_bound():
 # ------------------------------------------------- analytic thresholds on data
 def test_chi2_on_kalman_innovations_gives_alpha():
     gen, N, alpha = kalman_generator(), 5, 0.01
-    thr = analytic_threshold(gen, {"kind": "chi2", "window": N}, alpha)
+    spec = {"kind": "chi2", "window": N, "W": gen.info["whitening"]}
+    thr = analytic_threshold(gen, spec, alpha)
     assert thr == pytest.approx(stats.chi2.isf(alpha, 2 * N))
-    # with the noise covariance the exact route finds the same χ² law (innovations are white)
-    thr_cov = analytic_threshold(gen, {"kind": "chi2", "window": N}, alpha, noise_cov=1.0)
+    # with the noise covariances the exact route finds the same χ² law (innovations are white)
+    thr_cov = analytic_threshold(gen, spec, alpha, noise_cov=1.0, measurement_cov=RV)
     assert thr_cov == pytest.approx(thr, rel=1e-6)
-    n, burn = 60_000, 200  # burn-in: the filter starts from x̂ = 0, P0 = 0
-    w = np.random.default_rng(11).standard_normal((n, 4))
-    r = cascade_residual(gen, n, w=w)
-    J = Evaluator({"kind": "chi2", "window": N}, 2).run(r)
+    n, burn = 60_000, 200  # burn-in: the filter starts from x̂ = 0
+    rng = np.random.default_rng(11)
+    w, v = rng.standard_normal((n, 2)), np.sqrt(RV) * rng.standard_normal((n, 2))
+    r = cascade_residual(gen, n, w=w) + gen.simulate(v, np.zeros((n, 1)))  # the filter is linear in y
+    J = Evaluator(spec, 2).run(r)
     # disjoint windows of a white Gaussian sequence are independent: exact binomial count
     x = J[burn + N - 1::N]
     lo, hi = clopper_pearson(int(np.sum(x >= thr)), x.size)
@@ -216,7 +214,7 @@ def test_no_analytic_threshold_for_non_quadratic_evaluators(spec):
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    ({"evaluation": {"kind": "rms", "window": 5}}, "noise_cov and/or disturbance_cov"),
+    ({"evaluation": {"kind": "rms", "window": 5}}, "noise_cov, disturbance_cov and/or measurement_cov"),
     ({"noise_cov": [[1.0, 0.0]]}, "must be a scalar"),
     ({"noise_cov": -1.0}, "positive semidefinite"),
     ({"disturbance_cov": 1.0}, "no disturbance inputs"),
@@ -238,7 +236,7 @@ def test_analytic_threshold_structural_errors():
         analytic_threshold(cont, {"kind": "norm"}, 0.01, noise_cov=1.0)
     with pytest.raises(ValueError, match="choose one with group="):
         analytic_threshold(ResidualGenerator(kalman_generator().Q, kalman_generator().model, "k"), {"kind": "norm"},
-                           0.01, noise_cov=1.0)
+                           0.01, noise_cov=1.0)  # one group per residual
     unstable = observer_generator(pole=1.2)
     with pytest.raises(ValueError, match="not stable"):
         analytic_threshold(unstable, {"kind": "norm"}, 0.01, noise_cov=1.0)

@@ -110,7 +110,8 @@ def _quantile(cov: ResidualCovariance, ev: Evaluator, alpha: float, method: str)
 
 
 def analytic_threshold(gen, evaluation: dict, alpha: float, *, noise_cov=None, disturbance_cov=None,
-                       Ts: float | None = None, group: int | None = None, method: str = "auto") -> float:
+                       measurement_cov=None, Ts: float | None = None, group: int | None = None,
+                       method: str = "auto") -> float:
     """Fixed threshold ``J_th`` with per-sample false-alarm probability α under Gaussian noise.
 
     Parameters
@@ -127,6 +128,9 @@ def analytic_threshold(gen, evaluation: dict, alpha: float, *, noise_cov=None, d
         the covariance of each held sample, the noise being piecewise constant).
     disturbance_cov : float, (nd,) or (nd, nd) array_like, optional
         Treat the disturbances d as white noise of this covariance per sample.
+    measurement_cov : float, (ny,) or (ny, ny) array_like, optional
+        Covariance per sample of a white noise added to the measured outputs beyond the
+        model's w (e.g. the ``Rv`` of a :func:`~fmu_fdi.design.kalman` design).
     Ts : float, optional
         Sample time; required for a continuous generator, checked for a discrete one.
     group : int, optional
@@ -150,7 +154,7 @@ def analytic_threshold(gen, evaluation: dict, alpha: float, *, noise_cov=None, d
 
     Notes
     -----
-    ``chi2`` without ``noise_cov``/``disturbance_cov``: the evaluator's ``W`` is taken to
+    ``chi2`` without any covariance: the evaluator's ``W`` is taken to
     whiten the residual exactly (``W r`` white with unit covariance, e.g. Kalman
     innovations), so ``Q ~ χ²_{N·dim}`` and ``J_th = χ²_{N·dim}(1 − α)`` exactly. With
     covariances given, the actual autocovariance of ``W r`` is used instead.
@@ -215,9 +219,10 @@ def analytic_threshold(gen, evaluation: dict, alpha: float, *, noise_cov=None, d
     if ev.kind in ("narendra", "cusum", "glr"):
         raise ValueError(f"no analytic threshold for the '{ev.kind}' evaluator (its distribution under H0 has no "
                          "closed form): use data_driven_threshold on fault-free evaluation records")
-    if ev.kind == "chi2" and noise_cov is None and disturbance_cov is None:
+    if ev.kind == "chi2" and noise_cov is None and disturbance_cov is None and measurement_cov is None:
         return float(stats.chi2.isf(alpha, ev.n * ev.dim))
-    cov = residual_covariance(dgen, noise_cov=noise_cov, disturbance_cov=disturbance_cov, group=group)
+    cov = residual_covariance(dgen, noise_cov=noise_cov, disturbance_cov=disturbance_cov,
+                              measurement_cov=measurement_cov, group=group)
     if ev.kind == "peak":
         norm = Evaluator({"kind": "norm"}, ev.dim)
         return float(np.sqrt(imhof_quantile(alpha / ev.n, _eigenvalues(cov, norm))))

@@ -2,7 +2,8 @@
 
 Under H0 (no fault, known inputs decoupled) a discrete residual generator's internal form
 leaves ``r = Rd(z) d + Rw(z) w``. With ``v = [d; w]`` a white Gaussian sequence of
-covariance ``V = diag(Σd, Σw)`` and ``(A, B, C, D)`` a stable realisation of ``[Rd Rw]``,
+covariance ``V = diag(Σd, Σw)`` and ``(A, B, C, D)`` a stable realisation of ``[Rd Rw]`` (and of ``Qy``
+for a measurement noise outside the model),
 the stationary state covariance solves the discrete Lyapunov equation
 
     P = A P Aᵀ + B V Bᵀ,
@@ -24,6 +25,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..generator import ResidualGenerator
+from ..lti import LTI
 
 
 @dataclass(frozen=True)
@@ -104,8 +106,8 @@ def group_rows(gen: ResidualGenerator, group: int | None) -> list[int]:
     return list(gen.groups[int(group)])
 
 
-def residual_covariance(gen: ResidualGenerator, *, noise_cov=None, disturbance_cov=None, Ts: float | None = None,
-                        group: int | None = None) -> ResidualCovariance:
+def residual_covariance(gen: ResidualGenerator, *, noise_cov=None, disturbance_cov=None, measurement_cov=None,
+                        Ts: float | None = None, group: int | None = None) -> ResidualCovariance:
     """Stationary autocovariance (factorised) of one residual group under H0.
 
     See :func:`residual_autocovariance` for the parameters.
@@ -123,9 +125,17 @@ def residual_covariance(gen: ResidualGenerator, *, noise_cov=None, disturbance_c
             raise ValueError(f"{label} given but the model has no {'disturbance' if key == 'd' else 'noise'} inputs")
         cols.extend(range(sl[key].start, sl[key].stop))
         covs.append(_covariance(S, k, label))
+    # measurement noise v outside the model (y + v): extra plant inputs with D = [I; 0]
+    aug = model.augmented()
+    if measurement_cov is not None:
+        extra = np.vstack([np.eye(model.ny), np.zeros((model.nu, model.ny))])
+        aug = LTI(aug.A, np.hstack([aug.B, np.zeros((model.n, model.ny))]), aug.C, np.hstack([aug.D, extra]), aug.dt)
+        cols.extend(range(aug.m - model.ny, aug.m))
+        covs.append(_covariance(measurement_cov, model.ny, "measurement_cov"))
     if not cols:
-        raise ValueError("give noise_cov and/or disturbance_cov: the residual's covariance comes from them")
-    R = (gen.Q @ model.augmented())[rows, cols].minreal()
+        raise ValueError("give noise_cov, disturbance_cov and/or measurement_cov: the residual's covariance comes "
+                         "from them")
+    R = (gen.Q @ aug)[rows, cols].minreal()
     V = sla.block_diag(*covs)
     if R.n and np.max(np.abs(R.poles())) >= 1.0:
         raise ValueError(f"the residual's response to the noise is not stable (largest pole modulus "
@@ -141,7 +151,7 @@ def residual_covariance(gen: ResidualGenerator, *, noise_cov=None, disturbance_c
 
 
 def residual_autocovariance(gen: ResidualGenerator, max_lag: int, *, noise_cov=None, disturbance_cov=None,
-                            Ts: float | None = None, group: int | None = None) -> np.ndarray:
+                            measurement_cov=None, Ts: float | None = None, group: int | None = None) -> np.ndarray:
     """Autocovariance ``Γ(k) = E[r(t+k) r(t)ᵀ]``, k = 0..max_lag, of a stationary residual.
 
     Parameters
@@ -155,6 +165,9 @@ def residual_autocovariance(gen: ResidualGenerator, max_lag: int, *, noise_cov=N
     disturbance_cov : float, (nd,) or (nd, nd) array_like, optional
         Covariance per sample of the disturbances d when they are treated as white noise
         (omit for disturbances the design decouples or that are absent).
+    measurement_cov : float, (ny,) or (ny, ny) array_like, optional
+        Covariance per sample of a white noise v added to the measured outputs beyond the
+        model's w (``y + v``; e.g. the ``Rv`` of :func:`~fmu_fdi.design.kalman`).
     Ts : float, optional
         Sample time (required for a continuous generator).
     group : int, optional
@@ -173,5 +186,6 @@ def residual_autocovariance(gen: ResidualGenerator, max_lag: int, *, noise_cov=N
     """
     if int(max_lag) < 0:
         raise ValueError(f"max_lag must be >= 0, got {max_lag}")
-    cov = residual_covariance(gen, noise_cov=noise_cov, disturbance_cov=disturbance_cov, Ts=Ts, group=group)
+    cov = residual_covariance(gen, noise_cov=noise_cov, disturbance_cov=disturbance_cov,
+                              measurement_cov=measurement_cov, Ts=Ts, group=group)
     return cov.lags(int(max_lag))
