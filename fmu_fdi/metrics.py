@@ -171,7 +171,7 @@ def _schedule_from_indicator(result, fields, n, indicator):
         cands = [f for f in fields if f.startswith("fault.") and f.endswith(".active")]
         cands = cands or [f for f in fields if f.startswith("fault.")]
         if not cands:
-            return None, _INF, None
+            return None, _INF
         active = [f for f in cands if np.any(_column(result, f, n, fields) != 0)]
         if len(active) > 1:
             raise ValueError(f"several fault indicator columns switch on ({active}); choose one with indicator=")
@@ -179,7 +179,7 @@ def _schedule_from_indicator(result, fields, n, indicator):
     x = _column(result, indicator, n, fields) != 0
     t = np.asarray(result["time"], float).ravel()
     if not x.any():
-        return None, _INF, indicator
+        return None, _INF
     edges = np.flatnonzero(np.diff(x.astype(int)))
     ons = [k + 1 for k in edges if x[k + 1]] + ([0] if x[0] else [])
     if len(ons) > 1:
@@ -188,7 +188,7 @@ def _schedule_from_indicator(result, fields, n, indicator):
     k_on = int(np.argmax(x))
     k_offs = np.flatnonzero(~x[k_on:])
     t_off = float(t[k_on + k_offs[0]]) if k_offs.size else _INF
-    return float(t[k_on]), t_off, indicator
+    return float(t[k_on]), t_off
 
 
 # --------------------------------------------------------------------- public
@@ -298,7 +298,7 @@ def metrics(result, *, t_on: float | None = None, t_off: float | None = None, fa
     if t_on is None:
         if t_off is not None:
             raise ValueError("t_off given without t_on")
-        t_on_v, t_off_v, _ = _schedule_from_indicator(result, fields, n, indicator)
+        t_on_v, t_off_v = _schedule_from_indicator(result, fields, n, indicator)
     else:
         t_on_v, t_off_v = float(t_on), _INF if t_off is None else float(t_off)
         if not math.isfinite(t_on_v):
