@@ -6,7 +6,9 @@ from .design import (RLSEstimator, dedicated_bank, factorized, fault_detection_f
                      unknown_input_observer)
 from .cosim import CoSimulation, Fault, InputSignals, Result, SimulationFailed, export_ssp, parse_fault
 from .diagnoser import Diagnoser
-from .evaluation import ThresholdDesign, fault_size_thresholds, sensor_gain_plants, threshold_selector
+from .evaluation import (ThresholdDesign, ThresholdEstimate, analytic_threshold, data_driven_threshold,
+                         fault_size_thresholds, residual_autocovariance, sensor_gain_plants, threshold_selector)
+from .metrics import DiagnosisMetrics, metrics
 from .errors import DesignError, ModelError
 from .fmu import build_fmu
 from .faults import FaultSpec, actuator_fault, component_fault, parametric_fault, sensor_fault
@@ -21,7 +23,8 @@ __all__ = [
     "LTI", "ResidualGenerator", "ResidualBank", "DesignError", "ModelError",
     "luenberger", "kalman", "unknown_input_observer", "fault_detection_filter", "factorized",
     "nullspace_design", "parity_space", "rls_estimator", "RLSEstimator", "structured_bank", "dedicated_bank", "generalized_bank",
-    "Diagnoser", "build_fmu", "threshold_selector", "ThresholdDesign", "sensor_gain_plants", "fault_size_thresholds",
+    "Diagnoser", "build_fmu", "metrics", "DiagnosisMetrics", "analytic_threshold", "data_driven_threshold",
+    "ThresholdEstimate", "residual_autocovariance", "threshold_selector", "ThresholdDesign", "sensor_gain_plants", "fault_size_thresholds",
     "structure_matrix", "fault_gains", "hinf_minus", "fault_sensitivity_condition", "fault_noise_gap",
     "leakage", "detectability", "isolability",
     "CoSimulation", "Result", "Fault", "parse_fault", "InputSignals", "export_ssp", "SimulationFailed",

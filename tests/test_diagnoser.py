@@ -236,3 +236,11 @@ def test_rls_estimator_runs_in_a_diagnoser_and_round_trips(tmp_path):
     again = Diagnoser.load(dg.save(tmp_path / "rls.json")).run(t, u, y)
     for nm in out.dtype.names:
         assert np.array_equal(out[nm], again[nm]), nm
+
+
+def test_evaluator_record_and_sample_shapes():
+    from fmu_fdi.runtime.evaluation import Evaluator
+
+    assert np.array_equal(Evaluator({"kind": "norm"}, 1).run(np.array([1.0, -2.0, 3.0])), [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match=r"shape \(1,\)"):
+        Evaluator({"kind": "rms", "window": 2}, 1).step(np.array([3.0, 4.0]))

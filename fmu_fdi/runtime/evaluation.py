@@ -201,9 +201,12 @@ class Evaluator:
 
     def step(self, r: np.ndarray) -> float:
         """Step with the residual vector r of the group (any kind)."""
+        r = np.asarray(r, float)
+        if r.shape != (self.dim,):
+            raise ValueError(f"residual sample must have shape ({self.dim},), got {r.shape}")
         k = self.kind
         if k in MONOTONE:
-            return self.step_sq(sum(x * x for x in np.asarray(r, float).tolist()))
+            return self.step_sq(sum(x * x for x in r.tolist()))
         if k == "chi2":
             w = self.W @ r
             self.ring.push(float(w @ w))
@@ -230,8 +233,10 @@ class Evaluator:
         return v
 
     def run(self, R: np.ndarray) -> np.ndarray:
-        """Evaluate a whole record (rows are samples): identical to repeated ``step``."""
-        return np.array([self.step(np.asarray(r, float)) for r in np.atleast_2d(R)])
+        """Evaluate a whole record (rows are samples; a 1-D record of a scalar residual is a
+        column): identical to repeated ``step``."""
+        R = np.asarray(R, float).reshape(-1, self.dim)
+        return np.array([self.step(r) for r in R])
 
     # --------------------------------------------------------- resampling
     def resampled(self, ratio: float) -> "Evaluator":
