@@ -39,7 +39,10 @@ model's for a discrete model, otherwise --ts is required.
 
 --evaluation  norm | rms:N | ewrms:LAMBDA | peak:N | narendra:ALPHA,BETA,GAMMA | chi2:N
 --threshold   fault-size:F | fixed:V | sensor-gain:DELTA,J0 (adaptive, from ±DELTA level-
-              sensor gain errors via the threshold selector)
+              sensor gain errors via the threshold selector) | analytic:ALPHA[,STD] (false-alarm
+              probability ALPHA per sample for white noise inputs w of standard deviation STD,
+              default 1) | data:RATE (false-alarm rate RATE, 95 % confidence, from the fault-free
+              record given with --calibrate CSV: columns time and the model's u and y names)
 """
 
 
@@ -81,11 +84,26 @@ def parse_evaluation(text: str) -> dict:
                       f"narendra:ALPHA,BETA,GAMMA or chi2:N")
 
 
-def _thresholds(text: str, gen, evaluation: dict):
-    from .evaluation import fault_size_thresholds, sensor_gain_plants, threshold_selector
+def _thresholds(text: str, gen, evaluation: dict, calibrate=None):
+    from .evaluation import (analytic_threshold, data_driven_threshold, fault_size_thresholds, sensor_gain_plants,
+                             threshold_selector)
 
     kind, _, arg = text.partition(":")
     try:
+        if kind == "analytic":
+            parts = [float(x) for x in arg.split(",")]
+            alpha, std = parts[0], (parts[1] if len(parts) > 1 else 1.0)
+            cov = std * std * np.eye(gen.model.nw) if gen.model.nw else None
+            return [analytic_threshold(gen, evaluation, alpha, noise_cov=cov, group=i) for i in range(len(gen.groups))]
+        if kind == "data":
+            if calibrate is None:
+                raise DesignError("--threshold data:RATE needs a fault-free record: --calibrate CSV")
+            from .diagnoser import Diagnoser
+
+            t, u, y = _read_record(calibrate, gen.model)
+            probe = Diagnoser(gen, evaluation=evaluation, thresholds=1e300)  # evaluations only
+            out = probe.run(t, u, y)
+            return [data_driven_threshold(out[f"evaluation_{i + 1}"], float(arg)) for i in range(len(gen.groups))]
         if kind == "fixed":
             return float(arg)
         if kind == "fault-size":
@@ -97,7 +115,24 @@ def _thresholds(text: str, gen, evaluation: dict):
     except ValueError as exc:
         if isinstance(exc, (DesignError, ModelError)):
             raise
-    raise DesignError(f"cannot read threshold {text!r}: use fault-size:F, fixed:V or sensor-gain:DELTA,J0")
+    raise DesignError(f"cannot read threshold {text!r}: use fault-size:F, fixed:V, sensor-gain:DELTA,J0, "
+                      f"analytic:ALPHA[,STD] or data:RATE")
+
+
+def _read_record(path, model):
+    """A CSV record with a time column and the model's u and y columns (by name)."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = list(csv.reader(fh))
+    head = [h.strip().strip('"') for h in rows[0]]
+    missing = [n for n in ["time"] + list(model.u_names) + list(model.y_names) if n not in head]
+    if missing:
+        raise DesignError(f"{path}: columns {missing} are missing (found {head})")
+    data = np.array([[float(x) for x in r] for r in rows[1:] if r], float)
+    col = {n: data[:, head.index(n)] for n in head}
+    u = np.column_stack([col[n] for n in model.u_names]) if model.nu else np.zeros((len(data), 0))
+    return col["time"], u, np.column_stack([col[n] for n in model.y_names])
 
 
 def _design(args) -> int:
@@ -136,7 +171,7 @@ def _design(args) -> int:
             raise DesignError("the model is continuous: give the diagnosis sample time --ts")
         gen = gen.to_discrete(args.ts)
     evaluation = parse_evaluation(args.evaluation)
-    thresholds = _thresholds(args.threshold, gen, evaluation)
+    thresholds = _thresholds(args.threshold, gen, evaluation, args.calibrate)
     decision = {"persistence": [int(x) for x in args.persistence.split("/")], "latch": args.latch}
     dg = Diagnoser(gen, evaluation=evaluation, thresholds=thresholds, decision=decision, name=args.name)
     path = dg.save(args.output)
@@ -180,6 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--Rv", type=float, nargs="+", help="Kalman: measurement noise variances (diagonal of Rv)")
     d.add_argument("--evaluation", default="rms:10", help="evaluation function (default rms:10)")
     d.add_argument("--threshold", default="fault-size:1", help="threshold (default fault-size:1)")
+    d.add_argument("--calibrate", help="fault-free record (CSV) for --threshold data:RATE")
     d.add_argument("--persistence", default="1/1", help="alarm persistence k/n (default 1/1)")
     d.add_argument("--latch", action="store_true", help="latch alarms until reset")
     d.add_argument("--name", help="diagnoser name (default MODEL_METHOD)")

@@ -61,3 +61,32 @@ def test_build_writes_a_valid_fmu_and_refuses_a_bad_design(tmp_path):
     res = cli("build", design, "-o", tmp_path / "bad.fmu")
     assert res.returncode == 2 and "generator.dt must be a positive sample time" in res.stderr
     assert not (tmp_path / "bad.fmu").exists()
+
+
+def test_design_with_statistical_thresholds(tmp_path):
+    """analytic:ALPHA and data:RATE (calibrated on a fault-free CSV record) both give a fixed
+    positive threshold; the calibration record must have the model's columns."""
+    import numpy as np
+
+    import published as pub
+    from simulate import plant_outputs
+
+    model = pub.a4_model()
+    N = 2000
+    rng = np.random.default_rng(0)
+    u, w = rng.standard_normal((N, 1)), rng.standard_normal((N, 1))
+    y = plant_outputs(model, N, 0.01, u=u, w=w)
+    rec = tmp_path / "rec.csv"
+    np.savetxt(rec, np.c_[np.arange(N) * 0.01, u, y], delimiter=",", header="time,u,y1,y2", comments="")
+    for threshold, extra in (("analytic:0.001", []), ("data:0.001", ["--calibrate", rec])):
+        out = tmp_path / "d.json"
+        res = cli("design", EXAMPLES / "varga_a4_noise.toml", "--method", "nullspace", "--ts", "0.01",
+                  "--threshold", threshold, *extra, "-o", out)
+        assert res.returncode == 0, res.stderr
+        thr = json.loads(out.read_text())["evaluation"][0]["threshold"]
+        assert thr["kind"] == "fixed" and thr["value"] > 0
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,u,y1\n0,0,0\n")
+    res = cli("design", EXAMPLES / "varga_a4_noise.toml", "--method", "nullspace", "--ts", "0.01",
+              "--threshold", "data:0.01", "--calibrate", bad, "-o", tmp_path / "x.json")
+    assert res.returncode == 2 and "columns ['y2'] are missing" in res.stderr
