@@ -172,6 +172,8 @@ class PlantSlave:
                       "false: all noise off, whatever the std parameters")
         self.parameter("rtol", rtol, "relative local error tolerance of the Dormand-Prince 5(4) integrator")
         self.parameter("atol", atol, "absolute local error tolerance of the integrator (state units)")
+        self._declare(Integer, "ode_steps", 0, Fmi2Causality.output, Fmi2Variability.discrete,
+                      "accepted integrator steps since the start (bounds the global integration error)")
 
     def sensors(self, names, units, fault_names, stds, descriptions):
         """Measured outputs with their fault channels and noise std parameters."""
@@ -232,7 +234,8 @@ class PlantSlave:
 
     def integrate(self, f, x, h, clip=None):
         """:func:`dopri5` over one communication step, remembering the step-size proposal."""
-        x, self._h_ode, _ = dopri5(f, x, h, self.rtol, self.atol, getattr(self, "_h_ode", None), clip)
+        x, self._h_ode, n_accepted = dopri5(f, x, h, self.rtol, self.atol, self._h_ode, clip)
+        self.ode_steps += n_accepted
         return x
 
     # ---------------------------------------------------------------- FMI side
@@ -248,7 +251,7 @@ class PlantSlave:
                     raise ValueError(f"parameter std_{y} must be >= 0, got {getattr(self, f'std_{y}')}")
             self._check_inputs()
             self._rng = np.random.default_rng(int(self.seed))
-            self._h_ode = None
+            self._h_ode, self.ode_steps = None, 0
             self.initialize()
             self._failed = None
         except Exception as exc:  # noqa: BLE001 - nothing may reach the host

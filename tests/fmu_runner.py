@@ -10,12 +10,13 @@ JOBS.json: ``[{"fmu": path, "runs": [run, ...]}, ...]`` with ``run`` =
 "outputs": [names]}``. Input value k is set before ``doStep`` k (value 0 also during
 initialisation). RESULT.json: per job, per run ``{"t": [...], "outputs": {name: [N+1]},
 "status": "ok" | "error", "message": ..., "code": fmi2Status, "log": [[instance, status,
-message], ...] (messages above fmi2OK)}``; floats are written with
+message], ...] (messages above fmi2OK), "seconds": wall time}``; floats are written with
 ``repr`` so values round-trip exactly.
 """
 import json
 import shutil
 import sys
+import time
 from ctypes import byref
 
 from fmpy import extract, read_model_description
@@ -60,16 +61,18 @@ def run_one(md, unzipdir, run, index):
         else:
             raise TypeError(f"cannot set {v.type} variable {name}")
 
+    getters = {"Real": fmu.getReal, "Integer": fmu.getInteger, "Boolean": fmu.getBoolean}
+
     def record(t):
         result["t"].append(t)
         if types == {"Real"}:
             values = fmu.getReal(refs)
         else:
-            values = [fmu.getReal([r])[0] if vars_[n].type == "Real" else fmu.getBoolean([r])[0]
-                      for n, r in zip(outputs, refs)]
+            values = [getters[vars_[n].type]([r])[0] for n, r in zip(outputs, refs)]
         for n, val in zip(outputs, values):
             result["outputs"][n].append(val)
 
+    started = time.perf_counter()
     fmu.instantiate(callbacks=CALLBACKS, loggingOn=True)
     del LOG[:]
     try:
@@ -94,6 +97,7 @@ def run_one(md, unzipdir, run, index):
     finally:
         fmu.freeInstance()
     result["log"] = [entry for entry in LOG if entry[1] > 0]
+    result["seconds"] = time.perf_counter() - started
     return result
 
 

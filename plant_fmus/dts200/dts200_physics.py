@@ -9,14 +9,20 @@ T1, which drains through T3 into T2; pump Q2 fills T2, which drains to the outle
     A h1' = Q1 - Q13 - Qleak1
     A h2' = Q2 + Q32 - Q20 - Qleak2
     A h3' = Q13 - Q32 - Qleak3
-    Q13 = (1 - c13) az1 s sgn(h1 - h3) sqrt(2 g |h1 - h3|)
-    Q32 = (1 - c32) az3 s sgn(h3 - h2) sqrt(2 g |h3 - h2|)
-    Q20 = (1 - c20) az2 s sqrt(2 g h2)
-    Qleak_i = theta_i sqrt(2 g h_i)
+    Q13 = (1 - c13) az1 s sqrt(2 g) r(h1 - h3)
+    Q32 = (1 - c32) az3 s sqrt(2 g) r(h3 - h2)
+    Q20 = (1 - c20) az2 s sqrt(2 g) r(h2)
+    Qleak_i = theta_i sqrt(2 g) r(h_i)
 
-with clogging factors ``c`` in [0, 1] and equivalent leak areas ``theta_i >= 0`` (cm^2).
+with clogging factors ``c`` in [0, 1], equivalent leak areas ``theta_i >= 0`` (cm^2) and
+``r(D) = sgn(D) sqrt(|D|)`` (Torricelli) for heads |D| >= D_LAM. Below D_LAM = 0.01 cm
+(our choice) ``r`` is the odd cubic ``sqrt(D_LAM) (5/4 D/D_LAM - 1/4 (D/D_LAM)^3)``, which
+joins the square root with a continuous slope (a laminar-like regime): with it the ODE is
+Lipschitz, so a draining tank does not force the integrator into ever smaller steps near
+an empty tank (sqrt has an infinite slope at 0). The operating point and the
+linearisation lie far inside the Torricelli range.
 Levels stay in ``[0, h_max]``: at ``h_max`` the tank overflows (inflow beyond the outflow
-spills), at 0 it is empty (no outflow, a square root of zero head).
+spills); a level never falls below 0.
 
 Operating point: h1 = 41 cm and h2 = 32 cm as documented; h3 follows exactly from
 Q13 = Q32, i.e. ``az1^2 (h1 - h3) = az3^2 (h3 - h2)``, giving h3 = 36.5989 cm (published,
@@ -40,6 +46,7 @@ PARAMS = {
     "q_max": 100.0,      # cm^3/s, pump limit (unverified)
 }
 H1_OP, H2_OP = 41.0, 32.0
+D_LAM = 0.01  # cm, head below which the flow law is regularised (see the module docstring)
 
 U = ("Q1", "Q2")
 Y = ("h1", "h2", "h3")
@@ -52,20 +59,26 @@ LEAKS = ("leak_T1", "leak_T2", "leak_T3")
 CLOGS = ("clog_13", "clog_32", "clog_20")
 
 
+def root(d):
+    """``sgn(d) sqrt(|d|)``, regularised below the head D_LAM (module docstring)."""
+    d = np.asarray(d, dtype=float)
+    z = np.clip(d / D_LAM, -1.0, 1.0)
+    cubic = np.sqrt(D_LAM) * (1.25 * z - 0.25 * z ** 3)
+    return np.where(np.abs(d) >= D_LAM, np.sign(d) * np.sqrt(np.abs(d)), cubic)
+
+
 def flows(h, p=PARAMS, clog=(0.0, 0.0, 0.0)):
     """Pipe flows ``(Q13, Q32, Q20)`` in cm^3/s for levels ``h`` (cm)."""
     k = p["pipe_area"] * np.sqrt(2.0 * p["g"])
-    d13, d32 = h[0] - h[2], h[2] - h[1]
-    q13 = (1.0 - clog[0]) * p["az1"] * k * np.sign(d13) * np.sqrt(abs(d13))
-    q32 = (1.0 - clog[1]) * p["az3"] * k * np.sign(d32) * np.sqrt(abs(d32))
-    q20 = (1.0 - clog[2]) * p["az2"] * k * np.sqrt(max(h[1], 0.0))
-    return q13, q32, q20
+    r13, r32, r20 = root([h[0] - h[2], h[2] - h[1], max(h[1], 0.0)])
+    return ((1.0 - clog[0]) * p["az1"] * k * r13, (1.0 - clog[1]) * p["az3"] * k * r32,
+            (1.0 - clog[2]) * p["az2"] * k * r20)
 
 
 def derivative(h, q_in, p=PARAMS, leak=(0.0, 0.0, 0.0), clog=(0.0, 0.0, 0.0)):
     """Level rates ``h'`` (cm/s) for pump flows ``q_in`` (cm^3/s), with the level limits."""
     q13, q32, q20 = flows(h, p, clog)
-    q_leak = np.asarray(leak, float) * np.sqrt(2.0 * p["g"] * np.maximum(h, 0.0))
+    q_leak = np.asarray(leak, float) * np.sqrt(2.0 * p["g"]) * root(np.maximum(h, 0.0))
     dh = np.array([q_in[0] - q13, q_in[1] + q32 - q20, q13 - q32]) - q_leak
     dh = dh / p["area"]
     # A full tank spills what it cannot hold; an empty one has nothing left to lose.

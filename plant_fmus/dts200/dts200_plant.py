@@ -45,7 +45,7 @@ class DTS200(PlantSlave, Fmi2Slave):
         for name, pipe in zip(phys.CLOGS, ("T1->T3", "T3->T2", "T2->outlet")):
             self.real_input(f"f_{name}", 0.0, f"clogging of pipe {pipe}: fraction of flow lost, in [0, 1]")
         self.boolean_output("overflow", "a tank is at h_max and spilling")
-        self.boolean_output("empty", "a tank level is at 0")
+        self.boolean_output("empty", "a tank level is below D_LAM = 0.01 cm (drained to the laminar film)")
 
     def _params(self):
         return {key: float(getattr(self, key)) for key in phys.PARAMS}
@@ -73,4 +73,4 @@ class DTS200(PlantSlave, Fmi2Slave):
     def _publish(self, p):
         self.measure(self._x)
         self.overflow = bool(np.any(self._x >= p["h_max"]))
-        self.empty = bool(np.any(self._x <= 0.0))
+        self.empty = bool(np.any(self._x < phys.D_LAM))
