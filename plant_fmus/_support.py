@@ -126,8 +126,9 @@ class PlantSlave:
     A plant class derives from ``(PlantSlave, Fmi2Slave)``, declares its variables in
     ``__init__`` with the helpers below and implements ``initialize()`` (state at the
     start time, first outputs) and ``advance(t, h)`` (one communication step).
-    Exceptions never reach the host: they are logged with ``Fmi2Status.error`` and
-    ``do_step`` returns False (fmi2Error rather than fmi2Fatal).
+    Exceptions never reach the host (pythonfmu would turn them into fmi2Fatal): they are
+    logged with ``Fmi2Status.error`` and ``do_step`` returns False, which pythonfmu
+    reports as fmi2Discard; every later step fails the same way.
     """
 
     # ------------------------------------------------------------ declaration
@@ -246,9 +247,9 @@ class PlantSlave:
                     raise ValueError(f"parameter {name} must be > 0, got {getattr(self, name)}")
             if int(self.seed) < 0:
                 raise ValueError(f"parameter seed must be >= 0, got {self.seed}")
-            for y in getattr(self, "_sensor_names", []):
-                if not getattr(self, f"std_{y}") >= 0:
-                    raise ValueError(f"parameter std_{y} must be >= 0, got {getattr(self, f'std_{y}')}")
+            for var in self.vars.values():
+                if var.name.startswith("std_") and not getattr(self, var.name) >= 0:
+                    raise ValueError(f"parameter {var.name} must be >= 0, got {getattr(self, var.name)}")
             self._check_inputs()
             self._rng = np.random.default_rng(int(self.seed))
             self._h_ode, self.ode_steps = None, 0
