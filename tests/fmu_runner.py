@@ -23,7 +23,6 @@ from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (FMU2Slave, calloc, fmi2CallbackAllocateMemoryTYPE,
                        fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, free)
-from fmpy.logging import addLoggerProxy
 
 LOG = []
 
@@ -36,7 +35,12 @@ CALLBACKS = fmi2CallbackFunctions()
 CALLBACKS.logger = fmi2CallbackLoggerTYPE(_logger)
 CALLBACKS.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
 CALLBACKS.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-addLoggerProxy(byref(CALLBACKS))
+try:  # formats printf-style messages; as fmpy itself does, go on without it if unavailable
+    from fmpy.logging import addLoggerProxy
+
+    addLoggerProxy(byref(CALLBACKS))
+except Exception:  # noqa: BLE001
+    pass
 
 
 def run_one(md, unzipdir, run, index):
