@@ -1,0 +1,29 @@
+"""``python -m plant_fmus build [--out DIR]`` / ``python -m plant_fmus models``."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from . import PLANTS, build, build_all, write_model_files
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m plant_fmus", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("build", help="build plant FMUs")
+    b.add_argument("names", nargs="*", help=f"plants to build (default all: {', '.join(PLANTS)})")
+    b.add_argument("--out", default="out", help="output folder (default: out)")
+    sub.add_parser("models", help="recompute and rewrite the model files from the plant parameters")
+    args = parser.parse_args(argv)
+    if args.command == "models":
+        for path in write_model_files():
+            print(path)
+        return 0
+    paths = [build(n, args.out) for n in args.names] if args.names else build_all(args.out)
+    for path in paths:
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

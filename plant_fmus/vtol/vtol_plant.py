@@ -1,0 +1,52 @@
+"""VTOL aircraft (COMPleib HE1) under LQR state feedback (pythonfmu slave).
+
+Signals (names as in vtol.toml): outputs ``collective``, ``cyclic`` (feedback commands, the
+model's known inputs u) and ``vh``, ``vv``, ``q``, ``y4`` (measured, y); inputs
+``ref_collective``, ``ref_cyclic`` (added to the feedback: u = -K C^-1 y_meas + r).
+Faults: ``f_actuator_<u>`` (added to the input the aircraft receives), ``f_sensor_<y>``
+(added to the measurement, which the feedback also uses), gain and stuck channels.
+Parametric uncertainty: fixed parameters ``delta_a32``, ``delta_a34``, ``delta_b21``
+(relative, default 0). Process noise ``std_w_<u>`` adds white noise, held over each
+communication step, to the applied inputs. The command at t_k comes from the measurement
+at t_k and is applied over [t_k, t_k + h].
+"""
+import numpy as np
+from pythonfmu import DefaultExperiment, Fmi2Slave
+
+import vtol_physics as phys
+from vtol_support import PlantSlave
+
+
+class VTOL(PlantSlave, Fmi2Slave):
+    description = "VTOL aircraft (COMPleib HE1) with LQR state feedback; 4 sensors, 2 actuators"
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=20.0, step_size=phys.STEP)
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.common_parameters()
+        for name in phys.UNCERTAIN:
+            self.parameter(name, 0.0, f"relative change of {name[6:]} (documented bound +-{phys.UNCERTAINTY_BOUND})")
+        for i, x in enumerate(("vh", "vv", "q", "theta")):
+            self.parameter(f"{x}_start", 0.0, f"initial state {i + 1}")
+        self.actuators(phys.U, ["", ""], phys.ACTUATOR_FAULTS, ["collective pitch", "longitudinal cyclic pitch"],
+                       inputs=False)
+        self.sensors(phys.Y, [""] * 4, phys.SENSOR_FAULTS, phys.NOISE_STD, phys.SENSOR_TEXT)
+        for u in phys.U:
+            self.real_input(f"ref_{u}", 0.0, f"reference added to the {u} feedback command")
+            self.parameter(f"std_w_{u}", 0.0, f"std of white noise added to the applied {u}")
+
+    def initialize(self):
+        self._A, self._B = phys.plant_matrices(*(getattr(self, n) for n in phys.UNCERTAIN))
+        self._gain = phys.K @ np.linalg.inv(phys.C)
+        self._x = self._values([f"{x}_start" for x in ("vh", "vv", "q", "theta")])
+        self._control(self.measure(phys.C @ self._x))
+
+    def _control(self, y_meas):
+        u = -self._gain @ y_meas + self._values([f"ref_{u}" for u in phys.U])
+        self.collective, self.cyclic = float(u[0]), float(u[1])
+
+    def advance(self, t, h):
+        u = self.actuate([self.collective, self.cyclic]) + self.process_noise([f"std_w_{u}" for u in phys.U])
+        drive = self._B @ u
+        self._x = self.integrate(lambda x: self._A @ x + drive, self._x, h)
+        self._control(self.measure(phys.C @ self._x))
