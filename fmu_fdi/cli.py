@@ -3,6 +3,7 @@
   fmu-fdi analyze MODEL                    detectability / isolability table
   fmu-fdi design MODEL --method M ... -o DESIGN.json
   fmu-fdi build DESIGN.json -o FDI.fmu
+  fmu-fdi plants build [--out DIR]
   fmu-fdi simulate --plant P.fmu --diagnoser FDI.fmu --stop T --step Ts [--fault SPEC ...] -o OUT.csv
 """
 from __future__ import annotations
@@ -181,6 +182,14 @@ def _design(args) -> int:
     return 0
 
 
+def _plants_build(args) -> int:
+    import plant_fmus
+
+    for path in plant_fmus.build_all(args.out):
+        print(path)
+    return 0
+
+
 def _build(args) -> int:
     from .fmu import build_fmu
 
@@ -195,6 +204,12 @@ def build_parser() -> argparse.ArgumentParser:
     a = sub.add_parser("analyze", help="detectability / isolability table of a model file")
     a.add_argument("model", help="model file (.toml or .json)")
     a.set_defaults(func=_analyze)
+
+    pl = sub.add_parser("plants", help="benchmark plant FMUs (plant_fmus)")
+    pl_sub = pl.add_subparsers(dest="plants_command", required=True)
+    pb = pl_sub.add_parser("build", help="build every benchmark plant FMU")
+    pb.add_argument("--out", default="out", help="output folder (default: out)")
+    pb.set_defaults(func=_plants_build)
 
     from .cosim import cli as cosim_cli
 
