@@ -4,6 +4,7 @@
   fmu-fdi design MODEL --method M ... -o DESIGN.json
   fmu-fdi build DESIGN.json -o FDI.fmu
   fmu-fdi plants build [--out DIR]
+  fmu-fdi demo [--out DIR]
   fmu-fdi simulate --plant P.fmu --diagnoser FDI.fmu --stop T --step Ts [--fault SPEC ...] -o OUT.csv
 """
 from __future__ import annotations
@@ -182,6 +183,13 @@ def _design(args) -> int:
     return 0
 
 
+def _demo(args) -> int:
+    from .demo import run_demo
+
+    run_demo(args.out)
+    return 0
+
+
 def _plants_build(args) -> int:
     import plant_fmus
 
@@ -210,6 +218,11 @@ def build_parser() -> argparse.ArgumentParser:
     pb = pl_sub.add_parser("build", help="build every benchmark plant FMU")
     pb.add_argument("--out", default="out", help="output folder (default: out)")
     pb.set_defaults(func=_plants_build)
+
+    dm = sub.add_parser("demo", help="the three-tank demo: plant FMU, diagnoser design, diagnostic FMU, "
+                                     "co-simulations, table and plot")
+    dm.add_argument("--out", default="fmu-fdi-demo", help="output folder (default: fmu-fdi-demo)")
+    dm.set_defaults(func=_demo)
 
     from .cosim import cli as cosim_cli
 

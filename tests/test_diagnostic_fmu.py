@@ -212,3 +212,18 @@ def test_malformed_design_file_gives_clear_error_and_no_fmu(ex53, tmp_path):
     d["signals"]["y"][0] = "residual_1"
     with pytest.raises(DesignFileError, match="collide"):
         build_fmu(d, tmp_path / "clash.fmu")
+
+
+def test_same_fmu_runs_again_after_its_extraction_is_deleted(ex53, tmp_path):
+    """The co-simulation master deletes an FMU's extraction after each run, while pythonfmu
+    keeps the slave module imported: a second run in the same process must still find its
+    design (in its new resources folder)."""
+    code = ("from fmu_fdi.cosim import CoSimulation\n"
+            "for _ in range(2):\n"
+            f"    r = CoSimulation({{'fdi': {str(ex53['fmu'])!r}}}, None, None, step={TS}, stop={5 * TS}).run()\n"
+            "print(len(r))\n")
+    # -c from the checkout: fmu_fdi importable whether installed or not
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                          cwd=Path(__file__).parent.parent)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.strip() == "6"

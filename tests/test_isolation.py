@@ -31,8 +31,12 @@ def test_sensor_bank_isolates_each_sensor_fault(bank):
         assert not out["fault_detected"][:100].any()
         k = np.argmax(out["fault_detected"])
         assert out["fault_detected"][k:].all()
-        isolated = out["isolated_fault"][k + 10:]
-        assert np.all(isolated == model.fault_names.index(name) + 1), f"{name}: {np.unique(isolated)}"
+        j = model.fault_names.index(name) + 1
+        isolated = out["isolated_fault"][k:]
+        # while the residuals settle the pattern may match no column (-1), never another fault;
+        # once settled (the second half of the faulty part) it is the injected one
+        assert set(np.unique(isolated)) <= {-1, j}, f"{name}: mis-isolated as {np.unique(isolated)}"
+        assert np.all(out["isolated_fault"][(N + 100) // 2:] == j)
 
 
 def test_fault_detection_filter_isolates_by_direction_with_margin():

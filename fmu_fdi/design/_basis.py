@@ -209,20 +209,70 @@ def minimal_basis(model: FDIModel, rtol: float | None = None) -> NullspaceBasis:
                           info={"controllable_order": data.n})
 
 
-def default_poles(A: np.ndarray, dt: float) -> float:
-    """Default filter pole: at the plant's own speed, the median eigenvalue magnitude.
+def plant_pole_pool(A: np.ndarray, dt: float) -> list[complex]:
+    """The plant's eigenvalues made stable, sorted from slow to fast.
 
-    A residual row ``N(λ)/d(λ)`` responds to a fault with the plant's dynamics in N and the
-    filter's in d; with d as fast as the plant the response is roughly flat over
-    frequency, neither a spike that dies away (a filter much faster than a slow plant)
-    nor a sluggish integrator. Continuous: ``-median |λ_i(A)|`` (−1 if A is 0); discrete:
-    ``median |λ_i(A)|`` capped at 0.99 (0, the finite-memory filter, for a deadbeat plant).
+    Unstable ones are mirrored into the stability region (``-|Re λ| + j Im λ``, or
+    ``1/λ̄`` in discrete time); poles on the boundary (integrators) move just inside it.
     """
-    eig = np.abs(np.linalg.eigvals(A)) if A.size else np.zeros(0)
-    if dt:
-        return float(min(np.median(eig), 0.99)) if eig.size else 0.0
-    eig = eig[eig > 0]
-    return -float(np.median(eig)) if eig.size else -1.0
+    eig = np.linalg.eigvals(A) if A.size else np.zeros(0, complex)
+    scale = max(1.0, float(np.max(np.abs(eig), initial=0.0)))
+    out = []
+    for lam in eig:
+        if dt:
+            r = abs(lam)
+            if r >= 1.0:
+                lam = lam / r * min(1.0 / r, 0.999) if r > 0 else lam
+        else:
+            re = -abs(lam.real)
+            if re > -1e-6 * scale:
+                re = -1e-3 * scale
+            lam = complex(re, lam.imag)
+        out.append(complex(lam))
+    speed = (lambda z: -np.log(max(abs(z), 1e-300))) if dt else abs
+    return sorted(out, key=lambda z: (speed(z), z.imag))
+
+
+def spread_poles(pool: list[complex], count: int) -> np.ndarray:
+    """``count`` poles from ``pool`` evenly spread from slow to fast, conjugate pairs kept
+    together (a pair that does not fit becomes a real pole of the same speed)."""
+    units, used = [], set()
+    for z in pool:  # real poles, and one entry per conjugate pair (Im > 0)
+        if abs(z.imag) <= 1e-12 * max(1.0, abs(z)):
+            units.append([complex(z.real, 0.0)])
+        elif z.imag > 0:
+            units.append([z, np.conj(z)])
+    if count <= 0 or not units:
+        return np.zeros(0, complex) if count <= 0 else np.full(count, -1.0 + 0j)
+    out: list[complex] = []
+    for target in np.linspace(0, len(units) - 1, count):
+        if len(out) >= count:
+            break
+        free = [i for i in range(len(units)) if i not in used] or list(range(len(units)))
+        i = min(free, key=lambda j: abs(j - target))
+        used.add(i)
+        unit = units[i]
+        if len(unit) == 2 and len(out) + 2 > count:
+            z = unit[0]
+            unit = [complex(-abs(z), 0.0) if z.real < 0 or abs(z) > 1 else complex(abs(z), 0.0)]
+        out.extend(unit)
+    return np.array(out[:count])
+
+
+def pole_chooser(model: FDIModel, poles, sdeg):
+    """``count ↦ poles`` for a filter row of that degree.
+
+    With neither ``poles`` nor ``sdeg`` the rows take the plant's own (stabilised)
+    eigenvalues, spread from slow to fast (:func:`plant_pole_pool`): a row
+    ``N(λ)/d(λ)`` whose denominator shares the plant's dynamics responds to faults with a
+    nearly flat gain (for a row of full degree n, ``r = y_i - G_i u`` exactly), instead of a
+    spike that dies away (a much faster filter) or a sluggish integral.
+    """
+    if poles is None and sdeg is None:
+        pool = plant_pole_pool(model.A, model.dt)
+        return lambda count: spread_poles(pool, count)
+    s = (0.0 if model.dt else -1.0) if sdeg is None else float(sdeg)
+    return lambda count: pick_poles(poles, s, count)
 
 
 def pick_poles(poles, sdeg: float, count: int) -> np.ndarray:

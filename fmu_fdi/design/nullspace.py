@@ -25,8 +25,7 @@ from ..errors import DesignError
 from ..generator import ResidualGenerator
 from ..lti import LTI, frequency_grid, vstack
 from ..model import FDIModel
-from ._basis import (NullspaceBasis, check_poles, default_poles, minimal_basis, normal_rank, pick_poles,
-                     realize_rows)
+from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective
 from .approximate import coouter_inverse, gap_objective
 
@@ -137,8 +136,10 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     poles : array_like, optional
         Poles of the filter (a conjugate-closed set); missing ones are placed at ``sdeg``.
     sdeg : float, optional
-        Default pole: at the plant's speed, ``-median |λ_i(A)|`` in continuous time and
-        ``median |λ_i(A)|`` (at most 0.99) in discrete time (see ``_basis.default_poles``).
+        Pole for the rows beyond the given ``poles`` (default -1, or 0 in discrete time).
+        With neither ``poles`` nor ``sdeg`` each row takes poles from the plant's own
+        stabilised eigenvalues, spread from slow to fast, which keeps its fault response
+        nearly flat over frequency (``_basis.pole_chooser``).
     freqs : array_like, optional
         Frequencies (rad/s) at which every fault must be *strongly* detectable
         (``|Rf_j(jω)| > 0``); the combination is chosen with these gains in its objective.
@@ -182,13 +183,13 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
             f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
             f"output direction (normal rank of Gd = {basis.rank_d} = number of outputs {model.ny})"
         )
-    sdeg = default_poles(model.A, model.dt) if sdeg is None else float(sdeg)
+    choose = pole_chooser(model, poles, sdeg)
     seen = detectability_by_rows(model, basis, FDtol)
     if model.faults and not np.all(seen.max(axis=0) > FDtol):
         raise undetectable_error(model, seen > FDtol)
     if model.nw and noise == "optimize":
-        return _approximate(model, basis, rdim, poles, sdeg, FDtol, tol, seed)
-    return _exact(model, basis, seen > FDtol, rdim, poles, sdeg, freqs, FDGainTol, seed)
+        return _approximate(model, basis, rdim, choose, FDtol, tol, seed)
+    return _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed)
 
 
 def _grid(model: FDIModel, roots_lam: np.ndarray, freqs) -> np.ndarray:
@@ -203,7 +204,7 @@ def _points(model: FDIModel, omega: np.ndarray) -> np.ndarray:
     return 1j * omega
 
 
-def _exact(model, basis, seen, rdim, poles, sdeg, freqs, FDGainTol, seed) -> ResidualGenerator:
+def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed) -> ResidualGenerator:
     rows = basis.rows
     order = np.argsort([r.degree for r in rows], kind="stable")
     rows = [rows[i] for i in order]
@@ -213,12 +214,12 @@ def _exact(model, basis, seen, rdim, poles, sdeg, freqs, FDGainTol, seed) -> Res
     fcols = fault_columns(model)
 
     if rdim == "all":
-        dens = [pick_poles(poles, sdeg, r.degree) / basis.rho for r in rows]
+        dens = [choose(r.degree) / basis.rho for r in rows]
         # Each row has its own denominator of its degree: the stacked order Σ ν_i is the
         # McMillan degree of a minimal basis, so no reduction is needed.
         Q = realize_rows([r.coef for r in rows], dens, basis.rho, model.dt)
         return _finish(model, Q, basis, "nullspace", {"order": int(sum(degrees)), "rdim": len(rows)},
-                       [r.degree for r in rows], poles, sdeg)
+                       [r.degree for r in rows])
 
     freqs = None if freqs is None else np.atleast_1d(np.asarray(freqs, float))
     if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
@@ -230,7 +231,7 @@ def _exact(model, basis, seen, rdim, poles, sdeg, freqs, FDGainTol, seed) -> Res
         if model.faults and not np.all(seen[:k].max(axis=0)):
             continue
         cand = rows[:k]
-        roots = pick_poles(poles, sdeg, nu)
+        roots = choose(nu)
         den_mu = roots / basis.rho
         grid = _grid(model, roots, freqs)
         lam = _points(model, grid)
@@ -264,7 +265,7 @@ def _exact(model, basis, seen, rdim, poles, sdeg, freqs, FDGainTol, seed) -> Res
         Q = realize_rows(coefs, [den_mu] * len(coefs), basis.rho, model.dt)
         info = {"order": int(Q.n), "rdim": len(coefs), "combination": H.tolist(),
                 "fault_sensitivity_estimate": fsc}
-        gen = _finish(model, Q, basis, "nullspace", info, degrees, roots, sdeg)
+        gen = _finish(model, Q, basis, "nullspace", info, degrees)
         return gen
     raise DesignError(
         f"rdim = {rdim} residuals requested but the null space of [Gu Gd; I 0] has only "
@@ -272,7 +273,7 @@ def _exact(model, basis, seen, rdim, poles, sdeg, freqs, FDGainTol, seed) -> Res
     )
 
 
-def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degrees, poles, sdeg,
+def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degrees,
             scale_rows: bool = True) -> ResidualGenerator:
     """Normalise each residual to unit peak fault gain (scale-free designs read better)."""
     gen = ResidualGenerator(Q, model, method)
@@ -288,7 +289,7 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
     return gen
 
 
-def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, poles, sdeg, FDtol, tol, seed):
+def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, tol, seed):
     exact_w = model.with_disturbances(noise=True)
     try:
         basis2 = minimal_basis(exact_w, tol)
@@ -296,14 +297,14 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, poles, sdeg, FDto
     except DesignError:
         basis2, seen2 = None, np.zeros((0, len(model.faults)))
     if basis2 is not None and basis2.rows and (not model.faults or np.all(seen2.max(axis=0) > FDtol)):
-        gen = _exact(exact_w, basis2, seen2 > FDtol, rdim, poles, sdeg, None, 0.01, seed)
+        gen = _exact(exact_w, basis2, seen2 > FDtol, rdim, choose, None, 0.01, seed)
         gen = ResidualGenerator(gen.Q, model, "nullspace", info=gen.info)
         gen.info["gap_estimate"] = float("inf")
         gen.info["noise"] = "decoupled exactly"
         return gen
 
     def realize_all(b):
-        dens = [pick_poles(poles, sdeg, r.degree) / b.rho for r in b.rows]
+        dens = [choose(r.degree) / b.rho for r in b.rows]
         return realize_rows([r.coef for r in b.rows], dens, b.rho, model.dt)
 
     Q0 = realize_all(basis)
@@ -356,4 +357,4 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, poles, sdeg, FDto
     info = {"order": int(Q.n), "rdim": int(H.shape[0]), "gap_estimate": min(objective(h) for h in H),
             "noise": "co-outer normalised" if normalized else "weighted by the filter poles",
             "combination": H.tolist()}
-    return _finish(model, Q, basis, "nullspace", info, basis.degrees, poles, sdeg)
+    return _finish(model, Q, basis, "nullspace", info, basis.degrees)

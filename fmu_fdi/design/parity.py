@@ -105,8 +105,8 @@ def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None 
                 k = len(rows) if rdim is None else int(rdim)
                 if k > len(rows):
                     raise DesignError(f"rdim = {k} but there are only {len(rows)} parity relations of order {s}")
-                gen = _exact(model, basis, seen, k if k < len(rows) else "all", np.zeros(s), 0.0, None, 0.01,
-                             seed)
+                gen = _exact(model, basis, seen, k if k < len(rows) else "all", lambda c: np.zeros(c, complex),
+                             None, 0.01, seed)
                 gen.method = "parity"
                 gen.info.update({"mode": "exact", "parity_order": s,
                                  "parity_matrix": np.array([r.coef[:, : model.ny].ravel() for r in rows]).tolist()})

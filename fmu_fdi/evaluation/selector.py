@@ -125,7 +125,7 @@ def impulse_norms(H: LTI, tail_tol: float, max_taps: int) -> tuple[np.ndarray, f
 
 def threshold_selector(gen: ResidualGenerator, evaluation: dict, *, J0: float, plants=None, delta_u=None,
                        Ts: float | None = None, margin: float = 1.0, tail_tol: float = 1e-3,
-                       max_taps: int = 5000) -> ThresholdDesign:
+                       max_taps: int = 5000, bound: str = "auto") -> ThresholdDesign:
     """Adaptive threshold ``J_th = J0 + a ||u||`` covering every plant in an uncertainty set.
 
     Parameters
@@ -143,6 +143,11 @@ def threshold_selector(gen: ResidualGenerator, evaluation: dict, *, J0: float, p
         evaluators only).
     margin : float
         Multiplies the bound (≥ 1) to cover plants between the samples of a non-convex set.
+    bound : {'auto', 'l2', 'linf'}
+        'auto': the ℓ2 bounds for ``ewrms``/``rms``, the majorant for the others. 'linf':
+        the ℓ∞ majorant for any norm-based evaluation — also valid for ``rms``/``ewrms``
+        (monotone and subadditive) and much tighter when the uncertain dynamics are slow
+        compared with the window, where the windowed ℓ2 bound pays ``sqrt((N+M)/N)``.
 
     Returns
     -------
@@ -163,10 +168,16 @@ def threshold_selector(gen: ResidualGenerator, evaluation: dict, *, J0: float, p
     model = gen.model
     Qy = gen.Q[:, : model.ny]
     kind = evaluation.get("kind")
+    if bound not in ("auto", "l2", "linf"):
+        raise DesignError(f"bound must be 'auto', 'l2' or 'linf', got {bound!r}")
+    if bound == "l2" and kind not in ("rms", "ewrms"):
+        raise DesignError(f"an l2 bound needs an rms or ewrms evaluation, not {kind!r}")
+    if bound == "linf" and kind not in ("norm", "peak", "narendra", "rms", "ewrms"):
+        raise DesignError(f"an l-infinity majorant needs a norm-based evaluation, not {kind!r}")
     G0 = model.lti("u")
     H = [] if plants is None else [(Qy @ (_discrete_plant(p, Ts) - G0)).minreal() for p in plants]
 
-    if kind == "ewrms":
+    if kind == "ewrms" and bound != "linf":
         lam = float(evaluation["lambda"])
         if delta_u is not None:
             raise DesignError("the ewrms guarantee needs the plants (a bound on the circle |z| = sqrt(lambda))")
@@ -186,7 +197,7 @@ def threshold_selector(gen: ResidualGenerator, evaluation: dict, *, J0: float, p
                                "ewrms(r) <= J0 + a ewrms(||u||) at every sample for every plant in the set "
                                "(zero initial state); J0 covers noise and unknown inputs",
                                {"a": a, "plants": len(H)})
-    if kind == "rms":
+    if kind == "rms" and bound != "linf":
         N = int(evaluation["window"])
         if H:
             a = max(Hi.hinfnorm()[0] for Hi in H)
@@ -204,7 +215,7 @@ def threshold_selector(gen: ResidualGenerator, evaluation: dict, *, J0: float, p
                                f"rms_N(r) <= J0 + a sqrt((N+M)/N) rms_(N+M)(||u||) for inputs within the last "
                                f"N+M = {N + M} samples; older inputs contribute at most {tail_tol:g} of the "
                                f"impulse response's l1 norm", {"a": a, "settling": M, "plants": len(H)})
-    if kind in ("norm", "peak", "narendra"):
+    if kind in ("norm", "peak", "narendra", "rms", "ewrms"):
         if not H:
             raise DesignError(f"the '{kind}' evaluation needs the plants: a frequency bound gives no pointwise bound")
         taps_list, tails = zip(*(impulse_norms(Hi, tail_tol, max_taps) for Hi in H))

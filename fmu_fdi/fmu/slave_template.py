@@ -22,7 +22,9 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 from .engine import DiagnoserRuntime, StepSizeError
 from .slave_base import FdiSlave
 
-_DESIGN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "design.json")
+# The design is read from *this instance's* resources folder: a host may run an FMU again after
+# deleting the first extraction, while pythonfmu keeps the module imported from it.
+_PACKAGE = __package__
 
 
 class __CLASS__(FdiSlave):
@@ -31,7 +33,7 @@ class __CLASS__(FdiSlave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        with open(_DESIGN, encoding="utf-8") as fh:
+        with open(os.path.join(self.resources, _PACKAGE, "design.json"), encoding="utf-8") as fh:
             design = json.load(fh)
         self.rt = DiagnoserRuntime(design)
         self._nostate_faults = [f["name"] for f in design.get("faults", [])]
