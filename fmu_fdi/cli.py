@@ -4,6 +4,7 @@
   fmu-fdi design MODEL --method M ... -o DESIGN.json
   fmu-fdi build DESIGN.json -o FDI.fmu
   fmu-fdi plants build [--out DIR]
+  fmu-fdi plot OUT.csv -o PLOT.png [--design DESIGN.json]
   fmu-fdi demo [--out DIR]
   fmu-fdi simulate --plant P.fmu --diagnoser FDI.fmu --stop T --step Ts [--fault SPEC ...] -o OUT.csv
 """
@@ -183,6 +184,35 @@ def _design(args) -> int:
     return 0
 
 
+def _plot(args) -> int:
+    import json
+
+    from .cosim import Result
+    from .report import plot_diagnosis
+
+    res = Result.from_csv(args.result)
+    prefix = args.prefix
+    if prefix is None:  # the diagnoser instance of a co-simulation result, or none for Diagnoser.run
+        hits = [n[: -len("fault_detected")] for n in res.dtype.names if n.endswith("fault_detected")]
+        if len(hits) != 1:
+            raise DesignError(f"{args.result}: give --prefix, found diagnoser outputs under {hits or 'no prefix'}")
+        prefix = hits[0]
+    faults = []
+    if args.design:
+        faults = [f["name"] for f in json.loads(open(args.design, encoding="utf-8").read())["faults"]]
+    path = plot_diagnosis(res, args.output, prefix=prefix, fault_names=faults, title=str(args.result))
+    t = res["time"]
+    det = res[f"{prefix}fault_detected"].astype(bool)
+    iso = res[f"{prefix}isolated_fault"]
+    first = float(t[det][0]) if det.any() else None
+    named = sorted({int(v) for v in iso if v != 0})
+    label = {0: "none", -1: "unknown"}
+    names = [label.get(v) or (faults[v - 1] if faults and v <= len(faults) else str(v)) for v in named]
+    print(f"wrote {path}; first alarm at t = {first if first is not None else '-'} s; isolated as: "
+          f"{', '.join(names) or '-'}")
+    return 0
+
+
 def _demo(args) -> int:
     from .demo import run_demo
 
@@ -218,6 +248,13 @@ def build_parser() -> argparse.ArgumentParser:
     pb = pl_sub.add_parser("build", help="build every benchmark plant FMU")
     pb.add_argument("--out", default="out", help="output folder (default: out)")
     pb.set_defaults(func=_plants_build)
+
+    pp = sub.add_parser("plot", help="PNG of residuals, thresholds, alarms and isolation from a result CSV")
+    pp.add_argument("result", help="CSV from 'fmu-fdi simulate' or Result.to_csv")
+    pp.add_argument("-o", "--output", required=True, help="PNG to write")
+    pp.add_argument("--prefix", help="column prefix of the diagnoser outputs (default: found)")
+    pp.add_argument("--design", help="design file, to label the isolated faults by name")
+    pp.set_defaults(func=_plot)
 
     dm = sub.add_parser("demo", help="the three-tank demo: plant FMU, diagnoser design, diagnostic FMU, "
                                      "co-simulations, table and plot")

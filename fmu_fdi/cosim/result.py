@@ -69,12 +69,22 @@ class Result(np.ndarray):
 
     @classmethod
     def from_csv(cls, path) -> "Result":
-        """Read a CSV written by :meth:`to_csv` (every column comes back as float64)."""
+        """Read a CSV written by :meth:`to_csv` or by ``fmpy simulate`` (Booleans as
+        True/False); every column comes back as float64."""
         with open(path, newline="") as f:
             rows = list(csv.reader(f))
         names = [h.strip().strip('"') for h in rows[0]]
-        data = np.array([[float(x) for x in r] for r in rows[1:] if r], dtype=float).reshape(-1, len(names))
+        data = np.array([[_number(x) for x in r] for r in rows[1:] if r], dtype=float).reshape(-1, len(names))
         out = np.zeros(len(data), dtype=[(n, np.float64) for n in names])
         for j, n in enumerate(names):
             out[n] = data[:, j]
         return cls(out)
+
+
+def _number(text: str) -> float:
+    text = text.strip()
+    if text in ("True", "true"):
+        return 1.0
+    if text in ("False", "false"):
+        return 0.0
+    return float(text)
