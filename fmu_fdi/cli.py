@@ -24,7 +24,7 @@ METHODS = {
     "luenberger": ("luenberger", ("poles",)),
     "kalman": ("kalman", ("Qw", "Rv")),
     "uio": ("unknown_input_observer", ("poles",)),
-    "fdf": ("fault_detection_filter", ("poles",)),
+    "fdf": ("fault_detection_filter", ("poles", "faults")),
     "factorized": ("factorized", ("poles",)),
     "dos": ("dedicated_bank", ("kind", "poles")),
     "gos": ("generalized_bank", ("kind", "poles")),
@@ -45,7 +45,9 @@ model's for a discrete model, otherwise --ts is required.
               sensor gain errors via the threshold selector) | analytic:ALPHA[,STD] (false-alarm
               probability ALPHA per sample for white noise inputs w of standard deviation STD,
               default 1) | data:RATE (false-alarm rate RATE, 95 % confidence, from the fault-free
-              record given with --calibrate CSV: columns time and the model's u and y names)
+              record given with --calibrate CSV: columns time and the model's u and y names) |
+              sigma:ALPHA (residuals in standard deviations, e.g. RLS: sqrt of the chi-square
+              quantile 1-ALPHA of the group size; the default for --method rls with 'norm')
 """
 
 
@@ -93,6 +95,11 @@ def _thresholds(text: str, gen, evaluation: dict, calibrate=None):
 
     kind, _, arg = text.partition(":")
     try:
+        if kind == "sigma":
+            from scipy.stats import chi2
+
+            alpha = float(arg)
+            return [float(np.sqrt(chi2.ppf(1 - alpha, len(g)))) for g in gen.groups]
         if kind == "analytic":
             parts = [float(x) for x in arg.split(",")]
             alpha, std = parts[0], (parts[1] if len(parts) > 1 else 1.0)
@@ -119,7 +126,7 @@ def _thresholds(text: str, gen, evaluation: dict, calibrate=None):
         if isinstance(exc, (DesignError, ModelError)):
             raise
     raise DesignError(f"cannot read threshold {text!r}: use fault-size:F, fixed:V, sensor-gain:DELTA,J0, "
-                      f"analytic:ALPHA[,STD] or data:RATE")
+                      f"analytic:ALPHA[,STD], data:RATE or sigma:ALPHA")
 
 
 def _read_record(path, model):
@@ -161,9 +168,13 @@ def _design(args) -> int:
         if not args.structure:
             raise DesignError("--method structured needs --structure '1,0,1;0,1,1' (rows ; separated)")
         kw["S"] = np.array([[int(x) for x in row.split(",")] for row in args.structure.split(";")])
+    if "faults" in takes and args.faults:
+        kw["faults"] = args.faults
     if "Qw" in takes:
-        kw["Qw"] = np.diag(args.Qw) if args.Qw else None
-        kw["Rv"] = np.diag(args.Rv) if args.Rv else None
+        # defaults: the model's noise inputs w are unit white noise (their size is in Bw,
+        # Dw) and there is no measurement noise beyond them
+        kw["Qw"] = np.diag(args.Qw) if args.Qw else np.eye(model.nw)
+        kw["Rv"] = np.diag(args.Rv) if args.Rv else np.zeros((model.ny, model.ny))
     if "ts_design" in takes and not model.is_discrete:
         if args.ts is None:
             raise DesignError(f"--method {args.method} designs in discrete time: give --ts for a continuous model")
@@ -173,13 +184,18 @@ def _design(args) -> int:
         if args.ts is None:
             raise DesignError("the model is continuous: give the diagnosis sample time --ts")
         gen = gen.to_discrete(args.ts)
-    evaluation = parse_evaluation(args.evaluation)
-    thresholds = _thresholds(args.threshold, gen, evaluation, args.calibrate)
+    if args.method == "rls":  # residuals are deviations in standard deviations
+        evaluation = parse_evaluation(args.evaluation or "norm")
+        thresholds = _thresholds(args.threshold or "sigma:1e-4", gen, evaluation, args.calibrate)
+    else:
+        evaluation = parse_evaluation(args.evaluation or "rms:10")
+        thresholds = _thresholds(args.threshold or "fault-size:1", gen, evaluation, args.calibrate)
     decision = {"persistence": [int(x) for x in args.persistence.split("/")], "latch": args.latch}
     dg = Diagnoser(gen, evaluation=evaluation, thresholds=thresholds, decision=decision, name=args.name)
     path = dg.save(args.output)
+    order = gen.Q.n if hasattr(gen, "Q") else "-"
     print(f"wrote {path}: method {gen.method}, {gen.n_residuals} residual(s) in {len(gen.groups)} group(s), "
-          f"order {gen.Q.n if hasattr(gen, 'Q') else '-'}, Ts = {gen.dt:g} s, isolation "
+          f"order {order}, Ts = {gen.dt:g} s, isolation "
           f"'{dg.design['decision']['isolation']}'")
     return 0
 
@@ -278,8 +294,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--structure", help="structure matrix for --method structured, rows separated by ';'")
     d.add_argument("--Qw", type=float, nargs="+", help="Kalman: noise variances (diagonal of Qw)")
     d.add_argument("--Rv", type=float, nargs="+", help="Kalman: measurement noise variances (diagonal of Rv)")
-    d.add_argument("--evaluation", default="rms:10", help="evaluation function (default rms:10)")
-    d.add_argument("--threshold", default="fault-size:1", help="threshold (default fault-size:1)")
+    d.add_argument("--evaluation", help="evaluation function (default rms:10; norm for rls)")
+    d.add_argument("--threshold", help="threshold (default fault-size:1; sigma:1e-4 for rls)")
+    d.add_argument("--faults", nargs="+", help="fdf: the faults to give fixed directions (state-entering ones)")
     d.add_argument("--calibrate", help="fault-free record (CSV) for --threshold data:RATE")
     d.add_argument("--persistence", default="1/1", help="alarm persistence k/n (default 1/1)")
     d.add_argument("--latch", action="store_true", help="latch alarms until reset")

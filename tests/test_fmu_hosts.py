@@ -8,6 +8,7 @@ O(10) double operations per step on values of order 1, so they may differ by a f
 """
 import importlib.util
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -329,6 +330,12 @@ def test_c_host_environment_is_needed(work, tmp_path):
     def run_without(name):
         env = hosts.c_host_env()
         del env[name]
+        # An embedded interpreter without PYTHONHOME/PYTHONPATH hints resolves its prefix from
+        # the first "python" on PATH: inside an activated virtual environment (as in CI) it
+        # finds that environment by itself. Drop this environment's bin folder from PATH to
+        # show what a host outside it gets.
+        venv_bin = str(Path(sys.executable).parent)
+        env["PATH"] = os.pathsep.join(p for p in env.get("PATH", "").split(os.pathsep) if p != venv_bin)
         return subprocess.run([str(exe), str(unzip), str(work["csv"]), str(tmp_path / "o.csv"), repr(H)], env=env,
                               capture_output=True, text=True, timeout=60)
 

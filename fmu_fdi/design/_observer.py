@@ -107,14 +107,34 @@ def _conjugate_closed(p: np.ndarray) -> bool:
 
 
 def default_poles(count: int, dt: float, A: np.ndarray) -> np.ndarray:
-    """Distinct real poles: ``-ρ (1 + k/count)`` with ρ = max(1, ||A||₂) in continuous
-    time (about as fast as the fastest plant mode), radii ``k / (2 count)`` in discrete time
-    (the first deadbeat). Distinct values keep the placement free of Jordan blocks."""
-    k = np.arange(count)
-    if dt:
-        return (k / (2.0 * max(count, 1))).astype(complex)
-    rho = max(1.0, float(np.linalg.norm(A, 2)) if A.size else 1.0)
-    return (-rho * (1.0 + k / max(count, 1))).astype(complex)
+    """Distinct poles twice as fast as the plant's own (stabilised) modes.
+
+    The plant's eigenvalues, mirrored into the stability region and spread from slow to
+    fast (:func:`fmu_fdi.design._basis.plant_pole_pool`), are made twice as fast (``2 λ``
+    in continuous time, ``λ²`` in discrete time) — the usual rule for an observer — and
+    nudged apart by a few per cent where they coincide, so the placement has no Jordan
+    blocks. Tied to the plant's modes rather than to ``||A||``, they stay assignable for
+    stiff models whose matrix norm dwarfs their dynamics.
+    """
+    from ._basis import plant_pole_pool, spread_poles
+
+    if count <= 0:
+        return np.zeros(0, complex)
+    base = spread_poles(plant_pole_pool(A, dt), count) if A.size else np.full(count, -1.0 + 0j)
+    fast = base**2 if dt else 2.0 * base
+
+    def nudged(q, k):  # k-th variant of q: a few per cent faster, still stable
+        if dt:
+            return q * (1 - 0.05 * k) if abs(q) > 0 else complex(0.05 * k, 0.0)
+        return q * (1 + 0.05 * k)
+
+    out: list[complex] = []
+    for q in fast:
+        k = 0
+        while any(abs(nudged(q, k) - o) <= 1e-9 * max(1.0, abs(q)) for o in out):
+            k += 1
+        out.append(nudged(q, k))
+    return np.array(out, complex)
 
 
 def match_modes(values, targets) -> np.ndarray:
@@ -267,12 +287,15 @@ def _place_dual(Ao: np.ndarray, Co: np.ndarray, poles: np.ndarray, dt: float) ->
     rank_c = np.linalg.matrix_rank(Co)
     mult = max(int(np.sum(poles == q)) for q in poles)
     if mult <= rank_c:
-        with warnings.catch_warnings():
-            # "convergence not reached" only means the eigenvector conditioning could be
-            # improved further; the poles themselves are placed exactly (checked by the caller).
-            warnings.simplefilter("ignore", UserWarning)
-            res = place_poles(Ao.T, Co.T, _ordered(poles), method="YT")
-        return res.gain_matrix.T, "KNV/YT (scipy place_poles)"
+        try:
+            with warnings.catch_warnings():
+                # "convergence not reached" only means the eigenvector conditioning could be
+                # improved further; the poles themselves are placed exactly (checked by the caller).
+                warnings.simplefilter("ignore", UserWarning)
+                res = place_poles(Ao.T, Co.T, _ordered(poles), method="YT")
+            return res.gain_matrix.T, "KNV/YT (scipy place_poles)"
+        except (ValueError, np.linalg.LinAlgError):
+            pass  # scipy judged the pair uncontrollable numerically: try the Schur method
     import slycot
 
     n_o, p = Co.shape[1], Co.shape[0]
@@ -280,8 +303,12 @@ def _place_dual(Ao: np.ndarray, Co: np.ndarray, poles: np.ndarray, dt: float) ->
     # SB01BD leaves eigenvalues with Re < alpha (|z| < alpha) alone: put alpha below them all.
     alpha = 0.0 if dt else float(np.min(eig.real)) - 1.0
     w = _ordered(poles)
-    _, _, _, nap, nup, F, _ = slycot.sb01bd(n_o, p, n_o, alpha, Ao.T.copy(), Co.T.copy(), w.copy(),
-                                            "D" if dt else "C")
+    try:
+        _, _, _, nap, nup, F, _ = slycot.sb01bd(n_o, p, n_o, alpha, Ao.T.copy(), Co.T.copy(), w.copy(),
+                                                "D" if dt else "C")
+    except Exception as exc:  # slycot raises its own error types
+        raise DesignError(f"pole placement failed for the poles {fmt_modes(poles)}: {exc}; the pair is "
+                          f"numerically close to unobservable — rescale the model or choose other poles") from None
     if nap != n_o:
         raise DesignError(f"Schur pole placement assigned only {nap} of {n_o} poles ({nup} modes detected "
                           f"as unobservable): the pair is too close to unobservable")

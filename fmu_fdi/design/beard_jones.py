@@ -60,7 +60,7 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
         space), ..., ``k_q`` roots of ``p_q``, then the assignable remainder. Each fault's
         block must be closed under conjugation. The count is ``Σ k_i`` plus the number of
         modes observable from the projected output; a wrong count raises an error that
-        gives both. Default: distinct real poles about as fast as the plant.
+        gives both. Default: distinct poles twice as fast as the plant's modes.
     faults : list of str, optional
         The faults to give directions to (default: all faults of the model). Other faults
         are not constrained: they move r in no particular direction.

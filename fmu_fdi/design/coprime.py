@@ -45,7 +45,7 @@ def factorized(model: FDIModel, poles=None, normalized: bool = False, post_filte
         Continuous or discrete (factorised directly in discrete time).
     poles : array_like, optional
         Poles of the factors (eigenvalues of ``A − L C``; as many as ``(A, C)`` has
-        observable modes). Default: distinct real poles about as fast as the plant. Not
+        observable modes). Default: distinct poles twice as fast as the plant's modes. Not
         allowed with ``normalized=True``, which fixes them.
     normalized : bool
         Use the normalised left coprime factorisation (``M̂ M̂~ + N̂ N̂~ = I``).

@@ -19,7 +19,7 @@ from ..model import FDIModel
 from ._observer import as_matrix, observer_gain, observer_generator, output_observer, residual_names
 
 
-def luenberger(model: FDIModel, poles, V=None) -> ResidualGenerator:
+def luenberger(model: FDIModel, poles=None, V=None) -> ResidualGenerator:
     """Output-observer residual ``r = V (y − C x̂ − Du u)`` with ``eig(A − L C)`` at ``poles``.
 
     Parameters
@@ -29,8 +29,8 @@ def luenberger(model: FDIModel, poles, V=None) -> ResidualGenerator:
         time, ``x̂[k+1] = A x̂[k] + Bu u[k] + L (y[k] − ŷ[k])``).
     poles : array_like
         Observer poles, closed under conjugation, stable. Exactly as many as ``(A, C)`` has
-        observable modes (``n`` for an observable pair); ``None`` picks distinct real poles
-        about as fast as the plant (:func:`~fmu_fdi.design._observer.default_poles`).
+        observable modes (``n`` for an observable pair); ``None`` picks distinct poles
+        twice as fast as the plant's modes (:func:`~fmu_fdi.design._observer.default_poles`).
     V : array_like, optional
         Static output weighting (k × p, default the identity): r has k components.
 

@@ -49,8 +49,8 @@ def unknown_input_observer(model: FDIModel, poles=None) -> ResidualGenerator:
         discrete (designed directly in discrete time).
     poles : array_like, optional
         Eigenvalues of ``F = T A − K1 C``: as many as ``(C, T A)`` has observable modes (n
-        when observable), stable, closed under conjugation. Default: distinct real poles
-        about as fast as the plant.
+        when observable), stable, closed under conjugation. Default: distinct poles twice as
+        fast as the plant's modes.
 
     Returns
     -------

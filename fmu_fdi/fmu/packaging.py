@@ -36,14 +36,22 @@ BASE_MODULES = ("slave_base.py", "slave_state.py")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
-# The class is *defined* here, not just imported, and its methods matter: on every
-# fmi2Instantiate pythonfmu 0.7.0 (findClass in PySlaveInstance.cpp) re-executes this file into
-# the module's namespace and then Py_DECREFs that namespace dict although it only borrowed it.
-# Functions created by the re-execution keep a reference to the dict each, so two methods
-# more than balance the stray decrement; a loader that only imports the class loses the dict
-# on the second instantiation in a process ("module has no attribute ...", fmi2Instantiate
-# returns NULL).
+# pythonfmu 0.7.0 (findClass in PySlaveInstance.cpp) imports this file as a module, then on
+# every fmi2Instantiate executes it again into the module's namespace and Py_DECREFs that
+# namespace dict although it only borrowed it. Each stray decrement eats a reference the
+# module owns; after a few instantiations (or at interpreter finalisation, in a C host) the
+# dict is freed while still in use: "module has no attribute ...", fmi2Instantiate returning
+# NULL, or "free(): corrupted unsorted chunks" when the process exits. Every execution of the
+# loader therefore parks one more reference to its own namespace in a list that lives as
+# long as the interpreter, which exactly balances the stray decrement (the first import adds
+# one reference more: the dict is never freed, a deliberate leak of one small dict). The
+# class is defined here, with methods, for the same reason (functions hold their globals).
 _LOADER = '''"""Loader for pythonfmu (generated): the slave code lives in the package {lib}."""
+import sys as _sys
+
+# balance pythonfmu 0.7's stray Py_DECREF of this namespace (see fmu_fdi.fmu.packaging)
+_sys.__dict__.setdefault("_fmu_fdi_namespaces", []).append(globals())
+
 from {lib}.{module} import {cls} as _Slave
 
 

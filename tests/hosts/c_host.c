@@ -254,7 +254,18 @@ int main(int argc, char **argv) {
     fclose(out);
     CHECK(terminate(c));
     free_instance(c);
-    dlclose(lib); /* pythonfmu finalizes its interpreter when the library is unloaded */
+    /* pythonfmu 0.7 keeps its interpreter in a global std::shared_ptr whose C++ destructor
+       runs among the exit handlers, *before* the library's own destructor assigns nullptr to
+       it again: a use-after-free at process exit ("free(): corrupted unsorted chunks",
+       depending on the heap layout). dlclose does not unload the library (pythonfmu's
+       interpreter thread pins it). Calling its exported finalizePythonInterpreter() once all
+       instances are freed finalises the interpreter now and leaves the global empty, so the
+       exit-time destructors have nothing left to free. */
+    {
+        void (*finalize)(void) = (void (*)(void))dlsym(lib, "finalizePythonInterpreter");
+        if (finalize) finalize();
+    }
+    dlclose(lib);
     free(xml);
     printf("c_host: %ld steps\n", k);
     return 0;
