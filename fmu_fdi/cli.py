@@ -28,7 +28,7 @@ METHODS = {
     "factorized": ("factorized", ("poles",)),
     "dos": ("dedicated_bank", ("kind", "poles")),
     "gos": ("generalized_bank", ("kind", "poles")),
-    "structured": ("structured_bank", ("structure", "poles")),
+    "structured": ("structured_bank", ("structure", "poles", "faults")),
     "rls": ("rls_estimator", ("order", "ts_design")),
 }
 
@@ -296,7 +296,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--Rv", type=float, nargs="+", help="Kalman: measurement noise variances (diagonal of Rv)")
     d.add_argument("--evaluation", help="evaluation function (default rms:10; norm for rls)")
     d.add_argument("--threshold", help="threshold (default fault-size:1; sigma:1e-4 for rls)")
-    d.add_argument("--faults", nargs="+", help="fdf: the faults to give fixed directions (state-entering ones)")
+    d.add_argument("--faults", nargs="+", help="fdf: the faults to give fixed directions (state-entering ones); "
+                                               "structured: the faults the columns of --structure refer to")
     d.add_argument("--calibrate", help="fault-free record (CSV) for --threshold data:RATE")
     d.add_argument("--persistence", default="1/1", help="alarm persistence k/n (default 1/1)")
     d.add_argument("--latch", action="store_true", help="latch alarms until reset")

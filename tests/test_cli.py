@@ -132,3 +132,34 @@ def test_demo_detects_and_isolates(tmp_path):
     leak = next(ln for key, ln in lines.items() if key.startswith("leak"))
     assert " yes " in leak
     assert (tmp_path / "demo" / "dts200_sensor_h2.png").exists()
+
+
+PLANT_MODEL = Path(__file__).parent.parent / "plant_fmus" / "dts200" / "dts200.toml"
+
+
+@pytest.mark.parametrize("method, extra", [
+    ("nullspace", []), ("parity", []), ("luenberger", []), ("kalman", ["--Rv", "0.01", "0.01", "0.01"]),
+    ("uio", []), ("factorized", []), ("dos", []), ("gos", []), ("rls", []),
+    ("structured", ["--structure", "0,1,1;1,0,1;1,1,0", "--faults", "sensor_h1", "sensor_h2", "sensor_h3"]),
+])
+def test_design_every_method_on_a_plant_model_file(tmp_path, method, extra):
+    out = tmp_path / "d.json"
+    res = cli("design", PLANT_MODEL, "--method", method, "--ts", "1", "-o", out, *extra)
+    assert res.returncode == 0, res.stderr
+    from fmu_fdi import Diagnoser
+
+    assert Diagnoser.load(out).design["generator"]["method"] in (method, "unknown_input_observer",
+                                                                 "fault_detection_filter", "rls")
+
+
+def test_fdf_on_the_tanks_names_the_faults_it_cannot_separate(tmp_path):
+    """The Beard–Jones filter needs mutually detectable state faults: the two pumps are (one
+    direction each in 3 outputs); adding all three leaks exceeds the three outputs."""
+    res = cli("design", PLANT_MODEL, "--method", "fdf", "--faults", "pump_Q1", "pump_Q2", "--ts", "1",
+              "-o", tmp_path / "ok.json")
+    assert res.returncode == 0, res.stderr
+    res = cli("design", PLANT_MODEL, "--method", "fdf", "--ts", "1", "-o", tmp_path / "bad.json")
+    assert res.returncode == 2 and "acts on the measurements directly" in res.stderr
+    res = cli("design", PLANT_MODEL, "--method", "fdf", "--faults", "pump_Q1", "pump_Q2", "leak_T1", "leak_T2",
+              "--ts", "1", "-o", tmp_path / "bad.json")
+    assert res.returncode == 2 and "not mutually detectable" in res.stderr
