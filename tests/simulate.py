@@ -8,7 +8,27 @@ so a residual that must vanish is only rounding away from zero.
 """
 import numpy as np
 
-from fmu_fdi.lti import LTI
+
+def _inputs(model, N, u, d, w, f) -> np.ndarray:
+    """[u d w f] samples (N × channels), missing groups zero."""
+    sig = []
+    for arr, k in ((u, model.nu), (d, model.nd), (w, model.nw), (f, model.nf)):
+        sig.append(np.zeros((N, k)) if arr is None else np.asarray(arr, float).reshape(N, k))
+    return np.hstack(sig)
+
+
+def _run(sys, Ts, v, x0=None) -> np.ndarray:
+    """Outputs of a (continuous → ZOH-discretised, or discrete) system driven by rows of v."""
+    if not sys.is_discrete:
+        if Ts is None:
+            raise ValueError("Ts is needed for a continuous model")
+        sys = sys.to_discrete(Ts)
+    x = np.zeros(sys.n) if x0 is None else x0
+    out = np.empty((v.shape[0], sys.p))
+    for k in range(v.shape[0]):
+        out[k] = sys.C @ x + sys.D @ v[k]
+        x = sys.A @ x + sys.B @ v[k]
+    return out
 
 
 def cascade_residual(gen, N, Ts=None, u=None, d=None, w=None, f=None, x0_plant=None):
@@ -19,36 +39,13 @@ def cascade_residual(gen, N, Ts=None, u=None, d=None, w=None, f=None, x0_plant=N
     """
     m = gen.model
     cascade = gen.Q @ m.augmented()  # states: plant first, then filter
-    if not cascade.is_discrete:
-        if Ts is None:
-            raise ValueError("Ts is needed for a continuous model")
-        cascade = cascade.to_discrete(Ts)
-    sig = []
-    for arr, k in ((u, m.nu), (d, m.nd), (w, m.nw), (f, m.nf)):
-        sig.append(np.zeros((N, k)) if arr is None else np.asarray(arr, float).reshape(N, k))
-    v = np.hstack(sig)
-    x = np.zeros(cascade.n)
+    x0 = None
     if x0_plant is not None:
-        x[: m.n] = x0_plant
-    out = np.empty((N, cascade.p))
-    for k in range(N):
-        out[k] = cascade.C @ x + cascade.D @ v[k]
-        x = cascade.A @ x + cascade.B @ v[k]
-    return out
+        x0 = np.zeros(cascade.n)
+        x0[: m.n] = x0_plant
+    return _run(cascade, Ts, _inputs(m, N, u, d, w, f), x0)
 
 
 def plant_outputs(model, N, Ts=None, u=None, d=None, w=None, f=None):
     """Plant outputs y (N × ny) under the same ZOH inputs (for signal-size references)."""
-    G = model.lti()
-    if not G.is_discrete:
-        G = G.to_discrete(Ts)
-    sig = []
-    for arr, k in ((u, model.nu), (d, model.nd), (w, model.nw), (f, model.nf)):
-        sig.append(np.zeros((N, k)) if arr is None else np.asarray(arr, float).reshape(N, k))
-    v = np.hstack(sig)
-    x = np.zeros(G.n)
-    out = np.empty((N, G.p))
-    for k in range(N):
-        out[k] = G.C @ x + G.D @ v[k]
-        x = G.A @ x + G.B @ v[k]
-    return out
+    return _run(model.lti(), Ts, _inputs(model, N, u, d, w, f))
