@@ -8,10 +8,31 @@ that went through a few orthogonal transformations before the test.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import scipy.linalg as sla
 
 EPS = np.finfo(float).eps
+
+
+def single_blas_thread(fn):
+    """Run ``fn`` with one BLAS/LAPACK thread.
+
+    Design code works on matrices of at most a few hundred rows, where threaded BLAS gains
+    nothing and, on a loaded machine, its spin-waiting threads cost up to 50x (measured on
+    the n = 200 benchmark: 0.35 s single-threaded, 19 s with default threads next to one
+    other busy process on 2 cores).
+    """
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=1, user_api="blas"):
+            return fn(*args, **kwargs)
+
+    return wrapper
 
 
 def default_rtol(shape) -> float:

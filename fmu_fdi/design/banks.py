@@ -20,11 +20,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DesignError
+from ..linalg import single_blas_thread
 from ..generator import ResidualBank, ResidualGenerator
 from ..model import FDIModel
 from .nullspace import nullspace_design
 
 
+@single_blas_thread
 def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, noise: str = "optimize",
                     FDtol: float = 1e-4, tol: float | None = None, seed: int = 0) -> ResidualBank:
     """One least-order residual per row of the structure matrix ``S``.

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import DesignError
+from ..linalg import single_blas_thread
 from ..generator import ResidualGenerator
 from ..lti import LTI, frequency_grid, vstack
 from ..model import FDIModel
@@ -117,6 +118,7 @@ def _normalize_rows(Q: LTI, scale: np.ndarray) -> LTI:
     return LTI(Q.A, Q.B, S @ Q.C, S @ Q.D, Q.dt)
 
 
+@single_blas_thread
 def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: float | None = None,
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
                      tol: float | None = None, seed: int = 0) -> ResidualGenerator:

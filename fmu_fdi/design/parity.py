@@ -30,13 +30,14 @@ import scipy.linalg as sla
 
 from ..errors import DesignError
 from ..generator import ResidualGenerator
-from ..linalg import left_null, rank_tol
+from ..linalg import left_null, rank_tol, single_blas_thread
 from ..lti import LTI
 from ..model import FDIModel
 from ._basis import NullspaceBasis, ParityData, PolyRow, _block_toeplitz, realize_rows
 from .nullspace import _exact, detectability_by_rows, undetectable_error
 
 
+@single_blas_thread
 def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None = None, rdim: int | None = None,
                  robust: str | bool = "auto", FDtol: float = 1e-4, tol: float | None = None,
                  seed: int = 0) -> ResidualGenerator:
