@@ -182,6 +182,27 @@ def test_luenberger_unobservable_but_detectable():
         luenberger(m, [-3, -4, -6])
 
 
+@pytest.mark.parametrize("discrete", [False, True])
+def test_observers_with_redundant_sensors(discrete):
+    # Two sensors on one state (a row of C twice, as the wind-turbine benchmark's pitch and
+    # speed sensors): rank C < p. The placement works on the row space of C; it used to hand
+    # the rank-deficient C to scipy's place_poles, which raised a bare ValueError.
+    base = plant()
+    C = np.vstack([base.C, base.C[:1]])
+    m = FDIModel.from_matrices(base.A, base.Bu, C, np.vstack([base.Du, base.Du[:1]]), Bd=base.Bd,
+                               u_names=base.u_names, y_names=base.y_names + ["y1b"], d_names=base.d_names,
+                               faults=[f for f in base.faults if f.kind != "sensor"]
+                               + [sensor_fault("sens1b", "y1b")], name="redundant")
+    m = m.discretize(TS) if discrete else m
+    poles = cpoles(m, [-2, -3, -4 + 1j, -4 - 1j])
+    gen = luenberger(m, poles)
+    assert_poles(gen, poles)
+    assert Ru_norm(gen) < DECOUPLED
+    for other in (unknown_input_observer(m), fault_detection_filter(m, faults=["act1", "leak3"])):
+        assert other.Q.is_stable() and Ru_norm(other) < DECOUPLED
+    assert_silent(gen)
+
+
 def test_luenberger_errors():
     m = plant()
     good = [-2, -3, -4, -5]

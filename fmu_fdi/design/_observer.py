@@ -285,6 +285,13 @@ def _place_dual(Ao: np.ndarray, Co: np.ndarray, poles: np.ndarray, dt: float) ->
     from scipy.signal import place_poles
 
     rank_c = np.linalg.matrix_rank(Co)
+    if rank_c < Co.shape[0]:
+        # Redundant sensors (dependent rows of C): place_poles needs a full-rank input
+        # matrix, so place through the row space, Co = U_r U_rᵀ Co, and map the gain back:
+        # Ao − L_r (U_rᵀ Co) = Ao − (L_r U_rᵀ) Co.
+        Ur = sla.svd(Co)[0][:, :rank_c]
+        Lr, method = _place_dual(Ao, Ur.T @ Co, poles, dt)
+        return Lr @ Ur.T, method
     mult = max(int(np.sum(poles == q)) for q in poles)
     if mult <= rank_c:
         try:
