@@ -224,7 +224,9 @@ class LTI:
 
         The orthogonal staircase keeps the computation backward stable; ``tol`` is the
         rank tolerance of the staircase (SLICOT's default ``n*n*eps*||[A B; C 0]||`` when
-        None).
+        None). The triplet is balanced first (SLICOT TB01ID, ``equil="S"``): without it the
+        rank decisions failed on badly scaled rows, e.g. the sampled row of three identical
+        pitch systems kept two unobservable states.
         """
         n, m, p = self.n, self.m, self.p
         if n == 0:
@@ -238,7 +240,7 @@ class LTI:
         B[:, :m] = self.B
         C = np.zeros((mp, n))
         C[:p, :] = self.C
-        Ar, Br, Cr, nr = slycot.tb01pd(n, m, p, self.A.copy(), B, C, job=job, equil="N",
+        Ar, Br, Cr, nr = slycot.tb01pd(n, m, p, self.A.copy(), B, C, job=job, equil="S",
                                        tol=0.0 if tol is None else tol)
         return LTI(Ar[:nr, :nr], Br[:nr, :m], Cr[:p, :nr], self.D, self.dt)
 

@@ -93,6 +93,22 @@ def test_feedthrough_adds_b_0_and_mimo_gives_one_group_per_output():
     assert one.residual_names == ["a1", "b1_1", "b2_1"] and one.input_names == ["ya", "yb", "u1", "u2"]
 
 
+def test_identical_subsystems_each_estimated_at_their_own_order():
+    # Three identical second-order systems sampled with a zero-order hold (the wind-turbine
+    # pitch model): the row of output i must reduce to order 2. The minimal realisation did
+    # not balance the triplet before SLICOT's staircase, whose rank decisions then kept 4
+    # states: a singular regression ("not identifiable").
+    block = LTI([[0.0, 1.0], [-123.4321, -13.332]], [[0.0], [123.4321]], [[1.0, 0.0]], [[0.0]]).to_discrete(0.01)
+    A = np.kron(np.eye(3), block.A)
+    m = FDIModel.from_matrices(A, np.kron(np.eye(3), block.B), np.kron(np.eye(3), block.C), dt=0.01)
+    est = rls_estimator(m, output="y1")
+    assert est.info["order"] == [2]
+    assert est.residual_names == ["a1", "a2", "b1_1", "b1_2", "b2_1", "b2_2", "b3_1", "b3_2"]
+    # z² + a1 z + a2 is the sampled block's characteristic polynomial (rounding of a 2x2 eig: 1e-12)
+    assert np.allclose([est.info["theta0"]["a1"], est.info["theta0"]["a2"]], np.poly(np.linalg.eigvals(block.A))[1:],
+                       atol=1e-12)
+
+
 def test_rls_is_not_an_lti_generator():
     est = rls_estimator(arx_model())
     with pytest.raises(TypeError, match="RLS is not an LTI generator"):
