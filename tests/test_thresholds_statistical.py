@@ -16,7 +16,7 @@ How the checks are made exact enough to be binomial:
 import numpy as np
 import pytest
 import scipy.linalg as sla
-from scipy import signal, stats
+from scipy import integrate, signal, stats
 
 from fmu_fdi import FDIModel, LTI, ResidualGenerator, kalman
 from fmu_fdi.evaluation import analytic_threshold, data_driven_threshold, residual_autocovariance
@@ -133,6 +133,20 @@ def test_satterthwaite_uses_the_exact_moments(spec, weights):
     expected = np.sqrt(var / (2 * mean) * stats.chi2.isf(0.01, 2 * mean**2 / var))
     got = analytic_threshold(observer_generator(), spec, 0.01, noise_cov=[1.0, MEAS], method="satterthwaite")
     assert got == pytest.approx(expected, rel=1e-8)
+
+
+@pytest.mark.parametrize("x", [540.0, 600.0, 650.0, 700.0, 800.0])
+def test_imhof_with_hundreds_of_weights(x):
+    # Q = χ²_400 + ½ χ²'_400 (mean 600, sd 35), the size of an rms window of 200 samples of a
+    # 4-dim residual. Its characteristic-function amplitude 1/(u ρ(u)) overflowed (1/exp(...)),
+    # and where φ(u) oscillates as fast as the Fourier weight of the tail integral (x near Σλ)
+    # QAWF returned 0.5 whatever x was.
+    lam = np.r_[np.ones(400), np.full(400, 0.5)]
+    exact, _ = integrate.quad(lambda a: stats.chi2.pdf(a, 400) * stats.chi2.sf(2 * (x - a), 400), 0, x,
+                              epsabs=1e-14, limit=200)
+    exact += stats.chi2.sf(x, 400)
+    # both routes integrate smooth functions to ~1e-13 absolute; P ≥ 5e-9 here
+    assert imhof_sf(x, lam) == pytest.approx(exact, rel=1e-4)
 
 
 def test_scalar_norm_threshold_is_sigma_z():
