@@ -135,7 +135,10 @@ def residual_covariance(gen: ResidualGenerator, *, noise_cov=None, disturbance_c
     if not cols:
         raise ValueError("give noise_cov, disturbance_cov and/or measurement_cov: the residual's covariance comes "
                          "from them")
-    R = (gen.Q @ aug)[rows, cols].minreal()
+    # Only the plant modes the noise reaches belong in R: composing the whole plant and leaving
+    # minreal to cancel the rest failed for unstable modes (an open-loop unstable plant with
+    # measurement noise only was called "not stable").
+    R = (gen.Q[rows, :] @ aug[:, cols].minreal(job="C")).minreal()
     V = sla.block_diag(*covs)
     if R.n and np.max(np.abs(R.poles())) >= 1.0:
         raise ValueError(f"the residual's response to the noise is not stable (largest pole modulus "
