@@ -16,7 +16,7 @@ import pytest
 
 import published as pub
 from fdi_plant import build_plant
-from fmu_fdi import Diagnoser, build_fmu, nullspace_design, parity_space
+from fmu_fdi import Diagnoser, FDIModel, build_fmu, nullspace_design, parity_space, rls_estimator
 from fmu_fdi.designfile import DesignFileError
 from fmu_fdi.fmu import hosts
 from simulate import plant_outputs
@@ -176,6 +176,24 @@ def test_nan_burst_sets_input_invalid_and_recovers(ex53):
     assert_matches(res, ref, ex53["outputs"])
     assert res["input_invalid"][31:37].all() and res["input_invalid"][41] and not res["input_invalid"][50:].any()
     assert np.all(np.isfinite(res["residual_1"]))
+
+
+def test_alarm_events_name_the_isolation_the_fmu_outputs(ex53, tmp_path):
+    # The event message read the alarm of the last group as fault_detected and fault_detected as
+    # isolated_fault: an alarm without isolation (one group) was logged "isolated as" the first
+    # fault, and a design without faults (RLS) failed its step with an IndexError.
+    t, u, y = ex53["t"], ex53["u"], ex53["y"]
+    ans = hosts.run_fmu2slave(ex53["fmu"], as_inputs(t, u, y), step=TS, log_categories=["logFdiEvents"])
+    events = [m for _, _, m in ans["log"]]
+    assert ex53["ref"]["fault_detected"].any() and events
+    assert all("isolated as" not in m for m in events)
+    assert any("fault detected, not isolated" in m for m in events)
+    m = FDIModel.from_matrices([[0.9]], [[0.5]], [[1.0]], dt=TS, u_names=["u"], y_names=["y1"])
+    rls = Diagnoser(rls_estimator(m, warmup=2), thresholds=1e-9)  # alarms as soon as it runs
+    fmu = build_fmu(rls, tmp_path / "rls.fmu")
+    ans = hosts.run_fmu2slave(fmu, as_inputs(t, u, y[:, :1], names=("u", "y1")), step=TS,
+                              log_categories=["logFdiEvents"])
+    assert set(ans["statuses"]) <= {0} and any("fault detected" in m for _, _, m in ans["log"])
 
 
 def test_odd_step_sizes(ex53, tmp_path):

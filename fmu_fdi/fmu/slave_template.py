@@ -82,9 +82,9 @@ class __CLASS__(FdiSlave):
             self.invalid_count += 1
             self.log_event(f"t={current_time:g}: invalid (NaN/Inf) input sample; diagnosis held", "logFdiInput",
                            Fmi2Status.warning)
-        detected = out[-4] != 0.0
+        detected = out[-3] != 0.0  # outputs end with fault_detected, isolated_fault, input_invalid
         if detected != self.last_detected:
-            iso = int(out[-3])
+            iso = int(out[-2])
             what = "fault detected" if detected else "alarm cleared"
             if detected and iso > 0:
                 what += f", isolated as '{self._nostate_faults[iso - 1]}'"
