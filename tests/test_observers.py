@@ -474,6 +474,18 @@ def test_fault_detection_filter_default_poles_and_fixed_mode():
     assert np.allclose(np.abs(gen.info["fault_directions"]["f"]), [0, 1])
 
 
+@pytest.mark.parametrize("discrete", [False, True])
+def test_fault_detection_filter_default_poles_with_complex_plant_modes(discrete):
+    # The defaults follow the plant's modes (complex here); a detection space of order 1 took
+    # one of a conjugate pair and the design failed ("not closed under complex conjugation").
+    m = plant(discrete)
+    assert np.any(np.abs(np.linalg.eigvals(m.A).imag) > 0)
+    gen = fault_detection_filter(m, faults=["act1", "leak3"])
+    lam = gen.Q.poles()
+    assert gen.Q.is_stable() and np.all(np.abs(np.asarray(gen.info["poles"]).imag) == 0)
+    assert Ru_norm(gen) < DECOUPLED and lam.size == m.n
+
+
 def test_fault_detection_filter_errors():
     m = plant()
     with pytest.raises(DesignError) as err:  # default faults include the sensor fault

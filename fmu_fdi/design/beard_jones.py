@@ -116,7 +116,9 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
     _check_mutual(G, names, p)
     nk = int(sum(orders))
 
-    defaults = default_poles(n, model.dt, A)  # distinct over the whole filter: no accidental Jordan blocks
+    # distinct over the whole filter (no accidental Jordan blocks) and real: a detection space of
+    # order 1 cannot hold a conjugate pair of the plant-speed defaults
+    defaults = _real_speeds(default_poles(n, model.dt, A), model.dt)
     if poles is None:
         given = None
         blocks = np.split(defaults[:nk], np.cumsum(orders)[:-1])
@@ -231,6 +233,18 @@ def _check_mutual(G: np.ndarray, names: list[str], p: int) -> None:
         f"the faults {dependent} are not mutually detectable: their output directions C f* are linearly "
         f"dependent (rank C F* = {rank(Gn)} < {q} faults){why}, so the filter cannot give each of them its own "
         f"fixed direction. Give directions to fewer faults (faults=...) or add sensors")
+
+
+def _real_speeds(poles: np.ndarray, dt: float) -> np.ndarray:
+    """Real poles as fast as ``poles`` (``|z|`` in discrete, ``−|λ|`` in continuous time), made
+    distinct by a few per cent where a conjugate pair collapses onto one value."""
+    out: list[complex] = []
+    for q in poles:
+        r = abs(q) if dt else -abs(q)
+        while any(abs(r - o) <= 1e-9 * max(1.0, abs(r)) for o in out):
+            r = r * 0.95 if dt else r * 1.05
+        out.append(complex(r))
+    return np.array(out, complex)
 
 
 def _poly_times(A: np.ndarray, f: np.ndarray, roots: np.ndarray) -> np.ndarray:
