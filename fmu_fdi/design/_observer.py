@@ -137,15 +137,6 @@ def default_poles(count: int, dt: float, A: np.ndarray) -> np.ndarray:
     return np.array(out, complex)
 
 
-def match_modes(values, targets) -> np.ndarray:
-    """``values`` with one nearest entry removed for each target (multiset difference)."""
-    rest = list(np.asarray(values, complex))
-    for t in np.asarray(targets, complex):
-        if rest:
-            rest.pop(int(np.argmin([abs(v - t) for v in rest])))
-    return np.array(rest, complex)
-
-
 def pole_error(achieved, requested) -> float:
     """Largest distance between achieved and requested poles after nearest matching."""
     rest = list(np.asarray(achieved, complex))

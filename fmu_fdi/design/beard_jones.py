@@ -44,7 +44,7 @@ from ..errors import DesignError
 from ..generator import ResidualGenerator
 from ..linalg import default_rtol, rank, right_null
 from ..model import FDIModel
-from ._observer import (check_pole_set, default_poles, detectable_split, fmt_modes, match_modes, observer_gain,
+from ._observer import (check_pole_set, default_poles, detectable_split, fmt_modes, observer_gain,
                         observer_generator, output_observer, residual_names)
 
 
@@ -140,7 +140,20 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
     fixed_reason = ("they lie outside the detection spaces and the projected output (I − Π) y cannot see them: "
                     "they are invariant zeros of the fault channels (A, f_i, C) (White & Speyer 1987), which no "
                     "detection filter with these fault directions can move")
-    _, n_o, _ = detectable_split(A0, Cbar, model.dt, what="the Beard–Jones filter", fixed_reason=fixed_reason)
+    # The detection spaces W are (A - D1 C)-invariant and invisible to the projected output by
+    # construction (C W ⊂ range C F*), so the remaining modes live on the quotient: with
+    # T = [W, W⊥] orthogonal, A0 is block upper triangular and only (W⊥ᵀ A0 W⊥, Cbar W⊥) is
+    # left to place. Working there keeps a rank decision from calling detection-space modes
+    # observable (it did with redundant sensors, where Cbar has a structurally zero row).
+    Wdet = np.column_stack([np.linalg.matrix_power(A, j) @ f for f, k in zip(fvec, orders) for j in range(k)])
+    Qw, _ = sla.qr(Wdet)
+    Wperp = Qw[:, nk:]
+    leak = np.linalg.norm(Wperp.T @ A0 @ Qw[:, :nk]) if nk and n > nk else 0.0
+    if leak > 1e-6 * max(1.0, np.linalg.norm(A0, 2)):
+        raise DesignError(f"the detection spaces are not invariant under A - D1 C (leak {leak:.3g}): the fault "
+                          f"directions are too close to dependent for this placement")
+    A_R, C_R = Wperp.T @ A0 @ Wperp, Cbar @ Wperp
+    _, n_o, _ = detectable_split(A_R, C_R, model.dt, what="the Beard–Jones filter", fixed_reason=fixed_reason)
     rest = defaults[nk:nk + n_o]
     if given is not None:
         rest = given[nk:]
@@ -149,8 +162,8 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
                 f"{given.size} poles given but the Beard–Jones filter assigns {nk + n_o}: {nk} for the detection "
                 f"spaces (k = {dict(zip(names, orders))}) and {n_o} through the projected output"
                 + (f"; the other {n - nk - n_o} modes are fixed" if n - nk - n_o else ""))
-    gain = observer_gain(A0, Cbar, rest, model.dt, what="the Beard–Jones filter", fixed_reason=fixed_reason)
-    Dgain = D1 + gain.L @ Uperp.T
+    gain = observer_gain(A_R, C_R, rest, model.dt, what="the Beard–Jones filter", fixed_reason=fixed_reason)
+    Dgain = D1 + Wperp @ gain.L @ Uperp.T
     Q = output_observer(model, Dgain)
 
     detection_roots = np.concatenate(blocks)
@@ -161,7 +174,7 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
         "detector_directions": {nm: v.tolist() for nm, v in zip(names, fstar)},
         "gain": Dgain.tolist(),
         "poles": np.concatenate([detection_roots, gain.poles]).tolist(),
-        "fixed_modes": match_modes(gain.fixed, detection_roots).tolist(),
+        "fixed_modes": np.asarray(gain.fixed).tolist(),  # the quotient's unobservable modes only
         "placement": gain.method,
         # Large values (≳ 1e6) mean a fault direction is nearly invisible: the exact
         # directions then rest on a large gain, and rounding in r grows with it.
