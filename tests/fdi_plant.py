@@ -5,7 +5,6 @@ with u = sin(2π t) and 0.5 step faults from t = 0.05 (both faults, as in A7); i
 u, y1, y2 at a communication point are functions of the state and time only, so every
 host reproduces them exactly. Built with fmu_fdi.fmu.packaging (unique bundle name).
 """
-import numpy as np
 
 from fmu_fdi.fmu.packaging import build_slave_fmu
 

@@ -47,7 +47,6 @@ def test_fault_detection_filter_isolates_by_direction_with_margin():
     gen = fault_detection_filter(model, poles=[0.9, 0.8, 0.7])
     dg = Diagnoser(gen, evaluation={"kind": "norm"}, thresholds=0.01)
     assert dg.design["decision"]["isolation"] == "direction"
-    t = np.arange(N) * 1.0
     u = np.full((N, 2), 20.0)
     for j, name in enumerate(model.fault_names):
         y = plant_outputs(model, N, u=u, f=_step_fault(model, name, 5.0, 50))

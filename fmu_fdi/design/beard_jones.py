@@ -44,7 +44,7 @@ from ..errors import DesignError
 from ..generator import ResidualGenerator
 from ..linalg import default_rtol, rank, right_null
 from ..model import FDIModel
-from ._observer import (check_pole_set, default_poles, detectable_split, fmt_modes, observer_gain,
+from ._observer import (check_pole_set, default_poles, detectable_split, observer_gain,
                         observer_generator, output_observer, residual_names)
 
 

@@ -31,9 +31,8 @@ import scipy.linalg as sla
 from ..errors import DesignError
 from ..generator import ResidualGenerator
 from ..linalg import left_null, rank_tol, single_blas_thread
-from ..lti import LTI
 from ..model import FDIModel
-from ._basis import NullspaceBasis, ParityData, PolyRow, _block_toeplitz, realize_rows
+from ._basis import NullspaceBasis, ParityData, _block_toeplitz, realize_rows
 from .nullspace import _exact, detectability_by_rows, undetectable_error
 
 

@@ -130,7 +130,6 @@ def _table(rows, names, variables):
 
 
 def cmd_libcosim(spec):
-    from libcosimpy.CosimEnums import CosimVariableType
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimObserver import CosimObserver
     from libcosimpy.CosimSlave import CosimLocalSlave
