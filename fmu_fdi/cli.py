@@ -131,18 +131,15 @@ def _thresholds(text: str, gen, evaluation: dict, calibrate=None):
 
 def _read_record(path, model):
     """A CSV record with a time column and the model's u and y columns (by name)."""
-    import csv
+    from .cosim import Result
 
-    with open(path, newline="", encoding="utf-8") as fh:
-        rows = list(csv.reader(fh))
-    head = [h.strip().strip('"') for h in rows[0]]
+    rec = Result.from_csv(path)
+    head = list(rec.dtype.names)
     missing = [n for n in ["time"] + list(model.u_names) + list(model.y_names) if n not in head]
     if missing:
         raise DesignError(f"{path}: columns {missing} are missing (found {head})")
-    data = np.array([[float(x) for x in r] for r in rows[1:] if r], float)
-    col = {n: data[:, head.index(n)] for n in head}
-    u = np.column_stack([col[n] for n in model.u_names]) if model.nu else np.zeros((len(data), 0))
-    return col["time"], u, np.column_stack([col[n] for n in model.y_names])
+    u = np.column_stack([rec[n] for n in model.u_names]) if model.nu else np.zeros((len(rec), 0))
+    return np.asarray(rec["time"]), u, np.column_stack([rec[n] for n in model.y_names])
 
 
 def _design(args) -> int:
