@@ -261,12 +261,17 @@ class Evaluator:
         k = self.kind
         if k in MONOTONE:
             return self.step_sq(sum(x * x for x in r.tolist()))
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow → inf/NaN, caught by finite() (S1)
+            return self._step_statistical(r)
+
+    def _step_statistical(self, r: np.ndarray) -> float:
+        k = self.kind
         if k == "chi2":
             w = self.W @ r
             self.ring.push(float(w @ w))
             v = max(self.ring.sum, 0.0)
         elif k == "cusum":
-            z = (self.W @ r).tolist()  # Python floats: an overflow is inf without a numpy warning
+            z = (self.W @ r).tolist()
             d = self.delta
             for i in range(self.dim):
                 self.gp[i] = max(0.0, self.gp[i] + d * z[i] - 0.5 * d * d)
@@ -279,10 +284,9 @@ class Evaluator:
                 self.hist.pop(0)
             acc = np.zeros(self.dim)
             best = 0.0
-            with np.errstate(over="ignore", invalid="ignore"):  # a non-finite sum is caught by finite()
-                for j, h in enumerate(reversed(self.hist)):
-                    acc += h
-                    best = max(best, float(acc @ acc) / (2.0 * (j + 1)))
+            for j, h in enumerate(reversed(self.hist)):
+                acc += h
+                best = max(best, float(acc @ acc) / (2.0 * (j + 1)))
             v = best
         self.value = v
         return v
