@@ -36,10 +36,11 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from ..errors import DesignError
+from . import C_DIR, RUNTIME_HEADERS, RUNTIME_SOURCES
 
-C_DIR = Path(__file__).resolve().parent / "c"
+GLUE_SOURCES = ("fdi_glue.c", "fdi_glue.h")
 BOOLEAN_OUTPUTS = ("fault_detected", "input_invalid", "numeric_reset")
-CFLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror")
+CFLAGS = ("-std=c99", "-pedantic", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror")
 PLATFORM = {2: "linux64", 3: "x86_64-linux"}
 FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
                3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
@@ -153,9 +154,9 @@ def model_header(design: dict, identifier: str, token: str) -> str:
 
 def design_source(design: dict) -> str:
     """``design_data.c`` from :mod:`fmu_fdi.native.emit` (raises a DesignError for what C cannot express)."""
-    from . import emit
+    from .emit import emit_design_c
 
-    return emit.emit_design(design)
+    return emit_design_c(design)
 
 
 # ---- model description ----------------------------------------------------------------------------
@@ -326,9 +327,7 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
     cc = find_compiler()  # before any work: no compiler, no file
     headers = _fmi_headers(fmi_version)
     glue = f"fmi{fmi_version}.c"
-    runtime = {p.name: p.read_bytes() for p in sorted(C_DIR.iterdir())
-               if p.suffix in (".c", ".h") and p.name not in ("fmi2.c", "fmi3.c")}
-    runtime[glue] = (C_DIR / glue).read_bytes()
+    runtime = {name: (C_DIR / name).read_bytes() for name in (*RUNTIME_SOURCES, *RUNTIME_HEADERS, *GLUE_SOURCES, glue)}
     data = design_source(design).encode("utf-8")
     ident = identifier_of(design, data.decode(), str(fmi_version),
                           *(f"{k}\n{v.decode()}" for k, v in sorted(runtime.items())))
