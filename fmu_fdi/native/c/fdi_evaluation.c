@@ -103,6 +103,12 @@ int fdi_evaluator_finite(const fdi_evaluator *e)
         for (j = 0; j < e->dim; j++)
             if (!isfinite(e->buf[j]) || !isfinite(e->buf2[j]))
                 return 0;
+    if (e->kind == FDI_EV_GLR && e->i[1] > 0) {   /* the whitened vector stored last */
+        long n = e->cap, last = (long)((e->i[0] + n - 1) % n);
+        for (j = 0; j < e->dim; j++)
+            if (!isfinite(e->buf[(size_t)last * (size_t)e->dim + (size_t)j]))
+                return 0;
+    }
     return 1;
 }
 

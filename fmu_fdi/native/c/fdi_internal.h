@@ -135,7 +135,7 @@ struct fdi_runtime {
     fdi_int *bk_i;
     unsigned char *bk_b;
     double *outputs, *h, *scale, *x;  /* x: LTI generator state (largest order) */
-    fdi_int *n_samples;
+    fdi_int *n_samples, *n_numeric_resets;
     fdi_evaluator *ev;
     fdi_threshold *th;
     fdi_decision dec;

@@ -62,6 +62,7 @@ static void layout_components(fdi_runtime *rt, const fdi_design *d, fdi_slots *s
     rt->scale = fdi_slot_d(s, 1);
     rt->x = d->gen_kind == FDI_GEN_LTI ? fdi_slot_d(s, (size_t)lti_order(d)) : NULL;
     rt->n_samples = fdi_slot_i(s, 1);
+    rt->n_numeric_resets = fdi_slot_i(s, 1);
     for (g = 0; g < d->n_groups; g++) {
         fdi_evaluator tev, *ev = rt->ev ? &rt->ev[g] : &tev;
         fdi_threshold tth, *th = rt->th ? &rt->th[g] : &tth;
@@ -173,15 +174,15 @@ static int make_plan(fdi_runtime *rt, double h, fdi_plan *pl, char *why, size_t 
         return 0;
     }
     ratio = h / Ts;
+    if (ratio > MAX_SUBSTEPS + 0.5) {
+        snprintf(msg, sizeof msg, "step %g s is %.6g design sample times Ts = %g s: more than %d sub-steps per call",
+                 h, ratio, Ts, MAX_SUBSTEPS);
+        say(why, whylen, msg);
+        return 0;
+    }
     k = floor(ratio + 0.5);
     pl->h = h;
     if (k >= 1.0 && fabs(ratio - k) <= STEP_RTOL * k) {
-        if (k > MAX_SUBSTEPS) {
-            snprintf(msg, sizeof msg, "step %g s needs %.0f sub-steps of %g s: more than %d sub-steps per call",
-                     h, k, Ts, MAX_SUBSTEPS);
-            say(why, whylen, msg);
-            return 0;
-        }
         pl->substeps = (fdi_int)k;
         pl->ratio = 1.0;
         pl->native = 1;
@@ -199,10 +200,17 @@ static int make_plan(fdi_runtime *rt, double h, fdi_plan *pl, char *why, size_t 
         say(why, whylen, msg);
         return 0;
     }
-    if (!(h >= Ts / 16.0 && h <= MAX_SUBSTEPS * Ts)) {
-        snprintf(msg, sizeof msg, "step %g s is outside [Ts/16, %d Ts] = [%g, %g] s, where an exact "
-                 "re-discretisation of the continuous design is offered", h, MAX_SUBSTEPS, Ts / 16.0,
-                 MAX_SUBSTEPS * Ts);
+    if (!(ratio >= 1.0 / 16.0 && ratio <= MAX_SUBSTEPS)) {
+        snprintf(msg, sizeof msg, "step %g s is not an integer multiple of the design sample time %g s and outside "
+                 "the re-discretisation range [Ts/16, %d Ts] = [%g, %g] s", h, Ts, MAX_SUBSTEPS, Ts / 16.0,
+                 Ts * MAX_SUBSTEPS);
+        say(why, whylen, msg);
+        return 0;
+    }
+    if (d->n_xc != d->n_x) {
+        snprintf(msg, sizeof msg, "step %g s differs from the design sample time %g s, and the continuous design "
+                 "(order %ld) is not the realisation of the discrete one (order %ld): the generator state cannot "
+                 "carry over", h, Ts, d->n_xc, d->n_x);
         say(why, whylen, msg);
         return 0;
     }
@@ -286,6 +294,7 @@ void fdi_runtime_reset(fdi_runtime *rt)
     fdi_decision_reset(&rt->dec);
     memset(rt->outputs, 0, (size_t)rt->n_out * sizeof(double));
     *rt->n_samples = 0;
+    *rt->n_numeric_resets = 0;
 }
 
 fdi_status fdi_runtime_init(fdi_runtime *rt, const fdi_design *d, size_t nbytes)
@@ -362,7 +371,7 @@ fdi_status fdi_runtime_advance(fdi_runtime *rt, const double *u, const double *y
     long i, nr, ng, nu, ny;
     fdi_int s;
     double unorm = 0.0, *out;
-    int valid = 1, numeric = 0;
+    int valid = 1, ok = 1;
     if (!rt || rt->magic != FDI_MAGIC) {
         say(why, whylen, "runtime not initialised");
         return FDI_ERROR;
@@ -377,40 +386,40 @@ fdi_status fdi_runtime_advance(fdi_runtime *rt, const double *u, const double *y
         int nxt = 1 - rt->cur;
         fdi_plan *np = &rt->plan[nxt];
         double prev_ratio = rt->plan[rt->cur].ratio;
-        long prev_nx = rt->plan[rt->cur].n_x;
         if (!make_plan(rt, h, np, why, whylen))
             return FDI_DISCARD;
         rt->cur = nxt;
         *rt->h = h;
-        if (d->gen_kind == FDI_GEN_LTI && np->n_x != prev_nx)
-            memset(rt->x, 0, (size_t)lti_order(d) * sizeof(double));
         if (np->ratio != prev_ratio)
             reset_stage(rt);
     }
+    out[nr + 3 * ng + 3] = 0.0;
     for (i = 0; i < nu && valid; i++)
-        valid = isfinite(u[i]) && !(u[i] < d->lo[i]) && !(u[i] > d->hi[i]);
+        valid = isfinite(u[i]) && d->lo[i] <= u[i] && u[i] <= d->hi[i];
     for (i = 0; i < ny && valid; i++)
-        valid = isfinite(y[i]) && !(y[i] < d->lo[nu + i]) && !(y[i] > d->hi[nu + i]);
+        valid = isfinite(y[i]) && d->lo[nu + i] <= y[i] && y[i] <= d->hi[nu + i];
     if (!valid) {
         out[nr + 3 * ng + 2] = 1.0;
-        out[nr + 3 * ng + 3] = 0.0;
         return FDI_OK;
     }
-    for (i = 0; i < ny; i++)
+    out[nr + 3 * ng + 2] = 0.0;
+    for (i = 0; i < ny; i++) {
         rt->v[i] = y[i] - d->y0[i];
+        ok = ok && isfinite(rt->v[i]);
+    }
     for (i = 0; i < nu; i++) {
         double du = u[i] - d->u0[i];
         rt->v[ny + i] = du;
         unorm += du * du;
+        ok = ok && isfinite(du);
     }
     unorm = sqrt(unorm);
-    for (s = 0; s < rt->plan[rt->cur].substeps; s++) {
+    ok = ok && isfinite(unorm);
+    for (s = 0; ok && s < rt->plan[rt->cur].substeps; s++) {
         int any = 0;
         if (!sample(rt, unorm)) {
-            reset_generator(rt);
-            reset_stage(rt);
-            numeric = 1;
-            continue;
+            ok = 0;
+            break;
         }
         fdi_decision_step(&rt->dec, rt->evals, rt->thrs, rt->res);
         memcpy(out, rt->res, (size_t)nr * sizeof(double));
@@ -423,8 +432,12 @@ fdi_status fdi_runtime_advance(fdi_runtime *rt, const double *u, const double *y
         out[nr + 3 * ng] = any ? 1.0 : 0.0;
         out[nr + 3 * ng + 1] = (double)*rt->dec.isolated;
     }
-    out[nr + 3 * ng + 2] = 0.0;
-    out[nr + 3 * ng + 3] = numeric ? 1.0 : 0.0;
+    if (!ok) {   /* S1: discard the sub-sample, restart generator, evaluators and thresholds */
+        reset_generator(rt);
+        reset_stage(rt);
+        out[nr + 3 * ng + 3] = 1.0;
+        *rt->n_numeric_resets += 1;
+    }
     *rt->n_samples += 1;
     return FDI_OK;
 }
@@ -434,8 +447,8 @@ const double *fdi_runtime_outputs(const fdi_runtime *rt) { return rt->outputs; }
 fdi_status fdi_runtime_set_threshold_scale(fdi_runtime *rt, double scale, char *why, size_t whylen)
 {
     char msg[128];
-    if (!(isfinite(scale) && scale > 0.0)) {
-        snprintf(msg, sizeof msg, "threshold_scale must be a finite number > 0, got %g", scale);
+    if (!(isfinite(scale) && scale >= 0.0)) {
+        snprintf(msg, sizeof msg, "threshold_scale must be a finite number >= 0, got %g", scale);
         say(why, whylen, msg);
         return FDI_ERROR;
     }
@@ -477,7 +490,7 @@ static int state_sane(fdi_runtime *rt)
 {
     const fdi_plan *pl = &rt->plan[rt->cur];
     long g;
-    if (*rt->n_samples < 0 || !(*rt->scale > 0.0))
+    if (*rt->n_samples < 0 || *rt->n_numeric_resets < 0 || !(*rt->scale >= 0.0))
         return 0;
     for (g = 0; g < rt->d->n_groups; g++)
         if (!fdi_evaluator_check(&rt->ev[g], &pl->ev[g]) || !fdi_threshold_check(&rt->th[g], &pl->thev[g]))
@@ -520,7 +533,7 @@ fdi_status fdi_runtime_set_state(fdi_runtime *rt, const unsigned char *buf, size
         }
     }
     memcpy(&h, buf + STATE_HEADER + (size_t)(rt->h - rt->st.d) * sizeof(double), sizeof h);
-    if (!same_step(h, *rt->h)) {
+    if (h != *rt->h) {   /* exact: the saved step, not one within tolerance */
         if (!make_plan(rt, h, &rt->plan[nxt], why, whylen))
             return FDI_ERROR;
         rt->cur = nxt;
