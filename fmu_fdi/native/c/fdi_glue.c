@@ -124,7 +124,7 @@ int fdi_allowed(fdi_instance *fi, const char *fn, unsigned allowed) {
         }
     }
     fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s called in %s: allowed only in %s%s", fn, fdi_mode_name(fi->mode),
-            list, fi->mode == FDI_M_ERROR ? " (an earlier call failed: fmiReset or free the instance)"
+            list, fi->mode == FDI_M_ERROR ? " (an earlier call failed: reset or free the instance)"
                                           : "; the instance is now in the Error state");
     fi->mode = FDI_M_ERROR;
     return 0;
