@@ -17,7 +17,8 @@ const char *const FDI_CATEGORY_NAMES[FDI_N_CATEGORIES] = {
     "logAll", "logFdiEvents", "logFdiInput", "logFdiState",
 };
 
-static const signed char OUTPUT_KINDS[FDI_N_OUTPUTS > 0 ? FDI_N_OUTPUTS : 1] = FDI_OUTPUT_KINDS;
+const signed char FDI_OUTPUT_KIND_TABLE[FDI_N_OUTPUTS > 0 ? FDI_N_OUTPUTS : 1] = FDI_OUTPUT_KINDS;
+#define OUTPUT_KINDS FDI_OUTPUT_KIND_TABLE
 static const double INPUT_STARTS[FDI_N_INPUTS > 0 ? FDI_N_INPUTS : 1] = FDI_INPUT_STARTS;
 static const char *const VARIABLE_NAMES[] = FDI_VARIABLE_NAMES;  /* by value reference */
 static const char *const FAULT_NAMES[FDI_N_FAULTS > 0 ? FDI_N_FAULTS : 1] = FDI_FAULT_NAMES;
@@ -82,6 +83,7 @@ void fdi_instance_forget(fdi_instance *fi) {
 
 void fdi_instance_reset(fdi_instance *fi) {
     fdi_runtime_reset(fi->rt);
+    fi->outputs = fdi_runtime_outputs(fi->rt);
     memcpy(fi->inputs, INPUT_STARTS, sizeof(double) * FDI_N_INPUTS);
     fi->time = 0.0;
     fi->mode = FDI_M_INSTANTIATED;
@@ -113,10 +115,9 @@ void fdi_log(fdi_instance *fi, int status, int category, const char *fmt, ...) {
     fi->emit(fi->host, fi->name, status, FDI_CATEGORY_NAMES[category], fi->msg);
 }
 
-int fdi_allowed(fdi_instance *fi, const char *fn, unsigned allowed) {
+int fdi_not_allowed(fdi_instance *fi, const char *fn, unsigned allowed) {
     char list[160] = "";
     int m;
-    if (allowed & FDI_ALLOW(fi->mode)) return 1;
     for (m = 0; m <= FDI_M_ERROR; m++) {
         if (allowed & FDI_ALLOW(m)) {
             if (list[0]) strncat(list, ", ", sizeof list - strlen(list) - 1);
@@ -172,7 +173,7 @@ int fdi_get(fdi_instance *fi, const char *fn, int kind, unsigned vr, double *val
     if (vr == FDI_VR_TIME) *value = fi->time;
     else if (vr < FDI_VR_SCALE) *value = fi->inputs[vr - FDI_VR_INPUT0];
     else if (vr == FDI_VR_SCALE) *value = fdi_runtime_threshold_scale(fi->rt);
-    else *value = fdi_runtime_outputs(fi->rt)[vr - FDI_VR_OUTPUT0];
+    else *value = fi->outputs[vr - FDI_VR_OUTPUT0];
     return FDI_S_OK;
 }
 
@@ -218,6 +219,7 @@ int fdi_do_step(fdi_instance *fi, const char *fn, double t, double h) {
     fdi_status s;
     fi->why[0] = 0;
     s = fdi_runtime_advance(fi->rt, fi->inputs, fi->inputs + nu, h, fi->why, sizeof fi->why);
+    fi->outputs = fdi_runtime_outputs(fi->rt);
     if (s == FDI_DISCARD) {
         fdi_log(fi, FDI_S_DISCARD, FDI_C_DISCARD, "%s at t=%.17g, step %.17g refused: %s (nothing changed)", fn, t,
                 h, fi->why);
@@ -229,7 +231,7 @@ int fdi_do_step(fdi_instance *fi, const char *fn, double t, double h) {
         return FDI_S_ERROR;
     }
     fi->time = t + h;
-    out = fdi_runtime_outputs(fi->rt);
+    out = fi->outputs;
     if (out[FDI_IDX_INPUT_INVALID] != 0.0)
         fdi_log(fi, FDI_S_WARNING, FDI_C_INPUT, "t=%g: invalid (NaN/Inf) input sample; diagnosis held", t);
 #if FDI_IDX_NUMERIC_RESET >= 0
@@ -315,11 +317,14 @@ int fdi_image_check(fdi_instance *fi, const unsigned char *buf, size_t len, cons
 int fdi_image_set(fdi_instance *fi, const unsigned char *buf, size_t len, const char *fn) {
     const unsigned char *p;
     size_t i, rt_len;
+    fdi_status s;
     if (fdi_image_check(fi, buf, len, fn) != FDI_S_OK) return FDI_S_ERROR;
     rt_len = len - IMAGE_HEADER - 8 * (size_t)FDI_N_INPUTS - 8;
     p = buf + IMAGE_HEADER + 8 * (size_t)FDI_N_INPUTS + 8;
     fi->why[0] = 0;
-    if (fdi_runtime_set_state(fi->rt, p, rt_len, fi->why, sizeof fi->why) != FDI_OK) {
+    s = fdi_runtime_set_state(fi->rt, p, rt_len, fi->why, sizeof fi->why);
+    fi->outputs = fdi_runtime_outputs(fi->rt);
+    if (s != FDI_OK) {
         fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s: FMU state refused: %s (instance unchanged)", fn, fi->why);
         return FDI_S_ERROR;
     }

@@ -54,6 +54,7 @@ typedef struct fdi_instance {
     double time;
     double *inputs;               /* FDI_N_INPUTS values: u then y */
     fdi_runtime *rt;
+    const double *outputs;        /* fdi_runtime_outputs(rt), refreshed after every runtime call */
     char *name;
     fdi_emit_fn emit;
     fdi_alloc_fn alloc;
@@ -82,13 +83,33 @@ void fdi_log(fdi_instance *fi, int status, int category, const char *fmt, ...)
 #endif
     ;
 /* Is function fn allowed in the current mode? If not: log the reason, enter FDI_M_ERROR, 0. */
-int fdi_allowed(fdi_instance *fi, const char *fn, unsigned allowed);
+int fdi_not_allowed(fdi_instance *fi, const char *fn, unsigned allowed);
+static inline int fdi_allowed(fdi_instance *fi, const char *fn, unsigned allowed) {
+    return (allowed & FDI_ALLOW(fi->mode)) ? 1 : fdi_not_allowed(fi, fn, allowed);
+}
 const char *fdi_mode_name(int mode);
 int fdi_set_logging(fdi_instance *fi, int on, size_t n, const char *const categories[], const char *fn);
 
 /* Variable access by value reference; kind is the type the host asks for. */
 int fdi_get(fdi_instance *fi, const char *fn, int kind, unsigned vr, double *value);
 int fdi_set(fdi_instance *fi, const char *fn, int kind, unsigned vr, double value);
+/* The common cases inline (an output of the right kind, a plant input); everything else,
+ * errors included, through fdi_get / fdi_set. */
+extern const signed char FDI_OUTPUT_KIND_TABLE[];
+static inline int fdi_get_fast(fdi_instance *fi, int kind, unsigned vr, double *value) {
+    if (vr - FDI_VR_OUTPUT0 < (unsigned)FDI_N_OUTPUTS && FDI_OUTPUT_KIND_TABLE[vr - FDI_VR_OUTPUT0] == kind) {
+        *value = fi->outputs[vr - FDI_VR_OUTPUT0];
+        return 1;
+    }
+    return 0;
+}
+static inline int fdi_set_fast(fdi_instance *fi, int kind, unsigned vr, double value) {
+    if (kind == FDI_KIND_REAL && vr - FDI_VR_INPUT0 < (unsigned)FDI_N_INPUTS) {
+        fi->inputs[vr - FDI_VR_INPUT0] = value;
+        return 1;
+    }
+    return 0;
+}
 /* The step; returns FDI_S_OK, FDI_S_DISCARD (reason logged; nothing changed) or FDI_S_ERROR. */
 int fdi_do_step(fdi_instance *fi, const char *fn, double t, double h);
 

@@ -172,7 +172,8 @@ fmi2Status fmi2Reset(fmi2Component c) {
             return fmi2Error;                                                                                    \
         }                                                                                                        \
         for (i = 0; i < nvr; i++) {                                                                              \
-            if (vr[i] == FDI_VR_TIME || fdi_get(fi, #NAME, KIND, vr[i], &v) != FDI_S_OK) {                       \
+            if (!fdi_get_fast(fi, KIND, vr[i], &v) &&                                                            \
+                (vr[i] == FDI_VR_TIME || fdi_get(fi, #NAME, KIND, vr[i], &v) != FDI_S_OK)) {                     \
                 if (vr[i] == FDI_VR_TIME)                                                                        \
                     fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, #NAME ": no variable has value reference 0");          \
                 return fmi2Error;                                                                                \
@@ -208,7 +209,9 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
                 fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, #NAME ": no variable has value reference 0");              \
                 return fmi2Error;                                                                                \
             }                                                                                                    \
-            if (fdi_set(fi, #NAME, KIND, vr[i], (double)value[i]) != FDI_S_OK) return fmi2Error;                 \
+            if (!fdi_set_fast(fi, KIND, vr[i], (double)value[i]) &&                                              \
+                fdi_set(fi, #NAME, KIND, vr[i], (double)value[i]) != FDI_S_OK)                                   \
+                return fmi2Error;                                                                                \
         }                                                                                                        \
         return fmi2OK;                                                                                           \
     }

@@ -233,7 +233,9 @@ fmi3Status fmi3Reset(fmi3Instance instance) {
         GUARD(#NAME, GETTABLE);                                                                                  \
         CHECK_ARRAYS(#NAME)                                                                                      \
         for (i = 0; i < nValueReferences; i++) {                                                                 \
-            if (fdi_get(fi, #NAME, KIND, valueReferences[i], &v) != FDI_S_OK) return fmi3Error;                  \
+            if (!fdi_get_fast(fi, KIND, valueReferences[i], &v) &&                                               \
+                fdi_get(fi, #NAME, KIND, valueReferences[i], &v) != FDI_S_OK)                                    \
+                return fmi3Error;                                                                                \
             values[i] = CONVERT;                                                                                 \
         }                                                                                                        \
         return fmi3OK;                                                                                           \
@@ -250,7 +252,9 @@ GETTER(fmi3GetBoolean, fmi3Boolean, FDI_KIND_BOOLEAN, v != 0.0)
         GUARD(#NAME, SETTABLE);                                                                                  \
         CHECK_ARRAYS(#NAME)                                                                                      \
         for (i = 0; i < nValueReferences; i++)                                                                   \
-            if (fdi_set(fi, #NAME, KIND, valueReferences[i], (double)values[i]) != FDI_S_OK) return fmi3Error;   \
+            if (!fdi_set_fast(fi, KIND, valueReferences[i], (double)values[i]) &&                                \
+                fdi_set(fi, #NAME, KIND, valueReferences[i], (double)values[i]) != FDI_S_OK)                     \
+                return fmi3Error;                                                                                \
         return fmi3OK;                                                                                           \
     }
 
