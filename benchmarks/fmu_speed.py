@@ -61,6 +61,24 @@ class Trivial(Fmi2Slave):
 '''
 
 
+def benchmark_diagnoser():
+    """The benchmark design: 10-state Luenberger generator, 3 residuals each evaluated by rms:10."""
+    import numpy as np
+
+    from fmu_fdi import Diagnoser, FDIModel, luenberger, sensor_fault
+
+    rng = np.random.default_rng(1)
+    Qo, _ = np.linalg.qr(rng.standard_normal((10, 10)))
+    A = Qo @ np.diag(rng.uniform(0.5, 0.95, 10)) @ Qo.T
+    model = FDIModel.from_matrices(A, rng.standard_normal((10, 2)), rng.standard_normal((3, 10)), dt=0.01,
+                                   faults=[sensor_fault(f"s{i}", f"y{i}") for i in range(3)], name="bench")
+    gen = luenberger(model, poles=np.linspace(0.1, 0.5, 10))
+    dg = Diagnoser(gen, evaluation={"kind": "rms", "window": 10}, thresholds=[1.0, 1.0, 1.0], groups="each",
+                   decision={"isolation": "none"})
+    assert gen.Q.n == 10 and gen.n_residuals == 3 and len(dg.design["generator"]["groups"]) == 3
+    return dg
+
+
 def worker(fmu_path: str, steps: int, repeat: int) -> None:
     """The benchmark host: fmpy only."""
     import numpy as np
@@ -117,18 +135,12 @@ def main() -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run from a checkout too
     import numpy as np
 
-    from fmu_fdi import Diagnoser, FDIModel, build_fmu, luenberger, sensor_fault
+    from fmu_fdi import build_fmu
     from fmu_fdi.fmu.packaging import build_slave_fmu
 
+    dg = benchmark_diagnoser()
+    model = dg.generator.model
     rng = np.random.default_rng(1)
-    Qo, _ = np.linalg.qr(rng.standard_normal((10, 10)))
-    A = Qo @ np.diag(rng.uniform(0.5, 0.95, 10)) @ Qo.T
-    model = FDIModel.from_matrices(A, rng.standard_normal((10, 2)), rng.standard_normal((3, 10)), dt=0.01,
-                                   faults=[sensor_fault(f"s{i}", f"y{i}") for i in range(3)], name="bench")
-    gen = luenberger(model, poles=np.linspace(0.1, 0.5, 10))
-    dg = Diagnoser(gen, evaluation={"kind": "rms", "window": 10}, thresholds=[1.0, 1.0, 1.0], groups="each",
-                   decision={"isolation": "none"})
-    assert gen.Q.n == 10 and gen.n_residuals == 3 and len(dg.design["generator"]["groups"]) == 3
     names = dg.output_names
     reals = [n for n in names if n.startswith(("residual_", "evaluation_", "threshold_"))]
     bools = [n for n in names if n.startswith("alarm_") or n in ("fault_detected", "input_invalid")]

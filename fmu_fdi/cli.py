@@ -2,7 +2,7 @@
 
   fmu-fdi analyze MODEL                    detectability / isolability table
   fmu-fdi design MODEL --method M ... -o DESIGN.json
-  fmu-fdi build DESIGN.json -o FDI.fmu
+  fmu-fdi build DESIGN.json -o FDI.fmu [--target native [--fmi 3]]
   fmu-fdi plants build [--out DIR]
   fmu-fdi plot OUT.csv -o PLOT.png [--design DESIGN.json]
   fmu-fdi demo [--out DIR]
@@ -229,7 +229,7 @@ def _plot(args) -> int:
 def _demo(args) -> int:
     from .demo import run_demo
 
-    run_demo(args.out)
+    run_demo(args.out, target=args.target)
     return 0
 
 
@@ -244,7 +244,7 @@ def _plants_build(args) -> int:
 def _build(args) -> int:
     from .fmu import build_fmu
 
-    path = build_fmu(args.design, args.output)
+    path = build_fmu(args.design, args.output, target=args.target, fmi_version=args.fmi)
     print(f"wrote {path}")
     return 0
 
@@ -272,6 +272,8 @@ def build_parser() -> argparse.ArgumentParser:
     dm = sub.add_parser("demo", help="the three-tank demo: plant FMU, diagnoser design, diagnostic FMU, "
                                      "co-simulations, table and plot")
     dm.add_argument("--out", default="fmu-fdi-demo", help="output folder (default: fmu-fdi-demo)")
+    dm.add_argument("--target", choices=("pythonfmu", "native"), default="pythonfmu",
+                    help="diagnostic FMU target (native: C, FMI 2.0, compiled with the system C compiler)")
     dm.set_defaults(func=_demo)
 
     from .cosim import cli as cosim_cli
@@ -301,9 +303,12 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--name", help="diagnoser name (default MODEL_METHOD)")
     d.set_defaults(func=_design)
 
-    b = sub.add_parser("build", help="build the diagnostic FMU (FMI 2.0 co-simulation) from a design file")
+    b = sub.add_parser("build", help="build the diagnostic FMU (co-simulation) from a design file")
     b.add_argument("design", help="design file (.json) written by 'fmu-fdi design' or Diagnoser.save")
     b.add_argument("-o", "--output", required=True, help="FMU to write (.fmu)")
+    b.add_argument("--target", choices=("pythonfmu", "native"), default="pythonfmu",
+                   help="pythonfmu (default; the host needs Python + numpy) or native (C, compiled now)")
+    b.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (3 needs --target native)")
     b.set_defaults(func=_build)
     return p
 

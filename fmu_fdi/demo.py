@@ -91,8 +91,11 @@ def design_diagnoser(model, plant_fmu: Path, out: Path):
     return dg, J0
 
 
-def run_demo(out_dir="fmu-fdi-demo", verbose: bool = True) -> DemoResult:
-    """Build, design, export, co-simulate and report; returns the table rows and file paths."""
+def run_demo(out_dir="fmu-fdi-demo", verbose: bool = True, target: str = "pythonfmu") -> DemoResult:
+    """Build, design, export, co-simulate and report; returns the table rows and file paths.
+
+    ``target``: the diagnostic FMU's (``build_fmu``): ``"pythonfmu"`` or ``"native"``.
+    """
     import plant_fmus
 
     from .cosim import CoSimulation, Fault
@@ -110,7 +113,7 @@ def run_demo(out_dir="fmu-fdi-demo", verbose: bool = True) -> DemoResult:
     say(f"plant FMU      {plant_fmu}")
     dg, J0 = design_diagnoser(model, plant_fmu, out)
     design = dg.save(out / "dts200_sensor_dos.json")
-    fdi_fmu = build_fmu(dg, out / "dts200_sensor_dos.fmu")
+    fdi_fmu = build_fmu(dg, out / "dts200_sensor_dos.fmu", target=target)
     say(f"design         {design}  (J0 from calibration: {', '.join(f'{j:.3g}' for j in J0)} cm)")
     say(f"diagnostic FMU {fdi_fmu}")
     t = np.arange(0.0, T_END + TS / 2, TS)

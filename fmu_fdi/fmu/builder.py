@@ -60,7 +60,7 @@ def _descriptions(design: dict) -> dict[str, str]:
     return out
 
 
-def build_fmu(diagnoser_or_path, fmu_path) -> Path:
+def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_version: int = 2) -> Path:
     """Export a diagnoser (object, design dict or design file path) as a co-simulation FMU.
 
     Parameters
@@ -68,6 +68,12 @@ def build_fmu(diagnoser_or_path, fmu_path) -> Path:
     diagnoser_or_path : Diagnoser, dict or path
     fmu_path : path
         Where to write the ``.fmu``; nothing is written when the design is invalid.
+    target : {"pythonfmu", "native"}
+        ``"pythonfmu"`` (default): the runtime in Python, FMI 2.0, the host needs Python and
+        numpy. ``"native"``: C99 sources compiled now, no Python in the host
+        (:mod:`fmu_fdi.native.build`, docs/native-fmu.md).
+    fmi_version : {2, 3}
+        FMI 3.0 needs ``target="native"``.
 
     Returns
     -------
@@ -90,6 +96,13 @@ def build_fmu(diagnoser_or_path, fmu_path) -> Path:
     clash = [s for s in signals if RESERVED.match(s)]
     if clash:
         raise DesignFileError(f"signal names {clash} collide with the diagnostic FMU's own variable names")
+    if target == "native":
+        from ..native.build import build_native_fmu
+
+        return build_native_fmu(design, fmu_path, fmi_version=fmi_version)
+    if target != "pythonfmu" or fmi_version != 2:
+        raise DesignFileError(f"target {target!r} with FMI {fmi_version}: the pythonfmu target is FMI 2 only, "
+                              "the native target FMI 2 or 3")
     design_bytes = json.dumps(design, sort_keys=True).encode("utf-8")
     modules = {f.name: f.read_text(encoding="utf-8") for f in sorted(RUNTIME_DIR.glob("*.py"))
                if f.name != "__init__.py"}

@@ -1,0 +1,363 @@
+"""Build the native diagnostic FMU: C99 sources and a compiled binary, FMI 2.0 or FMI 3.0 co-simulation.
+
+The FMU holds no Python: the per-sample runtime (``c/fdi_runtime*.c``), the FMI glue
+(``c/fdi_glue.c`` and ``c/fmi2.c`` or ``c/fmi3.c``), the design as generated constant data
+(``design_data.c``, written by :mod:`fmu_fdi.native.emit`) and the model's variable table
+(``fdi_model.h``, written here), compiled at build time with the system C compiler
+(``$CC``, else ``cc``, else ``gcc``)::
+
+    modelDescription.xml
+    binaries/linux64/<id>.so          (FMI 2.0)   binaries/x86_64-linux/<id>.so   (FMI 3.0)
+    sources/*.c, *.h                  with the FMI headers shipped by fmpy
+    sources/buildDescription.xml      (FMI 3.0; FMI 2.0 lists the files in <SourceFiles>)
+
+The variables are those of the pythonfmu target, with the same names, descriptions and units
+(:func:`fmu_fdi.fmu.builder._descriptions`, :func:`fmu_fdi.runtime.engine.output_names`):
+the plant inputs u then outputs y (Real inputs, start = operating point), the tunable
+parameter ``threshold_scale``, and the outputs (Real residuals, evaluations, thresholds;
+Boolean alarms and flags; Integer ``isolated_fault``), all discrete with no direct
+feedthrough (outputs change at doStep only). FMI 3.0 adds the independent variable ``time``.
+Value references: time 0, u/y 1..n, threshold_scale n+1, outputs from n+2 (``c/fdi_glue.h``).
+
+Nothing is written when anything fails (no compiler, a compiler error, a design the C runtime
+cannot express): the FMU is assembled in a temporary file and moved into place at the end.
+"""
+from __future__ import annotations
+
+import hashlib
+import io
+import os
+import shutil
+import subprocess
+import tempfile
+import uuid
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+from ..errors import DesignError
+from . import C_DIR, RUNTIME_HEADERS, RUNTIME_SOURCES
+
+GLUE_SOURCES = ("fdi_glue.c", "fdi_glue.h")
+BOOLEAN_OUTPUTS = ("fault_detected", "input_invalid", "numeric_reset")
+CFLAGS = ("-std=c99", "-pedantic", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror")
+PLATFORM = {2: "linux64", 3: "x86_64-linux"}
+FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
+               3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
+LOG_CATEGORIES = {  # the Python target's (fmu_fdi/fmu/slave_base.py), in fdi_glue.h order
+    "logStatusWarning": "Messages with status Warning.",
+    "logStatusDiscard": "Messages with status Discard: a step the runtime refused, with the reason.",
+    "logStatusError": "Messages with status Error: calls out of order, bad values, refused FMU states.",
+    "logStatusFatal": "Messages with status Fatal.",
+    "logAll": "All messages without a more specific category.",
+    "logFdiEvents": "Diagnostic events: alarms raised and cleared, isolation changes, numeric resets.",
+    "logFdiInput": "Inputs rejected as invalid (not finite or outside the valid range).",
+    "logFdiState": "FMU state saved and restored.",
+}
+
+
+class NativeBuildError(DesignError):
+    """The native FMU cannot be built here: no C compiler, or the compiler refused the sources."""
+
+
+# ---- variables -----------------------------------------------------------------------------------
+def output_kind(name: str) -> str:
+    """FMI 2.0 type of a diagnostic output: Boolean alarms and flags, Integer isolated_fault, else Real."""
+    if name.startswith("alarm_") or name in BOOLEAN_OUTPUTS:
+        return "Boolean"
+    return "Integer" if name == "isolated_fault" else "Real"
+
+
+def variables(design: dict) -> list[dict]:
+    """The FMU's variables in value-reference order 1, 2, ... (time, vr 0, is added for FMI 3.0).
+
+    Each: ``name, causality, variability, kind (Real/Boolean/Integer), start, unit, description``.
+    Names, descriptions and units are the pythonfmu target's.
+    """
+    from ..fmu.builder import _descriptions
+    from ..runtime.engine import output_names
+
+    sig, g = design["signals"], design["generator"]
+    desc = _descriptions(design)
+    units = {k: v for k, v in (design.get("units") or {}).items() if k in list(sig["u"]) + list(sig["y"])}
+    op = design.get("operating_point") or {}
+    starts = list(op.get("u", [0.0] * len(sig["u"]))) + list(op.get("y", [0.0] * len(sig["y"])))
+    out = []
+    for name, start in zip(list(sig["u"]) + list(sig["y"]), starts):
+        out.append(dict(name=name, causality="input", variability="continuous", kind="Real", start=float(start),
+                        unit=units.get(name), description=desc[name]))
+    out.append(dict(name="threshold_scale", causality="parameter", variability="tunable", kind="Real", start=1.0,
+                    unit=None, description=desc["threshold_scale"]))
+    for name in _output_names(design, output_names):
+        out.append(dict(name=name, causality="output", variability="discrete", kind=output_kind(name),
+                        start=0.0, unit=None, description=desc[name] if name in desc else _extra_description(name)))
+    return out
+
+
+def _output_names(design, output_names):
+    g = design["generator"]
+    names = output_names(len(g["residual_names"]), len(g["groups"]))
+    if "numeric_reset" not in names:  # SEMANTICS S1: the C runtime has it; the Python one gets it on branch runtime
+        names = names + ["numeric_reset"]
+    return names
+
+
+def _extra_description(name: str) -> str:
+    if name == "numeric_reset":
+        return "a value became non-finite inside the diagnosis this step: generator, evaluation and thresholds restarted"
+    raise KeyError(f"no description for output {name!r}")
+
+
+# ---- generated C --------------------------------------------------------------------------------
+def _c_string(text: str) -> str:
+    out = []
+    for b in text.encode("utf-8"):
+        ch = chr(b)
+        out.append(ch if 32 <= b < 127 and ch not in '"\\?' else f"\\{b:03o}")
+    return '"' + "".join(out) + '"'
+
+
+def _c_double(x: float) -> str:
+    return float(x).hex() if x == x and abs(x) != float("inf") else ("(0.0/0.0)" if x != x else "HUGE_VAL")
+
+
+def model_header(design: dict, identifier: str, token: str) -> str:
+    """``fdi_model.h``: the variable table the glue needs (see ``c/fdi_glue.h``)."""
+    vs = variables(design)
+    inputs = [v for v in vs if v["causality"] == "input"]
+    outputs = [v for v in vs if v["causality"] == "output"]
+    names = [o["name"] for o in outputs]
+    kinds = {"Real": 0, "Boolean": 1, "Integer": 2}
+    faults = [f["name"] for f in design["faults"]]
+
+    def arr(items):
+        return "{" + ", ".join(items) + "}" if items else "{0}"
+
+    return "\n".join([
+        "/* fdi_model.h - generated by fmu_fdi.native.build: the variables of this FMU. Do not edit. */",
+        "#ifndef FDI_MODEL_H", "#define FDI_MODEL_H", "",
+        f"#define FDI_MODEL_IDENTIFIER {_c_string(identifier)}",
+        f"#define FDI_TOKEN {_c_string(token)}",
+        f"#define FDI_N_INPUTS {len(inputs)}",
+        f"#define FDI_N_OUTPUTS {len(outputs)}",
+        f"#define FDI_N_FAULTS {len(faults)}",
+        f"#define FDI_IDX_FAULT_DETECTED {names.index('fault_detected')}",
+        f"#define FDI_IDX_ISOLATED_FAULT {names.index('isolated_fault')}",
+        f"#define FDI_IDX_INPUT_INVALID {names.index('input_invalid')}",
+        f"#define FDI_IDX_NUMERIC_RESET {names.index('numeric_reset') if 'numeric_reset' in names else -1}",
+        f"#define FDI_OUTPUT_KINDS {arr([str(kinds[o['kind']]) for o in outputs])}",
+        f"#define FDI_INPUT_STARTS {arr([_c_double(v['start']) for v in inputs])}",
+        f"#define FDI_VARIABLE_NAMES {arr([_c_string('time')] + [_c_string(v['name']) for v in vs])}",
+        f"#define FDI_FAULT_NAMES {arr([_c_string(f) for f in faults])}",
+        "", "#endif", ""])
+
+
+def design_source(design: dict) -> str:
+    """``design_data.c`` from :mod:`fmu_fdi.native.emit` (raises a DesignError for what C cannot express)."""
+    from .emit import emit_design_c
+
+    return emit_design_c(design)
+
+
+# ---- model description ----------------------------------------------------------------------------
+def _fmt(x: float) -> str:
+    return repr(float(x))
+
+
+def model_description(design: dict, identifier: str, token: str, fmi_version: int, sources: list[str]) -> bytes:
+    """modelDescription.xml for FMI 2.0 or 3.0 (see the module docstring)."""
+    vs = variables(design)
+    g = design["generator"]
+    fmi3 = fmi_version == 3
+    root = ET.Element("fmiModelDescription", {
+        "fmiVersion": "3.0" if fmi3 else "2.0", "modelName": design["name"],
+        ("instantiationToken" if fmi3 else "guid"): token,
+        "description": f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {g['dt']:g} s), native C",
+        "generationTool": "fmu-fdi (native target)", "variableNamingConvention": "structured"})
+    cs = ET.SubElement(root, "CoSimulation", {"modelIdentifier": identifier})
+    flags = {"canHandleVariableCommunicationStepSize": "true", "canGetAndSetFMUstate": "true",
+             "canSerializeFMUstate": "true", "canBeInstantiatedOnlyOncePerProcess": "false",
+             "canNotUseMemoryManagementFunctions": "false"}
+    if fmi3:
+        flags = {"canHandleVariableCommunicationStepSize": "true", "canGetAndSetFMUState": "true",
+                 "canSerializeFMUState": "true", "canBeInstantiatedOnlyOncePerProcess": "false",
+                 "hasEventMode": "true"}
+        cs.attrib.update(flags)
+    else:
+        cs.attrib.update(flags)
+        files = ET.SubElement(cs, "SourceFiles")
+        for name in sources:
+            if name.endswith(".c"):
+                ET.SubElement(files, "File", name=name)
+    units = sorted({v["unit"] for v in vs if v["unit"]})
+    if units:
+        ud = ET.SubElement(root, "UnitDefinitions")
+        for u in units:
+            ET.SubElement(ud, "Unit", name=u)
+    cats = ET.SubElement(root, "LogCategories")
+    for name, text in LOG_CATEGORIES.items():
+        ET.SubElement(cats, "Category", name=name, description=text)
+    ET.SubElement(root, "DefaultExperiment", startTime="0.0", stepSize=_fmt(g["dt"]))
+    mv = ET.SubElement(root, "ModelVariables")
+    if fmi3:
+        ET.SubElement(mv, "Float64", name="time", valueReference="0", causality="independent",
+                      variability="continuous", description="simulation time")
+    for vr, v in enumerate(vs, start=1):
+        attrs = {"name": v["name"], "valueReference": str(vr), "description": v["description"],
+                 "causality": v["causality"], "variability": v["variability"]}
+        if v["causality"] != "input":
+            attrs["initial"] = "exact"
+        start = ("true" if v["start"] else "false") if v["kind"] == "Boolean" else (
+            str(int(v["start"])) if v["kind"] == "Integer" else _fmt(v["start"]))
+        if fmi3:
+            tag = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}[v["kind"]]
+            el = ET.SubElement(mv, tag, attrs)
+            el.set("start", start)
+            if v["unit"]:
+                el.set("unit", v["unit"])
+        else:
+            el = ET.SubElement(mv, "ScalarVariable", attrs)
+            typ = ET.SubElement(el, v["kind"], start=start)
+            if v["unit"]:
+                typ.set("unit", v["unit"])
+    ms = ET.SubElement(root, "ModelStructure")
+    outputs = [vr for vr, v in enumerate(vs, start=1) if v["causality"] == "output"]
+    if fmi3:  # no direct feedthrough: outputs change at fmi3DoStep only
+        for vr in outputs:  # initial="exact": none is an InitialUnknown
+            ET.SubElement(ms, "Output", valueReference=str(vr), dependencies="")
+    else:  # FMI 2.0 Unknown index = position in ModelVariables (1-based) = vr here
+        out_el = ET.SubElement(ms, "Outputs")
+        for vr in outputs:
+            ET.SubElement(out_el, "Unknown", index=str(vr), dependencies="")
+    ET.indent(root, space="  ")
+    buf = io.BytesIO()
+    ET.ElementTree(root).write(buf, encoding="UTF-8", xml_declaration=True)
+    return buf.getvalue()
+
+
+def build_description(identifier: str, sources: list[str]) -> bytes:
+    """sources/buildDescription.xml (FMI 3.0, section 2.5.2)."""
+    root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
+    cfg = ET.SubElement(root, "BuildConfiguration", modelIdentifier=identifier,
+                        description="C99; link with the math library (-lm)")
+    fs = ET.SubElement(cfg, "SourceFileSet", language="C99")
+    for name in sources:
+        if name.endswith(".c"):
+            ET.SubElement(fs, "SourceFile", name=name)
+    ET.SubElement(fs, "IncludeDirectory", name=".")
+    ET.SubElement(cfg, "Library", name="m", description="C math library (libm)")
+    ET.indent(root, space="  ")
+    buf = io.BytesIO()
+    ET.ElementTree(root).write(buf, encoding="UTF-8", xml_declaration=True)
+    return buf.getvalue()
+
+
+# ---- compiler ----------------------------------------------------------------------------------
+def find_compiler() -> list[str]:
+    """The C compiler command: ``$CC`` (may carry options), else ``cc``, else ``gcc``."""
+    cc = os.environ.get("CC", "").split()
+    if cc:
+        if shutil.which(cc[0]):
+            return cc
+        raise NativeBuildError(f"the C compiler CC={os.environ['CC']!r} is not found; the native FMU is compiled "
+                               "at build time: install a C99 compiler (e.g. 'apt install gcc') or set CC")
+    for name in ("cc", "gcc"):
+        if shutil.which(name):
+            return [name]
+    raise NativeBuildError("no C compiler found (tried $CC, cc, gcc); the native FMU is compiled at build time: "
+                           "install a C99 compiler (Debian/Ubuntu: 'apt install gcc', Fedora: 'dnf install gcc', "
+                           "macOS: 'xcode-select --install') or set CC, or build the pythonfmu target instead")
+
+
+def _fmi_headers(fmi_version: int) -> dict[str, bytes]:
+    import fmpy
+
+    folder = Path(fmpy.__file__).parent / "c-code"
+    missing = [h for h in FMI_HEADERS[fmi_version] if not (folder / h).is_file()]
+    if missing:
+        raise NativeBuildError(f"the FMI {fmi_version} headers {missing} are not in {folder} (they ship with fmpy "
+                               ">= 0.3.20: 'pip install -U fmpy')")
+    return {h: (folder / h).read_bytes() for h in FMI_HEADERS[fmi_version]}
+
+
+def compile_binary(src: Path, out: Path, cc: list[str] | None = None) -> Path:
+    """Compile every .c in ``src`` into the shared library ``out``; NativeBuildError with the log if it fails."""
+    cc = cc or find_compiler()
+    files = sorted(str(p) for p in src.glob("*.c"))
+    cmd = [*cc, *CFLAGS, "-I", str(src), "-o", str(out), *files, "-lm"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    if proc.returncode != 0:
+        raise NativeBuildError(f"compiling the native FMU failed ({' '.join(cc)} exited with {proc.returncode}):\n"
+                               f"{(proc.stderr or proc.stdout)[-3000:]}")
+    return out
+
+
+# ---- the FMU ------------------------------------------------------------------------------------
+def identifier_of(design: dict, *parts: str) -> str:
+    """``<name>_<10 hex digits>``: a C identifier unique to the design and the sources."""
+    import re
+
+    base = re.sub(r"[^A-Za-z0-9_]", "_", design["name"]) or "fdi"
+    base = base if base[0].isalpha() else "fdi_" + base
+    h = hashlib.sha256("\0".join(parts).encode("utf-8")).hexdigest()[:10]
+    return f"{base[:40]}_{h}"
+
+
+def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
+    """Write the native diagnostic FMU for a validated design dict (see the module docstring).
+
+    Parameters
+    ----------
+    design : dict
+        A design validated by :func:`fmu_fdi.designfile.validate_design`.
+    fmu_path : path
+        The ``.fmu`` to write; left untouched if anything fails.
+    fmi_version : {2, 3}
+
+    Raises
+    ------
+    NativeBuildError
+        No C compiler, missing FMI headers, or the compiler refused the sources.
+    DesignError
+        The design holds something the C runtime cannot express (from :mod:`.emit`).
+    """
+    if fmi_version not in (2, 3):
+        raise NativeBuildError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
+    fmu_path = Path(fmu_path)
+    cc = find_compiler()  # before any work: no compiler, no file
+    headers = _fmi_headers(fmi_version)
+    glue = f"fmi{fmi_version}.c"
+    runtime = {name: (C_DIR / name).read_bytes() for name in (*RUNTIME_SOURCES, *RUNTIME_HEADERS, *GLUE_SOURCES, glue)}
+    data = design_source(design).encode("utf-8")
+    ident = identifier_of(design, data.decode(), str(fmi_version),
+                          *(f"{k}\n{v.decode()}" for k, v in sorted(runtime.items())))
+    token = "{" + str(uuid.UUID(hashlib.sha256(ident.encode()).hexdigest()[:32])) + "}"
+    sources = dict(runtime)
+    sources["design_data.c"] = data
+    sources["fdi_model.h"] = model_header(design, ident, token).encode("utf-8")
+    sources.update(headers)
+    names = sorted(sources)
+    fmu_path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="fmufdi_native_") as tmp:
+        src = Path(tmp, "sources")
+        src.mkdir()
+        for name, content in sources.items():
+            (src / name).write_bytes(content)
+        lib = compile_binary(src, Path(tmp, f"{ident}.so"), cc)
+        members = {"modelDescription.xml": model_description(design, ident, token, fmi_version, names)}
+        members[f"binaries/{PLATFORM[fmi_version]}/{ident}.so"] = lib.read_bytes()
+        for name in names:
+            members[f"sources/{name}"] = sources[name]
+        if fmi_version == 3:
+            members["sources/buildDescription.xml"] = build_description(ident, names)
+        fd, part = tempfile.mkstemp(suffix=".fmu.part", dir=fmu_path.parent)
+        os.close(fd)
+        try:
+            with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:
+                for name, content in members.items():
+                    zf.writestr(name, content)
+            os.replace(part, fmu_path)
+        finally:
+            if os.path.exists(part):
+                os.remove(part)
+    return fmu_path
