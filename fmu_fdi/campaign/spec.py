@@ -367,7 +367,7 @@ def _sample(s: dict) -> dict:
     if extra:
         raise CampaignError(f"campaign: unknown key(s) {sorted(extra)} in [sample.fault]")
     fault = {"kind": _dimension(f.get("kind", ["abrupt"]), "sample.fault.kind", numeric=False),
-             "target": _dimension(f["target"], "sample.fault.target", numeric=False) if "target" in f else [],
+             "target": _dimension(f["target"], "sample.fault.target", numeric=False) if f.get("target") else [],
              "magnitude": _dimension(f.get("magnitude", [1.0]), "sample.fault.magnitude"),
              "onset": _dimension(f.get("onset", [0.0]), "sample.fault.onset"),
              "duration": _dimension(f.get("duration", [math.inf]), "sample.fault.duration")}
