@@ -7,6 +7,7 @@
   fmu-fdi plot OUT.csv -o PLOT.png [--design DESIGN.json]
   fmu-fdi demo [--out DIR]
   fmu-fdi simulate --plant P.fmu --diagnoser FDI.fmu --stop T --step Ts [--fault SPEC ...] -o OUT.csv
+  fmu-fdi campaign CAMPAIGN.toml -o DIR [--dry-run] [--resume] [--workers N] [--scheduler ADDR]
 """
 from __future__ import annotations
 
@@ -279,6 +280,10 @@ def build_parser() -> argparse.ArgumentParser:
     from .cosim import cli as cosim_cli
 
     cosim_cli.add_parser(sub)
+
+    from .campaign import cli as campaign_cli
+
+    campaign_cli.add_parser(sub)
 
     d = sub.add_parser("design", help="design a diagnoser and write its design file",
                        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=DESIGN_HELP)

@@ -1,5 +1,6 @@
 """Run-time support shared by the plant FMUs: variables with units, sensor and actuator
-fault channels, seeded noise and an adaptive Runge-Kutta integrator.
+fault channels, seeded noise, an adaptive Runge-Kutta integrator (nonlinear plants) and the
+exact step of a linear ODE with held inputs (linear plants).
 
 This module is bundled into every plant FMU and may import only numpy and pythonfmu.
 :func:`plant_fmus.build` copies it into each FMU under a plant-specific module name
@@ -10,7 +11,9 @@ imported first (pythonfmu issue 228).
 Conventions every plant follows (docs/plant_fmus.md):
 
 - Communication step ``[t_k, t_k + h]``: the inputs set before ``do_step`` are held
-  constant over the step (zero-order hold); the ODE is integrated with :func:`dopri5`;
+  constant over the step (zero-order hold); a nonlinear ODE is integrated with :func:`dopri5`,
+  a linear one ``x' = A x + b`` exactly (:class:`ExactLinear`: no tolerance, one "ODE step" per
+  communication step);
   the outputs at ``t_k + h`` are computed at the end of the step from the state and the
   inputs of that step and stay fixed until the next ``do_step``.
 - Sensor ``y``: ``y_meas = stuck_value_y`` if ``stuck_y >= 0.5``, else
@@ -50,50 +53,61 @@ def dopri5(f, x, span: float, rtol: float, atol: float, h: float | None = None,
 
     Local error control per accepted step: ``rms(err_i / (atol + rtol max(|x_i|, |x_new_i|))) <= 1``,
     step factor ``0.9 err^(-1/5)`` limited to [0.2, 5] (Hairer et al., section II.4).
+    The arithmetic is on lists of floats: for the few states of a plant it costs a fraction of
+    the same sums on small numpy arrays (whose every operation has a fixed cost of ~1 us).
 
     Parameters
     ----------
-    f : callable ``f(x) -> ndarray``; the inputs are held constant over ``span``.
-    x : initial state.
+    f : callable ``f(x) -> sequence of float`` (``x`` a list); the inputs are held constant over ``span``.
+    x : initial state (sequence of float).
     span : length of the interval (> 0).
     rtol, atol : relative and absolute local error tolerances.
     h : first trial step (the proposal returned by the previous call); ``span`` if None.
-    clip : optional ``(lo, hi)`` arrays; each accepted state is clipped to them
+    clip : optional ``(lo, hi)`` sequences; each accepted state is clipped to them
         (state limits such as an overflowing tank).
     max_steps : bound on accepted + rejected steps.
 
     Returns
     -------
-    x_new, h_next, n_accepted
+    x_new (ndarray), h_next, n_accepted
     """
-    x = np.array(x, dtype=float)
+    x = [float(v) for v in x]
+    n = len(x)
+    idx = range(n)
     t = 0.0
     h = span if h is None or not h > 0 else min(h, span)
-    k1 = f(x)
+    k1 = list(f(x))
     n_acc = 0
+    (a21,), (a31, a32), (a41, a42, a43), (a51, a52, a53, a54), (a61, a62, a63, a64, a65), \
+        (b1, _, b3, b4, b5, b6) = _A[1:]
+    e1, _, e3, e4, e5, e6, e7 = _E
     for _ in range(max_steps):
         remaining = span - t
         if remaining <= 1e-12 * span:
-            return x, h, n_acc
+            return np.array(x), h, n_acc
         step = min(h, remaining)
-        k = [k1]
-        for row in _A[1:6]:
-            k.append(f(x + step * sum(a * kj for a, kj in zip(row, k) if a)))
-        x_new = x + step * sum(a * kj for a, kj in zip(_A[6], k) if a)
+        k2 = f([x[i] + step * (a21 * k1[i]) for i in idx])
+        k3 = f([x[i] + step * (a31 * k1[i] + a32 * k2[i]) for i in idx])
+        k4 = f([x[i] + step * (a41 * k1[i] + a42 * k2[i] + a43 * k3[i]) for i in idx])
+        k5 = f([x[i] + step * (a51 * k1[i] + a52 * k2[i] + a53 * k3[i] + a54 * k4[i]) for i in idx])
+        k6 = f([x[i] + step * (a61 * k1[i] + a62 * k2[i] + a63 * k3[i] + a64 * k4[i] + a65 * k5[i]) for i in idx])
+        x_new = [x[i] + step * (b1 * k1[i] + b3 * k3[i] + b4 * k4[i] + b5 * k5[i] + b6 * k6[i]) for i in idx]
         k7 = f(x_new)
-        err_vec = step * (sum(e * kj for e, kj in zip(_E, k) if e) + _E[6] * k7)
-        scale = atol + rtol * np.maximum(np.abs(x), np.abs(x_new))
-        err = math.sqrt(float(np.mean((err_vec / scale) ** 2)))
+        acc = 0.0
+        for i in idx:
+            err = step * (e1 * k1[i] + e3 * k3[i] + e4 * k4[i] + e5 * k5[i] + e6 * k6[i] + e7 * k7[i])
+            acc += (err / (atol + rtol * max(abs(x[i]), abs(x_new[i])))) ** 2
+        err = math.sqrt(acc / n)
         if not math.isfinite(err):
-            raise FloatingPointError(f"non-finite derivative while integrating at state {x.tolist()}")
+            raise FloatingPointError(f"non-finite derivative while integrating at state {x}")
         factor = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
         if err <= 1.0:
             t += step
             if clip is not None:
-                clipped = np.clip(x_new, clip[0], clip[1])
-                if np.any(clipped != x_new):
+                clipped = [min(max(v, lo), hi) for v, lo, hi in zip(x_new, clip[0], clip[1])]
+                if clipped != x_new:
                     x_new, k7 = clipped, f(clipped)
-            x, k1 = x_new, k7
+            x, k1 = x_new, list(k7)
             n_acc += 1
             # A step shortened to hit the interval end says nothing about the next one.
             h = step * factor if step == h else max(h, step * factor)
@@ -103,6 +117,62 @@ def dopri5(f, x, span: float, rtol: float, atol: float, h: float | None = None,
         f"integrator took more than {max_steps} steps for one communication step of {span} s "
         f"(rtol={rtol}, atol={atol}): the step is too long for the dynamics or the state diverges"
     )
+
+
+def phi1(A, h: float) -> np.ndarray:
+    """``Psi = integral_0^h exp(A s) ds`` (= h phi_1(h A)), from the exponential of the augmented
+    matrix ``[[A, I], [0, 0]] h`` whose upper right block it is (Van Loan 1978).
+
+    The exponential: scaling and squaring with a Taylor polynomial, ``||M||_1 / 2^s <= 1/2`` and
+    terms up to ``(1/2)^k / k! < 1e-18`` (k = 18), so the truncation is far below rounding
+    (Moler & Van Loan, "Nineteen dubious ways", method 3; numpy only, as everything in an FMU).
+    """
+    A = np.asarray(A, dtype=float)
+    n = A.shape[0]
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n] = A * h
+    M[:n, n:] = np.eye(n) * h
+    norm = float(np.max(np.sum(np.abs(M), axis=0)))
+    s = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
+    M = M / 2.0 ** s
+    E = np.eye(2 * n)
+    term = np.eye(2 * n)
+    for k in range(1, 19):
+        term = term @ M / k
+        E = E + term
+    for _ in range(s):
+        E = E @ E
+    return E[:n, n:]
+
+
+class ExactLinear:
+    """Exact integration of ``x' = A x + b`` over a step ``h`` with ``b`` held constant:
+    ``x(h) = x + Psi(h) (A x + b)``, ``Psi(h) = integral_0^h exp(A s) ds`` (:func:`phi1`).
+
+    Written as an increment on the rate ``A x + b``: at an equilibrium the rate is zero up to
+    rounding, so the state does not drift (``exp(A h) x + Psi b`` would add two large, nearly
+    cancelling terms). ``Psi`` is cached per (A, h): a plant whose A never changes computes it
+    once; a fault that moves A (a pitch fault level, the drive-train efficiency) adds an entry
+    per distinct value (the cache keeps the last ``size``).
+    """
+
+    def __init__(self, size: int = 64):
+        self.size = size
+        self.cache = {}
+        self._last = (None, None, None)
+
+    def step(self, A, b, x, h: float) -> np.ndarray:
+        if A is self._last[0] and h == self._last[1]:  # the same matrix object as last step
+            psi = self._last[2]
+            return x + psi @ (A @ x + b)
+        key = (np.asarray(A, dtype=float).tobytes(), float(h))
+        psi = self.cache.get(key)
+        if psi is None:
+            if len(self.cache) >= self.size:
+                self.cache.pop(next(iter(self.cache)))
+            psi = self.cache[key] = phi1(A, h)
+        self._last = (A, h, psi)
+        return x + psi @ (A @ x + b)
 
 
 class _RealWithUnit(Real):
@@ -171,14 +241,17 @@ class PlantSlave:
                       "seed of the noise generator (numpy PCG64), >= 0")
         self._declare(Boolean, "noise_enable", True, Fmi2Causality.parameter, Fmi2Variability.fixed,
                       "false: all noise off, whatever the std parameters")
-        self.parameter("rtol", rtol, "relative local error tolerance of the Dormand-Prince 5(4) integrator")
-        self.parameter("atol", atol, "absolute local error tolerance of the integrator (state units)")
+        self.parameter("rtol", rtol, "relative local error tolerance of the Dormand-Prince 5(4) integrator "
+                                     "(nonlinear plants; a linear plant is integrated exactly)")
+        self.parameter("atol", atol, "absolute local error tolerance of the integrator (state units; "
+                                     "nonlinear plants)")
         self._declare(Integer, "ode_steps", 0, Fmi2Causality.output, Fmi2Variability.discrete,
-                      "accepted integrator steps since the start (bounds the global integration error)")
+                      "accepted integrator steps since the start (bounds the global integration error; "
+                      "a linear plant counts one exact step per communication step)")
 
     def sensors(self, names, units, fault_names, stds, descriptions):
         """Measured outputs with their fault channels and noise std parameters."""
-        self._sensor_names = list(names)
+        self._sensor_names = tuple(names)
         for y, unit, fault, std, text in zip(names, units, fault_names, stds, descriptions):
             self.real_output(y, f"measured {text}", unit)
             self.real_input(f"f_{fault}", 0.0, f"additive fault on sensor {y} (model fault '{fault}')", unit)
@@ -186,11 +259,11 @@ class PlantSlave:
             self.real_input(f"stuck_{y}", 0.0, f">= 0.5: sensor {y} stuck at stuck_value_{y}")
             self.real_input(f"stuck_value_{y}", 0.0, f"value sensor {y} is stuck at", unit)
             self.parameter(f"std_{y}", std, f"standard deviation of the white noise on sensor {y}", unit)
-        self._sensor_faults = [f"f_{fault}" for fault in fault_names]
+        self._sensor_faults = tuple(f"f_{fault}" for fault in fault_names)
 
     def actuators(self, names, units, fault_names, descriptions, inputs=True, starts=None):
         """Actuators: the command is an input (``inputs``) or an output set by a controller."""
-        self._actuator_names = list(names)
+        self._actuator_names = tuple(names)
         starts = starts if starts is not None else [0.0] * len(names)
         for u, unit, fault, text, start in zip(names, units, fault_names, descriptions, starts):
             if inputs:
@@ -201,32 +274,44 @@ class PlantSlave:
             self.real_input(f"gain_{u}", 1.0, f"effectiveness of actuator {u} (gain fault: != 1)")
             self.real_input(f"stuck_{u}", 0.0, f">= 0.5: actuator {u} stuck at stuck_value_{u}")
             self.real_input(f"stuck_value_{u}", 0.0, f"value actuator {u} is stuck at", unit)
-        self._actuator_faults = [f"f_{fault}" for fault in fault_names]
+        self._actuator_faults = tuple(f"f_{fault}" for fault in fault_names)
 
     def _values(self, names) -> np.ndarray:
-        return np.array([getattr(self, n) for n in names], dtype=float)
+        return np.array(self._get(names), dtype=float)
+
+    def _get(self, names) -> tuple:
+        """The current values of ``names`` (a tuple of variable names) as a tuple."""
+        return tuple([getattr(self, n) for n in names])
+
+    def _channels(self, prefixes, names) -> list:
+        """``[prefix_name for name in names]`` per prefix, cached."""
+        key = (prefixes, tuple(names))
+        cache = self.__dict__.setdefault("_channel_names", {})
+        if key not in cache:
+            cache[key] = [tuple(f"{p}{n}" for n in names) for p in prefixes]
+        return cache[key]
 
     # ---------------------------------------------------------- fault channels
     def measure(self, y_true) -> np.ndarray:
         """Measured outputs from the true ones; draws one normal per sensor; sets the outputs."""
         names = self._sensor_names
-        z = self._rng.standard_normal(len(names))
-        std = self._values([f"std_{y}" for y in names]) if self.noise_enable else np.zeros(len(names))
-        gain = self._values([f"gain_{y}" for y in names])
-        y = gain * np.asarray(y_true, float) + self._values(self._sensor_faults) + std * z
-        stuck = self._values([f"stuck_{y}" for y in names]) >= 0.5
-        y = np.where(stuck, self._values([f"stuck_value_{y}" for y in names]), y)
+        z = self._rng.standard_normal(len(names)).tolist()
+        std_n, gain_n, stuck_n, value_n = self._channels(("std_", "gain_", "stuck_", "stuck_value_"), names)
+        std = self._get(std_n) if self.noise_enable else (0.0,) * len(names)
+        y = [value if stuck >= 0.5 else g * float(yt) + f + sd * zz
+             for yt, g, f, sd, zz, stuck, value in zip(y_true, self._get(gain_n), self._get(self._sensor_faults),
+                                                       std, z, self._get(stuck_n), self._get(value_n))]
         for nm, val in zip(names, y):
-            setattr(self, nm, float(val))
-        return y
+            setattr(self, nm, val)
+        return np.array(y)
 
     def actuate(self, u_command) -> np.ndarray:
         """Input applied to the plant from the command (see the module docstring)."""
-        names = self._actuator_names
-        u = self._values([f"gain_{n}" for n in names]) * np.asarray(u_command, float) \
-            + self._values(self._actuator_faults)
-        stuck = self._values([f"stuck_{n}" for n in names]) >= 0.5
-        return np.where(stuck, self._values([f"stuck_value_{n}" for n in names]), u)
+        gain_n, stuck_n, value_n = self._channels(("gain_", "stuck_", "stuck_value_"), self._actuator_names)
+        return np.array([value if stuck >= 0.5 else g * float(u) + f
+                         for u, g, f, stuck, value in zip(u_command, self._get(gain_n),
+                                                          self._get(self._actuator_faults), self._get(stuck_n),
+                                                          self._get(value_n))])
 
     def process_noise(self, std_names) -> np.ndarray:
         """One normal draw per process-noise channel, scaled by its std (held over the step)."""
@@ -238,6 +323,13 @@ class PlantSlave:
         x, self._h_ode, n_accepted = dopri5(f, x, h, self.rtol, self.atol, self._h_ode, clip)
         self.ode_steps += n_accepted
         return x
+
+    def integrate_linear(self, A, b, x, h):
+        """One exact step of ``x' = A x + b`` (:class:`ExactLinear`); counts as one ODE step."""
+        if not hasattr(self, "_exact"):
+            self._exact = ExactLinear()
+        self.ode_steps += 1
+        return self._exact.step(A, b, x, h)
 
     # ---------------------------------------------------------------- FMI side
     def exit_initialization_mode(self):
@@ -275,10 +367,10 @@ class PlantSlave:
             return False
 
     def _check_inputs(self):
-        for name in self._real_inputs:
-            value = getattr(self, name)
-            if not math.isfinite(value):
-                raise ValueError(f"input {name} is {value}; inputs must be finite")
+        values = self._get(self._real_inputs)
+        if not all(map(math.isfinite, values)):
+            name, value = next((n, v) for n, v in zip(self._real_inputs, values) if not math.isfinite(v))
+            raise ValueError(f"input {name} is {value}; inputs must be finite")
 
     def to_xml(self, model_options=None) -> Element:
         """Model description with ``<UnitDefinitions>`` for the units the variables use and

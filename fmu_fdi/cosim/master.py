@@ -43,9 +43,11 @@ class CoSimulation:
 
     Parameters
     ----------
-    fmus : mapping of str to path
-        Instance name -> ``.fmu`` file (FMI 2.0 or 3.0 co-simulation). The mapping's order is
-        the Gauss–Seidel stepping order: plants first, diagnoser last.
+    fmus : mapping of str to path or FMUInstance
+        Instance name -> ``.fmu`` file (FMI 2.0 or 3.0 co-simulation), or an
+        :class:`~fmu_fdi.cosim.instance.FMUInstance` of that name (a campaign worker passes the
+        instances it keeps alive between runs). The mapping's order is the Gauss–Seidel
+        stepping order: plants first, diagnoser last.
     connections : "auto", None or list of (str, str)
         ``"auto"``: every input takes the output of the same name of another FMU (an error if
         several FMUs have it). None: no connections. A list: ``("plant.y", "diagnoser.y")``
@@ -98,7 +100,8 @@ class CoSimulation:
         self.order = order
         if not fmus:
             raise CoSimulationError("no FMUs given")
-        self.fmus = {name: FMUInstance(name, path) for name, path in dict(fmus).items()}
+        self.fmus = {name: path if isinstance(path, FMUInstance) and path.name == name else FMUInstance(name, path)
+                     for name, path in dict(fmus).items()}
         self.inputs = _signals(inputs)
         self.faults = tuple(faults)
         for f in self.faults:

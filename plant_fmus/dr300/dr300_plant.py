@@ -55,8 +55,8 @@ class DR300(PlantSlave, Fmi2Slave):
 
     def advance(self, t, h):
         v = self.actuate([self.voltage])
-        d = np.array([self.load_torque]) + self.process_noise(["std_w_load_torque"])
+        d = np.array([self.load_torque]) + self.process_noise(("std_w_load_torque",))
         drive = self._Bu @ v + self._Bd @ d
-        self._x = self.integrate(lambda x: self._A @ x + drive, self._x, h)
+        self._x = self.integrate_linear(self._A, drive, self._x, h)
         self._xi += h * self._e
         self._control(self.measure(self._C @ self._x)[0])

@@ -29,6 +29,8 @@ Q13 = Q32, i.e. ``az1^2 (h1 - h3) = az3^2 (h3 - h2)``, giving h3 = 36.5989 cm (p
 rounded: 36.6 cm, where h3' would be -3.4e-5 cm/s), and the pump flows Q1 = Q13 =
 21.3727 cm^3/s, Q2 = Q20 - Q32 = 53.7976 cm^3/s (published, rounded: 21.37, 53.80).
 """
+import math
+
 import numpy as np
 
 PREFIX = "dts200"
@@ -59,31 +61,44 @@ LEAKS = ("leak_T1", "leak_T2", "leak_T3")
 CLOGS = ("clog_13", "clog_32", "clog_20")
 
 
-def root(d):
+def root(d: float) -> float:
     """``sgn(d) sqrt(|d|)``, regularised below the head D_LAM (module docstring)."""
-    d = np.asarray(d, dtype=float)
-    z = np.clip(d / D_LAM, -1.0, 1.0)
-    cubic = np.sqrt(D_LAM) * (1.25 * z - 0.25 * z ** 3)
-    return np.where(np.abs(d) >= D_LAM, np.sign(d) * np.sqrt(np.abs(d)), cubic)
+    if abs(d) >= D_LAM:
+        return math.copysign(math.sqrt(abs(d)), d)
+    z = d / D_LAM
+    return math.sqrt(D_LAM) * (1.25 * z - 0.25 * z ** 3)
 
 
 def flows(h, p=PARAMS, clog=(0.0, 0.0, 0.0)):
     """Pipe flows ``(Q13, Q32, Q20)`` in cm^3/s for levels ``h`` (cm)."""
-    k = p["pipe_area"] * np.sqrt(2.0 * p["g"])
-    r13, r32, r20 = root([h[0] - h[2], h[2] - h[1], max(h[1], 0.0)])
-    return ((1.0 - clog[0]) * p["az1"] * k * r13, (1.0 - clog[1]) * p["az3"] * k * r32,
-            (1.0 - clog[2]) * p["az2"] * k * r20)
+    k = p["pipe_area"] * math.sqrt(2.0 * p["g"])
+    h1, h2, h3 = float(h[0]), float(h[1]), float(h[2])
+    return ((1.0 - clog[0]) * p["az1"] * k * root(h1 - h3), (1.0 - clog[1]) * p["az3"] * k * root(h3 - h2),
+            (1.0 - clog[2]) * p["az2"] * k * root(max(h2, 0.0)))
 
 
-def derivative(h, q_in, p=PARAMS, leak=(0.0, 0.0, 0.0), clog=(0.0, 0.0, 0.0)):
-    """Level rates ``h'`` (cm/s) for pump flows ``q_in`` (cm^3/s), with the level limits."""
+def rates(h, q_in, p=PARAMS, leak=(0.0, 0.0, 0.0), clog=(0.0, 0.0, 0.0)) -> list:
+    """Level rates ``h'`` (cm/s) for pump flows ``q_in`` (cm^3/s), with the level limits, as a
+    list of floats: the right-hand side the FMU integrates (scalar arithmetic: for three states it
+    costs a tenth of the same sums on numpy arrays)."""
     q13, q32, q20 = flows(h, p, clog)
-    q_leak = np.asarray(leak, float) * np.sqrt(2.0 * p["g"]) * root(np.maximum(h, 0.0))
-    dh = np.array([q_in[0] - q13, q_in[1] + q32 - q20, q13 - q32]) - q_leak
-    dh = dh / p["area"]
-    # A full tank spills what it cannot hold; an empty one has nothing left to lose.
-    dh = np.where((h >= p["h_max"]) & (dh > 0.0), 0.0, dh)
-    return np.where((h <= 0.0) & (dh < 0.0), 0.0, dh)
+    area, h_max = p["area"], p["h_max"]
+    net = (q_in[0] - q13, q_in[1] + q32 - q20, q13 - q32)
+    out = []
+    for i in range(3):
+        hi = h[i]
+        dh = net[i] if leak[i] == 0.0 else net[i] - leak[i] * math.sqrt(2.0 * p["g"]) * root(max(hi, 0.0))
+        dh = dh / area
+        # A full tank spills what it cannot hold; an empty one has nothing left to lose.
+        if (hi >= h_max and dh > 0.0) or (hi <= 0.0 and dh < 0.0):
+            dh = 0.0
+        out.append(dh)
+    return out
+
+
+def derivative(h, q_in, p=PARAMS, leak=(0.0, 0.0, 0.0), clog=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """:func:`rates` as an array."""
+    return np.array(rates(h, q_in, p, leak, clog))
 
 
 def operating_point(p=PARAMS, h1=H1_OP, h2=H2_OP):

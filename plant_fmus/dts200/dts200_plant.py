@@ -17,6 +17,11 @@ from pythonfmu import DefaultExperiment, Fmi2Slave
 import dts200_physics as phys
 from dts200_support import PlantSlave
 
+_PROCESS_NOISE = tuple(f"std_w_{u}" for u in phys.U)
+_LEAKS = tuple(f"f_{n}" for n in phys.LEAKS)
+_CLOGS = tuple(f"f_{n}" for n in phys.CLOGS)
+_PARAMS = tuple(phys.PARAMS)
+
 
 class DTS200(PlantSlave, Fmi2Slave):
     description = "Three-tank system DTS200: nonlinear Torricelli dynamics, level sensor, pump, leak and clogging faults"
@@ -48,29 +53,31 @@ class DTS200(PlantSlave, Fmi2Slave):
         self.boolean_output("empty", "a tank level is below D_LAM = 0.01 cm (drained to the laminar film)")
 
     def _params(self):
-        return {key: float(getattr(self, key)) for key in phys.PARAMS}
+        return dict(zip(_PARAMS, map(float, self._get(_PARAMS))))
 
     def initialize(self):
         p = self._params()
         for key in ("area", "pipe_area", "g", "h_max"):
             if not p[key] > 0:
                 raise ValueError(f"parameter {key} must be > 0, got {p[key]}")
-        self._x = np.array([getattr(self, f"{y}_start") for y in phys.Y], dtype=float)
-        if np.any(self._x < 0) or np.any(self._x > p["h_max"]):
-            raise ValueError(f"initial levels {self._x.tolist()} must lie in [0, h_max={p['h_max']}]")
+        self._x = [float(getattr(self, f"{y}_start")) for y in phys.Y]
+        if min(self._x) < 0 or max(self._x) > p["h_max"]:
+            raise ValueError(f"initial levels {self._x} must lie in [0, h_max={p['h_max']}]")
         self._publish(p)
 
     def advance(self, t, h):
+        # plain floats throughout: three states and two pumps cost less in Python than in numpy
         p = self._params()
-        q = self.actuate(self._values(phys.U)) + self.process_noise([f"std_w_{u}" for u in phys.U])
-        q = np.clip(q, 0.0, p["q_max"])
-        leak = np.maximum(self._values([f"f_{n}" for n in phys.LEAKS]), 0.0)
-        clog = np.clip(self._values([f"f_{n}" for n in phys.CLOGS]), 0.0, 1.0)
-        self._x = self.integrate(lambda x: phys.derivative(x, q, p, leak, clog), self._x, h,
-                                 clip=(0.0, p["h_max"]))
+        q_max = p["q_max"]
+        q = [min(max(v, 0.0), q_max) for v in
+             (self.actuate(self._get(phys.U)) + self.process_noise(_PROCESS_NOISE)).tolist()]
+        leak = [max(v, 0.0) for v in self._get(_LEAKS)]
+        clog = [min(max(v, 0.0), 1.0) for v in self._get(_CLOGS)]
+        self._x = self.integrate(lambda x: phys.rates(x, q, p, leak, clog), self._x, h,
+                                 clip=([0.0] * 3, [p["h_max"]] * 3)).tolist()
         self._publish(p)
 
     def _publish(self, p):
         self.measure(self._x)
-        self.overflow = bool(np.any(self._x >= p["h_max"]))
-        self.empty = bool(np.any(self._x < phys.D_LAM))
+        self.overflow = any(x >= p["h_max"] for x in self._x)
+        self.empty = any(x < phys.D_LAM for x in self._x)

@@ -14,6 +14,10 @@ from pythonfmu import DefaultExperiment, Fmi2Slave
 import lateral_physics as phys
 from lateral_support import PlantSlave
 
+_GAMMA = ("gamma_1", "gamma_2")
+_LOE = tuple(f"f_{n}" for n in phys.LOE_FAULTS)
+_PROCESS_NOISE = tuple(f"std_w_{y}" for y in phys.Y)
+
 
 class LateralAircraft(PlantSlave, Fmi2Slave):
     description = "Lateral aircraft (Varga, Ex. 6.1/6.2) with loss-of-effectiveness actuator faults"
@@ -39,9 +43,8 @@ class LateralAircraft(PlantSlave, Fmi2Slave):
         self.measure(phys.C @ self._x)
 
     def advance(self, t, h):
-        gamma = np.clip(self._values(["gamma_1", "gamma_2"]) + self._values([f"f_{n}" for n in phys.LOE_FAULTS]),
-                        0.0, 1.0)
+        gamma = np.array([min(max(g + f, 0.0), 1.0) for g, f in zip(self._get(_GAMMA), self._get(_LOE))])
         u = (1.0 - gamma) * self.actuate(self._values(phys.U))
-        drive = phys.BU @ u + self.process_noise([f"std_w_{y}" for y in phys.Y])
-        self._x = self.integrate(lambda x: phys.A @ x + drive, self._x, h)
+        drive = phys.BU @ u + self.process_noise(_PROCESS_NOISE)
+        self._x = self.integrate_linear(phys.A, drive, self._x, h)
         self.measure(phys.C @ self._x)

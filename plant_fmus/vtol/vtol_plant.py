@@ -16,6 +16,9 @@ from pythonfmu import DefaultExperiment, Fmi2Slave
 import vtol_physics as phys
 from vtol_support import PlantSlave
 
+_REFS = tuple(f"ref_{u}" for u in phys.U)
+_PROCESS_NOISE = tuple(f"std_w_{u}" for u in phys.U)
+
 
 class VTOL(PlantSlave, Fmi2Slave):
     description = "VTOL aircraft (COMPleib HE1) with LQR state feedback; 4 sensors, 2 actuators"
@@ -42,11 +45,11 @@ class VTOL(PlantSlave, Fmi2Slave):
         self._control(self.measure(phys.C @ self._x))
 
     def _control(self, y_meas):
-        u = -self._gain @ y_meas + self._values([f"ref_{u}" for u in phys.U])
+        u = -self._gain @ y_meas + self._values(_REFS)
         self.collective, self.cyclic = float(u[0]), float(u[1])
 
     def advance(self, t, h):
-        u = self.actuate([self.collective, self.cyclic]) + self.process_noise([f"std_w_{u}" for u in phys.U])
+        u = self.actuate([self.collective, self.cyclic]) + self.process_noise(_PROCESS_NOISE)
         drive = self._B @ u
-        self._x = self.integrate(lambda x: self._A @ x + drive, self._x, h)
+        self._x = self.integrate_linear(self._A, drive, self._x, h)
         self._control(self.measure(phys.C @ self._x))

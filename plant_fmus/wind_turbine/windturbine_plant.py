@@ -17,6 +17,7 @@ import windturbine_physics as phys
 from windturbine_support import PlantSlave
 
 PITCH_FAULTS = tuple(f"f_pitch_{i}_{kind}" for kind in phys.PITCH_FAULT_KINDS for i in phys.BLADES)
+_COMMANDS = tuple(phys.PITCH_U + phys.DT_U)
 
 
 class WindTurbine(PlantSlave, Fmi2Slave):
@@ -60,27 +61,39 @@ class WindTurbine(PlantSlave, Fmi2Slave):
         for key in ("J_g", "J_r", "N_g", "K_dt", "alpha_gc"):
             if not p[key] > 0:
                 raise ValueError(f"parameter {key} must be > 0, got {p[key]}")
+        self._p, self._sys_key = p, None
+        _, _, self._Cp = phys.pitch_matrices(p)
+        *_, self._Cd = phys.drive_train_matrices(p)
         x0, _ = phys.operating_point(p, self.omega_r_op, self.tau_g_op)
         self._x = np.concatenate([np.tile([self.beta_op, 0.0], 3), x0])
         self._publish(p, 0.0)
 
+    def _system(self, theta: tuple, eff: float):
+        """(A, Bp, Bu, Bd) of the whole plant for the pitch fault levels and the efficiency change;
+        rebuilt only when they change (the parameters are fixed after initialisation)."""
+        key = (theta, eff)
+        if self._sys_key != key:
+            p = self._p
+            th = np.array(theta).reshape(2, 3)
+            Ap, Bp, _ = phys.pitch_matrices(p, th[0], th[1])
+            Ad, Bu, Bd, _ = phys.drive_train_matrices(p, eff)
+            A = np.zeros((10, 10))
+            A[:6, :6], A[6:, 6:] = Ap, Ad
+            self._sys, self._sys_key = (A, Bp, Bu[:, 0], Bd[:, 0]), key
+        return self._sys
+
     def advance(self, t, h):
-        p = self._params()
-        theta = np.clip(self._values(PITCH_FAULTS), 0.0, 1.0).reshape(2, 3)
-        Ap, Bp, _ = phys.pitch_matrices(p, theta[0], theta[1])
-        Ad, Bu, Bd, _ = phys.drive_train_matrices(p, self.f_drive_train_efficiency)
-        u = self.actuate(self._values(phys.PITCH_U + phys.DT_U))
-        tau_r = self.tau_r + self.process_noise(["std_w_tau_r"])[0]
-        A = np.zeros((10, 10))
-        A[:6, :6], A[6:, 6:] = Ap, Ad
-        drive = np.concatenate([Bp @ u[:3], Bu[:, 0] * u[3] + Bd[:, 0] * tau_r])
+        p = self._p
+        theta = tuple(min(max(v, 0.0), 1.0) for v in self._get(PITCH_FAULTS))
+        A, Bp, bu, bd = self._system(theta, float(self.f_drive_train_efficiency))
+        u = self.actuate(self._get(_COMMANDS))
+        tau_r = self.tau_r + self.process_noise(("std_w_tau_r",))[0]
+        drive = np.concatenate([Bp @ u[:3], bu * u[3] + bd * tau_r])
         drive[7] -= self.f_converter_offset / p["J_g"]  # the offset acts on the generator
-        self._x = self.integrate(lambda x: A @ x + drive, self._x, h)
+        self._x = self.integrate_linear(A, drive, self._x, h)
         self._publish(p, self.f_converter_offset)
 
     def _publish(self, p, offset):
-        _, _, Cp = phys.pitch_matrices(p)
-        *_, Cd = phys.drive_train_matrices(p)
-        y = np.concatenate([Cp @ self._x[:6], Cd @ self._x[6:]])
+        y = np.concatenate([self._Cp @ self._x[:6], self._Cd @ self._x[6:]])
         y[-1] += offset  # the measured torque is the one acting, offset included
         self.measure(y)

@@ -1,0 +1,151 @@
+"""Campaign throughput (issue 10): plant step cost before/after, per-run overhead, runs per second.
+
+1. Plant step cost: every shipped plant FMU, built from this tree and from a baseline commit
+   (``--baseline``, default the commit before the fast plants; ``git archive`` into a temp
+   folder), stepped ``--steps`` times by fmpy in a fresh process with noise on at its default
+   operating point; CPU microseconds per ``doStep + getReal`` (best of 5; CPU time, not wall
+   time, so that other processes on the machine do not count) and the before/after ratio
+   (target >= 5).
+2. Per-run fixed overhead: a campaign worker's run of 1 step minus one step's cost (target
+   < 10 ms): reset, initialisation, wiring, summary.
+3. Runs per second of 1000-step DTS200 + DOS-bank runs (the demo's bank, persistence 3/5,
+   adaptive thresholds; :mod:`fmu_fdi.campaign.example`): serially, on a 2-process pool and on
+   a 2-worker Dask LocalCluster (targets: pool >= 1.8 x serial on 2 cores, Dask within 1.2 x of
+   the pool), and the wall time extrapolated to 1000 runs (target < 100 s).
+
+    python benchmarks/campaign_speed.py [--runs 40] [--steps 2000] [--baseline REV]
+
+Everything is measured in the same invocation; on a shared machine the figures are noisy:
+the ratios are what to read.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BASELINE = "058cf9e"  # the last commit with the Dormand-Prince-on-numpy plants
+
+STEPPER = r'''
+import json, sys, time
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+path, steps = sys.argv[1], int(sys.argv[2])
+md = read_model_description(path)
+d = extract(path)
+s = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName="p")
+s.instantiate(); s.setupExperiment(startTime=0.0); s.enterInitializationMode(); s.exitInitializationMode()
+h = md.defaultExperiment.stepSize and float(md.defaultExperiment.stepSize) or 0.01
+outs = [v.valueReference for v in md.modelVariables if v.causality == "output" and v.type == "Real"]
+t, best = 0.0, float("inf")
+for rep in range(5):
+    tic = time.process_time()  # CPU time of this process: robust on a shared machine
+    for k in range(steps):
+        s.doStep(currentCommunicationPoint=t, communicationStepSize=h)
+        s.getReal(outs)
+        t += h
+    best = min(best, (time.process_time() - tic) / steps)
+s.terminate(); s.freeInstance()
+print(json.dumps({"us": best * 1e6}))
+'''
+
+
+def plant_fmus_from(source_root: Path, out: Path) -> dict:
+    """Build every plant FMU with the plant_fmus package found in ``source_root``."""
+    code = ("import json, sys; sys.path.insert(0, sys.argv[1]); import plant_fmus; "
+            "print(json.dumps({p.stem: str(p) for p in plant_fmus.build_all(sys.argv[2])}))")
+    proc = subprocess.run([sys.executable, "-c", code, str(source_root), str(out)], capture_output=True, text=True,
+                          cwd=out, check=True)
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def step_cost(fmu: str, steps: int) -> float:
+    proc = subprocess.run([sys.executable, "-c", STEPPER, fmu, str(steps)], capture_output=True, text=True, check=True)
+    return json.loads(proc.stdout.strip().splitlines()[-1])["us"]
+
+
+def plant_costs(steps: int, baseline: str, tmp: Path) -> list:
+    base = tmp / "baseline_src"
+    base.mkdir()
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "plant_fmus"], capture_output=True,
+                             check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(base)], input=archive, check=True)
+    (tmp / "before").mkdir()
+    (tmp / "after").mkdir()
+    before = plant_fmus_from(base, tmp / "before")
+    after = plant_fmus_from(ROOT, tmp / "after")
+    rows = []
+    for name in after:
+        b, a = step_cost(before[name], steps), step_cost(after[name], steps)
+        rows.append((name, b, a))
+        print(f"  {name:18s} before {b:8.1f} us/step   after {a:8.1f} us/step   ratio {b / a:5.1f}x", flush=True)
+    return rows
+
+
+def campaign_rates(runs: int, tmp: Path) -> dict:
+    from fmu_fdi.campaign import CampaignSpec, run_campaign
+    from fmu_fdi.campaign.example import build_fmus, write_campaign
+    from fmu_fdi.campaign.execute import Worker
+    from fmu_fdi.campaign.runner import payload
+
+    build_fmus(tmp)
+    per = max(1, runs // 6)
+    path = write_campaign(tmp, "bench", stop=1000.0, fault_free=runs - 6 * per, replicates=per)
+    spec = CampaignSpec.load(path)
+    assert len(spec.runs()) == runs, len(spec.runs())
+    out = {}
+    # per-run fixed overhead: a 1-step run on a warm worker, minus nothing (a step is < 1 ms)
+    one = CampaignSpec.load(write_campaign(tmp, "one", stop=1.0, fault_free=1, targets=(), zone=0.0))
+    w = Worker(payload(one))
+    w.run(one.runs()[0].to_dict())
+    times = []
+    for _ in range(20):
+        tic = time.perf_counter()
+        w.run(one.runs()[0].to_dict())
+        times.append(time.perf_counter() - tic)
+    w.close()
+    out["overhead_ms"] = sorted(times)[len(times) // 2] * 1e3
+    print(f"  per-run fixed overhead (1-step run, median of 20): {out['overhead_ms']:.1f} ms (target < 10)",
+          flush=True)
+    for label, kwargs in (("serial", {"workers": 1}), ("pool-2", {"workers": 2}),
+                          ("dask-2", {"workers": 2, "scheduler": "local"})):
+        folder = tmp / f"out_{label}"
+        tic = time.perf_counter()
+        res = run_campaign(spec, folder, progress=False, **kwargs)
+        wall = time.perf_counter() - tic
+        assert len(res.records) == runs and not res.failed, res.failed[:1]
+        out[label] = runs / wall
+        print(f"  {label:7s} {runs} runs in {wall:6.1f} s: {out[label]:5.2f} runs/s", flush=True)
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=40, help="runs per execution mode (default 40)")
+    ap.add_argument("--steps", type=int, default=2000, help="plant steps per timing (default 2000)")
+    ap.add_argument("--baseline", default=BASELINE, help=f"git revision of the 'before' plants (default {BASELINE})")
+    args = ap.parse_args(argv)
+    print(f"cpus: {os.cpu_count()}, load average: {os.getloadavg()[0]:.1f}")
+    with tempfile.TemporaryDirectory(prefix="campaign_speed_") as tmp:
+        tmp = Path(tmp)
+        print("plant FMU step cost (fmpy doStep + getReal, noise on, operating point):")
+        rows = plant_costs(args.steps, args.baseline, tmp)
+        print("campaign (1000-step DTS200 + DOS-bank runs):")
+        rates = campaign_rates(args.runs, tmp / "campaign")
+    worst = min(b / a for _, b, a in rows)
+    print("\nsummary")
+    print(f"  plant step cost: every plant >= {worst:.1f}x faster (target 5x)")
+    print(f"  per-run overhead: {rates['overhead_ms']:.1f} ms (target < 10 ms)")
+    print(f"  pool-2 / serial: {rates['pool-2'] / rates['serial']:.2f} (target >= 1.8 on 2 free cores)")
+    print(f"  dask-2 / pool-2: {rates['dask-2'] / rates['pool-2']:.2f} (target >= 1/1.2 = 0.83)")
+    print(f"  1000 runs on the pool: {1000 / rates['pool-2']:.0f} s (target < 100 s)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,82 @@
+"""The example campaign: the DTS200 three-tank plant FMU with the demo's dedicated observer bank
+(three level-sensor residuals, rms over 20 s, adaptive thresholds, persistence 3 of 5; see
+:mod:`fmu_fdi.demo`), the pumps at their operating flows, Jacobi order. It serves the tests, the
+benchmark (benchmarks/campaign_speed.py) and as a template for a campaign file.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+TEMPLATE = """\
+format = "fmu-fdi-campaign/1"
+name = "{name}"
+
+[simulation]
+step = 1.0
+stop = {stop}
+order = "jacobi"
+
+[fmus]
+plant = "dts200.fmu"
+bank = "dts200_sensor_dos.fmu"
+
+[inputs]
+time = [0.0]
+
+[inputs.values]
+Q1 = [{q1!r}]
+Q2 = [{q2!r}]
+
+[sample]
+method = "grid"
+fault_free = {fault_free}
+replicates = {replicates}
+seeds = ["plant.seed"]
+seed_base = {seed_base}
+
+[sample.fault]
+kind = ["abrupt"]
+target = {targets}
+magnitude = {magnitudes}
+onset = [{onset}]
+
+[analysis]
+confidence = 0.95
+false_alarm_rate = {rate}
+scales = {{ min = {scale_min}, max = {scale_max}, count = {scale_count} }}
+zone_start = {zone}
+"""
+
+
+def build_fmus(folder) -> dict:
+    """Build the plant FMU and the demo's diagnoser FMU into ``folder``; ``{instance: path}``."""
+    import plant_fmus
+
+    from ..demo import design_diagnoser
+    from ..fmu import build_fmu
+    from ..model import FDIModel
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    plant = plant_fmus.build("dts200", folder)
+    model = FDIModel.from_file(plant_fmus.model_path("dts200"))
+    dg, _ = design_diagnoser(model, plant, folder)
+    return {"plant": plant, "bank": build_fmu(dg, folder / "dts200_sensor_dos.fmu")}
+
+
+def write_campaign(folder, name="dts200-dos", *, stop=1000.0, fault_free=2, replicates=1, seed_base=1,
+                   targets=("plant.f_sensor_h1", "plant.f_sensor_h2", "plant.f_sensor_h3"),
+                   magnitudes=(0.5, 1.0), onset=None, rate=1e-3, scales=(0.5, 2.0, 16), zone=50.0) -> Path:
+    """Write ``folder/<name>.toml`` next to FMUs built by :func:`build_fmus`; returns its path."""
+    from plant_fmus.dts200 import dts200_physics as phys
+
+    _, q = phys.operating_point()
+    text = TEMPLATE.format(name=name, stop=float(stop), q1=float(q[0]), q2=float(q[1]), fault_free=fault_free,
+                           replicates=replicates, seed_base=seed_base, targets=list(targets),
+                           magnitudes=[float(m) for m in magnitudes], onset=float(onset if onset is not None
+                                                                                    else stop / 2),
+                           rate=rate, scale_min=scales[0], scale_max=scales[1], scale_count=scales[2],
+                           zone=float(zone))
+    path = Path(folder) / f"{name}.toml"
+    path.write_text(text.replace("'", '"'), encoding="utf-8")
+    return path

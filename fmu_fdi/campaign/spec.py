@@ -1,0 +1,413 @@
+"""The campaign file (TOML, ``format = "fmu-fdi-campaign/1"``) and the runs it stands for.
+
+A campaign is one co-simulation set-up (FMUs, connections, inputs, step, stop, order, fixed
+parameters) and a sample of scenarios over it: fault kind, target, magnitude, onset and
+duration, plant parameters, plus fault-free runs; every run gets its own noise seeds. Paths
+are relative to the campaign file. A complete file::
+
+    format = "fmu-fdi-campaign/1"
+    name = "dts200-sensor-bank"
+
+    [simulation]
+    step = 1.0
+    stop = 600.0
+    order = "jacobi"                 # or "gauss-seidel" (default); start = 0.0 by default
+
+    [fmus]                           # instance -> FMU, in stepping order (plants first)
+    plant = "dts200.fmu"
+    bank = "dos.fmu"
+
+    [connections]                    # optional; default: "auto" (same-named outputs -> inputs)
+    auto = true                      # or: pairs = [["plant.h1", "bank.h1"], ...]
+
+    [inputs]                         # optional external signals
+    file = "pumps.csv"               # a CSV with a 'time' column (or: time = [...], and
+    interpolation = "zoh"            #  [inputs.values] Q1 = [...], ...)
+
+    [parameters]                     # set in every run
+    "plant.noise_enable" = true
+
+    [diagnosers.bank]                # optional: every FMU with fault_detected is a diagnoser;
+    faults = ["sensor_h1", "..."]    #  its fault list (isolated_fault j -> name) defaults to the
+                                     #  design the FMU carries
+
+    [labels]                         # optional: target -> model fault the diagnoser should name;
+    "plant.f_sensor_h1" = "sensor_h1"  # default: an input 'f_<name>' realises fault <name>
+
+    [sample]
+    method = "grid"                  # every combination; or "random" (runs draws)
+    runs = 100                       # random only: faulty runs
+    seed = 1                         # random only: the sampler's seed
+    replicates = 2                   # grid only: every combination this often (new noise)
+    fault_free = 20                  # fault-free runs (per parameter combination in a grid)
+    seeds = ["plant.seed"]           # noise-seed parameters: a distinct value in every run
+    seed_base = 1000
+
+    [sample.fault]                   # a list: grid values / random choice; {min, max[, scale =
+    kind = ["abrupt"]                #  "log"]}: random only, uniform (log-uniform)
+    target = ["plant.f_sensor_h1", "plant.f_sensor_h2"]
+    magnitude = [0.5, 1.0]
+    onset = [300.0]
+    duration = [inf]                 # inf: permanent (the default)
+
+    [sample.parameters]              # plant parameters, sampled like the fault
+    "plant.az1" = [0.44, 0.46]
+
+    [analysis]
+    confidence = 0.95                # of every interval
+    false_alarm_rate = 1e-3          # target per sample of the threshold choice
+    scales = {min = 0.5, max = 2.0, count = 16}   # threshold_scale sweep (geometric)
+    zone_start = 0.0                 # samples before it are not scored (start-up transients)
+
+    [output]
+    traces = false                   # keep every run's full record (CSV)
+
+Seeds: the k-th run (0-based, in the order of :meth:`CampaignSpec.runs`) sets the j-th seed
+parameter to ``seed_base + k · len(seeds) + j``: no two runs share a noise sequence, and a
+run's seeds do not depend on how the campaign is executed.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..cosim import CoSimulationError, Fault, InputSignals
+from ..cosim.master import ORDERS
+
+FORMAT = "fmu-fdi-campaign/1"
+FAULT_DIMENSIONS = ("kind", "target", "magnitude", "onset", "duration")
+_TOP = {"format", "name", "simulation", "fmus", "connections", "inputs", "parameters", "diagnosers", "labels",
+        "sample", "analysis", "output"}
+_SAMPLE = {"method", "runs", "seed", "replicates", "fault_free", "seeds", "seed_base", "fault", "parameters"}
+_ANALYSIS_DEFAULTS = {"confidence": 0.95, "false_alarm_rate": 1e-3,
+                      "scales": {"min": 0.5, "max": 2.0, "count": 16}, "zone_start": None}
+
+
+class CampaignError(CoSimulationError):
+    """A campaign file that cannot be run: the message names the key and what is wrong."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """One co-simulation of a campaign.
+
+    ``fault`` is None (fault-free) or a dict with the keys of :data:`FAULT_DIMENSIONS`
+    (``duration`` None: permanent) and ``label``, the model fault it realises; ``parameters`` holds the sampled plant parameters and the
+    noise seeds. ``key`` identifies the scenario (a hash of its content), so a resumed campaign
+    recognises the runs it has finished.
+    """
+
+    index: int
+    fault: dict | None
+    parameters: dict
+
+    @property
+    def key(self) -> str:
+        text = json.dumps({"fault": self.fault, "parameters": self.parameters}, sort_keys=True, default=repr)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def faults(self) -> list:
+        """The :class:`~fmu_fdi.cosim.Fault` list of the run (empty when fault-free)."""
+        if self.fault is None:
+            return []
+        f = self.fault
+        end = None if f["duration"] is None else f["onset"] + f["duration"]
+        return [Fault(f["kind"], f["target"], onset=f["onset"], magnitude=f["magnitude"], end=end,
+                      name="injected", ramp=f.get("ramp"), period=f.get("period"))]
+
+    def to_dict(self) -> dict:
+        return {"index": self.index, "key": self.key, "fault": self.fault, "parameters": self.parameters}
+
+
+@dataclass
+class CampaignSpec:
+    """A validated campaign file (see the module docstring for the format).
+
+    Build one with :meth:`load` (a TOML file) or :meth:`from_dict`; :meth:`runs` lists the runs.
+    """
+
+    name: str
+    folder: Path
+    fmus: dict
+    step: float
+    stop: float
+    start: float = 0.0
+    order: str = "gauss-seidel"
+    connections: object = "auto"
+    inputs: InputSignals | None = None
+    parameters: dict = field(default_factory=dict)
+    diagnosers: dict = field(default_factory=dict)
+    labels: dict = field(default_factory=dict)
+    sample: dict = field(default_factory=dict)
+    analysis: dict = field(default_factory=dict)
+    traces: bool = False
+    source: dict = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ reading
+    @classmethod
+    def load(cls, path) -> "CampaignSpec":
+        """Read and validate a campaign TOML file."""
+        try:
+            import tomllib
+        except ModuleNotFoundError:  # Python 3.10
+            import tomli as tomllib
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"campaign file: no such file {str(path)!r}")
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except tomllib.TOMLDecodeError as exc:
+            raise CampaignError(f"campaign file {path}: not valid TOML: {exc}") from None
+        return cls.from_dict(data, path.resolve().parent)
+
+    @classmethod
+    def from_dict(cls, data: dict, folder=".") -> "CampaignSpec":
+        """Validate a campaign given as a dict (the TOML file's content); paths relative to ``folder``."""
+        data = copy.deepcopy(data)
+        folder = Path(folder)
+        fmt = data.get("format")
+        if fmt != FORMAT:
+            raise CampaignError(f"campaign: format must be {FORMAT!r}, got {fmt!r}")
+        unknown = set(data) - _TOP
+        if unknown:
+            raise CampaignError(f"campaign: unknown key(s) {sorted(unknown)}; known: {sorted(_TOP)}")
+        sim = _table(data, "simulation")
+        for key in ("step", "stop"):
+            if key not in sim:
+                raise CampaignError(f"campaign: [simulation] needs {key!r}")
+        order = sim.get("order", "gauss-seidel")
+        if order not in ORDERS:
+            raise CampaignError(f"campaign: [simulation] order {order!r} is not one of {ORDERS}")
+        fmus = _table(data, "fmus")
+        if not fmus:
+            raise CampaignError("campaign: [fmus] names no FMU")
+        paths = {}
+        for name, rel in fmus.items():
+            p = (folder / str(rel)).resolve()
+            if not p.is_file():
+                raise CampaignError(f"campaign: [fmus] {name} = {rel!r}: no such file {str(p)!r}")
+            paths[name] = p
+        spec = cls(name=str(data.get("name", "campaign")), folder=folder, fmus=paths,
+                   step=_float(sim["step"], "simulation.step"), stop=_float(sim["stop"], "simulation.stop"),
+                   start=_float(sim.get("start", 0.0), "simulation.start"), order=order,
+                   connections=_connections(data.get("connections")),
+                   inputs=_inputs(data.get("inputs"), folder), parameters=dict(_table(data, "parameters")),
+                   diagnosers={k: dict(v) for k, v in _table(data, "diagnosers").items()},
+                   labels=dict(_table(data, "labels")), sample=_sample(_table(data, "sample")),
+                   analysis=_analysis(_table(data, "analysis")),
+                   traces=bool(_table(data, "output").get("traces", False)), source=data)
+        for name in spec.diagnosers:
+            if name not in paths:
+                raise CampaignError(f"campaign: [diagnosers.{name}] is not an FMU of [fmus] ({', '.join(paths)})")
+        spec.runs()  # every run's faults must be valid
+        return spec
+
+    # ------------------------------------------------------------------ runs
+    def runs(self) -> list:
+        """Every run of the campaign, fault-free runs first, in a fixed order."""
+        s = self.sample
+        params = s["parameters"]
+        fault_dims = {k: s["fault"][k] for k in FAULT_DIMENSIONS}
+        scenarios = []  # (fault or None, parameters)
+        if s["method"] == "grid":
+            names = list(params)
+            combos = [dict(zip(names, values)) for values in itertools.product(*(params[n] for n in names))]
+            for combo in combos:
+                scenarios += [(None, combo)] * s["fault_free"]
+            if s["fault"]["target"]:
+                for combo in combos:
+                    for values in itertools.product(*(fault_dims[k] for k in FAULT_DIMENSIONS)):
+                        fault = dict(zip(FAULT_DIMENSIONS, values))
+                        scenarios += [(fault, combo)] * s["replicates"]
+        else:
+            rng = np.random.default_rng(s["seed"])
+            for k in range(s["fault_free"] + s["runs"]):
+                combo = {n: _draw(rng, v) for n, v in params.items()}
+                fault = ({d: _draw(rng, fault_dims[d]) for d in FAULT_DIMENSIONS}
+                         if k >= s["fault_free"] else None)
+                scenarios.append((fault, combo))
+        runs = []
+        seeds = s["seeds"]
+        for k, (fault, combo) in enumerate(scenarios):
+            p = dict(combo)
+            for j, name in enumerate(seeds):
+                p[name] = s["seed_base"] + k * len(seeds) + j
+            if fault is not None:
+                fault = {**fault, **{x: s["fault"][x] for x in ("ramp", "period") if x in s["fault"]},
+                         "label": self.label(fault["target"])}
+                if math.isinf(fault["duration"]):
+                    fault["duration"] = None  # permanent (JSON has no inf)
+                zone = self.analysis["zone_start"]
+                if zone is not None and fault["onset"] < zone:
+                    raise CampaignError(f"campaign: run {k}: fault onset {fault['onset']:g} is before "
+                                        f"analysis.zone_start {zone:g} (the scored part must start fault-free)")
+            run = Run(k, fault, p)
+            try:
+                run.faults()
+            except CoSimulationError as exc:
+                raise CampaignError(f"campaign: run {k}: {exc}") from None
+            runs.append(run)
+        return runs
+
+    @property
+    def scales(self) -> np.ndarray:
+        """The threshold_scale factors of the sweep (geometric grid, always containing 1)."""
+        sc = self.analysis["scales"]
+        grid = np.geomspace(sc["min"], sc["max"], sc["count"])
+        return np.unique(np.append(grid, 1.0))
+
+    def label(self, target: str) -> str | None:
+        """The model fault a fault on ``target`` realises: [labels], else ``f_<name>`` -> ``<name>``."""
+        if target in self.labels:
+            return str(self.labels[target])
+        var = target.split(".", 1)[1]
+        return var[2:] if var.startswith("f_") else None
+
+    def to_dict(self) -> dict:
+        """The campaign's content as read (for the results header)."""
+        return self.source
+
+
+# ---------------------------------------------------------------------- helpers
+def _table(data, key) -> dict:
+    value = data.get(key, {})
+    if not isinstance(value, dict):
+        raise CampaignError(f"campaign: [{key}] must be a table, got {type(value).__name__}")
+    return value
+
+
+def _float(x, what) -> float:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        raise CampaignError(f"campaign: {what} must be a number, got {x!r}") from None
+    if math.isnan(v):
+        raise CampaignError(f"campaign: {what} is NaN")
+    return v
+
+
+def _connections(value):
+    if value is None:
+        return "auto"
+    if not isinstance(value, dict):
+        raise CampaignError("campaign: [connections] must be a table with auto = true or pairs = [[src, dst], ...]")
+    if "pairs" in value:
+        pairs = value["pairs"]
+        if not all(isinstance(p, list) and len(p) == 2 for p in pairs):
+            raise CampaignError("campaign: [connections] pairs must be [[\"fmu.out\", \"fmu.in\"], ...]")
+        return [tuple(p) for p in pairs]
+    return "auto" if value.get("auto", True) else None
+
+
+def _inputs(value, folder):
+    if value is None:
+        return None
+    interp = value.get("interpolation", "zoh")
+    if "file" in value:
+        return InputSignals.from_csv(folder / value["file"], interp)
+    if "time" in value and "values" in value:
+        return InputSignals(value["time"], value["values"], interp)
+    raise CampaignError("campaign: [inputs] needs file = \"x.csv\", or time = [...] with [inputs.values]")
+
+
+def _dimension(value, what, numeric=True):
+    """A sampled dimension: a non-empty list, or (numeric) {min, max[, scale]}."""
+    if isinstance(value, dict):
+        if not numeric:
+            raise CampaignError(f"campaign: {what} must be a list")
+        if set(value) - {"min", "max", "scale"} or "min" not in value or "max" not in value:
+            raise CampaignError(f"campaign: {what} range must be {{min = a, max = b[, scale = \"log\"]}}, got {value}")
+        lo, hi = _float(value["min"], what + ".min"), _float(value["max"], what + ".max")
+        scale = value.get("scale", "linear")
+        if scale not in ("linear", "log") or not lo <= hi or (scale == "log" and not lo > 0):
+            raise CampaignError(f"campaign: {what} range {value} needs min <= max (> 0 for scale = \"log\")")
+        return {"min": lo, "max": hi, "scale": scale}
+    if not isinstance(value, list):
+        value = [value]
+    if not value:
+        raise CampaignError(f"campaign: {what} is an empty list")
+    return [_float(v, what) if numeric and v is not None else v for v in value]
+
+
+def _draw(rng, dim):
+    if isinstance(dim, dict):
+        if dim["scale"] == "log":
+            return float(math.exp(rng.uniform(math.log(dim["min"]), math.log(dim["max"]))))
+        return float(rng.uniform(dim["min"], dim["max"]))
+    return dim[int(rng.integers(len(dim)))]
+
+
+def _sample(s: dict) -> dict:
+    unknown = set(s) - _SAMPLE
+    if unknown:
+        raise CampaignError(f"campaign: unknown key(s) {sorted(unknown)} in [sample]; known: {sorted(_SAMPLE)}")
+    method = s.get("method", "grid")
+    if method not in ("grid", "random"):
+        raise CampaignError(f"campaign: [sample] method must be 'grid' or 'random', got {method!r}")
+    out = {"method": method}
+    for key, default, low in (("runs", 0, 0), ("seed", 0, 0), ("replicates", 1, 1), ("fault_free", 0, 0),
+                              ("seed_base", 1, 0)):
+        v = s.get(key, default)
+        if isinstance(v, bool) or not isinstance(v, int) or v < low:
+            raise CampaignError(f"campaign: [sample] {key} must be an integer >= {low}, got {v!r}")
+        out[key] = v
+    if method == "grid" and isinstance(s.get("fault", {}).get("magnitude"), dict):
+        raise CampaignError("campaign: a grid samples lists only; use method = \"random\" for ranges")
+    seeds = s.get("seeds", [])
+    out["seeds"] = [seeds] if isinstance(seeds, str) else list(seeds)
+    f = dict(s.get("fault", {}))
+    extra = set(f) - set(FAULT_DIMENSIONS) - {"ramp", "period"}
+    if extra:
+        raise CampaignError(f"campaign: unknown key(s) {sorted(extra)} in [sample.fault]")
+    fault = {"kind": _dimension(f.get("kind", ["abrupt"]), "sample.fault.kind", numeric=False),
+             "target": _dimension(f["target"], "sample.fault.target", numeric=False) if f.get("target") else [],
+             "magnitude": _dimension(f.get("magnitude", [1.0]), "sample.fault.magnitude"),
+             "onset": _dimension(f.get("onset", [0.0]), "sample.fault.onset"),
+             "duration": _dimension(f.get("duration", [math.inf]), "sample.fault.duration")}
+    for x in ("ramp", "period"):
+        if x in f:
+            fault[x] = _float(f[x], f"sample.fault.{x}")
+    out["fault"] = fault
+    if method == "random" and out["runs"] and not fault["target"]:
+        raise CampaignError("campaign: [sample] runs > 0 needs [sample.fault] target")
+    if method == "grid":
+        for key, dim in fault.items():
+            if isinstance(dim, dict):
+                raise CampaignError(f"campaign: sample.fault.{key} is a range; a grid takes lists only")
+    out["parameters"] = {}
+    for name, dim in s.get("parameters", {}).items():
+        d = _dimension(dim, f"sample.parameters.{name!r}", numeric=not isinstance(dim, list)
+                       or all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in dim))
+        if method == "grid" and isinstance(d, dict):
+            raise CampaignError(f"campaign: sample.parameters.{name!r} is a range; a grid takes lists only")
+        out["parameters"][name] = d
+    if not out["fault_free"] and not fault["target"]:
+        raise CampaignError("campaign: [sample] has no runs: give fault_free > 0 or [sample.fault] target")
+    return out
+
+
+def _analysis(a: dict) -> dict:
+    unknown = set(a) - set(_ANALYSIS_DEFAULTS)
+    if unknown:
+        raise CampaignError(f"campaign: unknown key(s) {sorted(unknown)} in [analysis]")
+    out = {**_ANALYSIS_DEFAULTS, **a}
+    c = _float(out["confidence"], "analysis.confidence")
+    if not 0 < c < 1:
+        raise CampaignError(f"campaign: analysis.confidence must lie in (0, 1), got {c}")
+    rate = _float(out["false_alarm_rate"], "analysis.false_alarm_rate")
+    if not 0 < rate < 1:
+        raise CampaignError(f"campaign: analysis.false_alarm_rate must lie in (0, 1), got {rate}")
+    sc = dict(_ANALYSIS_DEFAULTS["scales"], **out["scales"])
+    lo, hi, n = _float(sc["min"], "analysis.scales.min"), _float(sc["max"], "analysis.scales.max"), sc["count"]
+    if not 0 < lo <= hi or isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise CampaignError(f"campaign: analysis.scales needs 0 < min <= max and an integer count >= 1, got {sc}")
+    zone = out["zone_start"]
+    return {"confidence": c, "false_alarm_rate": rate, "scales": {"min": lo, "max": hi, "count": n},
+            "zone_start": None if zone is None else _float(zone, "analysis.zone_start")}
