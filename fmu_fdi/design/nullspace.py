@@ -29,6 +29,7 @@ from ..model import FDIModel
 from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective
 from .approximate import coouter_inverse, gap_objective
+from .postconditions import DEC_TOL, check_generator
 
 
 def _random_points(basis: NullspaceBasis, count: int = 4, seed: int = 1) -> np.ndarray:
@@ -121,7 +122,8 @@ def _normalize_rows(Q: LTI, scale: np.ndarray) -> LTI:
 @single_blas_thread
 def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: float | None = None,
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
-                     tol: float | None = None, seed: int = 0) -> ResidualGenerator:
+                     tol: float | None = None, seed: int = 0, smarg: float | None = None,
+                     dec_tol: float = DEC_TOL) -> ResidualGenerator:
     """Least-order residual generator from a minimal proper stable left null space of ``[Gu Gd; I 0]``.
 
     Solves the exact fault detection problem (Varga 2017, Procedure EFD; FaultDetectionTools.jl
@@ -153,12 +155,19 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         Relative rank tolerance of the null-space computation.
     seed : int
         Seed of the deterministic combination search.
+    smarg : float, optional
+        Stability margin the filter poles must satisfy (``Re p < smarg``, or ``|p| < smarg``
+        in discrete time); default just inside the stability boundary.
+    dec_tol : float
+        Largest relative leakage of u and d (and w when it is decoupled) the returned filter
+        may show (:mod:`.postconditions`).
 
     Returns
     -------
     ResidualGenerator
-        ``info`` holds the basis degrees, the order, poles, the combination and, with noise,
-        the grid estimate of the gap.
+        ``info`` holds the basis degrees, the order, poles, the combination, with noise the
+        grid estimate of the gap, and ``postconditions``: the achieved decoupling, fault
+        visibility and stability figures.
 
     Raises
     ------
@@ -190,8 +199,15 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     if model.faults and not np.all(seen.max(axis=0) > FDtol):
         raise undetectable_error(model, seen > FDtol)
     if model.nw and noise == "optimize":
-        return _approximate(model, basis, rdim, choose, FDtol, tol, seed)
-    return _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed)
+        gen = _approximate(model, basis, rdim, choose, FDtol, tol, seed)
+        exact_w = gen.info.get("noise") == "decoupled exactly"
+        check_generator(gen, decouple=("u", "d", "w") if exact_w else ("u", "d"), block=True, FDtol=FDtol,
+                        smarg=smarg, dec_tol=dec_tol)
+        return gen
+    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed)
+    check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
+                    smarg=smarg, dec_tol=dec_tol)
+    return gen
 
 
 def _grid(model: FDIModel, roots_lam: np.ndarray, freqs) -> np.ndarray:
