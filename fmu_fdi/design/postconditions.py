@@ -32,6 +32,11 @@ from ..errors import DesignError
 from ..linalg import EPS
 from ..lti import LTI, frequency_grid
 
+class NumericalDesignError(DesignError):
+    """A design broke a numerical post-condition (decoupling, basis rank, stability of the
+    realisation): other rank tolerances may succeed where the problem itself is solvable."""
+
+
 #: default decoupling tolerance: the relative leakage an exact design may show. The
 #: product Q·Ge of an O(100)-state cascade evaluated in floating point carries
 #: ~n·cond·eps ≈ 1e-12 for well-conditioned data; 1e-7 leaves five digits of headroom for
@@ -205,7 +210,8 @@ def _finish(fig: dict, failures, adv: dict, gen, raise_error: bool) -> dict:
     if failures and raise_error:
         kinds = list(dict.fromkeys(k for k, _ in failures))
         shown = [m for _, m in failures[:6]] + ([f"... {len(failures) - 6} more"] if len(failures) > 6 else [])
-        raise DesignError(f"{gen.method} design fails its post-conditions ({', '.join(kinds)}): " + "; ".join(shown)
+        cls = NumericalDesignError if set(kinds) & {"decoupling", "structure", "stability", "finite"} else DesignError
+        raise cls(f"{gen.method} design fails its post-conditions ({', '.join(kinds)}): " + "; ".join(shown)
                           + ". " + " ".join(f"[{k}] {adv[k]}." for k in kinds))
     if failures:
         fig["failures"] = [m for _, m in failures]
