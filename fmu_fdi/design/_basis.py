@@ -193,9 +193,8 @@ def minimal_basis(model: FDIModel, rtol: float | None = None, atol: float = 0.0)
     target = p - rank_d
     rows: list[PolyRow] = []
     vecs: list[tuple[int, np.ndarray]] = []
-    for s in range(0, data.n + 2):
-        if len(rows) >= target:
-            break
+    s, recovered = 0, 0
+    while s <= data.n + 1 and len(rows) < target:
         N = data.parity_vectors(s, rtol, atol)
         shifts = []
         for deg, v in vecs:
@@ -205,9 +204,21 @@ def minimal_basis(model: FDIModel, rtol: float | None = None, atol: float = 0.0)
                 shifts.append(row)
         S = np.array(shifts) if shifts else np.zeros((0, (s + 1) * p))
         new = complement_rows(N, S, rtol)
+        low = _lower_degree(new, p, s) if s and recovered <= target else []
+        if low:
+            # a vector of lower degree was rejected there (its singular value sat just above
+            # the tolerance) but its shifts are accepted here: take it at its own degree and
+            # redo this order, so the basis keeps its rational rank and minimal degrees
+            for deg, v in low:
+                vecs.append((deg, v))
+                rows.append(data.row(v, deg))
+                recovered += 1
+            continue
         for v in new:
             vecs.append((s, v))
             rows.append(data.row(v, s))
+        s += 1
+    rows.sort(key=lambda r: r.degree)
     if len(rows) != target:
         from .postconditions import NumericalDesignError
 
@@ -227,6 +238,30 @@ def minimal_basis(model: FDIModel, rtol: float | None = None, atol: float = 0.0)
         )
     return NullspaceBasis(rows, data.rho, model.dt, p, model.nu, rank_d,
                           info={"controllable_order": data.n, "basis_sv_ratio": sv_ratio})
+
+
+def _lower_degree(new: np.ndarray, p: int, s: int, tol: float = 1e-6) -> list[tuple[int, np.ndarray]]:
+    """Combinations of the new order-s vectors whose leading (μ^s) block vanishes, each
+    stripped of its zero leading and trailing blocks: ``(degree, unit vector)``.
+
+    ``tol`` is relative to the unit-norm rows: parity vectors of an ill-conditioned
+    ``O_s`` are known to about sqrt(eps), so a block below 1e-6 is zero.
+    """
+    if new.shape[0] == 0:
+        return []
+    L = new[:, s * p:]
+    U, sv, _ = sla.svd(L, full_matrices=True)
+    sv = np.concatenate([sv, np.zeros(U.shape[0] - sv.size)])
+    out = []
+    for c in U[:, sv < tol].T:
+        v = c @ new
+        blocks = np.linalg.norm(v.reshape(s + 1, p), axis=1)
+        live = np.nonzero(blocks > tol)[0]
+        if not live.size:
+            continue
+        v = v[live[0] * p:(live[-1] + 1) * p]
+        out.append((int(live[-1] - live[0]), v / np.linalg.norm(v)))
+    return out
 
 
 def basis_rank(rows: list[PolyRow], rho: float, dt: float, points: int = 3, seed: int = 7) -> tuple[int, float]:

@@ -7,10 +7,11 @@ scaling of the model:
 
 - decoupling of a group X of inputs (u, d, and w for exact designs; faults with
   ``S[i, j] = 0`` for structured rows):
-  ``δ_X = max_λ ||R_X(λ)|| / (||Q(λ)|| ||Ge_X(λ)||)`` must be ``≤ dec_tol``
-  (the backward-error scale of the product ``Q Ge``);
-- visibility of a required fault j: the cosine
-  ``γ_j = max_λ ||R_fj(λ)|| / (||Q_y(λ)|| ||Gf_j(λ)||)`` must exceed ``FDtol``; a row whose
+  ``δ_X = max_λ ||R_X(λ)|| / max_λ (||Q(λ)|| ||Ge_X(λ)||)`` must be ``≤ dec_tol``
+  (the backward-error scale of the product ``Q Ge``; peaks, not a pointwise ratio, which
+  is 0/0 at a transmission zero of ``Ge_X``);
+- visibility of a required fault j:
+  ``γ_j = max_λ ||R_fj(λ)|| / max_λ (||Q_y(λ)|| ||Gf_j(λ)||)`` must exceed ``FDtol``; a row whose
   fault gain is rounding noise against its own gain (``γ_j ~ 1e-16``) is refused instead
   of being "normalised" into a filter with gain ~1e12;
 - strong detectability at frequencies Ω: ``||R_fj(jω)|| > FDGainTol · max_λ ||R_fj(λ)||``;
@@ -78,6 +79,13 @@ def _nrm(X: np.ndarray) -> np.ndarray:
     if X.shape[1] == 0 or X.shape[2] == 0:
         return np.zeros(X.shape[0])
     return np.linalg.norm(X, ord=2, axis=(1, 2))
+
+
+def _rel(resp: np.ndarray, bound: np.ndarray) -> float:
+    """``max_λ ||R_X(λ)|| / max_λ ||Q(λ)|| ||Ge_X(λ)||``: peaks over the grid, not a pointwise
+    ratio, which is 0/0 — any number — at a transmission zero of ``Ge_X``."""
+    top = float(np.max(bound)) if bound.size else 0.0
+    return float(np.max(resp)) / top if top > 0 else 0.0
 
 
 def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, block: bool = False,
@@ -161,11 +169,11 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
     decs, zero_leaks, vis, strong = [], [], [], []
     for i, g in enumerate(groups):
         Qi = Qv[:, g, :]
-        nQ = np.maximum(_nrm(Qi), np.finfo(float).tiny)
-        nQy = np.maximum(_nrm(Qi[:, :, :p]), np.finfo(float).tiny)
+        nQ = _nrm(Qi)
+        nQy = _nrm(Qi[:, :, :p])
         R = np.einsum("kiq,kqc->kic", Qi, Ge)
         if dec_cols.size:
-            d = float(np.max(_nrm(R[:, :, dec_cols]) / (nQ * np.maximum(_nrm(Ge[:, :, dec_cols]), 1e-300))))
+            d = _rel(_nrm(R[:, :, dec_cols]), nQ * _nrm(Ge[:, :, dec_cols]))
             decs.append(d)
             if d > dec_tol:
                 failures.append(("decoupling", f"residual {i + 1}: {dec_label} leak with relative size {d:.3g} > "
@@ -175,7 +183,7 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
             c = fcols[nm]
             Rn = _nrm(R[:, :, c])
             if S[i, j]:
-                gam = float(np.max(Rn / (nQy * np.maximum(_nrm(Ge[:, :p, c]), 1e-300))))
+                gam = _rel(Rn, nQy * _nrm(Ge[:, :p, c]))
                 row_vis.append(gam)
                 if gam <= FDtol:
                     failures.append(("visibility", f"residual {i + 1}: fault '{nm}' has relative gain {gam:.3g} "
@@ -190,7 +198,7 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
                             failures.append(("strong", f"residual {i + 1}: fault '{nm}' has gain {ratio:.3g} × its "
                                                        f"peak at ω = {w:g} rad/s ≤ FDGainTol = {FDGainTol:.3g}"))
             else:
-                z = float(np.max(Rn / (nQ * np.maximum(_nrm(Ge[:, :, c]), 1e-300))))
+                z = _rel(Rn, nQ * _nrm(Ge[:, :, c]))
                 zl = max(zl, z)
                 if z > dec_tol:
                     failures.append(("structure", f"residual {i + 1}: fault '{nm}' must be decoupled (S = 0) but "
