@@ -62,3 +62,10 @@ def test_robustness_over_actuator_variations():
     assert slow["decoupling"] > 1e-4  # a 20 % slower actuator leaks u into r
     assert rep["worst_decoupling"] == slow["decoupling"]
     assert rep["worst_hinf_minus"] > 0
+
+
+def test_model_methods_delegate():
+    m = _plant()
+    P = LTI.static(np.eye(2))
+    assert np.allclose(m.series(P).lti("u").evalfr(LAM), m.lti("u").evalfr(LAM))
+    assert m.feedback(np.zeros((2, 2))).n == m.n
