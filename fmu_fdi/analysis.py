@@ -209,3 +209,36 @@ def isolability(model: FDIModel) -> dict:
     rd = normal_rank(model.lti("d")) if nd else 0
     full = normal_rank(G) == rd + sum(normal_rank(G[:, c]) for c in cols) if k else True
     return {"faults": model.fault_names, "matrix": M, "fully_isolable": bool(full)}
+
+
+def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12) -> np.ndarray:
+    """Every achievable weak specification: the rows ``s`` (0/1 over ``faults``, not all 0)
+    for which a residual exists that sees exactly the faults with ``s_j = 1`` once d and the
+    faults with ``s_j = 0`` are decoupled (Varga 2017, sec. 5.4; FaultDetectionTools.jl
+    ``fdigenspec``). Rank test per row: ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]`` for every
+    ``j`` with ``s_j = 1`` (normal ranks at random points). Rows in lexicographic order.
+    """
+    import itertools
+
+    names = list(model.fault_names if faults is None else faults)
+    if len(names) > max_faults:
+        raise ValueError(f"{len(names)} faults give 2^{len(names)} candidate rows; pass max_faults to allow it")
+    G = model.lti("d", "f")
+    nd = model.nd
+    cols = {f.name: list(nd + np.arange(model.nf)[f.columns]) for f in model.faults}
+    cache: dict[tuple, int] = {}
+
+    def rk(idx: tuple) -> int:
+        if idx not in cache:
+            cache[idx] = normal_rank(G[:, list(idx)]) if idx else 0
+        return cache[idx]
+
+    rows = []
+    for row in itertools.product((0, 1), repeat=len(names)):
+        if not any(row):
+            continue
+        base = tuple(range(nd)) + tuple(c for nm, s in zip(names, row) if not s for c in cols[nm])
+        r0 = rk(base)
+        if all(rk(base + tuple(cols[nm])) > r0 for nm, s in zip(names, row) if s):
+            rows.append(row)
+    return np.array(rows, dtype=int).reshape(-1, len(names))

@@ -351,6 +351,18 @@ class FDIModel:
                    | set(self.d_names) | set(self.w_names)},
         )
 
+    def series(self, pre, **kw) -> "FDIModel":
+        """This model driven through ``pre`` (e.g. actuators): see :func:`fmu_fdi.modelset.series`."""
+        from .modelset import series
+
+        return series(self, pre, **kw)
+
+    def feedback(self, K, **kw) -> "FDIModel":
+        """The loop ``u = r - K y`` closed: see :func:`fmu_fdi.modelset.feedback`."""
+        from .modelset import feedback
+
+        return feedback(self, K, **kw)
+
     # ------------------------------------------------------------------ files
     def to_dict(self) -> dict:
         mats = {"A": self.A, "Bu": self.Bu, "C": self.C}

@@ -86,8 +86,9 @@ def _block_toeplitz(markov: list[np.ndarray], s: int) -> np.ndarray:
     return H
 
 
-def normal_rank(G: LTI, rtol: float | None = None, points: int = 3, seed: int = 0) -> int:
-    """Normal rank of a transfer matrix from its values at random complex points."""
+def normal_rank(G: LTI, rtol: float | None = None, points: int = 3, seed: int = 0, atol: float = 0.0) -> int:
+    """Normal rank of a transfer matrix from its values at random complex points
+    (singular values above ``max(rtol·σ_max, atol)`` count)."""
     if G.m == 0 or G.p == 0:
         return 0
     rng = np.random.default_rng(seed)
@@ -97,7 +98,7 @@ def normal_rank(G: LTI, rtol: float | None = None, points: int = 3, seed: int = 
         lam = scale * (rng.uniform(0.5, 2.0) + 1j * rng.uniform(0.5, 2.0))
         if G.is_discrete:
             lam = np.exp(1j * rng.uniform(0.3, 2.8)) * rng.uniform(1.1, 1.5)
-        best = max(best, rank(G.evalfr(lam), rtol))
+        best = max(best, rank(G.evalfr(lam), rtol, atol))
     return best
 
 
@@ -121,7 +122,7 @@ class ParityData:
                 self.T = np.diag(1.0 / scale)
         self.G = G
         normA = float(np.linalg.norm(G.A, 2)) if G.n else 0.0
-        self.rho = float(2.0 ** np.round(np.log2(normA))) if normA > 0 else 1.0
+        self.rho = float(2.0 ** np.round(np.log2(normA))) if normA > 0 and not G.dt else 1.0
         self.A = G.A / self.rho
         B = G.B / self.rho
         self.Bu, self.Bd = B[:, : self.m], B[:, self.m:]
@@ -164,10 +165,11 @@ class ParityData:
         self._grow(s)
         return _block_toeplitz(self._md[: s + 1], s)
 
-    def parity_vectors(self, s: int, rtol: float | None = None) -> np.ndarray:
-        """Orthonormal rows spanning ``{v : v [O_s H_{d,s}] = 0}``."""
+    def parity_vectors(self, s: int, rtol: float | None = None, atol: float = 0.0) -> np.ndarray:
+        """Orthonormal rows spanning ``{v : v [O_s H_{d,s}] = 0}`` (singular values of the
+        column-normalised matrix at or below ``max(rtol·σ_max, atol)`` count as zero)."""
         M = np.hstack([self.O(s), self.Hd(s)]) if self.n or self.md else np.zeros(((s + 1) * self.p, 0))
-        return left_null(_colnormalize(M), rtol) if M.shape[1] else np.eye((s + 1) * self.p)
+        return left_null(_colnormalize(M), rtol, atol) if M.shape[1] else np.eye((s + 1) * self.p)
 
     def row(self, v: np.ndarray, s: int) -> PolyRow:
         """Polynomial row ``[V(μ), -W(μ)]`` of the parity vector ``v`` of order s."""
@@ -176,18 +178,24 @@ class ParityData:
         return PolyRow(s, coef)
 
 
-def minimal_basis(model: FDIModel, rtol: float | None = None) -> NullspaceBasis:
-    """Minimal polynomial basis of the left null space of ``[Gu Gd; I 0]``."""
+def minimal_basis(model: FDIModel, rtol: float | None = None, atol: float = 0.0) -> NullspaceBasis:
+    """Minimal polynomial basis of the left null space of ``[Gu Gd; I 0]``.
+
+    Rank decisions count singular values above ``max(rtol·σ_max, atol)`` (Varga's
+    ``atol``/``rtol``). The result is checked: the number of rows must be
+    ``p - rank Gd`` *and* the rows must have that rational rank (:func:`basis_rank`) —
+    a vector rejected at degree s whose shifts are accepted at degree s+1 would
+    otherwise give a basis with more rows than its rank.
+    """
     data = ParityData(model)
     p = model.ny
-    rank_d = normal_rank(model.lti("d"), rtol) if model.nd else 0
+    rank_d = normal_rank(model.lti("d"), rtol, atol=atol) if model.nd else 0
     target = p - rank_d
     rows: list[PolyRow] = []
     vecs: list[tuple[int, np.ndarray]] = []
-    for s in range(0, data.n + 2):
-        if len(rows) >= target:
-            break
-        N = data.parity_vectors(s, rtol)
+    s, recovered = 0, 0
+    while s <= data.n + 1 and len(rows) < target:
+        N = data.parity_vectors(s, rtol, atol)
         shifts = []
         for deg, v in vecs:
             for j in range(s - deg + 1):
@@ -196,17 +204,91 @@ def minimal_basis(model: FDIModel, rtol: float | None = None) -> NullspaceBasis:
                 shifts.append(row)
         S = np.array(shifts) if shifts else np.zeros((0, (s + 1) * p))
         new = complement_rows(N, S, rtol)
+        low = _lower_degree(new, p, s) if s and recovered <= target else []
+        if low:
+            # a vector of lower degree was rejected there (its singular value sat just above
+            # the tolerance) but its shifts are accepted here: take it at its own degree and
+            # redo this order, so the basis keeps its rational rank and minimal degrees
+            for deg, v in low:
+                vecs.append((deg, v))
+                rows.append(data.row(v, deg))
+                recovered += 1
+            continue
         for v in new:
             vecs.append((s, v))
             rows.append(data.row(v, s))
+        s += 1
+    rows.sort(key=lambda r: r.degree)
     if len(rows) != target:
-        raise DesignError(
+        from .postconditions import NumericalDesignError
+
+        raise NumericalDesignError(
             f"the null-space computation found {len(rows)} basis vectors where the normal rank condition "
             f"p - rank(Gd) = {p} - {rank_d} = {target} requires {target}; the rank decisions are ill "
-            f"conditioned for this model — scale the model or pass a looser tol"
+            f"conditioned for this model — scale the model or pass other rank tolerances (rtol/atol)"
+        )
+    r, sv_ratio = basis_rank(rows, data.rho, model.dt)
+    if r < len(rows):
+        from .postconditions import NumericalDesignError
+
+        raise NumericalDesignError(
+            f"the null-space basis has {len(rows)} rows (degrees {[w.degree for w in rows]}) but rational rank {r} "
+            f"(smallest singular value ratio {sv_ratio:.2e} at random points): a parity vector was rejected at one "
+            f"degree and its shifts accepted at a higher one — pass a looser rtol/atol"
         )
     return NullspaceBasis(rows, data.rho, model.dt, p, model.nu, rank_d,
-                          info={"controllable_order": data.n})
+                          info={"controllable_order": data.n, "basis_sv_ratio": sv_ratio})
+
+
+def _lower_degree(new: np.ndarray, p: int, s: int, tol: float = 1e-6) -> list[tuple[int, np.ndarray]]:
+    """Combinations of the new order-s vectors whose leading (μ^s) block vanishes, each
+    stripped of its zero leading and trailing blocks: ``(degree, unit vector)``.
+
+    ``tol`` is relative to the unit-norm rows: parity vectors of an ill-conditioned
+    ``O_s`` are known to about sqrt(eps), so a block below 1e-6 is zero.
+    """
+    if new.shape[0] == 0:
+        return []
+    L = new[:, s * p:]
+    U, sv, _ = sla.svd(L, full_matrices=True)
+    sv = np.concatenate([sv, np.zeros(U.shape[0] - sv.size)])
+    out = []
+    for c in U[:, sv < tol].T:
+        v = c @ new
+        blocks = np.linalg.norm(v.reshape(s + 1, p), axis=1)
+        live = np.nonzero(blocks > tol)[0]
+        if not live.size:
+            continue
+        v = v[live[0] * p:(live[-1] + 1) * p]
+        out.append((int(live[-1] - live[0]), v / np.linalg.norm(v)))
+    return out
+
+
+def basis_rank(rows: list[PolyRow], rho: float, dt: float, points: int = 3, seed: int = 7) -> tuple[int, float]:
+    """Rational rank of the stacked rows ``N(μ)`` and the smallest ``σ_min/σ_max`` seen.
+
+    The rows are normalised to unit norm at each point (a row's scale is no rank
+    information); a rank is counted with the square root of machine precision, the
+    accuracy to which parity vectors of an ill-conditioned ``O_s`` are known.
+    """
+    if not rows:
+        return 0, 1.0
+    rng = np.random.default_rng(seed)
+    best, worst_ratio = 0, 1.0
+    for _ in range(points):
+        if dt:
+            lam = np.exp(1j * rng.uniform(0.3, 2.8)) * rng.uniform(0.6, 0.95)
+        else:
+            lam = rho * (rng.uniform(0.3, 2.0) + 1j * rng.uniform(0.3, 2.0))
+        V = np.vstack([r.at(np.array([lam / rho]))[0] for r in rows])
+        V = V / np.maximum(np.linalg.norm(V, axis=1, keepdims=True), np.finfo(float).tiny)
+        sv = sla.svd(V, compute_uv=False)
+        ratio = float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
+        if len(rows) > V.shape[1]:
+            ratio = 0.0
+        worst_ratio = min(worst_ratio, ratio)
+        best = max(best, int(np.sum(sv > np.sqrt(np.finfo(float).eps) * sv[0])))
+    return best, worst_ratio
 
 
 def plant_pole_pool(A: np.ndarray, dt: float) -> list[complex]:

@@ -24,11 +24,13 @@ from ..linalg import single_blas_thread
 from ..generator import ResidualBank, ResidualGenerator
 from ..model import FDIModel
 from .nullspace import nullspace_design
+from .postconditions import DEC_TOL, check_generator
 
 
 @single_blas_thread
 def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, noise: str = "optimize",
-                    FDtol: float = 1e-4, tol: float | None = None, seed: int = 0) -> ResidualBank:
+                    FDtol: float = 1e-4, FDGainTol: float = 0.01, freqs=None, tol: float | None = None,
+                    seed: int = 0, smarg: float | None = None, dec_tol: float = DEC_TOL) -> ResidualBank:
     """One least-order residual per row of the structure matrix ``S``.
 
     Parameters
@@ -39,13 +41,21 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     faults : list of str, optional
         The faults the columns of S refer to (default: all faults of the model, in order).
         Faults not listed are neither required nor decoupled.
-    poles, sdeg, noise, FDtol, tol, seed
-        As in :func:`~fmu_fdi.design.nullspace.nullspace_design`, per row.
+    poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol
+        As in :func:`~fmu_fdi.design.nullspace.nullspace_design`, per row; with ``freqs`` every
+        fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies.
+
+    Returns
+    -------
+    ResidualBank
+        ``info['postconditions']`` holds the figures of the whole bank against S
+        (:func:`~fmu_fdi.design.postconditions.check_generator`).
 
     Raises
     ------
     DesignError
-        Naming every row that cannot be achieved and why.
+        Naming every row that cannot be achieved and why, or the post-condition that the
+        bank breaks (decoupling of u and d, the structure, fault visibility, stability).
     """
     names = list(model.fault_names if faults is None else faults)
     for nm in names:
@@ -67,15 +77,19 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         extra = [f.name for f in mi.faults if f.name not in keep]
         mi_design = mi._replace(faults=[f for f in mi.faults if f.name in keep]) if extra else mi
         try:
-            g = nullspace_design(mi_design, rdim=1, poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol, tol=tol,
-                                 seed=seed)
+            g = nullspace_design(mi_design, rdim=1, poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol,
+                                 FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol)
         except DesignError as exc:
             failures.append(f"row {i + 1} {row.tolist()} (decoupling {ignore or 'nothing'}): {exc}")
             continue
         members.append(ResidualGenerator(g.Q, model, "structured", info=g.info))
     if failures:
         raise DesignError("structure matrix cannot be achieved: " + " | ".join(failures))
-    return ResidualBank(members, "structured", info={"structure": S.astype(int).tolist(), "faults": names})
+    bank = ResidualBank(members, "structured", info={"structure": S.astype(int).tolist(), "faults": names})
+    exact_w = all(g.info.get("noise") == "decoupled exactly" for g in members) if model.nw else False
+    check_generator(bank, decouple=("u", "d", "w") if exact_w else ("u", "d"), structure=S, faults=names,
+                    freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol)
+    return bank
 
 
 def _faults_of_kind(model: FDIModel, kind: str) -> list[str]:

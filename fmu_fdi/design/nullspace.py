@@ -29,6 +29,7 @@ from ..model import FDIModel
 from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective
 from .approximate import coouter_inverse, gap_objective
+from .postconditions import DEC_TOL, NumericalDesignError, check_generator
 
 
 def _random_points(basis: NullspaceBasis, count: int = 4, seed: int = 1) -> np.ndarray:
@@ -83,8 +84,16 @@ def detectability_by_rows(model: FDIModel, basis: NullspaceBasis, FDtol: float) 
     return out
 
 
-def undetectable_error(model: FDIModel, seen: np.ndarray, what: str = "d is decoupled") -> DesignError:
-    """The error for faults no residual can see, naming each and its rank condition."""
+def undetectable_error(model: FDIModel, seen: np.ndarray, what: str = "d is decoupled",
+                       gains: np.ndarray | None = None, FDtol: float | None = None,
+                       numerical=DesignError) -> DesignError:
+    """The error for faults no residual can see, naming each and its rank condition.
+
+    When the rank condition *holds* (the fault is detectable in exact arithmetic) but no
+    computed basis row sees it, the message says so — the basis is then numerically
+    inaccurate, and looser or tighter rank tolerances may help — instead of claiming a
+    failed rank condition with numbers that contradict it.
+    """
     weak = (seen.max(axis=0) if seen.size else np.zeros(len(model.faults))).astype(bool)
     rd = normal_rank(model.lti("d")) if model.nd else 0
     parts = []
@@ -93,11 +102,21 @@ def undetectable_error(model: FDIModel, seen: np.ndarray, what: str = "d is deco
             G = model.lti("d", "f")
             cols = list(range(model.nd)) + list(model.nd + np.arange(model.nf)[spec.columns])
             rdf = normal_rank(G[:, cols])
-            parts.append(
-                f"fault '{spec.name}' is not detectable once {what}: rank condition "
-                f"rank [Gd Gf_{spec.name}] > rank Gd fails ({rdf} vs {rd})"
-            )
-    return DesignError("; ".join(parts) + f". Achievable weak structure of the faults "
+            if rdf > rd:
+                g = "" if gains is None or not gains.size else f" (largest relative gain {gains[:, j].max():.2e}"
+                g += f" ≤ FDtol = {FDtol:g})" if g and FDtol is not None else (")" if g else "")
+                parts.append(
+                    f"fault '{spec.name}' satisfies the rank condition once {what} (rank [Gd Gf_{spec.name}] = "
+                    f"{rdf} > rank Gd = {rd}) but no computed null-space row sees it{g}: the basis is numerically "
+                    f"inaccurate for this model — pass other rank tolerances (tol/atol) or rescale the model"
+                )
+            else:
+                parts.append(
+                    f"fault '{spec.name}' is not detectable once {what}: rank condition "
+                    f"rank [Gd Gf_{spec.name}] > rank Gd fails ({rdf} vs {rd})"
+                )
+    cls = numerical if any("numerically inaccurate" in x for x in parts) else DesignError
+    return cls("; ".join(parts) + f". Achievable weak structure of the faults "
                        f"{model.fault_names}: {weak.astype(int).tolist()}")
 
 
@@ -121,7 +140,8 @@ def _normalize_rows(Q: LTI, scale: np.ndarray) -> LTI:
 @single_blas_thread
 def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: float | None = None,
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
-                     tol: float | None = None, seed: int = 0) -> ResidualGenerator:
+                     tol: float | None = None, atol: float = 0.0, seed: int = 0, smarg: float | None = None,
+                     dec_tol: float = DEC_TOL) -> ResidualGenerator:
     """Least-order residual generator from a minimal proper stable left null space of ``[Gu Gd; I 0]``.
 
     Solves the exact fault detection problem (Varga 2017, Procedure EFD; FaultDetectionTools.jl
@@ -149,16 +169,28 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         Relative thresholds for (weak) detectability and for strong detectability.
     noise : {'optimize', 'ignore'}
         How to treat noise inputs w (if any).
-    tol : float, optional
-        Relative rank tolerance of the null-space computation.
+    tol, atol : float, optional
+        Relative and absolute rank tolerances of the null-space computation (Varga's
+        ``rtol``/``atol``: singular values at or below ``max(tol·σ_max, atol)`` are zero).
+        When neither is given and the design breaks a numerical post-condition
+        (decoupling, basis rank, stability of the realisation), the rank decisions are
+        retried with a tighter (1e-15) and then a looser (1e-9) relative tolerance; the
+        tolerance used is ``info['rank_rtol']``.
     seed : int
         Seed of the deterministic combination search.
+    smarg : float, optional
+        Stability margin the filter poles must satisfy (``Re p < smarg``, or ``|p| < smarg``
+        in discrete time); default just inside the stability boundary.
+    dec_tol : float
+        Largest relative leakage of u and d (and w when it is decoupled) the returned filter
+        may show (:mod:`.postconditions`).
 
     Returns
     -------
     ResidualGenerator
-        ``info`` holds the basis degrees, the order, poles, the combination and, with noise,
-        the grid estimate of the gap.
+        ``info`` holds the basis degrees, the order, poles, the combination, with noise the
+        grid estimate of the gap, and ``postconditions``: the achieved decoupling, fault
+        visibility and stability figures.
 
     Raises
     ------
@@ -179,7 +211,21 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     check_poles(poles, model.dt)
     if sdeg is not None:
         check_poles([sdeg], model.dt)
-    basis = minimal_basis(model, tol)
+    ladder = [tol] if (tol is not None or atol) else [None, 1e-15, 1e-9]
+    first = None
+    for rtol in ladder:
+        try:
+            gen = _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, rtol, atol, seed, smarg, dec_tol)
+        except NumericalDesignError as exc:
+            first = first or exc
+            continue
+        gen.info["rank_rtol"] = rtol
+        return gen
+    raise first
+
+
+def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol):
+    basis = minimal_basis(model, tol, atol)
     if not basis.rows:
         raise DesignError(
             f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
@@ -188,10 +234,17 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     choose = pole_chooser(model, poles, sdeg)
     seen = detectability_by_rows(model, basis, FDtol)
     if model.faults and not np.all(seen.max(axis=0) > FDtol):
-        raise undetectable_error(model, seen > FDtol)
+        raise undetectable_error(model, seen > FDtol, gains=seen, FDtol=FDtol, numerical=NumericalDesignError)
     if model.nw and noise == "optimize":
-        return _approximate(model, basis, rdim, choose, FDtol, tol, seed)
-    return _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed)
+        gen = _approximate(model, basis, rdim, choose, FDtol, tol, seed, atol)
+        exact_w = gen.info.get("noise") == "decoupled exactly"
+        check_generator(gen, decouple=("u", "d", "w") if exact_w else ("u", "d"), block=True, FDtol=FDtol,
+                        smarg=smarg, dec_tol=dec_tol)
+        return gen
+    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed)
+    check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
+                    smarg=smarg, dec_tol=dec_tol)
+    return gen
 
 
 def _grid(model: FDIModel, roots_lam: np.ndarray, freqs) -> np.ndarray:
@@ -282,7 +335,15 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
     if scale_rows and model.faults:
         Rf = gen.Rf
         grid = frequency_grid([Rf], num=200) if Rf.n else np.array([0.0])
-        peaks = np.max(np.abs(Rf.freqresp(grid)), axis=(0, 2))
+        try:
+            peaks = np.max(np.abs(Rf.freqresp(grid)), axis=(0, 2))
+        except np.linalg.LinAlgError:
+            poles = Q.poles()
+            worst = np.max(np.abs(poles)) if model.dt else np.max(poles.real)
+            raise NumericalDesignError(f"{method} design fails its post-conditions (stability): a filter pole lies on the "
+                              f"stability boundary ({'largest |pole|' if model.dt else 'largest Re(pole)'} = "
+                              f"{worst:.6g}); the realisation of the basis rows is ill-conditioned for this model — "
+                              f"pass other poles/sdeg or rank tolerances (tol)") from None
         scale = np.where(peaks > 0, peaks, 1.0)
         gen = ResidualGenerator(_normalize_rows(Q, scale), model, method)
     gen.info.update(info)
@@ -291,10 +352,10 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
     return gen
 
 
-def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, tol, seed):
+def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, tol, seed, atol=0.0):
     exact_w = model.with_disturbances(noise=True)
     try:
-        basis2 = minimal_basis(exact_w, tol)
+        basis2 = minimal_basis(exact_w, tol, atol)
         seen2 = detectability_by_rows(exact_w, basis2, FDtol) if basis2.rows else np.zeros((0, len(model.faults)))
     except DesignError:
         basis2, seen2 = None, np.zeros((0, len(model.faults)))
