@@ -330,7 +330,7 @@ class DiagnoserRuntime:
             return False
         isfinite = math.isfinite
         if not (all(map(isfinite, rl)) and all(map(isfinite, evals)) and all(map(isfinite, thrs))
-                and self.generator.finite() and all(e.finite() for e in self._hidden)):
+                and self.generator.finite() and (not self._hidden or all(e.finite() for e in self._hidden))):
             return False
         dec = self.decision
         dec.step(evals, thrs, rl)
