@@ -230,6 +230,11 @@ class DiagnoserRuntime:
         self.h = float(h)
         self._substeps = substeps
 
+    @property
+    def sample_ratio(self) -> float:
+        """The effective sample time of evaluation over Ts (1 when sub-stepping at Ts)."""
+        return self._ratio
+
     def set_step(self, h: float) -> None:
         """Prepare for communication steps of size h (raises StepSizeError if impossible,
         leaving everything as it was). See docs/semantics.md §9."""
