@@ -289,10 +289,14 @@ def _whitened(evaluation: dict, gen, group) -> dict:
 
 
 def _jsonable_range(pair):
-    """(lo, hi) with numpy numbers as floats; anything else is left for the runtime to refuse."""
+    """(lo, hi) with numpy numbers as floats and -inf / +inf as null (unbounded); anything else
+    (NaN, strings, a wrong length) is left for the runtime to refuse with its message."""
     if not isinstance(pair, (list, tuple, np.ndarray)):
         return pair
-    return [float(b) if isinstance(b, (np.integer, np.floating)) else b for b in list(pair)]
+    out = [float(b) if isinstance(b, (np.integer, np.floating)) else b for b in list(pair)]
+    if len(out) == 2:
+        out = [None if out[0] == -np.inf else out[0], None if out[1] == np.inf else out[1]]
+    return out
 
 
 def _version() -> str:

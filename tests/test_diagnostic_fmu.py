@@ -206,8 +206,12 @@ def test_odd_step_sizes(ex53, tmp_path):
     for step in (h, 3 * TS):
         tt = np.arange(60) * step
         ref = ex53["dg"].run(tt, u, y)
-        ans = hosts.run_fmu2slave(ex53["fmu"], as_inputs(tt, u, y), step=step, outputs=ex53["outputs"])
+        ans = hosts.run_fmu2slave(ex53["fmu"], as_inputs(tt, u, y), step=step, outputs=ex53["outputs"],
+                                  log_categories=["logStatusWarning"])
         assert_matches(ans["result"], ref, ex53["outputs"])
+        # a change of the effective sample time restarts the evaluation: said once, in the log
+        restarts = [m for _, _, m in ans["log"] if "evaluation windows and thresholds restarted" in m]
+        assert len(restarts) == (1 if step == h else 0), ans["log"]
     parity = Diagnoser(parity_space(pub.ex5_3().discretize(TS), 1), thresholds=1.0)
     fmu = build_fmu(parity, tmp_path / "parity.fmu")
     ans = hosts.run_fmu2slave(fmu, as_inputs(t, u, y), step=h, log_categories=[])

@@ -142,7 +142,7 @@ def test_rls_generator_recovers_from_an_overflow():
 # --------------------------------------------------------------------------- S2: valid ranges
 def test_valid_range_rejects_a_glitch_like_nan(record):
     dg = Diagnoser(record["gen"], Ts=TS, evaluation=NARENDRA, thresholds=1.0,
-                   valid_range={"y2": (-10.0, 10.0), "u": (None, 5.0)})
+                   valid_range={"y2": (-10.0, 10.0), "u": (-np.inf, 5.0)})
     assert dg.design["signals"]["valid_range"] == {"y2": [-10.0, 10.0], "u": [None, 5.0]}
     t, u, y = record["t"], record["u"].copy(), record["y"].copy()
     y_nan = y.copy()

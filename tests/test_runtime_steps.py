@@ -129,3 +129,20 @@ def test_change_of_step_size_s4(dg):
     assert rt.evaluators[0].n == round(7 / 1.3)
     rt.set_step(0.013 * (1 + 1e-12))  # the same step: nothing restarts
     assert rt.h == 0.013
+
+
+def test_runtime_with_a_re_discretised_plan_round_trips_through_the_fmu_state_codec(dg):
+    """The FMU state is the whole runtime object, cache included: encode → decode must give a
+    runtime that continues bit for bit (an OrderedDict cache was silently emptied)."""
+    from fmu_fdi.fmu.slave_state import decode_state, encode_state
+
+    rt = dg.runtime
+    rt.reset()
+    t, u, y = signals(60, 0.013)
+    for k in range(30):
+        rt.advance(u[k], y[k], 0.013)
+    copy = decode_state(encode_state({"rt": rt}))["rt"]
+    assert copy._plans.keys() == rt._plans.keys()
+    a = [rt.advance(u[k], y[k], 0.013) for k in range(30, 60)]
+    b = [copy.advance(u[k], y[k], 0.013) for k in range(30, 60)]
+    assert a == b

@@ -96,6 +96,8 @@ def _encode(obj, buffers):
         return {"set": [_encode(v, buffers) for v in obj], "frozen": type(obj) is frozenset}
     if type(obj) is dict:
         return {"map": [[_encode(k, buffers), _encode(v, buffers)] for k, v in obj.items()]}
+    if isinstance(obj, (list, tuple, set, frozenset, dict)):  # a subclass: its items would be lost
+        raise StateCodecError(f"cannot encode a {type(obj).__qualname__} (a container subclass) in an FMU state")
     if isinstance(obj, enum.Enum):
         return {"enum": _class_path(type(obj)), "name": obj.name}
     if hasattr(obj, "__dict__") and not isinstance(obj, type) and not callable(obj):

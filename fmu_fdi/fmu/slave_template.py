@@ -97,12 +97,17 @@ class __CLASS__(FdiSlave):
                 raise ValueError(f"FMU state: {name} must be {n} floats")
 
     def step(self, current_time, step_size):
+        h_before, ratio_before = self.rt.h, self.rt.sample_ratio
         try:
             out = self.rt.advance(self.u_in, self.y_in, step_size)
         except StepSizeError as exc:
             self.log_event(f"step at t={current_time:g} refused: {exc}", "logStatusDiscard", Fmi2Status.discard)
             return False
         self.out[:] = out
+        if self.rt.sample_ratio != ratio_before:
+            self.log_event(f"t={current_time:g}: step size changed from {h_before:g} s to {self.rt.h:g} s "
+                           f"(design Ts = {self.rt.Ts:g} s): evaluation windows and thresholds restarted "
+                           f"(docs/semantics.md, step sizes)", "logStatusWarning", Fmi2Status.warning)
         if out[INPUT_INVALID]:
             self.invalid_count += 1
             self.log_event(f"t={current_time:g}: invalid input sample (NaN/Inf or outside its valid range); "

@@ -21,7 +21,6 @@ native C runtime implements too, are written down in docs/semantics.md:
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
 
 import numpy as np
 
@@ -136,7 +135,7 @@ class DiagnoserRuntime:
         self.names = output_names(self.n_residuals, self.n_groups)
         self.threshold_scale = 1.0
         self._native = self.generator
-        self._plans: OrderedDict[float, tuple] = OrderedDict()  # exact h -> (1, generator, h/Ts)
+        self._plans: dict[float, tuple] = {}  # exact h -> (1, generator, h/Ts), least recently used first
         self.decision = Decision(design.get("decision", {}), self.n_groups, len(self.faults))
         self.reset()
 
@@ -191,9 +190,9 @@ class DiagnoserRuntime:
             raise StepSizeError(f"step {h:g} s is not an integer multiple of the design sample time {self.Ts:g} s "
                                 f"and outside the re-discretisation range [Ts/16, {MAX_SUBSTEPS} Ts] = "
                                 f"[{self.Ts * MIN_STEP_RATIO:g}, {self.Ts * MAX_SUBSTEPS:g}] s")
-        plan = self._plans.get(h)
+        plan = self._plans.pop(h, None)  # a plain dict (the FMU state codec keeps it exactly)
         if plan is not None:
-            self._plans.move_to_end(h)
+            self._plans[h] = plan  # most recently used last
             return plan
         try:
             for s, g in zip(self.eval_specs, self.groups):
@@ -216,7 +215,7 @@ class DiagnoserRuntime:
         plan = (1, gen, ratio)
         self._plans[h] = plan
         while len(self._plans) > CACHE_SIZE:
-            self._plans.popitem(last=False)
+            del self._plans[next(iter(self._plans))]
         return plan
 
     def _adopt(self, h: float, plan) -> None:
@@ -230,6 +229,11 @@ class DiagnoserRuntime:
             self._build_stage(ratio)
         self.h = float(h)
         self._substeps = substeps
+
+    @property
+    def sample_ratio(self) -> float:
+        """The effective sample time of evaluation over Ts (1 when sub-stepping at Ts)."""
+        return self._ratio
 
     def set_step(self, h: float) -> None:
         """Prepare for communication steps of size h (raises StepSizeError if impossible,
@@ -330,7 +334,7 @@ class DiagnoserRuntime:
             return False
         isfinite = math.isfinite
         if not (all(map(isfinite, rl)) and all(map(isfinite, evals)) and all(map(isfinite, thrs))
-                and self.generator.finite() and all(e.finite() for e in self._hidden)):
+                and self.generator.finite() and (not self._hidden or all(e.finite() for e in self._hidden))):
             return False
         dec = self.decision
         dec.step(evals, thrs, rl)
