@@ -85,3 +85,24 @@ class CRuntime:
     def set_state(self, img: bytes):
         st = self.lib.fdi_runtime_set_state(self.block, img, len(img), self.why, 512)
         return st, self.why.value.decode()
+
+
+def c_outputs(lib_path, ops):
+    """Run conformance operations (tests/native_scenario.py) on the runtime through ctypes."""
+    rt = CRuntime(lib_path)
+    saved, out = {}, []
+    for op in ops:
+        if op[0] == "step":
+            st, vals, why = rt.advance(op[1], op[2], op[3])
+            assert st in (0, 1), why
+            out.append("discard" if st == 1 else vals)
+        elif op[0] == "save":
+            saved[op[1]] = rt.get_state()
+        elif op[0] == "restore":
+            st, why = rt.set_state(saved[op[1]])
+            assert st == 0, why
+        elif op[0] == "reset":
+            rt.reset()
+        elif op[0] == "scale":
+            assert rt.set_threshold_scale(float(op[1])) == 0
+    return out
