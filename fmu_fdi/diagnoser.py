@@ -19,7 +19,7 @@ from .evaluation.selector import ThresholdDesign
 from .generator import ResidualGenerator
 from .lti import LTI
 from .model import FDIModel
-from .runtime.engine import DiagnoserRuntime
+from .runtime.engine import DiagnoserRuntime, output_type
 
 DEFAULT_EVALUATION = {"kind": "rms", "window": 10}
 
@@ -63,6 +63,10 @@ class Diagnoser:
         Regroup the residuals for evaluation (default: the generator's groups, e.g. one
         group per bank member); 'each' evaluates every residual on its own.
     name : str, optional
+    valid_range : dict, optional
+        ``{signal name: (lo, hi)}`` in the signal's units (None for an unbounded side): a
+        sample outside is rejected like a NaN (``input_invalid``), so that a sensor glitch
+        (e.g. an overflowing 1e300) never reaches the generator (docs/semantics.md §3).
 
     Examples
     --------
@@ -76,7 +80,8 @@ class Diagnoser:
     """
 
     def __init__(self, generator, *, Ts: float | None = None, evaluation=None, thresholds=None,
-                 decision: dict | None = None, groups=None, name: str | None = None):
+                 decision: dict | None = None, groups=None, name: str | None = None,
+                 valid_range: dict | None = None):
         if thresholds is None:
             raise DesignError("thresholds are required: give a number per residual group, a spec, or a threshold "
                               "design (threshold_selector, analytic_threshold, data_driven_threshold)")
@@ -105,6 +110,8 @@ class Diagnoser:
                               f"(got {len(evals)} and {len(thrs)})")
         self.design = self._build_design(gen, cont, model, [dict(e) for e in evals],
                                          [_threshold_spec(t) for t in thrs], dict(decision or {}), name)
+        if valid_range:
+            self.design["signals"]["valid_range"] = {k: _jsonable_range(v) for k, v in valid_range.items()}
         validate_design(self.design, "diagnoser")
         self.runtime = DiagnoserRuntime(self.design)
 
@@ -181,25 +188,16 @@ class Diagnoser:
         self.runtime.reset()
 
     def _dtype(self) -> np.dtype:
-        fields = [("time", "f8")]
-        for nm in self.runtime.names:
-            if nm.startswith("alarm_") or nm in ("fault_detected", "input_invalid"):
-                fields.append((nm, "?"))
-            elif nm == "isolated_fault":
-                fields.append((nm, "i4"))
-            else:
-                fields.append((nm, "f8"))
-        return np.dtype(fields)
+        code = {"Boolean": "?", "Integer": "i4", "Real": "f8"}
+        return np.dtype([("time", "f8")] + [(nm, code[output_type(nm)]) for nm in self.runtime.names])
 
     def step(self, u, y) -> dict:
-        """Process one sample; returns the FMU outputs by name, plus ``isolated_name``,
+        """Process one sample (docs/semantics.md); returns the FMU outputs by name, plus ``isolated_name``,
         ``isolation_status`` ('none', 'isolated', 'unknown', 'several') and
         ``isolation_margin`` (radians, directional isolation only)."""
         vals = self.runtime.advance(u, y)
-        out = {}
-        for nm, v in zip(self.runtime.names, vals):
-            out[nm] = bool(v) if nm.startswith("alarm_") or nm in ("fault_detected", "input_invalid") else \
-                (int(v) if nm == "isolated_fault" else float(v))
+        conv = {"Boolean": bool, "Integer": int, "Real": float}
+        out = {nm: conv[output_type(nm)](v) for nm, v in zip(self.runtime.names, vals)}
         out["isolated_name"] = self.fault_name(out["isolated_fault"])
         out["isolation_status"] = self.runtime.decision.status
         out["isolation_margin"] = self.runtime.decision.margin
@@ -288,6 +286,13 @@ def _whitened(evaluation: dict, gen, group) -> dict:
         W = np.asarray(info["whitening"], float)
         evaluation["W"] = W[np.ix_(group, group)].tolist()
     return evaluation
+
+
+def _jsonable_range(pair):
+    """(lo, hi) with numpy numbers as floats; anything else is left for the runtime to refuse."""
+    if not isinstance(pair, (list, tuple, np.ndarray)):
+        return pair
+    return [float(b) if isinstance(b, (np.integer, np.floating)) else b for b in list(pair)]
 
 
 def _version() -> str:

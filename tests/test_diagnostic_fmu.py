@@ -245,3 +245,178 @@ def test_same_fmu_runs_again_after_its_extraction_is_deleted(ex53, tmp_path):
                           cwd=Path(__file__).parent.parent)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.strip() == "6"
+
+
+# ---- issue 12: reliability of the FMU as shipped (items 1, 2, 5; docs/semantics.md) ----------
+def contract(tmp_path, fmus, actions):
+    """Run ``actions`` through the ``contract`` scenario of tests/hosts/scenarios.py in a fresh
+    process; per action
+    ``{"status", "values", "log"}`` and the output names."""
+    import json
+
+    work = tmp_path / f"contract{len(list(tmp_path.glob('contract*')))}"
+    work.mkdir()
+    spec = work / "spec.json"
+    spec.write_text(json.dumps({"fmus": {k: str(v) for k, v in fmus.items()}, "workdir": str(work),
+                                "actions": actions}))
+    proc = subprocess.run([sys.executable, "-I", str(HOSTS_DIR / "scenarios.py"), "contract", str(spec)],
+                          capture_output=True, text=True, env=hosts.python_env(), timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    answer = json.loads((work / "answer.json").read_text())
+    return answer["actions"], answer["outputs"]
+
+
+def _row(u, y, k):
+    return {"u": float(u[k, 0]), "y1": float(y[k, 0]), "y2": float(y[k, 1])}
+
+
+def _errors(action):
+    return " | ".join(m for s, _, m in action["log"] if s >= 3)  # fmi2Error and above
+
+
+INIT = [["setup", "a"], ["enter", "a"], ["exit", "a"]]
+
+
+def test_fmu_detects_a_bias_after_a_1e300_glitch(ex53):
+    """Item 1 in the FMU as shipped: the glitch is flagged on numeric_reset at its sample, the
+    outputs stay finite and equal to Diagnoser.run, and a later 5 cm bias is detected."""
+    n, k0, glitch = 400, 250, 50
+    t = np.arange(n) * TS
+    u = np.sin(2 * np.pi * t)[:, None]
+    d = np.random.default_rng(0).standard_normal((n, 1))
+    f = np.zeros((n, 2))
+    f[k0:, 1] = 0.05
+    y = plant_outputs(pub.ex5_3(), n, TS, u=u, d=d, f=f)
+    clean = ex53["dg"].run(t, u, y)
+    y[glitch, 1] = 1e300
+    ref = ex53["dg"].run(t, u, y)
+    ans = hosts.run_fmu2slave(ex53["fmu"], as_inputs(t, u, y), step=TS, outputs=ex53["outputs"],
+                              log_categories=["logFdiNumeric"])
+    res = ans["result"]
+    assert set(ans["statuses"]) == {0}
+    assert_matches(res, ref, ex53["outputs"])
+    assert list(np.flatnonzero(res["numeric_reset"])) == [glitch + 1]  # host row k+1 = sample k
+    assert [c for _, c, _ in ans["log"]] == ["logFdiNumeric"]
+    assert np.all(np.isfinite(res["evaluation_1"]))
+    first = k0 + np.flatnonzero(clean["fault_detected"][k0:])[0]
+    assert not clean["fault_detected"][:k0].any() and res["fault_detected"][first + 1] and res["fault_detected"][-1]
+    assert not res["fault_detected"][k0 - 50:first + 1].any()  # the restart transient has decayed
+
+
+HOSTILE_STEPS = [1e300, 1e7 * TS, 1e-6, 1e-9, 1e-300, float("nan"), -TS, 10001 * TS]
+
+
+def test_fmu_refuses_hostile_step_sizes_and_goes_on(ex53, tmp_path):
+    """Item 2: each hostile doStep is answered at once with fmi2Discard and its reason, leaves
+    the instance as it was, and the steps after it give Diagnoser.run's outputs."""
+    n = 40
+    t, u, y = ex53["t"][:n], ex53["u"][:n], ex53["y"][:n]
+    ref = ex53["dg"].run(t, u, y)
+    actions = [["instantiate", "a", "fdi"], *INIT]
+    for k in range(n):
+        if k == 10:
+            actions += [["step", "a", h, _row(u, y, k)] for h in HOSTILE_STEPS]
+        actions.append(["step", "a", TS, _row(u, y, k)])
+    done, names = contract(tmp_path, {"fdi": ex53["fmu"]}, actions)
+    hostile = done[4 + 10:4 + 10 + len(HOSTILE_STEPS)]
+    assert [a["status"] for a in hostile] == [2] * len(HOSTILE_STEPS)
+    for a in hostile:
+        reasons = [m for s, c, m in a["log"] if c == "logStatusDiscard"]
+        assert len(reasons) == 1 and "refused" in reasons[0], a["log"]
+        assert a["values"] == hostile[0]["values"]  # nothing moved
+    regular = [a for a in done[4:] if a not in hostile]
+    assert [a["status"] for a in regular] == [0] * n
+    host = {nm: [a["values"][j] for a in regular] for j, nm in enumerate(names)}
+    assert_matches(host, ref, names, shift=0)
+
+
+def test_fmpy_simulate_at_an_interval_off_the_design_grid_matches_run(ex53, tmp_path):
+    """Item 2: fmpy at an output interval that is not a multiple of Ts passes step sizes that
+    differ in their last bits; they are one step size, so the FMU equals Diagnoser.run on the
+    same log (it differed by 65 % when each restarted the evaluation)."""
+    h = 0.013
+    t = np.arange(120) * h
+    u = np.sin(2 * np.pi * t)[:, None]
+    y = np.c_[np.cos(t), 0.5 * np.sin(3 * t)] + 0.01 * np.random.default_rng(2).standard_normal((120, 2))
+    steps = np.diff([k * h for k in range(121)])
+    assert len(set(steps.tolist())) > 1  # the premise: fmpy's step sizes differ in their last bits
+    ref = ex53["dg"].run(t, u, y)
+    csv_in = hosts.write_csv(tmp_path / "log.csv", as_inputs(t, u, y))
+    res, _ = hosts.run_fmpy_cli(ex53["fmu"], input_csv=csv_in, output_csv=tmp_path / "out.csv",
+                                output_interval=h, stop_time=t[-1])
+    assert_matches(res, ref, ex53["outputs"])
+
+
+def test_fmi_state_machine_is_enforced(ex53, tmp_path):
+    """Item 5: doStep before initialisation or after terminate, and initialisation calls out of
+    order, are refused with an error-status message (fmi2Discard: pythonfmu cannot return
+    fmi2Error) and change nothing; after a reset the instance runs like a fresh one."""
+    n = 30
+    t, u, y = ex53["t"][:n], ex53["u"][:n], ex53["y"][:n]
+    ref = ex53["dg"].run(t, u, y)
+    steps = [["step", "a", TS, _row(u, y, k)] for k in range(n)]
+    actions = ([["instantiate", "a", "fdi"], ["step", "a", TS, _row(u, y, 0)], ["exit", "a"], ["setup", "a"],
+                ["enter", "a"], ["enter", "a"], ["step", "a", TS, _row(u, y, 0)], ["exit", "a"], ["setup", "a"]]
+               + steps + [["terminate", "a"], ["step", "a", TS, _row(u, y, 0)], ["terminate", "a"], ["reset", "a"],
+                          *INIT] + steps)
+    done, names = contract(tmp_path, {"fdi": ex53["fmu"]}, actions)
+    before_init, early_exit, _, _, second_enter, init_step, _, late_setup = done[1:9]
+    assert before_init["status"] == 2 and "fmi2DoStep refused" in _errors(before_init)
+    assert "phase 'instantiated'" in _errors(before_init)
+    assert init_step["status"] == 2 and "phase 'initialization'" in _errors(init_step)
+    for a, call in ((early_exit, "fmi2ExitInitializationMode"), (second_enter, "fmi2EnterInitializationMode"),
+                    (late_setup, "fmi2SetupExperiment")):
+        assert call in _errors(a)
+    first = done[9:9 + n]
+    after_terminate = done[9 + n + 1]
+    assert after_terminate["status"] == 2 and "phase 'terminated'" in _errors(after_terminate)
+    assert "fmi2Terminate" in _errors(done[9 + n + 2])  # terminate twice
+    again = done[-n:]
+    for run in (first, again):
+        assert [a["status"] for a in run] == [0] * n
+        host = {nm: [a["values"][j] for a in run] for j, nm in enumerate(names)}
+        assert_matches(host, ref, names, shift=0)
+
+
+@pytest.fixture(scope="module")
+def other_fmu(ex53):
+    other = Diagnoser(nullspace_design(pub.ex5_3(), poles=[-5]), Ts=TS, evaluation={"kind": "rms", "window": 4},
+                      thresholds=0.05)
+    return build_fmu(other, ex53["tmp"] / "other_design.fmu")
+
+
+def test_unusable_fmu_states_are_refused_when_set(ex53, other_fmu, tmp_path):
+    """Item 5: another FMU's state, truncated bytes and zeros are refused at fmi2SetFMUstate with
+    an error-status message; the instance is unchanged, the next doStep is discarded with the
+    reason (pythonfmu cannot answer the set with fmi2Error), and a valid state heals it."""
+    n = 40
+    t, u, y = ex53["t"][:n], ex53["u"][:n], ex53["y"][:n]
+    ref = ex53["dg"].run(t, u, y)
+    actions = ([["instantiate", "a", "fdi"], *INIT, ["instantiate", "b", "other"], ["setup", "b"], ["enter", "b"],
+                ["exit", "b"]]
+               + [["step", "a", TS, _row(u, y, k)] for k in range(20)]
+               + [["step", "b", TS, _row(u, y, k)] for k in range(5)]
+               + [["get_state", "a", "good"], ["get_state", "b", "other"], ["serialize", "b", "other_bytes", "other"],
+                  ["serialize", "a", "good_bytes", "good"], ["blob", "a", "truncated", "good_bytes", "truncate"],
+                  ["blob", "a", "zeros", "good_bytes", "zeros"]])
+    bad = {}
+    for label, blob in (("foreign", "other_bytes"), ("truncated", "truncated"), ("zeros", "zeros")):
+        bad[label] = len(actions)
+        actions += [["deserialize", "a", label, blob], ["read", "a"], ["set_state", "a", label], ["read", "a"],
+                    ["step", "a", TS, _row(u, y, 20)]]
+    restore = len(actions)
+    actions += [["set_state", "a", "good"]] + [["step", "a", TS, _row(u, y, k)] for k in range(20, n)]
+    done, names = contract(tmp_path, {"fdi": ex53["fmu"], "other": other_fmu}, actions)
+    reasons = {"foreign": "FMU state of", "truncated": "truncated FMU state", "zeros": "bad magic"}
+    for label, i in bad.items():
+        deser, read_before, set_, read_after, step = done[i:i + 5]
+        assert deser["status"] == 0 and set_["status"] == 0  # the status pythonfmu can give
+        assert "fmi2SetFMUstate refused, instance unchanged" in _errors(set_), label
+        assert reasons[label] in _errors(set_), _errors(set_)
+        assert read_after["values"] == read_before["values"], label
+        assert step["status"] == 2 and "the last fmi2SetFMUstate was refused" in _errors(step), label
+    assert done[restore]["status"] == 0 and not _errors(done[restore])
+    run = done[restore + 1:]
+    assert [a["status"] for a in run] == [0] * (n - 20)
+    host = {nm: [a["values"][j] for a in run] for j, nm in enumerate(names)}
+    assert_matches(host, ref[20:], names, shift=0)

@@ -23,7 +23,7 @@ from .slave_template import TEMPLATE
 
 RUNTIME_DIR = Path(__file__).resolve().parent.parent / "runtime"
 RESERVED = re.compile(r"^(residual|evaluation|threshold|alarm)_\d+$|^(fault_detected|isolated_fault|input_invalid|"
-                      r"threshold_scale)$")
+                      r"numeric_reset|threshold_scale)$")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -54,7 +54,9 @@ def _descriptions(design: dict) -> dict[str, str]:
     out["fault_detected"] = "any alarm"
     legend = ", ".join(f"{j + 1} = {nm}" for j, nm in enumerate(faults)) or "no faults modelled"
     out["isolated_fault"] = f"0 none, -1 unknown or several, else the fault: {legend}"
-    out["input_invalid"] = "the last input sample had NaN/Inf (diagnosis held)"
+    out["input_invalid"] = "the last input sample had NaN/Inf or was outside its valid range (diagnosis held)"
+    out["numeric_reset"] = ("a value inside the diagnoser became NaN/Inf in the last step: sample discarded, "
+                            "generator and evaluation restarted (docs/semantics.md)")
     return out
 
 

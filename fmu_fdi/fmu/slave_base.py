@@ -20,6 +20,17 @@ What it adds to :class:`pythonfmu.Fmi2Slave`, and why:
   the state and the inputs as currently set; it runs lazily before the first get after any
   set or step, so an output with direct feedthrough is right whatever order the master
   uses for set/get around ``fmi2DoStep``. ``step`` only advances the state.
+* **The FMI 2.0 call sequence is enforced.** ``fmi2DoStep`` is served only between
+  ``fmi2ExitInitializationMode`` and ``fmi2Terminate``; setupExperiment/enter/exit
+  initialisation only in their phase. pythonfmu 0.7.0 lets a Python callback return only
+  OK, Discard (``do_step`` returning False) or Fatal (any exception), so a misplaced doStep is
+  answered with ``fmi2Discard`` and an error-status message saying why; a misplaced
+  initialisation call is ignored with such a message. The phase is not part of the FMU state.
+* **A state is validated when it is set.** Foreign, truncated or corrupt bytes, a state of
+  another FMU, or one :meth:`validate_fmu_state` refuses leave the instance exactly as it was,
+  with an error-status message at set time; since the status cannot be fmi2Error here, the
+  next ``do_step`` is discarded with the same reason (a master that ignored the log cannot go
+  on silently from the wrong state) until a valid state is set or the FMU is reset.
 * **Categorised logging.** :meth:`log_event` queues a message under one of
   ``log_categories``; pythonfmu forwards the queue to the FMI logger at the end of the same
   FMI call, but only if the master switched logging on (``loggingOn`` at instantiation or
@@ -73,6 +84,8 @@ class FdiSlave(Fmi2Slave):
         super().__init__(**kwargs)
         self.failed_reason = ""        # non-empty once the model failed; cleared by fmi2Reset only
         self._outputs_current = False  # outputs match state and inputs
+        self._nostate_phase = "instantiated"  # FMI 2.0: instantiated, initialization, stepping, terminated
+        self._nostate_state_error = ""        # why the last fmi2SetFMUstate was refused ("" if it was not)
         # which interpreter and numpy the host gave us: the first thing to check when an FMU
         # behaves differently in another host (flushed to the logger at the next FMI call)
         self.log(f"{type(self).__qualname__}: Python {sys.version.split()[0]} prefix={sys.prefix} "
@@ -85,6 +98,10 @@ class FdiSlave(Fmi2Slave):
 
     def update_outputs(self) -> None:
         """Compute every output attribute from the state and the inputs as currently set."""
+
+    def validate_fmu_state(self, attributes: dict) -> None:
+        """Raise ValueError if ``attributes`` (a decoded FMU state of this class) cannot be this
+        instance's state; called before anything is restored. The default accepts all."""
 
     # ---- logging --------------------------------------------------------------------------
     def log_event(self, msg: str, category: str = "logFdiEvents", status: Fmi2Status = Fmi2Status.ok):
@@ -115,16 +132,31 @@ class FdiSlave(Fmi2Slave):
             self._outputs_current = True
 
     # ---- FMI callbacks (called from pythonfmu's C++ layer) --------------------------------
+    def _misplaced(self, call: str, allowed: str) -> bool:
+        """True (and an error-status message) if ``call`` is not allowed in the current phase."""
+        if self._nostate_phase == allowed:
+            return False
+        self.log(f"{call} refused: allowed only in phase '{allowed}', the instance is in phase "
+                 f"'{self._nostate_phase}' (FMI 2.0 co-simulation state machine)",
+                 status=Fmi2Status.error, category="logStatusError")
+        return True
+
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        if self._misplaced("fmi2SetupExperiment", "instantiated"):
+            return
         try:
             self.start_time = float(start_time)
         except BaseException as exc:
             self._fail("setup_experiment", exc)
 
     def enter_initialization_mode(self):
-        pass
+        if not self._misplaced("fmi2EnterInitializationMode", "instantiated"):
+            self._nostate_phase = "initialization"
 
     def exit_initialization_mode(self):
+        if self._misplaced("fmi2ExitInitializationMode", "initialization"):
+            return
+        self._nostate_phase = "stepping"
         try:
             self._outputs_current = False
             self._ensure_outputs()
@@ -132,9 +164,16 @@ class FdiSlave(Fmi2Slave):
             self._fail("exit_initialization_mode", exc)
 
     def terminate(self):
-        pass
+        if not self._misplaced("fmi2Terminate", "stepping"):
+            self._nostate_phase = "terminated"
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        if self._misplaced("fmi2DoStep", "stepping"):
+            return False
+        if self._nostate_state_error:
+            self.log(f"do_step refused: the last fmi2SetFMUstate was refused ({self._nostate_state_error}); "
+                     f"set a valid state or reset the FMU", status=Fmi2Status.error, category="logStatusError")
+            return False
         if self.failed_reason:
             self.log(f"do_step refused: instance failed earlier ({self.failed_reason})",
                      status=Fmi2Status.error, category="logStatusError")
@@ -209,7 +248,17 @@ class FdiSlave(Fmi2Slave):
                 raise StateCodecError(f"unusable FMU state ({reason})")
             if state.get("class") != type(self).__qualname__:
                 raise StateCodecError(f"FMU state of {state.get('class')!r} given to {type(self).__qualname__!r}")
+            if not isinstance(state.get("attributes"), dict):
+                raise StateCodecError("FMU state without attributes")
             restored = copy.deepcopy(state["attributes"])  # the saved state stays reusable
+            self.validate_fmu_state(restored)
+        except BaseException as exc:  # refused before anything changed: the instance is as it was
+            self._nostate_state_error = f"{type(exc).__name__}: {exc}"
+            self.log(f"fmi2SetFMUstate refused, instance unchanged: {self._nostate_state_error}",
+                     status=Fmi2Status.error, category="logStatusError")
+            return
+        self._nostate_state_error = ""
+        try:
             for name in [k for k in self._model_state() if k not in restored]:
                 delattr(self, name)
             for name, value in restored.items():

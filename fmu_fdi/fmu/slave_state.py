@@ -52,6 +52,8 @@ def decode_state(data: bytes):
     if len(data) < 16 or data[:8] != MAGIC:
         raise StateCodecError("not an fmu-fdi FMU state (bad magic)")
     (n,) = struct.unpack("<Q", data[8:16])
+    if len(data) < 16 + n:
+        raise StateCodecError(f"truncated FMU state: {len(data)} bytes, the header alone needs {16 + n}")
     try:
         header = json.loads(data[16:16 + n].decode("utf-8"))
     except ValueError as exc:
@@ -61,7 +63,7 @@ def decode_state(data: bytes):
     base = 16 + n
     buffers = [data[base + off: base + off + size] for off, size in header["buffers"]]
     if any(len(b) != size for b, (_, size) in zip(buffers, header["buffers"])):
-        raise StateCodecError("truncated FMU state")
+        raise StateCodecError(f"truncated FMU state: {len(data)} bytes, its buffers end beyond")
     return _decode(header["tree"], buffers)
 
 

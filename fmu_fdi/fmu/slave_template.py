@@ -8,10 +8,15 @@ keeps the whole instance as the FMU state and logs through the FMI logger.
 
 Timing: ``fmi2DoStep(t, h)`` consumes the inputs set for time t and makes the outputs the
 diagnosis of that sample (row k of ``Diagnoser.run``); outputs do not depend on inputs
-directly (no feedthrough), so a master may read them any time after the step.
+directly (no feedthrough), so a master may read them any time after the step. The semantics
+of one step (step sizes, invalid samples, ``numeric_reset``) are in docs/semantics.md; a step
+the runtime cannot serve is answered with fmi2Discard and its reason under logStatusDiscard,
+and leaves the instance exactly as before.
 """
 
 TEMPLATE = r'''"""fmu-fdi diagnostic FMU slave (generated): residual generation, evaluation, decision."""
+import copy
+import hashlib
 import json
 import math
 import os
@@ -19,7 +24,8 @@ import os
 from pythonfmu import Boolean, Fmi2Causality, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
-from .engine import DiagnoserRuntime, StepSizeError
+from .engine import (FAULT_DETECTED, INPUT_INVALID, ISOLATED_FAULT, NUMERIC_RESET, DiagnoserRuntime, StepSizeError,
+                     output_type)
 from .slave_base import FdiSlave
 
 # The design is read from *this instance's* resources folder: a host may run an FMU again after
@@ -31,10 +37,15 @@ class __CLASS__(FdiSlave):
     author = "fmu-fdi"
     description = __DESCRIPTION__
 
+    log_categories = dict(FdiSlave.log_categories, logFdiNumeric=(
+        "Samples discarded because a value inside the runtime became NaN/Inf (numeric_reset)."))
+
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        with open(os.path.join(self.resources, _PACKAGE, "design.json"), encoding="utf-8") as fh:
-            design = json.load(fh)
+        with open(os.path.join(self.resources, _PACKAGE, "design.json"), "rb") as fh:
+            raw = fh.read()
+        design = json.loads(raw.decode("utf-8"))
+        self.design_sha256 = hashlib.sha256(raw).hexdigest()  # an FMU state names the design it belongs to
         self.rt = DiagnoserRuntime(design)
         self._nostate_faults = [f["name"] for f in design.get("faults", [])]
         rt = self.rt
@@ -43,6 +54,7 @@ class __CLASS__(FdiSlave):
         self.out = [0.0] * len(rt.names)
         self.last_detected = False
         self.invalid_count = 0
+        self.numeric_reset_count = 0
         inp = Fmi2Causality.input
         for values, names in ((self.u_in, rt.u_names), (self.y_in, rt.y_names)):
             for i, name in enumerate(names):
@@ -55,9 +67,10 @@ class __CLASS__(FdiSlave):
         out = Fmi2Causality.output
         for j, name in enumerate(rt.names):
             common = dict(causality=out, variability=Fmi2Variability.discrete, initial=Fmi2Initial.exact)
-            if name.startswith("alarm_") or name in ("fault_detected", "input_invalid"):
+            kind = output_type(name)
+            if kind == "Boolean":
                 var = Boolean(name, start=False, getter=_bool_item(self.out, j), **common)
-            elif name == "isolated_fault":
+            elif kind == "Integer":
                 var = Integer(name, start=0, getter=_int_item(self.out, j), **common)
             else:
                 var = Real(name, start=0.0, getter=_item(self.out, j), **common)
@@ -71,6 +84,18 @@ class __CLASS__(FdiSlave):
             return
         self.rt.threshold_scale = value
 
+    def validate_fmu_state(self, attributes):
+        if attributes.get("design_sha256") != self.design_sha256:
+            raise ValueError("FMU state of another design (design fingerprint differs)")
+        rt = attributes.get("rt")
+        if type(rt) is not type(self.rt):
+            raise ValueError(f"FMU state holds no diagnoser runtime (got {type(rt).__name__})")
+        copy.deepcopy(self.rt).set_state(rt.get_state())  # shapes, lengths, finiteness; raises ValueError
+        for name, n in (("u_in", self.rt.nu), ("y_in", self.rt.ny), ("out", len(self.rt.names))):
+            value = attributes.get(name)
+            if type(value) is not list or len(value) != n or not all(isinstance(x, float) for x in value):
+                raise ValueError(f"FMU state: {name} must be {n} floats")
+
     def step(self, current_time, step_size):
         try:
             out = self.rt.advance(self.u_in, self.y_in, step_size)
@@ -78,13 +103,17 @@ class __CLASS__(FdiSlave):
             self.log_event(f"step at t={current_time:g} refused: {exc}", "logStatusDiscard", Fmi2Status.discard)
             return False
         self.out[:] = out
-        if out[-1]:
+        if out[INPUT_INVALID]:
             self.invalid_count += 1
-            self.log_event(f"t={current_time:g}: invalid (NaN/Inf) input sample; diagnosis held", "logFdiInput",
-                           Fmi2Status.warning)
-        detected = out[-3] != 0.0  # outputs end with fault_detected, isolated_fault, input_invalid
+            self.log_event(f"t={current_time:g}: invalid input sample (NaN/Inf or outside its valid range); "
+                           f"diagnosis held", "logFdiInput", Fmi2Status.warning)
+        if out[NUMERIC_RESET]:
+            self.numeric_reset_count += 1
+            self.log_event(f"t={current_time:g}: a value inside the diagnoser became NaN/Inf; sample discarded, "
+                           f"generator and evaluation restarted (numeric_reset)", "logFdiNumeric", Fmi2Status.warning)
+        detected = out[FAULT_DETECTED] != 0.0
         if detected != self.last_detected:
-            iso = int(out[-2])
+            iso = int(out[ISOLATED_FAULT])
             what = "fault detected" if detected else "alarm cleared"
             if detected and iso > 0:
                 what += f", isolated as '{self._nostate_faults[iso - 1]}'"

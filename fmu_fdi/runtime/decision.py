@@ -26,7 +26,7 @@ ISOLATION = ("structure", "direction", "none")
 
 class Decision:
     def __init__(self, spec: dict, n_groups: int, n_faults: int):
-        self.n_groups = n_groups
+        self.n_groups, self.n_faults = n_groups, n_faults
         pers = spec.get("persistence", [1, 1])
         self.k_of, self.n_of = int(pers[0]), int(pers[1])
         if not 1 <= self.k_of <= self.n_of:
@@ -68,10 +68,17 @@ class Decision:
                 "margin": self.margin}
 
     def set_state(self, s: dict) -> None:
-        self.raw_hist = [list(map(bool, h)) for h in s["raw_hist"]]
-        self.alarms = list(map(bool, s["alarms"]))
-        self.latched = list(map(bool, s["latched"]))
-        self.isolated = int(s["isolated"])
+        """Restore :meth:`get_state`; ValueError (nothing changed) for a state of another shape."""
+        raw_hist = [list(map(bool, h)) for h in s["raw_hist"]]
+        alarms, latched = list(map(bool, s["alarms"])), list(map(bool, s["latched"]))
+        isolated = int(s["isolated"])
+        ng = self.n_groups
+        # the common case (persistence [1, 1], no latch) keeps one-entry histories
+        if (len(raw_hist) != ng or any(len(h) != self.n_of for h in raw_hist) or len(alarms) != ng
+                or len(latched) != ng or not -1 <= isolated <= self.n_faults):
+            raise ValueError(f"decision state does not fit {ng} groups with persistence [{self.k_of}, {self.n_of}] "
+                             f"and {self.n_faults} faults")
+        self.raw_hist, self.alarms, self.latched, self.isolated = raw_hist, alarms, latched, isolated
         self.status = str(s["status"])
         self.margin = float(s["margin"])
 

@@ -3,20 +3,25 @@
 ``DiagnoserRuntime(design)`` reads a design dict (the JSON design file, see
 docs/design-file.md) and processes plant samples. It is the single implementation of
 the step logic: ``Diagnoser.step``/``run`` call it in Python and the diagnostic FMU
-bundles this package and calls it inside the host.
+bundles this package and calls it inside the host. The semantics of one call, which the
+native C runtime implements too, are written down in docs/semantics.md:
 
-Timing convention: one call of :meth:`advance` consumes the plant signals sampled at
-time t and returns the diagnosis of that sample; a communication step h that is an
-integer multiple of the design sample time Ts runs h/Ts sub-steps with the inputs held;
-any other h uses an exact zero-order-hold re-discretisation of the continuous design
-(cached per h), and a design that exists only in discrete time refuses it.
-
-Invalid samples (NaN/Inf in u or y) are not fed to the generator: ``input_invalid`` is
-set, every other output holds its last value and the states stay as they were.
+* one call of :meth:`advance` consumes the plant signals sampled at time t and returns the
+  diagnosis of that sample;
+* a communication step h equal to the previous one within 1e-9 (relative) is the same step;
+  an integer multiple k ≤ 10000 of Ts runs k sub-steps with the inputs held; any other h in
+  [Ts/16, 10000 Ts] uses an exact zero-order-hold re-discretisation of the continuous design
+  (at most 8 cached); anything else raises :class:`StepSizeError` and changes nothing;
+* invalid samples (NaN/Inf, or outside ``signals.valid_range``) set ``input_invalid``; every
+  other output holds its last value and the states stay as they were;
+* a non-finite value inside the runtime (e.g. the square of one y = 1e300) discards the
+  sub-sample: generator, evaluators and thresholds restart from their initial state, the
+  decision and the outputs are kept, and ``numeric_reset`` is set for that call.
 """
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 
 import numpy as np
 
@@ -27,20 +32,73 @@ from .generators import make_generator
 from .thresholds import Threshold
 
 FORMAT = "fmu-fdi-design/1"
+#: most sub-steps one call may run (S3): a larger multiple of Ts is refused
+MAX_SUBSTEPS = 10000
+#: step sizes within this relative distance are one step size (S3)
+STEP_RTOL = 1e-9
+#: re-discretisations kept (least recently used evicted)
+CACHE_SIZE = 8
+#: the smallest re-discretised step, as a fraction of Ts (windows grow as Ts/h)
+MIN_STEP_RATIO = 1.0 / 16.0
 
 
 class StepSizeError(ValueError):
-    """The requested communication step cannot be served exactly."""
+    """The requested communication step cannot be served exactly; nothing was changed."""
 
 
 def output_names(n_residuals: int, n_groups: int) -> list[str]:
     return ([f"residual_{k + 1}" for k in range(n_residuals)] + [f"evaluation_{k + 1}" for k in range(n_groups)]
             + [f"threshold_{k + 1}" for k in range(n_groups)] + [f"alarm_{k + 1}" for k in range(n_groups)]
-            + ["fault_detected", "isolated_fault", "input_invalid"])
+            + ["fault_detected", "isolated_fault", "input_invalid", "numeric_reset"])
+
+
+#: positions of the trailing outputs (counted from the end of the output list)
+FAULT_DETECTED, ISOLATED_FAULT, INPUT_INVALID, NUMERIC_RESET = -4, -3, -2, -1
+BOOLEAN_OUTPUTS = ("fault_detected", "input_invalid", "numeric_reset")
+
+
+def output_type(name: str) -> str:
+    """FMI type of an output: 'Boolean' (alarms, flags), 'Integer' (isolated_fault) or 'Real'."""
+    if name.startswith("alarm_") or name in BOOLEAN_OUTPUTS:
+        return "Boolean"
+    return "Integer" if name == "isolated_fault" else "Real"
+
+
+def valid_ranges(signals: dict) -> tuple[list[float], list[float], list[float], list[float]]:
+    """``signals.valid_range`` → (u_lo, u_hi, y_lo, y_hi) with ±inf where unbounded (S2).
+
+    Raises ValueError naming the signal for anything malformed: the range is a safety
+    feature, so a typo must not switch it off silently.
+    """
+    u, y = list(signals["u"]), list(signals["y"])
+    lo = {n: -math.inf for n in u + y}
+    hi = {n: math.inf for n in u + y}
+    spec = signals.get("valid_range")
+    if spec is None:
+        spec = {}
+    if not isinstance(spec, dict):
+        raise ValueError(f"signals.valid_range must map signal names to [lo, hi], got {type(spec).__name__}")
+    for name, pair in spec.items():
+        if name not in lo:
+            raise ValueError(f"signals.valid_range names {name!r}, which is not a signal (u: {u}, y: {y})")
+        if not isinstance(pair, (list, tuple)) or len(pair) != 2:
+            raise ValueError(f"signals.valid_range[{name!r}] must be [lo, hi], got {pair!r}")
+        bounds = []
+        for side, v, default in (("lo", pair[0], -math.inf), ("hi", pair[1], math.inf)):
+            if v is None:
+                bounds.append(default)
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"signals.valid_range[{name!r}] {side} must be a finite number or null, got {v!r}")
+            bounds.append(float(v))
+        if not bounds[0] <= bounds[1]:
+            raise ValueError(f"signals.valid_range[{name!r}] needs lo <= hi, got [{bounds[0]!r}, {bounds[1]!r}]")
+        lo[name], hi[name] = bounds
+    return [lo[n] for n in u], [hi[n] for n in u], [lo[n] for n in y], [hi[n] for n in y]
 
 
 class DiagnoserRuntime:
-    """Per-sample diagnosis from a design dict (numpy only)."""
+    """Per-sample diagnosis from a design dict (numpy only); semantics: docs/semantics.md."""
 
     def __init__(self, design: dict):
         if design.get("format") != FORMAT:
@@ -48,6 +106,8 @@ class DiagnoserRuntime:
         sig = design["signals"]
         self.u_names, self.y_names = list(sig["u"]), list(sig["y"])
         self.nu, self.ny = len(self.u_names), len(self.y_names)
+        self._u_lo, self._u_hi, self._y_lo, self._y_hi = valid_ranges(sig)
+        self._ranged = any(math.isfinite(b) for b in self._u_lo + self._u_hi + self._y_lo + self._y_hi)
         op = design.get("operating_point") or {}
         self.u0 = np.asarray(op.get("u", [0.0] * self.nu), float).reshape(self.nu)
         self.y0 = np.asarray(op.get("y", [0.0] * self.ny), float).reshape(self.ny)
@@ -75,10 +135,8 @@ class DiagnoserRuntime:
         self.n_groups = len(self.groups)
         self.names = output_names(self.n_residuals, self.n_groups)
         self.threshold_scale = 1.0
-        self._native = (self.generator, None)
-        self._plans: dict[float, tuple] = {}
-        self.h = self.Ts
-        self._build_stage(1.0)
+        self._native = self.generator
+        self._plans: OrderedDict[float, tuple] = OrderedDict()  # exact h -> (1, generator, h/Ts)
         self.decision = Decision(design.get("decision", {}), self.n_groups, len(self.faults))
         self.reset()
 
@@ -91,143 +149,243 @@ class DiagnoserRuntime:
             self.evaluators = [Evaluator(s, len(g)).resampled(ratio) for s, g in zip(self.eval_specs, self.groups)]
             self.thresholds = [Threshold(t, s).resampled(ratio, e.spec)
                                for t, s, e in zip(self.thr_specs, self.eval_specs, self.evaluators)]
+        self._ratio = ratio
         self._bind_stage()
 
     def _bind_stage(self) -> None:
         """Per group: (single residual index or -1, indices, evaluator, norm-based?, threshold)."""
         self._stage = [(g[0] if len(g) == 1 else -1, g, e, e.kind in MONOTONE, t)
                        for g, e, t in zip(self.groups, self.evaluators, self.thresholds)]
+        # S1 in the hot path: with r, v and unorm finite, a finite evaluation J (and threshold
+        # value) implies a finite evaluator state for every kind but these two, whose state
+        # holds values J does not depend on (Narendra's re after the output, GLR's NaN-safe max)
+        inner = [getattr(t, "u_eval", None) or getattr(t, "b_eval", None) for t in self.thresholds]
+        self._hidden = [e for e in self.evaluators + [e for e in inner if e is not None]
+                        if e.kind in ("narendra", "glr")]
 
-    def _plan(self, h: float):
-        """(substeps, generator) for communication step h; raises StepSizeError."""
-        if not (isinstance(h, (int, float)) and math.isfinite(h) and h > 0):
-            raise StepSizeError(f"communication step must be a positive number, got {h!r}")
+    def _resolve(self, h, exact: bool = False):
+        """The plan ``(substeps, generator, effective ratio)`` for step h, None for the current
+        step (S3, docs/semantics.md §9); raises StepSizeError and changes nothing otherwise.
+        ``exact``: no same-step tolerance (restoring a saved state)."""
+        if isinstance(h, bool) or not isinstance(h, (int, float, np.integer, np.floating)):
+            raise StepSizeError(f"communication step must be a positive finite number, got {h!r}")
+        h = float(h)
+        if not (math.isfinite(h) and h > 0):
+            raise StepSizeError(f"communication step must be a positive finite number, got {h!r}")
+        if h == self.h or (not exact and abs(h - self.h) <= STEP_RTOL * self.h):
+            return None
         ratio = h / self.Ts
+        if ratio > MAX_SUBSTEPS + 0.5:
+            raise StepSizeError(f"step {h:g} s is {ratio:.6g} design sample times Ts = {self.Ts:g} s: more than "
+                                f"{MAX_SUBSTEPS} sub-steps per call")
         k = round(ratio)
-        if k >= 1 and abs(ratio - k) <= 1e-9 * ratio:
-            return k, self._native[0], 1.0
-        if h in self._plans:
-            return self._plans[h]
+        if k >= 1 and abs(ratio - k) <= STEP_RTOL * k:
+            if k > MAX_SUBSTEPS:
+                raise StepSizeError(f"step {h:g} s = {k} Ts: more than {MAX_SUBSTEPS} sub-steps per call")
+            return k, self._native, 1.0
         if self.cont is None or self.gen_spec.get("kind") != "lti":
             raise StepSizeError(
                 f"step {h:g} s is not an integer multiple of the design sample time {self.Ts:g} s and the design "
                 f"exists only in discrete time, so it cannot be re-discretised exactly")
-        Ac = np.asarray(self.cont["A"], float).reshape(len(self.cont["A"]), -1) if self.cont["A"] else np.zeros((0, 0))
-        n = Ac.shape[0]
-        D = np.atleast_2d(np.asarray(self.cont["D"], float))
-        Bc = np.asarray(self.cont["B"], float).reshape(n, D.shape[1])
-        Cc = np.asarray(self.cont["C"], float).reshape(D.shape[0], n)
-        Ad, Bd = zoh(Ac, Bc, h)
-        gen = make_generator({"kind": "lti", "A": Ad, "B": Bd, "C": Cc, "D": D})
+        if not MIN_STEP_RATIO <= ratio <= MAX_SUBSTEPS:
+            raise StepSizeError(f"step {h:g} s is not an integer multiple of the design sample time {self.Ts:g} s "
+                                f"and outside the re-discretisation range [Ts/16, {MAX_SUBSTEPS} Ts] = "
+                                f"[{self.Ts * MIN_STEP_RATIO:g}, {self.Ts * MAX_SUBSTEPS:g}] s")
+        plan = self._plans.get(h)
+        if plan is not None:
+            self._plans.move_to_end(h)
+            return plan
         try:
             for s, g in zip(self.eval_specs, self.groups):
                 Evaluator(s, len(g)).resampled(ratio)
             for t, s in zip(self.thr_specs, self.eval_specs):
                 Threshold(t, s).resampled(ratio, s)
-        except ValueError as exc:
+            Ac = (np.asarray(self.cont["A"], float).reshape(len(self.cont["A"]), -1) if self.cont["A"]
+                  else np.zeros((0, 0)))
+            n = Ac.shape[0]
+            D = np.atleast_2d(np.asarray(self.cont["D"], float))
+            Bc = np.asarray(self.cont["B"], float).reshape(n, D.shape[1])
+            Cc = np.asarray(self.cont["C"], float).reshape(D.shape[0], n)
+            with np.errstate(all="ignore"):
+                Ad, Bd = zoh(Ac, Bc, h)
+            if not (np.all(np.isfinite(Ad)) and np.all(np.isfinite(Bd))):
+                raise ValueError("the zero-order-hold discretisation is not finite")
+            gen = make_generator({"kind": "lti", "A": Ad, "B": Bd, "C": Cc, "D": D})
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             raise StepSizeError(f"step {h:g} s differs from the design sample time {self.Ts:g} s: {exc}") from None
         plan = (1, gen, ratio)
         self._plans[h] = plan
+        while len(self._plans) > CACHE_SIZE:
+            self._plans.popitem(last=False)
         return plan
 
-    def set_step(self, h: float) -> None:
-        """Prepare for communication steps of size h (raises StepSizeError if impossible).
-
-        The generator state carries over; evaluation windows restart when the effective
-        sample time changes (a re-discretised design evaluates at h, not Ts).
-        """
-        substeps, gen, ratio = self._plan(h)
-        if h == self.h:
-            return
-        prev_ratio = self._plan(self.h)[2]
-        state = self.generator.get_state()
-        self.generator = gen
-        if gen.kind == "lti" and len(state.get("x", [])) == gen.A.shape[0]:
-            gen.set_state(state)
-        if ratio != prev_ratio:
+    def _adopt(self, h: float, plan) -> None:
+        """Switch to a resolved plan (S4): the generator state carries over; evaluators and
+        thresholds restart when the effective sample time changes; the decision is kept."""
+        substeps, gen, ratio = plan
+        if gen is not self.generator:
+            gen.set_state(self.generator.get_state())  # LTI only here: same realisation, same x
+            self.generator = gen
+        if ratio != self._ratio:
             self._build_stage(ratio)
-        self.h = h
+        self.h = float(h)
         self._substeps = substeps
+
+    def set_step(self, h: float) -> None:
+        """Prepare for communication steps of size h (raises StepSizeError if impossible,
+        leaving everything as it was). See docs/semantics.md §9."""
+        plan = self._resolve(h)
+        if plan is not None:
+            self._adopt(h, plan)
 
     # ----------------------------------------------------------------- state
     def reset(self) -> None:
-        self.generator = self._native[0]
+        self.generator = self._native
         self.generator.reset()
         self.h = self.Ts
+        self._substeps = 1
         self._build_stage(1.0)
         self.decision.reset()
         self.outputs = [0.0] * len(self.names)
         self.n_samples = 0
-        self._substeps = 1
+        self.n_numeric_resets = 0
+
+    def _restart_stages(self) -> None:
+        """S1: generator, evaluators and thresholds back to their initial state (plan kept)."""
+        self.generator.reset()
+        for e in self.evaluators:
+            e.reset()
+        for t in self.thresholds:
+            t.reset()
 
     def get_state(self) -> dict:
         return {"h": self.h, "generator": self.generator.get_state(),
                 "evaluators": [e.get_state() for e in self.evaluators],
                 "thresholds": [t.get_state() for t in self.thresholds],
                 "decision": self.decision.get_state(), "outputs": list(self.outputs),
-                "n_samples": self.n_samples, "threshold_scale": self.threshold_scale}
+                "n_samples": self.n_samples, "n_numeric_resets": self.n_numeric_resets,
+                "threshold_scale": self.threshold_scale}
 
     def set_state(self, s: dict) -> None:
-        self.set_step(float(s["h"]))
+        """Restore :meth:`get_state`; a state that does not fit this design (shapes, lengths,
+        non-finite values) raises ValueError and leaves the runtime exactly as it was."""
+        before = self.get_state()
+        try:
+            self._apply_state(s)
+        except BaseException as exc:
+            self._apply_state(before)
+            if isinstance(exc, (ValueError, TypeError, KeyError, IndexError, AttributeError)):
+                raise ValueError(f"runtime state does not fit this design: {type(exc).__name__}: {exc}") from None
+            raise
+
+    def _apply_state(self, s: dict) -> None:
+        plan = self._resolve(s["h"], exact=True)
+        if plan is not None:
+            self._adopt(s["h"], plan)
+        for what, items, objs in (("evaluator", s["evaluators"], self.evaluators),
+                                  ("threshold", s["thresholds"], self.thresholds)):
+            if len(items) != len(objs):
+                raise ValueError(f"{len(items)} {what} states for {len(objs)} groups")
+        outputs = [float(x) for x in s["outputs"]]
+        if len(outputs) != len(self.names):
+            raise ValueError(f"{len(outputs)} outputs, expected {len(self.names)}")
+        scale = float(s["threshold_scale"])
+        if not (scale >= 0 and math.isfinite(scale)):
+            raise ValueError(f"threshold_scale must be finite and >= 0, got {scale!r}")
         self.generator.set_state(s["generator"])
         for e, es in zip(self.evaluators, s["evaluators"]):
             e.set_state(es)
         for t, ts in zip(self.thresholds, s["thresholds"]):
             t.set_state(ts)
         self.decision.set_state(s["decision"])
-        self.outputs = [float(x) for x in s["outputs"]]
+        self.outputs = outputs
         self.n_samples = int(s["n_samples"])
-        self.threshold_scale = float(s["threshold_scale"])
+        self.n_numeric_resets = int(s.get("n_numeric_resets", 0))
+        self.threshold_scale = scale
+        if not (self._stages_finite() and all(map(math.isfinite, outputs))):
+            raise ValueError("the state holds NaN or Inf values")
+
+    def _stages_finite(self) -> bool:
+        return (self.generator.finite() and all(e.finite() for e in self.evaluators)
+                and all(t.finite() for t in self.thresholds))
 
     # ------------------------------------------------------------------ step
-    def _sample(self, v, unorm: float) -> None:
-        r = self.generator.step(v)
-        rl = r.tolist()
+    def _sample(self, v, unorm: float) -> bool:
+        """One sub-sample; False (outputs and decision untouched) when a value is not finite."""
+        try:
+            r = self.generator.step(v)
+            rl = r.tolist()
+            scale = self.threshold_scale
+            evals, thrs = [], []
+            for single, grp, ev, norm_based, thr in self._stage:
+                if single >= 0:
+                    x = rl[single]
+                    evals.append(ev.step_sq(x * x) if norm_based else ev.step(r[grp]))
+                elif norm_based:
+                    evals.append(ev.step_sq(sum(rl[j] * rl[j] for j in grp)))
+                else:
+                    evals.append(ev.step(r[grp]))
+                thrs.append(scale * thr.step(unorm))
+        except ArithmeticError:  # e.g. an OverflowError of math.fsum: a non-finite value
+            return False
+        isfinite = math.isfinite
+        if not (all(map(isfinite, rl)) and all(map(isfinite, evals)) and all(map(isfinite, thrs))
+                and self.generator.finite() and all(e.finite() for e in self._hidden)):
+            return False
+        dec = self.decision
+        dec.step(evals, thrs, rl)
         out = self.outputs
         nr, ng = self.n_residuals, self.n_groups
         out[:nr] = rl
-        scale = self.threshold_scale
-        evals, thrs = [], []
-        for single, grp, ev, norm_based, thr in self._stage:
-            if single >= 0:
-                x = rl[single]
-                evals.append(ev.step_sq(x * x) if norm_based else ev.step(r[grp]))
-            elif norm_based:
-                evals.append(ev.step_sq(sum(rl[j] * rl[j] for j in grp)))
-            else:
-                evals.append(ev.step(r[grp]))
-            thrs.append(scale * thr.step(unorm))
-        dec = self.decision
-        dec.step(evals, thrs, rl)
         out[nr:nr + ng] = evals
         out[nr + ng:nr + 2 * ng] = thrs
         alarms = dec.alarms
         out[nr + 2 * ng:nr + 3 * ng] = [1.0 if a else 0.0 for a in alarms]
-        out[-3] = 1.0 if True in alarms else 0.0
-        out[-2] = float(dec.isolated)
+        out[FAULT_DETECTED] = 1.0 if True in alarms else 0.0
+        out[ISOLATED_FAULT] = float(dec.isolated)
+        return True
+
+    def _valid(self, u: list, y: list) -> bool:
+        isfinite = math.isfinite
+        if not self._ranged:
+            return all(map(isfinite, u)) and all(map(isfinite, y))
+        return (all(isfinite(x) and lo <= x <= hi for x, lo, hi in zip(u, self._u_lo, self._u_hi))
+                and all(isfinite(x) and lo <= x <= hi for x, lo, hi in zip(y, self._y_lo, self._y_hi)))
 
     def advance(self, u, y, h: float | None = None) -> list:
-        """Diagnose the sample (u, y) over a communication step h (default: Ts).
+        """Diagnose the sample (u, y) over a communication step h (default: the current one,
+        initially Ts). Returns the outputs (a new list, in the order of :attr:`names`).
 
-        Returns the outputs (a new list, in the order of :attr:`names`).
+        Raises StepSizeError for a step it cannot serve and ValueError for signal vectors of
+        the wrong length; in both cases nothing has changed.
         """
-        if h is not None and h != self.h:
-            self.set_step(h)
         u = list(map(float, u))
         y = list(map(float, y))
         if len(u) != self.nu or len(y) != self.ny:
             raise ValueError(f"expected {self.nu} inputs and {self.ny} outputs, got {len(u)} and {len(y)}")
-        if not (all(map(math.isfinite, u)) and all(map(math.isfinite, y))):
-            self.outputs[-1] = 1.0
-            return list(self.outputs)
-        du = [a - b for a, b in zip(u, self._u0)]
+        if h is not None and h != self.h:
+            self.set_step(h)
+        out = self.outputs
+        out[NUMERIC_RESET] = 0.0
+        if not self._valid(u, y):
+            out[INPUT_INVALID] = 1.0
+            return list(out)
+        out[INPUT_INVALID] = 0.0
+        du = [a - b for a, b in zip(u, self._u0)]  # Python floats: overflow gives inf, never raises
         v = [a - b for a, b in zip(y, self._y0)] + du
         unorm = math.sqrt(sum(d * d for d in du))
-        for _ in range(self._substeps):
-            self._sample(v, unorm)
-        self.outputs[-1] = 0.0
+        ok = all(map(math.isfinite, v)) and math.isfinite(unorm)
+        if ok:
+            for _ in range(self._substeps):
+                if not self._sample(v, unorm):
+                    ok = False
+                    break
+        if not ok:
+            self._restart_stages()
+            out[NUMERIC_RESET] = 1.0
+            self.n_numeric_resets += 1
         self.n_samples += 1
-        return list(self.outputs)
+        return list(out)
 
     def step(self, u, y) -> list:
         return self.advance(u, y, None)

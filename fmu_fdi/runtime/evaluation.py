@@ -54,14 +54,32 @@ class _Ring:
             self.count = i
         if i == len(buf):
             i = 0
-            self.sum = math.fsum(buf)
+            self.sum = _exact_sum(buf)
         self.i = i
+
+    def finite(self) -> bool:
+        """The running sum and the value pushed last are finite (the others were when pushed)."""
+        return math.isfinite(self.sum) and math.isfinite(self.buf[self.i - 1])
 
     def state(self) -> dict:
         return {"buf": list(self.buf), "i": self.i, "count": self.count, "sum": self.sum}
 
     def load(self, s: dict) -> None:
-        self.buf, self.i, self.count, self.sum = list(map(float, s["buf"])), int(s["i"]), int(s["count"]), float(s["sum"])
+        buf, i, count = list(map(float, s["buf"])), int(s["i"]), int(s["count"])
+        if len(buf) != len(self.buf) or not 0 <= i < len(buf) or not 0 <= count <= len(buf):
+            raise ValueError(f"ring state of length {len(buf)} (index {i}, count {count}) for a window of "
+                             f"{len(self.buf)}")
+        if not all(map(math.isfinite, buf)):
+            raise ValueError("ring buffer holds NaN or Inf")
+        self.buf, self.i, self.count, self.sum = buf, i, count, float(s["sum"])
+
+
+def _exact_sum(values) -> float:
+    """Correctly rounded sum (``math.fsum``); +-inf or NaN where it overflows (S1 then resets)."""
+    try:
+        return math.fsum(values)
+    except (OverflowError, ValueError):
+        return sum(values)
 
 
 def _window(spec: dict) -> int:
@@ -152,6 +170,8 @@ class Evaluator:
         return s
 
     def set_state(self, s: dict) -> None:
+        """Restore :meth:`get_state`; raises ValueError for a state of another shape or with
+        NaN/Inf (the evaluator may then be partly overwritten: callers roll back)."""
         k = self.kind
         self.value = float(s["value"])
         if k in ("rms", "chi2"):
@@ -159,14 +179,48 @@ class Evaluator:
         elif k == "ewrms":
             self.acc = float(s["acc"])
         elif k == "peak":
-            self.deque = [[float(a), float(b)] for a, b in s["deque"]]
+            dq = [[float(a), float(b)] for a, b in s["deque"]]
+            if len(dq) > self.n or not all(map(math.isfinite, (b for _, b in dq))):
+                raise ValueError(f"peak state: {len(dq)} entries for a window of {self.n}, or NaN/Inf values")
+            self.deque = dq
             self.k = int(s["k"])
         elif k == "narendra":
             self.re = float(s["re"])
         elif k == "cusum":
-            self.gp, self.gm = list(map(float, s["gp"])), list(map(float, s["gm"]))
+            gp, gm = list(map(float, s["gp"])), list(map(float, s["gm"]))
+            if len(gp) != self.dim or len(gm) != self.dim:
+                raise ValueError(f"cusum state of dimension {len(gp)}/{len(gm)}, expected {self.dim}")
+            self.gp, self.gm = gp, gm
         elif k == "glr":
-            self.hist = [list(map(float, h)) for h in s["hist"]]
+            hist = [list(map(float, h)) for h in s["hist"]]
+            if len(hist) > self.n or any(len(h) != self.dim or not all(map(math.isfinite, h)) for h in hist):
+                raise ValueError(f"glr state: {len(hist)} vectors (window {self.n}) of dimension {self.dim} expected, "
+                                 f"finite")
+            self.hist = hist
+        if not self.finite():
+            raise ValueError(f"{k} evaluator state holds NaN or Inf")
+
+    def finite(self) -> bool:
+        """Every value written by the last step is finite (S1, docs/semantics.md §8).
+
+        The state is finite after reset and after every accepted step, so checking what the
+        last step wrote is checking the whole state."""
+        k, isf = self.kind, math.isfinite
+        if not isf(self.value):
+            return False
+        if k in ("rms", "chi2"):
+            return self.ring.finite()
+        if k == "ewrms":
+            return isf(self.acc)
+        if k == "narendra":
+            return isf(self.re)
+        if k == "peak":
+            return not self.deque or isf(self.deque[-1][1])
+        if k == "cusum":
+            return all(map(isf, self.gp)) and all(map(isf, self.gm))
+        if k == "glr":
+            return not self.hist or all(map(isf, self.hist[-1]))
+        return True
 
     # ------------------------------------------------------------------- step
     def step_sq(self, sq: float) -> float:
@@ -207,12 +261,17 @@ class Evaluator:
         k = self.kind
         if k in MONOTONE:
             return self.step_sq(sum(x * x for x in r.tolist()))
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow → inf/NaN, caught by finite() (S1)
+            return self._step_statistical(r)
+
+    def _step_statistical(self, r: np.ndarray) -> float:
+        k = self.kind
         if k == "chi2":
             w = self.W @ r
             self.ring.push(float(w @ w))
             v = max(self.ring.sum, 0.0)
         elif k == "cusum":
-            z = self.W @ r
+            z = (self.W @ r).tolist()
             d = self.delta
             for i in range(self.dim):
                 self.gp[i] = max(0.0, self.gp[i] + d * z[i] - 0.5 * d * d)

@@ -7,12 +7,15 @@ FMU never care which design method made it:
   vector r of that sample (1-D array, length ``n_outputs``);
 - ``get_state()`` / ``set_state(state)``: the complete internal state as a dict of
   JSON-serialisable values (lists of floats), so a host can roll back exactly;
-- ``reset()``: back to the state right after construction.
+- ``reset()``: back to the state right after construction;
+- ``finite()``: every entry of the state is finite (docs/semantics.md §8).
 
 ``make_generator(spec)`` builds one from its design-file dict, whose ``kind`` selects
 the class (``"lti"`` here; ``"rls"`` in :mod:`.rls`).
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -54,7 +57,13 @@ class LTIStep:
         x = np.array(state["x"], float)
         if x.shape != (self._n,):
             raise ValueError(f"generator state must have {self._n} entries, got {x.shape}")
+        if not np.all(np.isfinite(x)):
+            raise ValueError("generator state holds NaN or Inf")
         self._xv[: self._n] = x
+
+    def finite(self) -> bool:
+        """The state x is finite (S1; the residual is checked by the caller)."""
+        return all(map(math.isfinite, self._xv[: self._n].tolist()))
 
     def reset(self) -> None:
         self._xv[:] = 0.0

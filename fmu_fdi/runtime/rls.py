@@ -212,11 +212,19 @@ class RLSStep:
                     f"rls state of estimator {i}: expected x ({est.nx},), theta ({est.npar},), "
                     f"P ({est.npar}, {est.npar}); got {x.shape}, {th.shape}, {P.shape}"
                 )
-            new.append((x, th, P, float(item["sigma2"]), float(item["psi2"]), int(item["updates"]),
-                        int(item["resets"])))
+            entry = (x, th, P, float(item["sigma2"]), float(item["psi2"]), int(item["updates"]), int(item["resets"]))
+            if not (all(np.isfinite(a).all() for a in entry[:3]) and math.isfinite(entry[3])
+                    and math.isfinite(entry[4])):
+                raise ValueError(f"rls state of estimator {i} holds NaN or Inf")
+            new.append(entry)
         self.k = int(state["k"])
         (self._x, self._theta, self._P, self._sigma2, self._psi2, self._updates,
          self._resets) = (list(t) for t in zip(*new))
+
+    def finite(self) -> bool:
+        """Every entry of the state (x, θ̂, P, σ̂², ψ²_ms of every estimator) is finite."""
+        return (all(bool(np.isfinite(a).all()) for arrays in (self._x, self._theta, self._P) for a in arrays)
+                and all(map(math.isfinite, self._sigma2)) and all(map(math.isfinite, self._psi2)))
 
     # ----------------------------------------------------------------- step
     def step(self, v) -> np.ndarray:
@@ -231,7 +239,8 @@ class RLSStep:
         bad = ~np.isfinite(v)
         if bad.any():
             raise ValueError(f"rls step: input sample contains NaN or Inf at {np.flatnonzero(bad).tolist()}")
-        out = [self._step_one(i, est, v[est.inputs]) for i, est in enumerate(self.estimators)]
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow → inf/NaN, caught by finite() (S1)
+            out = [self._step_one(i, est, v[est.inputs]) for i, est in enumerate(self.estimators)]
         self.k += 1
         return np.concatenate(out)
 
@@ -281,13 +290,15 @@ class RLSStep:
             # Errors beyond clip·σ are fault evidence, not noise: letting them in would inflate
             # σ̂ and mask the very change the residual must show. Not before one parameter
             # memory has passed: σ̂ is not yet a reference then.
-            e2 = min(e2, self.clip ** 2 * self._sigma(i, est) ** 2)
+            sig = self._sigma(i, est)
+            e2 = min(e2, (self.clip * self.clip) * (sig * sig))  # products: ** raises OverflowError
         self._sigma2[i] += gamma * (e2 - self._sigma2[i])
         self._psi2[i] += gamma * (psi * psi - self._psi2[i])
 
     def _sigma(self, i: int, est: _Estimator) -> float:
         """σ = sqrt(max(σ̂_e², σ_floor², ρ² ψ_ms)), the floored equation-error std."""
-        return math.sqrt(max(self._sigma2[i], est.sigma_floor ** 2, self.sigma_rel ** 2 * self._psi2[i]))
+        return math.sqrt(max(self._sigma2[i], est.sigma_floor * est.sigma_floor,
+                             (self.sigma_rel * self.sigma_rel) * self._psi2[i]))
 
     def _residual(self, i: int, est: _Estimator) -> np.ndarray:
         dev = self._theta[i] - est.theta0

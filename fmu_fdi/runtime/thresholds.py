@@ -16,6 +16,8 @@ The design-time threshold selector (:mod:`fmu_fdi.evaluation.selector`) computes
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .evaluation import MONOTONE, Evaluator
@@ -77,6 +79,17 @@ class Threshold:
             self.value = self.J0 + self.b_eval.step_sq(b * b)
         return self.value
 
+    def finite(self) -> bool:
+        """Every value written by the last step is finite (S1, docs/semantics.md §8)."""
+        isf = math.isfinite
+        if not isf(self.value):
+            return False
+        if self.kind == "adaptive":
+            return self.u_eval.finite()
+        if self.kind == "majorant":
+            return isf(self.hist[0]) and isf(self.old_max) and self.b_eval.finite()
+        return True
+
     def get_state(self) -> dict:
         s: dict = {"value": self.value}
         if self.kind == "adaptive":
@@ -91,8 +104,15 @@ class Threshold:
             self.u_eval.set_state(s["u_eval"])
         if self.kind == "majorant":
             self.b_eval.set_state(s["b_eval"])
-            self.hist = list(map(float, s["hist"]))
+            hist = list(map(float, s["hist"]))
+            if len(hist) != self.taps.size or not all(map(math.isfinite, hist)):
+                raise ValueError(f"majorant state: {len(hist)} finite input norms expected {self.taps.size}")
+            self.hist = hist
             self.old_max = float(s["old_max"])
+        if self.kind == "fixed" and self.value != self.value0:
+            raise ValueError(f"fixed threshold state {self.value!r} differs from the design's {self.value0!r}")
+        if not self.finite():
+            raise ValueError(f"{self.kind} threshold state holds NaN or Inf")
 
     def resampled(self, ratio: float, residual_eval: dict) -> "Threshold":
         if self.kind == "majorant":

@@ -5,7 +5,15 @@ process) and write ``answer.json`` plus .npy arrays next to the spec:
 
 * ``state``: save the FMU state, run, restore, run again (twice), serialize, restore the bytes
   into a second instance, restore bytes written by another process, reset, a corrupt state;
-* ``clash``: two FMUs in one process, stepped with the same inputs (pythonfmu issue 228).
+* ``clash``: two FMUs in one process, stepped with the same inputs (pythonfmu issue 228);
+* ``contract``: any call sequence, legal or not, on one or more instances (the FMI-contract
+  tests of issue 12): ``spec["actions"]`` is a list of ``[op, instance, *args]`` with ops
+  ``instantiate`` (args: key of ``spec["fmus"]``), ``setup``, ``enter``, ``exit``,
+  ``terminate``, ``reset``, ``step`` (args: h, {input: value}; sets the inputs, steps, reads
+  every output; t advances only when the step was accepted), ``read``, ``get_state`` /
+  ``set_state`` (args: slot), ``serialize`` (args: blob, slot), ``deserialize`` (args: slot,
+  blob), ``blob`` (args: new, source, "truncate" | "zeros"). answer.json: per action
+  ``{"status": fmi2Status, "values": outputs or null, "log": [[status, category, message]]}``.
 """
 import json
 import sys
@@ -174,6 +182,52 @@ def clash(spec):
     answer(spec, results, outputs=instances[0].outputs, log=LOG)
 
 
+def contract(spec):
+    unzipped = {key: extract(path) for key, path in spec["fmus"].items()}
+    insts, states, blobs, results = {}, {}, {}, []
+    for op, name, *args in spec["actions"]:
+        mark = len(LOG)
+        status, values = 0, None
+        inst = insts.get(name)
+        try:
+            if op == "instantiate":
+                insts[name] = Instance(spec["fmus"][args[0]], name, unzipdir=unzipped[args[0]])
+            elif op == "step":
+                h, row = args
+                inst.set(row)
+                try:
+                    inst.fmu.doStep(currentCommunicationPoint=inst.t, communicationStepSize=float(h))
+                    inst.t += float(h)
+                finally:
+                    values = inst.read()
+            elif op == "read":
+                values = inst.read()
+            elif op == "get_state":
+                states[args[0]] = inst.fmu.getFMUstate()
+            elif op == "set_state":
+                inst.fmu.setFMUstate(states[args[0]])
+            elif op == "serialize":
+                blobs[args[0]] = bytes(inst.fmu.serializeFMUstate(states[args[1]]))
+            elif op == "deserialize":
+                states[args[0]] = inst.fmu.deSerializeFMUstate(blobs[args[1]])
+            elif op == "blob":
+                src = blobs[args[1]]
+                blobs[args[0]] = {"truncate": src[: len(src) // 2], "zeros": bytes(len(src))}[args[2]]
+            else:
+                call = {"setup": lambda: inst.fmu.setupExperiment(startTime=0.0),
+                        "enter": inst.fmu.enterInitializationMode, "exit": inst.fmu.exitInitializationMode,
+                        "terminate": inst.fmu.terminate, "reset": inst.fmu.reset}[op]
+                call()
+                inst.t = 0.0 if op == "reset" else inst.t
+        except FMICallException as exc:
+            status = int(exc.status)
+        results.append({"status": status, "values": values, "log": [entry[1:] for entry in LOG[mark:]]})
+    outputs = next(iter(insts.values())).outputs if insts else []
+    for inst in insts.values():
+        inst.fmu.freeInstance()
+    answer(spec, {}, actions=results, outputs=outputs)
+
+
 def answer(spec, arrays, **items):
     work = Path(spec["workdir"])
     for name, arr in arrays.items():
@@ -183,4 +237,4 @@ def answer(spec, arrays, **items):
 
 if __name__ == "__main__":
     spec = json.loads(Path(sys.argv[2]).read_text())
-    {"state": state, "clash": clash}[sys.argv[1]](spec)
+    {"state": state, "clash": clash, "contract": contract}[sys.argv[1]](spec)
