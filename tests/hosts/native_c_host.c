@@ -375,6 +375,24 @@ static void misuse(Fmu *f, const Var *vars, int nvars, double h) {
     check((f->v3 ? (int)f->term3(c) : (int)f->term2(c)) == 0, "terminate");
     check(do_step(f, c, 3 * h, h) == 3 && error_logged("called in Terminated"), "step-after-terminate");
     free_instance(f, c);
+    if (f->v3) {  /* FMI 3.0 with eventModeUsed: Event Mode after initialisation, no events, then Step Mode */
+        fmi3EnterEventModeTYPE *enter_event = (fmi3EnterEventModeTYPE *)(size_t)dlsym(f->lib, "fmi3EnterEventMode");
+        fmi3EnterStepModeTYPE *enter_step = (fmi3EnterStepModeTYPE *)(size_t)dlsym(f->lib, "fmi3EnterStepMode");
+        fmi3UpdateDiscreteStatesTYPE *update =
+            (fmi3UpdateDiscreteStatesTYPE *)(size_t)dlsym(f->lib, "fmi3UpdateDiscreteStates");
+        fmi3Boolean need = 1, term = 1, nom = 1, val = 1, next = 1;
+        fmi3Float64 next_t;
+        c = f->i3("events", f->token, f->resources, fmi3False, fmi3True, fmi3True, fmi3False, NULL, 0, NULL, logger3,
+                  NULL);
+        check(c && f->enter3(c, fmi3False, 0.0, 0.0, fmi3False, 0.0) == fmi3OK && f->exit3(c) == fmi3OK &&
+                  do_step(f, c, 0.0, h) == 3 && error_logged("called in Event Mode"), "event-mode-first");
+        check(f->reset3(c) == fmi3OK && f->enter3(c, fmi3False, 0.0, 0.0, fmi3False, 0.0) == fmi3OK &&
+                  f->exit3(c) == fmi3OK && update(c, &need, &term, &nom, &val, &next, &next_t) == fmi3OK &&
+                  !need && !term && !next && enter_step(c) == fmi3OK && do_step(f, c, 0.0, h) == 0 &&
+                  enter_event(c) == fmi3OK && enter_step(c) == fmi3OK && do_step(f, c, h, h) == 0,
+              "event-mode-cycle");
+        if (c) f->free3(c);
+    }
     (void)n_in;
 }
 
