@@ -167,6 +167,17 @@ def test_same_variables_as_the_pythonfmu_target(work):
     assert want["y1"][4] == "m" and want["u1"][4] == "m3/s"
 
 
+def test_signal_named_time_refused_for_fmi3(tmp_path):
+    from fmu_fdi.designfile import DesignFileError
+
+    model = FDIModel.from_matrices([[0.5]], [[1.0]], [[1.0]], dt=H, u_names=["time"], y_names=["y"],
+                                   faults=[sensor_fault("s", "y")])
+    dg = Diagnoser(luenberger(model, poles=[0.2]), evaluation={"kind": "norm"}, thresholds=[1.0])
+    with pytest.raises(DesignFileError, match=r"\['time'\] collide.*FMI 3.0 independent variable"):
+        build_fmu(dg, tmp_path / "t.fmu", target="native", fmi_version=3)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_pythonfmu_target_is_fmi2_only(work, tmp_path):
     from fmu_fdi.designfile import DesignFileError
 

@@ -35,6 +35,7 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+from ..designfile import DesignFileError
 from ..errors import DesignError
 from . import C_DIR, RUNTIME_HEADERS, RUNTIME_SOURCES
 
@@ -323,6 +324,12 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
     """
     if fmi_version not in (2, 3):
         raise NativeBuildError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
+    var_names = [v["name"] for v in variables(design)] + (["time"] if fmi_version == 3 else [])
+    clash = sorted({n for n in var_names if var_names.count(n) > 1})
+    if clash:
+        raise DesignFileError(f"signal names {clash} collide with the native FMU's own variable names "
+                              f"({'time is the FMI 3.0 independent variable; ' if 'time' in clash else ''}"
+                              "rename the signals in the model)")
     fmu_path = Path(fmu_path)
     cc = find_compiler()  # before any work: no compiler, no file
     headers = _fmi_headers(fmi_version)
