@@ -37,10 +37,10 @@ from xml.etree import ElementTree as ET
 
 from ..designfile import DesignFileError
 from ..errors import DesignError
+from ..runtime.engine import BOOLEAN_OUTPUTS, output_names
 from . import C_DIR, RUNTIME_HEADERS, RUNTIME_SOURCES
 
 GLUE_SOURCES = ("fdi_glue.c", "fdi_glue.h")
-BOOLEAN_OUTPUTS = ("fault_detected", "input_invalid", "numeric_reset")
 CFLAGS = ("-std=c99", "-pedantic", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror")
 PLATFORM = {2: "linux64", 3: "x86_64-linux"}
 FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
@@ -76,7 +76,6 @@ def variables(design: dict) -> list[dict]:
     Names, descriptions and units are the pythonfmu target's.
     """
     from ..fmu.builder import _descriptions
-    from ..runtime.engine import output_names
 
     sig, g = design["signals"], design["generator"]
     desc = _descriptions(design)
@@ -89,24 +88,10 @@ def variables(design: dict) -> list[dict]:
                         unit=units.get(name), description=desc[name]))
     out.append(dict(name="threshold_scale", causality="parameter", variability="tunable", kind="Real", start=1.0,
                     unit=None, description=desc["threshold_scale"]))
-    for name in _output_names(design, output_names):
+    for name in output_names(len(g["residual_names"]), len(g["groups"])):
         out.append(dict(name=name, causality="output", variability="discrete", kind=output_kind(name),
-                        start=0.0, unit=None, description=desc[name] if name in desc else _extra_description(name)))
+                        start=0.0, unit=None, description=desc[name]))
     return out
-
-
-def _output_names(design, output_names):
-    g = design["generator"]
-    names = output_names(len(g["residual_names"]), len(g["groups"]))
-    if "numeric_reset" not in names:  # SEMANTICS S1: the C runtime has it; the Python one gets it on branch runtime
-        names = names + ["numeric_reset"]
-    return names
-
-
-def _extra_description(name: str) -> str:
-    if name == "numeric_reset":
-        return "a value became non-finite inside the diagnosis this step: generator, evaluation and thresholds restarted"
-    raise KeyError(f"no description for output {name!r}")
 
 
 # ---- generated C --------------------------------------------------------------------------------
