@@ -75,11 +75,11 @@ def variables(design: dict) -> list[dict]:
     Each: ``name, causality, variability, kind (Real/Boolean/Integer), start, unit, description``.
     Names, descriptions and units are the pythonfmu target's.
     """
-    from ..fmu.builder import _descriptions
+    from ..fmu.builder import _descriptions, _units
 
     sig, g = design["signals"], design["generator"]
     desc = _descriptions(design)
-    units = {k: v for k, v in (design.get("units") or {}).items() if k in list(sig["u"]) + list(sig["y"])}
+    units = _units(design)
     op = design.get("operating_point") or {}
     starts = list(op.get("u", [0.0] * len(sig["u"]))) + list(op.get("y", [0.0] * len(sig["y"])))
     out = []
