@@ -60,3 +60,18 @@ def test_runtime_clean_under_valgrind(designs, tmp_path):
     proc = subprocess.run(["valgrind", "--error-exitcode=99", "--leak-check=full", "--errors-for-leak-kinds=all",
                            "-q", str(exe), "800", "5"], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
+
+
+@pytest.mark.skipif(shutil.which("nm") is None or _cc() is None, reason="no nm or no C compiler")
+def test_runtime_has_no_global_mutable_state(tmp_path):
+    """No object of the runtime defines writable data (data or bss symbols): every instance
+    lives in its own block, so any number of instances can run in any threads."""
+    objs = []
+    for src in RUNTIME_SOURCES:
+        obj = tmp_path / (src + ".o")
+        subprocess.run([_cc(), *WARN, "-O2", "-fPIC", "-c", str(C_DIR / src), "-o", str(obj)], check=True,
+                       capture_output=True, text=True)
+        objs.append(str(obj))
+    syms = subprocess.run(["nm", *objs], check=True, capture_output=True, text=True).stdout.splitlines()
+    writable = [s for s in syms if len(s.split()) == 3 and s.split()[1] in "DdBbCGgSs"]
+    assert not writable, writable

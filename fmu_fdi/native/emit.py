@@ -30,8 +30,6 @@ ISOLATIONS = ("none", "structure", "direction")
 RLS_POLICIES = ("none", "floor", "periodic")
 #: Counts the C runtime sizes its fixed memory block by (docs/semantics.md, S5).
 MAX_COUNT = 100_000
-#: Largest instance the emitter accepts (bytes); beyond it a host allocation is unreasonable.
-MAX_INSTANCE_BYTES = 1 << 30
 
 _EVAL_CODE = {k: i for i, k in enumerate(EVALUATORS)}
 _THR_CODE = {k: i for i, k in enumerate(THRESHOLDS)}
