@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from fmu_fdi import build_fmu
+from fmu_fdi.designfile import DesignFileError
 from fmu_fdi.native.emit import EVALUATORS, THRESHOLDS, ISOLATIONS, RLS_POLICIES, NativeDesignError, emit_design_c
 from fmu_fdi.runtime.engine import DiagnoserRuntime, output_type
 from native_designs import METHOD_RUNS, feature_designs, method_designs
@@ -137,15 +138,18 @@ def test_the_suite_covers_every_kind(designs):
     assert any(d["generator"].get("continuous") for d in designs.values())
 
 
-def test_emitter_refuses_what_the_c_runtime_cannot_express(designs):
+@pytest.mark.parametrize("item, value", [("window", 100_001), ("persistence", [1, 200_000])])
+def test_a_design_the_c_runtime_cannot_express_is_refused_at_build_time(designs, tmp_path, item, value):
+    """Beyond the sizes the C runtime lays its block out for: a clear error naming the item, no
+    FMU file (the design-file validator may refuse it first, S5: either names the item)."""
     d = json.loads(json.dumps(designs["rms_peak_ewrms_adaptive_structure"]))
-    d["evaluation"][0]["evaluator"]["window"] = 100_001  # beyond the sizes the runtime is laid out for
-    with pytest.raises((NativeDesignError, ValueError), match="window"):
-        emit_design_c(d)
-    d = json.loads(json.dumps(designs["rms_peak_ewrms_adaptive_structure"]))
-    d["generator"]["discrete"]["kind"] = "kalman_on_the_fly"
-    with pytest.raises(ValueError, match="kind"):
-        emit_design_c(d)
+    if item == "window":
+        d["evaluation"][0]["evaluator"]["window"] = value
+    else:
+        d["decision"]["persistence"] = value
+    with pytest.raises((NativeDesignError, DesignFileError), match=item):
+        build_fmu(d, tmp_path / "x.fmu", target="native")
+    assert not (tmp_path / "x.fmu").exists()
 
 
 def test_emitted_constants_round_trip_exactly(designs):
