@@ -327,8 +327,13 @@ def test_project_master_via_fmu_fdi_simulate(work, plant, tmp_path, version):
 
 
 # ---- the build --------------------------------------------------------------------------------
-def test_no_compiler_clear_error_and_no_file(work, tmp_path):
+def test_cli_build_and_no_compiler_clear_error_and_no_file(work, tmp_path):
     design = work["dg"].save(tmp_path / "d.json")
+    built = tmp_path / "built" / "cli3.fmu"
+    proc = subprocess.run([sys.executable, "-m", "fmu_fdi", "build", str(design), "-o", str(built), "--target",
+                           "native", "--fmi", "3"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and validate_fmu(built) == [], proc.stderr
+    shutil.rmtree(built.parent)
     env = {k: v for k, v in os.environ.items() if k != "CC"}
     env["PATH"] = str(tmp_path / "empty")  # no cc, no gcc
     target = tmp_path / "x.fmu"
