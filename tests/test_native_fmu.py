@@ -353,6 +353,18 @@ def test_missing_cc_named(work, tmp_path, monkeypatch):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_unsupported_platform_refused_not_mislabelled(work, tmp_path, monkeypatch):
+    """A binary for another OS must not be packed under binaries/linux64: the build refuses."""
+    import platform
+
+    from fmu_fdi.native.build import NativeBuildError
+
+    monkeypatch.setattr(platform, "system", lambda: "Darwin")
+    with pytest.raises(NativeBuildError, match="Darwin .* no FMI 2 platform name.*pythonfmu target"):
+        build_fmu(work["dg"], tmp_path / "x.fmu", target="native")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_compiler_failure_leaves_no_file(work, tmp_path, monkeypatch):
     from fmu_fdi.native.build import NativeBuildError
 

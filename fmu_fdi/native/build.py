@@ -42,7 +42,9 @@ from . import C_DIR, RUNTIME_HEADERS, RUNTIME_SOURCES
 
 GLUE_SOURCES = ("fdi_glue.c", "fdi_glue.h")
 CFLAGS = ("-std=c99", "-pedantic", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror")
-PLATFORM = {2: "linux64", 3: "x86_64-linux"}
+#: (system, machine) -> binaries/ folder for FMI 2 and FMI 3 (None: the standard names none)
+PLATFORMS = {("Linux", "x86_64"): {2: "linux64", 3: "x86_64-linux"},
+             ("Linux", "aarch64"): {2: None, 3: "aarch64-linux"}}
 FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
                3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
 LOG_CATEGORIES = {  # the Python target's (fmu_fdi/fmu/slave_base.py), in fdi_glue.h order
@@ -279,6 +281,20 @@ def compile_binary(src: Path, out: Path, cc: list[str] | None = None) -> Path:
 
 
 # ---- the FMU ------------------------------------------------------------------------------------
+def binary_folder(fmi_version: int) -> str:
+    """``binaries/<platform>`` name of this machine for the FMI version, or NativeBuildError."""
+    import platform
+
+    key = (platform.system(), platform.machine())
+    folder = PLATFORMS.get(key, {}).get(fmi_version)
+    if folder is None:
+        raise NativeBuildError(f"the native target builds its binary for this machine, {key[0]} {key[1]}, which has no "
+                               f"FMI {fmi_version} platform name this builder supports (supported: "
+                               f"{', '.join(f'{s} {m} (FMI {sorted(v for v in d if d[v])})' for (s, m), d in PLATFORMS.items())}"
+                               "); use the pythonfmu target here")
+    return folder
+
+
 def identifier_of(design: dict, *parts: str) -> str:
     """``<name>_<10 hex digits>``: a C identifier unique to the design and the sources."""
     import re
@@ -316,6 +332,7 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
                               f"({'time is the FMI 3.0 independent variable; ' if 'time' in clash else ''}"
                               "rename the signals in the model)")
     fmu_path = Path(fmu_path)
+    folder = binary_folder(fmi_version)
     cc = find_compiler()  # before any work: no compiler, no file
     headers = _fmi_headers(fmi_version)
     glue = f"fmi{fmi_version}.c"
@@ -337,7 +354,7 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
             (src / name).write_bytes(content)
         lib = compile_binary(src, Path(tmp, f"{ident}.so"), cc)
         members = {"modelDescription.xml": model_description(design, ident, token, fmi_version, names)}
-        members[f"binaries/{PLATFORM[fmi_version]}/{ident}.so"] = lib.read_bytes()
+        members[f"binaries/{folder}/{ident}.so"] = lib.read_bytes()
         for name in names:
             members[f"sources/{name}"] = sources[name]
         if fmi_version == 3:
