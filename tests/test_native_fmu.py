@@ -327,20 +327,20 @@ def test_project_master_via_fmu_fdi_simulate(work, plant, tmp_path, version):
 
 
 # ---- the build --------------------------------------------------------------------------------
-def test_cli_build_and_no_compiler_clear_error_and_no_file(work, tmp_path):
+def test_cli_build_and_no_compiler_clear_error_and_no_file(work, tmp_path, monkeypatch, capsys):
+    from fmu_fdi.cli import main
+
     design = work["dg"].save(tmp_path / "d.json")
     built = tmp_path / "built" / "cli3.fmu"
-    proc = subprocess.run([sys.executable, "-m", "fmu_fdi", "build", str(design), "-o", str(built), "--target",
-                           "native", "--fmi", "3"], capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0 and validate_fmu(built) == [], proc.stderr
+    assert main(["build", str(design), "-o", str(built), "--target", "native", "--fmi", "3"]) == 0
+    assert validate_fmu(built) == []
     shutil.rmtree(built.parent)
-    env = {k: v for k, v in os.environ.items() if k != "CC"}
-    env["PATH"] = str(tmp_path / "empty")  # no cc, no gcc
-    target = tmp_path / "x.fmu"
-    proc = subprocess.run([sys.executable, "-m", "fmu_fdi", "build", str(design), "-o", str(target),
-                           "--target", "native", "--fmi", "3"], capture_output=True, text=True, timeout=60, env=env)
-    assert proc.returncode == 2
-    assert "no C compiler found" in proc.stderr and "apt install gcc" in proc.stderr, proc.stderr
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))  # no cc, no gcc
+    capsys.readouterr()
+    assert main(["build", str(design), "-o", str(tmp_path / "x.fmu"), "--target", "native", "--fmi", "3"]) == 2
+    err = capsys.readouterr().err
+    assert "no C compiler found" in err and "apt install gcc" in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.json"]
 
 
