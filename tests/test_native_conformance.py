@@ -24,6 +24,7 @@ from fmu_fdi.designfile import DesignFileError
 from fmu_fdi.native.emit import EVALUATORS, THRESHOLDS, ISOLATIONS, RLS_POLICIES, NativeDesignError, emit_design_c
 from fmu_fdi.runtime.engine import DiagnoserRuntime, output_type
 from native_designs import METHOD_RUNS, feature_designs, method_designs
+from native_runtime import CRuntime, c_outputs, compile_runtime
 from native_scenario import compare, make_scenario, python_outputs
 from native_sequential import sequential_rls
 
@@ -161,3 +162,24 @@ def test_emitted_constants_round_trip_exactly(designs):
     lits = {float.fromhex(x) for x in re.findall(r"-?0x[0-9a-f]\.[0-9a-f]*p[+-]\d+", src)}
     M = DiagnoserRuntime(d).generator.M
     assert set(M.ravel().tolist()) <= lits
+
+
+def test_runtime_in_process_over_a_long_sequence(designs, tmp_path):
+    """The runtime alone (ctypes, no FMI) over 20000 calls of the continuous design with valid
+    ranges and odd steps: many ring wraps (exact re-summation), resets and roll-backs."""
+    d = designs["rms_peak_ewrms_adaptive_structure"]
+    ops = make_scenario(d, np.random.default_rng(7), 20_000, _steps(float(d["generator"]["dt"])))
+    got = c_outputs(compile_runtime(d, tmp_path), ops)
+    names = DiagnoserRuntime(d).names
+    worst, bad = compare(names, [output_type(n) for n in names], python_outputs(d, ops), got, rtol=RTOL)
+    assert not bad, "\n".join(bad)
+    print(f"20000 calls in process: max deviation {worst:.3g}")
+
+
+def test_runtime_refuses_a_bad_threshold_scale_and_keeps_the_old_one(designs, tmp_path):
+    rt = CRuntime(compile_runtime(designs["chi2_cusum_glr_none"], tmp_path))
+    assert rt.set_threshold_scale(2.5) == 0
+    for bad in (float("nan"), float("inf"), -1.0):
+        assert rt.set_threshold_scale(bad) == 2  # FDI_ERROR, with a reason
+        assert "threshold_scale" in rt.why.value.decode()
+    assert rt.threshold_scale() == 2.5
