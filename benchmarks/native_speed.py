@@ -6,14 +6,15 @@ inputs, 3 outputs, 3 residuals), rms over 10 samples and a fixed threshold per r
 1. fmpy ``FMU2Slave`` loop (fresh ``python -I``, the worker of fmu_speed.py; one step =
    setReal + doStep + getReal + getBoolean + getInteger): the native FMU against a trivial C
    FMU with the same variables and value references whose step copies inputs to outputs
-   (benchmarks/trivial_fmu2.c): the floor set by fmpy's ctypes calls. Target: <= 1.2.
+   (benchmarks/trivial_fmu2.c): the floor set by fmpy's ctypes calls. Target: <= 1.2. The
+   pythonfmu diagnostic FMU of the same design for comparison.
 2. A plain C host (benchmarks/native_speed_host.c, dlopen, the same five calls per step):
    steps per second of the native FMU (target >= 2 million), of the trivial FMU, and of a
    plain C loop that only does the generator's matrix-vector product per sample,
    [r; x+] = [[C, D], [A, B]] [x; v], 13 x 15 multiply-adds, with the same input rows.
 3. The size of the FMU files (target < 100 kB).
-C timings are process CPU time (CLOCK_PROCESS_CPUTIME_ID): on a machine shared with other jobs
-the wall clock also counts the time the process waits for a core.
+All timings are process CPU time (C: CLOCK_PROCESS_CPUTIME_ID, fmpy: time.process_time): on a
+machine shared with other jobs the wall clock also counts the time a process waits for a core.
 
     python benchmarks/native_speed.py [--steps 5000] [--repeat 5] [--c-steps 2000000]
 """
@@ -164,8 +165,9 @@ def main() -> None:
         native2 = build_fmu(dg, tmp / "bench_native2.fmu", target="native", fmi_version=2)
         native3 = build_fmu(dg, tmp / "bench_native3.fmu", target="native", fmi_version=3)
         trivial = trivial_fmu(design, tmp / "trivial.fmu")
-        t_trivial = _host(trivial, args.steps, args.repeat)
-        t_native = _host(native2, args.steps, args.repeat)
+        t_trivial = _host(trivial, args.steps, args.repeat, "process_time")
+        t_native = _host(native2, args.steps, args.repeat, "process_time")
+        t_python = _host(build_fmu(dg, tmp / "bench_pythonfmu.fmu"), args.steps, args.repeat, "process_time")
         exe = tmp / "native_speed_host"
         subprocess.run([*_cc().split(), "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
                         f"-I{Path(fmpy.__file__).parent / 'c-code'}", str(HERE / "native_speed_host.c"),
@@ -177,9 +179,10 @@ def main() -> None:
         with zipfile.ZipFile(native2) as zf:
             so = next(i for i in zf.infolist() if i.filename.endswith(".so"))
     print(f"benchmark design: 10-state generator, 3 residuals, rms:10; medians of {args.repeat} runs")
-    print(f"fmpy FMU2Slave loop, {args.steps} steps per run (setReal + doStep + getReal/Boolean/Integer):")
+    print(f"fmpy FMU2Slave loop, {args.steps} steps per run (setReal + doStep + getReal/Boolean/Integer), CPU time:")
     print(f"  trivial C FMU (same interface)   {t_trivial:8.2f} us/step   1.00")
     print(f"  native diagnostic FMU            {t_native:8.2f} us/step   {t_native / t_trivial:4.2f}  (target <= 1.2)")
+    print(f"  pythonfmu diagnostic FMU         {t_python:8.2f} us/step   {t_python / t_trivial:4.2f}")
     print(f"C host (dlopen, same five calls), {args.c_steps} steps per run, CPU time:")
     print(f"  plain C loop, matrix-vector only {c_plain * 1e9:8.1f} ns/step   1.00   {1 / c_plain / 1e6:6.1f} M steps/s")
     print(f"  trivial C FMU                    {c_trivial * 1e9:8.1f} ns/step   {c_trivial / c_plain:4.2f}   "

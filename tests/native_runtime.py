@@ -12,18 +12,16 @@ from fmu_fdi.native.emit import emit_design_c
 CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-O2"]
 
 
-def compile_runtime(design: dict, folder, extra=(), shared=True, main=None) -> Path:
-    """Write design_data.c into ``folder`` and build the runtime (a shared library, or an
-    executable with ``main`` as its driver source)."""
+def compile_runtime(design: dict, folder, extra=()) -> Path:
+    """Write design_data.c into ``folder`` and build the runtime as a shared library."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "design_data.c").write_text(emit_design_c(design), encoding="utf-8")
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
     srcs = [str(C_DIR / s) for s in RUNTIME_SOURCES] + [str(folder / "design_data.c")]
-    out = folder / ("libfdi.so" if shared else "driver")
-    cmd = [cc, *CFLAGS, *extra, f"-I{C_DIR}", *srcs]
-    cmd += ["-shared", "-fPIC"] if shared else [str(main)]
-    subprocess.run(cmd + ["-o", str(out), "-lm"], check=True, capture_output=True, text=True)
+    out = folder / "libfdi.so"
+    subprocess.run([cc, *CFLAGS, *extra, f"-I{C_DIR}", *srcs, "-shared", "-fPIC", "-o", str(out), "-lm"],
+                   check=True, capture_output=True, text=True)
     return out
 
 
@@ -45,6 +43,7 @@ class CRuntime:
                 ("fdi_runtime_outputs", ctypes.POINTER(ctypes.c_double), [ctypes.c_void_p]),
                 ("fdi_runtime_set_threshold_scale", ctypes.c_int, [ctypes.c_void_p, ctypes.c_double,
                                                                    ctypes.c_char_p, ctypes.c_size_t]),
+                ("fdi_runtime_threshold_scale", ctypes.c_double, [ctypes.c_void_p]),
                 ("fdi_runtime_state_size", ctypes.c_size_t, [ctypes.c_void_p]),
                 ("fdi_runtime_get_state", None, [ctypes.c_void_p, ctypes.c_char_p]),
                 ("fdi_runtime_set_state", ctypes.c_int, [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_size_t,
@@ -76,6 +75,9 @@ class CRuntime:
     def set_threshold_scale(self, s):
         return self.lib.fdi_runtime_set_threshold_scale(self.block, s, self.why, 512)
 
+    def threshold_scale(self) -> float:
+        return self.lib.fdi_runtime_threshold_scale(self.block)
+
     def get_state(self) -> bytes:
         n = self.lib.fdi_runtime_state_size(self.block)
         buf = ctypes.create_string_buffer(n)
@@ -85,3 +87,24 @@ class CRuntime:
     def set_state(self, img: bytes):
         st = self.lib.fdi_runtime_set_state(self.block, img, len(img), self.why, 512)
         return st, self.why.value.decode()
+
+
+def c_outputs(lib_path, ops):
+    """Run conformance operations (tests/native_scenario.py) on the runtime through ctypes."""
+    rt = CRuntime(lib_path)
+    saved, out = {}, []
+    for op in ops:
+        if op[0] == "step":
+            st, vals, why = rt.advance(op[1], op[2], op[3])
+            assert st in (0, 1), why
+            out.append("discard" if st == 1 else vals)
+        elif op[0] == "save":
+            saved[op[1]] = rt.get_state()
+        elif op[0] == "restore":
+            st, why = rt.set_state(saved[op[1]])
+            assert st == 0, why
+        elif op[0] == "reset":
+            rt.reset()
+        elif op[0] == "scale":
+            assert rt.set_threshold_scale(float(op[1])) == 0
+    return out

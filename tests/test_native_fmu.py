@@ -54,9 +54,23 @@ def work(tmp_path_factory):
             "fmu3": build_fmu(dg, d / "fdi3.fmu", target="native", fmi_version=3)}
 
 
-def reference(dg, v):
-    """Diagnoser.run on rows v = (u1, u2, y1): row k is the diagnosis of sample k."""
-    return dg.run(np.arange(len(v)) * H, v[:, :2], v[:, 2:])
+def reference(dg, v, scale_at=None, scale=1.0):
+    """Diagnoser.run on rows v = (u1, u2, y1): row k is the diagnosis of sample k; with
+    ``scale_at``, threshold_scale = ``scale`` from that row on (the runtime, sample by sample)."""
+    if scale_at is None:
+        return dg.run(np.arange(len(v)) * H, v[:, :2], v[:, 2:])
+    out = dg.run(np.arange(len(v)) * H, v[:, :2], v[:, 2:])  # for the layout and rows before scale_at
+    dg.reset()
+    dg.runtime.threshold_scale = 1.0
+    for k, row in enumerate(v):
+        if k == scale_at:
+            dg.runtime.threshold_scale = scale
+        values = dg.runtime.advance(row[:2], row[2:])
+        for name, x in zip(dg.runtime.names, values):
+            out[name][k] = x
+    dg.reset()
+    dg.runtime.threshold_scale = 1.0  # a parameter: Diagnoser.reset keeps it
+    return out
 
 
 def assert_outputs(got: dict, want, rows=slice(None)):
@@ -147,10 +161,19 @@ def test_same_variables_as_the_pythonfmu_target(work):
     for version in (2, 3):
         got = table(work[f"fmu{version}"])
         got.pop("time", None)  # FMI 3.0: the independent variable
-        extra = set(got) - set(want)
-        assert extra <= {"numeric_reset"}, extra  # SEMANTICS S1 until the Python runtime has it too
-        assert {k: got[k] for k in want} == want
+        assert got == want
     assert want["y1"][4] == "m" and want["u1"][4] == "m3/s"
+
+
+def test_signal_named_time_refused_for_fmi3(tmp_path):
+    from fmu_fdi.designfile import DesignFileError
+
+    model = FDIModel.from_matrices([[0.5]], [[1.0]], [[1.0]], dt=H, u_names=["time"], y_names=["y"],
+                                   faults=[sensor_fault("s", "y")])
+    dg = Diagnoser(luenberger(model, poles=[0.2]), evaluation={"kind": "norm"}, thresholds=[1.0])
+    with pytest.raises(DesignFileError, match=r"\['time'\] collide.*FMI 3.0 independent variable"):
+        build_fmu(dg, tmp_path / "t.fmu", target="native", fmi_version=3)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_pythonfmu_target_is_fmi2_only(work, tmp_path):
@@ -162,12 +185,13 @@ def test_pythonfmu_target_is_fmi2_only(work, tmp_path):
 
 
 # ---- hosts ------------------------------------------------------------------------------------
-def _worker(fmu, v, tmp_path, save_at=None, restore_at=None):
+def _worker(fmu, v, tmp_path, save_at=None, restore_at=None, scale_at=-1, scale=1.0):
     import json
 
     np.save(tmp_path / "in.npy", v)
     spec = {"fmu": str(fmu), "inputs": str(tmp_path / "in.npy"), "step": H, "out": str(tmp_path / "out.npz"),
-            "save_at": save_at or len(v) // 3, "restore_at": restore_at or len(v) // 2}
+            "save_at": save_at or len(v) // 3, "restore_at": restore_at or len(v) // 2, "scale_at": scale_at,
+            "scale": scale}
     (tmp_path / "spec.json").write_text(json.dumps(spec))
     proc = subprocess.run([sys.executable, "-I", str(HERE / "native_worker.py"), str(tmp_path / "spec.json")],
                           capture_output=True, text=True, timeout=120, env=hosts.python_env())
@@ -182,8 +206,9 @@ def _worker(fmu, v, tmp_path, save_at=None, restore_at=None):
 @pytest.mark.parametrize("version", [2, 3])
 def test_fmpy_slave_loop_state_rollback_serialize_reset(work, tmp_path, version):
     v = work["v"]
-    ans = _worker(work[f"fmu{version}"], v, tmp_path)
-    assert_outputs(ans, reference(work["dg"], v))
+    ans = _worker(work[f"fmu{version}"], v, tmp_path, scale_at=N // 4, scale=0.5)  # tunable threshold_scale
+    assert_outputs(ans, reference(work["dg"], v, scale_at=N // 4, scale=0.5))
+    assert np.all(ans["threshold_1"][N // 4:] == 0.5 * ans["threshold_1"][0])
     a = ans["_arrays"]
     s0, s1 = N // 3, N // 2
     assert np.array_equal(a["replay"], a["first"][s0:s1])    # restored state: the same rows again, bit for bit
@@ -219,7 +244,7 @@ def test_plain_c_host_under_valgrind(work, tmp_path):
     flags = [] if valgrind else ["-fsanitize=address,undefined", "-fno-omit-frame-pointer"]
     subprocess.run([CC, "-std=c99", "-O1", "-g", "-Wall", "-Wextra", "-Werror", "-pedantic", *flags,
                     f"-I{Path(fmpy.__file__).parent / 'c-code'}", str(HERE / "native_c_host.c"), "-o", str(exe),
-                    "-ldl", "-lm"], check=True, capture_output=True, timeout=60)
+                    "-ldl", "-lm", "-lpthread"], check=True, capture_output=True, timeout=60)
     v = work["v"]
     data = np.zeros(N, dtype=[("time", float), ("u1", float), ("u2", float), ("y1", float)])
     data["time"] = np.arange(N) * H
@@ -302,15 +327,20 @@ def test_project_master_via_fmu_fdi_simulate(work, plant, tmp_path, version):
 
 
 # ---- the build --------------------------------------------------------------------------------
-def test_no_compiler_clear_error_and_no_file(work, tmp_path):
+def test_cli_build_and_no_compiler_clear_error_and_no_file(work, tmp_path, monkeypatch, capsys):
+    from fmu_fdi.cli import main
+
     design = work["dg"].save(tmp_path / "d.json")
-    env = {k: v for k, v in os.environ.items() if k != "CC"}
-    env["PATH"] = str(tmp_path / "empty")  # no cc, no gcc
-    target = tmp_path / "x.fmu"
-    proc = subprocess.run([sys.executable, "-m", "fmu_fdi", "build", str(design), "-o", str(target),
-                           "--target", "native", "--fmi", "3"], capture_output=True, text=True, timeout=60, env=env)
-    assert proc.returncode == 2
-    assert "no C compiler found" in proc.stderr and "apt install gcc" in proc.stderr, proc.stderr
+    built = tmp_path / "built" / "cli3.fmu"
+    assert main(["build", str(design), "-o", str(built), "--target", "native", "--fmi", "3"]) == 0
+    assert validate_fmu(built) == []
+    shutil.rmtree(built.parent)
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))  # no cc, no gcc
+    capsys.readouterr()
+    assert main(["build", str(design), "-o", str(tmp_path / "x.fmu"), "--target", "native", "--fmi", "3"]) == 2
+    err = capsys.readouterr().err
+    assert "no C compiler found" in err and "apt install gcc" in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.json"]
 
 
@@ -319,6 +349,18 @@ def test_missing_cc_named(work, tmp_path, monkeypatch):
 
     monkeypatch.setenv("CC", str(tmp_path / "nowhere" / "cc"))
     with pytest.raises(NativeBuildError, match="is not found.*install a C99 compiler"):
+        build_fmu(work["dg"], tmp_path / "x.fmu", target="native")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unsupported_platform_refused_not_mislabelled(work, tmp_path, monkeypatch):
+    """A binary for another OS must not be packed under binaries/linux64: the build refuses."""
+    import platform
+
+    from fmu_fdi.native.build import NativeBuildError
+
+    monkeypatch.setattr(platform, "system", lambda: "Darwin")
+    with pytest.raises(NativeBuildError, match="Darwin .* no FMI 2 platform name.*pythonfmu target"):
         build_fmu(work["dg"], tmp_path / "x.fmu", target="native")
     assert list(tmp_path.iterdir()) == []
 

@@ -37,6 +37,12 @@ def _design_of(diagnoser_or_path) -> dict:
     return load_design(diagnoser_or_path)
 
 
+def _units(design: dict) -> dict[str, str]:
+    """Variable name -> unit: the design's units of the plant signals (both targets)."""
+    signals = set(design["signals"]["u"]) | set(design["signals"]["y"])
+    return {k: v for k, v in (design.get("units") or {}).items() if k in signals}
+
+
 def _descriptions(design: dict) -> dict[str, str]:
     sig, g = design["signals"], design["generator"]
     faults = [f["name"] for f in design["faults"]]
@@ -113,7 +119,7 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     modules["diagnoser_slave.py"] = TEMPLATE.replace("__CLASS__", ident).replace(
         "__DESCRIPTION__", repr(f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {g['dt']:g} s)"))
     names = output_names(len(g["residual_names"]), len(g["groups"]))
-    units = {k: v for k, v in (design.get("units") or {}).items() if k in signals}
+    units = _units(design)
     return build_slave_fmu(
         modules, f"diagnoser_slave:{ident}", fmu_path, bundle_name=f"{ident}_fmu",
         data_files={"design.json": design_bytes},

@@ -35,13 +35,16 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+from ..designfile import DesignFileError
 from ..errors import DesignError
+from ..runtime.engine import BOOLEAN_OUTPUTS, output_names
 from . import C_DIR, RUNTIME_HEADERS, RUNTIME_SOURCES
 
 GLUE_SOURCES = ("fdi_glue.c", "fdi_glue.h")
-BOOLEAN_OUTPUTS = ("fault_detected", "input_invalid", "numeric_reset")
 CFLAGS = ("-std=c99", "-pedantic", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror")
-PLATFORM = {2: "linux64", 3: "x86_64-linux"}
+#: (system, machine) -> binaries/ folder for FMI 2 and FMI 3 (None: the standard names none)
+PLATFORMS = {("Linux", "x86_64"): {2: "linux64", 3: "x86_64-linux"},
+             ("Linux", "aarch64"): {2: None, 3: "aarch64-linux"}}
 FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
                3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
 LOG_CATEGORIES = {  # the Python target's (fmu_fdi/fmu/slave_base.py), in fdi_glue.h order
@@ -74,12 +77,11 @@ def variables(design: dict) -> list[dict]:
     Each: ``name, causality, variability, kind (Real/Boolean/Integer), start, unit, description``.
     Names, descriptions and units are the pythonfmu target's.
     """
-    from ..fmu.builder import _descriptions
-    from ..runtime.engine import output_names
+    from ..fmu.builder import _descriptions, _units
 
     sig, g = design["signals"], design["generator"]
     desc = _descriptions(design)
-    units = {k: v for k, v in (design.get("units") or {}).items() if k in list(sig["u"]) + list(sig["y"])}
+    units = _units(design)
     op = design.get("operating_point") or {}
     starts = list(op.get("u", [0.0] * len(sig["u"]))) + list(op.get("y", [0.0] * len(sig["y"])))
     out = []
@@ -88,24 +90,10 @@ def variables(design: dict) -> list[dict]:
                         unit=units.get(name), description=desc[name]))
     out.append(dict(name="threshold_scale", causality="parameter", variability="tunable", kind="Real", start=1.0,
                     unit=None, description=desc["threshold_scale"]))
-    for name in _output_names(design, output_names):
+    for name in output_names(len(g["residual_names"]), len(g["groups"])):
         out.append(dict(name=name, causality="output", variability="discrete", kind=output_kind(name),
-                        start=0.0, unit=None, description=desc[name] if name in desc else _extra_description(name)))
+                        start=0.0, unit=None, description=desc[name]))
     return out
-
-
-def _output_names(design, output_names):
-    g = design["generator"]
-    names = output_names(len(g["residual_names"]), len(g["groups"]))
-    if "numeric_reset" not in names:  # SEMANTICS S1: the C runtime has it; the Python one gets it on branch runtime
-        names = names + ["numeric_reset"]
-    return names
-
-
-def _extra_description(name: str) -> str:
-    if name == "numeric_reset":
-        return "a value became non-finite inside the diagnosis this step: generator, evaluation and thresholds restarted"
-    raise KeyError(f"no description for output {name!r}")
 
 
 # ---- generated C --------------------------------------------------------------------------------
@@ -293,6 +281,20 @@ def compile_binary(src: Path, out: Path, cc: list[str] | None = None) -> Path:
 
 
 # ---- the FMU ------------------------------------------------------------------------------------
+def binary_folder(fmi_version: int) -> str:
+    """``binaries/<platform>`` name of this machine for the FMI version, or NativeBuildError."""
+    import platform
+
+    key = (platform.system(), platform.machine())
+    folder = PLATFORMS.get(key, {}).get(fmi_version)
+    if folder is None:
+        raise NativeBuildError(f"the native target builds its binary for this machine, {key[0]} {key[1]}, which has no "
+                               f"FMI {fmi_version} platform name this builder supports (supported: "
+                               f"{', '.join(f'{s} {m} (FMI {sorted(v for v in d if d[v])})' for (s, m), d in PLATFORMS.items())}"
+                               "); use the pythonfmu target here")
+    return folder
+
+
 def identifier_of(design: dict, *parts: str) -> str:
     """``<name>_<10 hex digits>``: a C identifier unique to the design and the sources."""
     import re
@@ -323,7 +325,14 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
     """
     if fmi_version not in (2, 3):
         raise NativeBuildError(f"fmi_version must be 2 or 3, got {fmi_version!r}")
+    var_names = [v["name"] for v in variables(design)] + (["time"] if fmi_version == 3 else [])
+    clash = sorted({n for n in var_names if var_names.count(n) > 1})
+    if clash:
+        raise DesignFileError(f"signal names {clash} collide with the native FMU's own variable names "
+                              f"({'time is the FMI 3.0 independent variable; ' if 'time' in clash else ''}"
+                              "rename the signals in the model)")
     fmu_path = Path(fmu_path)
+    folder = binary_folder(fmi_version)
     cc = find_compiler()  # before any work: no compiler, no file
     headers = _fmi_headers(fmi_version)
     glue = f"fmi{fmi_version}.c"
@@ -345,7 +354,7 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
             (src / name).write_bytes(content)
         lib = compile_binary(src, Path(tmp, f"{ident}.so"), cc)
         members = {"modelDescription.xml": model_description(design, ident, token, fmi_version, names)}
-        members[f"binaries/{PLATFORM[fmi_version]}/{ident}.so"] = lib.read_bytes()
+        members[f"binaries/{folder}/{ident}.so"] = lib.read_bytes()
         for name in names:
             members[f"sources/{name}"] = sources[name]
         if fmi_version == 3:

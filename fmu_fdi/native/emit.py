@@ -20,7 +20,7 @@ import numpy as np
 
 from ..designfile import validate_design
 from ..errors import DesignError
-from ..runtime.engine import DiagnoserRuntime
+from ..runtime.engine import DiagnoserRuntime, valid_ranges
 
 #: What the C runtime implements (fdi_design.h); anything else is refused.
 GENERATORS = ("lti", "rls")
@@ -30,8 +30,6 @@ ISOLATIONS = ("none", "structure", "direction")
 RLS_POLICIES = ("none", "floor", "periodic")
 #: Counts the C runtime sizes its fixed memory block by (docs/semantics.md, S5).
 MAX_COUNT = 100_000
-#: Largest instance the emitter accepts (bytes); beyond it a host allocation is unreasonable.
-MAX_INSTANCE_BYTES = 1 << 30
 
 _EVAL_CODE = {k: i for i, k in enumerate(EVALUATORS)}
 _THR_CODE = {k: i for i, k in enumerate(THRESHOLDS)}
@@ -230,18 +228,10 @@ def _emit_rls(em: _Emitter, gen, f: dict, source: str) -> None:
 
 
 def _valid_range(design: dict, rt, source: str):
-    """Per signal (u then y) the valid range [lo, hi]; DBL_MAX where the design sets none."""
-    names = rt.u_names + rt.y_names
-    lo = [-_NO_BOUND] * len(names)
-    hi = [_NO_BOUND] * len(names)
-    ranges = (design.get("signals") or {}).get("valid_range") or {}
-    for name, bounds in ranges.items():
-        if name not in names:
-            raise NativeDesignError(f"{source}: signals.valid_range names {name!r}, which is not a signal")
-        a, b = (float(x) if x is not None else None for x in bounds)
-        k = names.index(name)
-        if a is not None and math.isfinite(a):
-            lo[k] = a
-        if b is not None and math.isfinite(b):
-            hi[k] = b
+    """Per signal (u then y) the valid range [lo, hi] as the runtime reads it (S2,
+    :func:`fmu_fdi.runtime.engine.valid_ranges`); DBL_MAX where the design sets none (inputs
+    are finite when compared, so that is no bound)."""
+    u_lo, u_hi, y_lo, y_hi = valid_ranges(design["signals"])
+    lo = [x if math.isfinite(x) else -_NO_BOUND for x in u_lo + y_lo]
+    hi = [x if math.isfinite(x) else _NO_BOUND for x in u_hi + y_hi]
     return lo, hi

@@ -13,12 +13,14 @@
  * 2. The run: for each row k of INPUT.csv (header: time, then the FMU's input names) set the
  *    inputs, doStep(k STEP, STEP), write every output (%.17g) to row k of OUTPUT.csv; FMU
  *    states are saved at the middle row, serialized, deserialized and restored at the end
- *    (checked: the rows after the restore equal the rows after the save).
+ *    (checked: the rows after the restore equal the rows after the save); three more instances,
+ *    each in a thread of its own, run the same rows at the same time and must agree bit for bit.
  * Exit status: 0 all fine, 1 usage/IO, 2 an FMI call failed, 3 a check failed.
- * Compile: cc -std=c99 -I<fmpy/c-code> native_c_host.c -ldl
+ * Compile: cc -std=c99 -I<fmpy/c-code> native_c_host.c -ldl -lpthread
  */
 #define _POSIX_C_SOURCE 200809L
 #include <dlfcn.h>
+#include <pthread.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -373,10 +375,58 @@ static void misuse(Fmu *f, const Var *vars, int nvars, double h) {
     check((f->v3 ? (int)f->term3(c) : (int)f->term2(c)) == 0, "terminate");
     check(do_step(f, c, 3 * h, h) == 3 && error_logged("called in Terminated"), "step-after-terminate");
     free_instance(f, c);
+    if (f->v3) {  /* FMI 3.0 with eventModeUsed: Event Mode after initialisation, no events, then Step Mode */
+        fmi3EnterEventModeTYPE *enter_event = (fmi3EnterEventModeTYPE *)(size_t)dlsym(f->lib, "fmi3EnterEventMode");
+        fmi3EnterStepModeTYPE *enter_step = (fmi3EnterStepModeTYPE *)(size_t)dlsym(f->lib, "fmi3EnterStepMode");
+        fmi3UpdateDiscreteStatesTYPE *update =
+            (fmi3UpdateDiscreteStatesTYPE *)(size_t)dlsym(f->lib, "fmi3UpdateDiscreteStates");
+        fmi3Boolean need = 1, term = 1, nom = 1, val = 1, next = 1;
+        fmi3Float64 next_t;
+        c = f->i3("events", f->token, f->resources, fmi3False, fmi3True, fmi3True, fmi3False, NULL, 0, NULL, logger3,
+                  NULL);
+        check(c && f->enter3(c, fmi3False, 0.0, 0.0, fmi3False, 0.0) == fmi3OK && f->exit3(c) == fmi3OK &&
+                  do_step(f, c, 0.0, h) == 3 && error_logged("called in Event Mode"), "event-mode-first");
+        check(f->reset3(c) == fmi3OK && f->enter3(c, fmi3False, 0.0, 0.0, fmi3False, 0.0) == fmi3OK &&
+                  f->exit3(c) == fmi3OK && update(c, &need, &term, &nom, &val, &next, &next_t) == fmi3OK &&
+                  !need && !term && !next && enter_step(c) == fmi3OK && do_step(f, c, 0.0, h) == 0 &&
+                  enter_event(c) == fmi3OK && enter_step(c) == fmi3OK && do_step(f, c, h, h) == 0,
+              "event-mode-cycle");
+        if (c) f->free3(c);
+    }
     (void)n_in;
 }
 
 /* ---- 2. the run ----------------------------------------------------------------------------- */
+#define N_THREADS 3
+typedef struct {
+    Fmu *f;
+    const double *data;
+    int rows, n_in, n_out;
+    const unsigned *in_vr;
+    const Var *const *outs;
+    double h;
+    double *table;
+    int status;
+} Job;
+
+static void *run_job(void *arg) {
+    Job *j = arg;
+    void *c = instantiate(j->f, "thread", j->f->token);
+    int k, i;
+    if (!c || init(j->f, c) != 0) {
+        j->status = 2;
+        return NULL;
+    }
+    for (k = 0; k < j->rows && !j->status; k++) {
+        if (set_reals(j->f, c, j->in_vr, (size_t)j->n_in, &j->data[(size_t)k * (size_t)j->n_in]) != 0 ||
+            do_step(j->f, c, k * j->h, j->h) != 0)
+            j->status = 2;
+        for (i = 0; i < j->n_out; i++)
+            get_value(j->f, c, j->outs[i], &j->table[(size_t)k * (size_t)j->n_out + (size_t)i]);
+    }
+    free_instance(j->f, c);
+    return NULL;
+}
 int main(int argc, char **argv) {
     Fmu fmu, *f = &fmu;
     char path[8192], *xml, *csv, *line, *save = NULL;
@@ -384,7 +434,7 @@ int main(int argc, char **argv) {
     int nvars, i, k, n_in = 0, n_out = 0, rows = 0;
     unsigned in_vr[256];
     const Var *outs[256];
-    double h, *table = NULL, *replay = NULL;
+    double h, *table = NULL, *replay = NULL, *data = NULL;
     void *c, *state = NULL, *state2 = NULL;
     FILE *out;
     if (argc != 6) {
@@ -418,21 +468,40 @@ int main(int argc, char **argv) {
     rows -= 1;  /* header */
     table = calloc((size_t)rows * (size_t)n_out + 1, sizeof(double));
     replay = calloc((size_t)rows * (size_t)n_out + 1, sizeof(double));
+    data = calloc((size_t)rows * (size_t)n_in + 1, sizeof(double));
+    line = strtok_r(csv, "\n", &save);  /* header: time, then the inputs in the FMU's order */
+    for (k = 0; k < rows && (line = strtok_r(NULL, "\n", &save)); k++) {
+        char *tok, *s2 = NULL;
+        tok = strtok_r(line, ",", &s2);  /* time */
+        for (i = 0; i < n_in && (tok = strtok_r(NULL, ",", &s2)); i++) data[(size_t)k * (size_t)n_in + (size_t)i] = strtod(tok, NULL);
+    }
     c = instantiate(f, "run", f->token);
     if (!c || init(f, c) != 0) return 2;
-    line = strtok_r(csv, "\n", &save);  /* header: time, then the inputs in the FMU's order */
     for (k = 0; k < rows; k++) {
-        double v[256];
-        char *tok, *s2 = NULL;
-        line = strtok_r(NULL, "\n", &save);
-        if (!line) break;
-        tok = strtok_r(line, ",", &s2);  /* time */
-        for (i = 0; i < n_in && (tok = strtok_r(NULL, ",", &s2)); i++) v[i] = strtod(tok, NULL);
         if (k == rows / 2 && get_state(f, c, &state) != 0) return 2;
-        if (set_reals(f, c, in_vr, (size_t)n_in, v) != 0) return 2;
+        if (set_reals(f, c, in_vr, (size_t)n_in, &data[(size_t)k * (size_t)n_in]) != 0) return 2;
         if (do_step(f, c, k * h, h) != 0) return 2;
         for (i = 0; i < n_out; i++)
             if (get_value(f, c, outs[i], &table[(size_t)k * (size_t)n_out + (size_t)i]) != 0) return 2;
+    }
+    /* more instances of the same FMU at once, each in a thread of its own: the same rows */
+    {
+        Job jobs[N_THREADS];
+        pthread_t tid[N_THREADS];
+        int ok = 1;
+        for (i = 0; i < N_THREADS; i++) {
+            Job j = {f, data, rows, n_in, n_out, in_vr, outs, h, NULL, 0};
+            j.table = calloc((size_t)rows * (size_t)n_out + 1, sizeof(double));
+            jobs[i] = j;
+            pthread_create(&tid[i], NULL, run_job, &jobs[i]);
+        }
+        for (i = 0; i < N_THREADS; i++) {
+            pthread_join(tid[i], NULL);
+            ok = ok && jobs[i].status == 0 &&
+                 memcmp(jobs[i].table, table, sizeof(double) * (size_t)rows * (size_t)n_out) == 0;
+            free(jobs[i].table);
+        }
+        check(ok, "instances-in-threads-agree");
     }
     /* the saved state, through serialize + deserialize, restored: the outputs of the saved row */
     {
@@ -466,6 +535,7 @@ int main(int argc, char **argv) {
     fclose(out);
     free(table);
     free(replay);
+    free(data);
     free(csv);
     return g_failed ? 3 : 0;
 }

@@ -3,7 +3,7 @@
     python -I native_worker.py SPEC.json
 
 SPEC: ``fmu``, ``inputs`` (.npy, N x (nu + ny), u then y), ``step``, ``save_at``, ``restore_at``
-(rows), ``out`` (.npz to write). Per row k: set the inputs, doStep(t_k, h), read every output
+(rows), ``scale_at``, ``scale`` (threshold_scale set before that row), ``out`` (.npz to write). Per row k: set the inputs, doStep(t_k, h), read every output
 (row k = the diagnosis of sample k). At row ``save_at`` (before its inputs are set) the FMU
 state is saved and serialized; at ``restore_at`` it is restored and rows save_at..restore_at-1
 are run again (``replay``); a second instance deserializes the bytes and runs save_at..N-1
@@ -26,6 +26,8 @@ def main(spec_path):
     data = np.load(spec["inputs"])
     h = float(spec["step"])
     ins = [v.valueReference for v in md.modelVariables if v.causality == "input"]
+    scale_vr = next(v.valueReference for v in md.modelVariables if v.name == "threshold_scale")
+    scale_at, scale = int(spec.get("scale_at", -1)), float(spec.get("scale", 1.0))
     outs = [v for v in md.modelVariables if v.causality == "output"]
     kinds = {"Real": "Real", "Float64": "Real", "Boolean": "Boolean", "Integer": "Integer", "Int32": "Integer"}
     groups = {k: [(i, v.valueReference) for i, v in enumerate(outs) if kinds[v.type] == k]
@@ -73,6 +75,8 @@ def main(spec_path):
         res = np.zeros((len(rows), len(outs)))
         for j, k in enumerate(rows):
             values = [float(x) for x in data[k]]
+            if k == scale_at:
+                (f.setFloat64 if v3 else f.setReal)([scale_vr], [scale])
             if v3:
                 f.setFloat64(ins, values)
             else:

@@ -82,7 +82,9 @@ void fdi_instance_forget(fdi_instance *fi) {
 }
 
 void fdi_instance_reset(fdi_instance *fi) {
+    /* as freshly instantiated: the tunable parameter back to its start value too */
     fdi_runtime_reset(fi->rt);
+    fdi_runtime_set_threshold_scale(fi->rt, 1.0, fi->why, sizeof fi->why);
     fi->outputs = fdi_runtime_outputs(fi->rt);
     memcpy(fi->inputs, INPUT_STARTS, sizeof(double) * FDI_N_INPUTS);
     fi->time = 0.0;

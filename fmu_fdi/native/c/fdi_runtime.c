@@ -8,6 +8,7 @@
  * so a refused step leaves it as it was); scratch vectors and the matrix-exponential work.
  */
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -299,8 +300,8 @@ void fdi_runtime_reset(fdi_runtime *rt)
 
 fdi_status fdi_runtime_init(fdi_runtime *rt, const fdi_design *d, size_t nbytes)
 {
-    if (!rt || !d || nbytes < fdi_runtime_size(d))
-        return FDI_ERROR;
+    if (!rt || !d || nbytes < fdi_runtime_size(d) || ((uintptr_t)(void *)rt & 7u) != 0)
+        return FDI_ERROR;   /* the block must be 8-byte aligned (doubles, 64-bit integers) */
     layout(rt, d, (unsigned char *)rt);
     rt->magic = FDI_MAGIC;
     rt->nbytes = nbytes;

@@ -5,8 +5,8 @@
  * conformance suite (tests/test_native_conformance.py) is the judge.
  *
  * Memory: the glue allocates fdi_runtime_size(design) bytes once at instantiation (FMI 2:
- * the host's allocateMemory; FMI 3: calloc) and hands them to fdi_runtime_init; the runtime
- * never allocates. No global mutable state: everything lives in that block.
+ * the host's allocateMemory; FMI 3: calloc), 8-byte aligned, and hands them to fdi_runtime_init;
+ * the runtime never allocates. No global mutable state: everything lives in that block.
  */
 #ifndef FDI_RUNTIME_H
 #define FDI_RUNTIME_H
@@ -45,7 +45,8 @@ fdi_status fdi_runtime_advance(fdi_runtime *rt, const double *u, const double *y
                                char *why, size_t whylen);
 const double *fdi_runtime_outputs(const fdi_runtime *rt);       /* n_outputs values */
 
-/* The tunable parameter threshold_scale (finite, > 0; else FDI_ERROR with a reason). */
+/* The tunable parameter threshold_scale (finite, >= 0 as docs/semantics.md §6;
+ * else FDI_ERROR with a reason and the scale unchanged). */
 fdi_status fdi_runtime_set_threshold_scale(fdi_runtime *rt, double scale, char *why, size_t whylen);
 double fdi_runtime_threshold_scale(const fdi_runtime *rt);
 
