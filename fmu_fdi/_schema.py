@@ -11,8 +11,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .runtime.schema import (MAX_ABS, array, check_format, check_keys, flag, integer, matrix, names,  # noqa: F401
-                             real, table, text, type_name, vector)
+from .runtime.schema import (MAX_ABS, array, check_depth, check_format, check_keys, flag,  # noqa: F401
+                             integer, matrix, names, real, table, text, type_name, vector)
 
 #: how to get a model when the user has a plant FMU
 FMU_TO_MODEL = "fmu-fdi model PLANT.fmu -o model.toml"

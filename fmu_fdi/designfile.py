@@ -46,10 +46,28 @@ def validate_design(d, source: str = "design") -> dict:
         from .model import FDIModel
 
         try:
-            FDIModel.from_dict(d["model"], source=f"{source}: model")
+            model = FDIModel.from_dict(d["model"], source=f"{source}: model")
         except ModelError as exc:
             raise DesignFileError(str(exc)) from None
+        _check_model_agrees(d, model, source)
     return d
+
+
+def _check_model_agrees(d: dict, model, source: str) -> None:
+    """The embedded model is the one the generator was designed for: same signals, faults
+    and (when discrete) sample time, so ``Diagnoser.load`` can rebuild the generator."""
+    sig = d["signals"]
+    if model.u_names != sig["u"] or model.y_names != sig["y"]:
+        raise DesignFileError(f"{source}: the embedded model's signals u={model.u_names}, y={model.y_names} differ "
+                              f"from the design's u={sig['u']}, y={sig['y']}")
+    names = [f["name"] for f in d["faults"]]
+    if model.fault_names != names:
+        raise DesignFileError(f"{source}: the embedded model's faults {model.fault_names} differ from the design's "
+                              f"{names}")
+    dt = d["generator"]["dt"]
+    if model.is_discrete and abs(model.dt - dt) > 1e-12 * dt:
+        raise DesignFileError(f"{source}: the embedded model is discrete with dt = {model.dt!r} but the generator "
+                              f"runs at dt = {dt!r}")
 
 
 def _clean(x):

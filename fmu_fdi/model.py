@@ -500,6 +500,7 @@ def _check_model_dict(d, source: str) -> None:
     """Types of every value of a model file, before anything is converted (nothing is
     coerced: ``dt = "0.5"``, ``dt = true`` or ``"1e-3"`` in a matrix are errors)."""
     check_format(d, FORMAT, source, ModelError)
+    S.check_depth(d, source, ModelError)
     check_keys(d, (), _TOP_KEYS, source, ModelError)
     for key in ("name", "description"):
         if key in d:

@@ -71,6 +71,7 @@ def check_design(d, source: str = "design") -> dict:
         One line naming the key and the rule, prefixed by ``source``.
     """
     S.check_format(d, FORMAT, source, E, "design format")
+    S.check_depth(d, source, E)
     S.check_keys(d, _TOP_REQUIRED, _TOP_ALLOWED, source, E)
     S.text(d["name"], f"{source}: name", E)
     for key in ("created_by", "description"):

@@ -24,6 +24,25 @@ import numpy as np
 MAX_ABS = 1e150
 
 
+#: deepest nesting of lists/tables a file may have (the deepest legitimate value, a
+#: matrix inside a fault inside the model inside a design, is 5 levels down)
+MAX_DEPTH = 64
+
+
+def check_depth(value, where: str, error: type[Exception], limit: int = MAX_DEPTH) -> None:
+    """No list/table nests deeper than ``limit`` (checked without recursion, so a hostile
+    file cannot exhaust the stack of the code that later copies or serialises it)."""
+    stack = [(value, 0)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > limit:
+            raise error(f"{where}: values nest deeper than {limit} levels")
+        if isinstance(node, dict):
+            stack.extend((v, depth + 1) for v in node.values())
+        elif isinstance(node, (list, tuple)):
+            stack.extend((v, depth + 1) for v in node if isinstance(v, (list, tuple, dict)))
+
+
 def type_name(value) -> str:
     """The JSON/TOML name of a value's type, for messages."""
     if value is None:
