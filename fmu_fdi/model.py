@@ -23,6 +23,7 @@ from . import _schema as S
 from ._schema import check_format, check_keys, parse, read_text
 from .faults import FaultSpec, ModelError, _matrix, check_name
 from .lti import LTI
+from .progress import set_stage
 
 FORMAT = "fmu-fdi-model/1"
 GROUPS = ("u", "d", "w", "f")
@@ -417,6 +418,7 @@ class FDIModel:
         wrong type is a one-line :class:`ModelError` naming the file and the key.
         """
         path = Path(path)
+        set_stage(f"reading the model file {path}")
         text = read_text(path, "model file", ModelError)
         suffix = path.suffix.lower()
         if suffix not in (".json", ".toml"):

@@ -25,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import math
 
+from ..progress import note
 from .errors import CoSimulationError, SimulationFailed
 from .faults import Fault, FaultChannel
 from .instance import FMUInstance
@@ -207,6 +208,8 @@ class CoSimulation:
                     for k in range(rows):
                         if k:
                             run.advance(self.time(k - 1), self.time(k))
+                        if done == len(buf) or not k % 1024:
+                            note(f"co-simulation at t = {self.time(k):g} s of {self.stop:g} s (row {k} of {rows})")
                         if writer is not None and done == len(buf):
                             flush()
                         run.record(buf, done, self.time(k))
