@@ -8,15 +8,24 @@ dense factorisations), so the seconds for another n or machine follow from one
 eigenvalue timing.
 
     python benchmarks/large_models.py [n ...]        (default: 50 100 200)
+
+BLAS runs single-threaded unless OPENBLAS_NUM_THREADS is set: on a loaded machine the
+threaded BLAS was 100-300x slower for these sizes (eigvals of 100 x 100: 2.7 ms with one
+thread, 741 ms with two threads on 2 busy cores), which would hide the scaling.
 """
 from __future__ import annotations
 
-import sys
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import sys  # noqa: E402
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+import numpy as np  # noqa: E402
 
 
 def plant(n: int, seed: int = 1):

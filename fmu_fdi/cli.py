@@ -15,6 +15,7 @@ import sys
 
 import numpy as np
 
+from .cosim.errors import CoSimulationError
 from .errors import DesignError, ModelError
 from .progress import Heartbeat, set_stage
 
@@ -318,7 +319,7 @@ def main(argv=None) -> int:
     try:
         with Heartbeat():  # long commands (large models) report their stage on stderr
             return args.func(args)
-    except (ModelError, DesignError) as exc:
+    except (ModelError, DesignError, CoSimulationError) as exc:
         print(f"fmu-fdi: error: {exc}", file=sys.stderr)
         return 2
 

@@ -574,3 +574,14 @@ def test_fmu_warnings_reach_the_user(fmus, diagnostic_fmu, tmp_path, capsys):
     assert cli.run(args) == 0
     err = capsys.readouterr().err
     assert "warning: FMU 'diagnoser' at t=0: threshold_scale must be a finite number >= 0" in err
+
+
+def test_result_from_csv_refuses_broken_files_in_one_line(tmp_path):
+    cases = {"missing.csv": None, "bin.csv": bytes(range(256)), "ragged.csv": b'"time","y"\n0,1\n0.1\n',
+             "text.csv": b'"time","y"\n0,abc\n', "notime.csv": b'"t","y"\n0,1\n', "empty.csv": b""}
+    for name, data in cases.items():
+        if data is not None:
+            (tmp_path / name).write_bytes(data)
+        with pytest.raises(CoSimulationError) as info:
+            Result.from_csv(tmp_path / name)
+        assert str(tmp_path / name) in str(info.value) and "\n" not in str(info.value), name
