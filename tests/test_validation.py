@@ -86,7 +86,7 @@ BAD = {
     "structure not 0/1": (lambda d: d["decision"].update(isolation="structure",
                                                          structure=[[2, 0]] * len(d["generator"]["groups"])),
                           "only 0 and 1"),
-    "valid_range reversed": (lambda d: d["signals"].update(valid_range={d["signals"]["y"][0]: [5, 1]}), "lo < hi"),
+    "valid_range reversed": (lambda d: d["signals"].update(valid_range={d["signals"]["y"][0]: [5, 1]}), "lo <= hi"),
 }
 
 

@@ -113,7 +113,7 @@ def _signals(d: dict, source: str) -> tuple[int, int, list[str]]:
     clash = [s for s in both if RESERVED.match(s)]
     if clash:
         raise E(f"{source}: signal names {clash} collide with the diagnostic FMU's own variable names")
-    if "valid_range" in sig:
+    if sig.get("valid_range") is not None:  # S2, docs/semantics.md: null bounds are open sides
         rng = S.table(sig["valid_range"], f"{source}: signals.valid_range", E)
         for name, lohi in rng.items():
             where = f"{source}: signals.valid_range.{name}"
@@ -122,9 +122,10 @@ def _signals(d: dict, source: str) -> tuple[int, int, list[str]]:
             pair = S.array(lohi, where, E)
             if len(pair) != 2:
                 raise E(f"{where} must be [lo, hi] (null for no bound), got {len(pair)} entries")
-            lo, hi = (None if v is None else S.real(v, f"{where}[{k}]", E) for k, v in enumerate(pair))
-            if lo is None and hi is None or lo is not None and hi is not None and not lo < hi:
-                raise E(f"{where} must be [lo, hi] with lo < hi (at most one of them null), got {pair}")
+            # bounds are only compared with samples: any finite number
+            lo, hi = (None if v is None else S.real(v, f"{where}[{k}]", E, limit=math.inf) for k, v in enumerate(pair))
+            if lo is not None and hi is not None and not lo <= hi:
+                raise E(f"{where} must be [lo, hi] with lo <= hi, got {pair}")
     if "units" in d:
         for name, unit in S.table(d["units"], f"{source}: units", E).items():
             S.text(unit, f"{source}: units.{name}", E, empty=True)
