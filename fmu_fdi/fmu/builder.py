@@ -22,6 +22,9 @@ from .packaging import build_slave_fmu, unique_bundle_name
 from .slave_template import TEMPLATE
 
 RUNTIME_DIR = Path(__file__).resolve().parent.parent / "runtime"
+RESERVED = re.compile(r"^(residual|evaluation|threshold|alarm)_\d+$|^(fault_detected|isolated_fault|input_invalid|"
+                      r"threshold_scale)$")
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
 def _design_of(diagnoser_or_path) -> dict:
@@ -78,7 +81,13 @@ def build_fmu(diagnoser_or_path, fmu_path) -> Path:
     fmu_path = Path(fmu_path)
     if fmu_path.suffix != ".fmu":
         raise DesignFileError(f"the FMU file name must end in .fmu, got {fmu_path.name}")
-    signals = list(design["signals"]["u"]) + list(design["signals"]["y"])  # names checked by validate_design
+    signals = list(design["signals"]["u"]) + list(design["signals"]["y"])
+    bad = [s for s in signals if not _IDENT.match(s)]
+    if bad:
+        raise DesignFileError(f"signal names {bad} are not valid FMU variable names")
+    clash = [s for s in signals if RESERVED.match(s)]
+    if clash:
+        raise DesignFileError(f"signal names {clash} collide with the diagnostic FMU's own variable names")
     design_bytes = json.dumps(design, sort_keys=True).encode("utf-8")
     modules = {f.name: f.read_text(encoding="utf-8") for f in sorted(RUNTIME_DIR.glob("*.py"))
                if f.name != "__init__.py"}
