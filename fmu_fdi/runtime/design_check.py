@@ -113,19 +113,21 @@ def _signals(d: dict, source: str) -> tuple[int, int, list[str]]:
     clash = [s for s in both if RESERVED.match(s)]
     if clash:
         raise E(f"{source}: signal names {clash} collide with the diagnostic FMU's own variable names")
-    if sig.get("valid_range") is not None:  # S2, docs/semantics.md: null bounds are open sides
-        rng = S.table(sig["valid_range"], f"{source}: signals.valid_range", E)
-        for name, lohi in rng.items():
-            where = f"{source}: signals.valid_range.{name}"
+    if sig.get("valid_range") is not None:  # S2 (docs/semantics.md); messages as engine.valid_ranges words them
+        rng = sig["valid_range"]
+        where = f"{source}: signals.valid_range"
+        if not isinstance(rng, dict):
+            raise E(f"{where} must map signal names to [lo, hi], got {type(rng).__name__}")
+        for name, pair in rng.items():
             if name not in both:
-                raise E(f"{where}: no signal of that name; signals are {both}")
-            pair = S.array(lohi, where, E)
-            if len(pair) != 2:
-                raise E(f"{where} must be [lo, hi] (null for no bound), got {len(pair)} entries")
-            # bounds are only compared with samples: any finite number
-            lo, hi = (None if v is None else S.real(v, f"{where}[{k}]", E, limit=math.inf) for k, v in enumerate(pair))
-            if lo is not None and hi is not None and not lo <= hi:
-                raise E(f"{where} must be [lo, hi] with lo <= hi, got {pair}")
+                raise E(f"{where} names {name!r}, which is not a signal (u: {u}, y: {y})")
+            if not isinstance(pair, (list, tuple)) or len(pair) != 2:
+                raise E(f"{where}[{name!r}] must be [lo, hi], got {pair!r}")
+            for side, v in zip(("lo", "hi"), pair):
+                if v is not None and not _finite_number(v):
+                    raise E(f"{where}[{name!r}] {side} must be a finite number or null, got {S.type_name(v)}")
+            if None not in pair and not pair[0] <= pair[1]:
+                raise E(f"{where}[{name!r}] needs lo <= hi, got [{pair[0]!r}, {pair[1]!r}]")
     if "units" in d:
         for name, unit in S.table(d["units"], f"{source}: units", E).items():
             S.text(unit, f"{source}: units.{name}", E, empty=True)
@@ -137,6 +139,13 @@ def _signals(d: dict, source: str) -> tuple[int, int, list[str]]:
         if "y" in op:
             S.vector(op["y"], f"{source}: operating_point.y", E, size=len(y))
     return len(u), len(y), both
+
+
+def _finite_number(v) -> bool:
+    try:
+        return not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+    except OverflowError:  # an integer beyond the float range
+        return False
 
 
 def _faults(value, where: str) -> list[str]:
