@@ -14,8 +14,8 @@ from pathlib import Path
 from .runtime.schema import (MAX_ABS, array, check_depth, check_format, check_keys, flag,  # noqa: F401
                              integer, matrix, names, real, table, text, type_name, vector)
 
-#: how to get a model when the user has a plant FMU
-FMU_TO_MODEL = "fmu-fdi model PLANT.fmu -o model.toml"
+#: how to get a model when the user has a plant FMU (the command of docs/plant-fmu.md)
+FMU_TO_MODEL = "fmu-fdi model {fmu} -o model.toml (docs/plant-fmu.md)"
 
 
 def read_text(path, what: str, error: type[Exception]) -> str:
@@ -32,7 +32,7 @@ def read_text(path, what: str, error: type[Exception]) -> str:
         raise error(f"cannot read {what} {path}: {exc.strerror or exc}") from None
     if data[:4] == b"PK\x03\x04":
         kind = "an FMU (a zip archive)" if path.suffix.lower() == ".fmu" else "a zip archive"
-        hint = (f"; to diagnose a plant FMU, write its model first: {FMU_TO_MODEL}"
+        hint = (f"; to diagnose a plant FMU, write its model first: {FMU_TO_MODEL.format(fmu=path)}"
                 if path.suffix.lower() == ".fmu" or what == "model file" else "")
         raise error(f"{path} is {kind}, not a {what}{hint}")
     if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
