@@ -25,25 +25,33 @@ def read_text(path, what: str, error: type[Exception]) -> str:
     """
     path = Path(path)
     try:
-        data = path.read_bytes()
+        with open(path, "rb") as fh:
+            data = fh.read(4096)  # look before reading all of a (possibly large binary) file
+            if not _refused(data, path, what, error):
+                data += fh.read()
     except IsADirectoryError:
         raise error(f"{path} is a folder, not a {what}") from None
     except OSError as exc:
         raise error(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise error(f"{path} is not UTF-8 text (invalid byte at offset {exc.start}); a {what} must be "
+                    f"UTF-8") from None
+
+
+def _refused(data: bytes, path: Path, what: str, error: type[Exception]) -> bool:
+    """Raise ``error`` if the file's first bytes show an FMU/zip, UTF-16/32 or binary file."""
     if data[:4] == b"PK\x03\x04":
         kind = "an FMU (a zip archive)" if path.suffix.lower() == ".fmu" else "a zip archive"
         hint = (f"; to diagnose a plant FMU, write its model first: {FMU_TO_MODEL.format(fmu=path)}"
                 if path.suffix.lower() == ".fmu" or what == "model file" else "")
         raise error(f"{path} is {kind}, not a {what}{hint}")
     if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
-        raise error(f"{path} is UTF-16 encoded; a {what} must be UTF-8 text (save it as UTF-8)")
-    if b"\x00" in data[:4096]:
+        raise error(f"{path} is UTF-16 or UTF-32 encoded; a {what} must be UTF-8 text (save it as UTF-8)")
+    if b"\x00" in data:
         raise error(f"{path} is a binary file, not a {what} (UTF-8 text)")
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise error(f"{path} is not UTF-8 text (invalid byte at offset {exc.start}); a {what} must be "
-                    f"UTF-8") from None
+    return False
 
 
 def parse(text_: str, syntax: str, source: str, error: type[Exception]):
