@@ -239,3 +239,28 @@ def test_cli_prints_one_line_for_a_binary_model(tmp_path):
                          timeout=120)
     assert res.returncode == 2 and "Traceback" not in res.stderr
     assert res.stderr.count("\n") == 1 and f"fmu-fdi model {fmu} -o model.toml" in res.stderr
+
+
+def test_a_tampered_fmu_refuses_its_design_as_shipped(tmp_path, design):
+    """The FMU runs the same check when instantiated: an FMU whose bundled design.json was
+    edited (window 1e10) fails to start in a host process and says which rule failed."""
+    import subprocess
+    import sys
+
+    fmu = build_fmu(design, tmp_path / "d.fmu")
+    bad = tmp_path / "tampered.fmu"
+    with zipfile.ZipFile(fmu) as zi, zipfile.ZipFile(bad, "w", zipfile.ZIP_DEFLATED) as zo:
+        for item in zi.infolist():
+            data = zi.read(item.filename)
+            if item.filename.endswith("/design.json"):
+                d = json.loads(data)
+                d["evaluation"][0]["evaluator"] = {"kind": "rms", "window": 10**10}
+                data = json.dumps(d).encode()
+            zo.writestr(item, data)
+    res = subprocess.run([sys.executable, "-m", "fmu_fdi", "simulate", "--plant", str(bad), "--stop", "0.5",
+                          "--step", str(TS), "-o", str(tmp_path / "out.csv")], capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 1, res.stderr
+    assert "failed to initialise" in res.stderr
+    assert "evaluation[0].evaluator.window must be an integer in [1, 100000]" in res.stderr
+    assert (tmp_path / "out.csv").read_text().splitlines()[-1].startswith("# incomplete")

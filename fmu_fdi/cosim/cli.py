@@ -80,7 +80,7 @@ def run(args) -> int:
         print(f"fmu-fdi simulate: error: {exc}", file=sys.stderr)
         return 2
     except SimulationFailed as exc:
-        _warn(exc.warnings)
+        _warn([w for w in exc.warnings if w.split(": ", 1)[-1] not in str(exc)])  # not the failure twice
         print(f"fmu-fdi simulate: {exc} ({exc.rows_written} rows written to {args.output}, marked incomplete)",
               file=sys.stderr)
         return 1

@@ -257,14 +257,15 @@ class FMUInstance:
         labels = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
         label = labels[status] if 0 <= status < len(labels) else str(status)
         text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
-        self.log.append(f"[{label}] {text.strip()}")
+        text = " ".join(text.split())  # one line (a Python FMU logs tracebacks over several)
+        self.log.append(f"[{label}] {text}")
         if status >= 1:  # Warning and worse: kept for the user (see warning_summary)
             self.n_warnings += 1
-            seen = self.warnings.get(text.strip())
+            seen = self.warnings.get(text)
             if seen is not None:
                 seen[0] += 1
             elif len(self.warnings) < _WARNINGS_KEPT:
-                self.warnings[text.strip()] = [1, self.now]
+                self.warnings[text] = [1, self.now]
 
     def warning_summary(self) -> list:
         """One line per distinct warning message: ``FMU 'name' at t=...: text (N times)``."""
