@@ -16,7 +16,9 @@ import sys
 
 import numpy as np
 
+from .cosim.errors import CoSimulationError
 from .errors import DesignError, ModelError
+from .progress import Heartbeat, set_stage
 
 METHODS = {
     # name: (design function, options it takes from the command line)
@@ -57,7 +59,9 @@ def _analyze(args) -> int:
     from .model import FDIModel
 
     model = FDIModel.from_file(args.model)
+    set_stage(f"detectability analysis (n = {model.n} states, {len(model.faults)} faults)")
     det = detectability(model)
+    set_stage(f"isolability analysis (n = {model.n} states, {len(model.faults)} faults)")
     iso = isolability(model)
     print(f"model '{model.name}': n={model.n}, u={model.u_names}, y={model.y_names}, d={model.d_names}, "
           f"w={model.w_names}, {'dt=' + format(model.dt, 'g') if model.dt else 'continuous'}")
@@ -177,7 +181,9 @@ def _design(args) -> int:
         if args.ts is None:
             raise DesignError(f"--method {args.method} designs in discrete time: give --ts for a continuous model")
         kw["Ts"] = args.ts
+    set_stage(f"designing the residual generator ({args.method}, n = {model.n} states)")
     gen = fn(model, **kw)
+    set_stage(f"discretising, thresholds and the design file ({args.method}, n = {model.n} states)")
     if gen.dt == 0.0:
         if args.ts is None:
             raise DesignError("the model is continuous: give the diagnosis sample time --ts")
@@ -321,8 +327,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return args.func(args)
-    except (ModelError, DesignError) as exc:
+        with Heartbeat():  # long commands (large models) report their stage on stderr
+            return args.func(args)
+    except (ModelError, DesignError, CoSimulationError) as exc:
         print(f"fmu-fdi: error: {exc}", file=sys.stderr)
         return 2
 

@@ -250,7 +250,7 @@ class Diagnoser:
     @classmethod
     def from_design(cls, design: dict) -> "Diagnoser":
         self = cls.__new__(cls)
-        self.design = copy.deepcopy(design)
+        self.design = validate_design(copy.deepcopy(design), "design")
         self.runtime = DiagnoserRuntime(self.design)
         self.Ts = float(design["generator"]["dt"])
         self.generator = self.continuous = None

@@ -19,9 +19,11 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from ._schema import check_format, check_keys
+from . import _schema as S
+from ._schema import check_format, check_keys, parse, read_text
 from .faults import FaultSpec, ModelError, _matrix, check_name
 from .lti import LTI
+from .progress import set_stage
 
 FORMAT = "fmu-fdi-model/1"
 GROUPS = ("u", "d", "w", "f")
@@ -389,29 +391,10 @@ class FDIModel:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "model") -> "FDIModel":
-        check_format(d, FORMAT, source, ModelError)
-        check_keys(d, (), _TOP_KEYS, source, ModelError)
-        sig = d.get("signals")
-        if not isinstance(sig, dict) or "y" not in sig:
-            raise ModelError(f"{source}: [signals] with at least 'y' is required")
-        bad = set(sig) - {"u", "y", "d", "w"}
-        if bad:
-            raise ModelError(f"{source}: unknown signal groups {sorted(bad)}; use u, y, d, w")
-        for key, names in sig.items():
-            if not isinstance(names, list):
-                raise ModelError(f"{source}: signals.{key} must be a list of names")
-        mats = d.get("matrices")
-        if not isinstance(mats, dict):
-            raise ModelError(f"{source}: [matrices] is required")
-        bad = set(mats) - _MATRIX_KEYS
-        if bad:
-            raise ModelError(f"{source}: unknown matrices {sorted(bad)}; allowed: {sorted(_MATRIX_KEYS)}")
-        for key in ("A", "C"):
-            if key not in mats:
-                raise ModelError(f"{source}: matrix {key} is required")
+        """Build a model from the dict of a model file, checking every value's type first."""
+        _check_model_dict(d, source)
+        sig, mats = d["signals"], d["matrices"]
         u = sig.get("u", [])
-        if u and "Bu" not in mats:
-            raise ModelError(f"{source}: matrix Bu is required when there are inputs u")
         try:
             n = len(mats["A"])
             p = len(sig["y"])
@@ -441,25 +424,18 @@ class FDIModel:
 
     @classmethod
     def from_file(cls, path) -> "FDIModel":
-        """Read a model file (``.json`` or ``.toml``; format ``fmu-fdi-model/1``)."""
+        """Read a model file (``.json`` or ``.toml``, UTF-8; format ``fmu-fdi-model/1``).
+
+        An FMU, a binary or UTF-16 file, a syntax error, too deep nesting or a value of the
+        wrong type is a one-line :class:`ModelError` naming the file and the key.
+        """
         path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise ModelError(f"cannot read model file {path}: {exc.strerror}") from None
+        set_stage(f"reading the model file {path}")
+        text = read_text(path, "model file", ModelError)
         suffix = path.suffix.lower()
-        try:
-            if suffix == ".json":
-                data = json.loads(text)
-            elif suffix == ".toml":
-                data = _toml_loads(text)
-            else:
-                raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
-        except (json.JSONDecodeError, ValueError) as exc:
-            if isinstance(exc, ModelError):
-                raise
-            raise ModelError(f"{path}: not valid {suffix[1:].upper()}: {exc}") from None
-        return cls.from_dict(data, source=str(path))
+        if suffix not in (".json", ".toml"):
+            raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
+        return cls.from_dict(parse(text, suffix[1:], str(path), ModelError), source=str(path))
 
     def to_file(self, path) -> Path:
         """Write the model as JSON or TOML (by extension); floats round-trip exactly."""
@@ -507,14 +483,6 @@ def _toml_dumps(d: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _toml_loads(text: str) -> dict:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python 3.10
-        import tomli as tomllib
-    return tomllib.loads(text)
-
-
 def _opt(X, name: str, rows: int, cols: int | None) -> np.ndarray:
     if X is None or (np.size(X) == 0):
         return np.zeros((rows, cols or 0))
@@ -537,3 +505,78 @@ def _sanitize(label: str) -> str:
     if not out or out[0].isdigit():
         out = "s_" + out
     return out
+
+
+_FAULT_KEYS = {"name", "kind", "description", "input", "output", "Bf", "Df", "dA", "dB", "dC"}
+
+
+def _check_model_dict(d, source: str) -> None:
+    """Types of every value of a model file, before anything is converted (nothing is
+    coerced: ``dt = "0.5"``, ``dt = true`` or ``"1e-3"`` in a matrix are errors)."""
+    check_format(d, FORMAT, source, ModelError)
+    S.check_depth(d, source, ModelError)
+    check_keys(d, (), _TOP_KEYS, source, ModelError)
+    for key in ("name", "description"):
+        if key in d:
+            S.text(d[key], f"{source}: {key}", ModelError, empty=key == "description")
+    if "dt" in d:
+        dt = S.real(d["dt"], f"{source}: dt", ModelError)
+        if dt < 0:
+            raise ModelError(f"{source}: dt must be 0 (continuous) or a positive sample time, got {dt!r}")
+    sig = d.get("signals")
+    if not isinstance(sig, dict) or "y" not in sig:
+        raise ModelError(f"{source}: [signals] with at least 'y' is required")
+    bad = set(sig) - {"u", "y", "d", "w"}
+    if bad:
+        raise ModelError(f"{source}: unknown signal groups {sorted(map(str, bad))}; use u, y, d, w")
+    for key, names in sig.items():
+        S.names(names, f"{source}: signals.{key}", ModelError)
+    if "units" in d:
+        for key, unit in S.table(d["units"], f"{source}: units", ModelError).items():
+            S.text(unit, f"{source}: units.{key}", ModelError, empty=True)
+    if "operating_point" in d:
+        op = S.table(d["operating_point"], f"{source}: operating_point", ModelError)
+        for key in ("u", "y"):
+            if key in op:
+                S.vector(op[key], f"{source}: operating_point.{key}", ModelError)
+    mats = d.get("matrices")
+    if not isinstance(mats, dict):
+        raise ModelError(f"{source}: [matrices] is required, got {S.type_name(mats)}")
+    bad = set(mats) - _MATRIX_KEYS
+    if bad:
+        raise ModelError(f"{source}: unknown matrices {sorted(map(str, bad))}; allowed: {sorted(_MATRIX_KEYS)}")
+    for key in ("A", "C"):
+        if key not in mats:
+            raise ModelError(f"{source}: matrix {key} is required")
+    if sig.get("u") and "Bu" not in mats:
+        raise ModelError(f"{source}: matrix Bu is required when there are inputs u")
+    n = len(S.array(mats["A"], f"{source}: matrix A", ModelError))
+    p, m = len(sig["y"]), len(sig.get("u", []))
+    nd, nw = len(sig.get("d", [])), len(sig.get("w", []))
+    shapes = {"A": (n, n), "Bu": (n, m), "C": (p, n), "Du": (p, m), "Bd": (n, nd), "Dd": (p, nd),
+              "Bw": (n, nw), "Dw": (p, nw)}
+    for key, value in mats.items():
+        rows, cols = shapes[key]
+        S.matrix(value, f"{source}: matrix {key}", ModelError, cols=cols)
+        if len(value) != rows and not (not value and cols == 0):
+            raise ModelError(f"{source}: matrix {key} must be {rows}x{cols}, got {len(value)} rows")
+    faults = S.array(d.get("faults", []), f"{source}: faults", ModelError)
+    for i, f in enumerate(faults):
+        where = f"{source}: faults[{i}]"
+        S.table(f, where, ModelError)
+        for key in ("name", "kind"):
+            if key not in f:
+                raise ModelError(f"{where} needs '{key}'")
+        name = S.text(f["name"], f"{where}.name", ModelError)
+        where = f"{source}: fault '{name}'"
+        S.text(f["kind"], f"{where}: kind", ModelError)
+        for key in ("input", "output", "description"):
+            if key in f:
+                S.text(f[key], f"{where}: {key}", ModelError, empty=key == "description")
+        for key in ("Bf", "Df", "dA", "dB", "dC"):
+            if key in f:
+                value = f[key]
+                if isinstance(value, list) and value and not isinstance(value[0], list):
+                    S.vector(value, f"{where}: {key}", ModelError)  # one column written as a list
+                else:
+                    S.matrix(value, f"{where}: {key}", ModelError)

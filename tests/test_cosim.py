@@ -458,3 +458,130 @@ def test_cli_exit_codes(fmus, tmp_path, capsys):
     assert args.func(args) == 1
     assert "FMU 'valve' doStep from t=1" in capsys.readouterr().err
     assert len(Result.from_csv(out)) == 11
+
+
+# ---- reliability (issue 12 items 4 and 6) ---------------------------------------------------------
+
+def test_streamed_run_writes_the_same_csv_as_the_in_memory_run(fmus, tmp_path):
+    ref = sim(fmus).run()
+    ref.to_csv(tmp_path / "ref.csv")
+    last = sim(fmus).run(csv=tmp_path / "s.csv", chunk_rows=3)  # 21 rows in chunks of 3
+    assert (tmp_path / "s.csv").read_text() == (tmp_path / "ref.csv").read_text()
+    np.testing.assert_array_equal(last["time"], ref["time"][-len(last):])
+
+
+def test_long_runs_allocate_nothing_before_the_first_step(fmus, tmp_path):
+    import tracemalloc
+
+    tracemalloc.start()
+    s = sim(fmus, stop=1e8, step=0.01)  # 1e10 steps: a list of times alone would need 80 GB
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert s.n_steps == 10**10 and peak < 10 * 2**20
+    with pytest.raises(CoSimulationError, match=r"GiB in memory; stream it to a file"):
+        s.run()
+
+
+def test_streamed_memory_does_not_grow_with_the_run_length(fmus, tmp_path):
+    import tracemalloc
+
+    peaks = []
+    for n in (100, 1000):
+        s = sim(fmus, stop=n * H)
+        tracemalloc.start()
+        s.run(csv=tmp_path / f"r{n}.csv", chunk_rows=64)
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+        assert len(Result.from_csv(tmp_path / f"r{n}.csv")) == n + 1
+    # ten times the rows, the same buffers: allow 50 % for allocator noise, far below 10x
+    assert peaks[1] < 1.5 * peaks[0], peaks
+
+
+def test_unwritable_output_fails_before_any_fmu_runs(fmus, tmp_path):
+    with pytest.raises(CoSimulationError, match="cannot write the result to .*No such file or directory"):
+        sim(fmus).run(csv=tmp_path / "missing" / "out.csv")
+    assert not (tmp_path / "missing").exists()
+
+
+def test_failed_streamed_run_marks_the_csv_incomplete_with_the_fmus_message(fmus, tmp_path):
+    bad = build_failing(tmp_path, at=0.5, how="error")
+    s = CoSimulation({"plant": fmus["plant"], "valve": bad}, step=H, stop=N * H)
+    out = tmp_path / "out.csv"
+    with pytest.raises(SimulationFailed) as info:
+        s.run(csv=out)
+    exc = info.value
+    assert exc.rows_written == 6 and exc.log and "broken valve model" in str(exc)
+    lines = out.read_text().splitlines()
+    assert len(lines) == 1 + 6 + 1 and lines[-1].startswith("# incomplete: the run stopped after 6 of 21 rows")
+    assert "broken valve model" in lines[-1]
+    assert Result.from_csv(out)["time"].tolist() == T[:6]  # the marker is a comment for readers
+
+
+def test_silent_failure_says_the_fmu_gave_no_message(fmus, tmp_path):
+    bad = build_failing(tmp_path, at=0.5, how="discard")
+    with pytest.raises(SimulationFailed, match="The FMU logged no message"):
+        CoSimulation({"valve": bad}, step=H, stop=N * H).run()
+
+
+@pytest.mark.parametrize("fault, message", [
+    (Fault.abrupt("plant.u", onset=N * H + 1, magnitude=1.0), "after the stop time"),
+    (Fault.abrupt("plant.u", onset=-1.0, magnitude=1.0), "before the start time"),
+])
+def test_fault_onsets_outside_the_run_are_refused(fmus, fault, message):
+    with pytest.raises(CoSimulationError, match=message):
+        sim(fmus, faults=[fault])
+
+
+def test_non_finite_fault_magnitudes_are_refused():
+    for bad in ("nan", "inf", "-inf", "1e400"):
+        with pytest.raises(CoSimulationError, match="must be finite"):
+            parse_fault(f"abrupt:plant.y:1:{bad}")
+
+
+def test_binary_input_csv_is_a_one_line_error(tmp_path):
+    path = tmp_path / "in.csv"
+    path.write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(CoSimulationError, match="binary file, not a CSV file"):
+        InputSignals.from_csv(path)
+    path.write_text("time,u\n0,1\n", encoding="utf-16")
+    with pytest.raises(CoSimulationError, match="UTF-16"):
+        InputSignals.from_csv(path)
+
+
+@pytest.fixture(scope="module")
+def diagnostic_fmu(tmp_path_factory):
+    """A diagnoser reading the test plant's y and u (first-order model, one sensor fault)."""
+    from fmu_fdi import Diagnoser, FDIModel, sensor_fault
+    from fmu_fdi.design.nullspace import nullspace_design
+    from fmu_fdi.fmu.builder import build_fmu
+
+    m = FDIModel.from_matrices([[-1.0]], [[1.0]], [[1.0]], u_names=["u"], y_names=["y"],
+                               faults=[sensor_fault("fy", "y")])
+    dg = Diagnoser(nullspace_design(m), Ts=H, thresholds=1.0)
+    return build_fmu(dg, tmp_path_factory.mktemp("diag") / "diag.fmu")
+
+
+def test_fmu_warnings_reach_the_user(fmus, diagnostic_fmu, tmp_path, capsys):
+    s = CoSimulation({"plant": fmus["plant"], "diagnoser": diagnostic_fmu}, step=H, stop=N * H,
+                     parameters={"diagnoser.threshold_scale": -1.0, "diagnoser.u": 1.0})
+    r = s.run()
+    assert any("threshold_scale must be a finite number >= 0" in w and "diagnoser" in w for w in r.warnings)
+    assert r.warnings == s.warnings
+    args = argparse.Namespace(plant=[str(fmus["plant"])], diagnoser=str(diagnostic_fmu), stop=N * H, step=H,
+                              start=0.0, input=None, interpolation="zoh", fault=[], connect=None,
+                              param=["diagnoser.threshold_scale=-1"], order="gauss-seidel", ssp=None,
+                              output=str(tmp_path / "o.csv"))
+    assert cli.run(args) == 0
+    err = capsys.readouterr().err
+    assert "warning: FMU 'diagnoser' at t=0: threshold_scale must be a finite number >= 0" in err
+
+
+def test_result_from_csv_refuses_broken_files_in_one_line(tmp_path):
+    cases = {"missing.csv": None, "bin.csv": bytes(range(256)), "ragged.csv": b'"time","y"\n0,1\n0.1\n',
+             "text.csv": b'"time","y"\n0,abc\n', "notime.csv": b'"t","y"\n0,1\n', "empty.csv": b""}
+    for name, data in cases.items():
+        if data is not None:
+            (tmp_path / name).write_bytes(data)
+        with pytest.raises(CoSimulationError) as info:
+            Result.from_csv(tmp_path / name)
+        assert str(tmp_path / name) in str(info.value) and "\n" not in str(info.value), name

@@ -1,8 +1,10 @@
 """``fmu-fdi simulate``: plant FMU(s) + diagnostic FMU, faults, CSV out — a veneer over
 :class:`~fmu_fdi.cosim.master.CoSimulation`.
 
-Exit status: 0 on success; 1 if an FMU failed during the run (the rows completed so far are
-still written to ``-o``); 2 for a set-up error (bad file, name, type, step or fault SPEC).
+Exit status: 0 on success (warnings the FMUs logged are printed to stderr); 1 if an FMU failed
+during the run (the rows completed so far are in ``-o``, whose last line ``# incomplete: ...``
+says why it stops early); 2 for a set-up error (bad file, name, type, step, fault SPEC or an
+output path that cannot be written), reported before any FMU runs.
 """
 from __future__ import annotations
 
@@ -20,8 +22,9 @@ Co-simulate plant FMU(s) and a diagnostic FMU (FMI 2 or 3 co-simulation) on a fi
 communication step. Outputs are connected to the same-named inputs of the other FMUs unless
 --connect is given; --input signals feed every unconnected input of their name. The result CSV
 holds every output of every FMU ("fmu.var") and each fault's true signal ("fault.NAME",
-"fault.NAME.active"). Exit status: 0 done; 1 an FMU failed (the rows so far are written);
-2 a set-up error."""
+"fault.NAME.active"), streamed as they are computed. FMU warnings are printed to stderr.
+Exit status: 0 done; 1 an FMU failed (the rows so far are written, and a last line
+'# incomplete: ...' says why); 2 a set-up error (nothing is run)."""
 
 
 def add_parser(subparsers):
@@ -59,7 +62,12 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    """Execute ``fmu-fdi simulate`` with parsed ``args``; returns the exit status."""
+    """Execute ``fmu-fdi simulate`` with parsed ``args``; returns the exit status.
+
+    The rows are streamed to ``-o`` as they are computed (bounded memory for any stop time);
+    the file is created before the first FMU starts, so an unwritable path fails at once.
+    Warnings the FMUs logged (e.g. a parameter value they ignored) are printed to stderr.
+    """
     try:
         sim = _build(args)
         if args.ssp:
@@ -67,20 +75,23 @@ def run(args) -> int:
             if sim.faults:
                 print(f"fmu-fdi simulate: note: {args.ssp} describes the fault-free system "
                       f"(SSP cannot express the fault scenarios)", file=sys.stderr)
+        result = sim.run(csv=args.output)
     except (CoSimulationError, FileNotFoundError) as exc:
         print(f"fmu-fdi simulate: error: {exc}", file=sys.stderr)
         return 2
-    try:
-        result = sim.run()
     except SimulationFailed as exc:
-        if exc.result is not None:
-            exc.result.to_csv(args.output)
-        rows = 0 if exc.result is None else len(exc.result)
-        print(f"fmu-fdi simulate: {exc} ({rows} rows written to {args.output})", file=sys.stderr)
+        _warn([w for w in exc.warnings if w.split(": ", 1)[-1] not in str(exc)])  # not the failure twice
+        print(f"fmu-fdi simulate: {exc} ({exc.rows_written} rows written to {args.output}, marked incomplete)",
+              file=sys.stderr)
         return 1
-    result.to_csv(args.output)
-    print(f"{len(result)} rows x {len(result.names)} columns written to {args.output}")
+    _warn(result.warnings)
+    print(f"{sim.n_steps + 1} rows x {len(result.names)} columns written to {args.output}")
     return 0
+
+
+def _warn(lines):
+    for line in lines:
+        print(f"fmu-fdi simulate: warning: {line}", file=sys.stderr)
 
 
 def _build(args) -> CoSimulation:

@@ -29,9 +29,14 @@ class SimulationFailed(RuntimeError):
     time : float
         Communication point at which the failing call started.
     result : Result or None
-        Rows from the start time up to the last communication point every FMU completed.
+        Rows from the start time up to the last communication point every FMU completed
+        (None when the run streamed its rows to a CSV: they are there, marked incomplete).
+    rows_written : int or None
+        Rows in that CSV (streamed runs only).
     log : list of str
         The last log messages the failing FMU sent to the master.
+    warnings : list of str
+        Warnings (and worse) every FMU logged during the run, one line per distinct message.
     """
 
     def __init__(self, message: str, *, fmu: str, time: float, log=()):
@@ -40,3 +45,5 @@ class SimulationFailed(RuntimeError):
         self.time = time
         self.log = list(log)
         self.result = None
+        self.rows_written = None
+        self.warnings = []

@@ -33,6 +33,7 @@ _CAST = {"real": float, "integer": int, "boolean": bool, "string": str}
 _INSTANCE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _RESERVED = {"time", "fault"}  # would clash with the Result's own columns
 _LOG_LINES = 20
+_WARNINGS_KEPT = 20  # distinct warning texts kept per FMU (all are counted)
 
 
 def check_instance_name(name) -> str:
@@ -81,6 +82,10 @@ class FMUInstance:
         self.fmi_version = int(md.fmiVersion[0])
         self.variables = {v.name: v for v in md.modelVariables}
         self.log = collections.deque(maxlen=_LOG_LINES)
+        #: warning (and worse) messages of the running instance: text -> [count, first time]
+        self.warnings: dict = {}
+        self.n_warnings = 0
+        self.now = None  # the communication point being processed, to date messages
         self._slave = None
         self._unzipdir = None
         self._status = 0  # worst FMI status returned so far (0 OK ... 4 Fatal)
@@ -132,6 +137,7 @@ class FMUInstance:
 
         self._status = 0
         self.log.clear()
+        self.warnings, self.n_warnings, self.now = {}, 0, start_time
         md = self.model_description
         kwargs = dict(guid=md.guid, unzipDirectory=None, instanceName=self.name,
                       modelIdentifier=md.coSimulation.modelIdentifier)
@@ -166,6 +172,10 @@ class FMUInstance:
         self._slave = FMU2Slave(**kwargs)
         # logging on: the messages only go to the bounded buffer, and they are what explains a failure
         self._slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+        try:  # every category (nCategories = 0): some FMUs send even errors only when asked to
+            self._slave.setDebugLogging(True, [])
+        except Exception:  # optional for an FMU; a refusal is no reason to stop
+            pass
         self._slave.setupExperiment(startTime=start_time, stopTime=stop_time)
         self._write(values, start_time)
         self._slave.enterInitializationMode()
@@ -186,6 +196,7 @@ class FMUInstance:
 
     def do_step(self, time: float, step: float):
         """Advance from ``time`` by ``step``; raise :class:`SimulationFailed` if the FMU refuses."""
+        self.now = time
         try:
             if self.fmi_version == 2:
                 self._slave.doStep(currentCommunicationPoint=time, communicationStepSize=step)
@@ -232,7 +243,7 @@ class FMUInstance:
 
     def _failure(self, what: str, time: float) -> SimulationFailed:
         log = list(self.log)
-        tail = (" Last FMU messages: " + " | ".join(log[-3:])) if log else ""
+        tail = (" Last FMU messages: " + " | ".join(log[-3:])) if log else " The FMU logged no message."
         return SimulationFailed(f"FMU '{self.name}' {what.rstrip('.')}.{tail}", fmu=self.name, time=time,
                                 log=log)
 
@@ -246,7 +257,24 @@ class FMUInstance:
         labels = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
         label = labels[status] if 0 <= status < len(labels) else str(status)
         text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
-        self.log.append(f"[{label}] {text.strip()}")
+        text = " ".join(text.split())  # one line (a Python FMU logs tracebacks over several)
+        self.log.append(f"[{label}] {text}")
+        if status >= 1:  # Warning and worse: kept for the user (see warning_summary)
+            self.n_warnings += 1
+            seen = self.warnings.get(text)
+            if seen is not None:
+                seen[0] += 1
+            elif len(self.warnings) < _WARNINGS_KEPT:
+                self.warnings[text] = [1, self.now]
+
+    def warning_summary(self) -> list:
+        """One line per distinct warning message: ``FMU 'name' at t=...: text (N times)``."""
+        lines = [f"FMU '{self.name}'" + (f" at t={t:g}" if t is not None else "") + f": {text}"
+                 + (f" ({count} times)" if count > 1 else "") for text, (count, t) in self.warnings.items()]
+        kept = sum(c for c, _ in self.warnings.values())
+        if self.n_warnings > kept:
+            lines.append(f"FMU '{self.name}': {self.n_warnings - kept} more warnings with other texts")
+        return lines
 
 
 class Accessor:

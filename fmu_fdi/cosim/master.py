@@ -25,10 +25,11 @@ from __future__ import annotations
 import contextlib
 import math
 
+from ..progress import note
 from .errors import CoSimulationError, SimulationFailed
 from .faults import Fault, FaultChannel
 from .instance import FMUInstance
-from .result import Result
+from .result import CsvWriter, Result
 from .signals import InputSignals
 from .wiring import wire
 
@@ -111,8 +112,26 @@ class CoSimulation:
         self._wiring = wire(self.fmus, connections, self.inputs.names if self.inputs else (),
                             self.faults, self.parameters, self.start)
         self.connections = [(f"{a}.{b}", f"{c}.{d}") for a, b, c, d in self._wiring.connections]
-        n = round((self.stop - self.start) / self.step)
-        self.times = [self.start + k * self.step for k in range(n + 1)]
+        #: number of communication steps N (the grid has N + 1 points)
+        self.n_steps = round((self.stop - self.start) / self.step)
+        for f in self.faults:
+            slack = 1e-9 * max(1.0, abs(self.start), abs(self.stop))
+            if f.onset < self.start - slack:
+                raise CoSimulationError(f"fault {f.name}: onset {f.onset:g} is before the start time {self.start:g}")
+            if f.onset > self.stop + slack:
+                raise CoSimulationError(f"fault {f.name}: onset {f.onset:g} is after the stop time {self.stop:g}, "
+                                        f"so it would never act")
+        #: warnings (and worse) the FMUs logged in the last run, one line per distinct message
+        self.warnings: list[str] = []
+
+    @property
+    def times(self) -> list:
+        """The communication points ``start + k·step``, k = 0 … N (built on request)."""
+        return [self.time(k) for k in range(self.n_steps + 1)]
+
+    def time(self, k: int) -> float:
+        """Communication point k."""
+        return self.start + k * self.step
 
     # -- running ---------------------------------------------------------------------------------
 
@@ -125,36 +144,103 @@ class CoSimulation:
             cols += [(f"fault.{f.name}", "real"), (f"fault.{f.name}.active", "boolean")]
         return cols
 
-    def run(self) -> Result:
+    def run(self, csv=None, *, chunk_rows: int = 4096, max_memory: float = 2**30):
         """Instantiate, initialise and step all FMUs from start to stop; record every row.
+
+        Parameters
+        ----------
+        csv : path, optional
+            Stream the rows to this CSV (format of :meth:`Result.to_csv`) in chunks of
+            ``chunk_rows``, so a run of any length needs bounded memory. The file is created
+            before any FMU starts (an unwritable path is a :class:`CoSimulationError`); if
+            the run stops early its last line is ``# incomplete: <why>``.
+        max_memory : float
+            Without ``csv``, the result is kept in memory; a run whose result would need
+            more bytes than this is refused before it starts (use ``csv``).
 
         Returns
         -------
         Result
-            One row per communication point (columns in :mod:`fmu_fdi.cosim.result`).
+            Without ``csv``: one row per communication point (columns in
+            :mod:`fmu_fdi.cosim.result`). With ``csv``: the last rows written (at most
+            ``chunk_rows``). Either way ``result.warnings`` (also :attr:`warnings`) lists the
+            warnings the FMUs logged.
 
         Raises
         ------
         SimulationFailed
             If an FMU fails to initialise or its ``doStep`` returns Discard/Error/Fatal (or, in
-            FMI 3, asks to terminate). The message names the FMU and the time; the rows
-            completed so far are in the exception's ``result``. The FMUs are always freed.
+            FMI 3, asks to terminate). The message names the FMU and the time and ends with the
+            FMU's last messages; the rows completed so far are in the exception's ``result``
+            (without ``csv``) or in the CSV, marked incomplete. The FMUs are always freed.
         """
         cols = self.columns()
-        result = Result.empty([c for c, _ in cols], [k for _, k in cols], len(self.times))
-        run = _Run(self)
-        row = 0
-        with contextlib.ExitStack() as stack:
+        names, kinds = [c for c, _ in cols], [k for _, k in cols]
+        rows = self.n_steps + 1
+        writer = None
+        if csv is not None:
             try:
-                run.start(stack)
-                run.record(result, 0, self.times[0])
-                for row in range(1, len(self.times)):
-                    run.advance(self.times[row - 1], self.times[row])
-                    run.record(result, row, self.times[row])
-                row += 1
-            except SimulationFailed as exc:
-                exc.result = result[:row]
-                raise
+                writer = CsvWriter(csv, names)
+            except OSError as exc:
+                raise CoSimulationError(f"cannot write the result to {csv}: {exc.strerror or exc}") from None
+            buf = Result.empty(names, kinds, min(rows, max(1, int(chunk_rows))))
+        else:
+            need = rows * Result.empty(names, kinds, 0).itemsize
+            if need > max_memory:
+                raise CoSimulationError(f"the result of {rows} rows x {len(names)} columns would need "
+                                        f"{need / 2**30:.3g} GiB in memory; stream it to a file instead "
+                                        f"(run(csv=...), or fmu-fdi simulate -o OUT.csv)")
+            buf = Result.empty(names, kinds, rows)
+        run = _Run(self)
+        done = 0     # rows recorded (in buf since the last flush, or in total without csv)
+        flushed = 0  # rows written to the CSV
+        self.warnings = []
+
+        def flush():
+            nonlocal done, flushed
+            if writer is not None and done:
+                writer.write(buf[:done])
+                flushed += done
+                done = 0
+
+        completed = False
+        try:
+            with contextlib.ExitStack() as stack:
+                try:
+                    run.start(stack)
+                    for k in range(rows):
+                        if k:
+                            run.advance(self.time(k - 1), self.time(k))
+                        if done == len(buf) or not k % 1024:
+                            note(f"co-simulation at t = {self.time(k):g} s of {self.stop:g} s (row {k} of {rows})")
+                        if writer is not None and done == len(buf):
+                            flush()
+                        run.record(buf, done, self.time(k))
+                        done += 1
+                    completed = True
+                finally:
+                    self.warnings = [line for fmu in self.fmus.values() for line in fmu.warning_summary()]
+        except SimulationFailed as exc:
+            exc.warnings = self.warnings
+            if writer is not None:
+                flush()
+                writer.close(f"the run stopped after {flushed} of {rows} rows: {exc}")
+                exc.result = None
+                exc.rows_written = flushed
+            else:
+                exc.result = buf[:done]
+            raise
+        finally:
+            if writer is not None:
+                if completed:
+                    tail = done  # the last rows stay in buf: they are what run() returns
+                    flush()
+                    writer.close()
+                else:  # an interruption other than SimulationFailed (already closed above)
+                    flush()
+                    writer.close(f"the run stopped after {flushed} of {rows} rows (interrupted)")
+        result = buf[:tail] if writer is not None else buf
+        result.warnings = self.warnings
         return result
 
     def export_ssp(self, path, *, drop_faults: bool = False):

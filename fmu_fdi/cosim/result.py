@@ -10,6 +10,7 @@ the faulty minus the nominal value of its target, i.e. the true additive fault s
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import numpy as np
@@ -52,33 +53,83 @@ class Result(np.ndarray):
     def to_csv(self, path) -> Path:
         """Write the FMI cross-check CSV style: a header ``"time","var1",...`` then one row per
         time; floats in the shortest form that reads back exactly, Booleans as 0/1."""
-        path = Path(path)
+        with CsvWriter(path, self.names) as w:
+            w.write(self)
+        return Path(path)
+
+    @classmethod
+    def from_csv(cls, path) -> "Result":
+        """Read a CSV written by :meth:`to_csv`, by :class:`CsvWriter` or by ``fmpy simulate``
+        (Booleans as True/False); every column comes back as float64. Comment lines
+        (``# incomplete: ...``) are skipped."""
+        from .._schema import read_text
+        from .errors import CoSimulationError
+
+        text = read_text(path, "CSV file", CoSimulationError)  # missing, binary, UTF-16: one line
+        try:
+            rows = [r for r in csv.reader(io.StringIO(text, newline="")) if r and not r[0].lstrip().startswith("#")]
+        except csv.Error as exc:
+            raise CoSimulationError(f"{path}: not a valid CSV file: {exc}") from None
+        if not rows:
+            raise CoSimulationError(f"{path}: the file is empty (no header line)")
+        names = [h.strip().strip('"') for h in rows[0]]
+        if "time" not in names:
+            raise CoSimulationError(f"{path}: no 'time' column in the header {names[:8]}")
+        for i, r in enumerate(rows[1:], start=2):
+            if len(r) != len(names):
+                raise CoSimulationError(f"{path}: row {i} has {len(r)} fields for {len(names)} columns")
+        try:
+            data = np.array([[_number(x) for x in r] for r in rows[1:]], dtype=float).reshape(-1, len(names))
+        except ValueError as exc:
+            raise CoSimulationError(f"{path}: a value is not a number: {exc}") from None
+        out = np.zeros(len(data), dtype=[(n, np.float64) for n in names])
+        for j, n in enumerate(names):
+            out[n] = data[:, j]
+        return cls(out)
+
+
+class CsvWriter:
+    """Writes result rows to a CSV as they come, so a run of any length needs bounded memory.
+
+    The file is opened (and its header written) on construction: an unwritable path fails
+    before anything runs. Rows are structured arrays (chunks of a :class:`Result`). If the
+    writer is closed with a ``reason`` (or left by an exception), a last line
+    ``# incomplete: <reason>`` says that the rows stop early and why; readers that honour
+    ``#`` comments (numpy, fmpy, :meth:`Result.from_csv`) skip it, others see a short row.
+    """
+
+    def __init__(self, path, names):
+        self.path = Path(path)
+        self.names = tuple(names)
+        self.rows = 0
+        self._file = open(self.path, "w", newline="")  # OSError names the path and the reason
+        self._file.write(",".join(f'"{n}"' for n in self.names) + "\n")
+
+    def write(self, rows) -> None:
         columns = []
         for name in self.names:
-            col = self[name]
+            col = rows[name]
             if col.dtype == np.bool_:
                 columns.append(["1" if v else "0" for v in col.tolist()])
             elif np.issubdtype(col.dtype, np.integer):
                 columns.append([str(v) for v in col.tolist()])
             else:
                 columns.append([repr(v) for v in col.tolist()])
-        with open(path, "w", newline="") as f:
-            f.write(",".join(f'"{n}"' for n in self.names) + "\n")
-            f.writelines(",".join(row) + "\n" for row in zip(*columns))
-        return path
+        self._file.writelines(",".join(row) + "\n" for row in zip(*columns))
+        self.rows += len(rows)
 
-    @classmethod
-    def from_csv(cls, path) -> "Result":
-        """Read a CSV written by :meth:`to_csv` or by ``fmpy simulate`` (Booleans as
-        True/False); every column comes back as float64."""
-        with open(path, newline="") as f:
-            rows = list(csv.reader(f))
-        names = [h.strip().strip('"') for h in rows[0]]
-        data = np.array([[_number(x) for x in r] for r in rows[1:] if r], dtype=float).reshape(-1, len(names))
-        out = np.zeros(len(data), dtype=[(n, np.float64) for n in names])
-        for j, n in enumerate(names):
-            out[n] = data[:, j]
-        return cls(out)
+    def close(self, reason: str | None = None) -> None:
+        if self._file.closed:
+            return
+        if reason is not None:
+            self._file.write("# incomplete: " + " ".join(str(reason).split()) + "\n")
+        self._file.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        self.close(None if kind is None else f"interrupted by {kind.__name__}: {exc}")
 
 
 def _number(text: str) -> float:

@@ -17,6 +17,7 @@ cross-check files: ``"time","Q1","Q2"``), a column named ``time``, and one row p
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import numpy as np
@@ -67,8 +68,13 @@ class InputSignals:
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"input CSV: no such file {str(path)!r}")
-        with open(path, newline="") as f:
-            rows = [r for r in csv.reader(f) if r and any(cell.strip() for cell in r)]
+        from .._schema import read_text
+
+        text = read_text(path, "CSV file", CoSimulationError)  # one line for binary/UTF-16/FMU files
+        try:
+            rows = [r for r in csv.reader(io.StringIO(text, newline="")) if r and any(cell.strip() for cell in r)]
+        except csv.Error as exc:
+            raise CoSimulationError(f"input CSV {path}: {exc}") from None
         if not rows:
             raise CoSimulationError(f"input CSV {path}: the file is empty")
         header = [h.strip().strip('"') for h in rows[0]]

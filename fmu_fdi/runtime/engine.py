@@ -25,6 +25,7 @@ import math
 import numpy as np
 
 from .decision import Decision
+from .design_check import check_design
 from .evaluation import MONOTONE, Evaluator
 from .expm import zoh
 from .generators import make_generator
@@ -100,8 +101,7 @@ class DiagnoserRuntime:
     """Per-sample diagnosis from a design dict (numpy only); semantics: docs/semantics.md."""
 
     def __init__(self, design: dict):
-        if design.get("format") != FORMAT:
-            raise ValueError(f"design format must be {FORMAT!r}, got {design.get('format')!r}")
+        check_design(design)  # the one validation every entry point shares (raises DesignCheckError)
         sig = design["signals"]
         self.u_names, self.y_names = list(sig["u"]), list(sig["y"])
         self.nu, self.ny = len(self.u_names), len(self.y_names)

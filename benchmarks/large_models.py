@@ -1,0 +1,84 @@
+"""Cost of analysis and design for large models (issue 12 item 7), stage by stage.
+
+For random stable plants with n states (2 inputs, 4 sensors, 4 sensor faults and one
+actuator fault) it times each stage the CLI runs, and prints it both in seconds and as a
+ratio to one dense eigenvalue problem of size n (``numpy.linalg.eigvals(A)``, measured in
+the same run): that ratio is the machine-independent cost (the stages are sums of O(n³)
+dense factorisations), so the seconds for another n or machine follow from one
+eigenvalue timing.
+
+    python benchmarks/large_models.py [n ...]        (default: 50 100 200)
+
+BLAS runs single-threaded unless OPENBLAS_NUM_THREADS is set: on a loaded machine the
+threaded BLAS was 100-300x slower for these sizes (eigvals of 100 x 100: 2.7 ms with one
+thread, 741 ms with two threads on 2 busy cores), which would hide the scaling.
+"""
+from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import sys  # noqa: E402
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np  # noqa: E402
+
+
+def plant(n: int, seed: int = 1):
+    from fmu_fdi import FDIModel, actuator_fault, sensor_fault
+
+    rng = np.random.default_rng(seed)
+    A = -2 * np.eye(n) + rng.standard_normal((n, n)) / np.sqrt(n)  # spectrum in the disc |s + 2| <~ 1
+    B, C = rng.standard_normal((n, 2)), rng.standard_normal((4, n))
+    return FDIModel.from_matrices(A, B, C, u_names=["u1", "u2"], y_names=[f"y{i}" for i in range(4)],
+                                  faults=[sensor_fault(f"s{i}", f"y{i}") for i in range(4)]
+                                  + [actuator_fault("a1", "u1")], name=f"random{n}")
+
+
+def timed(fn, *args, **kw):
+    t0 = time.perf_counter()
+    out = fn(*args, **kw)
+    return out, time.perf_counter() - t0
+
+
+def measure(n: int) -> dict:
+    from fmu_fdi import Diagnoser, FDIModel
+    from fmu_fdi.analysis import detectability, isolability
+    from fmu_fdi.design.nullspace import nullspace_design
+    from fmu_fdi.fmu.builder import build_fmu
+
+    m = plant(n)
+    base = min(timed(np.linalg.eigvals, m.A)[1] for _ in range(3))
+    out = {"eigvals (unit)": base}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = m.to_file(Path(tmp) / "m.toml")
+        m, out["read model file"] = timed(FDIModel.from_file, path)
+        _, out["detectability"] = timed(detectability, m)
+        _, out["isolability"] = timed(isolability, m)
+        gen, out["nullspace design"] = timed(nullspace_design, m)
+        gen, out["discretise (Ts = 0.1)"] = timed(gen.to_discrete, 0.1)
+        dg, out["diagnoser (validate)"] = timed(Diagnoser, gen, thresholds=1.0)
+        _, out["save design file"] = timed(dg.save, Path(tmp) / "d.json")
+        _, out["load design file"] = timed(Diagnoser.load, Path(tmp) / "d.json")
+        _, out["build FMU"] = timed(build_fmu, Path(tmp) / "d.json", Path(tmp) / "d.fmu")
+    return out
+
+
+def main(sizes):
+    for n in sizes:
+        res = measure(n)
+        base = res["eigvals (unit)"]
+        print(f"n = {n}: one eigvals(A) = {base * 1e3:.3g} ms")
+        for stage, t in res.items():
+            if stage != "eigvals (unit)":
+                print(f"  {stage:<24} {t:9.3f} s   {t / base:9.1f} x eigvals")
+        total = sum(t for k, t in res.items() if k != "eigvals (unit)")
+        print(f"  {'total':<24} {total:9.3f} s   {total / base:9.1f} x eigvals", flush=True)
+
+
+if __name__ == "__main__":
+    main([int(a) for a in sys.argv[1:]] or [50, 100, 200])
