@@ -13,6 +13,9 @@
 #include "fdi_design.h"
 
 typedef long long fdi_int;
+/* Counters in a state image are below this (they grow by one per sample: never reached, and an
+ * image claiming more is refused rather than overflowing). */
+#define FDI_COUNTER_MAX (1LL << 62)
 
 /* Bump allocator over the instance block; with base == NULL it only counts. */
 typedef struct {

@@ -491,7 +491,8 @@ static int state_sane(fdi_runtime *rt)
 {
     const fdi_plan *pl = &rt->plan[rt->cur];
     long g;
-    if (*rt->n_samples < 0 || *rt->n_numeric_resets < 0 || !(*rt->scale >= 0.0))
+    if (*rt->n_samples < 0 || *rt->n_samples >= FDI_COUNTER_MAX || *rt->n_numeric_resets < 0 ||
+        *rt->n_numeric_resets >= FDI_COUNTER_MAX || !(*rt->scale >= 0.0))
         return 0;
     for (g = 0; g < rt->d->n_groups; g++)
         if (!fdi_evaluator_check(&rt->ev[g], &pl->ev[g]) || !fdi_threshold_check(&rt->th[g], &pl->thev[g]))
