@@ -120,7 +120,6 @@ typedef struct {
     double h;               /* communication step this plan serves */
     fdi_int substeps;
     double ratio;           /* effective sample time / Ts (1: the design's own) */
-    int native;             /* 1: the design's discrete generator */
     const double *M;        /* [[C, D], [A, B]] of the generator used */
     long n_x;
     double *Mbuf;           /* own M (re-discretised plans) */

@@ -186,7 +186,6 @@ static int make_plan(fdi_runtime *rt, double h, fdi_plan *pl, char *why, size_t 
     if (k >= 1.0 && fabs(ratio - k) <= STEP_RTOL * k) {
         pl->substeps = (fdi_int)k;
         pl->ratio = 1.0;
-        pl->native = 1;
         pl->n_x = d->gen_kind == FDI_GEN_LTI ? d->n_x : 0;
         pl->M = d->M;
         for (g = 0; g < d->n_groups; g++) {
@@ -253,7 +252,6 @@ static int make_plan(fdi_runtime *rt, double h, fdi_plan *pl, char *why, size_t 
     }
     pl->substeps = 1;
     pl->ratio = ratio;
-    pl->native = 0;
     pl->n_x = d->n_xc;
     pl->M = pl->Mbuf;
     return 1;
