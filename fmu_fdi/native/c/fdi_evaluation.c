@@ -86,7 +86,7 @@ int fdi_evaluator_check(const fdi_evaluator *e, const fdi_eval_def *def)
     case FDI_EV_CHI2:
         return n <= e->cap && i[0] >= 0 && i[0] < n && i[1] >= 0 && i[1] <= n && i[2] == 0;
     case FDI_EV_PEAK:
-        return n <= e->cap && i[0] >= 0 && i[0] <= n && i[1] >= 0 && i[1] <= n && i[2] >= 0;
+        return n <= e->cap && i[0] >= 0 && i[0] <= n && i[1] >= 0 && i[1] <= n && i[2] >= 0 && i[2] < FDI_COUNTER_MAX;
     case FDI_EV_GLR:
         return n <= e->cap && i[0] >= 0 && i[0] < n && i[1] >= 0 && i[1] <= n && i[2] == 0;
     default:

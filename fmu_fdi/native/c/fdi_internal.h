@@ -13,6 +13,9 @@
 #include "fdi_design.h"
 
 typedef long long fdi_int;
+/* Counters in a state image are below this (they grow by one per sample: never reached, and an
+ * image claiming more is refused rather than overflowing). */
+#define FDI_COUNTER_MAX (1LL << 62)
 
 /* Bump allocator over the instance block; with base == NULL it only counts. */
 typedef struct {
@@ -117,7 +120,6 @@ typedef struct {
     double h;               /* communication step this plan serves */
     fdi_int substeps;
     double ratio;           /* effective sample time / Ts (1: the design's own) */
-    int native;             /* 1: the design's discrete generator */
     const double *M;        /* [[C, D], [A, B]] of the generator used */
     long n_x;
     double *Mbuf;           /* own M (re-discretised plans) */

@@ -73,10 +73,11 @@ void fdi_rls_reset(fdi_rls *g)
 int fdi_rls_check(const fdi_rls *g)
 {
     long e;
-    if (*g->k < 0)
+    if (*g->k < 0 || *g->k >= FDI_COUNTER_MAX)
         return 0;
     for (e = 0; e < g->d->rls_n_est; e++)
-        if (*g->updates[e] < 0 || *g->resets[e] < 0)
+        if (*g->updates[e] < 0 || *g->resets[e] < 0 || *g->updates[e] >= FDI_COUNTER_MAX ||
+            *g->resets[e] >= FDI_COUNTER_MAX)
             return 0;
     return 1;
 }

@@ -186,7 +186,6 @@ static int make_plan(fdi_runtime *rt, double h, fdi_plan *pl, char *why, size_t 
     if (k >= 1.0 && fabs(ratio - k) <= STEP_RTOL * k) {
         pl->substeps = (fdi_int)k;
         pl->ratio = 1.0;
-        pl->native = 1;
         pl->n_x = d->gen_kind == FDI_GEN_LTI ? d->n_x : 0;
         pl->M = d->M;
         for (g = 0; g < d->n_groups; g++) {
@@ -253,7 +252,6 @@ static int make_plan(fdi_runtime *rt, double h, fdi_plan *pl, char *why, size_t 
     }
     pl->substeps = 1;
     pl->ratio = ratio;
-    pl->native = 0;
     pl->n_x = d->n_xc;
     pl->M = pl->Mbuf;
     return 1;
@@ -491,7 +489,8 @@ static int state_sane(fdi_runtime *rt)
 {
     const fdi_plan *pl = &rt->plan[rt->cur];
     long g;
-    if (*rt->n_samples < 0 || *rt->n_numeric_resets < 0 || !(*rt->scale >= 0.0))
+    if (*rt->n_samples < 0 || *rt->n_samples >= FDI_COUNTER_MAX || *rt->n_numeric_resets < 0 ||
+        *rt->n_numeric_resets >= FDI_COUNTER_MAX || !(*rt->scale >= 0.0))
         return 0;
     for (g = 0; g < rt->d->n_groups; g++)
         if (!fdi_evaluator_check(&rt->ev[g], &pl->ev[g]) || !fdi_threshold_check(&rt->th[g], &pl->thev[g]))
