@@ -1,0 +1,197 @@
+"""PO-MOESP subspace identification (Verhaegen 1994; Verhaegen & Verdult 2007, ch. 9).
+
+From N samples of inputs u (m) and outputs y (p) of
+
+    x(k+1) = A x(k) + B u(k),    y(k) = C x(k) + D u(k) + v(k),
+
+build block Hankel matrices with s block rows of the past (U_p, Y_p) and of the future
+(U_f, Y_f) and the LQ factorisation
+
+    [U_f; Z_p; Y_f] = [L11 0 0; L21 L22 0; L31 L32 L33] Q,   Z_p = [U_p; Y_p].
+
+``Y_f = O_s X_f + H_s U_f + V_f``: the past data Z_p is an instrument uncorrelated with
+white output noise, so the column space of L32 is the extended observability matrix O_s.
+
+- Order: the singular values σ_i of L32; n is the largest gap log(σ_i/σ_{i+1}) among the
+  values above ``rtol·σ_1`` (the numerical floor; noise raises the tail evenly).
+- A, C: shift invariance of O_s = U_1 Σ_1^(1/2): C = O_s[:p], A = O_s[:-p]^+ O_s[p:].
+- B, D: with O_s^⊥ = U_2^T (left null space), O_s^⊥ Y_f = O_s^⊥ H_s U_f, i.e.
+  O_s^⊥ L31 L11^{-1} = O_s^⊥ H_s, linear in (D, B) (Verhaegen & Dewilde 1992): solved by
+  least squares. No simulation is involved, so open-loop unstable plants identified from
+  closed-loop data (noise-free) come out right too.
+
+The continuous-time model is the exact inverse of the zero-order hold (matrix logarithm
+of [[A, B], [0, I]]); it exists when no eigenvalue of A is on the closed negative real axis.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+
+from .errors import IdentificationError
+
+
+@dataclass
+class SubspaceModel:
+    """A discrete-time model identified from data, with what the order decision saw.
+
+    Attributes
+    ----------
+    A, B, C, D : ndarray
+        Discrete-time matrices (sample time ``dt``).
+    dt : float
+    singular_values : ndarray
+        σ_i of the projected data (the order was read from them).
+    order : int
+    block_rows : int
+        s, the number of block rows of the past and of the future.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    dt: float
+    singular_values: np.ndarray
+    order: int
+    block_rows: int
+    info: dict = field(default_factory=dict)
+
+    def to_continuous(self):
+        """``(Ac, Bc, C, D)``: the continuous model whose ZOH sampling is this one."""
+        n, m = self.B.shape
+        M = np.zeros((n + m, n + m))
+        M[:n, :n], M[:n, n:], M[n:, n:] = self.A, self.B, np.eye(m)
+        ev = np.linalg.eigvals(self.A)
+        bad = ev[(np.abs(ev.imag) <= 1e-9 * np.maximum(1.0, np.abs(ev))) & (ev.real <= 0)]
+        if bad.size:
+            raise IdentificationError(
+                f"the identified discrete model has eigenvalue(s) {np.round(bad.real, 6).tolist()} on the "
+                f"negative real axis: no continuous model samples to it; choose a smaller sample time "
+                f"--ts or a lower order")
+        L = sla.logm(M) / self.dt
+        L = L.real if np.iscomplexobj(L) else L
+        return L[:n, :n], L[:n, n:], self.C.copy(), self.D.copy()
+
+    def simulate(self, u, x0=None) -> np.ndarray:
+        """Outputs for inputs u (N×m) from x0 (default 0)."""
+        u = np.asarray(u, float).reshape(len(u), -1)
+        x = np.zeros(self.A.shape[0]) if x0 is None else np.asarray(x0, float)
+        y = np.empty((len(u), self.C.shape[0]))
+        for k in range(len(u)):
+            y[k] = self.C @ x + self.D @ u[k]
+            x = self.A @ x + self.B @ u[k]
+        return y
+
+
+def block_hankel(w: np.ndarray, start: int, rows: int, cols: int) -> np.ndarray:
+    """Block Hankel matrix with block (i, j) = w[start + i + j] (column vector), rows·dim × cols."""
+    d = w.shape[1]
+    H = np.empty((rows * d, cols))
+    for i in range(rows):
+        H[i * d:(i + 1) * d] = w[start + i:start + i + cols].T
+    return H
+
+
+def moesp(u, y, dt: float, order: int | None = None, *, block_rows: int | None = None, max_order: int = 10,
+          rtol: float = 1e-9, feedthrough: bool = True) -> SubspaceModel:
+    """Identify a discrete state-space model by PO-MOESP (module docstring).
+
+    Parameters
+    ----------
+    u, y : array_like, shape (N, m) and (N, p)
+        Input and output samples (deviations from the operating point).
+    dt : float
+        Sample time.
+    order : int, optional
+        Model order; default chosen from the singular values.
+    block_rows : int, optional
+        s (default ``max(order or max_order, 1) + 1``); the order is at most s·p − 1.
+    max_order : int
+        Largest order considered when choosing it.
+    rtol : float
+        Singular values below ``rtol·σ_1`` are the numerical floor (not states).
+    feedthrough : bool
+        Estimate D; False fixes D = 0 (a record whose y_k is read before u_k acts, as from a
+        co-simulation master, has no feedthrough).
+
+    Raises
+    ------
+    IdentificationError
+        Too little data for the block rows (with the numbers), input not persistently
+        exciting, or no state seen.
+    """
+    u = np.asarray(u, float)
+    y = np.asarray(y, float)
+    u = u.reshape(len(u), -1)
+    y = y.reshape(len(y), -1)
+    N, m = u.shape
+    p = y.shape[1]
+    if len(y) != N:
+        raise IdentificationError(f"u has {N} samples but y has {len(y)}")
+    if order is not None and (int(order) != order or order < 1):
+        raise IdentificationError(f"order must be a positive integer, got {order!r}")
+    s = int(block_rows or max(order or max_order, 1) + 1)
+    if order is not None and order > s * p - 1:
+        raise IdentificationError(f"order {order} needs more block rows: at most s·p − 1 = {s * p - 1} with s = {s}")
+    rows = 2 * s * (m + p)
+    j = N - 2 * s + 1
+    if j < 2 * rows:
+        need = 2 * rows + 2 * s - 1
+        raise IdentificationError(
+            f"too little data for order {order or max_order}: {N} samples give {max(j, 0)} Hankel columns for "
+            f"{rows} rows (s = {s} block rows, m = {m}, p = {p}); record at least {need} samples or lower the order")
+    # each channel scaled to unit RMS so that the LQ and the order decision weigh them alike
+    su = np.sqrt(np.mean(u * u, axis=0))
+    sy = np.sqrt(np.mean(y * y, axis=0))
+    for name, sc in (("input", su), ("output", sy)):
+        if np.any(sc == 0):
+            raise IdentificationError(f"{name} channel(s) {np.flatnonzero(sc == 0).tolist()} are identically zero "
+                                      f"in the record: nothing to identify from them")
+    u, y = u / su, y / sy
+    Up = block_hankel(u, 0, s, j)
+    Uf = block_hankel(u, s, s, j)
+    Yp = block_hankel(y, 0, s, j)
+    Yf = block_hankel(y, s, s, j)
+    R = sla.qr(np.vstack([Uf, Up, Yp, Yf]).T, mode="r")[0][: rows].T  # L = R^T, lower triangular
+    sm, sz = s * m, s * (m + p)
+    L11, L31, L32 = R[:sm, :sm], R[sm + sz:, :sm], R[sm + sz:, sm:sm + sz]
+    sv_u = np.abs(np.diag(L11))
+    if sv_u.size and sv_u.min() <= 1e-10 * sv_u.max():
+        raise IdentificationError(
+            "the input is not persistently exciting of order 2s: the future inputs are (nearly) linearly "
+            f"dependent (min/max |diag L11| = {sv_u.min() / sv_u.max():.2g}); excite every input with a richer "
+            "signal (multisine or PRBS) or lower the order")
+    U, sv, _ = sla.svd(L32, full_matrices=True)
+    if sv[0] <= 0:
+        raise IdentificationError("the outputs do not depend on the past data: no state is seen")
+    if order is None:
+        cands = int(min(max_order, s * p - 1, np.sum(sv > rtol * sv[0])))
+        if cands < 1:
+            raise IdentificationError("no singular value above the numerical floor: no state is seen")
+        tail = sv[1:cands + 1]
+        gaps = np.log(sv[:cands] / np.maximum(tail, rtol * sv[0]))
+        n = int(np.argmax(gaps)) + 1
+    else:
+        n = int(order)
+    Os = U[:, :n] * np.sqrt(sv[:n])
+    C = Os[:p]
+    A = np.linalg.lstsq(Os[:-p], Os[p:], rcond=None)[0]
+    Uperp = U[:, n:].T  # left null space of O_s
+    M = sla.solve_triangular(L11.T, (Uperp @ L31).T, lower=False).T  # Uperp L31 L11^{-1}
+    # M[:, block i] = Lk_i D + (sum_{k>i} Lk_k C A^{k-i-1}) B, Lk_k = Uperp[:, k-block]
+    Lk = [Uperp[:, k * p:(k + 1) * p] for k in range(s)]
+    lhs, rhs = [], []
+    for i in range(s):
+        acc = np.zeros((Uperp.shape[0], n))
+        for k in range(i + 1, s):
+            acc += Lk[k] @ Os[(k - i - 1) * p:(k - i) * p]
+        lhs.append(np.hstack([Lk[i], acc]) if feedthrough else acc)
+        rhs.append(M[:, i * m:(i + 1) * m])
+    DB = np.linalg.lstsq(np.vstack(lhs), np.vstack(rhs), rcond=None)[0]
+    D, B = (DB[:p], DB[p:]) if feedthrough else (np.zeros((p, m)), DB)
+    C, D, B = sy[:, None] * C, sy[:, None] * D / su, B / su
+    return SubspaceModel(A, B, C, D, float(dt), sv[: min(len(sv), max_order + 1)], n, s,
+                         info={"samples": N})
