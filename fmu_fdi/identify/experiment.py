@@ -242,7 +242,8 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
 
 def _check_settled(path, res, outputs, n_settle, y, settle):
     """The outputs' drift over the last quarter of settling (least-squares slope times its
-    duration, so measurement noise averages out) is small next to their excitation."""
+    duration) is below 5 % of their spread during the excitation, or within 3 standard
+    deviations of what measurement noise alone gives the fitted drift."""
     if n_settle < 8:
         return
     q = n_settle // 4
@@ -250,9 +251,12 @@ def _check_settled(path, res, outputs, n_settle, y, settle):
     k -= k.mean()
     for j, nm in enumerate(outputs):
         tail = np.asarray(res[f"plant.{nm}"], float)[n_settle - q + 1:n_settle + 1]
-        drift = abs(float(k @ (tail - tail.mean()) / (k @ k))) * q
+        slope = float(k @ (tail - tail.mean()) / (k @ k))
+        drift = abs(slope) * q
+        # 3 standard deviations of the fitted drift for white noise of the residual's size
+        noise = float(np.std(tail - tail.mean() - slope * k)) * np.sqrt(12.0 / q) * 3.0
         spread = float(np.std(y[:, j]))
-        if spread > 0 and drift > 0.05 * spread:
+        if spread > 0 and drift > max(0.05 * spread, noise):
             raise IdentificationError(
                 f"{path}: output {nm!r} was still moving at the end of settling ({drift:.3g} over the last "
                 f"{q} steps, vs an excitation response of std {spread:.3g}): settle longer (settle > {settle:g} s) "
