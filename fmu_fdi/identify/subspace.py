@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
+from ..design.datadriven import order_from_singular_values, past_future_lq
 from .errors import IdentificationError
 
 
@@ -86,15 +87,6 @@ class SubspaceModel:
         return y
 
 
-def block_hankel(w: np.ndarray, start: int, rows: int, cols: int) -> np.ndarray:
-    """Block Hankel matrix with block (i, j) = w[start + i + j] (column vector), rows·dim × cols."""
-    d = w.shape[1]
-    H = np.empty((rows * d, cols))
-    for i in range(rows):
-        H[i * d:(i + 1) * d] = w[start + i:start + i + cols].T
-    return H
-
-
 def moesp(u, y, dt: float, order: int | None = None, *, block_rows: int | None = None, max_order: int = 10,
           rtol: float = 1e-9, feedthrough: bool = True) -> SubspaceModel:
     """Identify a discrete state-space model by PO-MOESP (module docstring).
@@ -136,13 +128,6 @@ def moesp(u, y, dt: float, order: int | None = None, *, block_rows: int | None =
     s = int(block_rows or max(order or max_order, 1) + 1)
     if order is not None and order > s * p - 1:
         raise IdentificationError(f"order {order} needs more block rows: at most s·p − 1 = {s * p - 1} with s = {s}")
-    rows = 2 * s * (m + p)
-    j = N - 2 * s + 1
-    if j < 2 * rows:
-        need = 2 * rows + 2 * s - 1
-        raise IdentificationError(
-            f"too little data for order {order or max_order}: {N} samples give {max(j, 0)} Hankel columns for "
-            f"{rows} rows (s = {s} block rows, m = {m}, p = {p}); record at least {need} samples or lower the order")
     # each channel scaled to unit RMS so that the LQ and the order decision weigh them alike
     su = np.sqrt(np.mean(u * u, axis=0))
     sy = np.sqrt(np.mean(y * y, axis=0))
@@ -151,31 +136,14 @@ def moesp(u, y, dt: float, order: int | None = None, *, block_rows: int | None =
             raise IdentificationError(f"{name} channel(s) {np.flatnonzero(sc == 0).tolist()} are identically zero "
                                       f"in the record: nothing to identify from them")
     u, y = u / su, y / sy
-    Up = block_hankel(u, 0, s, j)
-    Uf = block_hankel(u, s, s, j)
-    Yp = block_hankel(y, 0, s, j)
-    Yf = block_hankel(y, s, s, j)
-    R = sla.qr(np.vstack([Uf, Up, Yp, Yf]).T, mode="r")[0][: rows].T  # L = R^T, lower triangular
-    sm, sz = s * m, s * (m + p)
-    L11, L31, L32 = R[:sm, :sm], R[sm + sz:, :sm], R[sm + sz:, sm:sm + sz]
-    sv_u = np.abs(np.diag(L11))
-    if sv_u.size and sv_u.min() <= 1e-10 * sv_u.max():
-        raise IdentificationError(
-            "the input is not persistently exciting of order 2s: the future inputs are (nearly) linearly "
-            f"dependent (min/max |diag L11| = {sv_u.min() / sv_u.max():.2g}); excite every input with a richer "
-            "signal (multisine or PRBS) or lower the order")
+    try:
+        L11, L31, L32 = past_future_lq(u, y, s, IdentificationError)
+    except IdentificationError as exc:
+        raise IdentificationError(str(exc).replace("too little data", f"too little data for order {order or max_order}")) from None
     U, sv, _ = sla.svd(L32, full_matrices=True)
     if sv[0] <= 0:
         raise IdentificationError("the outputs do not depend on the past data: no state is seen")
-    if order is None:
-        cands = int(min(max_order, s * p - 1, np.sum(sv > rtol * sv[0])))
-        if cands < 1:
-            raise IdentificationError("no singular value above the numerical floor: no state is seen")
-        tail = sv[1:cands + 1]
-        gaps = np.log(sv[:cands] / np.maximum(tail, rtol * sv[0]))
-        n = int(np.argmax(gaps)) + 1
-    else:
-        n = int(order)
+    n = order_from_singular_values(sv, min(max_order, s * p - 1), rtol) if order is None else int(order)
     Os = U[:, :n] * np.sqrt(sv[:n])
     C = Os[:p]
     A = np.linalg.lstsq(Os[:-p], Os[p:], rcond=None)[0]
