@@ -152,7 +152,11 @@ def _thresholds(text: str, gen, evaluation: dict, calibrate=None):
             t, u, y = _read_record(calibrate, gen.model)
             probe = Diagnoser(gen, evaluation=evaluation, thresholds=1e300)  # evaluations only
             out = probe.run(t, u, y)
-            return [data_driven_threshold(out[f"evaluation_{i + 1}"], float(arg)) for i in range(len(gen.groups))]
+            rate = float(arg)
+            try:
+                return [data_driven_threshold(out[f"evaluation_{i + 1}"], rate) for i in range(len(gen.groups))]
+            except ValueError as exc:  # the record cannot support the estimate: say why
+                raise DesignError(f"--threshold {text} from {calibrate}: {exc}") from None
         if kind == "fixed":
             return float(arg)
         if kind == "fault-size":

@@ -145,3 +145,65 @@ def test_plant_fmu_identified_as_black_box(plant_dir, case):
     for p in pr[k]:
         assert np.min(np.abs(pi - p)) <= 10 * tol * max(abs(p), 1.0 / (600 * ts)), (case, p, pi)
     assert min(m.provenance["fit_percent"]) > 95.0
+
+
+# ---- data-driven design ---------------------------------------------------------------------------
+
+def _dts200_linear_records(seeds, prbs: bool, faults=()):
+    """Samples of the committed DTS200 linear model (ZOH, Ts = 1 s) with 0.1 cm sensor noise."""
+    import plant_fmus
+    from fmu_fdi.identify.experiment import excitation_signals
+
+    model = FDIModel.from_file(plant_fmus.model_path("dts200"))
+    d = model.lti("u").to_discrete(1.0)
+    N = 3000 if prbs else 1500
+    out = []
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        u = (excitation_signals(Excitation("prbs", period=20, samples=N, seed=seed), ["Q1", "Q2"], [3.0, 5.0])
+             if prbs else np.zeros((N, 2)))
+        if not prbs:
+            u[200:, 0], u[500:, 1] = 0.1 * model.u0[0], -0.1 * model.u0[1]
+        x = np.zeros(3)
+        y = np.empty((N, 3))
+        for k in range(N):
+            y[k] = d.C @ x + 0.1 * rng.standard_normal(3)
+            x = d.A @ x + d.B @ u[k]
+        for j, size in faults:
+            y[900:, j] += size
+        out.append((np.arange(N, dtype=float), u + model.u0, y + model.y0))
+    return model, out
+
+
+def test_data_driven_relations_detect_and_isolate_sensor_biases():
+    from fmu_fdi import Diagnoser
+    from fmu_fdi.design import data_driven
+
+    model, [(t, u, y)] = _dts200_linear_records([1], prbs=True)
+    gen = data_driven(model, t, u, y)  # the model gives names, faults, operating point: the filter is from data
+    assert gen.method == "data" and [len(g) for g in gen.groups] == [1, 1, 1]
+    ev = {"kind": "rms", "window": 20}
+    calib = Diagnoser(gen, evaluation=ev, thresholds=1e300).run(t, u, y)
+    # residuals have unit std on the log; 1.5 × the largest evaluation over its 3000 samples (past the
+    # warm-up) bounds a fresh 1500-sample run of the same noise: the max of 1500 draws rarely exceeds that of 3000
+    th = [1.5 * float(calib[f"evaluation_{i}"][200:].max()) for i in (1, 2, 3)]
+    dg = Diagnoser(gen, evaluation=ev, thresholds=th, decision={"persistence": [3, 5]})
+    sensors = [f.name for f in model.faults if f.kind == "sensor"]
+    for j, size in [(None, 0.0), (0, 1.5), (1, 1.5), (2, -1.5)]:
+        _, [(t2, u2, y2)] = _dts200_linear_records([7], prbs=False, faults=[(j, size)] if j is not None else [])
+        out = dg.run(t2, u2, y2)
+        if j is None:
+            assert not out["fault_detected"].any()
+            continue
+        assert not out["fault_detected"][t2 < 900].any() and out["fault_detected"][t2 >= 900].any()
+        iso = out["isolated_fault"][t2 >= 900]
+        assert np.bincount(iso[iso > 0]).argmax() == dg.fault_names.index(sensors[j]) + 1
+
+
+def test_data_driven_too_little_data():
+    from fmu_fdi.design import data_driven
+    from fmu_fdi.errors import DesignError
+
+    model, [(t, u, y)] = _dts200_linear_records([1], prbs=True)
+    with pytest.raises(DesignError, match="too little data: 60 samples"):
+        data_driven(model, t[:60], u[:60], y[:60])

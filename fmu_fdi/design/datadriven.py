@@ -89,6 +89,66 @@ def _parity_rows(u, y, s, n):
     return G, M
 
 
+def realize_from_lq(L11, L31, L32, s: int, m: int, p: int, n: int | None, *, max_order: int = 10,
+                    rtol: float = 1e-9, feedthrough: bool = True):
+    """``(A, B, C, D, σ)`` of order n (default from σ) from the LQ blocks (MOESP; Verhaegen 1994).
+
+    A, C from the shift invariance of Γ_s = U_1 Σ_1^(1/2); B, D by least squares from
+    ``Γ⊥ L31 L11^{-1} = Γ⊥ H_s``, linear in (D, B) (Verhaegen & Dewilde 1992) — no
+    simulation, so an unstable plant recorded in closed loop comes out right too.
+    """
+    U, sv, _ = sla.svd(L32, full_matrices=True)
+    if sv[0] <= 0:
+        raise DesignError("the outputs do not depend on the past data: no state is seen")
+    if n is None:
+        n = order_from_singular_values(sv, min(max_order, s * p - 1), rtol)
+    Os = U[:, :n] * np.sqrt(sv[:n])
+    C = Os[:p]
+    A = np.linalg.lstsq(Os[:-p], Os[p:], rcond=None)[0]
+    Uperp = U[:, n:].T
+    M = sla.solve_triangular(L11.T, (Uperp @ L31).T, lower=False).T  # Γ⊥ L31 L11^{-1}
+    # block i of M: Γ⊥_i D + (Σ_{k>i} Γ⊥_k C A^(k−i−1)) B
+    Lk = [Uperp[:, k * p:(k + 1) * p] for k in range(s)]
+    lhs, rhs = [], []
+    for i in range(s):
+        acc = np.zeros((Uperp.shape[0], n))
+        for k in range(i + 1, s):
+            acc += Lk[k] @ Os[(k - i - 1) * p:(k - i) * p]
+        lhs.append(np.hstack([Lk[i], acc]) if feedthrough else acc)
+        rhs.append(M[:, i * m:(i + 1) * m])
+    DB = np.linalg.lstsq(np.vstack(lhs), np.vstack(rhs), rcond=None)[0]
+    D, B = (DB[:p], DB[p:]) if feedthrough else (np.zeros((p, m)), DB)
+    return A, B, C, D, sv
+
+
+def _kernel_observer(A, B, C, D, idx, ny, nu, dt, name) -> LTI:
+    """Residual ``r = y_idx − ŷ`` of the predictor ``x̂+ = A x̂ + B u + K (y_idx − C x̂ − D u)`` on [y; u].
+
+    A stable identified plant gets K = 0, a parallel model: a sensor bias keeps its full
+    size in r at steady state. An unstable one gets the K placing the predictor's poles at
+    the median magnitude of the plant's eigenvalues capped at 0.9 (spread by 1 % so one
+    output can place them): a stable kernel representation (Ding 2014, sec. 5.3).
+    """
+    from scipy.signal import place_poles
+
+    n, p = A.shape[0], C.shape[0]
+    lam = np.abs(np.linalg.eigvals(A))
+    if np.all(lam < 1.0):
+        K = np.zeros((n, p))
+    else:
+        rho = min(float(np.median(lam)), 0.9)
+        try:
+            K = place_poles(A.T, C.T, rho * (1.0 - 0.01 * np.arange(n))).gain_matrix.T
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            raise DesignError(f"relation {name}: the identified plant is unstable and its predictor cannot be "
+                              f"stabilised from outputs {idx} ({exc})") from None
+    Ey = np.zeros((p, ny))
+    Ey[np.arange(p), idx] = 1.0
+    Bq = np.hstack([K @ Ey, B - K @ D])
+    Dq = np.hstack([Ey, -D])
+    return LTI(A - K @ C, Bq, -C, Dq, dt)
+
+
 def _fir(Wy, Wu, y_idx, ny, nu, s, dt) -> LTI:
     """Shift-register realisation of r(k) = Σ_l Wy_l y(k−s+1+l) + Wu_l u(k−s+1+l) on [y; u]."""
     q = Wy.shape[0]
@@ -111,8 +171,35 @@ def _fir(Wy, Wu, y_idx, ny, nu, s, dt) -> LTI:
     return LTI(A, B, C, coef[0], dt)
 
 
-def data_driven(model: FDIModel, t, u, y, *, kind: str = "sensor", order: int | None = None, extra: int = 2,
-                max_order: int = 10, rtol: float = 1e-9) -> ResidualGenerator:
+def _weights(r: np.ndarray, G: np.ndarray, s: int, p_group: int | None) -> np.ndarray:
+    """Combination of the parity relations: with Σ the covariance of the fault-free residuals
+    on the record,
+
+    - a sensor relation (one output): the single vector ``w ∝ Σ^{-1} b`` maximising the
+      steady-state bias-to-noise ratio ``(w b)² / (w Σ w)``, ``b = Γ⊥ 1_s`` the relations'
+      response to a unit bias on the sensor, scaled so that ``w Σ w = 1``;
+    - all relations (detection): the whitening ``Σ^{-1/2}`` (unit covariance on the record).
+
+    Σ is factored by its eigen-decomposition; directions below ``1e-12·λ_max`` are dropped
+    (relations that are exactly silent on the record carry no noise and no information).
+    """
+    S = np.cov(r, rowvar=False).reshape(r.shape[1], r.shape[1])
+    lam, V = np.linalg.eigh((S + S.T) / 2)
+    keep = lam > 1e-12 * max(lam.max(), np.finfo(float).tiny)
+    lam, V = lam[keep], V[:, keep]
+    if p_group == 1:
+        b = G @ np.ones(s)
+        c = (V.T @ b) / lam  # Σ^+ b in the eigenbasis
+        w = V @ c
+        norm = np.sqrt(c @ (lam * c))
+        if norm <= 0:
+            raise DesignError("no parity relation of the record responds to a sensor bias: increase the block rows")
+        return (w / norm)[None, :]
+    return (V / np.sqrt(lam)).T
+
+
+def data_driven(model: FDIModel, t, u, y, *, kind: str = "sensor", form: str = "kernel", order: int | None = None,
+                extra: int = 2, max_order: int = 10, rtol: float = 1e-9) -> ResidualGenerator:
     """Parity relations identified from a fault-free record (module docstring).
 
     Parameters
@@ -128,6 +215,12 @@ def data_driven(model: FDIModel, t, u, y, *, kind: str = "sensor", order: int | 
     kind : {'sensor', 'detection'}
         'sensor': a dedicated bank, one relation per sensor fault of the model, built from u
         and that sensor's output (isolation); 'detection': one group from all signals.
+    form : {'kernel', 'parity'}
+        'kernel': the stable kernel representation realised from the same LQ — (A, B, C, D)
+        of each relation's plant identified from the record and the residual of its
+        predictor (``_kernel_observer``): infinite memory, so a sensor bias stays visible in
+        steady state even when the plant is slow next to the sample time. 'parity': the
+        finite-memory parity relations (window s), best for plants fast next to s samples.
     order : int, optional
         Plant order seen by each relation (default the model's order n when it has states,
         else read from the singular values).
@@ -154,6 +247,8 @@ def data_driven(model: FDIModel, t, u, y, *, kind: str = "sensor", order: int | 
         raise DesignError("the record's time steps are not uniform: resample it on a fixed step")
     if model.is_discrete and abs(model.dt - dt) > 1e-9 * dt:
         raise DesignError(f"the record's step {dt:g} s differs from the discrete model's {model.dt:g} s")
+    if form not in ("kernel", "parity"):
+        raise DesignError(f"form must be 'kernel' or 'parity', got {form!r}")
     if kind not in ("sensor", "detection"):
         raise DesignError(f"data-driven relations come as kind 'sensor' (a dedicated bank) or 'detection', got "
                           f"{kind!r}: actuator isolation from data is not available")
@@ -166,7 +261,7 @@ def data_driven(model: FDIModel, t, u, y, *, kind: str = "sensor", order: int | 
         groups = [(f.name, [model.y_names.index(f.output)]) for f in sensors]
     else:
         groups = [("all", list(range(model.ny)))]
-    members, info = [], {"relations": {}}
+    members, info, joint = [], {"relations": {}}, None
     for name, idx in groups:
         yi = dy[:, idx]
         s0 = max_order + 1
@@ -174,19 +269,29 @@ def data_driven(model: FDIModel, t, u, y, *, kind: str = "sensor", order: int | 
         if n is None:
             sv = sla.svd(past_future_lq(du, yi, s0)[2], compute_uv=False)
             n = order_from_singular_values(sv, max_order, rtol)
-        s = int(np.ceil((n + 1) / len(idx))) + int(extra)
-        G, M = _parity_rows(du, yi, s, n)
-        if G.shape[0] == 0:
-            raise DesignError(f"relation {name}: no parity relation with {s} block rows and order {n}")
-        # normalise each relation by its fault-free RMS on the record, so residuals are comparable
-        Q = _fir(G, -M, idx, model.ny, model.nu, s, dt)
-        gen = ResidualGenerator(Q, dmodel, "data")
-        r = gen.simulate(dy, du)[s:]
-        rms = np.sqrt(np.mean(r * r, axis=0))
-        scale = 1.0 / np.where(rms > 0, rms, 1.0)
-        Q = LTI(Q.A, Q.B, scale[:, None] * Q.C, scale[:, None] * Q.D, dt)
+        if form == "kernel":
+            s = max(n + 1, s0)
+            if joint is None:  # one plant from all outputs (the best-conditioned estimate of the modes);
+                # each predictor then reads only its own outputs y_idx
+                joint = realize_from_lq(*past_future_lq(du, dy, s), s, model.nu, model.ny, n, feedthrough=False)
+            A, B, C, D, _ = joint
+            Q = _kernel_observer(A, B, C[idx], D[idx], idx, model.ny, model.nu, dt, name)
+            rows = len(idx)
+        else:
+            s = int(np.ceil((n + 1) / len(idx))) + int(extra)
+            G, M = _parity_rows(du, yi, s, n)
+            if G.shape[0] == 0:
+                raise DesignError(f"relation {name}: no parity relation with {s} block rows and order {n}")
+            Q = _fir(G, -M, idx, model.ny, model.nu, s, dt)
+            rows = G.shape[0]
+        r = ResidualGenerator(Q, dmodel, "data").simulate(dy, du)[s:]  # fault-free residuals of the record
+        if form == "kernel":  # unit standard deviation on the record
+            W = np.diag(1.0 / np.maximum(r.std(axis=0), np.finfo(float).tiny))
+        else:
+            W = _weights(r, G, s, len(idx) if kind == "sensor" else None)
+        Q = LTI(Q.A, Q.B, W @ Q.C, W @ Q.D, dt)
         members.append(ResidualGenerator(Q, dmodel, "data"))
-        info["relations"][name] = {"order": int(n), "block_rows": int(s), "relations": int(G.shape[0]),
+        info["relations"][name] = {"form": form, "order": int(n), "block_rows": int(s), "relations": int(rows),
                                    "outputs": [model.y_names[i] for i in idx]}
     if len(members) == 1 and kind == "detection":
         gen = members[0]

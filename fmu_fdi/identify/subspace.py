@@ -30,7 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from ..design.datadriven import order_from_singular_values, past_future_lq
+from ..design.datadriven import past_future_lq, realize_from_lq
+from ..errors import DesignError
 from .errors import IdentificationError
 
 
@@ -140,26 +141,12 @@ def moesp(u, y, dt: float, order: int | None = None, *, block_rows: int | None =
         L11, L31, L32 = past_future_lq(u, y, s, IdentificationError)
     except IdentificationError as exc:
         raise IdentificationError(str(exc).replace("too little data", f"too little data for order {order or max_order}")) from None
-    U, sv, _ = sla.svd(L32, full_matrices=True)
-    if sv[0] <= 0:
-        raise IdentificationError("the outputs do not depend on the past data: no state is seen")
-    n = order_from_singular_values(sv, min(max_order, s * p - 1), rtol) if order is None else int(order)
-    Os = U[:, :n] * np.sqrt(sv[:n])
-    C = Os[:p]
-    A = np.linalg.lstsq(Os[:-p], Os[p:], rcond=None)[0]
-    Uperp = U[:, n:].T  # left null space of O_s
-    M = sla.solve_triangular(L11.T, (Uperp @ L31).T, lower=False).T  # Uperp L31 L11^{-1}
-    # M[:, block i] = Lk_i D + (sum_{k>i} Lk_k C A^{k-i-1}) B, Lk_k = Uperp[:, k-block]
-    Lk = [Uperp[:, k * p:(k + 1) * p] for k in range(s)]
-    lhs, rhs = [], []
-    for i in range(s):
-        acc = np.zeros((Uperp.shape[0], n))
-        for k in range(i + 1, s):
-            acc += Lk[k] @ Os[(k - i - 1) * p:(k - i) * p]
-        lhs.append(np.hstack([Lk[i], acc]) if feedthrough else acc)
-        rhs.append(M[:, i * m:(i + 1) * m])
-    DB = np.linalg.lstsq(np.vstack(lhs), np.vstack(rhs), rcond=None)[0]
-    D, B = (DB[:p], DB[p:]) if feedthrough else (np.zeros((p, m)), DB)
+    try:
+        A, B, C, D, sv = realize_from_lq(L11, L31, L32, s, m, p, order, max_order=max_order, rtol=rtol,
+                                         feedthrough=feedthrough)
+    except DesignError as exc:
+        raise IdentificationError(str(exc)) from None
+    n = A.shape[0]
     C, D, B = sy[:, None] * C, sy[:, None] * D / su, B / su
     return SubspaceModel(A, B, C, D, float(dt), sv[: min(len(sv), max_order + 1)], n, s,
                          info={"samples": N})
