@@ -207,3 +207,21 @@ def test_data_driven_too_little_data():
     model, [(t, u, y)] = _dts200_linear_records([1], prbs=True)
     with pytest.raises(DesignError, match="too little data: 60 samples"):
         data_driven(model, t[:60], u[:60], y[:60])
+
+
+def test_cli_model_and_fmu_given_to_analyze(tmp_path, capsys):
+    from fmu_fdi.cli import main
+
+    fmu = build_me_fmu(tmp_path, "linear", 3, True)
+    out = tmp_path / "lin.toml"
+    assert main(["model", str(fmu), "--inputs", "u1", "--disturbances", "u2", "--at", "u1=2", "u2=0",
+                 "--sensor-faults", "all", "-o", str(out)]) == 0
+    m = FDIModel.from_file(out)
+    x = equilibrium("linear", [2.0, 0.0])
+    _, g, J = analytic("linear", x, [2.0, 0.0])
+    assert np.allclose(m.A, J[:3, :3]) and np.allclose(m.Bd, J[:3, 4:]) and np.allclose(m.y0, g)
+    assert m.provenance["method"] == "linearisation (directional derivatives)" and m.provenance["fmi_version"] == "3.0"
+    assert "[provenance]" in out.read_text()
+    for cmd in (["analyze", str(fmu)], ["design", str(fmu), "--method", "dos", "-o", str(tmp_path / "d.json")]):
+        assert main(cmd) == 2
+        assert "run 'fmu-fdi model" in capsys.readouterr().err
