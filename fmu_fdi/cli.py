@@ -81,7 +81,8 @@ def _model(args) -> int:
     model = model_from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
                            at=pairs(args.at, "--at"), method=args.method, trim=args.trim,
                            sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
-                           excite=args.excite, excitation=exc, order=args.order, validation_png=args.plot,
+                           excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
+                           validation_png=args.plot,
                            record=args.record)
     path = model.to_file(args.output)
     prov = model.provenance
@@ -374,6 +375,7 @@ def build_parser() -> argparse.ArgumentParser:
     mo.add_argument("--period", type=int, default=1, help="PRBS clock period in steps")
     mo.add_argument("--seed", type=int, default=0, help="excitation seed (validation run: seed + 1)")
     mo.add_argument("--order", type=int, help="model order (default: from the singular values)")
+    mo.add_argument("--min-fit", type=float, default=50.0, help="refuse a validation fit below this (%%, default 50)")
     mo.add_argument("--plot", help="PNG of measured vs model outputs on the validation run")
     mo.add_argument("--record", help="CSV of the identification run (a fault-free log for --method data)")
     mo.set_defaults(func=_model)

@@ -225,3 +225,10 @@ def test_cli_model_and_fmu_given_to_analyze(tmp_path, capsys):
     for cmd in (["analyze", str(fmu)], ["design", str(fmu), "--method", "dos", "-o", str(tmp_path / "d.json")]):
         assert main(cmd) == 2
         assert "run 'fmu-fdi model" in capsys.readouterr().err
+
+
+def test_poor_fit_is_refused(plant_dir):
+    # 0.1 cm sensor noise against a ±0.2 % pump excitation: the levels move less than the noise
+    with pytest.raises(IdentificationError, match="fits the validation run poorly.*excite more strongly"):
+        FDIModel.from_fmu(plant_dir["dts200"], ["Q1", "Q2"], ["h1", "h2", "h3"],
+                          excitation=Excitation(amplitude={"Q1": 0.05, "Q2": 0.1}, samples=400, settle=20))

@@ -34,7 +34,8 @@ def _fault_list(spec, names, kind):
 def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None, method: str = "auto",
                    trim: bool = True, sensor_faults=None, actuator_faults=None, ts: float | None = None,
                    excite=None, excitation=None, parameters=None, order: int | None = None,
-                   max_order: int = 10, validation_png=None, name: str | None = None, record=None):
+                   max_order: int = 10, min_fit: float = 50.0, validation_png=None, name: str | None = None,
+                   record=None):
     """An :class:`~fmu_fdi.model.FDIModel` of a plant FMU (see the module docstring).
 
     Parameters
@@ -61,6 +62,10 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         Identification: FMU inputs to excite, an :class:`~fmu_fdi.identify.experiment.Excitation`
         (its seed drives the identification run, seed + 1 the validation run), the model
         order (default from the singular values) and the largest order considered.
+    min_fit : float
+        Identification: refuse a model whose validation fit (NRMSE %) on any output is below
+        this; measurement noise alone caps the fit at 100 (1 − σ_noise / σ_y), so a low fit
+        means too little excitation for the noise, or a plant far from linear at this amplitude.
     parameters : dict, optional
         FMU parameter values (also accepted in ``at``).
     validation_png : path, optional
@@ -137,6 +142,13 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         rep = validate(sub, check.u - check.u0, check.y - check.y0, check.t, np.linalg.eigvals(A), y_names)
         if validation_png is not None:
             rep.plot(validation_png)
+        if np.min(rep.fit) < min_fit:
+            worst = int(np.argmin(rep.fit))
+            raise IdentificationError(
+                f"{path}: the identified model (order {sub.order}) fits the validation run poorly: "
+                f"{', '.join(f'{n} {f:.1f} %' for n, f in zip(y_names, rep.fit))} (worst {y_names[worst]}, "
+                f"minimum {min_fit:g} %); excite more strongly or more slowly (amplitude, signal='prbs' with a "
+                f"longer period, more samples), switch measurement noise off if the FMU allows, or give the order")
         if record is not None:
             _write_record(record, ident, sig, y_names)
         nu = len(u_names)

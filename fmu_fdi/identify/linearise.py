@@ -213,8 +213,8 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
     disturbances : list of str
         Real inputs d (unknown inputs of the FDI model); their columns follow u's in B, D.
     at : dict, optional
-        Values of inputs (default their start values) and of states (default the FMU's
-        initial states, the trim's starting guess).
+        Values of inputs (default their start values), of states (default the FMU's
+        initial states, the trim's starting guess) and of parameters.
     trim : bool
         Find the steady state f(x, v0) = 0 from the given inputs; states named in ``at``
         are then only the starting guess. Without trim, the FMU is linearised at the given
@@ -257,12 +257,15 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
     unknown = [k for k in at if k not in by_name]
     if unknown:
         raise IdentificationError(f"{path}: operating-point values for unknown variables {unknown}")
+    parameters = dict(parameters or {})
+    for k in [k for k in at if by_name[k].causality in ("parameter", "calculatedParameter", "structuralParameter")]:
+        parameters[k] = at.pop(k)
     v_names = u_names + d_names
     unzipdir = extract(str(path), tempfile.mkdtemp(prefix="fmu_fdi_lin_"))
     inst = None
     try:
         try:
-            inst = _MEInstance(path, md, unzipdir, dict(parameters or {}))
+            inst = _MEInstance(path, md, unzipdir, parameters)
         except Exception as exc:
             raise IdentificationError(f"{path}: the FMU failed to instantiate/initialise for linearisation: "
                                       f"{exc}") from None
