@@ -47,6 +47,16 @@ def test_from_fmu_linearised_model_file_round_trip(tmp_path):
     assert back.provenance == m.provenance and np.array_equal(back.A, m.A)
 
 
+def test_linearise_at_given_states_without_trim(tmp_path):
+    fmu = build_me_fmu(tmp_path, "nonlinear", 2, False)
+    x, u = [2.0, 0.7], [1.0, 0.5]
+    lin = linearise(fmu, at={"x1": x[0], "x2": x[1], "u1": u[0], "u2": u[1]}, trim=False)
+    f, g, J = analytic("nonlinear", x, u)
+    assert not lin.trimmed and np.array_equal(lin.x0, x)
+    assert lin.derivative_residual == pytest.approx(np.abs(f).max(), rel=1e-12)  # reported, not hidden
+    assert np.abs(np.block([[lin.A, lin.B], [lin.C, lin.D]]) - J).max() <= 1e-6 * np.abs(J).max()
+
+
 def test_trim_without_steady_state_is_a_clear_error(tmp_path):
     fmu = build_me_fmu(tmp_path, "nonlinear", 3, True)
     # x1' = u1 - a sqrt(x1) < 0 for every x1 when u1 < 0: no steady state exists
@@ -90,6 +100,13 @@ def test_excitation_beyond_the_plants_limits(plant_dir):
                                                 settle=10))
 
 
+def test_identification_names_missing_variables(plant_dir):
+    with pytest.raises(IdentificationError, match="model input 'Q9' is neither.*'Q1'"):
+        FDIModel.from_fmu(plant_dir["dts200"], ["Q9"], ["h1"])
+    with pytest.raises(IdentificationError, match="output 'level' is not a Real output"):
+        FDIModel.from_fmu(plant_dir["dts200"], ["Q1"], ["level"])
+
+
 def test_closed_loop_plant_needs_excitation_named(plant_dir):
     with pytest.raises(IdentificationError, match="FMU outputs.*excite="):
         FDIModel.from_fmu(plant_dir["dr300"], ["voltage"], ["speed"], method="identify")
@@ -113,12 +130,14 @@ CASES = {  # plant, model file index, u, y, d, excite, amplitudes
 
 @pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(CASES))
-def test_plant_fmu_identified_as_black_box(plant_dir, case):
+def test_plant_fmu_identified_as_black_box(plant_dir, case, tmp_path):
     import plant_fmus
 
     fmu, index, u, y, d, excite, amp = CASES[case]
     ref = FDIModel.from_file(plant_fmus.model_path(fmu, index))
+    png = tmp_path / "validation.png"
     m = FDIModel.from_fmu(plant_dir[fmu], u, y, d, at={"noise_enable": False}, excite=excite, max_order=8,
+                          validation_png=png,
                           excitation=Excitation(amplitude=amp, samples=500, settle=40 * plant_fmus.PLANTS[fmu].step))
     assert m.n == ref.n
     ts = m.provenance["sample_time"]
@@ -145,6 +164,7 @@ def test_plant_fmu_identified_as_black_box(plant_dir, case):
     for p in pr[k]:
         assert np.min(np.abs(pi - p)) <= 10 * tol * max(abs(p), 1.0 / (500 * ts)), (case, p, pi)
     assert min(m.provenance["fit_percent"]) > 95.0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 # ---- data-driven design ---------------------------------------------------------------------------
