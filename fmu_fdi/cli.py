@@ -42,6 +42,10 @@ finite memory); evaluation
 evaluation of a unit step of the weakest fault each residual sees); sample time: the
 model's for a discrete model, otherwise --ts is required.
 
+--method data identifies its residual generators from the fault-free record given with
+--calibrate (columns time and the model's u and y names); the model file gives the names,
+faults and operating point (--kind sensor: one per sensor fault; detection: one group).
+
 --evaluation  norm | rms:N | ewrms:LAMBDA | peak:N | narendra:ALPHA,BETA,GAMMA | chi2:N
 --threshold   fault-size:F | fixed:V | sensor-gain:DELTA,J0 (adaptive, from ±DELTA level-
               sensor gain errors via the threshold selector) | analytic:ALPHA[,STD] (false-alarm
