@@ -100,6 +100,8 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
             params[k] = at.pop(k)
     guid = getattr(md, "instantiationToken", None) or md.guid
     prov = {"fmu": path.name, "model_name": md.modelName, "guid": str(guid or ""), "fmi_version": md.fmiVersion}
+    if params:
+        prov["parameters"] = [f"{k}={v}" for k, v in params.items()]
     if method == "linearise":
         from .linearise import linearise
 
