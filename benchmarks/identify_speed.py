@@ -14,8 +14,6 @@ import sys
 import tempfile
 import time
 
-import numpy as np
-
 import plant_fmus
 from fmu_fdi import FDIModel
 from fmu_fdi.cosim import CoSimulation

@@ -286,7 +286,7 @@ fmi3GetOutputDerivatives fmi3ActivateModelPartition""".split()
 
 def _variables2(p):
     nx, nu, ny = p["nx"], p["nu"], p["ny"]
-    rows, idx = [], 1
+    rows = []
     for i in range(nx):
         rows.append(f'<ScalarVariable name="x{i + 1}" valueReference="{i}" causality="local" '
                     f'variability="continuous" initial="exact"><Real start="{p["x_start"][i]}"/></ScalarVariable>')
@@ -305,7 +305,6 @@ def _variables2(p):
               + "<Derivatives>" + "".join(f'<Unknown index="{k}"/>' for k in idx_d) + "</Derivatives>"
               + "<InitialUnknowns>" + "".join(f'<Unknown index="{k}"/>' for k in idx_d + idx_y)
               + "</InitialUnknowns>")
-    del idx
     return "\n".join(rows), struct
 
 

@@ -84,7 +84,6 @@ class _MEInstance:
     """A model-exchange instance in continuous-time mode: f and g evaluated at any (x, v)."""
 
     def __init__(self, path, md, unzipdir, parameters):
-        from fmpy import instantiate_fmu  # noqa: F401 (fmpy present)
         from fmpy.fmi2 import FMU2Model
         from fmpy.fmi3 import FMU3Model
 
@@ -106,7 +105,7 @@ class _MEInstance:
             if not more:
                 break
         self.fmu.enterContinuousTimeMode()
-        ders = md.derivatives if not self.v3 else [u for u in md.derivatives]
+        ders = md.derivatives  # the continuous-state order is the order of the derivatives
         self.der_vrs = [u.variable.valueReference for u in ders]
         self.state_names = []
         for u in ders:
