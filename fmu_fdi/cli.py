@@ -69,30 +69,16 @@ def _load_model(path):
 
 def _model(args) -> int:
     from .identify import Excitation, model_from_fmu
+    from .identify.fmu_model import parse_values, summary
 
-    def pairs(items, what):
-        out = {}
-        for item in items or []:
-            key, sep, val = item.partition("=")
-            if not sep:
-                raise ModelError(f"{what} takes NAME=VALUE, got {item!r}")
-            low = val.strip().lower()
-            out[key.strip()] = low == "true" if low in ("true", "false") else float(val)
-        return out
-
-    exc = Excitation(signal=args.signal, amplitude=pairs(args.amplitude, "--amplitude") or None,
+    exc = Excitation(signal=args.signal, amplitude=parse_values(args.amplitude, "--amplitude") or None,
                      samples=args.samples, settle=args.settle, period=args.period, seed=args.seed)
     model = model_from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
-                           at=pairs(args.at, "--at"), method=args.method, trim=args.trim,
+                           at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
                            sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
                            excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
-                           validation_png=args.plot,
-                           record=args.record)
-    path = model.to_file(args.output)
-    prov = model.provenance
-    fit = (", fit " + ", ".join(f"{n} {f:.1f} %" for n, f in zip(model.y_names, prov["fit_percent"]))
-           if "fit_percent" in prov else "")
-    print(f"wrote {path}: {prov['method']}, n = {model.n}, u = {model.u_names}, y = {model.y_names}{fit}")
+                           validation_png=args.plot, record=args.record)
+    print(f"wrote {model.to_file(args.output)}: {summary(model)}")
     return 0
 
 

@@ -175,6 +175,29 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
                     provenance=prov)
 
 
+def parse_values(items, option: str) -> dict:
+    """``["Q1=21.4", "noise_enable=false"]`` → ``{"Q1": 21.4, "noise_enable": False}`` (numbers and Booleans)."""
+    out = {}
+    for item in items or []:
+        key, sep, val = item.partition("=")
+        low = val.strip().lower()
+        try:
+            out[key.strip()] = low == "true" if low in ("true", "false") else float(val)
+        except ValueError:
+            sep = ""
+        if not sep or not key.strip():
+            raise IdentificationError(f"{option} takes NAME=VALUE with a number or true/false, got {item!r}")
+    return out
+
+
+def summary(model) -> str:
+    """One line: method, order, signals and the validation fit of a model made here."""
+    prov = model.provenance
+    fit = (", fit " + ", ".join(f"{n} {f:.1f} %" for n, f in zip(model.y_names, prov["fit_percent"]))
+           if "fit_percent" in prov else "")
+    return f"{prov.get('method', '?')}, n = {model.n}, u = {model.u_names}, y = {model.y_names}{fit}"
+
+
 def _model_name(text):
     from ..model import _sanitize
 
