@@ -252,3 +252,47 @@ def test_poor_fit_is_refused(plant_dir):
     with pytest.raises(IdentificationError, match="fits the validation run poorly.*excite more strongly"):
         FDIModel.from_fmu(plant_dir["dts200"], ["Q1", "Q2"], ["h1", "h2", "h3"],
                           excitation=Excitation(amplitude={"Q1": 0.05, "Q2": 0.1}, samples=400, settle=20))
+
+
+@pytest.mark.parametrize("form", ["parity", "kernel"])
+@pytest.mark.parametrize("kind", ["sensor", "detection"])
+def test_data_driven_forms_on_a_fast_plant(form, kind):
+    """A plant fast next to the window (poles 0.3-0.6): fault-free residuals stay at the record's level on a
+    fresh run, a 5σ sensor bias lifts its relation(s) far above it."""
+    from fmu_fdi import sensor_fault
+    from fmu_fdi.design import data_driven
+
+    A = np.array([[0.6, 0.2, 0.0], [-0.2, 0.5, 0.1], [0.0, 0.0, 0.3]])
+    B = np.array([[1.0], [0.0], [0.5]])
+    C = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 1.0]])
+    model = FDIModel.from_matrices(A, B, C, dt=0.1, faults=[sensor_fault("s1", "y0"), sensor_fault("s2", "y1")])
+
+    def record(seed, N, bias=None):
+        rng = np.random.default_rng(seed)
+        u = rng.standard_normal((N, 1))
+        x, y = np.zeros(3), np.empty((N, 2))
+        for k in range(N):
+            y[k] = C @ x + 0.01 * rng.standard_normal(2)
+            x = A @ x + B @ u[k]
+        if bias is not None:
+            y[N // 2:, bias] += 0.1  # 10 σ of the sensor noise
+        return np.arange(N) * 0.1, u, y
+
+    gen = data_driven(model, *record(1, 2000), form=form, kind=kind)
+    assert len(gen.groups) == (2 if kind == "sensor" else 1)
+    t, u, y = record(2, 800)
+    r0 = gen.simulate(y, u)[20:]
+    # residuals are scaled to unit std (kernel) / unit covariance (parity) on the record
+    assert np.all(np.std(r0, axis=0) < 1.5) and np.all(np.std(r0, axis=0) > 0.5)
+    for j in (0, 1):
+        t, u, y = record(3, 800, bias=j)
+        r = gen.simulate(y, u)
+        g = gen.groups[j] if kind == "sensor" else gen.groups[0]
+        late = np.sqrt(np.mean(r[500:, g] ** 2, axis=0)).max()  # bias in place since sample 400
+        # 10 σ of bias against unit fault-free residuals: the kernel residual (y − ŷ)/σ moves by ≈ 10; the
+        # parity combination of a window of s ≤ 6 samples by ≳ 10/√s ≈ 4 (noise adds over the window,
+        # the bias over at best the same samples); 3 keeps a margin below both
+        assert late > 3.0, (form, kind, j, late)
+        if kind == "sensor":  # the other relation does not read sensor j
+            other = gen.groups[1 - j]
+            assert np.sqrt(np.mean(r[500:, other] ** 2)) < 1.5

@@ -293,10 +293,9 @@ def data_driven(model: FDIModel, t, u, y, *, kind: str = "sensor", form: str = "
         members.append(ResidualGenerator(Q, dmodel, "data"))
         info["relations"][name] = {"form": form, "order": int(n), "block_rows": int(s), "relations": int(rows),
                                    "outputs": [model.y_names[i] for i in idx]}
-    if len(members) == 1 and kind == "detection":
-        gen = members[0]
-        gen.info.update(info)
-        return gen
+    if kind == "detection":  # one residual vector, evaluated as one group
+        Q = members[0].Q
+        return ResidualGenerator(Q, dmodel, "data", groups=[list(range(Q.p))], info=info)
     bank = ResidualBank(members, "data", info={**info, "structure": np.eye(len(members), dtype=int).tolist(),
                                                "faults": [g[0] for g in groups]})
     return bank
