@@ -1,5 +1,6 @@
 """fmu-fdi command line: a thin layer over the library.
 
+  fmu-fdi model PLANT.fmu [--inputs ...] [--outputs ...] -o MODEL.toml   linear model of a plant FMU
   fmu-fdi analyze MODEL                    detectability / isolability table
   fmu-fdi design MODEL --method M ... -o DESIGN.json
   fmu-fdi build DESIGN.json -o FDI.fmu [--target native [--fmi 3]]
@@ -33,6 +34,7 @@ METHODS = {
     "gos": ("generalized_bank", ("kind", "poles")),
     "structured": ("structured_bank", ("structure", "poles", "faults")),
     "rls": ("rls_estimator", ("order", "ts_design")),
+    "data": ("data_driven", ("order", "kind", "record")),
 }
 
 DESIGN_HELP = """\
@@ -42,6 +44,10 @@ finite memory); evaluation
 'rms:10' (RMS over 10 samples); threshold 'fault-size:1' (half the steady-state
 evaluation of a unit step of the weakest fault each residual sees); sample time: the
 model's for a discrete model, otherwise --ts is required.
+
+--method data identifies its residual generators from the fault-free record given with
+--calibrate (columns time and the model's u and y names); the model file gives the names,
+faults and operating point (--kind sensor: one per sensor fault; detection: one group).
 
 --evaluation  norm | rms:N | ewrms:LAMBDA | peak:N | narendra:ALPHA,BETA,GAMMA | chi2:N
 --threshold   fault-size:F | fixed:V | sensor-gain:DELTA,J0 (adaptive, from ±DELTA level-
@@ -54,11 +60,35 @@ model's for a discrete model, otherwise --ts is required.
 """
 
 
-def _analyze(args) -> int:
-    from .analysis import detectability, isolability
+def _load_model(path):
+    """A model file; a plant FMU is refused with the command that turns it into one."""
     from .model import FDIModel
 
-    model = FDIModel.from_file(args.model)
+    if str(path).lower().endswith(".fmu"):
+        raise ModelError(f"{path} is an FMU, not a model file: run 'fmu-fdi model {path} --inputs ... --outputs ... "
+                         f"-o MODEL.toml' first (see docs/plant-fmu.md)")
+    return FDIModel.from_file(path)
+
+
+def _model(args) -> int:
+    from .identify import Excitation, model_from_fmu
+    from .identify.fmu_model import parse_values, summary
+
+    exc = Excitation(signal=args.signal, amplitude=parse_values(args.amplitude, "--amplitude") or None,
+                     samples=args.samples, settle=args.settle, period=args.period, seed=args.seed)
+    model = model_from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
+                           at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
+                           sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
+                           excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
+                           validation_png=args.plot, record=args.record)
+    print(f"wrote {model.to_file(args.output)}: {summary(model)}")
+    return 0
+
+
+def _analyze(args) -> int:
+    from .analysis import detectability, isolability
+
+    model = _load_model(args.model)
     set_stage(f"detectability analysis (n = {model.n} states, {len(model.faults)} faults)")
     det = detectability(model)
     set_stage(f"isolability analysis (n = {model.n} states, {len(model.faults)} faults)")
@@ -118,7 +148,11 @@ def _thresholds(text: str, gen, evaluation: dict, calibrate=None):
             t, u, y = _read_record(calibrate, gen.model)
             probe = Diagnoser(gen, evaluation=evaluation, thresholds=1e300)  # evaluations only
             out = probe.run(t, u, y)
-            return [data_driven_threshold(out[f"evaluation_{i + 1}"], float(arg)) for i in range(len(gen.groups))]
+            rate = float(arg)
+            try:
+                return [data_driven_threshold(out[f"evaluation_{i + 1}"], rate) for i in range(len(gen.groups))]
+            except ValueError as exc:  # the record cannot support the estimate: say why
+                raise DesignError(f"--threshold {text} from {calibrate}: {exc}") from None
         if kind == "fixed":
             return float(arg)
         if kind == "fault-size":
@@ -150,9 +184,8 @@ def _read_record(path, model):
 def _design(args) -> int:
     from . import design as design_pkg
     from .diagnoser import Diagnoser
-    from .model import FDIModel
 
-    model = FDIModel.from_file(args.model)
+    model = _load_model(args.model)
     fname, takes = METHODS[args.method]
     fn = getattr(design_pkg, fname, None)
     if fn is None:
@@ -177,6 +210,11 @@ def _design(args) -> int:
         # Dw) and there is no measurement noise beyond them
         kw["Qw"] = np.diag(args.Qw) if args.Qw else np.eye(model.nw)
         kw["Rv"] = np.diag(args.Rv) if args.Rv else np.zeros((model.ny, model.ny))
+    if "record" in takes:  # data-driven: the filter comes from the fault-free record
+        if not args.calibrate:
+            raise DesignError("--method data identifies its parity relations from a fault-free record: "
+                              "give --calibrate LOG.csv (columns time and the model's u and y names)")
+        kw.update(zip(("t", "u", "y"), _read_record(args.calibrate, model)))
     if "ts_design" in takes and not model.is_discrete:
         if args.ts is None:
             raise DesignError(f"--method {args.method} designs in discrete time: give --ts for a continuous model")
@@ -188,7 +226,10 @@ def _design(args) -> int:
         if args.ts is None:
             raise DesignError("the model is continuous: give the diagnosis sample time --ts")
         gen = gen.to_discrete(args.ts)
-    if args.method == "rls":  # residuals are deviations in standard deviations
+    if args.method == "data":  # relations scaled to unit RMS on the record; thresholds from it too
+        evaluation = parse_evaluation(args.evaluation or "rms:10")
+        thresholds = _thresholds(args.threshold or "data:0.001", gen, evaluation, args.calibrate)
+    elif args.method == "rls":  # residuals are deviations in standard deviations
         evaluation = parse_evaluation(args.evaluation or "norm")
         thresholds = _thresholds(args.threshold or "sigma:1e-4", gen, evaluation, args.calibrate)
     else:
@@ -300,7 +341,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--poles", type=float, nargs="+", help="filter poles (real)")
     d.add_argument("--rdim", type=int, help="number of residuals")
     d.add_argument("--order", type=int, help="parity order / ARX order")
-    d.add_argument("--kind", default="sensor", choices=("sensor", "actuator"), help="faults of a DOS/GOS bank")
+    d.add_argument("--kind", default="sensor", choices=("sensor", "actuator", "detection"),
+                   help="faults of a DOS/GOS bank; data: 'sensor' (a bank) or 'detection' (one relation)")
     d.add_argument("--structure", help="structure matrix for --method structured, rows separated by ';'")
     d.add_argument("--Qw", type=float, nargs="+", help="Kalman: noise variances (diagonal of Qw)")
     d.add_argument("--Rv", type=float, nargs="+", help="Kalman: measurement noise variances (diagonal of Rv)")
@@ -308,11 +350,38 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--threshold", help="threshold (default fault-size:1; sigma:1e-4 for rls)")
     d.add_argument("--faults", nargs="+", help="fdf: the faults to give fixed directions (state-entering ones); "
                                                "structured: the faults the columns of --structure refer to")
-    d.add_argument("--calibrate", help="fault-free record (CSV) for --threshold data:RATE")
+    d.add_argument("--calibrate", help="fault-free record (CSV) for --threshold data:RATE and --method data")
     d.add_argument("--persistence", default="1/1", help="alarm persistence k/n (default 1/1)")
     d.add_argument("--latch", action="store_true", help="latch alarms until reset")
     d.add_argument("--name", help="diagnoser name (default MODEL_METHOD)")
     d.set_defaults(func=_design)
+
+    mo = sub.add_parser("model", help="linear model file of a plant FMU: linearised (model exchange) or "
+                                      "identified from an experiment (co-simulation)")
+    mo.add_argument("plant", help="plant FMU (FMI 2.0 or 3.0)")
+    mo.add_argument("-o", "--output", required=True, help="model file to write (.toml or .json)")
+    mo.add_argument("--inputs", nargs="+", help="known inputs u (FMU variables)")
+    mo.add_argument("--outputs", nargs="+", help="measured outputs y (FMU outputs)")
+    mo.add_argument("--disturbances", nargs="+", help="unknown inputs d (FMU inputs)")
+    mo.add_argument("--at", nargs="+", metavar="NAME=VALUE", help="operating point: inputs, parameters, states")
+    mo.add_argument("--trim", action=argparse.BooleanOptionalAction, default=True,
+                    help="model exchange: find the steady state from the inputs (default on)")
+    mo.add_argument("--method", default="auto", choices=("auto", "linearise", "identify"))
+    mo.add_argument("--sensor-faults", nargs="+", help="'all' or output names: additive sensor faults")
+    mo.add_argument("--actuator-faults", nargs="+", help="'all' or input names: additive actuator faults")
+    mo.add_argument("--ts", type=float, help="identification sample time (default: the FMU's default step)")
+    mo.add_argument("--excite", nargs="+", help="FMU inputs to excite (default: the model inputs that are FMU inputs)")
+    mo.add_argument("--signal", default="multisine", choices=("multisine", "prbs"))
+    mo.add_argument("--amplitude", nargs="+", metavar="NAME=A", help="peak excitation per input (default 5 %%)")
+    mo.add_argument("--samples", type=int, default=2000, help="recorded steps per run (default 2000)")
+    mo.add_argument("--settle", type=float, help="seconds at the operating point first (default 200 steps)")
+    mo.add_argument("--period", type=int, default=1, help="PRBS clock period in steps")
+    mo.add_argument("--seed", type=int, default=0, help="excitation seed (validation run: seed + 1)")
+    mo.add_argument("--order", type=int, help="model order (default: from the singular values)")
+    mo.add_argument("--min-fit", type=float, default=50.0, help="refuse a validation fit below this (%%, default 50)")
+    mo.add_argument("--plot", help="PNG of measured vs model outputs on the validation run")
+    mo.add_argument("--record", help="CSV of the identification run (a fault-free log for --method data)")
+    mo.set_defaults(func=_model)
 
     b = sub.add_parser("build", help="build the diagnostic FMU (co-simulation) from a design file")
     b.add_argument("design", help="design file (.json) written by 'fmu-fdi design' or Diagnoser.save")

@@ -27,7 +27,8 @@ from .progress import set_stage
 
 FORMAT = "fmu-fdi-model/1"
 GROUPS = ("u", "d", "w", "f")
-_TOP_KEYS = {"format", "name", "dt", "signals", "units", "matrices", "faults", "description", "operating_point"}
+_TOP_KEYS = {"format", "name", "dt", "signals", "units", "matrices", "faults", "description", "operating_point",
+             "provenance"}
 _MATRIX_KEYS = {"A", "Bu", "C", "Du", "Bd", "Dd", "Bw", "Dw"}
 
 
@@ -44,7 +45,7 @@ class FDIModel:
                  u_names: Sequence[str] | None = None, y_names: Sequence[str] | None = None,
                  d_names: Sequence[str] | None = None, w_names: Sequence[str] | None = None,
                  units: dict | None = None, name: str = "plant", description: str = "",
-                 operating_point: dict | None = None):
+                 operating_point: dict | None = None, provenance: dict | None = None):
         A = _matrix(A, "A")
         n = A.shape[0]
         if A.shape != (n, n):
@@ -105,6 +106,8 @@ class FDIModel:
             raise ModelError(f"operating_point has unknown keys {sorted(bad)}; use 'u' and 'y'")
         self.u0 = _matrix(op["u"], "operating_point.u", rows=m).ravel() if "u" in op and m else np.zeros(m)
         self.y0 = _matrix(op["y"], "operating_point.y", rows=p).ravel() if "y" in op else np.zeros(p)
+
+        self.provenance = _provenance(provenance)
 
         self.faults: list[FaultSpec] = []
         cols_B, cols_D = [], []
@@ -214,6 +217,20 @@ class FDIModel:
             units=units, name=name,
         )
 
+    @classmethod
+    def from_fmu(cls, path, inputs=None, outputs=None, disturbances=(), *, at=None, method: str = "auto",
+                 **options) -> "FDIModel":
+        """A linear model of a plant FMU: linearised (model exchange) or identified (co-simulation).
+
+        Delegates to :func:`fmu_fdi.identify.model_from_fmu`, which documents ``at``,
+        ``method`` and the further options (``trim``, ``sensor_faults``, ``actuator_faults``,
+        ``ts``, ``excite``, ``excitation``, ``parameters``, ``order``, ...). The model carries
+        the operating point and a ``provenance`` table (FMU, GUID, method, fit).
+        """
+        from .identify import model_from_fmu
+
+        return model_from_fmu(path, inputs, outputs, disturbances, at=at, method=method, **options)
+
     # ------------------------------------------------------------------ sizes
     @property
     def n(self) -> int:
@@ -302,7 +319,8 @@ class FDIModel:
         kw = dict(A=self.A, Bu=self.Bu, C=self.C, Du=self.Du, Bd=self.Bd, Dd=self.Dd, Bw=self.Bw,
                   Dw=self.Dw, faults=self.faults, dt=self.dt, u_names=self.u_names, y_names=self.y_names,
                   d_names=self.d_names, w_names=self.w_names, units=self.units, name=self.name,
-                  description=self.description, operating_point={"u": self.u0, "y": self.y0})
+                  description=self.description, operating_point={"u": self.u0, "y": self.y0},
+                  provenance=self.provenance)
         kw.update(changes)
         return FDIModel(**kw)
 
@@ -387,6 +405,8 @@ class FDIModel:
             d["units"] = dict(self.units)
         if np.any(self.u0) or np.any(self.y0):
             d["operating_point"] = {"u": self.u0.tolist(), "y": self.y0.tolist()}
+        if self.provenance:
+            d["provenance"] = dict(self.provenance)
         return d
 
     @classmethod
@@ -416,7 +436,7 @@ class FDIModel:
                 faults=d.get("faults", []), dt=d.get("dt", 0.0),
                 u_names=u, y_names=sig["y"], d_names=sig.get("d", []), w_names=sig.get("w", []),
                 units=d.get("units"), name=d.get("name", "plant"), description=d.get("description", ""),
-                operating_point=d.get("operating_point"),
+                operating_point=d.get("operating_point"), provenance=d.get("provenance"),
             )
         except ModelError as exc:
             msg = str(exc)
@@ -473,7 +493,7 @@ def _toml_dumps(d: dict) -> str:
     for key, val in d.items():
         if not isinstance(val, (dict, list)):
             lines.append(f"{key} = {_toml_value(val)}")
-    for key in ("signals", "units", "operating_point", "matrices"):
+    for key in ("signals", "units", "operating_point", "provenance", "matrices"):
         if key in d:
             lines.append(f"\n[{key}]")
             lines.extend(f"{k} = {_toml_value(v)}" for k, v in d[key].items())
@@ -481,6 +501,22 @@ def _toml_dumps(d: dict) -> str:
         lines.append("\n[[faults]]")
         lines.extend(f"{k} = {_toml_value(v)}" for k, v in fault.items())
     return "\n".join(lines) + "\n"
+
+
+def _provenance(prov) -> dict:
+    """Where a model came from (e.g. ``fmu-fdi model``): a flat table of strings, numbers,
+    Booleans and lists of them, kept as written and never read by any computation."""
+    if prov is None:
+        return {}
+    if not isinstance(prov, dict):
+        raise ModelError(f"provenance must be a table of key = value, got {type(prov).__name__}")
+    out = {}
+    for key, val in prov.items():
+        vals = val if isinstance(val, list) else [val]
+        if not all(isinstance(v, (str, int, float, bool)) for v in vals):
+            raise ModelError(f"provenance.{key} must be a string, number, Boolean or a list of them, got {val!r}")
+        out[str(key)] = list(val) if isinstance(val, list) else val
+    return out
 
 
 def _opt(X, name: str, rows: int, cols: int | None) -> np.ndarray:

@@ -1,0 +1,22 @@
+"""From a plant FMU to a linear model: linearisation, excitation experiments and subspace identification.
+
+This package only *produces* models (nothing else in fmu_fdi imports it):
+
+- :func:`linearise` — a model-exchange FMU (FMI 2 or 3) at an operating point, trimmed to a
+  steady state when asked; Jacobians from the FMU's directional derivatives or central
+  differences (:mod:`.linearise`).
+- :func:`run_experiment` — excitation (multisine or PRBS) of a co-simulation FMU through
+  :class:`fmu_fdi.cosim.CoSimulation` (:mod:`.experiment`).
+- :func:`moesp` — PO-MOESP subspace identification with order selection (:mod:`.subspace`).
+- :func:`validate` — fit (NRMSE %) per output on an independent run, poles, PNG (:mod:`.validation`).
+- :func:`model_from_fmu` — the door used by ``FDIModel.from_fmu`` and ``fmu-fdi model`` (:mod:`.fmu_model`).
+"""
+from .errors import IdentificationError
+from .experiment import Excitation, run_experiment
+from .fmu_model import model_from_fmu
+from .linearise import Linearisation, linearise
+from .subspace import SubspaceModel, moesp
+from .validation import ValidationReport, validate
+
+__all__ = ["IdentificationError", "Excitation", "run_experiment", "model_from_fmu", "Linearisation", "linearise",
+           "SubspaceModel", "moesp", "ValidationReport", "validate"]

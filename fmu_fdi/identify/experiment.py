@@ -1,0 +1,270 @@
+"""Excitation experiments on a co-simulation plant FMU, run through fmu_fdi.cosim.
+
+The plant first *settles* for ``settle`` seconds with every input at its operating value,
+then the excitation runs for ``samples`` communication steps of ``step`` seconds; inputs are
+held over each step (zero-order hold), so the record (u_k, y_k) is what a sampled model
+``x(k+1) = A x(k) + B u(k)`` expects.
+
+Signals (per excited input, amplitude a, deviation from the operating value):
+
+- ``"multisine"``: a sum of sines on the DFT grid f_k = k / (samples·step) of the record
+  (periodic, no leakage), lines log-spaced from the lowest grid frequency up to
+  ``band``·Nyquist, assigned to the inputs in turn (no two inputs share a line, so they are
+  uncorrelated), random phases (seed); scaled to peak a.
+- ``"prbs"``: a maximum-length binary sequence ±a (scipy.signal.max_len_seq) held for
+  ``period`` steps, each input starting at a different seeded offset of the sequence.
+
+Checks that make a bad experiment an error rather than a wrong model: excitation beyond an
+input's declared min/max; a recorded output beyond its declared min/max; a Boolean output
+(limit or mode flag, e.g. a tank's ``overflow``) switching during the experiment; the FMU
+failing a step; outputs still drifting at the end of settling.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import IdentificationError
+
+SIGNALS = ("multisine", "prbs")
+
+
+@dataclass
+class Excitation:
+    """How the plant is excited (configuration only; see the module docstring).
+
+    Parameters
+    ----------
+    signal : {'multisine', 'prbs'}
+    amplitude : float or dict of str to float, optional
+        Peak deviation per excited input in its unit (a float: the same for all). Default
+        5 % of the operating value; an input at 0 needs an explicit amplitude.
+    samples : int
+        Number of recorded steps.
+    settle : float
+        Seconds at the operating point before recording.
+    band : float
+        Highest multisine frequency as a fraction of the Nyquist frequency.
+    period : int
+        PRBS clock period in steps.
+    seed : int
+    """
+
+    signal: str = "multisine"
+    amplitude: float | dict | None = None
+    samples: int = 2000
+    settle: float | None = None
+    band: float = 0.5
+    period: int = 1
+    seed: int = 0
+
+    def check(self):
+        if self.signal not in SIGNALS:
+            raise IdentificationError(f"excitation signal {self.signal!r} is not one of {SIGNALS}")
+        if int(self.samples) != self.samples or self.samples < 10:
+            raise IdentificationError(f"samples must be an integer >= 10, got {self.samples!r}")
+        if not 0 < self.band <= 1:
+            raise IdentificationError(f"band must be in (0, 1] (fraction of Nyquist), got {self.band!r}")
+        if int(self.period) != self.period or self.period < 1:
+            raise IdentificationError(f"PRBS period must be a positive integer, got {self.period!r}")
+
+
+def excitation_signals(exc: Excitation, names, amplitudes) -> np.ndarray:
+    """``samples × len(names)`` deviations (module docstring)."""
+    N, m = int(exc.samples), len(names)
+    rng = np.random.default_rng(exc.seed)
+    out = np.zeros((N, m))
+    if exc.signal == "multisine":
+        k_hi = max(int(exc.band * N / 2), m)
+        lines = np.unique(np.round(np.geomspace(1, k_hi, num=min(k_hi, 40 * m))).astype(int))
+        if lines.size < m:
+            raise IdentificationError(f"{N} samples leave too few multisine lines for {m} inputs: record more")
+        k = np.arange(N)
+        for j in range(m):
+            mine = lines[j::m]
+            phases = rng.uniform(0, 2 * np.pi, mine.size)
+            sig = np.cos(2 * np.pi * np.outer(k, mine) / N + phases).sum(axis=1)
+            out[:, j] = sig / np.max(np.abs(sig))
+    else:
+        from scipy.signal import max_len_seq
+
+        nbits = max(int(np.ceil(np.log2(N / exc.period + 1))), 3)
+        seq = max_len_seq(nbits)[0].astype(float) * 2 - 1
+        for j in range(m):
+            shift = int(rng.integers(seq.size))
+            held = np.repeat(np.roll(seq, shift), exc.period)
+            out[:, j] = np.resize(held, N)
+    return out * np.asarray(amplitudes, float)
+
+
+@dataclass
+class Record:
+    """A recorded experiment: absolute samples and the operating point they vary around."""
+
+    t: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    u0: np.ndarray
+    y0: np.ndarray
+    u_names: list
+    y_names: list
+    excited: dict = field(default_factory=dict)
+
+
+def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=None, step: float,
+                   excitation: Excitation | None = None) -> Record:
+    """Settle, excite and record a co-simulation plant FMU.
+
+    Parameters
+    ----------
+    path : str or Path
+        Plant FMU (FMI 2 or 3 co-simulation).
+    inputs : list of str
+        Signals recorded as model inputs (u then d): FMU inputs, or FMU outputs for a plant
+        with its own controller (then excite its references).
+    outputs : list of str
+        FMU outputs recorded as y.
+    excite : list of str, optional
+        FMU inputs to excite (default: those of ``inputs`` that are FMU inputs).
+    at : dict, optional
+        Operating values of FMU inputs (default: their start values).
+    parameters : dict, optional
+        Parameter values (e.g. ``{"noise_enable": False}``).
+    step : float
+        Communication step = sample time of the record.
+    excitation : Excitation
+
+    Raises
+    ------
+    IdentificationError
+        See the module docstring's checks.
+    """
+    from ..cosim import CoSimulation, InputSignals
+    from ..cosim.errors import CoSimulationError, SimulationFailed
+    from ..cosim.instance import FMUInstance
+
+    exc = excitation or Excitation()
+    exc.check()
+    try:
+        fmu = FMUInstance("plant", path)
+    except (CoSimulationError, FileNotFoundError) as err:
+        raise IdentificationError(str(err)) from None
+    fmu_inputs = [n for n in fmu.names("input") if fmu.kind(n) == "real"]
+    fmu_outputs = [n for n in fmu.names("output") if fmu.kind(n) == "real"]
+    for nm in inputs:
+        if nm not in fmu_inputs and nm not in fmu_outputs:
+            raise IdentificationError(f"{path}: model input {nm!r} is neither a Real input nor a Real output of "
+                                      f"the FMU; inputs {fmu_inputs}, outputs {fmu_outputs}")
+    for nm in outputs:
+        if nm not in fmu_outputs:
+            raise IdentificationError(f"{path}: output {nm!r} is not a Real output of the FMU; it has {fmu_outputs}")
+    if excite is None:
+        excite = [n for n in inputs if n in fmu_inputs]
+        closed = [n for n in inputs if n not in fmu_inputs]
+        if closed:
+            raise IdentificationError(f"{path}: model inputs {closed} are FMU outputs (the plant closes its own "
+                                      f"loop): name the FMU inputs to excite (e.g. its references) with excite=")
+    for nm in excite:
+        if nm not in fmu_inputs:
+            raise IdentificationError(f"{path}: cannot excite {nm!r}: not a Real input of the FMU; it has {fmu_inputs}")
+    if not excite:
+        raise IdentificationError(f"{path}: nothing to excite: give the FMU inputs to excite")
+    at = dict(at or {})
+    params = dict(parameters or {})
+    v0 = {}
+    for nm in fmu_inputs:
+        start = fmu.start_value(nm)
+        v0[nm] = float(at[nm]) if nm in at else float(start if start is not None else 0.0)
+    amps = []
+    for nm in excite:
+        a = exc.amplitude.get(nm) if isinstance(exc.amplitude, dict) else exc.amplitude
+        if a is None:
+            if v0[nm] == 0.0:
+                raise IdentificationError(f"{path}: input {nm!r} operates at 0, so 5 % of it excites nothing: give "
+                                          f"its amplitude (amplitude={{'{nm}': ...}} / --amplitude {nm}=A)")
+            a = 0.05 * abs(v0[nm])
+        a = float(a)
+        if not np.isfinite(a) or a <= 0:
+            raise IdentificationError(f"amplitude of {nm!r} must be a positive number, got {a!r}")
+        var = fmu.variable(nm)
+        lo, hi = _limit(var.min), _limit(var.max)
+        if (lo is not None and v0[nm] - a < lo) or (hi is not None and v0[nm] + a > hi):
+            raise IdentificationError(f"{path}: excitation of {nm!r} spans [{v0[nm] - a:g}, {v0[nm] + a:g}], outside "
+                                      f"its declared range [{lo}, {hi}]: lower the amplitude")
+        amps.append(a)
+    settle = float(exc.settle) if exc.settle is not None else 200 * step
+    n_settle = int(round(settle / step))
+    N = int(exc.samples)
+    dev = excitation_signals(exc, excite, amps)
+    t = np.arange(n_settle + N + 1) * step
+    values = {nm: np.full(t.size, v0[nm]) for nm in fmu_inputs if nm in at or nm in excite}
+    for j, nm in enumerate(excite):
+        values[nm][n_settle:n_settle + N] += dev[:, j]
+    bool_outs = [n for n in fmu.names("output") if fmu.kind(n) == "boolean"]
+    try:
+        sim = CoSimulation({"plant": path}, None, InputSignals(t, values), step=step, stop=float(t[-1]),
+                           parameters={f"plant.{k}": v for k, v in params.items()})
+        res = sim.run()
+    except SimulationFailed as err:
+        raise IdentificationError(f"{path}: the plant FMU failed during the experiment ({err}); lower the "
+                                  f"amplitude or check the operating point") from None
+    except CoSimulationError as err:
+        raise IdentificationError(f"{path}: {err}") from None
+    for nm in bool_outs:
+        col = np.asarray(res[f"plant.{nm}"]).astype(bool)
+        if np.any(col != col[0]):
+            k = int(np.flatnonzero(col != col[0])[0])
+            raise IdentificationError(
+                f"{path}: the experiment drove the plant out of its limits: Boolean output {nm!r} switched to "
+                f"{bool(col[k])} at t = {t[k]:g} s (excitation {dict(zip(excite, amps))}); lower the amplitude "
+                f"or move the operating point")
+    def col(nm):
+        return np.asarray(res[f"plant.{nm}"], float)
+    # sample k of the record: inputs held over [t_k, t_k+1), outputs at t_k
+    rows = slice(n_settle, n_settle + N)
+    u = np.column_stack([values[nm][rows] if nm in fmu_inputs and nm in values else
+                         (np.full(N, v0[nm]) if nm in fmu_inputs else col(nm)[rows]) for nm in inputs]) \
+        if inputs else np.zeros((N, 0))
+    y = np.column_stack([col(nm)[rows] for nm in outputs])
+    for j, nm in enumerate(outputs):
+        var = fmu.variable(nm)
+        lo, hi = _limit(var.min), _limit(var.max)
+        if (lo is not None and y[:, j].min() < lo) or (hi is not None and y[:, j].max() > hi):
+            raise IdentificationError(f"{path}: output {nm!r} left its declared range [{lo}, {hi}] during the "
+                                      f"experiment ({y[:, j].min():g} .. {y[:, j].max():g}): lower the amplitude")
+    u0 = np.array([v0[nm] if nm in fmu_inputs else col(nm)[n_settle] for nm in inputs])
+    tail = slice(max(n_settle - max(n_settle // 4, 1), 0) + 1, n_settle + 1)
+    y0 = np.array([col(nm)[tail].mean() for nm in outputs])  # settled value, noise averaged
+    _check_settled(path, res, outputs, n_settle, y, settle)
+    return Record(t[rows] - t[n_settle], u, y, u0, y0, list(inputs), list(outputs), dict(zip(excite, amps)))
+
+
+def _check_settled(path, res, outputs, n_settle, y, settle):
+    """The outputs' drift over the last quarter of settling (least-squares slope times its
+    duration) is below 5 % of their spread during the excitation, or within 3 standard
+    deviations of what measurement noise alone gives the fitted drift."""
+    if n_settle < 8:
+        return
+    q = n_settle // 4
+    k = np.arange(q, dtype=float)
+    k -= k.mean()
+    for j, nm in enumerate(outputs):
+        tail = np.asarray(res[f"plant.{nm}"], float)[n_settle - q + 1:n_settle + 1]
+        slope = float(k @ (tail - tail.mean()) / (k @ k))
+        drift = abs(slope) * q
+        # 3 standard deviations of the fitted drift for white noise of the residual's size
+        noise = float(np.std(tail - tail.mean() - slope * k)) * np.sqrt(12.0 / q) * 3.0
+        spread = float(np.std(y[:, j]))
+        if spread > 0 and drift > max(0.05 * spread, noise):
+            raise IdentificationError(
+                f"{path}: output {nm!r} was still moving at the end of settling ({drift:.3g} over the last "
+                f"{q} steps, vs an excitation response of std {spread:.3g}): settle longer (settle > {settle:g} s) "
+                f"or start at a steady state")
+
+
+def _limit(v):
+    try:
+        return None if v is None else float(v)
+    except (TypeError, ValueError):
+        return None
