@@ -31,7 +31,7 @@ def build(name: str, out_dir) -> Path:
     handed to ``pythonfmu.builder.FmuBuilder.build_FMU``; the model files end up in the
     FMU's ``resources/``.
     """
-    from pythonfmu.builder import FmuBuilder
+    from fmu_fdi.fmu.packaging import installed_pythonfmu
 
     try:
         plant = PLANTS[name]
@@ -51,7 +51,10 @@ def build(name: str, out_dir) -> Path:
             shutil.copy2(model_file, stage / model_file.name)
             project.append(stage / model_file.name)
         modules = [script.stem] + [p.stem for p in project if p.suffix == ".py"]
-        with _restored_imports(modules):
+        # the installed pythonfmu, not the copy a plant FMU run in this process left behind
+        with _restored_imports(modules), installed_pythonfmu():
+            from pythonfmu.builder import FmuBuilder
+
             return Path(FmuBuilder.build_FMU(script, dest=out_dir / f"{name}.fmu", project_files=project))
 
 

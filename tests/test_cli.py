@@ -89,7 +89,7 @@ def test_design_with_statistical_thresholds(tmp_path):
     bad.write_text("time,u,y1\n0,0,0\n")
     res = cli("design", EXAMPLES / "varga_a4_noise.toml", "--method", "nullspace", "--ts", "0.01",
               "--threshold", "data:0.01", "--calibrate", bad, "-o", tmp_path / "x.json")
-    assert res.returncode == 2 and "columns ['y2'] are missing" in res.stderr
+    assert res.returncode == 2 and "no column for y2" in res.stderr
 
 
 def test_plot_reads_fmpy_and_cosim_csvs(tmp_path):

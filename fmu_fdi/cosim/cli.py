@@ -19,8 +19,11 @@ _DESCRIPTION = """\
 Co-simulate plant FMU(s) and a diagnostic FMU (FMI 2 or 3 co-simulation) on a fixed
 communication step. Outputs are connected to the same-named inputs of the other FMUs unless
 --connect is given; --input signals feed every unconnected input of their name. The result CSV
-holds every output of every FMU ("fmu.var") and each fault's true signal ("fault.NAME",
-"fault.NAME.active"). Exit status: 0 done; 1 an FMU failed (the rows so far are written);
+holds every output and every fed input of every FMU ("fmu.var": the plant inputs and what the
+diagnoser read) and each fault's true signal ("fault.NAME", "fault.NAME.active"); it is a log
+'fmu-fdi diagnose' and 'fmu-fdi design --calibrate' read as it is. Every input of the diagnoser
+must be connected or fed by --input (else it would diagnose its start values): an error unless
+--allow-unconnected. Exit status: 0 done; 1 an FMU failed (the rows so far are written);
 2 a set-up error."""
 
 
@@ -35,10 +38,11 @@ def add_parser(subparsers):
     p.add_argument("--plant", action="append", required=True, metavar="[NAME=]P.fmu",
                    help="plant FMU (repeatable; instance name 'plant', 'plant2', ... unless NAME= given)")
     p.add_argument("--diagnoser", metavar="[NAME=]FDI.fmu",
-                   help="diagnostic FMU (instance name 'diagnoser'); stepped after the plants")
+                   help="diagnostic FMU (instance name 'diagnoser' unless NAME= given); stepped after the "
+                        "plants (default: none)")
     p.add_argument("--stop", type=float, required=True, help="stop time (s)")
     p.add_argument("--step", type=float, required=True, help="communication step (s)")
-    p.add_argument("--start", type=float, default=0.0, help="start time (s), default 0")
+    p.add_argument("--start", type=float, default=0.0, help="start time (s) (default: 0)")
     p.add_argument("--input", metavar="CSV", help="external input signals: a 'time' column and one "
                    "column per signal, fed to every unconnected input of that name")
     p.add_argument("--interpolation", choices=INTERPOLATIONS, default="zoh",
@@ -50,9 +54,14 @@ def add_parser(subparsers):
                         "default: connect outputs to same-named inputs)")
     p.add_argument("--param", action="append", default=[], metavar="FMU.VAR=VALUE",
                    help="parameter or start value set before initialisation (repeatable)")
-    p.add_argument("--order", choices=ORDERS, default="gauss-seidel", help="stepping order")
+    p.add_argument("--order", choices=ORDERS, default="gauss-seidel",
+                   help="stepping order (default: gauss-seidel; jacobi: the diagnoser reads each (u, y) of one "
+                        "sample)")
+    p.add_argument("--allow-unconnected", action="store_true",
+                   help="run although some diagnoser inputs are neither connected nor fed by --input "
+                        "(they keep their start values; default: refuse)")
     p.add_argument("--ssp", metavar="OUT.ssp",
-                   help="also export the connected system (without the faults) as SSP")
+                   help="also export the connected system (without the faults) as SSP (default: none)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv", help="result CSV")
     p.set_defaults(func=run)
     return p
@@ -60,15 +69,26 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     """Execute ``fmu-fdi simulate`` with parsed ``args``; returns the exit status."""
+    from ..errors import InputFileError, OutputError
+    from ..inputfiles import check_input_file
+    from ..outpath import check_output_path
+
     try:
+        check_output_path(args.output, (".csv",), "result CSV")
+        if args.ssp:
+            check_output_path(args.ssp, (".ssp",), "SSP file")
+        if args.input:
+            check_input_file(args.input, "input CSV")
         sim = _build(args)
+        if not args.allow_unconnected:
+            _check_diagnoser_fed(sim, args)
         if args.ssp:
             sim.export_ssp(args.ssp, drop_faults=True)
             if sim.faults:
                 print(f"fmu-fdi simulate: note: {args.ssp} describes the fault-free system "
                       f"(SSP cannot express the fault scenarios)", file=sys.stderr)
-    except (CoSimulationError, FileNotFoundError) as exc:
-        print(f"fmu-fdi simulate: error: {exc}", file=sys.stderr)
+    except (CoSimulationError, FileNotFoundError, InputFileError, OutputError) as exc:
+        print(f"fmu-fdi simulate: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
     try:
         result = sim.run()
@@ -99,6 +119,20 @@ def _build(args) -> CoSimulation:
     inputs = InputSignals.from_csv(args.input, args.interpolation) if args.input else None
     return CoSimulation(fmus, connections, inputs, step=args.step, stop=args.stop, start=args.start,
                         order=args.order, faults=[parse_fault(s) for s in args.fault], parameters=params)
+
+
+def _check_diagnoser_fed(sim, args):
+    """Every input of the diagnoser instance is connected or fed by an external signal."""
+    if not args.diagnoser:
+        return
+    name = next(reversed(sim.fmus))  # the diagnoser is added last
+    fed = {fd.var for fd in sim._wiring.feeds if fd.fmu == name and fd.source[0] in ("output", "signal")}
+    loose = [v for v in sim.fmus[name].names("input") if v not in fed]
+    if loose:
+        raise CoSimulationError(
+            f"diagnoser inputs {', '.join(loose)} are neither connected nor fed by --input, so the diagnoser "
+            f"would read their start values; give them a source (--input CSV with columns "
+            f"{', '.join(loose)}, or --connect) or pass --allow-unconnected")
 
 
 def _named(fmus, text, default):

@@ -118,9 +118,15 @@ class CoSimulation:
         cols = [("time", "real")]
         for name, fmu in self.fmus.items():
             cols += [(f"{name}.{v}", fmu.kind(v)) for v in fmu.names("output") if fmu.kind(v) != "string"]
+            cols += [(f"{name}.{v}", fmu.kind(v)) for v in self._fed_inputs(name)]
         for f in self.faults:
             cols += [(f"fault.{f.name}", "real"), (f"fault.{f.name}.active", "boolean")]
         return cols
+
+    def _fed_inputs(self, name) -> list:
+        """Inputs of FMU ``name`` the master sets during the run, recorded as ``name.var``."""
+        return [fd.var for fd in self._wiring.feeds
+                if fd.fmu == name and fd.runtime and self.fmus[name].variable(fd.var).causality == "input"]
 
     def run(self) -> Result:
         """Instantiate, initialise and step all FMUs from start to stop; record every row.
@@ -189,6 +195,8 @@ class _Run:
         for feed in w.feeds:  # a fixed source is the value the variable has after initialisation
             if feed.source == ("fixed", None):
                 self.fixed[(feed.fmu, feed.var)] = sim.fmus[feed.fmu].accessor([feed.var]).read(t0)[0]
+        self.recorded = [fd for name in sim.fmus for fd in self.feeds[name]
+                         if fd.var in sim._fed_inputs(name)]
         self.columns = {key: f"{key[0]}.{key[1]}" for name in sim.fmus
                         for key in ((name, v) for v in self.outputs[name].names)}
         for name in sim.fmus:
@@ -242,6 +250,8 @@ class _Run:
         data["time"] = t
         for key, value in self.values.items():
             data[self.columns[key]] = value
+        for feed in self.recorded:  # the value of the input's source at t, faults applied
+            data[f"{feed.fmu}.{feed.var}"] = self.chain(feed, t)[-1]
         for fault in self.sim.faults:
             feed, pos = self.sim._wiring.fault_feed[fault.name]
             vals = self.chain(feed, t)
