@@ -25,7 +25,7 @@ def dos(tmp_path_factory):
     return dg, dg.save(tmp / "dos.json"), build_fmu(dg, tmp / "dos.fmu")
 
 
-def test_build_after_a_plant_fmu_ran_in_the_same_process_has_binaries(tmp_path):
+def test_build_after_a_plant_fmu_ran_in_the_same_process_has_binaries(tmp_path, dos):
     """A pythonfmu plant FMU that ran first leaves its stripped pythonfmu copy (no wrapper
     binaries) in sys.modules; the build must still use the installed one, and the FMU must
     load. Run in a fresh process, as the demo does it: calibrate with the plant, then export."""
@@ -34,14 +34,11 @@ def test_build_after_a_plant_fmu_ran_in_the_same_process_has_binaries(tmp_path):
     plant = plant_fmus.build("dts200", tmp_path)
     script = textwrap.dedent(f"""
         import json, sys, zipfile
-        import plant_fmus
-        from fmu_fdi import CoSimulation, Diagnoser, FDIModel, build_fmu, dedicated_bank
+        from fmu_fdi import CoSimulation, build_fmu
         CoSimulation({{"plant": {str(plant)!r}}}, None, step=1.0, stop=2.0).run()
         import pythonfmu
         shadowed = "resources" in pythonfmu.__file__     # the precondition of the bug
-        model = FDIModel.from_file(plant_fmus.model_path("dts200"))
-        dg = Diagnoser(dedicated_bank(model, "sensor", noise="ignore"), Ts=1.0, thresholds=0.4)
-        fmu = build_fmu(dg, {str(tmp_path / "fdi.fmu")!r})
+        fmu = build_fmu({str(dos[1])!r}, {str(tmp_path / "fdi.fmu")!r})
         res = CoSimulation({{"fdi": str(fmu)}}, None, step=1.0, stop=3.0).run()
         print(json.dumps({{"shadowed": shadowed, "still": pythonfmu.__file__ == sys.modules["pythonfmu"].__file__,
                           "members": zipfile.ZipFile(fmu).namelist(), "rows": len(res)}}))

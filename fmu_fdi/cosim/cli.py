@@ -27,33 +27,42 @@ must be connected or fed by --input (else it would diagnose its start values): a
 2 a set-up error."""
 
 
+def _plain(rst: str) -> str:
+    """Help text from reStructuredText: roles (:mod:`~a.b`) become their last name, no ``."""
+    import re
+
+    text = re.sub(r":\w+:`~?([^`]*?)`", lambda m: m.group(1).rsplit(".", 1)[-1], rst)
+    return text.replace("``", "")
+
+
 def add_parser(subparsers):
     """Add the ``simulate`` command to an ``argparse`` sub-parser set; returns the parser."""
     import argparse
 
     p = subparsers.add_parser(
         "simulate", help="co-simulate plant FMU(s) with a diagnostic FMU and fault scenarios",
-        description=_DESCRIPTION, epilog="fault SPEC:" + _SPEC_DOC.split("::", 1)[1].replace("``", ""),
+        description=_DESCRIPTION, epilog="fault SPEC:" + _plain(_SPEC_DOC.split("::", 1)[1]),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--plant", action="append", required=True, metavar="[NAME=]P.fmu",
-                   help="plant FMU (repeatable; instance name 'plant', 'plant2', ... unless NAME= given)")
+                   help="plant FMU (repeatable; default instance names 'plant', 'plant2', ... unless NAME= given)")
     p.add_argument("--diagnoser", metavar="[NAME=]FDI.fmu",
-                   help="diagnostic FMU (instance name 'diagnoser' unless NAME= given); stepped after the "
+                   help="diagnostic FMU (default instance name 'diagnoser' unless NAME= given); stepped after the "
                         "plants (default: none)")
     p.add_argument("--stop", type=float, required=True, help="stop time (s)")
     p.add_argument("--step", type=float, required=True, help="communication step (s)")
     p.add_argument("--start", type=float, default=0.0, help="start time (s) (default: 0)")
     p.add_argument("--input", metavar="CSV", help="external input signals: a 'time' column and one "
-                   "column per signal, fed to every unconnected input of that name")
+                   "column per signal, fed to every unconnected input of that name (default: none)")
     p.add_argument("--interpolation", choices=INTERPOLATIONS, default="zoh",
-                   help="how --input is read between its samples (default zoh)")
+                   help="how --input is read between its samples (default: zoh)")
     p.add_argument("--fault", action="append", default=[], metavar="SPEC",
-                   help="fault scenario KIND:TARGET:ONSET[:END]:MAGNITUDE[,opt=val...] (repeatable)")
+                   help="fault scenario KIND:TARGET:ONSET[:END]:MAGNITUDE[,opt=val...] (repeatable; default: none)")
     p.add_argument("--connect", action="append", metavar="SRC=DST",
                    help="explicit connection, e.g. plant.y=diagnoser.y (repeatable; replaces the "
                         "default: connect outputs to same-named inputs)")
     p.add_argument("--param", action="append", default=[], metavar="FMU.VAR=VALUE",
-                   help="parameter or start value set before initialisation (repeatable)")
+                   help="parameter or start value set before initialisation (repeatable; default: "
+                        "the FMU's start values)")
     p.add_argument("--order", choices=ORDERS, default="gauss-seidel",
                    help="stepping order (default: gauss-seidel; jacobi: the diagnoser reads each (u, y) of one "
                         "sample)")
