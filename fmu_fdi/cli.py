@@ -157,44 +157,63 @@ def parse_evaluation(text: str) -> dict:
                       f"narendra:ALPHA,BETA,GAMMA or chi2:N")
 
 
+_THRESHOLD_FORMS = ("use fault-size:F, fixed:V, sensor-gain:DELTA,J0, analytic:ALPHA[,STD], data:RATE or "
+                    "sigma:ALPHA")
+_THRESHOLD_ARGS = {"sigma": (1, 1), "analytic": (1, 2), "data": (1, 1), "fixed": (1, 1), "fault-size": (0, 1),
+                   "sensor-gain": (2, 2)}
+
+
+def _threshold_args(text: str) -> tuple[str, list]:
+    """``KIND:a,b`` -> (kind, [a, b]) with the count of numbers each kind takes."""
+    kind, _, arg = text.partition(":")
+    lo, hi = _THRESHOLD_ARGS.get(kind, (-1, -1))
+    try:
+        nums = [float(x) for x in arg.split(",")] if arg else []
+    except ValueError:
+        nums = None
+    if lo < 0 or nums is None or not lo <= len(nums) <= hi or not all(map(math.isfinite, nums)):
+        raise DesignError(f"cannot read threshold {text!r}: {_THRESHOLD_FORMS}")
+    return kind, nums
+
+
 def _thresholds(text: str, gen, evaluation: dict, calibrate=None):
+    kind, nums = _threshold_args(text)
+    try:
+        return _threshold_values(kind, nums, gen, evaluation, calibrate)
+    except (DesignError, ModelError, InputFileError):
+        raise
+    except ValueError as exc:  # the library's reason, e.g. too few calibration samples
+        raise DesignError(f"--threshold {text}: {exc}") from None
+
+
+def _threshold_values(kind, nums, gen, evaluation, calibrate):
     from .evaluation import (analytic_threshold, data_driven_threshold, fault_size_thresholds, sensor_gain_plants,
                              threshold_selector)
 
-    kind, _, arg = text.partition(":")
-    try:
-        if kind == "sigma":
-            from scipy.stats import chi2
+    if kind == "sigma":
+        from scipy.stats import chi2
 
-            alpha = float(arg)
-            return [float(np.sqrt(chi2.ppf(1 - alpha, len(g)))) for g in gen.groups]
-        if kind == "analytic":
-            parts = [float(x) for x in arg.split(",")]
-            alpha, std = parts[0], (parts[1] if len(parts) > 1 else 1.0)
-            cov = std * std * np.eye(gen.model.nw) if gen.model.nw else None
-            return [analytic_threshold(gen, evaluation, alpha, noise_cov=cov, group=i) for i in range(len(gen.groups))]
-        if kind == "data":
-            if calibrate is None:
-                raise DesignError("--threshold data:RATE needs a fault-free record: --calibrate CSV")
-            from .diagnoser import Diagnoser
+        return [float(np.sqrt(chi2.ppf(1 - nums[0], len(g)))) for g in gen.groups]
+    if kind == "analytic":
+        alpha, std = nums[0], (nums[1] if len(nums) > 1 else 1.0)
+        cov = std * std * np.eye(gen.model.nw) if gen.model.nw else None
+        return [analytic_threshold(gen, evaluation, alpha, noise_cov=cov, group=i) for i in range(len(gen.groups))]
+    if kind == "data":
+        if calibrate is None:
+            raise DesignError("--threshold data:RATE needs a fault-free record: --calibrate CSV")
+        from .diagnoser import Diagnoser
 
-            t, u, y = _read_record(calibrate, gen.model)
-            probe = Diagnoser(gen, evaluation=evaluation, thresholds=1e300)  # evaluations only
-            out = probe.run(t, u, y)
-            return [data_driven_threshold(out[f"evaluation_{i + 1}"], float(arg)) for i in range(len(gen.groups))]
-        if kind == "fixed":
-            return float(arg)
-        if kind == "fault-size":
-            return fault_size_thresholds(gen, evaluation, float(arg or 1.0))
-        if kind == "sensor-gain":
-            delta, J0 = (float(x) for x in arg.split(","))
-            plants = sensor_gain_plants(gen.model, delta)
-            return [threshold_selector(gen, evaluation, J0=J0, plants=plants)] * len(gen.groups)
-    except ValueError as exc:
-        if isinstance(exc, (DesignError, ModelError, InputFileError)):
-            raise
-    raise DesignError(f"cannot read threshold {text!r}: use fault-size:F, fixed:V, sensor-gain:DELTA,J0, "
-                      f"analytic:ALPHA[,STD], data:RATE or sigma:ALPHA")
+        t, u, y = _read_record(calibrate, gen.model)
+        probe = Diagnoser(gen, evaluation=evaluation, thresholds=1e300)  # evaluations only
+        out = probe.run(t, u, y)
+        return [data_driven_threshold(out[f"evaluation_{i + 1}"], nums[0]) for i in range(len(gen.groups))]
+    if kind == "fixed":
+        return nums[0]
+    if kind == "fault-size":
+        return fault_size_thresholds(gen, evaluation, nums[0] if nums else 1.0)
+    delta, J0 = nums  # sensor-gain
+    plants = sensor_gain_plants(gen.model, delta)
+    return [threshold_selector(gen, evaluation, J0=J0, plants=plants)] * len(gen.groups)
 
 
 def _read_record(path, model):

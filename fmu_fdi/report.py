@@ -39,15 +39,29 @@ def _with_unit(label: str, unit) -> str:
 
 def plot_diagnosis(result, path, *, prefix: str = "", title=None, fault_names=(), t_on=None,
                    design: dict | None = None) -> Path:
-    """PNG of residuals, evaluations against thresholds, alarms and the isolation result.
+    """Write the PNG of :func:`diagnosis_figure` (same arguments) to ``path``; returns it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = diagnosis_figure(result, prefix=prefix, title=title, fault_names=fault_names, t_on=t_on, design=design)
+    path = Path(path)
+    try:
+        fig.savefig(path, dpi=110)
+    finally:
+        plt.close(fig)
+    return path
+
+
+def diagnosis_figure(result, *, prefix: str = "", title=None, fault_names=(), t_on=None, design: dict | None = None):
+    """Figure of residuals, evaluations against thresholds, alarms and the isolation result.
 
     Parameters
     ----------
     result : structured array
         ``time`` and the diagnostic outputs (optionally behind ``prefix``, e.g. ``"fdi."`` for
         a co-simulation result); ``fault.<name>.active`` columns mark the fault onsets.
-    path : path
-        PNG to write.
     prefix : str
     title : str, optional
         Default: the diagnoser's name and method and the faults injected.
@@ -63,7 +77,9 @@ def plot_diagnosis(result, path, *, prefix: str = "", title=None, fault_names=()
 
     Returns
     -------
-    Path of the PNG.
+    matplotlib.figure.Figure
+        One panel of residuals, one per evaluation group, one of the isolation result;
+        legends sit right of the axes, outside the data.
     """
     import textwrap
 
@@ -143,10 +159,7 @@ def plot_diagnosis(result, path, *, prefix: str = "", title=None, fault_names=()
         what = "; ".join(f"fault {n} from t = {w:g} s" for n, w in onsets) or "no fault injected"
         title = f"{who}: {what}"
     fig.suptitle(title, fontsize=10)
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return fig
 
 
 def format_table(rows: list[dict], columns: list[tuple[str, str]]) -> str:

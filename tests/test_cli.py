@@ -131,6 +131,8 @@ def test_demo_detects_and_isolates(tmp_path):
         assert " yes " in row and f"sensor_{h}" in row
     leak = next(ln for key, ln in lines.items() if key.startswith("leak"))
     assert " yes " in leak
+    if "unknown" in leak:  # the table says why a sensor bank cannot name the leak
+        assert "'unknown' is the correct verdict" in res.stdout
     assert (tmp_path / "demo" / "dts200_sensor_h2.png").exists()
 
 
@@ -379,3 +381,38 @@ def test_help_states_every_default_and_has_no_sphinx_markup():
 
     for name, (fn, _, _) in METHODS.items():  # every method explained next to its API function
         assert re.search(rf"^  {name}\s+{fn}\(\)$", design, re.M), name
+
+
+def test_loader_errors_reach_the_user_as_one_line(capsys, tmp_path):
+    """A matrix row of the wrong length (the loader's message, whatever its wording) is one
+    line on stderr with exit 2, and no design file is written."""
+    bad = tmp_path / "ragged.toml"
+    bad.write_text('format = "fmu-fdi-model/1"\n[signals]\nu = ["u"]\ny = ["y1"]\n[matrices]\n'
+                   'A = [[1.0, 2.0], [3.0]]\nBu = [[1.0], [0.0]]\nC = [[1.0, 0.0]]\n')
+    for cmd in (["analyze", bad], ["design", bad, "--method", "nullspace", "--ts", "1", "-o", tmp_path / "d.json"]):
+        code, _, err = run_main(capsys, *cmd)
+        assert_one_line_error(code, err, "matri")
+        assert len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "d.json").exists()
+
+
+def test_calibration_reads_a_log_with_instance_prefixed_columns(capsys, tmp_path):
+    """`design --calibrate` takes a log as `fmu-fdi simulate` writes it (plant.Q1, plant.h1, ...)."""
+    import numpy as np
+
+    from fmu_fdi import FDIModel
+    from simulate import plant_outputs
+
+    model = FDIModel.from_file(PLANT_MODEL)
+    N = 4000
+    rng = np.random.default_rng(3)
+    du = 0.5 * rng.standard_normal((N, model.nu))
+    y = model.y0 + plant_outputs(model, N, 1.0, u=du, w=rng.standard_normal((N, model.nw)))
+    cols = ["time"] + [f"plant.{n}" for n in model.u_names + model.y_names]
+    log = tmp_path / "run.csv"
+    np.savetxt(log, np.column_stack([np.arange(N), model.u0 + du, y]), delimiter=",", header=",".join(cols),
+               comments="")
+    code, out, err = run_main(capsys, "design", PLANT_MODEL, "--method", "dos", "--ts", "1", "--threshold",
+                              "data:0.01", "--calibrate", log, "-o", tmp_path / "d.json")
+    assert code == 0, err
+    assert "h2 <- plant.h2" in out and "Q1 <- plant.Q1" in out

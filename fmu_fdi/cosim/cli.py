@@ -127,7 +127,8 @@ def _build(args) -> CoSimulation:
         params[key] = _literal(value)
     inputs = InputSignals.from_csv(args.input, args.interpolation) if args.input else None
     return CoSimulation(fmus, connections, inputs, step=args.step, stop=args.stop, start=args.start,
-                        order=args.order, faults=[parse_fault(s) for s in args.fault], parameters=params)
+                        order=args.order, faults=[parse_fault(s) for s in args.fault], parameters=params,
+                        record_inputs=True)
 
 
 def _check_diagnoser_fed(sim, args):

@@ -73,6 +73,10 @@ class CoSimulation:
         those on a source output before those on the receiving input.
     parameters : mapping of str to value, optional
         ``{"plant.a": 2.0}``: parameter and input start values set before initialisation.
+    record_inputs : bool
+        Also record every input the master sets (``fmu.var``: the plant inputs from external
+        signals and faults, what the diagnoser read), so the result is a complete log for
+        offline diagnosis. ``fmu-fdi simulate`` does. Default False.
 
     Attributes
     ----------
@@ -91,7 +95,7 @@ class CoSimulation:
     """
 
     def __init__(self, fmus, connections="auto", inputs=None, *, step, stop, start=0.0,
-                 order="gauss-seidel", faults=(), parameters=None):
+                 order="gauss-seidel", faults=(), parameters=None, record_inputs: bool = False):
         if order not in ORDERS:
             raise CoSimulationError(f"order {order!r} is not one of {ORDERS}")
         self.start, self.stop, self.step = _grid(start, stop, step)
@@ -105,6 +109,7 @@ class CoSimulation:
             if not isinstance(f, Fault):
                 raise CoSimulationError(f"faults must be Fault objects (see parse_fault), got {f!r}")
         self.parameters = dict(parameters or {})
+        self.record_inputs = bool(record_inputs)
         self._wiring = wire(self.fmus, connections, self.inputs.names if self.inputs else (),
                             self.faults, self.parameters, self.start)
         self.connections = [(f"{a}.{b}", f"{c}.{d}") for a, b, c, d in self._wiring.connections]
@@ -124,7 +129,10 @@ class CoSimulation:
         return cols
 
     def _fed_inputs(self, name) -> list:
-        """Inputs of FMU ``name`` the master sets during the run, recorded as ``name.var``."""
+        """Inputs of FMU ``name`` the master sets during the run, recorded as ``name.var``
+        when ``record_inputs``."""
+        if not self.record_inputs:
+            return []
         return [fd.var for fd in self._wiring.feeds
                 if fd.fmu == name and fd.runtime and self.fmus[name].variable(fd.var).causality == "input"]
 
