@@ -252,7 +252,11 @@ def _design(args) -> int:
     if "structure" in takes:
         if not args.structure:
             raise DesignError("--method structured needs --structure '1,0,1;0,1,1' (rows ; separated)")
-        kw["S"] = np.array([[int(x) for x in row.split(",")] for row in args.structure.split(";")])
+        try:
+            kw["S"] = np.array([[int(x) for x in row.split(",")] for row in args.structure.split(";")])
+        except ValueError:
+            raise DesignError(f"--structure {args.structure!r} must be rows of 0/1 separated by ';', entries by ','"
+                              f" (e.g. '1,0,1;0,1,1') with equally long rows") from None
     if "faults" in takes and args.faults:
         kw["faults"] = args.faults
     if "Qw" in takes:
@@ -289,22 +293,25 @@ def _plot(args) -> int:
     from .recorded import diagnoser_prefix, read_result
     from .report import plot_diagnosis
 
-    check_output_path(args.output, (".png",), "plot")
+    check_output_path(args.output, (".png", ".svg", ".pdf"), "plot")
     res = read_result(check_input_file(args.result, "result CSV"))
     design = _design_for_labels(args.design)
     prefix = diagnoser_prefix(res, args.prefix, str(args.result))
     faults = [f["name"] for f in design["faults"]] if design else []
     path = plot_diagnosis(res, args.output, prefix=prefix, design=design, title=args.title)
-    t = res["time"]
-    det = res[f"{prefix}fault_detected"].astype(bool)
-    iso = res[f"{prefix}isolated_fault"]
-    first = float(t[det][0]) if det.any() else None
-    named = sorted({int(v) for v in iso if v != 0})
-    label = {0: "none", -1: "unknown"}
-    names = [label.get(v) or (faults[v - 1] if faults and v <= len(faults) else str(v)) for v in named]
-    print(f"wrote {path}; first alarm at t = {first if first is not None else '-'} s; isolated as: "
-          f"{', '.join(names) or '-'}")
+    first, names = _verdict(res["time"], res[f"{prefix}fault_detected"], res[f"{prefix}isolated_fault"], faults)
+    print(f"wrote {path}; first alarm at t = {first} s; isolated as: {names}")
     return 0
+
+
+def _verdict(t, detected, isolated, faults) -> tuple[str, str]:
+    """('first alarm time' or '-', 'the names of every isolation result' or '-')."""
+    det = np.asarray(detected).astype(bool)
+    first = f"{float(np.asarray(t)[det][0])!r}" if det.any() else "-"
+    label = {-1: "unknown"}
+    named = sorted({int(v) for v in isolated if v != 0})
+    names = [label.get(v) or (faults[v - 1] if faults and 0 < v <= len(faults) else str(v)) for v in named]
+    return first, ", ".join(names) or "-"
 
 
 def _design_for_labels(path):
@@ -328,11 +335,8 @@ def _diagnose(args) -> int:
     except ValueError as exc:
         raise DesignError(f"{args.log}: {exc}") from None
     Result(out).to_csv(args.output)
-    det = out["fault_detected"].astype(bool)
-    first = f"{float(out['time'][det][0]):g} s" if det.any() else "none"
-    iso = sorted({int(v) for v in out["isolated_fault"] if v != 0})
-    names = ", ".join(dg.fault_name(v) or str(v) for v in iso) or "-"
-    print(f"wrote {args.output}: {len(out)} samples; first alarm: {first}; isolated as: {names}")
+    first, names = _verdict(out["time"], out["fault_detected"], out["isolated_fault"], dg.fault_names)
+    print(f"wrote {args.output}: {len(out)} samples; first alarm at t = {first} s; isolated as: {names}")
     return 0
 
 
@@ -387,7 +391,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     pp = sub.add_parser("plot", help="PNG of residuals, thresholds, alarms and isolation from a result CSV")
     pp.add_argument("result", help="CSV from 'fmu-fdi simulate', 'fmu-fdi diagnose', fmpy or Result.to_csv")
-    pp.add_argument("-o", "--output", required=True, help="PNG to write")
+    pp.add_argument("-o", "--output", required=True, help="image to write (.png, .svg or .pdf)")
     pp.add_argument("--prefix", help="column prefix of the diagnoser outputs, e.g. 'diagnoser.' "
                                      "(default: found from the fault_detected column)")
     pp.add_argument("--design", help="design file, to name the faults each panel watches and the isolated "

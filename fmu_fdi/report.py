@@ -39,7 +39,7 @@ def _with_unit(label: str, unit) -> str:
 
 def plot_diagnosis(result, path, *, prefix: str = "", title=None, fault_names=(), t_on=None,
                    design: dict | None = None) -> Path:
-    """Write the PNG of :func:`diagnosis_figure` (same arguments) to ``path``; returns it."""
+    """Write :func:`diagnosis_figure` (same arguments) to ``path`` (PNG, SVG or PDF by its suffix); returns it."""
     import matplotlib
 
     matplotlib.use("Agg")
