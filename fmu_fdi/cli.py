@@ -469,6 +469,10 @@ def main(argv=None) -> int:
     except (ModelError, DesignError, BuildError, OutputError, InputFileError) as exc:
         print(f"fmu-fdi: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the file system said no (full disk, permissions, a file where a folder belongs)
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"fmu-fdi: error: {_one_line(exc.strerror or exc)}{where}", file=sys.stderr)
+        return 2
 
 
 def _one_line(exc) -> str:

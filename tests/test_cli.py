@@ -416,3 +416,16 @@ def test_calibration_reads_a_log_with_instance_prefixed_columns(capsys, tmp_path
                               "data:0.01", "--calibrate", log, "-o", tmp_path / "d.json")
     assert code == 0, err
     assert "h2 <- plant.h2" in out and "Q1 <- plant.Q1" in out
+
+
+def test_an_unwritable_output_folder_is_refused_before_the_run(capsys, tmp_path, monkeypatch):
+    """The write test the check makes (a temporary file in the folder) fails as it would for a
+    user without write permission (root, which runs CI, may write anywhere)."""
+    from fmu_fdi import outpath
+
+    def refused(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(outpath.tempfile, "TemporaryFile", refused)
+    code, _, err = run_main(capsys, "design", PLANT_MODEL, "--method", "dos", "--ts", "1", "-o", tmp_path / "d.json")
+    assert_one_line_error(code, err, f"folder {tmp_path} is not writable (Permission denied)")
