@@ -366,7 +366,7 @@ def test_help_states_every_default_and_has_no_sphinx_markup():
                 for sub in action.choices.values():
                     yield from parsers(sub)
 
-    markup = re.compile(r"``|:(class|func|mod|meth|attr|data):`")
+    markup = re.compile(r"``|:(class|func|mod|meth|attr|data):`|::\s*$", re.M)
     for p in parsers(build_parser()):
         text = p.format_help()
         assert not markup.search(text), (p.prog, markup.search(text).group())

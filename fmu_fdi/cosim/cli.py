@@ -28,10 +28,12 @@ must be connected or fed by --input (else it would diagnose its start values): a
 
 
 def _plain(rst: str) -> str:
-    """Help text from reStructuredText: roles (:mod:`~a.b`) become their last name, no ``."""
+    """Help text from reStructuredText: roles (:mod:`~a.b`) become their last name, no ``
+    and no literal-block ``::``."""
     import re
 
     text = re.sub(r":\w+:`~?([^`]*?)`", lambda m: m.group(1).rsplit(".", 1)[-1], rst)
+    text = re.sub(r"::[ \t]*$", ":", text, flags=re.M)  # literal-block markers
     return text.replace("``", "")
 
 
