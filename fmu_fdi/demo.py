@@ -52,7 +52,7 @@ def _why_unknown(design: dict, label: str, fault: str) -> str:
     """Why a detected fault is reported as 'unknown': its alarm pattern is not unique."""
     from .designinfo import group_faults, indistinguishable
 
-    groups = [i + 1 for i, seen in enumerate(group_faults(design)) if fault in seen]
+    groups = [i + 1 for i, seen in enumerate(group_faults(design) or []) if fault in seen]
     twins = indistinguishable(design, fault)
     return (f"* {label}: 'unknown' is the correct verdict. A bank of level-sensor residuals sees {fault} in "
             f"group(s) {', '.join(map(str, groups)) or '-'}, exactly as it sees {', '.join(twins) or 'other faults'}: "

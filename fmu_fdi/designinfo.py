@@ -1,7 +1,10 @@
 """What a design file says about itself, for descriptions, plots and tables.
 
 - :func:`group_faults`: the faults each residual group's alarm responds to — row i of the
-  structure matrix S (groups × faults) the decision logic isolates with.
+  structure matrix S (groups × faults) the decision logic isolates with, or, for a design
+  that isolates nothing, the weak structure matrix of its generator (a nonzero fault-to-
+  residual transfer, :func:`fmu_fdi.analysis.structure_matrix`) computed from the model and
+  generator the design file carries.
 - :func:`isolable_faults`: the faults structure-matrix isolation can name: fault j is
   isolated when exactly the groups of column j alarm, so its column must be nonzero and
   differ from every other column (Frank, section 7; Varga 2017, section 3.5). With
@@ -23,14 +26,26 @@ def _structure(design: dict):
     info = design["generator"].get("info") or {}
     if info.get("structure") is not None:
         return info["structure"], list(info.get("faults") or faults)
-    return None, faults
+    return _computed_structure(design), faults
 
 
-def group_faults(design: dict) -> list[list[str]]:
-    """Per residual group, the names of the faults its alarm responds to ([] if unknown)."""
+def _computed_structure(design: dict):
+    """Weak structure matrix (groups × faults) of the design's LTI generator, or None."""
+    if "model" not in design or design["generator"]["discrete"].get("kind") != "lti":
+        return None
+    from .analysis import structure_matrix
+    from .diagnoser import Diagnoser
+
+    gen = Diagnoser.from_design(design).generator
+    return None if gen is None else structure_matrix(gen).tolist()
+
+
+def group_faults(design: dict) -> list[list[str]] | None:
+    """Per residual group, the names of the faults its alarm responds to; None when the
+    design records no structure and none can be computed (e.g. an RLS estimator)."""
     S, names = _structure(design)
     if S is None:
-        return [[] for _ in design["generator"]["groups"]]
+        return None
     return [[names[j] for j, v in enumerate(row) if v] for row in S]
 
 

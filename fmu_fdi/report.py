@@ -96,7 +96,7 @@ def diagnosis_figure(result, *, prefix: str = "", title=None, fault_names=(), t_
     residuals = sorted(int(n.rsplit("_", 1)[1]) for n in names if n.startswith(f"{prefix}residual_"))
     if design is not None:
         fault_names = [f["name"] for f in design["faults"]]
-    watched = group_faults(design) if design else [[] for _ in groups]
+    watched = (group_faults(design) if design else None) or [[] for _ in groups]
     onsets = fault_onsets(result)
     if not onsets and t_on is not None:
         onsets = [("fault", float(t_on))]

@@ -137,3 +137,24 @@ def test_no_unit_is_claimed_when_the_outputs_differ():
     assert residual_unit(design) == "cm" and evaluation_unit(design, 0) == "cm"
     design["evaluation"][0]["evaluator"]["kind"] = "chi2"  # a χ² statistic is dimensionless
     assert evaluation_unit(design, 0) is None
+
+
+def test_descriptions_of_a_design_without_isolation_use_its_computed_structure():
+    """A null-space residual isolates nothing, so the design records no structure matrix:
+    the descriptions then name the faults with a nonzero transfer to each group (the weak
+    structure matrix of the generator), and claim nothing when that cannot be computed."""
+    import published as pub
+
+    from fmu_fdi import Diagnoser, nullspace_design, structure_matrix
+    from fmu_fdi.designinfo import group_faults
+    from fmu_fdi.fmu.builder import _descriptions
+
+    gen = nullspace_design(pub.ex5_3(), poles=[-3])
+    design = Diagnoser(gen, Ts=0.01, thresholds=1.0).design
+    assert design["decision"].get("structure") is None
+    expected = [[n for n, v in zip(gen.model.fault_names, row) if v] for row in structure_matrix(gen)]
+    assert group_faults(design) == expected and expected[0]  # ex. 5.3: the residual sees fa and fs2
+    assert f"sensitive to {', '.join(expected[0])}" in _descriptions(design)["residual_1"]
+    del design["model"]  # nothing to compute it from
+    assert group_faults(design) is None
+    assert "not recorded" in _descriptions(design)["residual_1"]

@@ -62,6 +62,8 @@ def _descriptions(design: dict) -> dict[str, str]:
     group_of = {k: i for i, grp in enumerate(g["groups"]) for k in grp}
 
     def sees(i):
+        if seen is None:
+            return "fault sensitivity not recorded in the design"
         return f"sensitive to {', '.join(seen[i])}" if seen[i] else "sensitive to no modelled fault"
 
     for k, name in enumerate(g["residual_names"]):
