@@ -14,6 +14,10 @@
 """
 from __future__ import annotations
 
+#: largest generator order for which the structure is computed at build/plot time: an H∞
+#: norm per fault block costs O(n³) per iteration, seconds beyond this on large plants
+MAX_ORDER_FOR_STRUCTURE = 200
+
 #: evaluation kinds whose value has the residual's unit
 UNIT_KEEPING = ("norm", "rms", "ewrms", "peak", "narendra")
 
@@ -31,7 +35,8 @@ def _structure(design: dict):
 
 def _computed_structure(design: dict):
     """Weak structure matrix (groups × faults) of the design's LTI generator, or None."""
-    if "model" not in design or design["generator"]["discrete"].get("kind") != "lti":
+    disc = design["generator"]["discrete"]
+    if "model" not in design or disc.get("kind") != "lti" or len(disc["A"]) > MAX_ORDER_FOR_STRUCTURE:
         return None
     from .analysis import structure_matrix
     from .diagnoser import Diagnoser
