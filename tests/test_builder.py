@@ -28,7 +28,9 @@ def dos(tmp_path_factory):
 def test_build_after_a_plant_fmu_ran_in_the_same_process_has_binaries(tmp_path, dos):
     """A pythonfmu plant FMU that ran first leaves its stripped pythonfmu copy (no wrapper
     binaries) in sys.modules; the build must still use the installed one, and the FMU must
-    load. Run in a fresh process, as the demo does it: calibrate with the plant, then export."""
+    load. Run in a fresh process, as the demo does it: calibrate with the plant, then export.
+    A diagnoser or plant that ran in the process can be built again (its stale module, bound
+    to the FMU's pythonfmu copy, must not be what the builder inspects)."""
     import plant_fmus
 
     plant = plant_fmus.build("dts200", tmp_path)
@@ -40,8 +42,13 @@ def test_build_after_a_plant_fmu_ran_in_the_same_process_has_binaries(tmp_path, 
         shadowed = "resources" in pythonfmu.__file__     # the precondition of the bug
         fmu = build_fmu({str(dos[1])!r}, {str(tmp_path / "fdi.fmu")!r})
         res = CoSimulation({{"fdi": str(fmu)}}, None, step=1.0, stop=3.0).run()
+        # the same bundle and the same plant, built again after they ran in this process
+        again = build_fmu({str(dos[1])!r}, {str(tmp_path / "again.fmu")!r})
+        import plant_fmus
+        plant2 = plant_fmus.build("dts200", {str(tmp_path / "again")!r})
         print(json.dumps({{"shadowed": shadowed, "still": pythonfmu.__file__ == sys.modules["pythonfmu"].__file__,
-                          "members": zipfile.ZipFile(fmu).namelist(), "rows": len(res)}}))
+                          "members": [zipfile.ZipFile(f).namelist() for f in (fmu, again, plant2)],
+                          "rows": len(res)}}))
     """)
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
                           cwd=Path(__file__).parent.parent)
@@ -51,7 +58,8 @@ def test_build_after_a_plant_fmu_ran_in_the_same_process_has_binaries(tmp_path, 
     assert out["still"]  # the process's own pythonfmu is left as it was
     import fmpy
 
-    assert any(m.startswith(f"binaries/{fmpy.platform}/") for m in out["members"])
+    for members in out["members"]:
+        assert any(m.startswith(f"binaries/{fmpy.platform}/") for m in members)
     assert out["rows"] == 4
 
 

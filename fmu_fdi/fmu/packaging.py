@@ -138,6 +138,33 @@ def installed_pythonfmu():
         importlib.invalidate_caches()
 
 
+@contextmanager
+def isolated_imports(*names: str):
+    """Let a build import the modules ``names`` (and their submodules) afresh, then put
+    ``sys.modules`` and ``sys.path`` back as they were.
+
+    An FMU that ran in this process left its slave module under the same name in
+    ``sys.modules``, bound to that FMU's pythonfmu copy: the builder would find that stale
+    class instead of the one it is building (``No child class of Fmi2Slave``). The running
+    FMU keeps its module: it is restored after the build.
+    """
+    def ours(mod):
+        return any(mod == n or mod.startswith(n + ".") for n in names)
+
+    saved = {n: m for n, m in sys.modules.items() if ours(n)}
+    path_before = list(sys.path)
+    for name in saved:
+        del sys.modules[name]
+    try:
+        yield
+    finally:
+        for name in [n for n in sys.modules if ours(n)]:
+            del sys.modules[name]
+        sys.modules.update(saved)
+        sys.path[:] = path_before
+        importlib.invalidate_caches()
+
+
 def this_platform() -> tuple[str, str]:
     """``(binaries folder, shared library extension)`` of this machine, as FMI 2.0 names them."""
     import fmpy
@@ -267,21 +294,13 @@ def build_slave_fmu(
         script.write_text(_LOADER.format(lib=lib, module=module, cls=class_name))
         staged = tmp / "out" / fmu_path.name
         staged.parent.mkdir()
-        before = set(sys.modules)
-        path_before = list(sys.path)
-        try:
-            with installed_pythonfmu():
-                from pythonfmu import FmuBuilder
+        # the builder imports the script (and so the package) into this process and leaves
+        # its folder on sys.path: both are undone, and an FMU of this bundle that ran here
+        # keeps its modules
+        with isolated_imports(bundle_name, lib), installed_pythonfmu():
+            from pythonfmu import FmuBuilder
 
-                FmuBuilder.build_FMU(script, dest=staged, project_files=[pkg])
-        finally:
-            # the builder imports the script (and so the package) into this process and
-            # leaves its folder on sys.path; undo both so later builds see fresh code
-            for name in set(sys.modules) - before:
-                if name in (bundle_name, lib) or name.startswith(lib + "."):
-                    del sys.modules[name]
-            sys.path[:] = path_before
-            importlib.invalidate_caches()
+            FmuBuilder.build_FMU(script, dest=staged, project_files=[pkg])
         resources = [f"{bundle_name}.py", f"{lib}/__init__.py"] + [f"{lib}/{n}" for n in sources]
         resources += [f"{lib}/{n}" for n in (data_files or {})]
         platforms = check_fmu_archive(staged, resources)
