@@ -110,32 +110,19 @@ def installed_pythonfmu():
         raise BuildError("pythonfmu is not installed in this Python; pip install 'pythonfmu>=0.7,<0.8'") from None
     package = root / "pythonfmu"
 
-    def ours(name):
-        return name == "pythonfmu" or name.startswith("pythonfmu.")
-
     current = sys.modules.get("pythonfmu")
     if current is not None and Path(current.__file__).resolve().parent == package:
         yield package
         return
-    saved = {n: m for n, m in sys.modules.items() if ours(n)}
-    path_before = list(sys.path)
-    for name in saved:
-        del sys.modules[name]
-    sys.path.insert(0, str(root))
-    importlib.invalidate_caches()
-    try:
+    with isolated_imports("pythonfmu"):
+        sys.path.insert(0, str(root))
+        importlib.invalidate_caches()
         import pythonfmu
 
         if Path(pythonfmu.__file__).resolve().parent != package:
             raise BuildError(f"could not import the installed pythonfmu from {package} "
                              f"(got {pythonfmu.__file__})")
         yield package
-    finally:
-        for name in [n for n in sys.modules if ours(n)]:
-            del sys.modules[name]
-        sys.modules.update(saved)
-        sys.path[:] = path_before
-        importlib.invalidate_caches()
 
 
 @contextmanager
