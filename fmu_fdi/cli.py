@@ -9,35 +9,105 @@
   fmu-fdi demo [--out DIR]
   fmu-fdi simulate --plant P.fmu --diagnoser FDI.fmu --stop T --step Ts [--fault SPEC ...] -o OUT.csv
   fmu-fdi campaign CAMPAIGN.toml -o DIR [--dry-run] [--resume] [--workers N] [--scheduler ADDR]
+  fmu-fdi diagnose LOG.csv --design DESIGN.json -o OUT.csv
+
+Every error a user can make is reported as one line ``fmu-fdi: error: ...`` with exit status 2;
+output paths are checked before any work is done.
 """
 from __future__ import annotations
 
 import argparse
+import difflib
+import math
 import sys
 
 import numpy as np
 
 from .cosim.errors import CoSimulationError
-from .errors import DesignError, ModelError
+from .errors import BuildError, DesignError, InputFileError, ModelError, OutputError
+from .inputfiles import check_input_file
+from .outpath import check_output_path
 from .progress import Heartbeat, set_stage
 
 METHODS = {
-    # name: (design function, options it takes from the command line)
-    "nullspace": ("nullspace_design", ("poles", "rdim")),
-    "parity": ("parity_space", ("order", "rdim", "ts_design")),
-    "luenberger": ("luenberger", ("poles",)),
-    "kalman": ("kalman", ("Qw", "Rv")),
-    "uio": ("unknown_input_observer", ("poles",)),
-    "fdf": ("fault_detection_filter", ("poles", "faults")),
-    "factorized": ("factorized", ("poles",)),
-    "dos": ("dedicated_bank", ("kind", "poles")),
-    "gos": ("generalized_bank", ("kind", "poles")),
-    "structured": ("structured_bank", ("structure", "poles", "faults")),
-    "rls": ("rls_estimator", ("order", "ts_design")),
-    "data": ("data_driven", ("order", "kind", "record")),
+    # name: (design function, options it takes from the command line, one-line guide)
+    "nullspace": ("nullspace_design", ("poles", "rdim"),
+                  "least-order residual(s) decoupled from u and d (Varga's null-space synthesis; "
+                  "approximate decoupling of noise w); the general default"),
+    "parity": ("parity_space", ("order", "rdim", "ts_design"),
+               "finite-memory parity relations over --order+1 samples; discrete time (--ts)"),
+    "luenberger": ("luenberger", ("poles",),
+                   "output error of a full-order observer; no decoupling of d"),
+    "kalman": ("kalman", ("Qw", "Rv"),
+               "innovation of the steady-state Kalman filter for the noise w (--Qw, --Rv)"),
+    "uio": ("unknown_input_observer", ("poles",),
+            "unknown-input observer: decouples d exactly (needs rank C Bd = rank Bd, Dd = 0)"),
+    "fdf": ("fault_detection_filter", ("poles", "faults"),
+            "Beard-Jones filter: each fault in --faults drives the residual along a fixed direction"),
+    "factorized": ("factorized", ("poles",),
+                   "left coprime factorisation r = M y - N u; stable for any plant"),
+    "dos": ("dedicated_bank", ("kind", "poles"),
+            "dedicated observer scheme: residual i sees only fault i of --kind (isolates single faults)"),
+    "gos": ("generalized_bank", ("kind", "poles"),
+            "generalised observer scheme: residual i sees every fault of --kind but fault i"),
+    "structured": ("structured_bank", ("structure", "poles", "faults"),
+                   "one least-order residual per row of --structure over --faults"),
+    "rls": ("rls_estimator", ("order", "ts_design"),
+            "recursive least-squares estimation of the model's coefficients; residuals in "
+            "standard deviations (parametric faults)"),
+    "data": ("data_driven", ("order", "kind", "record"),
+             "no model matrices: parity relations / predictors identified from the fault-free log "
+             "--calibrate (Ding's data-driven design); --kind sensor (a bank) or detection"),
 }
 
+
+def _method(text: str) -> str:
+    """argparse type of --method: a known name, or an error suggesting the close match."""
+    if text in METHODS:
+        return text
+    close = difflib.get_close_matches(text.lower(), METHODS, n=1, cutoff=0.5)
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    raise argparse.ArgumentTypeError(f"unknown method {text!r}; {hint}methods: {', '.join(sorted(METHODS))}")
+
+
+def _positive_time(text: str) -> float:
+    """argparse type of a sample or stop time: a positive finite number of seconds."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive finite time in seconds, got {text}")
+    return value
+
+
+def _persistence(text: str) -> list:
+    """argparse type of --persistence: ``K/N`` with whole numbers ``1 <= K <= N``."""
+    k, sep, n = text.partition("/")
+    try:
+        k, n = int(k), int(n)
+    except ValueError:
+        k = n = None
+    if not sep or k is None or not 1 <= k <= n:
+        raise argparse.ArgumentTypeError(f"{text!r} must read K/N with whole numbers 1 <= K <= N "
+                                         f"(K alarms among the last N samples), e.g. 3/5")
+    return [k, n]
+
+def _method_table() -> str:
+    import textwrap
+
+    width = max(map(len, METHODS)) + 4
+    lines = []
+    for name, (fn, _, guide) in METHODS.items():
+        lines.append(f"  {name:<{width}}{fn}()")
+        lines += textwrap.wrap(guide, 92, initial_indent=" " * (width + 4), subsequent_indent=" " * (width + 4))
+    return "\n".join(lines)
+
+
 DESIGN_HELP = """\
+methods (--method NAME, then the Python function it calls; docs/methods.md says which when):
+""" + _method_table() + """
+
 Defaults (no options): the method's own defaults (null-space: one least-order residual,
 poles at the plant's median eigenvalue magnitude; parity: the smallest exact order,
 finite memory); evaluation
@@ -67,7 +137,7 @@ def _load_model(path):
     if str(path).lower().endswith(".fmu"):
         raise ModelError(f"{path} is an FMU, not a model file: run 'fmu-fdi model {path} --inputs ... --outputs ... "
                          f"-o MODEL.toml' first (see docs/plant-fmu.md)")
-    return FDIModel.from_file(path)
+    return FDIModel.from_file(check_input_file(path, "model file"))
 
 
 def _model(args) -> int:
@@ -124,69 +194,85 @@ def parse_evaluation(text: str) -> dict:
                       f"narendra:ALPHA,BETA,GAMMA or chi2:N")
 
 
+_THRESHOLD_FORMS = ("use fault-size:F, fixed:V, sensor-gain:DELTA,J0, analytic:ALPHA[,STD], data:RATE or "
+                    "sigma:ALPHA")
+_THRESHOLD_ARGS = {"sigma": (1, 1), "analytic": (1, 2), "data": (1, 1), "fixed": (1, 1), "fault-size": (0, 1),
+                   "sensor-gain": (2, 2)}
+
+
+def _threshold_args(text: str) -> tuple[str, list]:
+    """``KIND:a,b`` -> (kind, [a, b]) with the count of numbers each kind takes."""
+    kind, _, arg = text.partition(":")
+    lo, hi = _THRESHOLD_ARGS.get(kind, (-1, -1))
+    try:
+        nums = [float(x) for x in arg.split(",")] if arg else []
+    except ValueError:
+        nums = None
+    if lo < 0 or nums is None or not lo <= len(nums) <= hi or not all(map(math.isfinite, nums)):
+        raise DesignError(f"cannot read threshold {text!r}: {_THRESHOLD_FORMS}")
+    return kind, nums
+
+
 def _thresholds(text: str, gen, evaluation: dict, calibrate=None):
+    kind, nums = _threshold_args(text)
+    try:
+        return _threshold_values(kind, nums, gen, evaluation, calibrate)
+    except (DesignError, ModelError, InputFileError):
+        raise
+    except ValueError as exc:  # the library's reason, e.g. too few calibration samples
+        raise DesignError(f"--threshold {text}: {exc}") from None
+
+
+def _threshold_values(kind, nums, gen, evaluation, calibrate):
     from .evaluation import (analytic_threshold, data_driven_threshold, fault_size_thresholds, sensor_gain_plants,
                              threshold_selector)
 
-    kind, _, arg = text.partition(":")
-    try:
-        if kind == "sigma":
-            from scipy.stats import chi2
+    if kind == "sigma":
+        from scipy.stats import chi2
 
-            alpha = float(arg)
-            return [float(np.sqrt(chi2.ppf(1 - alpha, len(g)))) for g in gen.groups]
-        if kind == "analytic":
-            parts = [float(x) for x in arg.split(",")]
-            alpha, std = parts[0], (parts[1] if len(parts) > 1 else 1.0)
-            cov = std * std * np.eye(gen.model.nw) if gen.model.nw else None
-            return [analytic_threshold(gen, evaluation, alpha, noise_cov=cov, group=i) for i in range(len(gen.groups))]
-        if kind == "data":
-            if calibrate is None:
-                raise DesignError("--threshold data:RATE needs a fault-free record: --calibrate CSV")
-            from .diagnoser import Diagnoser
+        return [float(np.sqrt(chi2.ppf(1 - nums[0], len(g)))) for g in gen.groups]
+    if kind == "analytic":
+        alpha, std = nums[0], (nums[1] if len(nums) > 1 else 1.0)
+        cov = std * std * np.eye(gen.model.nw) if gen.model.nw else None
+        return [analytic_threshold(gen, evaluation, alpha, noise_cov=cov, group=i) for i in range(len(gen.groups))]
+    if kind == "data":
+        if calibrate is None:
+            raise DesignError("--threshold data:RATE needs a fault-free record: --calibrate CSV")
+        from .diagnoser import Diagnoser
 
-            t, u, y = _read_record(calibrate, gen.model)
-            probe = Diagnoser(gen, evaluation=evaluation, thresholds=1e300)  # evaluations only
-            out = probe.run(t, u, y)
-            rate = float(arg)
-            try:
-                return [data_driven_threshold(out[f"evaluation_{i + 1}"], rate) for i in range(len(gen.groups))]
-            except ValueError as exc:  # the record cannot support the estimate: say why
-                raise DesignError(f"--threshold {text} from {calibrate}: {exc}") from None
-        if kind == "fixed":
-            return float(arg)
-        if kind == "fault-size":
-            return fault_size_thresholds(gen, evaluation, float(arg or 1.0))
-        if kind == "sensor-gain":
-            delta, J0 = (float(x) for x in arg.split(","))
-            plants = sensor_gain_plants(gen.model, delta)
-            return [threshold_selector(gen, evaluation, J0=J0, plants=plants)] * len(gen.groups)
-    except ValueError as exc:
-        if isinstance(exc, (DesignError, ModelError)):
-            raise
-    raise DesignError(f"cannot read threshold {text!r}: use fault-size:F, fixed:V, sensor-gain:DELTA,J0, "
-                      f"analytic:ALPHA[,STD], data:RATE or sigma:ALPHA")
+        t, u, y = _read_record(calibrate, gen.model)
+        probe = Diagnoser(gen, evaluation=evaluation, thresholds=1e300)  # evaluations only
+        out = probe.run(t, u, y)
+        return [data_driven_threshold(out[f"evaluation_{i + 1}"], nums[0]) for i in range(len(gen.groups))]
+    if kind == "fixed":
+        return nums[0]
+    if kind == "fault-size":
+        return fault_size_thresholds(gen, evaluation, nums[0] if nums else 1.0)
+    delta, J0 = nums  # sensor-gain
+    plants = sensor_gain_plants(gen.model, delta)
+    return [threshold_selector(gen, evaluation, J0=J0, plants=plants)] * len(gen.groups)
 
 
 def _read_record(path, model):
-    """A CSV record with a time column and the model's u and y columns (by name)."""
-    from .cosim import Result
+    """A CSV record with a time column and the model's u and y columns (plain or
+    instance-prefixed names, see :func:`fmu_fdi.recorded.read_log`)."""
+    from .recorded import read_log
 
-    rec = Result.from_csv(path)
-    head = list(rec.dtype.names)
-    missing = [n for n in ["time"] + list(model.u_names) + list(model.y_names) if n not in head]
-    if missing:
-        raise DesignError(f"{path}: columns {missing} are missing (found {head})")
-    u = np.column_stack([rec[n] for n in model.u_names]) if model.nu else np.zeros((len(rec), 0))
-    return np.asarray(rec["time"]), u, np.column_stack([rec[n] for n in model.y_names])
+    log = read_log(path, model.u_names, model.y_names)
+    print(f"{path}: {log.describe()}")
+    return log.t, log.u, log.y
 
 
 def _design(args) -> int:
     from . import design as design_pkg
     from .diagnoser import Diagnoser
 
+    check_output_path(args.output, (".json",), "design file")
+    if args.calibrate:
+        check_input_file(args.calibrate, "calibration record")
+
     model = _load_model(args.model)
-    fname, takes = METHODS[args.method]
+    fname, takes, _ = METHODS[args.method]
     fn = getattr(design_pkg, fname, None)
     if fn is None:
         raise DesignError(f"method '{args.method}' is not available in this installation")
@@ -202,7 +288,11 @@ def _design(args) -> int:
     if "structure" in takes:
         if not args.structure:
             raise DesignError("--method structured needs --structure '1,0,1;0,1,1' (rows ; separated)")
-        kw["S"] = np.array([[int(x) for x in row.split(",")] for row in args.structure.split(";")])
+        try:
+            kw["S"] = np.array([[int(x) for x in row.split(",")] for row in args.structure.split(";")])
+        except ValueError:
+            raise DesignError(f"--structure {args.structure!r} must be rows of 0/1 separated by ';', entries by ','"
+                              f" (e.g. '1,0,1;0,1,1') with equally long rows") from None
     if "faults" in takes and args.faults:
         kw["faults"] = args.faults
     if "Qw" in takes:
@@ -235,7 +325,7 @@ def _design(args) -> int:
     else:
         evaluation = parse_evaluation(args.evaluation or "rms:10")
         thresholds = _thresholds(args.threshold or "fault-size:1", gen, evaluation, args.calibrate)
-    decision = {"persistence": [int(x) for x in args.persistence.split("/")], "latch": args.latch}
+    decision = {"persistence": args.persistence, "latch": args.latch}
     dg = Diagnoser(gen, evaluation=evaluation, thresholds=thresholds, decision=decision, name=args.name)
     path = dg.save(args.output)
     order = gen.Q.n if hasattr(gen, "Q") else "-"
@@ -246,31 +336,53 @@ def _design(args) -> int:
 
 
 def _plot(args) -> int:
-    import json
-
-    from .cosim import Result
+    from .recorded import diagnoser_prefix, read_result
     from .report import plot_diagnosis
 
-    res = Result.from_csv(args.result)
-    prefix = args.prefix
-    if prefix is None:  # the diagnoser instance of a co-simulation result, or none for Diagnoser.run
-        hits = [n[: -len("fault_detected")] for n in res.dtype.names if n.endswith("fault_detected")]
-        if len(hits) != 1:
-            raise DesignError(f"{args.result}: give --prefix, found diagnoser outputs under {hits or 'no prefix'}")
-        prefix = hits[0]
-    faults = []
-    if args.design:
-        faults = [f["name"] for f in json.loads(open(args.design, encoding="utf-8").read())["faults"]]
-    path = plot_diagnosis(res, args.output, prefix=prefix, fault_names=faults, title=str(args.result))
-    t = res["time"]
-    det = res[f"{prefix}fault_detected"].astype(bool)
-    iso = res[f"{prefix}isolated_fault"]
-    first = float(t[det][0]) if det.any() else None
-    named = sorted({int(v) for v in iso if v != 0})
-    label = {0: "none", -1: "unknown"}
-    names = [label.get(v) or (faults[v - 1] if faults and v <= len(faults) else str(v)) for v in named]
-    print(f"wrote {path}; first alarm at t = {first if first is not None else '-'} s; isolated as: "
-          f"{', '.join(names) or '-'}")
+    check_output_path(args.output, (".png", ".svg", ".pdf"), "plot")
+    res = read_result(check_input_file(args.result, "result CSV"))
+    design = _design_for_labels(args.design)
+    prefix = diagnoser_prefix(res, args.prefix, str(args.result))
+    faults = [f["name"] for f in design["faults"]] if design else []
+    path = plot_diagnosis(res, args.output, prefix=prefix, design=design, title=args.title)
+    first, names = _verdict(res["time"], res[f"{prefix}fault_detected"], res[f"{prefix}isolated_fault"], faults)
+    print(f"wrote {path}; first alarm at t = {first} s; isolated as: {names}")
+    return 0
+
+
+def _verdict(t, detected, isolated, faults) -> tuple[str, str]:
+    """('first alarm time' or '-', 'the names of every isolation result' or '-')."""
+    det = np.asarray(detected).astype(bool)
+    first = f"{float(np.asarray(t)[det][0])!r}" if det.any() else "-"
+    label = {-1: "unknown"}
+    named = sorted({int(v) for v in isolated if v != 0})
+    names = [label.get(v) or (faults[v - 1] if faults and 0 < v <= len(faults) else str(v)) for v in named]
+    return first, ", ".join(names) or "-"
+
+
+def _design_for_labels(path):
+    from .designfile import load_design
+
+    return load_design(check_input_file(path, "design file")) if path else None
+
+
+def _diagnose(args) -> int:
+    from .cosim import Result
+    from .diagnoser import Diagnoser
+    from .recorded import read_log
+
+    check_output_path(args.output, (".csv",), "diagnosis CSV")
+    dg = Diagnoser.load(check_input_file(args.design, "design file"))
+    sig = dg.design["signals"]
+    log = read_log(check_input_file(args.log, "log CSV"), sig["u"], sig["y"], prefix=args.prefix)
+    print(f"{args.log}: {log.describe()}")
+    try:
+        out = dg.run(log.t, log.u, log.y)
+    except ValueError as exc:
+        raise DesignError(f"{args.log}: {exc}") from None
+    Result(out).to_csv(args.output)
+    first, names = _verdict(out["time"], out["fault_detected"], out["isolated_fault"], dg.fault_names)
+    print(f"wrote {args.output}: {len(out)} samples; first alarm at t = {first} s; isolated as: {names}")
     return 0
 
 
@@ -292,16 +404,30 @@ def _plants_build(args) -> int:
 def _build(args) -> int:
     from .fmu import build_fmu
 
-    path = build_fmu(args.design, args.output, target=args.target, fmi_version=args.fmi)
+    check_output_path(args.output, (".fmu",), "FMU", error=BuildError)
+    path = build_fmu(check_input_file(args.design, "design file"), args.output, target=args.target,
+                     fmi_version=args.fmi, stop_time=args.stop_time)
     print(f"wrote {path}")
     return 0
 
 
+def _version() -> str:
+    from importlib import metadata
+
+    try:
+        return metadata.version("fmu-fdi")
+    except metadata.PackageNotFoundError:
+        from . import __version__
+
+        return __version__
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="fmu-fdi", description="Model-based fault detection and isolation as FMUs.")
+    p.add_argument("--version", action="version", version=f"fmu-fdi {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
     a = sub.add_parser("analyze", help="detectability / isolability table of a model file")
-    a.add_argument("model", help="model file (.toml or .json)")
+    a.add_argument("model", help="model file (.toml or .json, docs/model-file.md)")
     a.set_defaults(func=_analyze)
 
     pl = sub.add_parser("plants", help="benchmark plant FMUs (plant_fmus)")
@@ -311,10 +437,13 @@ def build_parser() -> argparse.ArgumentParser:
     pb.set_defaults(func=_plants_build)
 
     pp = sub.add_parser("plot", help="PNG of residuals, thresholds, alarms and isolation from a result CSV")
-    pp.add_argument("result", help="CSV from 'fmu-fdi simulate' or Result.to_csv")
-    pp.add_argument("-o", "--output", required=True, help="PNG to write")
-    pp.add_argument("--prefix", help="column prefix of the diagnoser outputs (default: found)")
-    pp.add_argument("--design", help="design file, to label the isolated faults by name")
+    pp.add_argument("result", help="CSV from 'fmu-fdi simulate', 'fmu-fdi diagnose', fmpy or Result.to_csv")
+    pp.add_argument("-o", "--output", required=True, help="image to write (.png, .svg or .pdf)")
+    pp.add_argument("--prefix", help="column prefix of the diagnoser outputs, e.g. 'diagnoser.' "
+                                     "(default: found from the fault_detected column)")
+    pp.add_argument("--design", help="design file, to name the faults each panel watches and the isolated "
+                                     "faults (default: none, panels by number)")
+    pp.add_argument("--title", help="plot title (default: the diagnoser and what happened)")
     pp.set_defaults(func=_plot)
 
     dm = sub.add_parser("demo", help="the three-tank demo: plant FMU, diagnoser design, diagnostic FMU, "
@@ -328,32 +457,53 @@ def build_parser() -> argparse.ArgumentParser:
 
     cosim_cli.add_parser(sub)
 
+    dg = sub.add_parser("diagnose", help="run a design file on a recorded log (no FMU) and write the diagnosis",
+                        description="Run the diagnoser of a design file on a recorded CSV log: a 'time' column "
+                                    "and one column per signal the design reads (the model's u and y names), "
+                                    "plain ('h1') or behind an instance name ('plant.h1', as 'fmu-fdi "
+                                    "simulate' writes). The columns used are printed.")
+    dg.add_argument("log", help="CSV log with 'time' and the design's u and y signals")
+    dg.add_argument("--design", required=True, help="design file (.json)")
+    dg.add_argument("-o", "--output", required=True, help="diagnosis CSV to write (time and the FMU's outputs)")
+    dg.add_argument("--prefix", help="read the signals from columns PREFIX<name>, e.g. 'diagnoser.' "
+                                     "(default: plain names, else the one instance that has them, preferring "
+                                     "the diagnoser's recorded inputs)")
+    dg.set_defaults(func=_diagnose)
+
     from .campaign import cli as campaign_cli
 
     campaign_cli.add_parser(sub)
 
     d = sub.add_parser("design", help="design a diagnoser and write its design file",
                        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=DESIGN_HELP)
-    d.add_argument("model", help="model file (.toml or .json)")
-    d.add_argument("--method", required=True, choices=sorted(METHODS))
+    d.add_argument("model", help="model file (.toml or .json, docs/model-file.md)")
+    d.add_argument("--method", required=True, type=_method, metavar="{" + ",".join(sorted(METHODS)) + "}",
+                   help="residual generator design method (the list below)")
     d.add_argument("-o", "--output", required=True, help="design file to write (.json)")
-    d.add_argument("--ts", type=float, help="diagnosis sample time for a continuous model (s)")
-    d.add_argument("--poles", type=float, nargs="+", help="filter poles (real)")
-    d.add_argument("--rdim", type=int, help="number of residuals")
-    d.add_argument("--order", type=int, help="parity order / ARX order")
+    d.add_argument("--ts", type=_positive_time, help="diagnosis sample time in s (required for a continuous "
+                                                     "model; default: the model's dt for a discrete one)")
+    d.add_argument("--poles", type=float, nargs="+", help="filter poles (real; default: the method's own)")
+    d.add_argument("--rdim", type=int, help="number of residuals (default: the method's least number)")
+    d.add_argument("--order", type=int, help="parity order / ARX order (default: the smallest that works)")
     d.add_argument("--kind", default="sensor", choices=("sensor", "actuator", "detection"),
-                   help="faults of a DOS/GOS bank; data: 'sensor' (a bank) or 'detection' (one relation)")
-    d.add_argument("--structure", help="structure matrix for --method structured, rows separated by ';'")
-    d.add_argument("--Qw", type=float, nargs="+", help="Kalman: noise variances (diagonal of Qw)")
-    d.add_argument("--Rv", type=float, nargs="+", help="Kalman: measurement noise variances (diagonal of Rv)")
-    d.add_argument("--evaluation", help="evaluation function (default rms:10; norm for rls)")
-    d.add_argument("--threshold", help="threshold (default fault-size:1; sigma:1e-4 for rls)")
-    d.add_argument("--faults", nargs="+", help="fdf: the faults to give fixed directions (state-entering ones); "
-                                               "structured: the faults the columns of --structure refer to")
-    d.add_argument("--calibrate", help="fault-free record (CSV) for --threshold data:RATE and --method data")
-    d.add_argument("--persistence", default="1/1", help="alarm persistence k/n (default 1/1)")
-    d.add_argument("--latch", action="store_true", help="latch alarms until reset")
-    d.add_argument("--name", help="diagnoser name (default MODEL_METHOD)")
+                   help="faults of a dos/gos bank; data: 'sensor' (a bank) or 'detection' (one relation) "
+                        "(default: sensor)")
+    d.add_argument("--structure", help="structure matrix for --method structured, rows separated by ';' "
+                                       "(no default)")
+    d.add_argument("--Qw", type=float, nargs="+", help="kalman: noise variances, diagonal of Qw "
+                                                       "(default: 1 for every noise input w)")
+    d.add_argument("--Rv", type=float, nargs="+", help="kalman: measurement noise variances, diagonal of Rv "
+                                                       "(default: 0)")
+    d.add_argument("--evaluation", help="evaluation function (default: rms:10; norm for rls)")
+    d.add_argument("--threshold", help="threshold (default: fault-size:1; sigma:1e-4 for rls)")
+    d.add_argument("--faults", nargs="+", help="fdf: the faults to give fixed directions (default: the "
+                                               "state-entering ones); structured: the faults the columns of "
+                                               "--structure refer to (default: all)")
+    d.add_argument("--calibrate", help="fault-free record (CSV) for --threshold data:RATE and --method data (no default)")
+    d.add_argument("--persistence", type=_persistence, default=[1, 1], metavar="K/N",
+                   help="alarm when the threshold is crossed in K of the last N samples (default: 1/1)")
+    d.add_argument("--latch", action="store_true", help="latch alarms until reset (default: off)")
+    d.add_argument("--name", help="diagnoser name (default: MODEL_METHOD)")
     d.set_defaults(func=_design)
 
     mo = sub.add_parser("model", help="linear model file of a plant FMU: linearised (model exchange) or "
@@ -389,6 +539,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--target", choices=("pythonfmu", "native"), default="pythonfmu",
                    help="pythonfmu (default; the host needs Python + numpy) or native (C, compiled now)")
     b.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (3 needs --target native)")
+    b.add_argument("--stop-time", type=_positive_time,
+                   help="DefaultExperiment stop time in s, what 'fmpy simulate' runs for without --stop-time "
+                        "(default: 1000 samples of the design's Ts)")
     b.set_defaults(func=_build)
     return p
 
@@ -398,9 +551,17 @@ def main(argv=None) -> int:
     try:
         with Heartbeat():  # long commands (large models) report their stage on stderr
             return args.func(args)
-    except (ModelError, DesignError, CoSimulationError) as exc:
-        print(f"fmu-fdi: error: {exc}", file=sys.stderr)
+    except (ModelError, DesignError, BuildError, OutputError, InputFileError, CoSimulationError) as exc:
+        print(f"fmu-fdi: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except OSError as exc:  # the file system said no (full disk, permissions, a file where a folder belongs)
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"fmu-fdi: error: {_one_line(exc.strerror or exc)}{where}", file=sys.stderr)
+        return 2
+
+
+def _one_line(exc) -> str:
+    return " ".join(str(exc).split())
 
 
 if __name__ == "__main__":

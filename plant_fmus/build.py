@@ -2,25 +2,10 @@
 from __future__ import annotations
 
 import shutil
-import sys
 import tempfile
-from contextlib import contextmanager
 from pathlib import Path
 
 from .plants import PLANTS
-
-
-@contextmanager
-def _restored_imports(modules):
-    """pythonfmu's builder imports the slave by module name and leaves its folder on
-    ``sys.path``; undo both so a build leaves the caller's imports as they were."""
-    path = list(sys.path)
-    try:
-        yield
-    finally:
-        sys.path[:] = path
-        for name in modules:
-            sys.modules.pop(name, None)
 
 
 def build(name: str, out_dir) -> Path:
@@ -31,7 +16,7 @@ def build(name: str, out_dir) -> Path:
     handed to ``pythonfmu.builder.FmuBuilder.build_FMU``; the model files end up in the
     FMU's ``resources/``.
     """
-    from pythonfmu.builder import FmuBuilder
+    from fmu_fdi.fmu.packaging import installed_pythonfmu, isolated_imports
 
     try:
         plant = PLANTS[name]
@@ -51,7 +36,11 @@ def build(name: str, out_dir) -> Path:
             shutil.copy2(model_file, stage / model_file.name)
             project.append(stage / model_file.name)
         modules = [script.stem] + [p.stem for p in project if p.suffix == ".py"]
-        with _restored_imports(modules):
+        # fresh imports of the slave's modules (a plant FMU that ran in this process left
+        # them bound to its own pythonfmu copy) and the installed pythonfmu; restored after
+        with isolated_imports(*modules), installed_pythonfmu():
+            from pythonfmu.builder import FmuBuilder
+
             return Path(FmuBuilder.build_FMU(script, dest=out_dir / f"{name}.fmu", project_files=project))
 
 

@@ -21,10 +21,23 @@ _DESCRIPTION = """\
 Co-simulate plant FMU(s) and a diagnostic FMU (FMI 2 or 3 co-simulation) on a fixed
 communication step. Outputs are connected to the same-named inputs of the other FMUs unless
 --connect is given; --input signals feed every unconnected input of their name. The result CSV
-holds every output of every FMU ("fmu.var") and each fault's true signal ("fault.NAME",
-"fault.NAME.active"), streamed as they are computed. FMU warnings are printed to stderr.
+holds every output and every fed input of every FMU ("fmu.var": the plant inputs and what the
+diagnoser read) and each fault's true signal ("fault.NAME", "fault.NAME.active"), streamed as
+they are computed; it is a log 'fmu-fdi diagnose' and 'fmu-fdi design --calibrate' read as it
+is. Every input of the diagnoser must be connected or fed by --input (else it would diagnose
+its start values): an error unless --allow-unconnected. FMU warnings are printed to stderr.
 Exit status: 0 done; 1 an FMU failed (the rows so far are written, and a last line
 '# incomplete: ...' says why); 2 a set-up error (nothing is run)."""
+
+
+def _plain(rst: str) -> str:
+    """Help text from reStructuredText: roles (:mod:`~a.b`) become their last name, no ``
+    and no literal-block ``::``."""
+    import re
+
+    text = re.sub(r":\w+:`~?([^`]*?)`", lambda m: m.group(1).rsplit(".", 1)[-1], rst)
+    text = re.sub(r"::[ \t]*$", ":", text, flags=re.M)  # literal-block markers
+    return text.replace("``", "")
 
 
 def add_parser(subparsers):
@@ -33,29 +46,36 @@ def add_parser(subparsers):
 
     p = subparsers.add_parser(
         "simulate", help="co-simulate plant FMU(s) with a diagnostic FMU and fault scenarios",
-        description=_DESCRIPTION, epilog="fault SPEC:" + _SPEC_DOC.split("::", 1)[1].replace("``", ""),
+        description=_DESCRIPTION, epilog="fault SPEC:" + _plain(_SPEC_DOC.split("::", 1)[1]),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--plant", action="append", required=True, metavar="[NAME=]P.fmu",
-                   help="plant FMU (repeatable; instance name 'plant', 'plant2', ... unless NAME= given)")
+                   help="plant FMU (repeatable; default instance names 'plant', 'plant2', ... unless NAME= given)")
     p.add_argument("--diagnoser", metavar="[NAME=]FDI.fmu",
-                   help="diagnostic FMU (instance name 'diagnoser'); stepped after the plants")
+                   help="diagnostic FMU (default instance name 'diagnoser' unless NAME= given); stepped after the "
+                        "plants (default: none)")
     p.add_argument("--stop", type=float, required=True, help="stop time (s)")
     p.add_argument("--step", type=float, required=True, help="communication step (s)")
-    p.add_argument("--start", type=float, default=0.0, help="start time (s), default 0")
+    p.add_argument("--start", type=float, default=0.0, help="start time (s) (default: 0)")
     p.add_argument("--input", metavar="CSV", help="external input signals: a 'time' column and one "
-                   "column per signal, fed to every unconnected input of that name")
+                   "column per signal, fed to every unconnected input of that name (default: none)")
     p.add_argument("--interpolation", choices=INTERPOLATIONS, default="zoh",
-                   help="how --input is read between its samples (default zoh)")
+                   help="how --input is read between its samples (default: zoh)")
     p.add_argument("--fault", action="append", default=[], metavar="SPEC",
-                   help="fault scenario KIND:TARGET:ONSET[:END]:MAGNITUDE[,opt=val...] (repeatable)")
+                   help="fault scenario KIND:TARGET:ONSET[:END]:MAGNITUDE[,opt=val...] (repeatable; default: none)")
     p.add_argument("--connect", action="append", metavar="SRC=DST",
                    help="explicit connection, e.g. plant.y=diagnoser.y (repeatable; replaces the "
                         "default: connect outputs to same-named inputs)")
     p.add_argument("--param", action="append", default=[], metavar="FMU.VAR=VALUE",
-                   help="parameter or start value set before initialisation (repeatable)")
-    p.add_argument("--order", choices=ORDERS, default="gauss-seidel", help="stepping order")
+                   help="parameter or start value set before initialisation (repeatable; default: "
+                        "the FMU's start values)")
+    p.add_argument("--order", choices=ORDERS, default="gauss-seidel",
+                   help="stepping order (default: gauss-seidel; jacobi: the diagnoser reads each (u, y) of one "
+                        "sample)")
+    p.add_argument("--allow-unconnected", action="store_true",
+                   help="run although some diagnoser inputs are neither connected nor fed by --input "
+                        "(they keep their start values; default: refuse)")
     p.add_argument("--ssp", metavar="OUT.ssp",
-                   help="also export the connected system (without the faults) as SSP")
+                   help="also export the connected system (without the faults) as SSP (default: none)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.csv", help="result CSV")
     p.set_defaults(func=run)
     return p
@@ -65,19 +85,30 @@ def run(args) -> int:
     """Execute ``fmu-fdi simulate`` with parsed ``args``; returns the exit status.
 
     The rows are streamed to ``-o`` as they are computed (bounded memory for any stop time);
-    the file is created before the first FMU starts, so an unwritable path fails at once.
+    the output path is checked before the first FMU starts, so an unwritable path fails at once.
     Warnings the FMUs logged (e.g. a parameter value they ignored) are printed to stderr.
     """
+    from ..errors import InputFileError, OutputError
+    from ..inputfiles import check_input_file
+    from ..outpath import check_output_path
+
     try:
+        check_output_path(args.output, (".csv",), "result CSV")
+        if args.ssp:
+            check_output_path(args.ssp, (".ssp",), "SSP file")
+        if args.input:
+            check_input_file(args.input, "input CSV")
         sim = _build(args)
+        if not args.allow_unconnected:
+            _check_diagnoser_fed(sim, args)
         if args.ssp:
             sim.export_ssp(args.ssp, drop_faults=True)
             if sim.faults:
                 print(f"fmu-fdi simulate: note: {args.ssp} describes the fault-free system "
                       f"(SSP cannot express the fault scenarios)", file=sys.stderr)
         result = sim.run(csv=args.output)
-    except (CoSimulationError, FileNotFoundError) as exc:
-        print(f"fmu-fdi simulate: error: {exc}", file=sys.stderr)
+    except (CoSimulationError, FileNotFoundError, InputFileError, OutputError) as exc:
+        print(f"fmu-fdi simulate: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
     except SimulationFailed as exc:
         _warn([w for w in exc.warnings if w.split(": ", 1)[-1] not in str(exc)])  # not the failure twice
@@ -109,7 +140,22 @@ def _build(args) -> CoSimulation:
         params[key] = _literal(value)
     inputs = InputSignals.from_csv(args.input, args.interpolation) if args.input else None
     return CoSimulation(fmus, connections, inputs, step=args.step, stop=args.stop, start=args.start,
-                        order=args.order, faults=[parse_fault(s) for s in args.fault], parameters=params)
+                        order=args.order, faults=[parse_fault(s) for s in args.fault], parameters=params,
+                        record_inputs=True)
+
+
+def _check_diagnoser_fed(sim, args):
+    """Every input of the diagnoser instance is connected or fed by an external signal."""
+    if not args.diagnoser:
+        return
+    name = next(reversed(sim.fmus))  # the diagnoser is added last
+    fed = {fd.var for fd in sim._wiring.feeds if fd.fmu == name and fd.source[0] in ("output", "signal")}
+    loose = [v for v in sim.fmus[name].names("input") if v not in fed]
+    if loose:
+        raise CoSimulationError(
+            f"diagnoser inputs {', '.join(loose)} are neither connected nor fed by --input, so the diagnoser "
+            f"would read their start values; give them a source (--input CSV with columns "
+            f"{', '.join(loose)}, or --connect) or pass --allow-unconnected")
 
 
 def _named(fmus, text, default):

@@ -76,6 +76,10 @@ class CoSimulation:
         those on a source output before those on the receiving input.
     parameters : mapping of str to value, optional
         ``{"plant.a": 2.0}``: parameter and input start values set before initialisation.
+    record_inputs : bool
+        Also record every input the master sets (``fmu.var``: the plant inputs from external
+        signals and faults, what the diagnoser read), so the result is a complete log for
+        offline diagnosis. ``fmu-fdi simulate`` does. Default False.
 
     Attributes
     ----------
@@ -94,7 +98,7 @@ class CoSimulation:
     """
 
     def __init__(self, fmus, connections="auto", inputs=None, *, step, stop, start=0.0,
-                 order="gauss-seidel", faults=(), parameters=None):
+                 order="gauss-seidel", faults=(), parameters=None, record_inputs: bool = False):
         if order not in ORDERS:
             raise CoSimulationError(f"order {order!r} is not one of {ORDERS}")
         self.start, self.stop, self.step = _grid(start, stop, step)
@@ -109,6 +113,7 @@ class CoSimulation:
             if not isinstance(f, Fault):
                 raise CoSimulationError(f"faults must be Fault objects (see parse_fault), got {f!r}")
         self.parameters = dict(parameters or {})
+        self.record_inputs = bool(record_inputs)
         self._wiring = wire(self.fmus, connections, self.inputs.names if self.inputs else (),
                             self.faults, self.parameters, self.start)
         self.connections = [(f"{a}.{b}", f"{c}.{d}") for a, b, c, d in self._wiring.connections]
@@ -140,9 +145,18 @@ class CoSimulation:
         cols = [("time", "real")]
         for name, fmu in self.fmus.items():
             cols += [(f"{name}.{v}", fmu.kind(v)) for v in fmu.names("output") if fmu.kind(v) != "string"]
+            cols += [(f"{name}.{v}", fmu.kind(v)) for v in self._fed_inputs(name)]
         for f in self.faults:
             cols += [(f"fault.{f.name}", "real"), (f"fault.{f.name}.active", "boolean")]
         return cols
+
+    def _fed_inputs(self, name) -> list:
+        """Inputs of FMU ``name`` the master sets during the run, recorded as ``name.var``
+        when ``record_inputs``."""
+        if not self.record_inputs:
+            return []
+        return [fd.var for fd in self._wiring.feeds
+                if fd.fmu == name and fd.runtime and self.fmus[name].variable(fd.var).causality == "input"]
 
     def run(self, csv=None, *, chunk_rows: int = 4096, max_memory: float = 2**30):
         """Instantiate, initialise and step all FMUs from start to stop; record every row.
@@ -278,6 +292,8 @@ class _Run:
         for feed in w.feeds:  # a fixed source is the value the variable has after initialisation
             if feed.source == ("fixed", None):
                 self.fixed[(feed.fmu, feed.var)] = sim.fmus[feed.fmu].accessor([feed.var]).read(t0)[0]
+        self.recorded = [fd for name in sim.fmus for fd in self.feeds[name]
+                         if fd.var in sim._fed_inputs(name)]
         self.columns = {key: f"{key[0]}.{key[1]}" for name in sim.fmus
                         for key in ((name, v) for v in self.outputs[name].names)}
         for name in sim.fmus:
@@ -331,6 +347,8 @@ class _Run:
         data["time"] = t
         for key, value in self.values.items():
             data[self.columns[key]] = value
+        for feed in self.recorded:  # the value of the input's source at t, faults applied
+            data[f"{feed.fmu}.{feed.var}"] = self.chain(feed, t)[-1]
         for fault in self.sim.faults:
             feed, pos = self.sim._wiring.fault_feed[fault.name]
             vals = self.chain(feed, t)

@@ -1,7 +1,9 @@
 """Co-simulation results: a numpy structured array with one row per communication point.
 
 Columns: ``time``; ``<fmu>.<output>`` for every scalar output of every FMU (Real as float64,
-Integer and Enumeration as int64, Boolean as bool; String outputs are not recorded); for every
+Integer and Enumeration as int64, Boolean as bool; String outputs are not recorded);
+with ``record_inputs``, ``<fmu>.<input>`` for every input the master sets (from a connection, an external signal or a
+fault), holding the value of its source at ``t_k`` with the faults applied; for every
 fault ``fault.<name>`` (float64:
 the faulty minus the nominal value of its target, i.e. the true additive fault signal) and
 ``fault.<name>.active`` (bool: the fault acts at that time). Row ``k`` holds the outputs at

@@ -8,23 +8,38 @@ one process without module clashes (pythonfmu issue 228), and the FMU never impo
 scipy, control or an installed ``fmu_fdi``. The model description is completed so that
 ``fmpy validate`` reports no problem: units, descriptions, discrete variability of
 outputs, no direct feedthrough (outputs are updated at ``fmi2DoStep``), the
-``DefaultExperiment`` step size Ts, and capability flags that tell the truth.
+``DefaultExperiment`` (step size Ts, a stop time of :data:`DEFAULT_SAMPLES` samples unless
+given), and capability flags that tell the truth. Descriptions say which faults each
+residual and evaluation group is sensitive to (the design's structure matrix) and the FMU's
+description names the tunable ``threshold_scale`` and the platforms the archive has binaries
+for, so ``fmpy info`` shows both.
+
+Units: when every measured output has the same unit U, the residuals (linear combinations
+of the outputs with dimensionless weights, plus the input terms that cancel them in the
+fault-free case) are in U, and so are the evaluations and thresholds of the kinds that keep
+the residual's unit (norm, RMS, exponential RMS, peak, Narendra). Residuals of an RLS
+estimator are in standard deviations and χ² statistics are dimensionless: no unit is
+claimed for them, nor when the outputs' units differ.
 """
 from __future__ import annotations
 
 import json
+import math
 import re
 from pathlib import Path
 
 from ..designfile import DesignFileError, load_design, validate_design
+from ..designinfo import evaluation_unit, group_faults, residual_unit
 from ..runtime.engine import output_names
-from .packaging import build_slave_fmu, unique_bundle_name
+from .packaging import build_slave_fmu, checked_destination, unique_bundle_name
 from .slave_template import TEMPLATE
 
 RUNTIME_DIR = Path(__file__).resolve().parent.parent / "runtime"
 RESERVED = re.compile(r"^(residual|evaluation|threshold|alarm)_\d+$|^(fault_detected|isolated_fault|input_invalid|"
                       r"numeric_reset|threshold_scale)$")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+#: DefaultExperiment stop time, in samples of the design's Ts, when none is given
+DEFAULT_SAMPLES = 1000
 
 
 def _design_of(diagnoser_or_path) -> dict:
@@ -38,25 +53,36 @@ def _design_of(diagnoser_or_path) -> dict:
 
 
 def _units(design: dict) -> dict[str, str]:
-    """Variable name -> unit: the design's units of the plant signals (both targets)."""
+    """Variable name -> unit: the plant signals' units from the design and the residuals',
+    evaluations' and thresholds' where they share one (both targets)."""
     signals = set(design["signals"]["u"]) | set(design["signals"]["y"])
-    return {k: v for k, v in (design.get("units") or {}).items() if k in signals}
+    units = {k: v for k, v in (design.get("units") or {}).items() if k in signals}
+    units.update(_output_units(design))
+    return units
 
 
 def _descriptions(design: dict) -> dict[str, str]:
     sig, g = design["signals"], design["generator"]
     faults = [f["name"] for f in design["faults"]]
+    seen = group_faults(design)
     out = {n: f"plant input {n}" for n in sig["u"]}
     out.update({n: f"plant output (measurement) {n}" for n in sig["y"]})
-    out["threshold_scale"] = "factor on every threshold (>= 0)"
+    out["threshold_scale"] = "tunable factor on every threshold (>= 0; default 1)"
+    group_of = {k: i for i, grp in enumerate(g["groups"]) for k in grp}
+
+    def sees(i):
+        if seen is None:
+            return "fault sensitivity not recorded in the design"
+        return f"sensitive to {', '.join(seen[i])}" if seen[i] else "sensitive to no modelled fault"
+
     for k, name in enumerate(g["residual_names"]):
-        out[f"residual_{k + 1}"] = f"residual {name}"
+        out[f"residual_{k + 1}"] = f"residual {name} (group {group_of[k] + 1}: {sees(group_of[k])})"
     for i, grp in enumerate(g["groups"]):
         ev = design["evaluation"][i]
         members = ", ".join(g["residual_names"][j] for j in grp)
-        out[f"evaluation_{i + 1}"] = f"{ev['evaluator']['kind']} evaluation of residual group {i + 1} ({members})"
+        out[f"evaluation_{i + 1}"] = f"{ev['evaluator']['kind']} evaluation of residual group {i + 1} ({members}); {sees(i)}"
         out[f"threshold_{i + 1}"] = f"{ev['threshold']['kind']} threshold of group {i + 1} (times threshold_scale)"
-        out[f"alarm_{i + 1}"] = f"evaluation_{i + 1} >= threshold_{i + 1} (with persistence/latching)"
+        out[f"alarm_{i + 1}"] = f"evaluation_{i + 1} >= threshold_{i + 1} (with persistence/latching); {sees(i)}"
     out["fault_detected"] = "any alarm"
     legend = ", ".join(f"{j + 1} = {nm}" for j, nm in enumerate(faults)) or "no faults modelled"
     out["isolated_fault"] = f"0 none, -1 unknown or several, else the fault: {legend}"
@@ -66,20 +92,39 @@ def _descriptions(design: dict) -> dict[str, str]:
     return out
 
 
-def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_version: int = 2) -> Path:
+def _output_units(design: dict) -> dict[str, str]:
+    unit = residual_unit(design)
+    if unit is None:
+        return {}
+    g = design["generator"]
+    out = {f"residual_{k + 1}": unit for k in range(len(g["residual_names"]))}
+    for i in range(len(design["evaluation"])):
+        if evaluation_unit(design, i):
+            out[f"evaluation_{i + 1}"] = out[f"threshold_{i + 1}"] = unit
+    return out
+
+
+def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_version: int = 2, *,
+              stop_time: float | None = None) -> Path:
     """Export a diagnoser (object, design dict or design file path) as a co-simulation FMU.
 
     Parameters
     ----------
     diagnoser_or_path : Diagnoser, dict or path
     fmu_path : path
-        Where to write the ``.fmu``; nothing is written when the design is invalid.
+        Where to write the ``.fmu``. The archive is built and checked (binaries for this
+        platform, model description, resources) in a temporary folder, then renamed onto
+        ``fmu_path``: nothing is written when the design or the destination is invalid, and
+        a failed build leaves a previous file of that name as it was.
     target : {"pythonfmu", "native"}
         ``"pythonfmu"`` (default): the runtime in Python, FMI 2.0, the host needs Python and
         numpy. ``"native"``: C99 sources compiled now, no Python in the host
         (:mod:`fmu_fdi.native.build`, docs/native-fmu.md).
     fmi_version : {2, 3}
         FMI 3.0 needs ``target="native"``.
+    stop_time : float, optional
+        ``DefaultExperiment`` stop time (s), what ``fmpy simulate`` runs for without
+        ``--stop-time``. Default: :data:`DEFAULT_SAMPLES` samples of the design's Ts.
 
     Returns
     -------
@@ -90,11 +135,12 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     DesignFileError
         The design is malformed, or a signal name is no valid FMU variable name or
         collides with one of the FMU's own outputs.
+    BuildError
+        ``fmu_path`` does not end in ``.fmu``, is a folder or cannot be written, or the
+        archive written is not a loadable FMU for this platform.
     """
+    fmu_path = checked_destination(fmu_path)
     design = _design_of(diagnoser_or_path)
-    fmu_path = Path(fmu_path)
-    if fmu_path.suffix != ".fmu":
-        raise DesignFileError(f"the FMU file name must end in .fmu, got {fmu_path.name}")
     signals = list(design["signals"]["u"]) + list(design["signals"]["y"])
     bad = [s for s in signals if not _IDENT.match(s)]
     if bad:
@@ -102,10 +148,15 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     clash = [s for s in signals if RESERVED.match(s)]
     if clash:
         raise DesignFileError(f"signal names {clash} collide with the diagnostic FMU's own variable names")
+    g = design["generator"]
+    if stop_time is None:
+        stop_time = DEFAULT_SAMPLES * float(g["dt"])
+    elif not (isinstance(stop_time, (int, float)) and math.isfinite(stop_time) and stop_time > 0):
+        raise DesignFileError(f"stop_time must be a positive finite number of seconds, got {stop_time!r}")
     if target == "native":
         from ..native.build import build_native_fmu
 
-        return build_native_fmu(design, fmu_path, fmi_version=fmi_version)
+        return build_native_fmu(design, fmu_path, fmi_version=fmi_version, stop_time=float(stop_time))
     if target != "pythonfmu" or fmi_version != 2:
         raise DesignFileError(f"target {target!r} with FMI {fmi_version}: the pythonfmu target is FMI 2 only, "
                               "the native target FMI 2 or 3")
@@ -115,11 +166,11 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     base = re.sub(r"[^A-Za-z0-9_]", "_", design["name"]) or "fdi"
     ident = unique_bundle_name(base if base[0].isalpha() else "fdi_" + base, design_bytes.decode(),
                                *(modules[k] for k in sorted(modules)))
-    g = design["generator"]
     modules["diagnoser_slave.py"] = TEMPLATE.replace("__CLASS__", ident).replace(
         "__DESCRIPTION__", repr(f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {g['dt']:g} s)"))
     names = output_names(len(g["residual_names"]), len(g["groups"]))
     units = _units(design)
+    dt = float(g["dt"])
     return build_slave_fmu(
         modules, f"diagnoser_slave:{ident}", fmu_path, bundle_name=f"{ident}_fmu",
         data_files={"design.json": design_bytes},
@@ -127,6 +178,7 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
         output_dependencies={n: [] for n in names},
         capabilities={"canGetAndSetFMUstate": True, "canSerializeFMUstate": True,
                       "canHandleVariableCommunicationStepSize": True},
-        default_experiment={"startTime": 0.0, "stepSize": float(g["dt"])},
-        model_description=f"fmu-fdi diagnoser '{design['name']}'",
+        default_experiment={"startTime": 0.0, "stopTime": float(stop_time), "stepSize": dt},
+        model_description=(f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {dt:g} s); "
+                           f"tunable parameter threshold_scale (default 1) multiplies every threshold"),
     )

@@ -7,7 +7,7 @@ the process that loads it). Results come back as numpy structured arrays with a 
 field, the layout fmpy uses.
 
 Hosts, and the order each uses around ``fmi2DoStep`` (it decides which sample an output with
-direct feedthrough shows; see docs/fmu-hosts.md):
+direct feedthrough shows; see docs/fmu-hosts.md and docs/fmu-internals.md):
 
 ================  =====================================================  ====================
 runner            host                                                    row k holds

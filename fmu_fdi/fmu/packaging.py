@@ -16,19 +16,36 @@ bundled module or package) has a name already imported gets the *first* FMU's co
 The one name shared by all pythonfmu FMUs is ``pythonfmu``: the first copy imported in a
 process (the host's own, or the first FMU's) serves every FMU. Our slaves use only
 ``Fmi2Slave``, the variable classes and the enums, which are the same across 0.7.x.
+
+The *builder* is another matter: it copies the FMI wrapper libraries (``binaries/``) from
+the folder of the ``pythonfmu`` it was imported from, and the copy a pythonfmu FMU bundles
+in its ``resources/`` has none. Once such an FMU ran in this process, ``import pythonfmu``
+finds that copy, and a build would silently write an FMU without binaries.
+:func:`installed_pythonfmu` therefore imports the *installed* distribution for the build,
+and :func:`check_fmu_archive` checks every archive before it is reported as written. The
+archive is written to a temporary file next to the destination and renamed over it, so a
+failed build never leaves a half-written FMU or destroys the previous one.
 """
 from __future__ import annotations
 
 import hashlib
 import importlib
+import os
 import re
-import shutil
 import sys
 import tempfile
+import zipfile
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Mapping
+from typing import Mapping, Sequence
+from xml.etree import ElementTree as ET
 
+from ..errors import BuildError
+from ..outpath import check_output_path
 from .model_description import patch_fmu
+
+#: permissions of a written FMU: readable by everyone, like any other build artefact
+FMU_MODE = 0o644
 
 _HERE = Path(__file__).parent
 #: modules copied into every bundle; they import only numpy, the stdlib and pythonfmu
@@ -64,6 +81,140 @@ class {cls}(_Slave):
     def _loader_namespace(self):
         return globals()
 '''
+
+
+@contextmanager
+def installed_pythonfmu():
+    """Make ``import pythonfmu`` give the installed distribution for the duration of the block.
+
+    A pythonfmu FMU that ran in this process put its ``resources/`` folder, with a stripped
+    ``pythonfmu`` copy (no wrapper binaries), first on ``sys.path`` and in ``sys.modules``.
+    The block sees the package from the distribution's own folder; afterwards ``sys.path``
+    and ``sys.modules`` are as before, so FMUs already loaded keep the copy they use.
+
+    Yields
+    ------
+    Path
+        The folder of the installed ``pythonfmu`` package.
+
+    Raises
+    ------
+    BuildError
+        pythonfmu is not installed.
+    """
+    from importlib import metadata
+
+    try:
+        root = Path(metadata.distribution("pythonfmu").locate_file("")).resolve()
+    except metadata.PackageNotFoundError:
+        raise BuildError("pythonfmu is not installed in this Python; pip install 'pythonfmu>=0.7,<0.8'") from None
+    package = root / "pythonfmu"
+
+    current = sys.modules.get("pythonfmu")
+    if current is not None and Path(current.__file__).resolve().parent == package:
+        yield package
+        return
+    with isolated_imports("pythonfmu"):
+        sys.path.insert(0, str(root))
+        importlib.invalidate_caches()
+        import pythonfmu
+
+        if Path(pythonfmu.__file__).resolve().parent != package:
+            raise BuildError(f"could not import the installed pythonfmu from {package} "
+                             f"(got {pythonfmu.__file__})")
+        yield package
+
+
+@contextmanager
+def isolated_imports(*names: str):
+    """Let a build import the modules ``names`` (and their submodules) afresh, then put
+    ``sys.modules`` and ``sys.path`` back as they were.
+
+    An FMU that ran in this process left its slave module under the same name in
+    ``sys.modules``, bound to that FMU's pythonfmu copy: the builder would find that stale
+    class instead of the one it is building (``No child class of Fmi2Slave``). The running
+    FMU keeps its module: it is restored after the build.
+    """
+    def ours(mod):
+        return any(mod == n or mod.startswith(n + ".") for n in names)
+
+    saved = {n: m for n, m in sys.modules.items() if ours(n)}
+    path_before = list(sys.path)
+    for name in saved:
+        del sys.modules[name]
+    try:
+        yield
+    finally:
+        for name in [n for n in sys.modules if ours(n)]:
+            del sys.modules[name]
+        sys.modules.update(saved)
+        sys.path[:] = path_before
+        importlib.invalidate_caches()
+
+
+def this_platform() -> tuple[str, str]:
+    """``(binaries folder, shared library extension)`` of this machine, as FMI 2.0 names them."""
+    import fmpy
+
+    return fmpy.platform, fmpy.sharedLibraryExtension
+
+
+def check_fmu_archive(fmu_path, resources: Sequence[str] = ()) -> list[str]:
+    """Check that an FMU archive can be loaded here; return the platforms it has binaries for.
+
+    Checked: the file is a zip archive with a parseable ``modelDescription.xml`` naming a
+    ``CoSimulation`` ``modelIdentifier``; ``binaries/<platform>/<modelIdentifier><ext>`` is
+    there for this machine's platform, and every ``binaries/<platform>/`` folder holds that
+    library; every name in ``resources`` is a member under ``resources/``.
+
+    Raises
+    ------
+    BuildError
+        Naming the first condition that failed.
+    """
+    name = Path(fmu_path).name
+    try:
+        with zipfile.ZipFile(fmu_path) as zf:
+            members = set(zf.namelist())
+            bad = zf.testzip()
+            if bad is not None:
+                raise BuildError(f"{name}: archive member {bad} is corrupt")
+            if "modelDescription.xml" not in members:
+                raise BuildError(f"{name}: the archive has no modelDescription.xml")
+            root = ET.fromstring(zf.read("modelDescription.xml"))
+    except (zipfile.BadZipFile, OSError) as exc:
+        raise BuildError(f"{name}: not a readable FMU archive ({exc})") from None
+    except ET.ParseError as exc:
+        raise BuildError(f"{name}: modelDescription.xml does not parse ({exc})") from None
+    cs = root.find("CoSimulation")
+    mid = cs.get("modelIdentifier") if cs is not None else None
+    if not mid:
+        raise BuildError(f"{name}: modelDescription.xml declares no CoSimulation modelIdentifier")
+    platform, ext = this_platform()
+    folders = sorted({m.split("/")[1] for m in members if m.startswith("binaries/") and m.count("/") >= 2})
+    if f"binaries/{platform}/{mid}{ext}" not in members:
+        raise BuildError(f"{name}: no binaries/{platform}/{mid}{ext} for this platform (binaries for: "
+                         f"{', '.join(folders) or 'none'}); the pythonfmu used has no wrapper library for "
+                         f"{platform}")
+    empty = [p for p in folders if not any(m.startswith(f"binaries/{p}/{mid}.") for m in members)]
+    if empty:
+        raise BuildError(f"{name}: binaries/{', '.join(empty)} hold no library named {mid}")
+    missing = [r for r in resources if f"resources/{r}" not in members]
+    if missing:
+        raise BuildError(f"{name}: resources {missing} are missing from the archive")
+    return folders
+
+
+def checked_destination(fmu_path) -> Path:
+    """``fmu_path`` as a Path once an FMU can be written there (its folder is created).
+
+    Raises
+    ------
+    BuildError
+        The name does not end in ``.fmu``, names a folder, or its folder cannot be created
+        or written (see :func:`fmu_fdi.outpath.check_output_path`).
+    """
+    return check_output_path(fmu_path, (".fmu",), "FMU", error=BuildError)
 
 
 def unique_bundle_name(prefix: str, *parts: str) -> str:
@@ -102,8 +253,6 @@ def build_slave_fmu(
     **patch_options
         Passed to :func:`fmu_fdi.fmu.model_description.patch_model_description`.
     """
-    from pythonfmu import FmuBuilder  # the builder, not the FMU, needs pythonfmu here
-
     module, _, class_name = slave.partition(":")
     if not (_IDENT.match(module or "") and _IDENT.match(class_name or "")):
         raise ValueError(f"slave must be 'module:ClassName' with identifiers, got {slave!r}")
@@ -115,7 +264,7 @@ def build_slave_fmu(
         bundle_name = unique_bundle_name(class_name, *(f"{k}\n{v}" for k, v in sorted(sources.items())))
     if not _IDENT.match(bundle_name) or bundle_name == "pythonfmu":
         raise ValueError(f"bundle_name must be a Python identifier other than 'pythonfmu', got {bundle_name!r}")
-    fmu_path = Path(fmu_path)
+    fmu_path = checked_destination(fmu_path)
     fmu_path.parent.mkdir(parents=True, exist_ok=True)
 
     with tempfile.TemporaryDirectory(prefix="fmufdi_build_") as tmp:
@@ -130,19 +279,39 @@ def build_slave_fmu(
             (pkg / name).write_bytes(data)
         script = tmp / f"{bundle_name}.py"
         script.write_text(_LOADER.format(lib=lib, module=module, cls=class_name))
-        before = set(sys.modules)
-        path_before = list(sys.path)
-        try:
-            built = FmuBuilder.build_FMU(script, dest=fmu_path, project_files=[pkg])
-        finally:
-            # the builder imports the script (and so the package) into this process and
-            # leaves its folder on sys.path; undo both so later builds see fresh code
-            for name in set(sys.modules) - before:
-                if name in (bundle_name, lib) or name.startswith(lib + "."):
-                    del sys.modules[name]
-            sys.path[:] = path_before
-            importlib.invalidate_caches()
-    if Path(built) != fmu_path:
-        shutil.move(built, fmu_path)
-    patch_fmu(fmu_path, **patch_options)
+        staged = tmp / "out" / fmu_path.name
+        staged.parent.mkdir()
+        # the builder imports the script (and so the package) into this process and leaves
+        # its folder on sys.path: both are undone, and an FMU of this bundle that ran here
+        # keeps its modules
+        with isolated_imports(bundle_name, lib), installed_pythonfmu():
+            from pythonfmu import FmuBuilder
+
+            FmuBuilder.build_FMU(script, dest=staged, project_files=[pkg])
+        resources = [f"{bundle_name}.py", f"{lib}/__init__.py"] + [f"{lib}/{n}" for n in sources]
+        resources += [f"{lib}/{n}" for n in (data_files or {})]
+        platforms = check_fmu_archive(staged, resources)
+        if "model_description" in patch_options and patch_options["model_description"] is not None:
+            patch_options["model_description"] += f" (binaries: {', '.join(platforms)})"
+        patch_fmu(staged, **patch_options)
+        check_fmu_archive(staged, resources)
+        os.chmod(staged, FMU_MODE)
+        _replace(staged, fmu_path)
     return fmu_path
+
+
+def _replace(src: Path, dst: Path):
+    """Move ``src`` onto ``dst`` atomically: copy next to ``dst``, then rename over it."""
+    fd, part = tempfile.mkstemp(prefix=f".{dst.name}.", suffix=".part", dir=dst.parent)
+    try:
+        with os.fdopen(fd, "wb") as out, open(src, "rb") as inp:
+            while chunk := inp.read(1 << 20):
+                out.write(chunk)
+            out.flush()
+            os.fsync(out.fileno())
+        os.chmod(part, FMU_MODE)
+        os.replace(part, dst)
+    except BaseException:
+        if os.path.exists(part):
+            os.remove(part)
+        raise

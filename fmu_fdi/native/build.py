@@ -152,7 +152,8 @@ def _fmt(x: float) -> str:
     return repr(float(x))
 
 
-def model_description(design: dict, identifier: str, token: str, fmi_version: int, sources: list[str]) -> bytes:
+def model_description(design: dict, identifier: str, token: str, fmi_version: int, sources: list[str],
+                      stop_time: float | None = None) -> bytes:
     """modelDescription.xml for FMI 2.0 or 3.0 (see the module docstring)."""
     vs = variables(design)
     g = design["generator"]
@@ -160,7 +161,8 @@ def model_description(design: dict, identifier: str, token: str, fmi_version: in
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "3.0" if fmi3 else "2.0", "modelName": design["name"],
         ("instantiationToken" if fmi3 else "guid"): token,
-        "description": f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {g['dt']:g} s), native C",
+        "description": (f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {g['dt']:g} s), native C; "
+                        f"tunable parameter threshold_scale (default 1) multiplies every threshold"),
         "generationTool": "fmu-fdi (native target)", "variableNamingConvention": "structured"})
     cs = ET.SubElement(root, "CoSimulation", {"modelIdentifier": identifier})
     flags = {"canHandleVariableCommunicationStepSize": "true", "canGetAndSetFMUstate": "true",
@@ -185,7 +187,10 @@ def model_description(design: dict, identifier: str, token: str, fmi_version: in
     cats = ET.SubElement(root, "LogCategories")
     for name, text in LOG_CATEGORIES.items():
         ET.SubElement(cats, "Category", name=name, description=text)
-    ET.SubElement(root, "DefaultExperiment", startTime="0.0", stepSize=_fmt(g["dt"]))
+    experiment = {"startTime": "0.0", "stepSize": _fmt(g["dt"])}
+    if stop_time is not None:
+        experiment["stopTime"] = _fmt(stop_time)
+    ET.SubElement(root, "DefaultExperiment", experiment)
     mv = ET.SubElement(root, "ModelVariables")
     if fmi3:
         ET.SubElement(mv, "Float64", name="time", valueReference="0", causality="independent",
@@ -305,7 +310,7 @@ def identifier_of(design: dict, *parts: str) -> str:
     return f"{base[:40]}_{h}"
 
 
-def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
+def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2, stop_time: float | None = None) -> Path:
     """Write the native diagnostic FMU for a validated design dict (see the module docstring).
 
     Parameters
@@ -315,6 +320,8 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
     fmu_path : path
         The ``.fmu`` to write; left untouched if anything fails.
     fmi_version : {2, 3}
+    stop_time : float, optional
+        ``DefaultExperiment`` stop time (s); :func:`fmu_fdi.build_fmu` passes its default.
 
     Raises
     ------
@@ -353,7 +360,7 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
         for name, content in sources.items():
             (src / name).write_bytes(content)
         lib = compile_binary(src, Path(tmp, f"{ident}.so"), cc)
-        members = {"modelDescription.xml": model_description(design, ident, token, fmi_version, names)}
+        members = {"modelDescription.xml": model_description(design, ident, token, fmi_version, names, stop_time)}
         members[f"binaries/{folder}/{ident}.so"] = lib.read_bytes()
         for name in names:
             members[f"sources/{name}"] = sources[name]
@@ -365,6 +372,7 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2) -> Path:
             with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:
                 for name, content in members.items():
                     zf.writestr(name, content)
+            os.chmod(part, 0o644)  # mkstemp makes it private; an FMU is meant to be shared
             os.replace(part, fmu_path)
         finally:
             if os.path.exists(part):

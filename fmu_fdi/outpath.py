@@ -1,0 +1,53 @@
+"""Output paths checked before the work that fills them, so a long run never ends in a
+failure to save its result.
+
+A command that writes a file calls :func:`check_output_path` first: the name must have one of
+the expected suffixes and must not be a folder, and its folder must exist or be creatable and
+must accept a new file (tried with a temporary file, which is the only test that holds for
+every user, ACLs and read-only mounts included). Missing folders are created.
+"""
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+from .errors import OutputError
+
+
+def check_output_path(path, suffixes=(), what: str = "output file", error=OutputError) -> Path:
+    """Return ``path`` as a Path once a file can be written there; create missing folders.
+
+    Parameters
+    ----------
+    path : path
+    suffixes : sequence of str
+        Accepted suffixes, e.g. ``(".json",)`` (compared case-insensitively); empty: any.
+    what : str
+        What the file is, for the message ("design file").
+    error : exception class
+        Raised on failure (default :class:`~fmu_fdi.errors.OutputError`).
+
+    Raises
+    ------
+    error
+        Naming the condition that failed: wrong suffix, a folder, a parent that is a file,
+        a folder that cannot be created or written.
+    """
+    path = Path(path)
+    if path.is_dir():
+        example = path / ("result" + (suffixes[0] if suffixes else ""))
+        raise error(f"{what} {str(path)!r} is a folder; give a file name, e.g. {example}")
+    if suffixes and path.suffix.lower() not in suffixes:
+        raise error(f"{what} {str(path)!r} must end in {' or '.join(suffixes)}")
+    folder = path.parent
+    existing = next((p for p in (folder, *folder.parents) if p.exists()), Path("."))
+    if not existing.is_dir():
+        raise error(f"cannot write {what} {str(path)!r}: {existing} is a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise error(f"cannot write {what} {str(path)!r}: folder {folder} is not writable "
+                    f"({exc.strerror or exc})") from None
+    return path
