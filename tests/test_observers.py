@@ -30,6 +30,7 @@ from simulate import cascade_residual, plant_outputs
 from fmu_fdi import (DesignError, FDIModel, LTI, actuator_fault, component_fault, leakage, sensor_fault,
                      structure_matrix)
 from fmu_fdi.design.beard_jones import fault_detection_filter
+from fmu_fdi.design._observer import filter_riccati
 from fmu_fdi.design.coprime import factorized, left_coprime_factors
 from fmu_fdi.design.kalman_filter import kalman
 from fmu_fdi.design.output_observer import luenberger
@@ -335,6 +336,58 @@ def test_kalman_errors():
     osc = FDIModel.from_matrices([[0.0, 1], [-1, 0]], [[0.0], [1]], [[1.0, 0]], Bw=np.zeros((2, 1)))
     with pytest.raises(DesignError, match="no stabilising solution"):
         kalman(osc, 1.0, 1.0)
+
+
+
+# The wind-turbine drive train of the campaign (tests/campaign_plants.py, WIND, subsystem
+# "drive"): ZOH at 0.01 s, state balanced and outputs in units of their noise std, rounded to
+# 6 decimals. Its modes are 0.999928, 0.999451 (a pair) and 0.606531; the campaign's Kalman
+# design has no noise on the states (Qx = 0, R = I, S = 0), and scipy's solve_discrete_are
+# rejects that DARE ("symplectic pencil has eigenvalues too close to the unit circle") although
+# P = 0 is its stabilising solution. The torque state x4 is autonomous (A[3, :3] = 0).
+DRIVE_A = [[0.997561, 0.002566, -0.048445, -0.000002],
+           [0.035099, 0.961899, 0.697166, -0.001988],
+           [0.098684, -0.103816, 0.960617, 0.000114],
+           [0.0, 0.0, 0.0, 0.606531]]
+DRIVE_C = [[0.039789, 0, 0, 0], [0.039789, 0, 0, 0], [0, 2.0, 0, 0], [0, 2.0, 0, 0], [0, 0, 0, 0.111111]]
+
+
+@pytest.mark.parametrize("q", [0.0, 1e-12, 1.0])
+@pytest.mark.parametrize("reach", ["none", "x2", "all"])
+def test_filter_dare_with_slow_modes_the_noise_does_not_reach(q, reach):
+    A, C = np.array(DRIVE_A), np.array(DRIVE_C)
+    G = {"none": np.zeros((4, 1)), "x2": np.eye(4)[:, [1]], "all": np.eye(4)}[reach]
+    Qx, R, S = q * G @ G.T, np.eye(5), np.zeros((4, 5))
+    kf = filter_riccati(A, C, Qx, R, S, 0.01)
+    P, L = kf.P, kf.L
+    Sig = C @ P @ C.T + R
+    K = A @ P @ C.T + S
+    res = A @ P @ A.T + Qx - K @ np.linalg.solve(Sig, K.T) - P
+    # relative to the size of the equation's terms (‖A‖ ≈ 1.2, ‖Σ⁻¹‖ ≤ 1): RICCATI (see the top)
+    size = max(np.abs(Qx).max(), np.abs(P).max(), np.finfo(float).tiny)
+    assert np.abs(res).max() <= RICCATI * size
+    assert np.array_equal(P, P.T)
+    assert np.linalg.eigvalsh(P).min() >= -SAME * size  # a covariance
+    assert np.max(np.abs(np.linalg.eigvals(A - L @ C))) < 1.0  # the stabilising solution
+    if q == 0.0 or reach == "none":
+        assert np.array_equal(P, np.zeros((4, 4)))  # A stable, no noise: the error dies out
+    if reach == "x2":
+        # x4 is autonomous, stable and noise-free: its error dies out, so P is zero on it
+        assert np.abs(P[3]).max() <= SAME * size
+
+
+def test_filter_riccati_uncontrollable_modes_off_and_on_the_boundary():
+    # unstable but observable, no noise: the filter must still stabilise. Scalar closed forms:
+    # DARE P = 4P − 4P²/(P + 1) → P = 3, L = 2·3/4, A − L C = 0.5; CARE 2P − P² = 0 → P = 2.
+    one = np.ones((1, 1))
+    kf = filter_riccati(2 * one, one, 0 * one, one, 0 * one, 0.1)
+    assert np.allclose([kf.P[0, 0], kf.L[0, 0]], [3.0, 1.5], rtol=0, atol=SAME)
+    kf = filter_riccati(one, one, 0 * one, one, 0 * one, 0.0)
+    assert np.allclose([kf.P[0, 0], kf.L[0, 0]], [2.0, 2.0], rtol=0, atol=SAME)
+    # a noise-free mode on the boundary (z = 1 next to a noisy stable one): no stabilising solution
+    A, C = np.diag([1.0, 0.5]), np.array([[1.0, 1.0]])
+    with pytest.raises(DesignError, match=r"no stabilising solution \(the modes \[1\] lie on the stability boundary"):
+        filter_riccati(A, C, np.diag([0.0, 1.0]), one, np.zeros((2, 1)), 0.1)
 
 
 # ============================================================================ UIO

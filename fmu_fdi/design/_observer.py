@@ -347,10 +347,14 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
         K_f = P Cᵀ Σ⁻¹,    L = A K_f + S Σ⁻¹ = (A P Cᵀ + S) Σ⁻¹.
 
     ``Qx``, ``R``, ``S`` are the covariances of the process noise, the measurement noise and
-    their cross-covariance. Solved by the Schur/QZ methods of ``scipy.linalg``
+    their cross-covariance. The states no noise reaches and whose modes are stable are
+    deflated first (:func:`_deflated_riccati`: the stabilising solution is zero on them,
+    exactly); the rest is solved, scaled, by the Schur/QZ methods of ``scipy.linalg``
     (Laub 1979; Arnold & Laub 1984). Those raise for most problems without a stabilising
-    solution but can return a non-stabilising one (e.g. an undamped mode no noise
-    reaches), so the closed loop is checked as well.
+    solution but can return a non-stabilising one, so the closed loop is checked as well.
+    A stabilising solution exists iff ``(A, C)`` is detectable and ``(A − S R⁻¹ C,
+    Qx − S R⁻¹ Sᵀ)`` has no uncontrollable mode on the stability boundary (Chan, Goodwin &
+    Sin 1984); such modes are named in the error.
     """
     n = A.shape[0]
 
@@ -361,14 +365,7 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
             f"(the pair (A − S R⁻¹ C, Qx − S R⁻¹ Sᵀ) must have no uncontrollable mode with "
             f"{'|z| = 1' if dt else 'Re s = 0'})")
 
-    try:
-        if dt:
-            P = sla.solve_discrete_are(A.T, C.T, Qx, R, s=S)
-        else:
-            P = sla.solve_continuous_are(A.T, C.T, Qx, R, s=S)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise no_solution(str(exc)) from None
-    P = (P + P.T) / 2
+    P = _deflated_riccati(A, C, Qx, R, S, dt, no_solution)
     if dt:
         Sigma = C @ P @ C.T + R
         Sigma = (Sigma + Sigma.T) / 2
@@ -383,6 +380,78 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
     if bad.size:
         raise no_solution(f"the solver's solution leaves the modes {fmt_modes(bad)} of A − L C unstable")
     return RiccatiFilter(P, L, Kf, Sigma)
+
+
+def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
+    """Stabilising ``P`` of the filter Riccati equation, the states no noise reaches deflated.
+
+    Removing the cross-covariance (Anderson & Moore 1979, sec. 5.5) gives the equivalent
+    equation with ``S = 0`` for ``Ā = A − S R⁻¹ C`` and ``Q̄ = Qx − S R⁻¹ Sᵀ = G Gᵀ``. An
+    orthogonal controllability staircase of ``(Ā, G)`` (:func:`observable_staircase` on the
+    dual, ``G`` normalised so the rank decision is relative to ``||Ā||`` and 1) and an
+    ordered real Schur form of its uncontrollable block give orthogonal ``T = [T₁ T₂]`` with
+
+        Tᵀ Ā T = [Ā₁₁ Ā₁₂; 0 Ā₂₂],     Tᵀ G = [G₁; 0],     eig(Ā₂₂) stable.
+
+    The states ``T₂ᵀ x`` see no noise and their error decays by itself, so ``P = T₁ P₁₁ T₁ᵀ``
+    with ``P₁₁`` the stabilising solution of the reduced equation ``(Ā₁₁, C T₁, G₁ G₁ᵀ, R)``
+    (substitute: every term of the (1,2) and (2,2) blocks vanishes), and
+    ``eig(A − L C) = eig(closed loop of the reduced problem) ∪ eig(Ā₂₂)``. Without this,
+    scipy's solvers reject e.g. ``Qx = 0`` with a slow stable mode (the solution ``P = 0``
+    makes their relative symmetry check on ``U₁₁ᴴ U₂₁`` compare rounding with rounding).
+    Uncontrollable modes on the stability boundary admit no stabilising solution and are
+    named; the reduced problem is solved after the scalar scaling ``P = γ P̃`` (``Q̄/γ``,
+    ``R/γ``, ``γ = sqrt(||Q̄₁₁|| / ||C₁ᵀ R⁻¹ C₁||)``), which balances the two quadratic
+    terms of the pencil.
+    """
+    n = A.shape[0]
+    if n == 0:
+        return np.zeros((0, 0))
+    SRi = sla.solve(R, S.T, assume_a="pos").T if S.size else np.zeros((n, R.shape[0]))
+    Ab = A - SRi @ C
+    Qb = Qx - SRi @ S.T
+    Qb = (Qb + Qb.T) / 2
+    lam, V = sla.eigh(Qb)  # Q̄ ⪯ Qx: its rank is decided relative to ||Qx||, not to its own rounding
+    keep = lam > default_rtol(Qb.shape) * max(float(np.linalg.norm(Qx, 2)), np.finfo(float).tiny)
+    G = V[:, keep] * np.sqrt(lam[keep])
+    scale = max(1.0, float(np.linalg.norm(A, 2)))
+    if G.shape[1]:
+        Z, n_c = observable_staircase(Ab.T, (G / np.linalg.norm(G, 2)).T)
+    else:
+        Z, n_c = np.eye(n), 0
+    if n_c < n:
+        Au = Z[:, n_c:].T @ Ab @ Z[:, n_c:]
+        margin = 1e3 * EPS * scale
+        if dt:
+            out = (lambda re, im: abs(complex(re, im)) >= 1.0 - margin)
+        else:
+            out = (lambda re, im: re >= -margin)
+        Tu, U, n_u = sla.schur(Au, output="real", sort=out)
+        modes = np.linalg.eigvals(Tu[:n_u, :n_u]) if n_u else np.zeros(0)
+        edge = modes[np.abs(np.abs(modes) - 1.0) <= margin] if dt else modes[np.abs(modes.real) <= margin]
+        if edge.size:
+            raise no_solution(f"the modes {fmt_modes(edge)} lie on the stability boundary and no process "
+                              f"noise reaches them")
+        Z = np.hstack([Z[:, :n_c], Z[:, n_c:] @ U])
+        n_c += n_u
+    if n_c == 0:
+        return np.zeros((n, n))
+    T1 = Z[:, :n_c]
+    A1, C1 = T1.T @ Ab @ T1, C @ T1
+    Q1 = T1.T @ Qb @ T1
+    Q1 = (Q1 + Q1.T) / 2
+    W = C1.T @ sla.solve(R, C1, assume_a="pos") if R.size else np.zeros((n_c, n_c))
+    q, w = float(np.linalg.norm(Q1, 2)), float(np.linalg.norm(W, 2))
+    gamma = np.sqrt(q / w) if q > 0 and w > 0 else 1.0
+    try:
+        if dt:
+            P1 = sla.solve_discrete_are(A1.T, C1.T, Q1 / gamma, R / gamma)
+        else:
+            P1 = sla.solve_continuous_are(A1.T, C1.T, Q1 / gamma, R / gamma)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise no_solution(str(exc)) from None
+    P = T1 @ (gamma * (P1 + P1.T) / 2) @ T1.T
+    return (P + P.T) / 2
 
 
 # ------------------------------------------------------------------------ filters
