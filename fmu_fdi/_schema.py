@@ -15,7 +15,7 @@ from .runtime.schema import (MAX_ABS, array, check_depth, check_format, check_ke
                              integer, matrix, names, real, table, text, type_name, vector)
 
 #: how to get a model when the user has a plant FMU (the command of docs/plant-fmu.md)
-FMU_TO_MODEL = "fmu-fdi model {fmu} -o model.toml (docs/plant-fmu.md)"
+FMU_TO_MODEL = "run 'fmu-fdi model {fmu} -o model.toml' (docs/plant-fmu.md)"
 
 
 def read_text(path, what: str, error: type[Exception]) -> str:
@@ -45,7 +45,7 @@ def _refused(data: bytes, path: Path, what: str, error: type[Exception]) -> bool
     if data[:4] == b"PK\x03\x04":
         kind = "an FMU (a zip archive)" if path.suffix.lower() == ".fmu" else "a zip archive"
         hint = (f"; to diagnose a plant FMU, write its model first: {FMU_TO_MODEL.format(fmu=path)}"
-                if path.suffix.lower() == ".fmu" or what == "model file" else "")
+                if path.suffix.lower() == ".fmu" or "model" in what else "")
         raise error(f"{path} is {kind}, not a {what}{hint}")
     if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
         raise error(f"{path} is UTF-16 or UTF-32 encoded; a {what} must be UTF-8 text (save it as UTF-8)")

@@ -134,9 +134,6 @@ def _load_model(path):
     """A model file; a plant FMU is refused with the command that turns it into one."""
     from .model import FDIModel
 
-    if str(path).lower().endswith(".fmu"):
-        raise ModelError(f"{path} is an FMU, not a model file: run 'fmu-fdi model {path} --inputs ... --outputs ... "
-                         f"-o MODEL.toml' first (see docs/plant-fmu.md)")
     return FDIModel.from_file(check_input_file(path, "model file"))
 
 
@@ -450,7 +447,7 @@ def build_parser() -> argparse.ArgumentParser:
                                      "co-simulations, table and plot")
     dm.add_argument("--out", default="fmu-fdi-demo", help="output folder (default: fmu-fdi-demo)")
     dm.add_argument("--target", choices=("pythonfmu", "native"), default="pythonfmu",
-                    help="diagnostic FMU target (native: C, FMI 2.0, compiled with the system C compiler)")
+                    help="diagnostic FMU target (default: pythonfmu; native: C, FMI 2.0, compiled with the system C compiler)")
     dm.set_defaults(func=_demo)
 
     from .cosim import cli as cosim_cli
@@ -510,27 +507,27 @@ def build_parser() -> argparse.ArgumentParser:
                                       "identified from an experiment (co-simulation)")
     mo.add_argument("plant", help="plant FMU (FMI 2.0 or 3.0)")
     mo.add_argument("-o", "--output", required=True, help="model file to write (.toml or .json)")
-    mo.add_argument("--inputs", nargs="+", help="known inputs u (FMU variables)")
-    mo.add_argument("--outputs", nargs="+", help="measured outputs y (FMU outputs)")
-    mo.add_argument("--disturbances", nargs="+", help="unknown inputs d (FMU inputs)")
-    mo.add_argument("--at", nargs="+", metavar="NAME=VALUE", help="operating point: inputs, parameters, states")
+    mo.add_argument("--inputs", nargs="+", help="known inputs u (FMU variables; default: the FMU's Real inputs not in --disturbances, linearisation only)")
+    mo.add_argument("--outputs", nargs="+", help="measured outputs y (FMU outputs; default: the FMU's Real outputs, linearisation only)")
+    mo.add_argument("--disturbances", nargs="+", help="unknown inputs d (FMU inputs; default: none)")
+    mo.add_argument("--at", nargs="+", metavar="NAME=VALUE", help="operating point: inputs, parameters, states (default: the FMU's start values)")
     mo.add_argument("--trim", action=argparse.BooleanOptionalAction, default=True,
                     help="model exchange: find the steady state from the inputs (default on)")
     mo.add_argument("--method", default="auto", choices=("auto", "linearise", "identify"))
-    mo.add_argument("--sensor-faults", nargs="+", help="'all' or output names: additive sensor faults")
-    mo.add_argument("--actuator-faults", nargs="+", help="'all' or input names: additive actuator faults")
+    mo.add_argument("--sensor-faults", nargs="+", help="'all' or output names: additive sensor faults (default: none)")
+    mo.add_argument("--actuator-faults", nargs="+", help="'all' or input names: additive actuator faults (default: none)")
     mo.add_argument("--ts", type=float, help="identification sample time (default: the FMU's default step)")
     mo.add_argument("--excite", nargs="+", help="FMU inputs to excite (default: the model inputs that are FMU inputs)")
     mo.add_argument("--signal", default="multisine", choices=("multisine", "prbs"))
     mo.add_argument("--amplitude", nargs="+", metavar="NAME=A", help="peak excitation per input (default 5 %%)")
     mo.add_argument("--samples", type=int, default=2000, help="recorded steps per run (default 2000)")
     mo.add_argument("--settle", type=float, help="seconds at the operating point first (default 200 steps)")
-    mo.add_argument("--period", type=int, default=1, help="PRBS clock period in steps")
-    mo.add_argument("--seed", type=int, default=0, help="excitation seed (validation run: seed + 1)")
+    mo.add_argument("--period", type=int, default=1, help="PRBS clock period in steps (default: 1)")
+    mo.add_argument("--seed", type=int, default=0, help="excitation seed (default: 0; validation run: seed + 1)")
     mo.add_argument("--order", type=int, help="model order (default: from the singular values)")
     mo.add_argument("--min-fit", type=float, default=50.0, help="refuse a validation fit below this (%%, default 50)")
-    mo.add_argument("--plot", help="PNG of measured vs model outputs on the validation run")
-    mo.add_argument("--record", help="CSV of the identification run (a fault-free log for --method data)")
+    mo.add_argument("--plot", help="PNG of measured vs model outputs on the validation run (default: none)")
+    mo.add_argument("--record", help="CSV of the identification run, a fault-free log for --method data (default: none)")
     mo.set_defaults(func=_model)
 
     b = sub.add_parser("build", help="build the diagnostic FMU (co-simulation) from a design file")
@@ -538,7 +535,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("-o", "--output", required=True, help="FMU to write (.fmu)")
     b.add_argument("--target", choices=("pythonfmu", "native"), default="pythonfmu",
                    help="pythonfmu (default; the host needs Python + numpy) or native (C, compiled now)")
-    b.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (3 needs --target native)")
+    b.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version (default: 2; 3 needs --target native)")
     b.add_argument("--stop-time", type=_positive_time,
                    help="DefaultExperiment stop time in s, what 'fmpy simulate' runs for without --stop-time "
                         "(default: 1000 samples of the design's Ts)")

@@ -248,9 +248,9 @@ def test_binary_files_and_fmus_where_text_belongs_give_one_line_errors(capsys, t
     fmu = tank_files["fmu"]
     for cmd in (["analyze", fmu], ["design", fmu, "--method", "dos", "--ts", "1", "-o", tmp_path / "d.json"]):
         code, _, err = run_main(capsys, *cmd)
-        assert_one_line_error(code, err, "is an FMU, not a text model file", "fmu-fdi model")
+        assert_one_line_error(code, err, "is an FMU (a zip archive), not a model file", "fmu-fdi model")
     code, _, err = run_main(capsys, "build", fmu, "-o", tmp_path / "x.fmu")
-    assert_one_line_error(code, err, "is an FMU, not a text design file")
+    assert_one_line_error(code, err, "is an FMU (a zip archive), not a design file")
     utf16 = tmp_path / "m.toml"
     utf16.write_text('format = "fmu-fdi-model/1"\n', encoding="utf-16")
     code, _, err = run_main(capsys, "analyze", utf16)

@@ -25,11 +25,11 @@ def add_parser(subparsers):
                               description=_DESCRIPTION)
     p.add_argument("campaign", help="campaign file (.toml, format fmu-fdi-campaign/1)")
     p.add_argument("-o", "--output", required=True, metavar="DIR", help="results and report folder")
-    p.add_argument("--dry-run", action="store_true", help="list the runs and stop")
-    p.add_argument("--resume", action="store_true", help="keep the finished runs of DIR/runs.jsonl, run the rest")
+    p.add_argument("--dry-run", action="store_true", help="list the runs and stop (default: run them)")
+    p.add_argument("--resume", action="store_true", help="keep the finished runs of DIR/runs.jsonl, run the rest (default: start afresh)")
     p.add_argument("--workers", type=int, default=1, help="worker processes (default 1: this process)")
-    p.add_argument("--scheduler", metavar="ADDR", help="Dask scheduler address, or 'local' for a LocalCluster")
-    p.add_argument("--no-progress", action="store_true", help="no progress line")
+    p.add_argument("--scheduler", metavar="ADDR", help="Dask scheduler address, or 'local' for a LocalCluster (default: none, a local process pool)")
+    p.add_argument("--no-progress", action="store_true", help="no progress line (default: a progress line on stderr)")
     p.set_defaults(func=run)
     return p
 
