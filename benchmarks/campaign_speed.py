@@ -8,8 +8,8 @@
    (target >= 5).
 2. Per-run fixed overhead: a campaign worker's run of 1 step minus one step's cost (target
    < 10 ms): reset, initialisation, wiring, summary.
-3. Runs per second of 1000-step DTS200 + DOS-bank runs (the demo's bank, persistence 3/5,
-   adaptive thresholds; :mod:`fmu_fdi.campaign.example`): serially, on a 2-process pool and on
+3. Runs per second of 1000-step DTS200 + DOS-bank runs (level-sensor bank, rms over 20 s,
+   persistence 3/5; :mod:`fmu_fdi.campaign.example`): serially, on a 2-process pool and on
    a 2-worker Dask LocalCluster (targets: pool >= 1.8 x serial on 2 cores, Dask within 1.2 x of
    the pool), and the wall time extrapolated to 1000 runs (target < 100 s).
 
