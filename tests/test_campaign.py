@@ -105,6 +105,21 @@ def test_cli_dry_run_run_kill_resume_and_report(folder, tmp_path, capsys):
     assert outcome(resumed) == outcome(reference)
     assert (out / "report.html").exists()
 
+    # Ctrl-C: no new run starts, the finished ones stay, exit status 130; --resume completes it
+    out = tmp_path / "interrupted"
+    proc = subprocess.Popen([sys.executable, "-m", "fmu_fdi", "campaign", str(spec_path), "-o", str(out),
+                             "--no-progress"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    while time.monotonic() < deadline + 120 and proc.poll() is None:
+        if (out / "runs.jsonl").exists() and len(lines(out / "runs.jsonl")) >= 1:
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    kept = lines(out / "runs.jsonl")
+    assert proc.returncode == 130 and "--resume" in err and all(r["status"] == "ok" for r in kept), err
+    assert main(["campaign", str(spec_path), "-o", str(out), "--resume", "--no-progress"]) == 0
+    assert outcome(lines(out / "runs.jsonl")) == outcome(reference)
+
 
 def test_process_pool_and_dask_give_the_serial_results(folder, tmp_path):
     spec = CampaignSpec.load(write(folder, "parallel", fault_free=2, kalman=True))
