@@ -249,3 +249,19 @@ def test_testing_helpers_pass_and_fail_with_evidence(folder):
     assert_false_alarm_rate((0, n), rate=1e-3, confidence=0.95)
     with pytest.raises(DiagnosisAssertionError, match=f"{n} samples would show it"):
         assert_false_alarm_rate((0, n - 1), rate=1e-3, confidence=0.95)
+
+
+@pytest.mark.parametrize("persistence, latch", [((1, 1), False), ((3, 5), False), ((2, 3), True), ((4, 4), False)])
+def test_sweep_decision_is_the_runtime_decision(persistence, latch):
+    from fmu_fdi.campaign.execute import decide
+    from fmu_fdi.runtime.decision import Decision
+
+    rng = np.random.default_rng(0)
+    for n in (2, 7, 60):  # records shorter than the persistence window too
+        J, th = rng.random((n, 2)), np.full((n, 2), 0.6)
+        d = Decision({"persistence": list(persistence), "latch": latch}, 2, 0)
+        ref = [False]  # row 0: no diagnosis yet
+        for i in range(1, n):
+            d.step(J[i].tolist(), th[i].tolist(), np.zeros(2))
+            ref.append(any(d.alarms))
+        assert decide(J, th, persistence, latch).tolist() == ref
