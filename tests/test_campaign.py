@@ -73,8 +73,10 @@ def test_cli_dry_run_run_kill_resume_and_report(folder, tmp_path, capsys):
     assert not (tmp_path / "dry" / "runs.jsonl").exists()
 
     ref = tmp_path / "ref"
-    assert main(["campaign", str(spec_path), "-o", str(ref), "--no-progress"]) == 0
+    assert main(["campaign", str(spec_path), "-o", str(ref), "--no-progress", "--traces"]) == 0
     reference = lines(ref / "runs.jsonl")
+    traces = sorted((ref / "traces").glob("run_*.csv"))
+    assert len(traces) == n and "bank.fault_detected" in traces[-1].read_text().splitlines()[0]
     assert len(reference) == n and all(r["status"] == "ok" for r in reference)
     # the threshold sweep at factor 1 reproduces each FMU's own alarms (bank: persistence 3 of 5)
     assert all(d["sweep_exact"] for r in reference for d in r["diagnosers"].values())

@@ -16,6 +16,9 @@ Execution
 - ``scheduler="tcp://host:port"``: an existing Dask distributed scheduler; ``scheduler="local"``:
   a ``dask.distributed.LocalCluster`` of ``workers`` single-threaded worker processes.
 
+Traces (``[output] traces``, ``--traces``) are written by the worker that ran the run into
+``DIR/traces``: with a remote scheduler that folder must be on a file system the workers share.
+
 Every worker process receives the FMUs' bytes once (pool initialiser; Dask: one scattered,
 broadcast payload), extracts and instantiates each FMU once and resets it between runs
 (:class:`~fmu_fdi.campaign.execute.PooledInstance`). Ctrl-C (KeyboardInterrupt) cancels what is

@@ -203,9 +203,13 @@ class CampaignSpec:
                    labels=dict(_table(data, "labels")), sample=_sample(_table(data, "sample")),
                    analysis=_analysis(_table(data, "analysis")),
                    traces=bool(_table(data, "output").get("traces", False)), source=data)
-        for name in spec.diagnosers:
+        for name, table in spec.diagnosers.items():
             if name not in paths:
                 raise CampaignError(f"campaign: [diagnosers.{name}] is not an FMU of [fmus] ({', '.join(paths)})")
+            extra = set(table) - {"faults", "persistence", "latch"}
+            if extra:
+                raise CampaignError(f"campaign: unknown key(s) {sorted(extra)} in [diagnosers.{name}]; known: "
+                                    f"faults, persistence, latch")
         spec.runs()  # every run's faults must be valid
         return spec
 
