@@ -201,7 +201,9 @@ def test_campaign_file_errors_name_the_key(folder, tmp_path):
                             (text.replace("magnitude = [0.4, 1.5]", "magnitude = {min = 0.1, max = 1}"), "grid"),
                             (text.replace('format = "fmu-fdi-campaign/1"', 'format = "x/2"'), "format"),
                             (text.replace("onset = [150.0]", "onset = [10.0]"), "zone_start"),
-                            (text + "\n[extra]\n", "unknown key")):
+                            (text + "\n[extra]\n", "unknown key"),
+                            (text.replace('seeds = ["plant.seed"]', 'seeds = ["plant.sead"]'), "did you mean 'seed'"),
+                            (text.replace('"plant.f_sensor_h2"', '"plant.f_sensor_h4"'), "f_sensor_h4")):
         p = tmp_path / "broken.toml"
         p.write_text(broken)
         (tmp_path / "dts200.fmu").write_bytes((folder / "dts200.fmu").read_bytes())

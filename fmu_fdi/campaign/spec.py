@@ -210,8 +210,29 @@ class CampaignSpec:
             if extra:
                 raise CampaignError(f"campaign: unknown key(s) {sorted(extra)} in [diagnosers.{name}]; known: "
                                     f"faults, persistence, latch")
-        spec.runs()  # every run's faults must be valid
+        spec.check()
         return spec
+
+    def check(self):
+        """Check every name before anything runs: one co-simulation set-up (no FMU instantiated)
+        per distinct fault kind, target and permanence, with every parameter and seed name."""
+        from ..cosim import CoSimulation
+        from ..cosim.instance import FMUInstance
+
+        runs = self.runs()
+        instances = {name: FMUInstance(name, path) for name, path in self.fmus.items()}
+        seen = {}
+        for r in runs:
+            f = r.fault
+            key = None if f is None else (f["kind"], f["target"], f["duration"] is None)
+            seen.setdefault(key, r)
+        for r in seen.values():
+            try:
+                CoSimulation(instances, self.connections, self.inputs, step=self.step, stop=self.stop,
+                             start=self.start, order=self.order, faults=r.faults(),
+                             parameters={**self.parameters, **r.parameters})
+            except CoSimulationError as exc:
+                raise CampaignError(f"campaign: run {r.index}: {exc}") from None
 
     # ------------------------------------------------------------------ runs
     def runs(self) -> list:
