@@ -280,8 +280,12 @@ class PlantSlave:
         return np.array(self._get(names), dtype=float)
 
     def _get(self, names) -> tuple:
-        """The current values of ``names`` (a tuple of variable names) as a tuple."""
-        return tuple([getattr(self, n) for n in names])
+        """The current values of ``names`` (a tuple of variable names) as a tuple: the variables
+        live in the instance dict, and one C-level map over it is what keeps a step cheap."""
+        try:
+            return tuple(map(self.__dict__.__getitem__, names))
+        except KeyError:  # a name that is a property or class attribute
+            return tuple([getattr(self, n) for n in names])
 
     def _channels(self, prefixes, names) -> list:
         """``[prefix_name for name in names]`` per prefix, cached."""

@@ -286,13 +286,15 @@ def measure(c: Campaign, results: dict, res, case: FaultCase | None, t) -> None:
                 continue
             alarm = res[f"{inst}.fault_detected"]
             if case is None:
-                r.measured["fault-free"] = {"alarms": int(alarm.sum()), "samples": len(t)}
+                r.measured["fault-free"] = {"alarms": int(alarm.sum()), "samples": len(t), "record": res,
+                                            "instance": inst}
                 continue
             k_on = onset(c, t)
             mt = metrics(res, t_on=c.t_on, fault=r.derived[case.key].get("fault"), alarm=f"{inst}.fault_detected",
                          isolation=f"{inst}.isolated_fault")
             r.measured[case.key] = {"delay": mt.t_dt, "false_alarms": int(alarm[:k_on + 1].sum()), "t_it": mt.t_it,
-                                    "isolated": res[f"{inst}.isolated_fault"][k_on:], "t": t[k_on:] - c.t_on}
+                                    "isolated": res[f"{inst}.isolated_fault"][k_on:], "t": t[k_on:] - c.t_on,
+                                    "record": res, "instance": inst}
 
 
 def run_campaign(c: Campaign, tmp: Path) -> dict:

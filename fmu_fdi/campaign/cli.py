@@ -29,6 +29,8 @@ def add_parser(subparsers):
     p.add_argument("--resume", action="store_true", help="keep the finished runs of DIR/runs.jsonl, run the rest (default: start afresh)")
     p.add_argument("--workers", type=int, default=1, help="worker processes (default 1: this process)")
     p.add_argument("--scheduler", metavar="ADDR", help="Dask scheduler address, or 'local' for a LocalCluster (default: none, a local process pool)")
+    p.add_argument("--traces", action="store_true", help="also keep every run's full record as DIR/traces/*.csv "
+                                                         "(as [output] traces = true; default: summaries only)")
     p.add_argument("--no-progress", action="store_true", help="no progress line (default: a progress line on stderr)")
     p.set_defaults(func=run)
     return p
@@ -44,6 +46,7 @@ def run(args) -> int:
 
     try:
         spec = CampaignSpec.load(args.campaign)
+        spec.traces = spec.traces or args.traces
         if args.dry_run:
             runs = spec.runs()
             for r in runs:

@@ -1,7 +1,8 @@
-"""The example campaign: the DTS200 three-tank plant FMU with the demo's dedicated observer bank
-(three level-sensor residuals, rms over 20 s, adaptive thresholds, persistence 3 of 5; see
-:mod:`fmu_fdi.demo`), the pumps at their operating flows, Jacobi order. It serves the tests, the
-benchmark (benchmarks/campaign_speed.py) and as a template for a campaign file.
+"""The example campaign: the DTS200 three-tank plant FMU with a dedicated observer bank for its
+level sensors (three residuals, rms over 20 s, the analytic threshold of a 1e-4 false-alarm
+probability per sample for the 0.1 cm sensor noise, persistence 3 of 5), the pumps at their
+operating flows, Jacobi order. It serves the tests, the benchmark (benchmarks/campaign_speed.py)
+and as a template for a campaign file.
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ order = "jacobi"
 [fmus]
 plant = "dts200.fmu"
 bank = "dts200_sensor_dos.fmu"
+{extra_fmus}
 
 [inputs]
 time = [0.0]
@@ -26,6 +28,9 @@ time = [0.0]
 [inputs.values]
 Q1 = [{q1!r}]
 Q2 = [{q2!r}]
+
+[parameters]
+{parameters}
 
 [sample]
 method = "grid"
@@ -49,10 +54,13 @@ zone_start = {zone}
 
 
 def build_fmus(folder) -> dict:
-    """Build the plant FMU and the demo's diagnoser FMU into ``folder``; ``{instance: path}``."""
+    """Build the plant FMU and the bank's diagnostic FMU into ``folder``; ``{instance: path}``."""
+    import numpy as np
     import plant_fmus
 
-    from ..demo import design_diagnoser
+    from ..design import dedicated_bank
+    from ..diagnoser import Diagnoser
+    from ..evaluation import analytic_threshold
     from ..fmu import build_fmu
     from ..model import FDIModel
 
@@ -60,23 +68,35 @@ def build_fmus(folder) -> dict:
     folder.mkdir(parents=True, exist_ok=True)
     plant = plant_fmus.build("dts200", folder)
     model = FDIModel.from_file(plant_fmus.model_path("dts200"))
-    dg, _ = design_diagnoser(model, plant, folder)
+    bank = dedicated_bank(model.discretize(1.0), "sensor", noise="ignore")
+    evaluation = {"kind": "rms", "window": 20}
+    # w is unit white noise in the model (Dw carries the 0.1 cm): the exact rms threshold at 1e-4
+    th = [analytic_threshold(bank, evaluation, 1e-4, noise_cov=np.eye(model.nw), group=i)
+          for i in range(len(bank.groups))]
+    dg = Diagnoser(bank, evaluation=evaluation, thresholds=th, decision={"persistence": [3, 5]},
+                   name="dts200_sensor_dos")
     return {"plant": plant, "bank": build_fmu(dg, folder / "dts200_sensor_dos.fmu")}
 
 
 def write_campaign(folder, name="dts200-dos", *, stop=1000.0, fault_free=2, replicates=1, seed_base=1,
                    targets=("plant.f_sensor_h1", "plant.f_sensor_h2", "plant.f_sensor_h3"),
-                   magnitudes=(0.5, 1.0), onset=None, rate=1e-3, scales=(0.5, 2.0, 16), zone=50.0) -> Path:
-    """Write ``folder/<name>.toml`` next to FMUs built by :func:`build_fmus`; returns its path."""
+                   magnitudes=(0.5, 1.0), onset=None, rate=1e-3, scales=(0.5, 2.0, 16), zone=50.0,
+                   extra_fmus=None, parameters=None) -> Path:
+    """Write ``folder/<name>.toml`` next to FMUs built by :func:`build_fmus` (``extra_fmus``:
+    more ``{instance: file}`` in that folder, e.g. another diagnoser; ``parameters``: set in every
+    run); returns its path."""
+    import json
+
     from plant_fmus.dts200 import dts200_physics as phys
 
     _, q = phys.operating_point()
-    text = TEMPLATE.format(name=name, stop=float(stop), q1=float(q[0]), q2=float(q[1]), fault_free=fault_free,
-                           replicates=replicates, seed_base=seed_base, targets=list(targets),
-                           magnitudes=[float(m) for m in magnitudes], onset=float(onset if onset is not None
-                                                                                    else stop / 2),
-                           rate=rate, scale_min=scales[0], scale_max=scales[1], scale_count=scales[2],
-                           zone=float(zone))
+    text = TEMPLATE.format(
+        name=name, stop=float(stop), q1=float(q[0]), q2=float(q[1]), fault_free=fault_free, replicates=replicates,
+        seed_base=seed_base, targets=json.dumps(list(targets)), magnitudes=[float(m) for m in magnitudes],
+        onset=float(onset if onset is not None else stop / 2), rate=rate, scale_min=scales[0],
+        scale_max=scales[1], scale_count=scales[2], zone=float(zone),
+        extra_fmus="\n".join(f"{k} = {json.dumps(str(v))}" for k, v in (extra_fmus or {}).items()),
+        parameters="\n".join(f"{json.dumps(k)} = {v!r}" for k, v in (parameters or {}).items()))
     path = Path(folder) / f"{name}.toml"
-    path.write_text(text.replace("'", '"'), encoding="utf-8")
+    path.write_text(text, encoding="utf-8")
     return path

@@ -105,7 +105,8 @@ class Worker:
         p = self.payload
         tic = time.perf_counter()
         r = Run(run["index"], run["fault"], run["parameters"])
-        record = {"run": r.to_dict(), "status": "ok", "pid": os.getpid()}
+        record = {"run": r.to_dict(), "status": "ok", "pid": os.getpid(),
+                  "reused": all(inst._slave is not None for inst in self.instances.values())}
         try:
             sim = CoSimulation(self.instances, p["connections"], p["inputs"], step=p["step"], stop=p["stop"],
                                start=p["start"], order=p["order"], faults=r.faults(),
@@ -163,9 +164,8 @@ def decide(J: np.ndarray, th: np.ndarray, persistence=(1, 1), latch=False) -> np
     raw[0] = False
     k, n = persistence
     if n > 1:
-        c = np.cumsum(raw, axis=0, dtype=np.int64)
-        c = c - np.vstack([np.zeros((n, c.shape[1]), np.int64), c[:-n]])
-        raw = c >= k
+        c = np.vstack([np.zeros((n, raw.shape[1]), np.int64), np.cumsum(raw, axis=0, dtype=np.int64)])
+        raw = c[n:] - c[:-n] >= k  # raw tests fired among the last n samples (fewer at the start)
     if latch:
         raw = np.maximum.accumulate(raw, axis=0)
     return raw.any(axis=1)

@@ -16,6 +16,9 @@ Execution
 - ``scheduler="tcp://host:port"``: an existing Dask distributed scheduler; ``scheduler="local"``:
   a ``dask.distributed.LocalCluster`` of ``workers`` single-threaded worker processes.
 
+Traces (``[output] traces``, ``--traces``) are written by the worker that ran the run into
+``DIR/traces``: with a remote scheduler that folder must be on a file system the workers share.
+
 Every worker process receives the FMUs' bytes once (pool initialiser; Dask: one scattered,
 broadcast payload), extracts and instantiates each FMU once and resets it between runs
 (:class:`~fmu_fdi.campaign.execute.PooledInstance`). Ctrl-C (KeyboardInterrupt) cancels what is
@@ -270,7 +273,7 @@ def _dask_run(work, run):
 
 
 def _on_dask(work, todo, take, scheduler, workers, stop):
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client, LocalCluster, as_completed
 
     cluster = None
     if scheduler == "local":
@@ -283,16 +286,10 @@ def _on_dask(work, todo, take, scheduler, workers, stop):
         shipped = client.scatter(work, broadcast=True)
         futures = [client.submit(_dask_run, shipped, r.to_dict(), key=f"fmu-fdi-run-{work['id']}-{r.index}",
                                  pure=False) for r in todo]
-        pending = list(futures)
-        while pending and not stop.requested:
-            finished = [f for f in pending if f.done()]
-            if not finished:
-                time.sleep(0.01)
-                continue
-            done_ids = {id(f) for f in finished}
-            pending = [f for f in pending if id(f) not in done_ids]
-            for fut in finished:
-                take(fut.result())
+        for fut in as_completed(futures):  # a stop request is seen at the next finished run
+            take(fut.result())
+            if stop.requested:
+                break
     finally:
         if futures:
             client.cancel(futures)

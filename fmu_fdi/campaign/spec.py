@@ -203,11 +203,36 @@ class CampaignSpec:
                    labels=dict(_table(data, "labels")), sample=_sample(_table(data, "sample")),
                    analysis=_analysis(_table(data, "analysis")),
                    traces=bool(_table(data, "output").get("traces", False)), source=data)
-        for name in spec.diagnosers:
+        for name, table in spec.diagnosers.items():
             if name not in paths:
                 raise CampaignError(f"campaign: [diagnosers.{name}] is not an FMU of [fmus] ({', '.join(paths)})")
-        spec.runs()  # every run's faults must be valid
+            extra = set(table) - {"faults", "persistence", "latch"}
+            if extra:
+                raise CampaignError(f"campaign: unknown key(s) {sorted(extra)} in [diagnosers.{name}]; known: "
+                                    f"faults, persistence, latch")
+        spec.check()
         return spec
+
+    def check(self):
+        """Check every name before anything runs: one co-simulation set-up (no FMU instantiated)
+        per distinct fault kind, target and permanence, with every parameter and seed name."""
+        from ..cosim import CoSimulation
+        from ..cosim.instance import FMUInstance
+
+        runs = self.runs()
+        instances = {name: FMUInstance(name, path) for name, path in self.fmus.items()}
+        seen = {}
+        for r in runs:
+            f = r.fault
+            key = None if f is None else (f["kind"], f["target"], f["duration"] is None)
+            seen.setdefault(key, r)
+        for r in seen.values():
+            try:
+                CoSimulation(instances, self.connections, self.inputs, step=self.step, stop=self.stop,
+                             start=self.start, order=self.order, faults=r.faults(),
+                             parameters={**self.parameters, **r.parameters})
+            except CoSimulationError as exc:
+                raise CampaignError(f"campaign: run {r.index}: {exc}") from None
 
     # ------------------------------------------------------------------ runs
     def runs(self) -> list:

@@ -73,7 +73,7 @@ class DTS200(PlantSlave, Fmi2Slave):
              (self.actuate(self._get(phys.U)) + self.process_noise(_PROCESS_NOISE)).tolist()]
         leak = [max(v, 0.0) for v in self._get(_LEAKS)]
         clog = [min(max(v, 0.0), 1.0) for v in self._get(_CLOGS)]
-        self._x = self.integrate(lambda x: phys.rates(x, q, p, leak, clog), self._x, h,
+        self._x = self.integrate(phys.rates_function(q, p, leak, clog), self._x, h,
                                  clip=([0.0] * 3, [p["h_max"]] * 3)).tolist()
         self._publish(p)
 
