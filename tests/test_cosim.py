@@ -570,7 +570,7 @@ def test_fmu_warnings_reach_the_user(fmus, diagnostic_fmu, tmp_path, capsys):
     args = argparse.Namespace(plant=[str(fmus["plant"])], diagnoser=str(diagnostic_fmu), stop=N * H, step=H,
                               start=0.0, input=None, interpolation="zoh", fault=[], connect=None,
                               param=["diagnoser.threshold_scale=-1"], order="gauss-seidel", ssp=None,
-                              output=str(tmp_path / "o.csv"))
+                              output=str(tmp_path / "o.csv"), allow_unconnected=True)  # u: a start value
     assert cli.run(args) == 0
     err = capsys.readouterr().err
     assert "warning: FMU 'diagnoser' at t=0: threshold_scale must be a finite number >= 0" in err
