@@ -105,14 +105,19 @@ class {cls}(Fmi2Slave):
 
 
 def _pythonfmu(tmp_path: Path, template: str, prefix: str, **fmt) -> Path:
-    from pythonfmu import FmuBuilder
+    from fmu_fdi.fmu.packaging import installed_pythonfmu
 
     # a prefix no other test file uses: module names must be unique in the whole pytest process
     tag = f"cosimtest_{prefix}{next(_serial)}"
     cls = "".join(part.capitalize() for part in tag.split("_"))
     script = Path(tmp_path) / f"{tag}.py"
     script.write_text(template.format(cls=cls, **fmt))
-    return FmuBuilder.build_FMU(script, dest=tmp_path, needsExecutionTool="false")
+    # the installed pythonfmu, not the binary-less copy a plant FMU run earlier in this
+    # process put on sys.path (that one writes FMUs without binaries/)
+    with installed_pythonfmu():
+        from pythonfmu import FmuBuilder
+
+        return FmuBuilder.build_FMU(script, dest=tmp_path, needsExecutionTool="false")
 
 
 def build_plant(tmp_path) -> Path:

@@ -73,7 +73,7 @@ def test_built_fmus_pass_fmpy_validate(work):
 
 
 def test_raw_pythonfmu_description_fails_and_patch_fixes_it(tmp_path):
-    from pythonfmu import FmuBuilder
+    from fmu_fdi.fmu.packaging import installed_pythonfmu
 
     script = tmp_path / "rawslave.py"
     script.write_text(
@@ -89,7 +89,10 @@ def test_raw_pythonfmu_description_fails_and_patch_fixes_it(tmp_path):
         "    def do_step(self, t, h):\n"
         "        return True\n")
     try:
-        fmu = FmuBuilder.build_FMU(script, dest=tmp_path / "RawSlave.fmu")
+        with installed_pythonfmu():  # not the binary-less copy of an FMU that ran in this process
+            from pythonfmu import FmuBuilder
+
+            fmu = FmuBuilder.build_FMU(script, dest=tmp_path / "RawSlave.fmu")
     finally:
         sys.modules.pop("rawslave", None)
         sys.path[:] = [p for p in sys.path if p != str(tmp_path)]
