@@ -26,6 +26,7 @@ Conventions every plant follows (docs/plant_fmus.md):
 """
 from __future__ import annotations
 
+import importlib
 import math
 from xml.etree.ElementTree import Element, SubElement
 
@@ -189,6 +190,16 @@ class _RealWithUnit(Real):
         return node
 
 
+def _guard_exit(slave) -> None:
+    """Guard the host against pythonfmu 0.7's exit-time use-after-free (see the bundled
+    ``<prefix>_exit_guard`` module, fmu_fdi/fmu/exit_guard.py); outside an FMU (no bundled
+    guard next to this module) there is nothing to guard."""
+    if not __name__.endswith("_support") or "." in __name__:
+        return
+    guard = importlib.import_module(__name__[:-len("_support")] + "_exit_guard")
+    guard.guard_slave(slave, type(slave).__name__)
+
+
 class PlantSlave:
     """Mixin for the plant slaves (deliberately not an ``Fmi2Slave`` subclass, so each
     FMU's slave module holds exactly one ``Fmi2Slave`` subclass for pythonfmu to find).
@@ -203,9 +214,10 @@ class PlantSlave:
 
     # ------------------------------------------------------------ declaration
     def _declare(self, cls, name, start, causality, variability, description, unit="", initial=None):
-        if not hasattr(self, "_units"):
+        if not hasattr(self, "_units"):  # the first declaration: set-up of the instance
             self._units, self._real_inputs = [], []
             self._failed = None
+            _guard_exit(self)
         setattr(self, name, start)
         kwargs = dict(causality=causality, variability=variability, description=description)
         if initial is not None:

@@ -7,6 +7,8 @@ from pathlib import Path
 from typing import Callable
 
 SUPPORT = Path(__file__).with_name("_support.py")
+#: pythonfmu 0.7's exit-time use-after-free guard, shared with the diagnostic FMU
+EXIT_GUARD = Path(__file__).resolve().parent.parent / "fmu_fdi" / "fmu" / "exit_guard.py"
 
 
 @dataclass(frozen=True)
@@ -79,7 +81,8 @@ class Plant:
 
     def bundle(self) -> list[tuple[Path, str]]:
         """``(source, bundled file name)`` of every module the FMU carries besides the slave."""
-        return [(SUPPORT, f"{self.prefix}_support.py")] + [(p, p.name) for p in self.helpers]
+        return ([(SUPPORT, f"{self.prefix}_support.py"), (EXIT_GUARD, f"{self.prefix}_exit_guard.py")]
+                + [(p, p.name) for p in self.helpers])
 
     def fault(self, variable: str) -> FaultInput:
         """The fault input named ``variable``."""

@@ -7,6 +7,9 @@ after the step for t_k (row k+1 of a host that reads before stepping) equals row
 Diagnoser.run. Outputs must agree to 1e-12 (the same runtime code on the same floats; the
 bound only absorbs the host's float formatting of CSV files, which is exact with repr).
 """
+import json
+import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -78,6 +81,59 @@ def test_fmu2slave_loop_matches_diagnoser_run(ex53):
                               outputs=ex53["outputs"])
     assert_matches(ans["result"], ex53["ref"], ex53["outputs"])
     assert ex53["ref"]["fault_detected"].any()  # the record does exercise the alarm path
+
+
+def test_host_exits_cleanly_whatever_its_heap_layout(ex53, monkeypatch):
+    """pythonfmu 0.7 releases its interpreter handle twice at exit (fmu_fdi.fmu.exit_guard):
+    whether the host then aborts ("corrupted double-linked list", exit -6) after its work is
+    done depends only on its heap layout. The host's environment is copied onto its heap, so
+    environments of different sizes give different layouts; every one must exit 0."""
+    inputs = as_inputs(ex53["t"], ex53["u"], ex53["y"])[:20]
+    for pad in range(0, 2400, 300):  # 8 layouts; before the guard, 6 of them aborted here
+        monkeypatch.setenv("FMU_FDI_TEST_HEAP_PAD", "x" * pad)
+        ans = hosts.run_fmu2slave(ex53["fmu"], inputs, step=TS, outputs=["fault_detected"])  # HostError if not 0
+        assert ans["statuses"] == [0] * len(inputs)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+def test_host_shutdown_is_clean_under_valgrind(ex53, tmp_path):
+    """No invalid memory access in the FMU's library in the whole life of an fmpy host, exit
+    included (before the guard: "Invalid read of size 4 at finalizePythonInterpreter", a
+    block freed by the exit handlers, in every layout)."""
+    np.save(tmp_path / "inputs.npy", as_inputs(ex53["t"], ex53["u"], ex53["y"])[:5], allow_pickle=False)
+    spec = {"fmu": str(ex53["fmu"]), "inputs": str(tmp_path / "inputs.npy"), "step": TS,
+            "outputs": ["fault_detected"], "parameters": {}, "log_categories": None, "workdir": str(tmp_path)}
+    (tmp_path / "spec.json").write_text(json.dumps(spec))
+    log = tmp_path / "valgrind.log"
+    proc = subprocess.run(["valgrind", "--undef-value-errors=no", f"--log-file={log}", sys.executable, "-I",
+                           str(hosts.WORKER), "fmu2slave", str(tmp_path / "spec.json")],
+                          env=hosts.python_env(), capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    # one valgrind error report per block of lines between "==pid== " separators
+    blocks = re.split(r"\n==\d+== \n", log.read_text())
+    assert (tmp_path / "answer.json").exists()
+    ours = [b for b in blocks if re.search(r"^==\d+== (Invalid|Mismatched|Conditional|Syscall)", b, re.M)
+            and ("finalizePythonInterpreter" in b or "pythonfmu" in b or "/binaries/" in b)]
+    assert not ours, "\n".join(ours)[:3000]
+
+
+def test_exit_guard_never_loads_a_library_itself(ex53, tmp_path):
+    """The guard only ever takes the library the host loaded (RTLD_NOLOAD): for an FMU not
+    loaded in this process it guards nothing and loads nothing (a second copy would run
+    pythonfmu's static constructors and add one more global to release at exit)."""
+    import zipfile
+
+    from fmu_fdi.fmu.exit_guard import guard_interpreter_exit
+
+    with zipfile.ZipFile(ex53["fmu"]) as zf:
+        zf.extractall(tmp_path)
+    libs = list(tmp_path.glob("binaries/*/*"))
+    assert libs
+    assert guard_interpreter_exit(str(tmp_path / "resources"), libs[0].stem) is None
+    maps = Path("/proc/self/maps")
+    if maps.exists():
+        assert str(tmp_path) not in maps.read_text()
 
 
 def test_fmpy_simulate_offline_csv_matches(ex53, tmp_path):

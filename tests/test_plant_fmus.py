@@ -141,7 +141,7 @@ def fmus(tmp_path_factory):
     return {p.stem: p for p in plant_fmus.build_all(out)}
 
 
-def run_jobs(fmus, keys, tmp_path):
+def run_jobs(fmus, keys, tmp_path, env=None):
     """Run the scenarios ``keys`` in one fresh process; returns {key: result}."""
     plants = list(dict.fromkeys(SCENARIOS[k][0] for k in keys))
     jobs = [{"fmu": str(fmus[p]), "runs": [SCENARIOS[k][1] for k in keys if SCENARIOS[k][0] == p]}
@@ -149,7 +149,7 @@ def run_jobs(fmus, keys, tmp_path):
     jobs_file, result_file = tmp_path / "jobs.json", tmp_path / "results.json"
     jobs_file.write_text(json.dumps(jobs))
     proc = subprocess.run([sys.executable, str(RUNNER), str(jobs_file), str(result_file)],
-                          capture_output=True, text=True, timeout=600)
+                          capture_output=True, text=True, timeout=600, env=env)
     assert proc.returncode == 0, proc.stderr[-3000:]
     raw = json.loads(result_file.read_text())
     out = {}
@@ -162,6 +162,21 @@ def run_jobs(fmus, keys, tmp_path):
 @pytest.fixture(scope="module")
 def results(fmus, tmp_path_factory):
     return run_jobs(fmus, list(SCENARIOS), tmp_path_factory.mktemp("runs"))
+
+
+def test_plant_hosts_exit_cleanly_whatever_their_heap_layout(fmus, tmp_path):
+    """pythonfmu 0.7 releases its interpreter handle twice at process exit; whether the host
+    then aborts after its work is done depends only on its heap layout (fmu_fdi/fmu/exit_guard.py,
+    bundled into every plant FMU too). The environment is copied onto the host's heap, so
+    environments of different sizes give different layouts: every one must exit 0, and no
+    plant may log that it could not guard its host."""
+    import os
+
+    keys = [next(k for k in SCENARIOS if SCENARIOS[k][0] == p) for p in ("dts200", "dr300")]
+    for pad in range(0, 2400, 600):  # 4 layouts
+        env = dict(os.environ, FMU_FDI_TEST_HEAP_PAD="x" * pad)
+        for key, res in run_jobs(fmus, keys, tmp_path, env=env).items():
+            assert not [m for _, _, m in res.get("log", []) if "corrupt the host's heap" in m], (key, res["log"])
 
 
 def ok(results, key):
@@ -252,7 +267,9 @@ def test_build_api_and_import_hygiene(tmp_path):
 
 def test_bundled_modules_are_unique_and_numpy_only(fmus):
     seen = {}
-    allowed = {"numpy", "pythonfmu", "math", "__future__", "xml"}
+    # third-party: numpy and pythonfmu only; the rest is the standard library (the exit guard
+    # of fmu_fdi/fmu/exit_guard.py needs importlib, atexit, ctypes, glob and os)
+    allowed = {"numpy", "pythonfmu", "math", "__future__", "xml", "importlib", "atexit", "ctypes", "glob", "os"}
     for name, path in fmus.items():
         prefix = plant_fmus.PLANTS[name].prefix
         with zipfile.ZipFile(path) as zf:

@@ -49,7 +49,7 @@ FMU_MODE = 0o644
 
 _HERE = Path(__file__).parent
 #: modules copied into every bundle; they import only numpy, the stdlib and pythonfmu
-BASE_MODULES = ("slave_base.py", "slave_state.py")
+BASE_MODULES = ("slave_base.py", "slave_state.py", "exit_guard.py")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -63,12 +63,16 @@ _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 # long as the interpreter, which exactly balances the stray decrement (the first import adds
 # one reference more: the dict is never freed, a deliberate leak of one small dict). The
 # class is defined here, with methods, for the same reason (functions hold their globals).
+# Every instance also guards the host against pythonfmu 0.7's use-after-free of its global
+# interpreter handle at process exit (see fmu_fdi.fmu.exit_guard): without it, whether the
+# host aborts after its work is done depends on its heap layout.
 _LOADER = '''"""Loader for pythonfmu (generated): the slave code lives in the package {lib}."""
 import sys as _sys
 
 # balance pythonfmu 0.7's stray Py_DECREF of this namespace (see fmu_fdi.fmu.packaging)
 _sys.__dict__.setdefault("_fmu_fdi_namespaces", []).append(globals())
 
+from {lib}.exit_guard import guard_slave as _guard_exit
 from {lib}.{module} import {cls} as _Slave
 
 
@@ -77,6 +81,7 @@ class {cls}(_Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        _guard_exit(self, "{cls}")  # pythonfmu 0.7 frees its interpreter handle twice at exit
 
     def _loader_namespace(self):
         return globals()
