@@ -17,9 +17,10 @@ from fmu_fdi.generator import ResidualGenerator
 from fmu_fdi.lti import LTI
 from synthesis_models import aircraft_loop, contract, random_model, random_structure
 
-# seeds 2, 3, 6, 7, 13, 16, 22, 33 returned contract-breaking designs before issue 13
-# (benchmarks/synthesis_random_set.py: 17 of 80 calls on seeds 0-39); 0, 5, 9, 37 kept it
-SEEDS = [0, 2, 3, 5, 6, 7, 9, 13, 16, 22, 33, 37]
+# seeds 2, 3, 6, 13 returned contract-breaking designs before issue 13 (the whole set:
+# benchmarks/synthesis_random_set.py, 17 of 80 calls on seeds 0-39); 0 and 37 kept it.
+# A subset, for the test-time budget.
+SEEDS = [0, 2, 3, 6, 13, 37]
 
 
 @pytest.mark.parametrize("seed", SEEDS)

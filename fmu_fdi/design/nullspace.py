@@ -221,7 +221,30 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
             continue
         gen.info["rank_rtol"] = rtol
         return gen
+    if rdim != "all" and not (model.nw and noise == "optimize"):
+        # the polynomial basis is too ill-conditioned here: design from frequency samples
+        # with a fixed stable denominator (exact poles, rank decision = post-condition)
+        try:
+            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol)
+        except DesignError as exc:
+            raise type(first)(f"{first} | the frequency-sampled fallback failed too: {exc}") from None
+        gen.info["fallback_from"] = str(first)[:300]
+        return gen
     raise first
+
+
+def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol) -> ResidualGenerator:
+    from types import SimpleNamespace
+
+    from .sampled import sampled_rows
+
+    choose = pole_chooser(model, poles, sdeg)
+    Q, info = sampled_rows(model, choose, fault_columns(model), rdim, freqs=freqs, FDtol=FDtol,
+                           FDGainTol=FDGainTol, seed=seed)
+    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, [info["degree"]])
+    check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
+                    smarg=smarg, dec_tol=dec_tol)
+    return gen
 
 
 def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol):
