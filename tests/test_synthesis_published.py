@@ -102,9 +102,7 @@ def test_fdigenspec_boeing747():
 @pytest.mark.parametrize("make, orders", [
     (niemann, [1, 1, 1]),  # afdisyn: order.(Q.sys) == ones(Int, nb)
     (xiong_saif_1, [1, 1, 2]),
-    pytest.param(xiong_saif_2, [1, 1, 1], marks=pytest.mark.xfail(
-        strict=True, reason="known gap (issue 13): rows [0 1] and [1 0] of Xiong & Saif ex. 2 (two integrators) "
-                            "find no parity vector up to degree n+1 although rank [Gd Gf1] = 2 < p = 3")),
+    (xiong_saif_2, [1, 1, 1]),  # two integrators: rows [0 1], [1 0] come from the frequency-sampled fallback
 ])
 def test_afdisyn_least_orders(make, orders):
     model = make()

@@ -10,8 +10,9 @@ scaling of the model:
   ``δ_X = max_λ ||R_X(λ)|| / max_λ (||Q(λ)|| ||Ge_X(λ)||)`` must be ``≤ dec_tol``
   (the backward-error scale of the product ``Q Ge``; peaks, not a pointwise ratio, which
   is 0/0 at a transmission zero of ``Ge_X``);
-- visibility of a required fault j:
-  ``γ_j = max_λ ||R_fj(λ)|| / max_λ (||Q_y(λ)|| ||Gf_j(λ)||)`` must exceed ``FDtol``; a row whose
+- visibility of a required fault j: the cosine
+  ``γ_j = max_λ ||R_fj(λ)|| / (||Q_y(λ)|| ||Gf_j(λ)||)`` (over the points where the bound is
+  not negligible, i.e. away from zeros of ``Gf_j``) must exceed ``FDtol``; a row whose
   fault gain is rounding noise against its own gain (``γ_j ~ 1e-16``) is refused instead
   of being "normalised" into a filter with gain ~1e12;
 - strong detectability at frequencies Ω: ``||R_fj(jω)|| > FDGainTol · max_λ ||R_fj(λ)||``;
@@ -86,6 +87,17 @@ def _rel(resp: np.ndarray, bound: np.ndarray) -> float:
     ratio, which is 0/0 — any number — at a transmission zero of ``Ge_X``."""
     top = float(np.max(bound)) if bound.size else 0.0
     return float(np.max(resp)) / top if top > 0 else 0.0
+
+
+def _cosine(resp: np.ndarray, bound: np.ndarray, floor: float = 1e-6) -> float:
+    """``max_λ ||R_f(λ)|| / (||Q_y(λ)|| ||Gf(λ)||)`` over the points where the bound is at least
+    ``floor`` times its peak: pointwise, so an integrator's huge low-frequency gain does not
+    hide a fault seen elsewhere; transmission zeros of Gf (bound → 0, a 0/0) are left out."""
+    top = float(np.max(bound)) if bound.size else 0.0
+    if top <= 0:
+        return 0.0
+    keep = bound >= floor * top
+    return float(np.max(resp[keep] / bound[keep]))
 
 
 def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, block: bool = False,
@@ -183,7 +195,7 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
             c = fcols[nm]
             Rn = _nrm(R[:, :, c])
             if S[i, j]:
-                gam = _rel(Rn, nQy * _nrm(Ge[:, :p, c]))
+                gam = _cosine(Rn, nQy * _nrm(Ge[:, :p, c]))
                 row_vis.append(gam)
                 if gam <= FDtol:
                     failures.append(("visibility", f"residual {i + 1}: fault '{nm}' has relative gain {gam:.3g} "

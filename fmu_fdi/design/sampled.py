@@ -31,7 +31,7 @@ import scipy.linalg as sla
 from ..errors import DesignError
 from ..lti import LTI, frequency_grid
 from ._select import greedy_combinations, sensitivity_objective
-from .postconditions import _values
+from .postconditions import _cosine, _values
 
 
 def cascade(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -125,10 +125,14 @@ def sampled_rows(model, choose, fault_cols: list[np.ndarray], rdim: int, *, freq
         # responses of each null row to each fault on the grid: (K, k, cols)
         Qz = np.einsum("ki,jia->kja", Psi, Z.reshape(-1, r, q))  # (K, k, q)
         P = [np.einsum("kja,kac->kjc", Qz, G[:, :, c]) for c in fault_cols]
-        bound = np.linalg.norm(Qz[:, :, :model.ny], axis=2).max(axis=0)
-        vis = [np.max(np.linalg.norm(Pj, axis=2), axis=0) for Pj in P]
-        gf = [np.max(np.linalg.norm(G[:, :model.ny, c], 2, axis=(1, 2))) for c in fault_cols]
-        seen = [np.max(vj / np.maximum(bound * g, 1e-300)) > FDtol for vj, g in zip(vis, gf)]
+        # a fault is seen by the null space when some row sees it (pointwise cosine, as the
+        # post-condition: _cosine)
+        nqy = np.linalg.norm(Qz[:, :, :model.ny], axis=2)  # (K, k)
+        seen = []
+        for Pj, c in zip(P, fault_cols):
+            gfk = np.linalg.norm(G[:, :model.ny, c], 2, axis=(1, 2))  # (K,)
+            resp = np.linalg.norm(Pj, axis=2)  # (K, k)
+            seen.append(max(_cosine(resp[:, i], nqy[:, i] * gfk) for i in range(Z.shape[0])) > FDtol)
         if fault_cols and not all(seen):
             last = (f"at degree {nu} the exact rows miss faults {[j for j, sj in enumerate(seen) if not sj]}")
             continue
