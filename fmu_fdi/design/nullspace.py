@@ -29,7 +29,7 @@ from ..model import FDIModel
 from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective
 from .approximate import coouter_inverse, gap_objective
-from .postconditions import DEC_TOL, NumericalDesignError, check_generator
+from .postconditions import DEC_TOL, NumericalDesignError, _values, check_generator
 
 
 def _random_points(basis: NullspaceBasis, count: int = 4, seed: int = 1) -> np.ndarray:
@@ -313,12 +313,17 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed) -> Residual
         den_mu = roots / basis.rho
         grid = _grid(model, roots, freqs)
         lam = _points(model, grid)
-        Ge_grid = np.stack([Ge.evalfr(l) for l in lam]) if Ge.n else np.broadcast_to(Ge.D, (lam.size,) + Ge.D.shape)
+        Ge_grid = _values(Ge, lam)
+        finite = np.all(np.isfinite(Ge_grid), axis=(1, 2))  # plant poles on the grid (integrators at 0)
+        lam, Ge_grid = lam[finite], Ge_grid[finite]
         P = [row_responses(cand, basis, Ge_grid, lam, c, den_mu) for c in fcols]
         strong = None
         if freqs is not None and model.faults:
             lam_s = _points(model, freqs)
-            Ge_s = np.stack([Ge.evalfr(l) for l in lam_s])
+            Ge_s = _values(Ge, lam_s)
+            if not np.all(np.isfinite(Ge_s)):
+                raise DesignError(f"freqs {freqs.tolist()} include a pole of the plant on the stability boundary: "
+                                  f"strong detectability there is not defined; pass other freqs")
             strong = [row_responses(cand, basis, Ge_s, lam_s, c, den_mu) for c in fcols]
             peak = max(np.max(np.abs(Pj)) for Pj in P)
             ok = [[np.max(np.linalg.norm(Sj[w], axis=1)) > FDGainTol * peak for w in range(freqs.size)]
