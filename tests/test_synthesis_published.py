@@ -117,3 +117,13 @@ def test_afdisyn_yuan_orders():
     list, compared as a multiset since the row order of fdigenspec's output is not printed)."""
     bank = structured_bank(yuan(), YUAN_WEAK)
     assert sorted(g.Q.n for g in bank.members) == sorted([2, 2, 1, 2, 2, 1, 1, 1, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2])
+
+
+def test_fixed_order_option():
+    """minimal=False combines all basis rows at the largest degree (afdisyn's minimal = false):
+    never lower in order than the least-order row, and still exact."""
+    model = xiong_saif_1()
+    least = structured_bank(model, [[1, 0]])
+    full = structured_bank(model, [[1, 0]], minimal=False)
+    assert full.members[0].Q.n >= least.members[0].Q.n == 2
+    assert full.info["postconditions"]["decoupling"] < 1e-7

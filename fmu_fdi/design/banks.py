@@ -30,7 +30,8 @@ from .postconditions import DEC_TOL, check_generator
 @single_blas_thread
 def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, noise: str = "optimize",
                     FDtol: float = 1e-4, FDGainTol: float = 0.01, freqs=None, tol: float | None = None,
-                    seed: int = 0, smarg: float | None = None, dec_tol: float = DEC_TOL) -> ResidualBank:
+                    seed: int = 0, smarg: float | None = None, dec_tol: float = DEC_TOL,
+                    minimal: bool = True) -> ResidualBank:
     """One least-order residual per row of the structure matrix ``S``.
 
     Parameters
@@ -41,7 +42,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     faults : list of str, optional
         The faults the columns of S refer to (default: all faults of the model, in order).
         Faults not listed are neither required nor decoupled.
-    poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol
+    poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol, minimal
         As in :func:`~fmu_fdi.design.nullspace.nullspace_design`, per row; with ``freqs`` every
         fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies.
 
@@ -78,7 +79,8 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         mi_design = mi._replace(faults=[f for f in mi.faults if f.name in keep]) if extra else mi
         try:
             g = nullspace_design(mi_design, rdim=1, poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol,
-                                 FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol)
+                                 FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol,
+                                 minimal=minimal)
         except DesignError as exc:
             failures.append(f"row {i + 1} {row.tolist()} (decoupling {ignore or 'nothing'}): {exc}")
             continue

@@ -141,7 +141,7 @@ def _normalize_rows(Q: LTI, scale: np.ndarray) -> LTI:
 def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: float | None = None,
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
                      tol: float | None = None, atol: float = 0.0, seed: int = 0, smarg: float | None = None,
-                     dec_tol: float = DEC_TOL) -> ResidualGenerator:
+                     dec_tol: float = DEC_TOL, minimal: bool = True) -> ResidualGenerator:
     """Least-order residual generator from a minimal proper stable left null space of ``[Gu Gd; I 0]``.
 
     Solves the exact fault detection problem (Varga 2017, Procedure EFD; FaultDetectionTools.jl
@@ -184,6 +184,11 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     dec_tol : float
         Largest relative leakage of u and d (and w when it is decoupled) the returned filter
         may show (:mod:`.postconditions`).
+    minimal : bool
+        True (default): least order — the smallest degree ν whose basis rows meet the
+        requirements. False: fixed (full) order — a combination of *all* basis rows at the
+        largest basis degree (FaultDetectionTools.jl's ``minimal = false``), which gives the
+        combination more freedom (e.g. for strong detectability or sensitivity) at a higher order.
 
     Returns
     -------
@@ -215,7 +220,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     first = None
     for rtol in ladder:
         try:
-            gen = _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, rtol, atol, seed, smarg, dec_tol)
+            gen = _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, rtol, atol, seed, smarg, dec_tol,
+                          minimal)
         except NumericalDesignError as exc:
             first = first or exc
             continue
@@ -247,7 +253,7 @@ def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec
     return gen
 
 
-def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol):
+def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol, minimal=True):
     basis = minimal_basis(model, tol, atol)
     if not basis.rows:
         raise DesignError(
@@ -264,7 +270,7 @@ def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol,
         check_generator(gen, decouple=("u", "d", "w") if exact_w else ("u", "d"), block=True, FDtol=FDtol,
                         smarg=smarg, dec_tol=dec_tol)
         return gen
-    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed)
+    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed, minimal)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen
@@ -282,7 +288,7 @@ def _points(model: FDIModel, omega: np.ndarray) -> np.ndarray:
     return 1j * omega
 
 
-def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed) -> ResidualGenerator:
+def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bool = True) -> ResidualGenerator:
     rows = basis.rows
     order = np.argsort([r.degree for r in rows], kind="stable")
     rows = [rows[i] for i in order]
@@ -302,7 +308,7 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed) -> Residual
     freqs = None if freqs is None else np.atleast_1d(np.asarray(freqs, float))
     if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
         raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {freqs.tolist()}")
-    for nu in sorted(set(degrees)):
+    for nu in (sorted(set(degrees)) if minimal else [max(degrees)]):
         k = sum(1 for d in degrees if d <= nu)
         if k < rdim:
             continue
