@@ -3,6 +3,7 @@ from .banks import dedicated_bank, generalized_bank, structured_bank
 from .beard_jones import fault_detection_filter
 from .coprime import factorized, left_coprime_factors
 from .kalman_filter import kalman
+from .matching import model_matching
 from .nullspace import nullspace_design
 from .output_observer import luenberger
 from .parity import parity_space
@@ -12,5 +13,5 @@ from .uio import unknown_input_observer
 __all__ = [
     "parity_space", "luenberger", "kalman", "unknown_input_observer", "fault_detection_filter", "factorized",
     "left_coprime_factors", "nullspace_design", "dedicated_bank", "generalized_bank", "structured_bank",
-    "rls_estimator", "RLSEstimator",
+    "rls_estimator", "RLSEstimator", "model_matching",
 ]
