@@ -20,7 +20,8 @@ Numerics: the basis functions ``[C_m (λI − A_m)^{-1}, 1]`` are orthonormalise
 ``||Ge(λ_k)||``, and the null space is read from an SVD: a right-singular direction with
 singular value σ is a row whose relative leakage is σ (RMS over the grid), so the rank
 decision *is* the post-condition, with the threshold ``null_tol`` (default 1e-10; exact
-rows show ~1e-13). The smallest ν at which the null space sees every fault gives the
+rows of low degree show ~1e-13, of degree 10-20 ~1e-10; nullspace_design passes
+``dec_tol / 100``). The smallest ν at which the null space sees every fault gives the
 least order; the combination is chosen as in the polynomial design (:mod:`._select`).
 """
 from __future__ import annotations
@@ -35,10 +36,11 @@ from .postconditions import _cosine, _values
 
 
 def cascade(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(A_m, C_m)``: a cascade of real first-order sections (real poles) and rotation
-    blocks ``[a b; −b a]`` (pairs), each section driven by the previous section's output
-    ``e_1ᵀ x``; the output is the last section's. Observable when no section's zero
-    cancels a later pole."""
+    """``(A_m, C_m)`` holding the poles exactly: real first-order sections (real poles) and
+    rotation blocks ``[a b; −b a]`` (pairs). Distinct poles: modal form, output the sum of
+    the sections' first states (observable as the poles differ). Repeated poles: a cascade,
+    each section driven by the previous section's first state, output the last section's
+    (observable when no section's zero cancels a later pole)."""
     poles = np.asarray(poles, complex)
     units, used = [], np.zeros(poles.size, bool)
     for i, z in enumerate(poles):
@@ -55,16 +57,23 @@ def cascade(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             units.append(np.array([[z.real]]))
     nu = sum(u.shape[0] for u in units)
     A = np.zeros((nu, nu))
+    # distinct poles: a modal (partial-fraction) form, output the sum of the sections — its
+    # basis functions 1/(λ - p_i) are far better conditioned than the cascade's products
+    eig = np.array([complex(u[0, 0], u[0, 1] if u.shape[0] == 2 else 0.0) for u in units])
+    gaps = np.abs(eig[:, None] - eig[None, :]) + np.eye(eig.size) * np.inf if eig.size else np.zeros((0, 0))
+    modal = eig.size <= 1 or np.min(gaps) > 1e-6 * max(1.0, float(np.max(np.abs(eig))))
     k, prev = 0, None
+    C = np.zeros((1, nu))
     for u in units:
         d = u.shape[0]
         A[k:k + d, k:k + d] = u
-        if prev is not None:
+        if modal:
+            C[0, k] = 1.0
+        elif prev is not None:
             A[k, prev] = 1.0  # input of this section = output (first state) of the previous one
         prev = k
         k += d
-    C = np.zeros((1, nu))
-    if nu:
+    if nu and not modal:
         C[0, prev] = 1.0
     return A, C
 
