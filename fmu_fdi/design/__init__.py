@@ -9,9 +9,10 @@ from .output_observer import luenberger
 from .parity import parity_space
 from .rls import RLSEstimator, rls_estimator
 from .uio import unknown_input_observer
+from .unified import unified_observer
 
 __all__ = [
     "parity_space", "luenberger", "kalman", "unknown_input_observer", "fault_detection_filter", "factorized",
     "left_coprime_factors", "nullspace_design", "dedicated_bank", "generalized_bank", "structured_bank",
-    "rls_estimator", "RLSEstimator", "model_matching",
+    "rls_estimator", "RLSEstimator", "model_matching", "unified_observer",
 ]
