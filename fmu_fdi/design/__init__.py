@@ -1,5 +1,5 @@
 """Residual generator design: one function per method, each returning a ResidualGenerator."""
-from .banks import dedicated_bank, generalized_bank, structured_bank
+from .banks import afdi_bank, dedicated_bank, generalized_bank, structured_bank
 from .beard_jones import fault_detection_filter
 from .coprime import factorized, left_coprime_factors
 from .kalman_filter import kalman
@@ -14,5 +14,5 @@ from .unified import unified_observer
 __all__ = [
     "parity_space", "luenberger", "kalman", "unknown_input_observer", "fault_detection_filter", "factorized",
     "left_coprime_factors", "nullspace_design", "dedicated_bank", "generalized_bank", "structured_bank",
-    "rls_estimator", "RLSEstimator", "model_matching", "unified_observer",
+    "rls_estimator", "RLSEstimator", "model_matching", "unified_observer", "afdi_bank",
 ]

@@ -118,3 +118,29 @@ def generalized_bank(model: FDIModel, kind: str = "sensor", **kwargs) -> Residua
     bank = structured_bank(model, S, faults=names, **kwargs)
     bank.method = "gos"
     return bank
+
+
+def afdi_bank(model: FDIModel, S, **kwargs) -> ResidualBank:
+    """Approximate fault detection and isolation (AFDI; Varga 2017, sec. 5.5, Procedure AFDI;
+    FaultDetectionTools.jl ``afdisyn``): one residual per row of S that decouples u, d and the
+    faults with ``S[i, j] = 0`` exactly and maximises its fault-to-noise gap
+    ``min_{S_ij = 1} ||Rf_ij||∞ / ||Rw_i||∞`` (w is decoupled exactly where that is possible:
+    gap ∞). Keywords as in :func:`structured_bank` (``noise`` is 'optimize').
+
+    Returns
+    -------
+    ResidualBank
+        ``info['gaps']``: the achieved gap of every row (:func:`fmu_fdi.analysis.fault_noise_gap`
+        with S), besides the structure and the post-conditions.
+    """
+    from ..analysis import fault_noise_gap
+
+    kwargs["noise"] = "optimize"
+    bank = structured_bank(model, S, **kwargs)
+    names = bank.info["faults"]
+    S_all = np.zeros((len(bank.members), len(model.faults)), dtype=int)
+    for j, nm in enumerate(names):
+        S_all[:, model.fault_index(nm)] = np.asarray(S)[:, j]
+    bank.info["gaps"] = [float(g) for g in fault_noise_gap(bank, S_all)]
+    bank.method = "afdi"
+    return bank
