@@ -4,6 +4,7 @@ from .beard_jones import fault_detection_filter
 from .coprime import factorized, left_coprime_factors
 from .kalman_filter import kalman
 from .matching import model_matching
+from .model_detection import model_detection_bank
 from .nullspace import nullspace_design
 from .output_observer import luenberger
 from .parity import parity_space
@@ -14,5 +15,5 @@ from .unified import unified_observer
 __all__ = [
     "parity_space", "luenberger", "kalman", "unknown_input_observer", "fault_detection_filter", "factorized",
     "left_coprime_factors", "nullspace_design", "dedicated_bank", "generalized_bank", "structured_bank",
-    "rls_estimator", "RLSEstimator", "model_matching", "unified_observer", "afdi_bank",
+    "rls_estimator", "RLSEstimator", "model_matching", "unified_observer", "afdi_bank", "model_detection_bank",
 ]
