@@ -12,14 +12,15 @@ import published as pub
 from fmu_fdi import DesignError, leakage, nullspace_design, structure_matrix, structured_bank
 from fmu_fdi.design._basis import PolyRow, basis_rank
 from fmu_fdi.design.nullspace import undetectable_error
-from fmu_fdi.design.postconditions import check_generator
+from fmu_fdi.design.postconditions import DEC_TOL, check_generator
 from fmu_fdi.generator import ResidualGenerator
 from fmu_fdi.lti import LTI
 from synthesis_models import aircraft_loop, contract, random_model, random_structure
 
-# seeds 2, 3, 6, 7, 13, 16, 22, 33 returned contract-breaking designs before issue 13
-# (benchmarks/synthesis_random_set.py: 17 of 80 calls on seeds 0-39); 0, 5, 9, 37 kept it
-SEEDS = [0, 2, 3, 5, 6, 7, 9, 13, 16, 22, 33, 37]
+# seeds 2, 3, 6, 13 returned contract-breaking designs before issue 13 (the whole set:
+# benchmarks/synthesis_random_set.py, 17 of 80 calls on seeds 0-39); 0 and 37 kept it.
+# A subset, for the test-time budget.
+SEEDS = [0, 2, 3, 6, 13, 37]
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -48,10 +49,11 @@ def test_aircraft_loop_full_achievable_structure():
     # FDtol 1e-5: the actuator faults reach β and r only through Bu entries ~4e-4 against ~1.4
     bank = structured_bank(model, S, FDtol=1e-5)
     pc = bank.info["postconditions"]
-    assert pc["decoupling"] < 1e-7 and pc["structure_leak"] < 1e-7
-    # rows are normalised to unit peak fault gain; 1e-6 absolute is the dec_tol scale with headroom
-    assert structure_matrix(bank, tol=1e-6).tolist() == S.tolist()
-    assert leakage(bank) < 1e-6
+    assert pc["decoupling"] < DEC_TOL and pc["structure_leak"] < DEC_TOL
+    # rows are normalised to unit peak fault gain and ||Q|| ≤ ~3 here, so a relative leak below
+    # DEC_TOL is an absolute block norm below 10·DEC_TOL
+    assert structure_matrix(bank, tol=10 * DEC_TOL).tolist() == S.tolist()
+    assert leakage(bank) < 10 * DEC_TOL
     assert contract(bank, model, S) == []
     # least order: each row of degree ν has ν states
     assert all(g.Q.n == g.info["order"] for g in bank.members)

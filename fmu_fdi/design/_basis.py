@@ -70,9 +70,13 @@ class NullspaceBasis:
         return [r.degree for r in self.rows]
 
 
-def _colnormalize(M: np.ndarray) -> np.ndarray:
+def _colnormalize(M: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
+    """Columns scaled to unit norm (the left null space is unchanged); columns at rounding
+    level — below ``rtol`` times the largest, e.g. a Markov parameter ``C A^k B_j`` that is
+    exactly 0 in the model but ~1e-17 after the orthogonal reductions — are dropped, since
+    normalising them would turn rounding noise into an O(1) column and destroy null vectors."""
     norms = np.linalg.norm(M, axis=0)
-    keep = norms > 0
+    keep = norms > rtol * norms.max(initial=0.0)
     return M[:, keep] / norms[keep]
 
 

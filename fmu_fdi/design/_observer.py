@@ -481,6 +481,11 @@ def observer_generator(model: FDIModel, Q: LTI, method: str, info: dict, names=N
         gen.info["detected_faults"] = [nm for nm, s in zip(model.fault_names, seen) if s]
     else:
         gen.info["detected_faults"] = []
+    from .postconditions import check_generator
+
+    # an observer residual decouples u (the UIO also d); it promises no fault structure
+    check_generator(gen, decouple=("u", "d") if method == "unknown_input_observer" else ("u",), faults=[],
+                    block=True)
     return gen
 
 

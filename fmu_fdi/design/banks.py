@@ -30,7 +30,8 @@ from .postconditions import DEC_TOL, check_generator
 @single_blas_thread
 def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, noise: str = "optimize",
                     FDtol: float = 1e-4, FDGainTol: float = 0.01, freqs=None, tol: float | None = None,
-                    seed: int = 0, smarg: float | None = None, dec_tol: float = DEC_TOL) -> ResidualBank:
+                    seed: int = 0, smarg: float | None = None, dec_tol: float = DEC_TOL,
+                    minimal: bool = True) -> ResidualBank:
     """One least-order residual per row of the structure matrix ``S``.
 
     Parameters
@@ -41,7 +42,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     faults : list of str, optional
         The faults the columns of S refer to (default: all faults of the model, in order).
         Faults not listed are neither required nor decoupled.
-    poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol
+    poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol, minimal
         As in :func:`~fmu_fdi.design.nullspace.nullspace_design`, per row; with ``freqs`` every
         fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies.
 
@@ -78,7 +79,8 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         mi_design = mi._replace(faults=[f for f in mi.faults if f.name in keep]) if extra else mi
         try:
             g = nullspace_design(mi_design, rdim=1, poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol,
-                                 FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol)
+                                 FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol,
+                                 minimal=minimal)
         except DesignError as exc:
             failures.append(f"row {i + 1} {row.tolist()} (decoupling {ignore or 'nothing'}): {exc}")
             continue
@@ -115,4 +117,30 @@ def generalized_bank(model: FDIModel, kind: str = "sensor", **kwargs) -> Residua
     S = np.ones((len(names), len(names)), dtype=int) - np.eye(len(names), dtype=int)
     bank = structured_bank(model, S, faults=names, **kwargs)
     bank.method = "gos"
+    return bank
+
+
+def afdi_bank(model: FDIModel, S, **kwargs) -> ResidualBank:
+    """Approximate fault detection and isolation (AFDI; Varga 2017, sec. 5.5, Procedure AFDI;
+    FaultDetectionTools.jl ``afdisyn``): one residual per row of S that decouples u, d and the
+    faults with ``S[i, j] = 0`` exactly and maximises its fault-to-noise gap
+    ``min_{S_ij = 1} ||Rf_ij||∞ / ||Rw_i||∞`` (w is decoupled exactly where that is possible:
+    gap ∞). Keywords as in :func:`structured_bank` (``noise`` is 'optimize').
+
+    Returns
+    -------
+    ResidualBank
+        ``info['gaps']``: the achieved gap of every row (:func:`fmu_fdi.analysis.fault_noise_gap`
+        with S), besides the structure and the post-conditions.
+    """
+    from ..analysis import fault_noise_gap
+
+    kwargs["noise"] = "optimize"
+    bank = structured_bank(model, S, **kwargs)
+    names = bank.info["faults"]
+    S_all = np.zeros((len(bank.members), len(model.faults)), dtype=int)
+    for j, nm in enumerate(names):
+        S_all[:, model.fault_index(nm)] = np.asarray(S)[:, j]
+    bank.info["gaps"] = [float(g) for g in fault_noise_gap(bank, S_all)]
+    bank.method = "afdi"
     return bank

@@ -29,7 +29,7 @@ from ..model import FDIModel
 from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective
 from .approximate import coouter_inverse, gap_objective
-from .postconditions import DEC_TOL, NumericalDesignError, check_generator
+from .postconditions import DEC_TOL, NumericalDesignError, _values, check_generator
 
 
 def _random_points(basis: NullspaceBasis, count: int = 4, seed: int = 1) -> np.ndarray:
@@ -141,7 +141,7 @@ def _normalize_rows(Q: LTI, scale: np.ndarray) -> LTI:
 def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: float | None = None,
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
                      tol: float | None = None, atol: float = 0.0, seed: int = 0, smarg: float | None = None,
-                     dec_tol: float = DEC_TOL) -> ResidualGenerator:
+                     dec_tol: float = DEC_TOL, minimal: bool = True) -> ResidualGenerator:
     """Least-order residual generator from a minimal proper stable left null space of ``[Gu Gd; I 0]``.
 
     Solves the exact fault detection problem (Varga 2017, Procedure EFD; FaultDetectionTools.jl
@@ -184,6 +184,11 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     dec_tol : float
         Largest relative leakage of u and d (and w when it is decoupled) the returned filter
         may show (:mod:`.postconditions`).
+    minimal : bool
+        True (default): least order — the smallest degree ν whose basis rows meet the
+        requirements. False: fixed (full) order — a combination of *all* basis rows at the
+        largest basis degree (FaultDetectionTools.jl's ``minimal = false``), which gives the
+        combination more freedom (e.g. for strong detectability or sensitivity) at a higher order.
 
     Returns
     -------
@@ -213,18 +218,48 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         check_poles([sdeg], model.dt)
     ladder = [tol] if (tol is not None or atol) else [None, 1e-15, 1e-9]
     first = None
-    for rtol in ladder:
+    # aim at a tenth of dec_tol over the whole ladder first, so that a rank tolerance that
+    # gives a clean basis wins over one that only just passes; then accept dec_tol itself
+    for target in (dec_tol / 10, dec_tol):
+        first = None  # report the failures against dec_tol itself
+        for rtol in ladder:
+            try:
+                gen = _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, rtol, atol, seed, smarg,
+                              target, minimal)
+            except NumericalDesignError as exc:
+                first = first or exc
+                continue
+            gen.info["rank_rtol"] = rtol
+            gen.info["postconditions"]["dec_tol"] = dec_tol
+            return gen
+    if rdim != "all" and not (model.nw and noise == "optimize"):
+        # the polynomial basis is too ill-conditioned here: design from frequency samples
+        # with a fixed stable denominator (exact poles, rank decision = post-condition)
         try:
-            gen = _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, rtol, atol, seed, smarg, dec_tol)
-        except NumericalDesignError as exc:
-            first = first or exc
-            continue
-        gen.info["rank_rtol"] = rtol
+            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol)
+        except DesignError as exc:
+            raise type(first)(f"{first} | the frequency-sampled fallback failed too: {exc}") from None
+        gen.info["fallback_from"] = str(first)[:300]
         return gen
     raise first
 
 
-def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol):
+def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol) -> ResidualGenerator:
+    from types import SimpleNamespace
+
+    from .sampled import sampled_rows
+
+    choose = pole_chooser(model, poles, sdeg)
+    # a direction whose RMS relative leak is 1/100 of dec_tol passes the post-condition's peak test
+    Q, info = sampled_rows(model, choose, fault_columns(model), rdim, freqs=freqs, FDtol=FDtol,
+                           FDGainTol=FDGainTol, seed=seed, null_tol=1e-2 * dec_tol)
+    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, [info["degree"]])
+    check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
+                    smarg=smarg, dec_tol=dec_tol)
+    return gen
+
+
+def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol, minimal=True):
     basis = minimal_basis(model, tol, atol)
     if not basis.rows:
         raise DesignError(
@@ -241,7 +276,7 @@ def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol,
         check_generator(gen, decouple=("u", "d", "w") if exact_w else ("u", "d"), block=True, FDtol=FDtol,
                         smarg=smarg, dec_tol=dec_tol)
         return gen
-    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed)
+    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed, minimal)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen
@@ -259,7 +294,7 @@ def _points(model: FDIModel, omega: np.ndarray) -> np.ndarray:
     return 1j * omega
 
 
-def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed) -> ResidualGenerator:
+def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bool = True) -> ResidualGenerator:
     rows = basis.rows
     order = np.argsort([r.degree for r in rows], kind="stable")
     rows = [rows[i] for i in order]
@@ -279,7 +314,7 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed) -> Residual
     freqs = None if freqs is None else np.atleast_1d(np.asarray(freqs, float))
     if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
         raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {freqs.tolist()}")
-    for nu in sorted(set(degrees)):
+    for nu in (sorted(set(degrees)) if minimal else [max(degrees)]):
         k = sum(1 for d in degrees if d <= nu)
         if k < rdim:
             continue
@@ -290,12 +325,17 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed) -> Residual
         den_mu = roots / basis.rho
         grid = _grid(model, roots, freqs)
         lam = _points(model, grid)
-        Ge_grid = np.stack([Ge.evalfr(l) for l in lam]) if Ge.n else np.broadcast_to(Ge.D, (lam.size,) + Ge.D.shape)
+        Ge_grid = _values(Ge, lam)
+        finite = np.all(np.isfinite(Ge_grid), axis=(1, 2))  # plant poles on the grid (integrators at 0)
+        lam, Ge_grid = lam[finite], Ge_grid[finite]
         P = [row_responses(cand, basis, Ge_grid, lam, c, den_mu) for c in fcols]
         strong = None
         if freqs is not None and model.faults:
             lam_s = _points(model, freqs)
-            Ge_s = np.stack([Ge.evalfr(l) for l in lam_s])
+            Ge_s = _values(Ge, lam_s)
+            if not np.all(np.isfinite(Ge_s)):
+                raise DesignError(f"freqs {freqs.tolist()} include a pole of the plant on the stability boundary: "
+                                  f"strong detectability there is not defined; pass other freqs")
             strong = [row_responses(cand, basis, Ge_s, lam_s, c, den_mu) for c in fcols]
             peak = max(np.max(np.abs(Pj)) for Pj in P)
             ok = [[np.max(np.linalg.norm(Sj[w], axis=1)) > FDGainTol * peak for w in range(freqs.size)]

@@ -34,6 +34,7 @@ from ..linalg import left_null, rank_tol, single_blas_thread
 from ..model import FDIModel
 from ._basis import NullspaceBasis, ParityData, _block_toeplitz, realize_rows
 from .nullspace import _exact, detectability_by_rows, undetectable_error
+from .postconditions import check_generator
 
 
 @single_blas_thread
@@ -108,6 +109,7 @@ def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None 
                 gen = _exact(model, basis, seen, k if k < len(rows) else "all", lambda c: np.zeros(c, complex),
                              None, 0.01, seed)
                 gen.method = "parity"
+                check_generator(gen, decouple=("u", "d"), block=True, FDtol=FDtol)
                 gen.info.update({"mode": "exact", "parity_order": s,
                                  "parity_matrix": np.array([r.coef[:, : model.ny].ravel() for r in rows]).tolist()})
                 return gen
@@ -147,6 +149,7 @@ def _robust(model: FDIModel, data: ParityData, s: int, rdim: int, tol) -> Residu
     rows = [data.row(v, s) for v in V]
     Q = realize_rows([r_.coef for r_ in rows], [np.zeros(s)] * len(rows), data.rho, model.dt)
     gen = ResidualGenerator(Q, model, "parity")
+    check_generator(gen, decouple=("u",), block=True, FDtol=0.0)  # robust: d minimised, not decoupled
     gen.info.update({"mode": "robust", "parity_order": s, "robustness_ratio": ratio,
                      "parity_matrix": V.tolist(), "rho": data.rho, "poles": [0.0] * (s * len(rows))})
     return gen
