@@ -92,7 +92,7 @@ def variables(design: dict) -> list[dict]:
                     unit=None, description=desc["threshold_scale"]))
     for name in output_names(len(g["residual_names"]), len(g["groups"])):
         out.append(dict(name=name, causality="output", variability="discrete", kind=output_kind(name),
-                        start=0.0, unit=None, description=desc[name]))
+                        start=0.0, unit=units.get(name), description=desc[name]))
     return out
 
 
