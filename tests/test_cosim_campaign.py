@@ -229,8 +229,11 @@ UNMET = {
         # period of the pitch activity, against 0.2° of sensor noise; f7 (6 s): reach ≤ 0.22 at θ = 0.27 after
         # 8 s of the 30 s ramp; f8 (5 Ts): 100 Nm is 1.1 σ of the torque sensor, reach ≤ 0.20; f9: reach
         # ≤ 0.40, its effect (a torque imbalance on the drive train) looks like the tau_r gust
-        "parity": {"f2_beta_2_m2", "f6_pressure_drop", "f7_air_in_oil", "f4_omega_r_m1", "f8_converter",
-                   "f9_efficiency"},
+        # parity: since the parity data are scaled on the unit circle (rho = 1, issue 13's rank
+        # decisions; before: rho = 2) the six pitch relations share their sensitivity differently:
+        # f1 and f3 have derived delays of 0.14 s against the 10 Ts = 0.1 s target (reach 1.71, 1.13)
+        "parity": {"f1_beta_1_m1", "f2_beta_2_m2", "f3_beta_3_m1", "f6_pressure_drop", "f7_air_in_oil",
+                   "f4_omega_r_m1", "f8_converter", "f9_efficiency"},
         "luenberger": {"f6_pressure_drop", "f7_air_in_oil", "f4_omega_r_m1", "f5_omega_m2", "f8_converter",
                        "f9_efficiency"},  # drive train: placement at the plant's poles passes the noise x 600
         "kalman": {"f6_pressure_drop", "f7_air_in_oil", "f4_omega_r_m1", "f8_converter", "f9_efficiency"},
