@@ -14,7 +14,7 @@ import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Slave
 
 import vtol_physics as phys
-from vtol_support import PlantSlave
+from vtol_support import ExactLinear, PlantSlave
 
 _REFS = tuple(f"ref_{u}" for u in phys.U)
 _PROCESS_NOISE = tuple(f"std_w_{u}" for u in phys.U)
@@ -39,17 +39,17 @@ class VTOL(PlantSlave, Fmi2Slave):
             self.parameter(f"std_w_{u}", 0.0, f"std of white noise added to the applied {u}")
 
     def initialize(self):
-        self._A, self._B = phys.plant_matrices(*(getattr(self, n) for n in phys.UNCERTAIN))
-        self._gain = phys.K @ np.linalg.inv(phys.C)
-        self._x = self._values([f"{x}_start" for x in ("vh", "vv", "q", "theta")])
-        self._control(self.measure(phys.C @ self._x))
+        A, B = phys.plant_matrices(*(getattr(self, n) for n in phys.UNCERTAIN))
+        self._system = ExactLinear(A, B, phys.C)  # v = the inputs the aircraft receives
+        self._feedback = [tuple(row) for row in (-phys.K @ np.linalg.inv(phys.C)).tolist()]  # u = F y + r
+        self._x = [float(getattr(self, f"{x}_start")) for x in ("vh", "vv", "q", "theta")]
+        self._control(self.measure((phys.C @ np.array(self._x)).tolist()))
 
     def _control(self, y_meas):
-        u = -self._gain @ y_meas + self._values(_REFS)
-        self.collective, self.cyclic = float(u[0]), float(u[1])
+        self.collective, self.cyclic = [sum([a * b for a, b in zip(row, y_meas)]) + r
+                                        for row, r in zip(self._feedback, self._get(_REFS))]
 
     def advance(self, t, h):
-        u = self.actuate([self.collective, self.cyclic]) + self.process_noise(_PROCESS_NOISE)
-        drive = self._B @ u
-        self._x = self.integrate_linear(self._A, drive, self._x, h)
-        self._control(self.measure(phys.C @ self._x))
+        u = [a + w for a, w in zip(self.actuate((self.collective, self.cyclic)), self.process_noise(_PROCESS_NOISE))]
+        self._x, y = self.step_linear(self._system, self._x, u, h)
+        self._control(self.measure(y))
