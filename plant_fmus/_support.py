@@ -170,7 +170,7 @@ class ExactLinear:
         self.n = self.A.shape[0]
         self.size = size
         self._W = {}
-        self._h, self._last = None, None
+        self._h, self._product = None, None
 
     def matrix(self, h: float) -> np.ndarray:
         """``W(h)`` (see the class docstring)."""
@@ -187,8 +187,8 @@ class ExactLinear:
     def step(self, x: list, v: list, h: float):
         """``(x_{k+1}, y_{k+1})`` as lists from ``x_k`` and ``v_k`` (lists)."""
         if h != self._h:
-            self._h, self._last = h, self.matrix(h)
-        w = (self._last @ np.array(x + v)).tolist()
+            self._h, self._product = h, self.matrix(h).dot  # the bound method: half the cost of @
+        w = self._product(np.array(x + v)).tolist()
         n = self.n
         return [a + b for a, b in zip(x, w[:n])], w[n:]
 

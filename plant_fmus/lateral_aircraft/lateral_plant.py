@@ -45,9 +45,9 @@ class LateralAircraft(PlantSlave, Fmi2Slave):
         self.measure((phys.C @ np.array(self._x)).tolist())
 
     def hold(self):
-        self._effectiveness = [1.0 - min(max(g + f, 0.0), 1.0) for g, f in zip(self._get(_GAMMA), self._get(_LOE))]
+        effectiveness = [1.0 - min(max(g + f, 0.0), 1.0) for g, f in zip(self._get(_GAMMA), self._get(_LOE))]
+        self._u = [e * a for e, a in zip(effectiveness, self.actuate(self._get(phys.U)))]  # Gamma u_applied
 
     def advance(self, t, h):
-        u = [e * a for e, a in zip(self._effectiveness, self.actuate(self._get(phys.U)))]
-        self._x, y = self.step_linear(self._system, self._x, u + self.process_noise(_PROCESS_NOISE), h)
+        self._x, y = self.step_linear(self._system, self._x, self._u + self.process_noise(_PROCESS_NOISE), h)
         self.measure(y)

@@ -43,11 +43,16 @@ class VTOL(PlantSlave, Fmi2Slave):
         self._system = ExactLinear(A, B, phys.C)  # v = the inputs the aircraft receives
         self._feedback = [tuple(row) for row in (-phys.K @ np.linalg.inv(phys.C)).tolist()]  # u = F y + r
         self._x = [float(getattr(self, f"{x}_start")) for x in ("vh", "vv", "q", "theta")]
+        self.hold()
         self._control(self.measure((phys.C @ np.array(self._x)).tolist()))
 
+    def hold(self):
+        self._refs = self._get(_REFS)
+
     def _control(self, y_meas):
-        self.collective, self.cyclic = [sum([a * b for a, b in zip(row, y_meas)]) + r
-                                        for row, r in zip(self._feedback, self._get(_REFS))]
+        y1, y2, y3, y4 = y_meas
+        self.collective, self.cyclic = [a1 * y1 + a2 * y2 + a3 * y3 + a4 * y4 + r
+                                        for (a1, a2, a3, a4), r in zip(self._feedback, self._refs)]
 
     def advance(self, t, h):
         u = [a + w for a, w in zip(self.actuate((self.collective, self.cyclic)), self.process_noise(_PROCESS_NOISE))]

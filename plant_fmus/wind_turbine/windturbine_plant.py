@@ -94,10 +94,10 @@ class WindTurbine(PlantSlave, Fmi2Slave):
         theta = tuple(min(max(v, 0.0), 1.0) for v in self._get(PITCH_FAULTS))
         self._held_system = self._system(theta, float(self.f_drive_train_efficiency))
         self._offset = float(self.f_converter_offset)
+        self._u = self.actuate(self._get(_COMMANDS))
 
     def advance(self, t, h):
-        v = self.actuate(self._get(_COMMANDS))
-        v += (self.tau_r + self.process_noise(("std_w_tau_r",))[0], self._offset)
+        v = self._u + [self.tau_r + self.process_noise(("std_w_tau_r",))[0], self._offset]
         self._x, y = self.step_linear(self._held_system, self._x, v, h)
         y[-1] += self._offset  # the measured torque is the one acting, offset included
         self.measure(y)
