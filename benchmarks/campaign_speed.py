@@ -19,19 +19,21 @@
 Everything is measured in the same invocation; on a shared machine the figures are noisy:
 the ratios are what to read.
 
-Measured 2026-11-23 on the 2-vCPU development machine shared with 7 other jobs (load 4.5-9),
-``--runs 60 --steps 1000``:
+Measured 2026-11-23 on the 2-vCPU development machine shared with other jobs (load 1.6-1.9),
+``--runs 60 --steps 1000``, after the second pass over the plants' per-step bookkeeping:
 
-- plant CPU us/step before -> after, at rest / in transients: DTS200 412 -> 46 (9.0x) / 376 -> 53
-  (7.1x); DR300 483 -> 26 (18x) / 408 -> 28 (15x); wind turbine 223 -> 52 (4.3x) / 247 -> 48
-  (5.1x); VTOL 117 -> 31 (3.8x) / 109 -> 34 (3.3x); lateral aircraft 108 -> 33 (3.2x) / 110 -> 35
-  (3.1x). The last three already took one Dormand-Prince step per communication step; what is
-  left is ~15 us of FMI call through fmpy and pythonfmu and the slave's bookkeeping.
-- per-run fixed overhead: 3.7 ms CPU (7.6 ms wall).
-- 1000-step DTS200 + bank runs: serial 3.8 runs/s (184 ms CPU per run: 1000 runs ~ 92 s on two
-  free cores); the 2-process pool and the 2-worker LocalCluster were no faster than serial here
-  (the machine's two vCPUs were shared with 4-9 other processes; start-up ~1.5 s CPU per worker),
-  Dask at 1.33x the pool's steady rate. The >= 1.8x target needs two free cores to be shown.
+- plant CPU us/step before (058cf9e) -> after, at rest / in transients: DTS200 302 -> 25 (12x) /
+  310 -> 31 (10x); DR300 427 -> 10 (43x) / 376 -> 14 (27x); wind turbine 157 -> 14 (11x) /
+  225 -> 19 (12x); VTOL 94 -> 13 (7.3x) / 97 -> 17 (5.8x); lateral aircraft 97 -> 11 (8.9x) /
+  101 -> 15 (6.7x). Of a linear plant's 10-17 us, ~6-7 us are fmpy's and pythonfmu's doStep and
+  getReal (~4 us more for the setReal of a step in transients), 4-6 us the plant's Python step.
+  (The first pass, exact linear steps on numpy, had reached VTOL 3.3-3.8x, lateral 3.1-3.2x.)
+- per-run fixed overhead: 3.2 ms CPU (3.2 ms wall).
+- 1000-step DTS200 + bank runs: serial 7.7 runs/s (130 ms CPU per run, was 184 ms: 1000 runs
+  ~ 65 s on two free cores); the 2-process pool (7.5 runs/s steady) and the 2-worker
+  LocalCluster (6.1 runs/s steady, 0.81x the pool) were no faster than serial here: the two
+  vCPUs were shared with other processes (start-up ~1.3 s CPU per worker). The >= 1.8x target
+  needs two free cores to be shown.
 """
 from __future__ import annotations
 

@@ -223,7 +223,9 @@ class PlantSlave:
 
     A plant class derives from ``(PlantSlave, Fmi2Slave)``, declares its variables in
     ``__init__`` with the helpers below and implements ``initialize()`` (state at the
-    start time, first outputs) and ``advance(t, h)`` (one communication step).
+    start time, first outputs), ``advance(t, h)`` (one communication step) and, for what it
+    derives from its inputs and tunable parameters, ``hold()`` (run before the first step and
+    after any change of a variable; ``advance`` reads what it held).
     Exceptions never reach the host (pythonfmu would turn them into fmi2Fatal): they are
     logged with ``Fmi2Status.error`` and ``do_step`` returns False, which pythonfmu
     reports as fmi2Discard; every later step fails the same way.
