@@ -416,6 +416,8 @@ class PlantSlave:
             self._h_ode, self.ode_steps = None, 0
             self._real_names = {vr: v.name for vr, v in self.vars.items()
                                 if isinstance(v, Real) and v.name in self.__dict__}
+            self._real_settable = {vr: name for vr, name in self._real_names.items()
+                                   if self.vars[vr].setter is not None}
             self._check_inputs()
             self._refresh_channels()
             self.initialize()
@@ -459,7 +461,7 @@ class PlantSlave:
     def set_real(self, vrs, values):
         """pythonfmu's ``set_real`` (same effect, same errors), noting whether a value changed:
         the next step then checks the inputs and refreshes what is held (see ``_refresh``)."""
-        names, d = getattr(self, "_real_names", None), self.__dict__
+        names, d = getattr(self, "_real_settable", None), self.__dict__
         if names is None or len(vrs) != len(values) or not all(map(names.__contains__, vrs)):
             self._changed = True
             return super().set_real(vrs, values)
