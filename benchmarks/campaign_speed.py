@@ -27,7 +27,8 @@ Measured 2026-11-23 on the 2-vCPU development machine shared with other jobs (lo
   225 -> 19 (12x); VTOL 94 -> 13 (7.3x) / 97 -> 17 (5.8x); lateral aircraft 97 -> 11 (8.9x) /
   101 -> 15 (6.7x). Of a linear plant's 10-17 us, ~6-7 us are fmpy's and pythonfmu's doStep and
   getReal (~4 us more for the setReal of a step in transients), 4-6 us the plant's Python step.
-  (The first pass, exact linear steps on numpy, had reached VTOL 3.3-3.8x, lateral 3.1-3.2x.)
+  (The first pass, exact linear steps on numpy, had reached VTOL 3.3-3.8x, lateral 3.1-3.2x;
+  ``--baseline e96619e``, its last commit: this pass 1.5-1.7x for DTS200, 2.0-3.0x for the others.)
 - per-run fixed overhead: 3.2 ms CPU (3.2 ms wall).
 - 1000-step DTS200 + bank runs: serial 7.7 runs/s (130 ms CPU per run, was 184 ms: 1000 runs
   ~ 65 s on two free cores); the 2-process pool (7.5 runs/s steady) and the 2-worker
@@ -99,8 +100,9 @@ def step_cost(fmu: str, steps: int, excite: str = "rest") -> float:
 def plant_costs(steps: int, baseline: str, tmp: Path) -> list:
     base = tmp / "baseline_src"
     base.mkdir()
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "plant_fmus"], capture_output=True,
-                             check=True).stdout
+    # the baseline's plant_fmus and the fmu_fdi it builds with (later plants bundle a file of fmu_fdi)
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "plant_fmus", "fmu_fdi"],
+                             capture_output=True, check=True).stdout
     subprocess.run(["tar", "-x", "-C", str(base)], input=archive, check=True)
     (tmp / "before").mkdir()
     (tmp / "after").mkdir()
