@@ -14,24 +14,27 @@
    a 2-worker Dask LocalCluster (targets: pool >= 1.8 x serial on 2 cores, Dask within 1.2 x of
    the pool), and the wall time extrapolated to 1000 runs (target < 100 s).
 
-    python benchmarks/campaign_speed.py [--runs 40] [--steps 2000] [--baseline REV] [--skip-plants]
+    python benchmarks/campaign_speed.py [--runs 40] [--steps 2000] [--baseline REV] [--skip-plants | --skip-campaign]
 
 Everything is measured in the same invocation; on a shared machine the figures are noisy:
 the ratios are what to read.
 
-Measured 2026-11-23 on the 2-vCPU development machine shared with 7 other jobs (load 4.5-9),
-``--runs 60 --steps 1000``:
+Measured 2026-11-23 on the 2-vCPU development machine shared with other jobs (load 1.6-1.9),
+``--runs 60 --steps 1000``, after the second pass over the plants' per-step bookkeeping:
 
-- plant CPU us/step before -> after, at rest / in transients: DTS200 412 -> 46 (9.0x) / 376 -> 53
-  (7.1x); DR300 483 -> 26 (18x) / 408 -> 28 (15x); wind turbine 223 -> 52 (4.3x) / 247 -> 48
-  (5.1x); VTOL 117 -> 31 (3.8x) / 109 -> 34 (3.3x); lateral aircraft 108 -> 33 (3.2x) / 110 -> 35
-  (3.1x). The last three already took one Dormand-Prince step per communication step; what is
-  left is ~15 us of FMI call through fmpy and pythonfmu and the slave's bookkeeping.
-- per-run fixed overhead: 3.7 ms CPU (7.6 ms wall).
-- 1000-step DTS200 + bank runs: serial 3.8 runs/s (184 ms CPU per run: 1000 runs ~ 92 s on two
-  free cores); the 2-process pool and the 2-worker LocalCluster were no faster than serial here
-  (the machine's two vCPUs were shared with 4-9 other processes; start-up ~1.5 s CPU per worker),
-  Dask at 1.33x the pool's steady rate. The >= 1.8x target needs two free cores to be shown.
+- plant CPU us/step before (058cf9e) -> after, at rest / in transients: DTS200 302 -> 25 (12x) /
+  310 -> 31 (10x); DR300 427 -> 10 (43x) / 376 -> 14 (27x); wind turbine 157 -> 14 (11x) /
+  225 -> 19 (12x); VTOL 94 -> 13 (7.3x) / 97 -> 17 (5.8x); lateral aircraft 97 -> 11 (8.9x) /
+  101 -> 15 (6.7x). Of a linear plant's 10-17 us, ~6-7 us are fmpy's and pythonfmu's doStep and
+  getReal (~4 us more for the setReal of a step in transients), 4-6 us the plant's Python step.
+  (The first pass, exact linear steps on numpy, had reached VTOL 3.3-3.8x, lateral 3.1-3.2x;
+  ``--baseline e96619e``, its last commit: this pass 1.5-1.7x for DTS200, 2.0-3.0x for the others.)
+- per-run fixed overhead: 3.2 ms CPU (3.2 ms wall).
+- 1000-step DTS200 + bank runs: serial 7.7 runs/s (130 ms CPU per run, was 184 ms: 1000 runs
+  ~ 65 s on two free cores); the 2-process pool (7.5 runs/s steady) and the 2-worker
+  LocalCluster (6.1 runs/s steady, 0.81x the pool) were no faster than serial here: the two
+  vCPUs were shared with other processes (start-up ~1.3 s CPU per worker). The >= 1.8x target
+  needs two free cores to be shown.
 """
 from __future__ import annotations
 
@@ -97,8 +100,9 @@ def step_cost(fmu: str, steps: int, excite: str = "rest") -> float:
 def plant_costs(steps: int, baseline: str, tmp: Path) -> list:
     base = tmp / "baseline_src"
     base.mkdir()
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "plant_fmus"], capture_output=True,
-                             check=True).stdout
+    # the baseline's plant_fmus and the fmu_fdi it builds with (later plants bundle a file of fmu_fdi)
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "plant_fmus", "fmu_fdi"],
+                             capture_output=True, check=True).stdout
     subprocess.run(["tar", "-x", "-C", str(base)], input=archive, check=True)
     (tmp / "before").mkdir()
     (tmp / "after").mkdir()
@@ -173,6 +177,7 @@ def main(argv=None):
     ap.add_argument("--runs", type=int, default=40, help="runs per execution mode (default 40)")
     ap.add_argument("--steps", type=int, default=2000, help="plant steps per timing (default 2000)")
     ap.add_argument("--skip-plants", action="store_true", help="campaign figures only")
+    ap.add_argument("--skip-campaign", action="store_true", help="plant step costs only")
     ap.add_argument("--baseline", default=BASELINE, help=f"git revision of the 'before' plants (default {BASELINE})")
     args = ap.parse_args(argv)
     print(f"cpus: {os.cpu_count()}, load average: {os.getloadavg()[0]:.1f}")
@@ -182,13 +187,17 @@ def main(argv=None):
         if not args.skip_plants:
             print("plant FMU step cost (fmpy doStep + getReal, noise on, operating point):")
             rows = plant_costs(args.steps, args.baseline, tmp)
-        print("campaign (1000-step DTS200 + DOS-bank runs):")
-        rates = campaign_rates(args.runs, tmp / "campaign")
+        rates = None
+        if not args.skip_campaign:
+            print("campaign (1000-step DTS200 + DOS-bank runs):")
+            rates = campaign_rates(args.runs, tmp / "campaign")
     print("\nsummary")
     for excite in ("rest", "excited") if rows else ():
         ratios = {n.split("/")[0]: b / a for n, b, a in rows if n.endswith(excite)}
         print(f"  plant step cost, {excite}: " + ", ".join(f"{n} {r:.1f}x" for n, r in ratios.items())
               + " (target 5x)")
+    if rates is None:
+        return
     print(f"  per-run overhead: {rates['overhead_ms']:.1f} ms (target < 10 ms)")
     print(f"  pool-2 / serial (steady): {rates['pool-2_steady'] / rates['serial_steady']:.2f} "
           f"(target >= 1.8 on 2 free cores)")

@@ -12,8 +12,8 @@ Conventions every plant follows (docs/plant_fmus.md):
 
 - Communication step ``[t_k, t_k + h]``: the inputs set before ``do_step`` are held
   constant over the step (zero-order hold); a nonlinear ODE is integrated with :func:`dopri5`,
-  a linear one ``x' = A x + b`` exactly (:class:`ExactLinear`: no tolerance, one "ODE step" per
-  communication step);
+  a linear one ``x' = A x + B v`` exactly (:class:`ExactLinear`: no tolerance, one "ODE step"
+  per communication step);
   the outputs at ``t_k + h`` are computed at the end of the step from the state and the
   inputs of that step and stay fixed until the next ``do_step``.
 - Sensor ``y``: ``y_meas = stuck_value_y`` if ``stuck_y >= 0.5``, else
@@ -21,8 +21,12 @@ Conventions every plant follows (docs/plant_fmus.md):
 - Actuator ``u``: ``u_applied = stuck_value_u`` if ``stuck_u >= 0.5``, else
   ``gain_u * u_command + f_<actuator fault>``.
 - Noise: one ``numpy.random.default_rng(seed)`` stream per instance; a fixed number of
-  normal draws per step, so a run is reproducible bit by bit for a given seed and step
-  sequence, whatever the std values.
+  normal draws per step (none with noise off), so a run is reproducible bit by bit for a given
+  seed and step sequence, whatever the std values.
+- Per-step cost: what a step derives from the inputs (fault channels, noise stds, a plant's
+  ``hold()``) is recomputed only after an input or parameter has changed; the vectors of a step
+  are lists of floats, with one numpy product per step for a linear plant (small numpy
+  operations cost ~1 us each, the FMI call itself a few us).
 """
 from __future__ import annotations
 
@@ -70,7 +74,7 @@ def dopri5(f, x, span: float, rtol: float, atol: float, h: float | None = None,
 
     Returns
     -------
-    x_new (ndarray), h_next, n_accepted
+    x_new (list of float), h_next, n_accepted
     """
     x = [float(v) for v in x]
     n = len(x)
@@ -85,7 +89,7 @@ def dopri5(f, x, span: float, rtol: float, atol: float, h: float | None = None,
     for _ in range(max_steps):
         remaining = span - t
         if remaining <= 1e-12 * span:
-            return np.array(x), h, n_acc
+            return x, h, n_acc
         step = min(h, remaining)
         k2 = f([x[i] + step * (a21 * k1[i]) for i in idx])
         k3 = f([x[i] + step * (a31 * k1[i] + a32 * k2[i]) for i in idx])
@@ -147,33 +151,46 @@ def phi1(A, h: float) -> np.ndarray:
 
 
 class ExactLinear:
-    """Exact integration of ``x' = A x + b`` over a step ``h`` with ``b`` held constant:
-    ``x(h) = x + Psi(h) (A x + b)``, ``Psi(h) = integral_0^h exp(A s) ds`` (:func:`phi1`).
+    """Exact step of ``x' = A x + B v`` with ``v`` held over the step, and the outputs ``y = C x``
+    at its end:
 
-    Written as an increment on the rate ``A x + b``: at an equilibrium the rate is zero up to
-    rounding, so the state does not drift (``exp(A h) x + Psi b`` would add two large, nearly
-    cancelling terms). ``Psi`` is cached per (A, h): a plant whose A never changes computes it
-    once; a fault that moves A (a pitch fault level, the drive-train efficiency) adds an entry
-    per distinct value (the cache keeps the last ``size``).
+        x_{k+1} = x_k + Psi(h) (A x_k + B v_k),   y_{k+1} = C x_{k+1},
+
+    ``Psi(h) = integral_0^h exp(A s) ds`` (:func:`phi1`). Both are one product with the matrix
+    ``W(h) = [[P], [C + C P_x, C P_u]]``, ``P = Psi(h) [A, B] = [P_x, P_u]``, applied to
+    ``z = (x_k, v_k)``: ``W z = (x_{k+1} - x_k, y_{k+1})``. The state is advanced by the increment
+    ``P z``, not as ``exp(A h) x + Psi B v``: at an equilibrium the increment is zero up to
+    rounding, so the state does not drift (two large, nearly cancelling terms would). ``W`` is
+    cached per ``h`` (a plant steps with one ``h``; the cache keeps the last ``size``).
+    The vectors are lists of floats: one numpy product per step, no other array operation.
     """
 
-    def __init__(self, size: int = 64):
+    def __init__(self, A, B, C, size: int = 8):
+        self.A, self.B, self.C = (np.asarray(M, dtype=float) for M in (A, B, C))
+        self.n = self.A.shape[0]
         self.size = size
-        self.cache = {}
-        self._last = (None, None, None)
+        self._W = {}
+        self._h, self._product = None, None
 
-    def step(self, A, b, x, h: float) -> np.ndarray:
-        if A is self._last[0] and h == self._last[1]:  # the same matrix object as last step
-            psi = self._last[2]
-            return x + psi @ (A @ x + b)
-        key = (np.asarray(A, dtype=float).tobytes(), float(h))
-        psi = self.cache.get(key)
-        if psi is None:
-            if len(self.cache) >= self.size:
-                self.cache.pop(next(iter(self.cache)))
-            psi = self.cache[key] = phi1(A, h)
-        self._last = (A, h, psi)
-        return x + psi @ (A @ x + b)
+    def matrix(self, h: float) -> np.ndarray:
+        """``W(h)`` (see the class docstring)."""
+        W = self._W.get(h)
+        if W is None:
+            if len(self._W) >= self.size:
+                self._W.pop(next(iter(self._W)))
+            P = phi1(self.A, h) @ np.hstack([self.A, self.B])
+            CP = self.C @ P
+            CP[:, :self.n] += self.C
+            W = self._W[h] = np.vstack([P, CP])
+        return W
+
+    def step(self, x: list, v: list, h: float):
+        """``(x_{k+1}, y_{k+1})`` as lists from ``x_k`` and ``v_k`` (lists)."""
+        if h != self._h:
+            self._h, self._product = h, self.matrix(h).dot  # the bound method: half the cost of @
+        w = self._product(np.array(x + v)).tolist()
+        n = self.n
+        return [a + b for a, b in zip(x, w[:n])], w[n:]
 
 
 class _RealWithUnit(Real):
@@ -206,7 +223,9 @@ class PlantSlave:
 
     A plant class derives from ``(PlantSlave, Fmi2Slave)``, declares its variables in
     ``__init__`` with the helpers below and implements ``initialize()`` (state at the
-    start time, first outputs) and ``advance(t, h)`` (one communication step).
+    start time, first outputs), ``advance(t, h)`` (one communication step) and, for what it
+    derives from its inputs and tunable parameters, ``hold()`` (run before the first step and
+    after any change of a variable; ``advance`` reads what it held).
     Exceptions never reach the host (pythonfmu would turn them into fmi2Fatal): they are
     logged with ``Fmi2Status.error`` and ``do_step`` returns False, which pythonfmu
     reports as fmi2Discard; every later step fails the same way.
@@ -272,6 +291,7 @@ class PlantSlave:
             self.real_input(f"stuck_value_{y}", 0.0, f"value sensor {y} is stuck at", unit)
             self.parameter(f"std_{y}", std, f"standard deviation of the white noise on sensor {y}", unit)
         self._sensor_faults = tuple(f"f_{fault}" for fault in fault_names)
+        self._sensor_fields = tuple(tuple(f"{p}{y}" for y in names) for p in ("gain_", "std_", "stuck_", "stuck_value_"))
 
     def actuators(self, names, units, fault_names, descriptions, inputs=True, starts=None):
         """Actuators: the command is an input (``inputs``) or an output set by a controller."""
@@ -287,6 +307,7 @@ class PlantSlave:
             self.real_input(f"stuck_{u}", 0.0, f">= 0.5: actuator {u} stuck at stuck_value_{u}")
             self.real_input(f"stuck_value_{u}", 0.0, f"value actuator {u} is stuck at", unit)
         self._actuator_faults = tuple(f"f_{fault}" for fault in fault_names)
+        self._actuator_fields = tuple(tuple(f"{p}{u}" for u in names) for p in ("gain_", "stuck_", "stuck_value_"))
 
     def _values(self, names) -> np.ndarray:
         return np.array(self._get(names), dtype=float)
@@ -299,40 +320,73 @@ class PlantSlave:
         except KeyError:  # a name that is a property or class attribute
             return tuple([getattr(self, n) for n in names])
 
-    def _channels(self, prefixes, names) -> list:
-        """``[prefix_name for name in names]`` per prefix, cached."""
-        key = (prefixes, tuple(names))
-        cache = self.__dict__.setdefault("_channel_names", {})
-        if key not in cache:
-            cache[key] = [tuple(f"{p}{n}" for n in names) for p in prefixes]
-        return cache[key]
+    # ------------------------------------------------ held inputs (per-step constants)
+    # Inputs change only through the FMI setters (and fmi2SetFMUstate): ``set_real`` marks the
+    # instance when a value actually changes, and the next step checks the inputs and refreshes
+    # what it derives from them (fault channels, noise stds, the plant's ``hold()``). A step with
+    # unchanged inputs (the common case: a master writes every input at every step) does none
+    # of that work.
+
+    def _refresh(self):
+        """Check the inputs and recompute everything held (after any change of a variable)."""
+        self._check_inputs()
+        self._refresh_channels()
+        self.hold()
+        self._changed = False
+
+    def _refresh_channels(self):
+        """Sensor channels ``(gain, fault, std, stuck, stuck value)``, actuator channels
+        ``(gain, fault, stuck, stuck value)``, process-noise stds."""
+        get = self._get
+        if hasattr(self, "_sensor_names"):
+            gain, std, stuck, value = self._sensor_fields
+            std = get(std) if self.noise_enable else (0.0,) * len(std)
+            self._sensor_channels = tuple(zip(get(gain), get(self._sensor_faults), std,
+                                              [s >= 0.5 for s in get(stuck)], get(value)))
+        if hasattr(self, "_actuator_names"):
+            gain, stuck, value = self._actuator_fields
+            self._actuator_channels = tuple(zip(get(gain), get(self._actuator_faults),
+                                                [s >= 0.5 for s in get(stuck)], get(value)))
+        self._noise_stds = {}
+
+    def hold(self):
+        """Plant hook: recompute what the plant derives from its inputs and tunable parameters
+        (called before the first step and before any step that follows a change of them)."""
+
+    def _normals(self, n: int) -> list:
+        """The next ``n`` standard normal draws of the instance's stream. Drawn in blocks: a
+        ``Generator`` fills an array draw by draw, so a block is the same sequence as draws
+        of any other sizes in the same order (the stream is reproducible bit by bit)."""
+        i = self._z_next
+        j = i + n
+        if j > len(self._z_block):
+            self._z_block = self._z_block[i:] + self._rng.standard_normal(max(1024, n)).tolist()
+            i, j = 0, n
+        self._z_next = j
+        return self._z_block[i:j]
 
     # ---------------------------------------------------------- fault channels
-    def measure(self, y_true) -> np.ndarray:
-        """Measured outputs from the true ones; draws one normal per sensor; sets the outputs."""
-        names = self._sensor_names
-        z = self._rng.standard_normal(len(names)).tolist()
-        std_n, gain_n, stuck_n, value_n = self._channels(("std_", "gain_", "stuck_", "stuck_value_"), names)
-        std = self._get(std_n) if self.noise_enable else (0.0,) * len(names)
-        y = [value if stuck >= 0.5 else g * float(yt) + f + sd * zz
-             for yt, g, f, sd, zz, stuck, value in zip(y_true, self._get(gain_n), self._get(self._sensor_faults),
-                                                       std, z, self._get(stuck_n), self._get(value_n))]
-        for nm, val in zip(names, y):
-            setattr(self, nm, val)
-        return np.array(y)
+    def measure(self, y_true) -> list:
+        """Measured outputs from the true ones (floats); draws one normal per sensor; sets the outputs."""
+        channels = self._sensor_channels
+        z = self._normals(len(channels)) if self.noise_enable else (0.0,) * len(channels)
+        y = [value if stuck else g * yt + f + sd * zz
+             for yt, zz, (g, f, sd, stuck, value) in zip(y_true, z, channels)]
+        self.__dict__.update(zip(self._sensor_names, y))
+        return y
 
-    def actuate(self, u_command) -> np.ndarray:
-        """Input applied to the plant from the command (see the module docstring)."""
-        gain_n, stuck_n, value_n = self._channels(("gain_", "stuck_", "stuck_value_"), self._actuator_names)
-        return np.array([value if stuck >= 0.5 else g * float(u) + f
-                         for u, g, f, stuck, value in zip(u_command, self._get(gain_n),
-                                                          self._get(self._actuator_faults), self._get(stuck_n),
-                                                          self._get(value_n))])
+    def actuate(self, u_command) -> list:
+        """Input applied to the plant from the command (floats; see the module docstring)."""
+        return [value if stuck else g * u + f for u, (g, f, stuck, value) in zip(u_command, self._actuator_channels)]
 
-    def process_noise(self, std_names) -> np.ndarray:
+    def process_noise(self, std_names) -> list:
         """One normal draw per process-noise channel, scaled by its std (held over the step)."""
-        z = self._rng.standard_normal(len(std_names))
-        return self._values(std_names) * z if self.noise_enable else np.zeros(len(std_names))
+        stds = self._noise_stds.get(std_names)
+        if stds is None:
+            stds = self._noise_stds[std_names] = tuple(map(float, self._get(std_names)))
+        if not self.noise_enable:
+            return [0.0] * len(std_names)
+        return [s * z for s, z in zip(stds, self._normals(len(std_names)))]
 
     def integrate(self, f, x, h, clip=None):
         """:func:`dopri5` over one communication step, remembering the step-size proposal."""
@@ -340,12 +394,11 @@ class PlantSlave:
         self.ode_steps += n_accepted
         return x
 
-    def integrate_linear(self, A, b, x, h):
-        """One exact step of ``x' = A x + b`` (:class:`ExactLinear`); counts as one ODE step."""
-        if not hasattr(self, "_exact"):
-            self._exact = ExactLinear()
+    def step_linear(self, system: ExactLinear, x: list, v: list, h: float):
+        """One exact step of a linear plant (:class:`ExactLinear`); counts as one ODE step.
+        Returns ``(x_{k+1}, y_{k+1})`` as lists."""
         self.ode_steps += 1
-        return self._exact.step(A, b, x, h)
+        return system.step(x, v, h)
 
     # ---------------------------------------------------------------- FMI side
     def exit_initialization_mode(self):
@@ -358,10 +411,17 @@ class PlantSlave:
             for var in self.vars.values():
                 if var.name.startswith("std_") and not getattr(self, var.name) >= 0:
                     raise ValueError(f"parameter {var.name} must be >= 0, got {getattr(self, var.name)}")
-            self._check_inputs()
             self._rng = np.random.default_rng(int(self.seed))
+            self._z_block, self._z_next = [], 0
             self._h_ode, self.ode_steps = None, 0
+            self._real_names = {vr: v.name for vr, v in self.vars.items()
+                                if isinstance(v, Real) and v.name in self.__dict__}
+            self._real_settable = {vr: name for vr, name in self._real_names.items()
+                                   if self.vars[vr].setter is not None}
+            self._check_inputs()
+            self._refresh_channels()
             self.initialize()
+            self._changed = True  # the first step refreshes all, hold() included
             self._failed = None
         except Exception as exc:  # noqa: BLE001 - nothing may reach the host
             self._failed = f"initialisation failed: {type(exc).__name__}: {exc}"
@@ -374,7 +434,8 @@ class PlantSlave:
         try:
             if not step_size > 0:
                 raise ValueError(f"communication step must be > 0, got {step_size}")
-            self._check_inputs()
+            if self._changed:
+                self._refresh()
             self.advance(current_time, step_size)
             return True
         except Exception as exc:  # noqa: BLE001 - nothing may reach the host
@@ -384,9 +445,43 @@ class PlantSlave:
 
     def _check_inputs(self):
         values = self._get(self._real_inputs)
-        if not all(map(math.isfinite, values)):
-            name, value = next((n, v) for n, v in zip(self._real_inputs, values) if not math.isfinite(v))
-            raise ValueError(f"input {name} is {value}; inputs must be finite")
+        if not math.isfinite(sum(values)):  # one sum: non-finite iff an input is (or it overflows)
+            bad = [(n, v) for n, v in zip(self._real_inputs, values) if not math.isfinite(v)]
+            if bad:
+                raise ValueError(f"input {bad[0][0]} is {bad[0][1]}; inputs must be finite")
+
+    def get_real(self, vrs):
+        """pythonfmu's ``get_real`` (same values, same errors), with the Real variables read
+        from the instance dict by one map instead of a getter call per variable."""
+        try:
+            return list(map(float, map(self.__dict__.__getitem__, map(self._real_names.__getitem__, vrs))))
+        except (KeyError, AttributeError, TypeError):  # not a Real variable, or before initialisation
+            return super().get_real(vrs)
+
+    def set_real(self, vrs, values):
+        """pythonfmu's ``set_real`` (same effect, same errors), noting whether a value changed:
+        the next step then checks the inputs and refreshes what is held (see ``_refresh``)."""
+        names, d = getattr(self, "_real_settable", None), self.__dict__
+        if names is None or len(vrs) != len(values) or not all(map(names.__contains__, vrs)):
+            self._changed = True
+            return super().set_real(vrs, values)
+        for vr, value in zip(vrs, values):
+            name = names[vr]
+            if d[name] != value:  # a NaN always differs: it is then checked
+                self._changed = True
+            d[name] = value
+
+    def set_integer(self, vrs, values):
+        self._changed = True
+        return super().set_integer(vrs, values)
+
+    def set_boolean(self, vrs, values):
+        self._changed = True
+        return super().set_boolean(vrs, values)
+
+    def _set_fmu_state(self, state):
+        self._changed = True
+        return super()._set_fmu_state(state)
 
     def to_xml(self, model_options=None) -> Element:
         """Model description with ``<UnitDefinitions>`` for the units the variables use and

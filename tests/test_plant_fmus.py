@@ -109,6 +109,14 @@ for _blade, _kind in ((2, "pressure_drop"), (3, "air_in_oil")):
              {f"f_pitch_{_blade}_{_kind}": 0.5, f"beta_ref_{_blade}": series(200, 20, 0, 1.0)})
 scenario("lateral_aircraft/gamma", "lateral_aircraft", 300, {**TIGHT, "gamma_1": 0.3},
          {"u1": series(300, 10, 0, 0.05), "u2": series(300, 40, 0, -0.05)})
+# A fault switched on mid-run, as an input and as the tunable parameter; and no fault.
+_EXCITE = {"u1": series(300, 10, 0, 0.05), "u2": series(300, 40, 0, -0.05)}
+SWITCH_STEP = 60
+scenario("lateral_aircraft/switched/none", "lateral_aircraft", 300, TIGHT, _EXCITE)
+scenario("lateral_aircraft/switched/f_loe_u1", "lateral_aircraft", 300, TIGHT,
+         {"f_loe_u1": series(300, SWITCH_STEP, 0, 0.3), **_EXCITE})
+scenario("lateral_aircraft/switched/gamma_1", "lateral_aircraft", 300, TIGHT,
+         {"gamma_1": series(300, SWITCH_STEP, 0, 0.3), **_EXCITE})
 
 # Noise: measurement noise at the defaults, process noise off; the same seed twice.
 NOISE_STEPS = 400
@@ -541,6 +549,20 @@ def test_gamma_parameter_equals_loe_fault_input(results):
     a, b = ok(results, "lateral_aircraft/gamma"), ok(results, "lateral_aircraft/fault/loe_u1")
     for y in ("beta", "phi", "p", "r"):
         assert np.array_equal(a[y], b[y])
+
+
+def test_fault_switched_between_steps_acts_from_that_step_on(results):
+    """Value k of an input (or tunable parameter) is set before step k: outputs up to t_k are
+    those of the run without the fault, every later one differs (u1 = 0.05 excites it); the
+    input and the parameter are summed, so they act alike."""
+    none = ok(results, "lateral_aircraft/switched/none")
+    for key in ("f_loe_u1", "gamma_1"):
+        out = ok(results, f"lateral_aircraft/switched/{key}")
+        y, y0 = (np.column_stack([o[n] for n in ("beta", "phi", "p", "r")]) for o in (out, none))
+        assert np.array_equal(y[:SWITCH_STEP + 1], y0[:SWITCH_STEP + 1]), key
+        assert np.all(np.any(y[SWITCH_STEP + 1:] != y0[SWITCH_STEP + 1:], axis=1)), key
+    a, b = (ok(results, f"lateral_aircraft/switched/{k}") for k in ("f_loe_u1", "gamma_1"))
+    assert all(np.array_equal(a[y], b[y]) for y in ("beta", "phi", "p", "r"))
 
 
 @pytest.mark.parametrize("plant", list(plant_fmus.PLANTS))

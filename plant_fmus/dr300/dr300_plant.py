@@ -17,7 +17,7 @@ import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Slave
 
 import dr300_physics as phys
-from dr300_support import PlantSlave
+from dr300_support import ExactLinear, PlantSlave
 
 
 class DR300(PlantSlave, Fmi2Slave):
@@ -42,11 +42,12 @@ class DR300(PlantSlave, Fmi2Slave):
         for key in ("T1", "T2", "T3"):
             if not p[key] > 0:
                 raise ValueError(f"parameter {key} must be > 0, got {p[key]}")
-        self._A, self._Bu, self._Bd, self._C = phys.matrices(p)
+        A, Bu, Bd, C = phys.matrices(p)
+        self._system = ExactLinear(A, np.hstack([Bu, Bd]), C)  # v = (voltage received, load torque)
         self._kp, self._ki = phys.pi_gains(p)
-        self._x = np.zeros(4)
+        self._x = [0.0] * A.shape[0]
         self._xi = 0.0
-        self._control(self.measure(self._C @ self._x)[0])
+        self._control(self.measure((C @ np.array(self._x)).tolist())[0])
 
     def _control(self, y_meas):
         """PI output for the coming step from the measurement at its start."""
@@ -54,9 +55,8 @@ class DR300(PlantSlave, Fmi2Slave):
         self.voltage = self._kp * self._e + self._ki * self._xi
 
     def advance(self, t, h):
-        v = self.actuate([self.voltage])
-        d = np.array([self.load_torque]) + self.process_noise(("std_w_load_torque",))
-        drive = self._Bu @ v + self._Bd @ d
-        self._x = self.integrate_linear(self._A, drive, self._x, h)
+        v = self.actuate((self.voltage,))
+        v.append(self.load_torque + self.process_noise(("std_w_load_torque",))[0])
+        self._x, y = self.step_linear(self._system, self._x, v, h)
         self._xi += h * self._e
-        self._control(self.measure(self._C @ self._x)[0])
+        self._control(self.measure(y)[0])

@@ -65,16 +65,22 @@ class DTS200(PlantSlave, Fmi2Slave):
             raise ValueError(f"initial levels {self._x} must lie in [0, h_max={p['h_max']}]")
         self._publish(p)
 
+    def hold(self):
+        p = self._p = self._params()
+        self._leak = [max(v, 0.0) for v in self._get(_LEAKS)]
+        self._clog = [min(max(v, 0.0), 1.0) for v in self._get(_CLOGS)]
+        self._clip = ([0.0] * 3, [p["h_max"]] * 3)
+        self._q = self.actuate(self._get(phys.U))  # flows before process noise and limits
+        self._rates = None  # (flows, h -> h'): the right-hand side for the last flows
+
     def advance(self, t, h):
         # plain floats throughout: three states and two pumps cost less in Python than in numpy
-        p = self._params()
+        p = self._p
         q_max = p["q_max"]
-        q = [min(max(v, 0.0), q_max) for v in
-             (self.actuate(self._get(phys.U)) + self.process_noise(_PROCESS_NOISE)).tolist()]
-        leak = [max(v, 0.0) for v in self._get(_LEAKS)]
-        clog = [min(max(v, 0.0), 1.0) for v in self._get(_CLOGS)]
-        self._x = self.integrate(phys.rates_function(q, p, leak, clog), self._x, h,
-                                 clip=([0.0] * 3, [p["h_max"]] * 3)).tolist()
+        q = [min(max(a + w, 0.0), q_max) for a, w in zip(self._q, self.process_noise(_PROCESS_NOISE))]
+        if self._rates is None or self._rates[0] != q:
+            self._rates = (q, phys.rates_function(q, p, self._leak, self._clog))
+        self._x = self.integrate(self._rates[1], self._x, h, clip=self._clip)
         self._publish(p)
 
     def _publish(self, p):

@@ -12,7 +12,7 @@ import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Slave
 
 import lateral_physics as phys
-from lateral_support import PlantSlave
+from lateral_support import ExactLinear, PlantSlave
 
 _GAMMA = ("gamma_1", "gamma_2")
 _LOE = tuple(f"f_{n}" for n in phys.LOE_FAULTS)
@@ -39,12 +39,15 @@ class LateralAircraft(PlantSlave, Fmi2Slave):
                                               f"(model fault {name})")
 
     def initialize(self):
-        self._x = self._values([f"{y}_start" for y in phys.Y])
-        self.measure(phys.C @ self._x)
+        # v = (Gamma u_applied, w): the effective inputs and the process noise on every derivative
+        self._system = ExactLinear(phys.A, np.hstack([phys.BU, np.eye(len(phys.Y))]), phys.C)
+        self._x = [float(getattr(self, f"{y}_start")) for y in phys.Y]
+        self.measure((phys.C @ np.array(self._x)).tolist())
+
+    def hold(self):
+        effectiveness = [1.0 - min(max(g + f, 0.0), 1.0) for g, f in zip(self._get(_GAMMA), self._get(_LOE))]
+        self._u = [e * a for e, a in zip(effectiveness, self.actuate(self._get(phys.U)))]  # Gamma u_applied
 
     def advance(self, t, h):
-        gamma = np.array([min(max(g + f, 0.0), 1.0) for g, f in zip(self._get(_GAMMA), self._get(_LOE))])
-        u = (1.0 - gamma) * self.actuate(self._values(phys.U))
-        drive = phys.BU @ u + self.process_noise(_PROCESS_NOISE)
-        self._x = self.integrate_linear(phys.A, drive, self._x, h)
-        self.measure(phys.C @ self._x)
+        self._x, y = self.step_linear(self._system, self._x, self._u + self.process_noise(_PROCESS_NOISE), h)
+        self.measure(y)

@@ -14,7 +14,7 @@ import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Slave
 
 import vtol_physics as phys
-from vtol_support import PlantSlave
+from vtol_support import ExactLinear, PlantSlave
 
 _REFS = tuple(f"ref_{u}" for u in phys.U)
 _PROCESS_NOISE = tuple(f"std_w_{u}" for u in phys.U)
@@ -39,17 +39,22 @@ class VTOL(PlantSlave, Fmi2Slave):
             self.parameter(f"std_w_{u}", 0.0, f"std of white noise added to the applied {u}")
 
     def initialize(self):
-        self._A, self._B = phys.plant_matrices(*(getattr(self, n) for n in phys.UNCERTAIN))
-        self._gain = phys.K @ np.linalg.inv(phys.C)
-        self._x = self._values([f"{x}_start" for x in ("vh", "vv", "q", "theta")])
-        self._control(self.measure(phys.C @ self._x))
+        A, B = phys.plant_matrices(*(getattr(self, n) for n in phys.UNCERTAIN))
+        self._system = ExactLinear(A, B, phys.C)  # v = the inputs the aircraft receives
+        self._feedback = [tuple(row) for row in (-phys.K @ np.linalg.inv(phys.C)).tolist()]  # u = F y + r
+        self._x = [float(getattr(self, f"{x}_start")) for x in ("vh", "vv", "q", "theta")]
+        self.hold()
+        self._control(self.measure((phys.C @ np.array(self._x)).tolist()))
+
+    def hold(self):
+        self._refs = self._get(_REFS)
 
     def _control(self, y_meas):
-        u = -self._gain @ y_meas + self._values(_REFS)
-        self.collective, self.cyclic = float(u[0]), float(u[1])
+        y1, y2, y3, y4 = y_meas
+        self.collective, self.cyclic = [a1 * y1 + a2 * y2 + a3 * y3 + a4 * y4 + r
+                                        for (a1, a2, a3, a4), r in zip(self._feedback, self._refs)]
 
     def advance(self, t, h):
-        u = self.actuate([self.collective, self.cyclic]) + self.process_noise(_PROCESS_NOISE)
-        drive = self._B @ u
-        self._x = self.integrate_linear(self._A, drive, self._x, h)
-        self._control(self.measure(phys.C @ self._x))
+        u = [a + w for a, w in zip(self.actuate((self.collective, self.cyclic)), self.process_noise(_PROCESS_NOISE))]
+        self._x, y = self.step_linear(self._system, self._x, u, h)
+        self._control(self.measure(y))

@@ -14,7 +14,7 @@ import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Slave
 
 import windturbine_physics as phys
-from windturbine_support import PlantSlave
+from windturbine_support import ExactLinear, PlantSlave
 
 PITCH_FAULTS = tuple(f"f_pitch_{i}_{kind}" for kind in phys.PITCH_FAULT_KINDS for i in phys.BLADES)
 _COMMANDS = tuple(phys.PITCH_U + phys.DT_U)
@@ -61,39 +61,43 @@ class WindTurbine(PlantSlave, Fmi2Slave):
         for key in ("J_g", "J_r", "N_g", "K_dt", "alpha_gc"):
             if not p[key] > 0:
                 raise ValueError(f"parameter {key} must be > 0, got {p[key]}")
-        self._p, self._sys_key = p, None
-        _, _, self._Cp = phys.pitch_matrices(p)
-        *_, self._Cd = phys.drive_train_matrices(p)
+        self._p, self._systems = p, {}
+        _, _, Cp = phys.pitch_matrices(p)
+        *_, Cd = phys.drive_train_matrices(p)
+        self._C = np.zeros((Cp.shape[0] + Cd.shape[0], 10))
+        self._C[:Cp.shape[0], :6], self._C[Cp.shape[0]:, 6:] = Cp, Cd
         x0, _ = phys.operating_point(p, self.omega_r_op, self.tau_g_op)
-        self._x = np.concatenate([np.tile([self.beta_op, 0.0], 3), x0])
-        self._publish(p, 0.0)
+        self._x = [float(self.beta_op), 0.0] * 3 + x0.tolist()
+        self.measure((self._C @ np.array(self._x)).tolist())
 
-    def _system(self, theta: tuple, eff: float):
-        """(A, Bp, Bu, Bd) of the whole plant for the pitch fault levels and the efficiency change;
-        rebuilt only when they change (the parameters are fixed after initialisation)."""
+    def _system(self, theta: tuple, eff: float) -> ExactLinear:
+        """The whole plant for the pitch fault levels and the efficiency change, with the inputs
+        v = (beta_ref_1..3, tau_g_ref as applied, tau_r, converter offset); built once per distinct
+        fault level (the parameters are fixed after initialisation; the last 64 are kept)."""
         key = (theta, eff)
-        if self._sys_key != key:
+        system = self._systems.get(key)
+        if system is None:
             p = self._p
             th = np.array(theta).reshape(2, 3)
             Ap, Bp, _ = phys.pitch_matrices(p, th[0], th[1])
             Ad, Bu, Bd, _ = phys.drive_train_matrices(p, eff)
-            A = np.zeros((10, 10))
+            A, B = np.zeros((10, 10)), np.zeros((10, 6))
             A[:6, :6], A[6:, 6:] = Ap, Ad
-            self._sys, self._sys_key = (A, Bp, Bu[:, 0], Bd[:, 0]), key
-        return self._sys
+            B[:6, :3], B[6:, 3], B[6:, 4] = Bp, Bu[:, 0], Bd[:, 0]
+            B[7, 5] = -1.0 / p["J_g"]  # the converter offset acts on the generator
+            if len(self._systems) >= 64:
+                self._systems.pop(next(iter(self._systems)))
+            system = self._systems[key] = ExactLinear(A, B, self._C)
+        return system
+
+    def hold(self):
+        theta = tuple(min(max(v, 0.0), 1.0) for v in self._get(PITCH_FAULTS))
+        self._held_system = self._system(theta, float(self.f_drive_train_efficiency))
+        self._offset = float(self.f_converter_offset)
+        self._u = self.actuate(self._get(_COMMANDS))
 
     def advance(self, t, h):
-        p = self._p
-        theta = tuple(min(max(v, 0.0), 1.0) for v in self._get(PITCH_FAULTS))
-        A, Bp, bu, bd = self._system(theta, float(self.f_drive_train_efficiency))
-        u = self.actuate(self._get(_COMMANDS))
-        tau_r = self.tau_r + self.process_noise(("std_w_tau_r",))[0]
-        drive = np.concatenate([Bp @ u[:3], bu * u[3] + bd * tau_r])
-        drive[7] -= self.f_converter_offset / p["J_g"]  # the offset acts on the generator
-        self._x = self.integrate_linear(A, drive, self._x, h)
-        self._publish(p, self.f_converter_offset)
-
-    def _publish(self, p, offset):
-        y = np.concatenate([self._Cp @ self._x[:6], self._Cd @ self._x[6:]])
-        y[-1] += offset  # the measured torque is the one acting, offset included
+        v = self._u + [self.tau_r + self.process_noise(("std_w_tau_r",))[0], self._offset]
+        self._x, y = self.step_linear(self._held_system, self._x, v, h)
+        y[-1] += self._offset  # the measured torque is the one acting, offset included
         self.measure(y)
