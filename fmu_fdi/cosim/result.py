@@ -11,8 +11,6 @@ the faulty minus the nominal value of its target, i.e. the true additive fault s
 """
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 import numpy as np
@@ -64,26 +62,9 @@ class Result(np.ndarray):
         """Read a CSV written by :meth:`to_csv`, by :class:`CsvWriter` or by ``fmpy simulate``
         (Booleans as True/False); every column comes back as float64. Comment lines
         (``# incomplete: ...``) are skipped."""
-        from .._schema import read_text
-        from .errors import CoSimulationError
+        from .csvtable import read_table
 
-        text = read_text(path, "CSV file", CoSimulationError)  # missing, binary, UTF-16: one line
-        try:
-            rows = [r for r in csv.reader(io.StringIO(text, newline="")) if r and not r[0].lstrip().startswith("#")]
-        except csv.Error as exc:
-            raise CoSimulationError(f"{path}: not a valid CSV file: {exc}") from None
-        if not rows:
-            raise CoSimulationError(f"{path}: the file is empty (no header line)")
-        names = [h.strip().strip('"') for h in rows[0]]
-        if "time" not in names:
-            raise CoSimulationError(f"{path}: no 'time' column in the header {names[:8]}")
-        for i, r in enumerate(rows[1:], start=2):
-            if len(r) != len(names):
-                raise CoSimulationError(f"{path}: row {i} has {len(r)} fields for {len(names)} columns")
-        try:
-            data = np.array([[_number(x) for x in r] for r in rows[1:]], dtype=float).reshape(-1, len(names))
-        except ValueError as exc:
-            raise CoSimulationError(f"{path}: a value is not a number: {exc}") from None
+        names, data = read_table(path, "result CSV", _number)
         out = np.zeros(len(data), dtype=[(n, np.float64) for n in names])
         for j, n in enumerate(names):
             out[n] = data[:, j]

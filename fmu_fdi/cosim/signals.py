@@ -16,8 +16,6 @@ cross-check files: ``"time","Q1","Q2"``), a column named ``time``, and one row p
 """
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 import numpy as np
@@ -68,27 +66,9 @@ class InputSignals:
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"input CSV: no such file {str(path)!r}")
-        from .._schema import read_text
+        from .csvtable import read_table
 
-        text = read_text(path, "CSV file", CoSimulationError)  # one line for binary/UTF-16/FMU files
-        try:
-            rows = [r for r in csv.reader(io.StringIO(text, newline="")) if r and any(cell.strip() for cell in r)]
-        except csv.Error as exc:
-            raise CoSimulationError(f"input CSV {path}: {exc}") from None
-        if not rows:
-            raise CoSimulationError(f"input CSV {path}: the file is empty")
-        header = [h.strip().strip('"') for h in rows[0]]
-        if "time" not in header:
-            raise CoSimulationError(f"input CSV {path}: no 'time' column in header {header}")
-        data = np.empty((len(rows) - 1, len(header)))
-        for i, row in enumerate(rows[1:], start=2):
-            if len(row) != len(header):
-                raise CoSimulationError(f"input CSV {path}, line {i}: {len(row)} fields for "
-                                        f"{len(header)} columns")
-            try:
-                data[i - 2] = [float(cell) for cell in row]
-            except ValueError as exc:
-                raise CoSimulationError(f"input CSV {path}, line {i}: {exc}") from None
+        header, data = read_table(path, "input CSV")
         k = header.index("time")
         return cls(data[:, k], {h: data[:, j] for j, h in enumerate(header) if j != k}, interpolation)
 
