@@ -11,7 +11,6 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-import numpy as np  # noqa: E402
 
 from fmu_fdi import DesignError, nullspace_design, structured_bank  # noqa: E402
 from synthesis_models import contract, random_model, random_structure, row_achievable  # noqa: E402

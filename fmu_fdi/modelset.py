@@ -85,7 +85,7 @@ def feedback(model: FDIModel, K, *, name: str | None = None, r_names: Sequence[s
         raise ModelError(f"the feedback loop is not well posed: I + D_K Du is singular (condition "
                          f"{np.linalg.cond(M):.3g})")
     E = np.linalg.solve(M, np.eye(m))
-    n, nk = model.n, Kc.n
+    nk = Kc.n
     Bv = np.hstack([model.Bd, model.Bw, model.Bf])
     Dv = np.hstack([model.Dd, model.Dw, model.Df])
     # u = Ur r + Ux x + Uk xk + Uv v

@@ -71,7 +71,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
     mr_poles = Mr.minreal().poles() if Mr.n else np.zeros(0, complex)
     choose = pole_chooser(model, poles, sdeg)
     Ge = model.augmented()
-    q, nf = model.ny + model.nu, model.nf
+    q = model.ny + model.nu
     sl = model.group_slices()
     ud = np.r_[np.arange(sl["u"].start, sl["u"].stop), np.arange(sl["d"].start, sl["d"].stop)]
     cols = np.r_[ud, np.arange(sl["f"].start, sl["f"].stop)]

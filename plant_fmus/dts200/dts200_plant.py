@@ -11,7 +11,6 @@ plus gain and stuck channels per sensor and pump. Process noise ``std_w_Q<j>`` a
 noise, held over each communication step, to the delivered pump flow. The delivered flow
 is limited to [0, q_max].
 """
-import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Slave
 
 import dts200_physics as phys
