@@ -585,3 +585,29 @@ def test_result_from_csv_refuses_broken_files_in_one_line(tmp_path):
         with pytest.raises(CoSimulationError) as info:
             Result.from_csv(tmp_path / name)
         assert str(tmp_path / name) in str(info.value) and "\n" not in str(info.value), name
+
+
+def test_master_guards_the_pythonfmu_fmus_it_loads(fmus, tmp_path):
+    """A raw pythonfmu FMU (one not built by fmu-fdi, so without its own exit guard) run by
+    the master must not abort the host process at exit: pythonfmu 0.7 releases its
+    interpreter handle twice then, and whether that corrupts the heap fatally depends only on
+    the heap layout (fmu_fdi/fmu/exit_guard.py). The environment is copied onto the heap, so
+    environments of different sizes give different layouts: every one must exit 0, with the
+    FMU's library guarded by the master."""
+    import os
+    import subprocess
+    import sys
+
+    script = tmp_path / "host.py"
+    script.write_text(
+        "from fmu_fdi.cosim import CoSimulation\n"
+        "from fmu_fdi.fmu import exit_guard\n"
+        f"sims = [CoSimulation({{'plant': {str(fmus['plant'])!r}, 'diag': {str(fmus['consumer'])!r}}}, "
+        f"step={H!r}, stop={5 * H!r}) for _ in range(2)]\n"
+        "for s in sims:\n"
+        "    s.run()\n"
+        "assert len(exit_guard._GUARDED) == 4, exit_guard._GUARDED\n")  # 2 runs x 2 FMUs, each extracted anew
+    for pad in range(0, 2400, 300):  # 8 layouts
+        env = dict(os.environ, FMU_FDI_TEST_HEAP_PAD="x" * pad)
+        proc = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, (pad, proc.stderr[-2000:])

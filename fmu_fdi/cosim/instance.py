@@ -16,6 +16,7 @@ import shutil
 from ctypes import byref
 from pathlib import Path
 
+from ..fmu.exit_guard import guard_library
 from .errors import CoSimulationError, SimulationFailed
 
 # FMI type name -> the master's value kind. Enumerations travel as integers in both versions.
@@ -172,6 +173,9 @@ class FMUInstance:
         self._slave = FMU2Slave(**kwargs)
         # logging on: the messages only go to the bounded buffer, and they are what explains a failure
         self._slave.instantiate(callbacks=self._callbacks, loggingOn=True)
+        # a pythonfmu FMU (ours guard themselves; others do not) would corrupt this process's
+        # heap when it exits: pythonfmu 0.7's use-after-free, see fmu_fdi/fmu/exit_guard.py
+        guard_library(self._slave.dll._name)
         try:  # every category (nCategories = 0): some FMUs send even errors only when asked to
             self._slave.setDebugLogging(True, [])
         except Exception:  # optional for an FMU; a refusal is no reason to stop

@@ -43,8 +43,34 @@ import os
 _GUARDED: dict = {}
 
 
+def guard_library(path) -> str | None:
+    """Have ``finalizePythonInterpreter()`` of the already loaded library ``path`` run at
+    interpreter exit, if it is a pythonfmu library (it exports that function).
+
+    The library is looked up with ``RTLD_NOLOAD``: nothing is loaded that the host has not
+    loaded itself. Idempotent per library. Returns the guarded library's real path, or None
+    (not loaded, not a pythonfmu library, or a platform that needs no guard).
+    """
+    noload = getattr(os, "RTLD_NOLOAD", None)
+    if noload is None:
+        return None
+    real = os.path.realpath(path)
+    if real in _GUARDED:
+        return real
+    try:
+        lib = ctypes.CDLL(str(path), mode=os.RTLD_NOW | noload)  # NULL unless this very file is loaded
+        finalize = lib.finalizePythonInterpreter
+    except (OSError, AttributeError):
+        return None
+    finalize.argtypes = []
+    finalize.restype = None
+    _GUARDED[real] = lib
+    atexit.register(finalize)
+    return real
+
+
 def guard_interpreter_exit(resources: str, model_identifier: str) -> str | None:
-    """Have ``finalizePythonInterpreter()`` of this FMU's loaded library run at interpreter exit.
+    """:func:`guard_library` for this FMU's own loaded library, found next to its resources.
 
     Parameters
     ----------
@@ -60,26 +86,34 @@ def guard_interpreter_exit(resources: str, model_identifier: str) -> str | None:
         when no library of this FMU is loaded in the process, it lacks the function, or the
         platform needs no guard (no ``RTLD_NOLOAD``).
     """
-    noload = getattr(os, "RTLD_NOLOAD", None)
-    if noload is None:
+    if getattr(os, "RTLD_NOLOAD", None) is None:
         return None
     root = os.path.dirname(os.path.normpath(resources))
     pattern = os.path.join(glob.escape(root), "binaries", "*", glob.escape(model_identifier) + ".*")
     for path in sorted(glob.glob(pattern)):
-        real = os.path.realpath(path)
-        if real in _GUARDED:
-            return real
-        try:
-            lib = ctypes.CDLL(real, mode=os.RTLD_NOW | noload)  # NULL unless this very file is loaded
-            finalize = lib.finalizePythonInterpreter
-        except (OSError, AttributeError):
-            continue
-        finalize.argtypes = []
-        finalize.restype = None
-        _GUARDED[real] = lib
-        atexit.register(finalize)
-        return real
+        guarded = guard_library(path)
+        if guarded is not None:
+            return guarded
     return None
+
+
+def _unmarked(path: str) -> str:
+    """A /proc/self/maps path without the " (deleted)" mark of a file removed since loading."""
+    return path[:-len(" (deleted)")] if path.endswith(" (deleted)") else path
+
+
+def guard_loaded_libraries() -> list:
+    """:func:`guard_library` for every shared library this process has loaded from an FMU's
+    ``binaries/`` folder (Linux: ``/proc/self/maps``): a host's safety net for pythonfmu FMUs
+    that were not built by fmu-fdi and so do not guard themselves. Returns the guarded paths."""
+    try:
+        with open("/proc/self/maps", encoding="utf-8", errors="replace") as fh:
+            fields = [line.split(None, 5) for line in fh]
+    except OSError:
+        return []
+    marker = os.sep + "binaries" + os.sep
+    paths = sorted({_unmarked(f[5].strip()) for f in fields if len(f) == 6 and marker in f[5]})
+    return [g for g in map(guard_library, paths) if g is not None]
 
 
 def guard_slave(slave, model_identifier: str) -> str | None:
