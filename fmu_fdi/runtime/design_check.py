@@ -113,7 +113,7 @@ def _signals(d: dict, source: str) -> tuple[int, int, list[str]]:
     clash = [s for s in both if RESERVED.match(s)]
     if clash:
         raise E(f"{source}: signal names {clash} collide with the diagnostic FMU's own variable names")
-    if sig.get("valid_range") is not None:  # S2 (docs/semantics.md); messages as engine.valid_ranges words them
+    if sig.get("valid_range") is not None:  # S2 (docs/semantics.md); engine.valid_ranges only converts
         rng = sig["valid_range"]
         where = f"{source}: signals.valid_range"
         if not isinstance(rng, dict):
