@@ -20,6 +20,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "host_text.h"
+
 /* FMI 2.0 types, written from the standard's definitions */
 typedef void *fmi2Component;
 typedef void *fmi2ComponentEnvironment;
@@ -69,34 +71,6 @@ static void logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status
     va_end(args);
     printf("\n");
     fflush(stdout);
-}
-
-static char *read_file(const char *path) {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *buf = malloc((size_t)n + 1);
-    if (fread(buf, 1, (size_t)n, f) != (size_t)n) { fclose(f); free(buf); return NULL; }
-    buf[n] = 0;
-    fclose(f);
-    return buf;
-}
-
-/* value of attribute NAME="..." inside the tag that starts at TAG (up to its '>') */
-static int attr(const char *tag, const char *name, char *out, size_t size) {
-    const char *end = strchr(tag, '>');
-    char key[64];
-    snprintf(key, sizeof key, " %s=\"", name);
-    const char *p = strstr(tag, key);
-    if (!p || (end && p > end)) return 0;
-    p += strlen(key);
-    const char *q = strchr(p, '"');
-    size_t n = (size_t)(q - p) < size - 1 ? (size_t)(q - p) : size - 1;
-    memcpy(out, p, n);
-    out[n] = 0;
-    return 1;
 }
 
 static int parse_variables(const char *xml, Var *vars, int max) {

@@ -27,6 +27,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "host_text.h"
+
 #include "fmi2FunctionTypes.h"
 #include "fmi3FunctionTypes.h"
 
@@ -71,41 +73,6 @@ static void logger2(fmi2ComponentEnvironment env, fmi2String instance, fmi2Statu
 static void logger3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category, fmi3String message) {
     (void)env;
     note((int)status, category, message);
-}
-
-static char *slurp(const char *path) {
-    FILE *f = fopen(path, "rb");
-    long n;
-    char *buf;
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    buf = malloc((size_t)n + 1);
-    if (!buf || fread(buf, 1, (size_t)n, f) != (size_t)n) {
-        fclose(f);
-        free(buf);
-        return NULL;
-    }
-    buf[n] = 0;
-    fclose(f);
-    return buf;
-}
-
-static int attr(const char *tag, const char *name, char *out, size_t size) {
-    const char *end = strchr(tag, '>');
-    char key[64];
-    const char *p, *q;
-    size_t n;
-    snprintf(key, sizeof key, " %s=\"", name);
-    p = strstr(tag, key);
-    if (!p || (end && p > end)) return 0;
-    p += strlen(key);
-    q = strchr(p, '"');
-    n = (size_t)(q - p) < size - 1 ? (size_t)(q - p) : size - 1;
-    memcpy(out, p, n);
-    out[n] = 0;
-    return 1;
 }
 
 /* variables of an FMI 2.0 (<ScalarVariable> + type child) or FMI 3.0 (<Float64 ...>) description */
@@ -445,7 +412,7 @@ int main(int argc, char **argv) {
     f->v3 = atoi(argv[1]) == 3;
     h = atof(argv[5]);
     snprintf(path, sizeof path, "%s/modelDescription.xml", argv[2]);
-    if (!(xml = slurp(path))) return 1;
+    if (!(xml = read_file(path))) return 1;
     nvars = parse(xml, f->v3, vars, 512, f->ident, f->token);
     free(xml);
     if (nvars <= 0) return 1;
@@ -463,7 +430,7 @@ int main(int argc, char **argv) {
     load(f);
     misuse(f, vars, nvars, h);
 
-    if (!(csv = slurp(argv[3]))) return 1;
+    if (!(csv = read_file(argv[3]))) return 1;
     for (line = csv; *line; line++) rows += *line == '\n';
     rows -= 1;  /* header */
     table = calloc((size_t)rows * (size_t)n_out + 1, sizeof(double));
