@@ -441,3 +441,29 @@ def test_an_unwritable_output_folder_is_refused_before_the_run(capsys, tmp_path,
     monkeypatch.setattr(outpath.tempfile, "TemporaryFile", refused)
     code, _, err = run_main(capsys, "design", PLANT_MODEL, "--method", "dos", "--ts", "1", "-o", tmp_path / "d.json")
     assert_one_line_error(code, err, f"folder {tmp_path} is not writable (Permission denied)")
+
+
+def test_design_valid_range_rejects_out_of_range_samples_like_nan(tmp_path):
+    """--valid-range NAME:LO:HI reaches the design file; a sample outside (a glitch of 1e300) is
+    then input_invalid in the runtime, one inside is not. Bad arguments are refused before the
+    design work, and no file is written."""
+    import numpy as np
+
+    from fmu_fdi import Diagnoser
+
+    out = tmp_path / "d.json"
+    res = cli("design", PLANT_MODEL, "--method", "dos", "--ts", "1", "-o", out,
+              "--valid-range", "h1:0:0.7", "--valid-range", "Q1::1e-4")
+    assert res.returncode == 0, res.stderr
+    dg = Diagnoser.load(out)
+    assert dg.design["signals"]["valid_range"] == {"h1": [0.0, 0.7], "Q1": [None, 1e-4]}
+    u0, y0 = np.zeros(len(dg.design["signals"]["u"])), np.zeros(len(dg.design["signals"]["y"]))
+    assert not dg.step(u0, y0)["input_invalid"]
+    y_bad = y0.copy()
+    y_bad[dg.design["signals"]["y"].index("h1")] = 1e300
+    assert dg.step(u0, y_bad)["input_invalid"]
+    for arg, message in [("h9:0:1", "not an input or output"), ("h1:1:0", "lo <= hi"), ("h1:a:1", "NAME:LO:HI"),
+                         ("h1:0", "NAME:LO:HI")]:
+        bad = tmp_path / "bad.json"
+        res = cli("design", PLANT_MODEL, "--method", "dos", "--ts", "1", "-o", bad, "--valid-range", arg)
+        assert res.returncode == 2 and message in res.stderr and not bad.exists(), (arg, res.stderr)
