@@ -178,6 +178,27 @@ def test_example_6_2_discrete_time():
     assert all(np.max(np.abs(m.Q.poles())) < 1 for m in bank.members)
 
 
+def test_example_6_2_noise_inputs_of_varying_dimensions():
+    """test_amdsyn.jl's last case: model i has only the first mw_i noise inputs (here a fixed draw
+    including 0, 1 and 6). With fewer noise inputs than w-free directions (mw_i = 1 < 2 outputs)
+    a combination decouples w exactly (rdim = 1: gap ∞); with mw_i = 0 the filter is exact; the
+    full-order filters of the models without feedthrough from w (zeros at infinity) cannot be
+    co-outer normalised exactly and fall back to the regularised factor or to Q1."""
+    mw = [3, 3, 5, 6, 0, 1, 5, 6, 1]
+    models = [FDIModel.from_matrices(_A62, _BU62 @ np.diag([1 - g1, 1 - g2]), _C62, Bw=_BW62[:, :k], Dw=_DW62[:, :k],
+                                     name=f"loe_{i + 1}") for i, ((g1, g2), k) in enumerate(zip(_GAMMAS, mw))]
+    full = approximate_model_detection_bank(models, rdim="all", sdeg=-1.0, poles=[-1.0])
+    _published_properties(full, models)
+    gap = np.array(full.info["MDgap"])
+    assert np.isinf(gap[4]) and np.all(np.isfinite(np.delete(gap, 4)))
+    assert full.info["noise"][3] == full.info["noise"][7] == "co-outer normalised (optimal gap)"
+    sub = [models[k] for k in (0, 3, 4, 5)]
+    small = approximate_model_detection_bank(sub, rdim=1, sdeg=-1.0, poles=[-1.0])
+    _published_properties(small, sub)
+    assert np.isinf(small.info["MDgap"][2]) and np.isinf(small.info["MDgap"][3])  # mw = 0 and mw = 1
+    assert small.members[3].info["noise"] == "decoupled exactly"
+
+
 def test_example_6_2_smallest_residual_picks_the_true_model(ex62):
     """Simulation (the inputs of Varga's Fig. 6.3, seeded): with model j true, residual j is noise
     only and every other residual carries a model distance ≥ 1 (β-scaled); the smallest RMS

@@ -290,11 +290,19 @@ def noise_gaps(bank, models: Sequence[FDIModel], *, freqs=None) -> tuple[np.ndar
         raise DesignError(f"noise gaps need one filter per model: {len(Qs)} filters, {len(models)} models")
     perf = distance_mapping(Qs, models, freqs=freqs)
     beta = np.array([min(perf[i, j] for j in range(len(models)) if j != i) for i in range(len(Qs))])
-    gamma = np.array([_gain(Qi @ _w_map(mi)) if mi.nw else 0.0 for Qi, mi in zip(Qs, models)])
-    # a noise response below rounding of the filter's own gain counts as exactly decoupled
-    tiny = np.array([1e3 * np.finfo(float).eps * max(_gain(Qi), 1.0) for Qi in Qs])
-    gap = np.where(gamma > tiny, beta / np.where(gamma > tiny, gamma, 1.0), np.inf)
+    gamma = np.array([_noise_gain(Qi, mi) for Qi, mi in zip(Qs, models)])
+    gap = np.where(gamma > 0, beta / np.where(gamma > 0, gamma, 1.0), np.inf)
     return gap, beta, gamma
+
+
+def _noise_gain(Q: LTI, model: FDIModel) -> float:
+    """``γ = ||Q [Gw; 0]||∞``, or 0 when it is rounding of an exact decoupling: at most 1e-9 of the
+    bound ``||Q||∞ ||Gw||∞`` (the backward-error scale of the product, as in :mod:`.postconditions`)."""
+    if not model.nw:
+        return 0.0
+    Gw = _w_map(model)
+    gamma = _gain(Q @ Gw)
+    return 0.0 if gamma <= 1e-9 * _gain(Q) * _gain(Gw) else gamma
 
 
 def match_model(bank, model: FDIModel, *, freqs=None) -> tuple[np.ndarray, int]:
@@ -317,25 +325,42 @@ def _static_coouter_inverse(Rw: LTI) -> LTI | None:
     return LTI.static(inv_sqrtm_pd(D @ D.T), Rw.dt)
 
 
-def _full_order(mi: FDIModel, design_kw: dict) -> tuple[LTI, dict]:
-    """``Q_i = Ro^{-1} Q1`` with all rows of the (u, d) null-space basis ``Q1``: the optimal gap."""
+def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
+    """``Q_i = Ro^{-1} Q1`` with all rows of the (u, d) null-space basis ``Q1``: the optimal gap.
+
+    When ``Rw = Q1 [Gw; 0]`` has full normal row rank but no invertible co-outer factor (zeros
+    at infinity, i.e. a feedthrough without full row rank, or on the stability boundary), the
+    factor of the regularised ``[Rw  ε||Rw||∞ I]`` (ε = 1e-3; Varga's ``nonstd = 2``) is used
+    if it gives a larger measured gap than ``Q1`` itself."""
+    from ..linalg import rank
+    from ..lti import hstack
     from .approximate import coouter_inverse
 
     g = nullspace_design(mi, rdim="all", noise="ignore", **design_kw)
     Q1 = g.Q
     Rw = (Q1 @ _w_map(mi)).minreal()
-    if Rw.n:
-        fac = coouter_inverse(Rw)
-        Ro_inv = fac[0] if fac is not None else None
-    else:
-        Ro_inv = _static_coouter_inverse(Rw)
     info = dict(g.info)
-    if Ro_inv is None:
-        info["noise"] = ("weighted by the filter poles: Q1 [Gw; 0] has no invertible co-outer factor (feedthrough "
-                         "not of full row rank or zeros on the stability boundary)")
+    Ro_inv = (coouter_inverse(Rw) or (None,))[0] if Rw.n else _static_coouter_inverse(Rw)
+    if Ro_inv is not None:
+        info["noise"] = "co-outer normalised (optimal gap)"
+        return (Ro_inv @ Q1).minreal(), info
+    lam = _probe_points([mi])
+    rw = max(rank(Rw.evalfr(l)) for l in lam)
+    if rw < Rw.p:
+        info["noise"] = (f"weighted by the filter poles: Q1 [Gw; 0] has normal rank {rw} < {Rw.p} rows, so some "
+                         f"combination decouples w exactly — rdim=1 finds it (gap ∞)")
         return Q1, info
-    info["noise"] = "co-outer normalised (optimal gap)"
-    return (Ro_inv @ Q1).minreal(), info
+    eps = 1e-3 * _gain(Rw)
+    reg = coouter_inverse(hstack([Rw, LTI.static(eps * np.eye(Rw.p), Rw.dt)]))
+    if reg is not None:
+        Qr = (reg[0] @ Q1).minreal()
+        if gap_of(Qr) > gap_of(Q1):
+            info["noise"] = ("regularised co-outer normalised: Q1 [Gw; 0] has zeros at infinity or on the stability "
+                             f"boundary; factor of [Rw  {eps:.3g} I]")
+            return Qr, info
+    info["noise"] = ("weighted by the filter poles: Q1 [Gw; 0] has zeros at infinity or on the stability boundary "
+                     "(no invertible co-outer factor)")
+    return Q1, info
 
 
 @single_blas_thread
@@ -410,7 +435,11 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
                 g = nullspace_design(md, rdim=rdim, noise="ignore", freqs=freqs, **design_kw)
                 Q, info = g.Q, dict(g.info, noise="no noise inputs")
             elif rdim == "all":
-                Q, info = _full_order(md, design_kw)
+                def gap_of(Qc, i=i, mi=mi):
+                    return min(_gain(Qc @ _u_map(mj), freqs) for j, mj in enumerate(models) if j != i) / max(
+                        _gain(Qc @ _w_map(mi)), np.finfo(float).tiny)
+
+                Q, info = _full_order(md, design_kw, gap_of)
             else:
                 g = nullspace_design(md, rdim=rdim, noise="optimize", **design_kw)
                 Q, info = g.Q, dict(g.info)
@@ -431,7 +460,7 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
         info.pop("postconditions", None)
         info["scale"] = 1.0 / beta
         rows.append(row / beta)
-        gammas.append(_gain(Q @ _w_map(mi)) if mi.nw and not exact_w else 0.0)
+        gammas.append(_noise_gain(Q, mi))
         members.append(ResidualGenerator(Q, mi, "approximate_model_detection", info=dict(info, postconditions=fig)))
         figures.append(fig)
     bank = ResidualBank(members, "approximate_model_detection", info={"models": [mj.name for mj in models]})
