@@ -233,6 +233,10 @@ def test_actuator_models_amdsyn_match_and_ranking():
     assert np.all(np.argmin(perf, axis=0) == np.arange(4)) and np.max(np.diag(perf)) < 1e-9
     gains, mind = match_model(bank, models[1])
     assert mind == 1 and np.argmin(gains) == 1
+    # H2 distances of row 1: ||(a_j − k) s / ((s + a_j)(s + 20))||₂ = |a_j − k| / sqrt(2 (a_j + 20)) (residues)
+    h2 = np.array(bank.info["MDperf_h2"])[0]
+    closed = np.array([abs(x - k) / np.sqrt(2 * (x + 20)) for x in a])
+    assert np.allclose(h2[1:] / h2[1], closed[1:] / closed[1], rtol=1e-9) and h2[0] < 1e-9 * h2[1]
     bank1 = approximate_model_detection_bank(models, sdeg=-15.0, poles=[-20.0], freqs=1.0)
     G = [LTI([[-x]], [[x]], [[1.0]], [[0.0]]) for x in a]
     nu1 = np.array([[nu_gap_siso(g, h, np.array([1.0])) for h in G] for g in G])

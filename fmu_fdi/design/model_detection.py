@@ -25,7 +25,9 @@ left null space ``Q1`` of ``[Gu_i Gd_i; I 0]``; step 2 the co-outer–co-inner f
 ``Q1 [Gw_i; 0] = Ro Ri`` and ``Q_i = Ro^{-1} Q1`` (:mod:`.approximate`), after which every
 ``h Q_i`` has ``||h R_ii^w||∞ = |h|``. Keeping all rows (``rdim='all'``) is then optimal: for any
 other admissible filter ``Q4 Q_i``, ``||Q4 X||∞ ≤ ||Q4||∞ ||X||∞ = ||Q4 Ri||∞ ||X||∞``, so no filter
-has a larger gap. With ``rdim = 1`` the gap-maximising combination of the normalised rows is
+has a larger gap (when ``Q1 [Gw_i; 0]`` has zeros at infinity or on the stability boundary the
+factor does not exist; a regularised factor is tried, see :func:`_full_order`). With ``rdim = 1``
+the gap-maximising combination of the normalised rows is
 chosen on a grid, as in Procedure AFD (:func:`~fmu_fdi.design.nullspace.nullspace_design`).
 Each filter is finally scaled so that ``β_i = 1`` (``amdsyn``'s default): the rows of
 ``MDperf`` have a zero diagonal and off-diagonal minimum 1, and ``γ_i = 1 / gap_i``.
