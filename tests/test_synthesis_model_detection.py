@@ -1,6 +1,7 @@
-"""Exact model detection (design/model_detection.py) against FaultDetectionTools.jl
-test/test_emdsyn.jl: the actuator example (four first-order actuator models) and Example 6.1c
-(lateral aircraft, nine loss-of-effectiveness models).
+"""Exact and approximate model detection (design/model_detection.py) against FaultDetectionTools.jl
+test/test_emdsyn.jl and test/test_amdsyn.jl: the actuator example (four first-order actuator
+models), Example 6.1c (lateral aircraft, nine loss-of-effectiveness models) and Example 6.2
+(the same with noise; see the AMDP section below).
 
 Published property: ``norm(diag(MDperf)) < 1e-7`` (filter i is exact for model i). The
 published ranking property of the actuator example (``sortperm(distgap[i,:]) ==
@@ -10,9 +11,13 @@ first-order filters up to scale, which emdsyn's observer-based design with poles
 gives): row 1 ranks models 3 and 4 the other way, as the closed form shows.
 """
 import numpy as np
+import pytest
+import scipy.signal as ss
 
 from fmu_fdi import FDIModel
-from fmu_fdi.design.model_detection import model_detection_bank, nu_gap_siso
+from fmu_fdi.design.model_detection import (approximate_model_detection_bank, distance_mapping, match_model,
+                                            model_detection_bank, noise_gaps, nu_gap_siso)
+from fmu_fdi.errors import DesignError
 from fmu_fdi.lti import LTI
 
 
@@ -67,12 +72,6 @@ def test_example_6_1c_lateral_aircraft_nine_loe_models():
 # properties: diag(MDperf) < 1e-7, every off-diagonal ≥ 1 after the β_i = 1 scaling, MDgap equal
 # to mdgap of the returned filters, stable filters; the actuator example's mdmatch picks model 2
 # and, at MDfreq = 1, each row of MDperf ranks the models as their ν-gaps do.
-import pytest
-import scipy.signal as ss
-
-from fmu_fdi.errors import DesignError
-from fmu_fdi.design.model_detection import (approximate_model_detection_bank, distance_mapping, match_model,
-                                            noise_gaps)
 
 _A62 = np.array([[-.4492, 0.046, .0053, -.9926], [0, 0, 1, 0.0067], [-50.8436, 0, -5.2184, .722],
                  [16.4148, 0, .0026, -.6627]])
