@@ -282,6 +282,21 @@ def test_actuator_models_amdsyn_match_and_ranking():
         assert np.array_equal(np.argsort(nu1[i]), np.argsort(perf1[i]))
 
 
+def test_actuator_models_with_measurement_noise_closed_form_gaps():
+    """y = a_i/(s + a_i) u + v: Q1 = [s + a_i, −a_i]/(s + 20) has Rw = (s + a_i)/(s + 20), biproper and
+    minimum phase, so Ro^{-1} Q1 = [1, −G_i], γ_i = 1 and β_i = min_j ||G_j − G_i||∞ with
+    ||(a_j − a_i) s / ((s + a_i)(s + a_j))||∞ = |a_j − a_i| / (a_i + a_j) (peak at ω = sqrt(a_i a_j)).
+    Strong detection at ω = 0 is impossible (equal DC gains) and is refused, naming the models."""
+    a = [14.0, 7.0, 140.0, 0.14]
+    models = [_actuator(x)._replace(Bw=np.zeros((1, 1)), Dw=np.eye(1), w_names=["v"]) for x in a]
+    bank = approximate_model_detection_bank(models, sdeg=-15.0, poles=[-20.0])
+    _published_properties(bank, models)
+    closed = [min(abs(aj - ai) / (ai + aj) for aj in a if aj != ai) for ai in a]
+    assert np.allclose(bank.info["MDgap"], closed, rtol=1e-8)
+    with pytest.raises(DesignError, match=r"filter 1 \(model 'act14'\).*strong.*model 'act7' has gain .* at ω = 0"):
+        approximate_model_detection_bank(models, sdeg=-15.0, poles=[-20.0], freqs=0.0)
+
+
 def test_model_detection_refusals():
     models = _ex62_models()[:3]
     with pytest.raises(DesignError, match=r"'copy' cannot be told from model 'loe_1'.*rank condition.*\(0 vs 0"):

@@ -458,7 +458,8 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
                                                        "once u and d are decoupled: merge the two models, or lower "
                                                        "FDtol if the difference really is this small"})
         except DesignError as exc:
-            raise type(exc)(f"filter {i + 1} (model '{mi.name}'): {exc}") from None
+            msg = str(exc).replace("fault 'model_", "model '")  # the fault channels stand for the other models
+            raise type(exc)(f"filter {i + 1} (model '{mi.name}'): {msg}") from None
         info.pop("postconditions", None)
         info["scale"] = 1.0 / beta
         rows.append(row / beta)
