@@ -6,6 +6,7 @@ from .datadriven import data_driven
 from .kalman_filter import kalman
 from .matching import model_matching
 from .model_detection import model_detection_bank
+from .model_detection import approximate_model_detection_bank, distance_mapping, match_model, noise_gaps
 from .nullspace import nullspace_design
 from .output_observer import luenberger
 from .parity import parity_space
@@ -18,4 +19,5 @@ __all__ = [
     "left_coprime_factors", "nullspace_design", "dedicated_bank", "generalized_bank", "structured_bank",
     "rls_estimator", "RLSEstimator", "data_driven", "model_matching", "unified_observer", "afdi_bank",
     "model_detection_bank",
+    "approximate_model_detection_bank", "distance_mapping", "noise_gaps", "match_model",
 ]
