@@ -262,10 +262,14 @@ class FDIModel:
         ``method`` and the further options (``trim``, ``sensor_faults``, ``actuator_faults``,
         ``ts``, ``excite``, ``excitation``, ``parameters``, ``order``, ...). The model carries
         the operating point and a ``provenance`` table (FMU, GUID, method, fit).
+        ``minimal``/``minreal_tol`` reduce the linear model as in :meth:`from_matrices`
+        (checked before the FMU is touched).
         """
         from .identify import model_from_fmu
 
-        return model_from_fmu(path, inputs, outputs, disturbances, at=at, method=method, **options)
+        tol = minreal_option(options.pop("minimal", None), options.pop("minreal_tol", None))
+        model = model_from_fmu(path, inputs, outputs, disturbances, at=at, method=method, **options)
+        return model if tol is None else model.minreal(tol)
 
     # ------------------------------------------------------------------ sizes
     @property

@@ -127,3 +127,8 @@ def test_cli_minreal_options(tmp_path, capsys):
     for value, fragment in (("nan", "minreal_tol must be a finite number"), ("-1e-8", "must be in [0, 1)"),
                             ("abc", "invalid float value")):
         assert_one_line_error(*run_main(capsys, "analyze", path, f"--minreal-tol={value}")[::2], fragment)
+
+
+def test_from_fmu_checks_the_option_before_the_fmu(tmp_path):
+    with pytest.raises(ModelError, match="minreal_tol must be a number, got the string"):
+        FDIModel.from_fmu(tmp_path / "absent.fmu", minreal_tol="1e-8")
