@@ -93,6 +93,39 @@ def _persistence(text: str) -> list:
                                          f"(K alarms among the last N samples), e.g. 3/5")
     return [k, n]
 
+
+def _valid_range(text: str) -> tuple:
+    """argparse type of --valid-range: ``NAME:LO:HI`` (an empty LO or HI leaves that side open).
+    The name and the order of the bounds are checked by the one design validator."""
+    name, sep1, rest = text.partition(":")
+    lo, sep2, hi = rest.partition(":")
+    bounds = []
+    for b in (lo, hi):
+        try:
+            bounds.append(float(b) if b.strip() else None)
+        except ValueError:
+            bounds = None
+            break
+    if not (sep1 and sep2) or not name or bounds is None:
+        raise argparse.ArgumentTypeError(f"{text!r} must read NAME:LO:HI with numbers (empty for an open side), "
+                                         f"e.g. h1:0:0.7 or q::1e-4")
+    return name, bounds
+
+
+def _valid_ranges(pairs, model) -> dict:
+    """--valid-range arguments as a dict, refused before the design work if a name is not one of
+    the model's inputs or outputs or comes twice (the bounds are the design validator's)."""
+    names = list(model.u_names) + list(model.y_names)
+    out = {}
+    for name, bounds in pairs:
+        if name not in names:
+            raise DesignError(f"--valid-range {name}: not an input or output of the model ({', '.join(names)})")
+        if name in out:
+            raise DesignError(f"--valid-range {name} is given twice")
+        out[name] = bounds
+    return out
+
+
 def _method_table() -> str:
     import textwrap
 
@@ -295,6 +328,7 @@ def _design(args) -> int:
         check_input_file(args.calibrate, "calibration record")
 
     model = _load_model(args.model, args)
+    valid_range = _valid_ranges(args.valid_range or (), model)
     fname, takes, _ = METHODS[args.method]
     fn = getattr(design_pkg, fname, None)
     if fn is None:
@@ -349,7 +383,8 @@ def _design(args) -> int:
         evaluation = parse_evaluation(args.evaluation or "rms:10")
         thresholds = _thresholds(args.threshold or "fault-size:1", gen, evaluation, args.calibrate)
     decision = {"persistence": args.persistence, "latch": args.latch}
-    dg = Diagnoser(gen, evaluation=evaluation, thresholds=thresholds, decision=decision, name=args.name)
+    dg = Diagnoser(gen, evaluation=evaluation, thresholds=thresholds, decision=decision, name=args.name,
+                   valid_range=valid_range or None)
     path = dg.save(args.output)
     order = gen.Q.n if hasattr(gen, "Q") else "-"
     print(f"wrote {path}: method {gen.method}, {gen.n_residuals} residual(s) in {len(gen.groups)} group(s), "
@@ -528,6 +563,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="alarm when the threshold is crossed in K of the last N samples (default: 1/1)")
     d.add_argument("--latch", action="store_true", help="latch alarms until reset (default: off)")
     d.add_argument("--name", help="diagnoser name (default: MODEL_METHOD)")
+    d.add_argument("--valid-range", type=_valid_range, action="append", metavar="NAME:LO:HI",
+                   help="a sample of input or output NAME outside [LO, HI] is refused like a NaN (input_invalid), "
+                        "e.g. a glitching sensor's 1e300; empty LO or HI: open; repeat per signal "
+                        "(default: none, docs/semantics.md S2)")
     _minreal_options(d)
     d.set_defaults(func=_design)
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from ._schema import parse, read_text
 from .errors import ModelError
+from .outpath import check_output_path, write_atomically
 from .runtime.design_check import FORMAT, DesignCheckError, check_design  # noqa: F401
 
 
@@ -91,12 +92,17 @@ def _clean(x):
 
 
 def save_design(d: dict, path) -> Path:
-    """Validate and write a design dict as JSON (floats round-trip exactly)."""
+    """Validate and write a design dict as JSON (floats round-trip exactly).
+
+    The path must end in ``.json`` and its folder must accept a file
+    (:func:`~fmu_fdi.outpath.check_output_path`); the file is written to a temporary name
+    and renamed, so a failure leaves any previous design file as it was.
+    """
     d = _clean(d)
     validate_design(d, str(path))
-    path = Path(path)
-    path.write_text(json.dumps(d, indent=1, allow_nan=False), encoding="utf-8")
-    return path
+    path = check_output_path(path, (".json",), "design file", error=DesignFileError)
+    text = json.dumps(d, indent=1, allow_nan=False)
+    return write_atomically(path, lambda part: part.write_text(text, encoding="utf-8"))
 
 
 def load_design(path) -> dict:

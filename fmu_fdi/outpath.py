@@ -8,6 +8,7 @@ every user, ACLs and read-only mounts included). Missing folders are created.
 """
 from __future__ import annotations
 
+import os
 import tempfile
 from pathlib import Path
 
@@ -50,4 +51,24 @@ def check_output_path(path, suffixes=(), what: str = "output file", error=Output
     except OSError as exc:
         raise error(f"cannot write {what} {str(path)!r}: folder {folder} is not writable "
                     f"({exc.strerror or exc})") from None
+    return path
+
+
+def write_atomically(path, fill, mode: int = 0o644) -> Path:
+    """Write ``path`` all at once: ``fill(part)`` writes a temporary file beside it, which is
+    then given ``mode`` and renamed over ``path`` (``os.replace``, atomic on one file system).
+
+    A failure anywhere in ``fill`` leaves the previous ``path`` exactly as it was and removes
+    the temporary file, so no reader ever sees half a file.
+    """
+    path = Path(path)
+    fd, part = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    os.close(fd)
+    try:
+        fill(Path(part))
+        os.chmod(part, mode)  # mkstemp makes it private; our files are meant to be shared
+        os.replace(part, path)
+    finally:
+        if os.path.exists(part):
+            os.remove(part)
     return path

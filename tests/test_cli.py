@@ -118,22 +118,34 @@ def test_plot_reads_fmpy_and_cosim_csvs(tmp_path):
     assert (tmp_path / "p.png").stat().st_size > 10_000
 
 
+def _demo_table(stdout: str) -> list[str]:
+    lines = stdout.splitlines()
+    start = next(i for i, ln in enumerate(lines) if ln.startswith("scenario"))
+    return [ln for ln in lines[start:] if ln.strip()][:7]
+
+
 @pytest.mark.slow
 def test_demo_detects_and_isolates(tmp_path):
-    """The main job: no false alarm fault-free; every sensor bias detected and isolated as
-    itself; the leak detected (a sensor bank cannot name it); table and PNG written."""
-    res = cli("demo", "--out", tmp_path / "demo")
-    assert res.returncode == 0, res.stderr[-3000:]
-    lines = {ln.split("  ")[0]: ln for ln in res.stdout.splitlines()}
-    assert lines["no fault"].split()[2] == "no"
-    for h in ("h1", "h2", "h3"):
-        row = next(ln for key, ln in lines.items() if key.startswith(f"sensor {h}"))
-        assert " yes " in row and f"sensor_{h}" in row
-    leak = next(ln for key, ln in lines.items() if key.startswith("leak"))
-    assert " yes " in leak
-    if "unknown" in leak:  # the table says why a sensor bank cannot name the leak
-        assert "'unknown' is the correct verdict" in res.stdout
-    assert (tmp_path / "demo" / "dts200_sensor_h2.png").exists()
+    """The main job, with both diagnostic FMU targets: no false alarm fault-free; every sensor
+    bias detected and isolated as itself; the leak detected (a sensor bank cannot name it);
+    table and PNG written. The native FMU runs the same per-sample semantics (docs/semantics.md,
+    agreement to 1e-12), so its table must be the pythonfmu one, line for line."""
+    tables = {}
+    for target in ("pythonfmu", "native"):
+        res = cli("demo", "--out", tmp_path / target, "--target", target)
+        assert res.returncode == 0, res.stderr[-3000:]
+        lines = {ln.split("  ")[0]: ln for ln in res.stdout.splitlines()}
+        assert lines["no fault"].split()[2] == "no"
+        for h in ("h1", "h2", "h3"):
+            row = next(ln for key, ln in lines.items() if key.startswith(f"sensor {h}"))
+            assert " yes " in row and f"sensor_{h}" in row
+        leak = next(ln for key, ln in lines.items() if key.startswith("leak"))
+        assert " yes " in leak
+        if "unknown" in leak:  # the table says why a sensor bank cannot name the leak
+            assert "'unknown' is the correct verdict" in res.stdout
+        assert (tmp_path / target / "dts200_sensor_h2.png").exists()
+        tables[target] = _demo_table(res.stdout)
+    assert tables["native"] == tables["pythonfmu"]
 
 
 PLANT_MODEL = Path(__file__).parent.parent / "plant_fmus" / "dts200" / "dts200.toml"
@@ -429,3 +441,29 @@ def test_an_unwritable_output_folder_is_refused_before_the_run(capsys, tmp_path,
     monkeypatch.setattr(outpath.tempfile, "TemporaryFile", refused)
     code, _, err = run_main(capsys, "design", PLANT_MODEL, "--method", "dos", "--ts", "1", "-o", tmp_path / "d.json")
     assert_one_line_error(code, err, f"folder {tmp_path} is not writable (Permission denied)")
+
+
+def test_design_valid_range_rejects_out_of_range_samples_like_nan(tmp_path):
+    """--valid-range NAME:LO:HI reaches the design file; a sample outside (a glitch of 1e300) is
+    then input_invalid in the runtime, one inside is not. Bad arguments are refused before the
+    design work, and no file is written."""
+    import numpy as np
+
+    from fmu_fdi import Diagnoser
+
+    out = tmp_path / "d.json"
+    res = cli("design", PLANT_MODEL, "--method", "dos", "--ts", "1", "-o", out,
+              "--valid-range", "h1:0:0.7", "--valid-range", "Q1::1e-4")
+    assert res.returncode == 0, res.stderr
+    dg = Diagnoser.load(out)
+    assert dg.design["signals"]["valid_range"] == {"h1": [0.0, 0.7], "Q1": [None, 1e-4]}
+    u0, y0 = np.zeros(len(dg.design["signals"]["u"])), np.zeros(len(dg.design["signals"]["y"]))
+    assert not dg.step(u0, y0)["input_invalid"]
+    y_bad = y0.copy()
+    y_bad[dg.design["signals"]["y"].index("h1")] = 1e300
+    assert dg.step(u0, y_bad)["input_invalid"]
+    for arg, message in [("h9:0:1", "not an input or output"), ("h1:1:0", "lo <= hi"), ("h1:a:1", "NAME:LO:HI"),
+                         ("h1:0", "NAME:LO:HI")]:
+        bad = tmp_path / "bad.json"
+        res = cli("design", PLANT_MODEL, "--method", "dos", "--ts", "1", "-o", bad, "--valid-range", arg)
+        assert res.returncode == 2 and message in res.stderr and not bad.exists(), (arg, res.stderr)

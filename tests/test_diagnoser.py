@@ -162,6 +162,25 @@ def test_step_and_run_agree_bitwise_and_save_load(tmp_path, a7_generator):
         assert np.array_equal(out[nm], again[nm]), nm
 
 
+def test_save_refuses_a_path_it_could_not_load_and_keeps_the_previous_file(tmp_path, a7_generator, monkeypatch):
+    dg = Diagnoser(a7_generator, Ts=TS, thresholds=1.0)
+    for bad in ("d.txt", "d", "sub"):
+        (tmp_path / "sub").mkdir(exist_ok=True)
+        with pytest.raises(DesignFileError, match="design file"):
+            dg.save(tmp_path / bad)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sub"]
+    path = dg.save(tmp_path / "d.json")
+    before = path.read_bytes()
+    # a failure while writing (here: the disk is full) leaves the previous file whole
+    def full(self, *args, **kwargs):
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(type(path), "write_text", full)
+    with pytest.raises(OSError, match="No space"):
+        Diagnoser(a7_generator, Ts=TS, thresholds=2.0).save(path)
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.json", "sub"]
+
+
 @pytest.mark.parametrize("mutate, message", [
     (lambda d: d.update(format="fmu-fdi-design/9"), "unsupported design format"),
     (lambda d: d.pop("generator"), "missing keys"),

@@ -34,12 +34,12 @@ from __future__ import annotations
 
 import io
 import os
-import shutil
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import Mapping, Sequence
 from xml.etree import ElementTree as ET
+
+from ..outpath import write_atomically
 
 TYPE_TAGS = ("Real", "Integer", "Boolean", "String", "Enumeration")
 
@@ -303,19 +303,16 @@ def patch_fmu(fmu_path: str | os.PathLike, **options) -> Path:
     """
     fmu_path = Path(fmu_path)
     new_xml = patch_model_description(read_fmu_model_description(fmu_path), **options)
-    fd, tmp = tempfile.mkstemp(suffix=".fmu", dir=fmu_path.parent)
-    os.close(fd)
-    try:
-        with zipfile.ZipFile(fmu_path) as src, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as dst:
+
+    def fill(part: Path):
+        with zipfile.ZipFile(fmu_path) as src, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as dst:
             for info in src.infolist():
                 if info.filename == "modelDescription.xml":
                     continue
                 dst.writestr(info, src.read(info.filename))
             dst.writestr("modelDescription.xml", new_xml)
-        shutil.move(tmp, fmu_path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+
+    write_atomically(fmu_path, fill, fmu_path.stat().st_mode & 0o777)
     return fmu_path
 
 

@@ -32,6 +32,7 @@ import hashlib
 import importlib
 import os
 import re
+import shutil
 import sys
 import tempfile
 import zipfile
@@ -41,7 +42,7 @@ from typing import Mapping, Sequence
 from xml.etree import ElementTree as ET
 
 from ..errors import BuildError
-from ..outpath import check_output_path
+from ..outpath import check_output_path, write_atomically
 from .model_description import patch_fmu
 
 #: permissions of a written FMU: readable by everyone, like any other build artefact
@@ -307,16 +308,10 @@ def build_slave_fmu(
 
 def _replace(src: Path, dst: Path):
     """Move ``src`` onto ``dst`` atomically: copy next to ``dst``, then rename over it."""
-    fd, part = tempfile.mkstemp(prefix=f".{dst.name}.", suffix=".part", dir=dst.parent)
-    try:
-        with os.fdopen(fd, "wb") as out, open(src, "rb") as inp:
-            while chunk := inp.read(1 << 20):
-                out.write(chunk)
+    def fill(part: Path):
+        with open(part, "wb") as out, open(src, "rb") as inp:
+            shutil.copyfileobj(inp, out, 1 << 20)
             out.flush()
             os.fsync(out.fileno())
-        os.chmod(part, FMU_MODE)
-        os.replace(part, dst)
-    except BaseException:
-        if os.path.exists(part):
-            os.remove(part)
-        raise
+
+    write_atomically(dst, fill, FMU_MODE)

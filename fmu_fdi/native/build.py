@@ -37,6 +37,7 @@ from xml.etree import ElementTree as ET
 
 from ..designfile import DesignFileError
 from ..errors import DesignError
+from ..outpath import write_atomically
 from ..runtime.engine import BOOLEAN_OUTPUTS, output_names
 from . import C_DIR, RUNTIME_HEADERS, RUNTIME_SOURCES
 
@@ -366,15 +367,11 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2, stop_time: fl
             members[f"sources/{name}"] = sources[name]
         if fmi_version == 3:
             members["sources/buildDescription.xml"] = build_description(ident, names)
-        fd, part = tempfile.mkstemp(suffix=".fmu.part", dir=fmu_path.parent)
-        os.close(fd)
-        try:
+
+        def fill(part):
             with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:
                 for name, content in members.items():
                     zf.writestr(name, content)
-            os.chmod(part, 0o644)  # mkstemp makes it private; an FMU is meant to be shared
-            os.replace(part, fmu_path)
-        finally:
-            if os.path.exists(part):
-                os.remove(part)
+
+        write_atomically(fmu_path, fill)
     return fmu_path
