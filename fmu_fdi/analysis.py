@@ -22,7 +22,7 @@ import numpy as np
 
 from .design._basis import normal_rank
 from .generator import ResidualGenerator
-from .lti import LTI
+from .lti import LTI, frequency_grid
 from .model import FDIModel
 
 DEFAULT_GAIN_TOL = 0.01  # Varga's FDGainTol: absolute gain for strong structure
@@ -211,16 +211,45 @@ def isolability(model: FDIModel) -> dict:
     return {"faults": model.fault_names, "matrix": M, "fully_isolable": bool(full)}
 
 
-def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12) -> np.ndarray:
-    """Every achievable weak specification: the rows ``s`` (0/1 over ``faults``, not all 0)
-    for which a residual exists that sees exactly the faults with ``s_j = 1`` once d and the
-    faults with ``s_j = 0`` are decoupled (Varga 2017, sec. 5.4; FaultDetectionTools.jl
-    ``fdigenspec``). Rank test per row: ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]`` for every
-    ``j`` with ``s_j = 1`` (normal ranks at random points). Rows in lexicographic order.
+def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, freqs=None,
+                         FDGainTol: float = DEFAULT_GAIN_TOL, tol: float | None = None,
+                         atol: float = 0.0) -> np.ndarray:
+    """Every achievable specification: the rows ``s`` (0/1 over ``faults``, not all 0) for
+    which a residual exists that sees exactly the faults with ``s_j = 1`` once u, d and the
+    faults with ``s_j = 0`` are decoupled (Varga 2017, sec. 5.4, Procedure GENSPEC;
+    FaultDetectionTools.jl ``fdigenspec``). Rows in lexicographic order.
+
+    Weak (``freqs=None``): rank test per row, ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]`` for
+    every ``j`` with ``s_j = 1`` (normal ranks at random points).
+
+    Strong (``freqs`` given, rad/s, e.g. 0 for constant faults; Varga's ``FDfreq``): a weakly
+    achievable row is kept when every fault with ``s_j = 1`` stays visible at every ω_k. With
+    ``N(λ) = [V(λ) -W(λ)]`` a minimal polynomial basis of the left null space of
+    ``[Gu Gd Gf_0; I 0 0]`` (irreducible: the values at λ_k of all decoupling filters without a
+    pole there are the row space of ``N(λ_k)``, and their fault responses ``v Gf_j(λ_k)`` with
+    v in the row space of ``V(λ_k)``), the gain kept at ω_k is
+    ``g_j(ω_k) = max_{v, ||v|| = 1} ||v Gf_j(λ_k)||`` (a projection, no filter scaling), and
+    the fault counts as visible when ``g_j(ω_k) > FDGainTol · min(||Gf_j(λ_k)||, max_ω g_j(ω))``:
+    not a rounding-level part of the fault's own response there, nor of what the residuals
+    see of it elsewhere. At a pole of ``Gf`` on the stability boundary (an integrator), where
+    a stable residual must cancel the pole, the test uses the stable factor ``Ñ`` of a left
+    coprime factorisation of ``N Ge_f`` (its ``||Ñ_j(λ_k)||`` against its own peak). A
+    generic combination of the basis rows then sees all those faults at all those frequencies
+    at once. ``tol``/``atol``: rank tolerances of the basis (as in
+    :func:`~fmu_fdi.design.nullspace_design`). Published results (FaultDetectionTools.jl
+    ``fdigenspec``) are reproduced in tests/test_achievable_structure.py.
+
+    Raises
+    ------
+    ValueError
+        Too many faults (``max_faults``), a frequency that is negative, not finite or a
+        pole of the plant on the stability boundary (strong detectability is not defined there).
     """
     import itertools
 
     names = list(model.fault_names if faults is None else faults)
+    for nm in names:
+        model.fault(nm)
     if len(names) > max_faults:
         raise ValueError(f"{len(names)} faults give 2^{len(names)} candidate rows; pass max_faults to allow it")
     G = model.lti("d", "f")
@@ -233,6 +262,7 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12) -> 
             cache[idx] = normal_rank(G[:, list(idx)]) if idx else 0
         return cache[idx]
 
+    strong = None if freqs is None else _strong_test(model, freqs, FDGainTol, tol, atol)
     rows = []
     for row in itertools.product((0, 1), repeat=len(names)):
         if not any(row):
@@ -240,5 +270,122 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12) -> 
         base = tuple(range(nd)) + tuple(c for nm, s in zip(names, row) if not s for c in cols[nm])
         r0 = rk(base)
         if all(rk(base + tuple(cols[nm])) > r0 for nm, s in zip(names, row) if s):
-            rows.append(row)
+            if strong is None or strong(names, row):
+                rows.append(row)
     return np.array(rows, dtype=int).reshape(-1, len(names))
+
+
+def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
+    """The predicate ``(names, row) -> bool`` of strong achievability at ``freqs``
+    (see :func:`achievable_structure`)."""
+    from .design._basis import minimal_basis, pole_chooser
+
+    omega = np.atleast_1d(np.asarray(freqs, float))
+    if omega.ndim != 1 or not omega.size or np.any(omega < 0) or not np.all(np.isfinite(omega)):
+        raise ValueError(f"freqs must be finite non-negative frequencies in rad/s, got {np.ravel(freqs).tolist()}")
+    if not np.isfinite(FDGainTol) or not 0 < FDGainTol < 1:
+        raise ValueError(f"FDGainTol must be in (0, 1), got {FDGainTol!r}")
+
+    def points(w):
+        return np.exp(1j * w * model.dt) if model.dt else 1j * w
+
+    # the fault channels only (a pole of Gu or Gd is annihilated by every decoupling filter),
+    # minimal to 1e-10 relative: a mode coupled more weakly makes the decision ill-posed anyway
+    from .model import minimal_realisation
+
+    Gf = model.lti("f")
+    Af, Bf, Cf, _ = minimal_realisation(Gf.A, Gf.B, Gf.C, 1e-10)
+    Gf = LTI(Af, Bf, Cf, Gf.D, Gf.dt)
+
+    def near_pole(w, rel):
+        if not Gf.n:
+            return np.zeros(w.size, bool)
+        poles = Gf.poles()
+        dist = np.min(np.abs(points(w)[:, None] - poles[None, :]), axis=1)
+        return dist <= rel * max(1.0, float(np.max(np.abs(poles))))
+
+    at_pole = near_pole(omega, 1e-9)
+    # the kept gains are also compared with their peak over a grid (off Gf's boundary poles)
+    grid = frequency_grid([model.lti()], num=120, extra=omega[~at_pole])
+    w_all = np.concatenate([omega[~at_pole], grid[~near_pole(grid, 1e-6)]])
+    Gf_vals = [Gf.evalfr(x) for x in points(w_all)]
+    finite = np.array([bool(np.all(np.isfinite(v))) for v in Gf_vals])
+    nk = int(np.sum(~at_pole))
+
+    def test(names, row) -> bool:
+        ignore = [nm for nm, s in zip(names, row) if not s]
+        keep = [nm for nm, s in zip(names, row) if s]
+        mi = model.with_disturbances(ignore)
+        mi = mi._replace(faults=[f for f in mi.faults if f.name in keep])
+        basis = minimal_basis(mi, tol, atol)
+        gains, local = np.zeros((len(keep), w_all.size)), np.zeros((len(keep), nk))
+        for k, x in enumerate(points(w_all)):
+            if not finite[k]:
+                continue
+            # y-part of N at λ (its u-part only cancels Gu): the values v = a^T U^T, ||v|| = ||a||
+            # (rank relative to the whole row values: a y-part at rounding level is no direction)
+            Nk = np.stack([r.at([x / basis.rho])[0] for r in basis.rows])
+            U, sv, _ = np.linalg.svd(Nk[:, :model.ny].T, full_matrices=False)
+            Pi = U[:, sv > 1e-12 * np.linalg.norm(Nk, 2)]
+            for j, nm in enumerate(keep):
+                Gj = Gf_vals[k][:, model.fault(nm).columns]
+                gains[j, k] = np.linalg.norm(Pi.T @ Gj, 2)
+                if k < nk:
+                    local[j, k] = np.linalg.norm(Gj, 2)
+        ref = np.minimum(local, gains.max(axis=1, initial=0.0)[:, None])
+        if np.any(gains[:, :nk] <= FDGainTol * ref) or np.any(ref == 0):
+            return False
+        if np.any(at_pole):  # a boundary pole of Gf: what a *stable* residual can keep there
+            T = _stable_fault_response(mi, basis)
+            grid_T = frequency_grid([T], num=200) if T.n else np.array([0.0])
+            H, Hk = T.freqresp(grid_T), np.stack([T.evalfr(x) for x in points(omega[at_pole])])
+            for f in mi.faults:
+                peak = np.max(np.linalg.norm(H[:, :, f.columns], axis=(1, 2)))
+                if peak == 0 or not np.all(np.linalg.norm(Hk[:, :, f.columns], axis=(1, 2)) > FDGainTol * peak):
+                    return False
+        return True
+
+    return test
+
+
+def _stable_fault_response(mi: FDIModel, basis) -> LTI:
+    """At a pole of a fault channel on the stability boundary (an integrator, say), where
+    no stable residual may keep it: the fault responses ``Ñ`` of all decoupling filters of
+    ``mi``, stable: ``T = N Ge_f``
+    with the basis rows over the design's default denominators and, when T has poles on or
+    outside the stability boundary (a fault channel's integrator, which no stable residual
+    may keep), ``Ñ`` of a left coprime factorisation ``T = M^{-1} Ñ`` (output injection
+    ``A - L C`` from the Riccati equation of the dual pair). Any stable residual's fault
+    response is ``Y Ñ`` with Y stable, and Ñ is unique up to a unit (no zeros on the
+    boundary), so the zeros of ``Ñ_j`` at ω are those every decoupling residual has.
+    """
+    import scipy.linalg as sla
+
+    from .design._basis import pole_chooser, realize_rows
+    from .model import minimal_realisation
+
+    choose = pole_chooser(mi, None, None)
+    Q = realize_rows([r.coef for r in basis.rows], [choose(r.degree) / basis.rho for r in basis.rows],
+                     basis.rho, mi.dt)
+    T = Q @ mi.augmented()[:, mi.group_slices()["f"]]
+    A, B, C, _ = minimal_realisation(T.A, T.B, T.C, 1e-10)  # modes N cancels go (relative 1e-10)
+    T = LTI(A, B, C, T.D, T.dt)
+    margin = 1e-8 * (1.0 if T.dt or not T.n else max(1.0, float(np.max(np.abs(T.poles())))))
+    if T.n and not T.is_stable(margin):  # poles at ±1e-19 from an integrator count as on the boundary
+        I_n, I_p = np.eye(T.n), np.eye(T.p)
+        try:
+            if T.dt:
+                P = sla.solve_discrete_are(T.A.T, T.C.T, I_n, I_p)
+                L = T.A @ P @ T.C.T @ np.linalg.inv(I_p + T.C @ P @ T.C.T)
+            else:
+                P = sla.solve_continuous_are(T.A.T, T.C.T, I_n, I_p)
+                L = P @ T.C.T
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            raise ValueError(f"strong detectability at a pole of the fault channels on the stability boundary "
+                             f"cannot be decided: the left coprime factorisation of the fault response failed "
+                             f"({exc}); pass other freqs") from None
+        T = LTI(T.A - L @ T.C, T.B - L @ T.D, T.C, T.D, T.dt)
+        if not T.is_stable(margin):
+            raise ValueError("strong detectability at a pole of the fault channels on the stability boundary "
+                             "cannot be decided: the fault response has an undetectable mode there; pass other freqs")
+    return T

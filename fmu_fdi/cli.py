@@ -163,17 +163,40 @@ faults and operating point (--kind sensor: one per sensor fault; detection: one 
 """
 
 
-def _load_model(path):
-    """A model file; a plant FMU is refused with the command that turns it into one."""
+def _load_model(path, args=None):
+    """A model file; a plant FMU is refused with the command that turns it into one.
+    ``--minimal``/``--minreal-tol`` (if the command has them) reduce it to a minimal realisation."""
     from .model import FDIModel
 
-    return FDIModel.from_file(check_input_file(path, "model file"))
+    model = FDIModel.from_file(check_input_file(path, "model file"), minimal=getattr(args, "minimal", None),
+                               minreal_tol=getattr(args, "minreal_tol", None))
+    _report_minreal(model)
+    return model
+
+
+def _report_minreal(model) -> None:
+    if model.reduction is not None:
+        n, nr, tol = model.reduction
+        print(f"model '{model.name}': minimal realisation removed {n - nr} of {n} states (relative tolerance "
+              f"{tol:.3g})")
+
+
+def _minreal_options(parser) -> None:
+    """The model-building options of every command that reads or writes a model."""
+    parser.add_argument("--minimal", action=argparse.BooleanOptionalAction, default=None,
+                        help="reduce the model to a minimal realisation of [u d w f] -> y (default: as the "
+                             "model file's 'minimal' key says, else off)")
+    parser.add_argument("--minreal-tol", type=float, metavar="TOL",
+                        help="relative tolerance of that reduction in [0, 1), implies --minimal (default: the "
+                             "model file's 'minreal_tol', else n^2*eps; docs/model-file.md)")
 
 
 def _model(args) -> int:
     from .identify import Excitation, model_from_fmu
     from .identify.fmu_model import parse_values, summary
+    from .model import minreal_option
 
+    tol = minreal_option(args.minimal, args.minreal_tol)  # checked before the FMU's work
     exc = Excitation(signal=args.signal, amplitude=parse_values(args.amplitude, "--amplitude") or None,
                      samples=args.samples, settle=args.settle, period=args.period, seed=args.seed)
     model = model_from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
@@ -181,6 +204,9 @@ def _model(args) -> int:
                            sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
                            excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
                            validation_png=args.plot, record=args.record)
+    if tol is not None:
+        model = model.minreal(tol)
+        _report_minreal(model)
     print(f"wrote {model.to_file(args.output)}: {summary(model)}")
     return 0
 
@@ -188,7 +214,7 @@ def _model(args) -> int:
 def _analyze(args) -> int:
     from .analysis import detectability, isolability
 
-    model = _load_model(args.model)
+    model = _load_model(args.model, args)
     set_stage(f"detectability analysis (n = {model.n} states, {len(model.faults)} faults)")
     det = detectability(model)
     set_stage(f"isolability analysis (n = {model.n} states, {len(model.faults)} faults)")
@@ -301,7 +327,7 @@ def _design(args) -> int:
     if args.calibrate:
         check_input_file(args.calibrate, "calibration record")
 
-    model = _load_model(args.model)
+    model = _load_model(args.model, args)
     valid_range = _valid_ranges(args.valid_range or (), model)
     fname, takes, _ = METHODS[args.method]
     fn = getattr(design_pkg, fname, None)
@@ -460,6 +486,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     a = sub.add_parser("analyze", help="detectability / isolability table of a model file")
     a.add_argument("model", help="model file (.toml or .json, docs/model-file.md)")
+    _minreal_options(a)
     a.set_defaults(func=_analyze)
 
     pl = sub.add_parser("plants", help="benchmark plant FMUs (plant_fmus)")
@@ -540,6 +567,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a sample of input or output NAME outside [LO, HI] is refused like a NaN (input_invalid), "
                         "e.g. a glitching sensor's 1e300; empty LO or HI: open; repeat per signal "
                         "(default: none, docs/semantics.md S2)")
+    _minreal_options(d)
     d.set_defaults(func=_design)
 
     mo = sub.add_parser("model", help="linear model file of a plant FMU: linearised (model exchange) or "
@@ -567,6 +595,7 @@ def build_parser() -> argparse.ArgumentParser:
     mo.add_argument("--min-fit", type=float, default=50.0, help="refuse a validation fit below this (%%, default 50)")
     mo.add_argument("--plot", help="PNG of measured vs model outputs on the validation run (default: none)")
     mo.add_argument("--record", help="CSV of the identification run, a fault-free log for --method data (default: none)")
+    _minreal_options(mo)
     mo.set_defaults(func=_model)
 
     b = sub.add_parser("build", help="build the diagnostic FMU (co-simulation) from a design file")

@@ -23,12 +23,12 @@ from . import _schema as S
 from ._schema import check_format, check_keys, parse, read_text
 from .faults import FaultSpec, ModelError, _matrix, check_name
 from .lti import LTI
-from .progress import set_stage
+from .progress import log, set_stage
 
 FORMAT = "fmu-fdi-model/1"
 GROUPS = ("u", "d", "w", "f")
 _TOP_KEYS = {"format", "name", "dt", "signals", "units", "matrices", "faults", "description", "operating_point",
-             "provenance"}
+             "provenance", "minimal", "minreal_tol"}
 _MATRIX_KEYS = {"A", "Bu", "C", "Du", "Bd", "Dd", "Bw", "Dw"}
 
 
@@ -45,7 +45,9 @@ class FDIModel:
                  u_names: Sequence[str] | None = None, y_names: Sequence[str] | None = None,
                  d_names: Sequence[str] | None = None, w_names: Sequence[str] | None = None,
                  units: dict | None = None, name: str = "plant", description: str = "",
-                 operating_point: dict | None = None, provenance: dict | None = None):
+                 operating_point: dict | None = None, provenance: dict | None = None,
+                 minimal: bool | None = None, minreal_tol: float | None = None):
+        tol = minreal_option(minimal, minreal_tol)
         A = _matrix(A, "A")
         n = A.shape[0]
         if A.shape != (n, n):
@@ -127,11 +129,43 @@ class FDIModel:
             self.faults.append(spec)
         self.Bf = np.hstack(cols_B) if cols_B else np.zeros((n, 0))
         self.Df = np.hstack(cols_D) if cols_D else np.zeros((p, 0))
+        #: ``(n, n_min, tol)`` when this construction reduced the realisation, else None
+        self.reduction: tuple[int, int, float] | None = None
+        if tol is not None:
+            self._reduce(tol)
+
+    def _reduce(self, tol: float) -> None:
+        """Replace the realisation by a minimal one (see :func:`minimal_realisation`); the
+        removed order and the tolerance go into :attr:`provenance` and the ``fmu_fdi`` log."""
+        param = [f.name for f in self.faults if f.kind == "parametric"]
+        if param:
+            raise ModelError(f"cannot reduce the model to a minimal realisation: the parametric fault(s) {param} "
+                             f"act on the full state x (dA, dB, dC); give them as component faults or build the "
+                             f"model without minimal/minreal_tol")
+        n = self.n
+        B = np.hstack([self.Bu, self.Bd, self.Bw, self.Bf])
+        A, B, C, used = minimal_realisation(self.A, B, self.C, tol)
+        nr = A.shape[0]
+        cuts = np.cumsum([self.nu, self.nd, self.nw])
+        self.A, self.C = A, C
+        self.Bu, self.Bd, self.Bw, self.Bf = np.split(B, cuts, axis=1)
+        for spec in self.faults:
+            if spec.kind == "component":
+                spec.Bf = self.Bf[:, spec.columns]
+        self.provenance.update({"minreal_tol_used": float(used), "minreal_order": [n, nr]})
+        self.reduction = (n, nr, float(used))
+        log.info("model '%s': minimal realisation (relative tolerance %.3g) removed %d of %d states",
+                 self.name, used, n - nr, n)
 
     # ------------------------------------------------------------ constructors
     @classmethod
     def from_matrices(cls, A, Bu, C, Du=None, **kwargs) -> "FDIModel":
         """Build a model from matrices; keywords as in the class signature.
+
+        ``minimal=True`` (or a ``minreal_tol``) replaces the realisation by a minimal one of
+        the map from ``[u; d; w; f]`` to y (:func:`minimal_realisation`); the removed
+        order is recorded in ``provenance`` (``minreal_order = [n, n_min]``, ``minreal_tol_used``)
+        and logged on the ``fmu_fdi`` logger.
 
         Examples
         --------
@@ -146,14 +180,16 @@ class FDIModel:
     @classmethod
     def from_control(cls, sys, *, u=None, d=None, w=None, f=None, ignore=None,
                      faults: Iterable[FaultSpec | dict] = (), y_names=None, name: str = "plant",
-                     units: dict | None = None) -> "FDIModel":
+                     units: dict | None = None, minimal: bool | None = None,
+                     minreal_tol: float | None = None) -> "FDIModel":
         """Build a model from a python-control ``StateSpace``/``TransferFunction`` (or :class:`LTI`).
 
         The input groups ``u``, ``d``, ``w``, ``f`` are lists of input indices or input
         names. Inputs in ``f`` become component faults named after the inputs. Inputs
         not assigned are known inputs ``u`` when ``u`` is not given; otherwise they must
         be listed in ``ignore`` (so a forgotten input is an error, not a silent drop).
-        Extra ``faults`` (actuator/sensor specs) are appended.
+        Extra ``faults`` (actuator/sensor specs) are appended. ``minimal``/``minreal_tol``
+        reduce the realisation as in :meth:`from_matrices`.
         """
         import control
 
@@ -214,7 +250,7 @@ class FDIModel:
             y_names=list(y_names) if y_names is not None else labels_out,
             d_names=[labels_in[i] for i in groups["d"]],
             w_names=[labels_in[i] for i in groups["w"]],
-            units=units, name=name,
+            units=units, name=name, minimal=minimal, minreal_tol=minreal_tol,
         )
 
     @classmethod
@@ -226,10 +262,14 @@ class FDIModel:
         ``method`` and the further options (``trim``, ``sensor_faults``, ``actuator_faults``,
         ``ts``, ``excite``, ``excitation``, ``parameters``, ``order``, ...). The model carries
         the operating point and a ``provenance`` table (FMU, GUID, method, fit).
+        ``minimal``/``minreal_tol`` reduce the linear model as in :meth:`from_matrices`
+        (checked before the FMU is touched).
         """
         from .identify import model_from_fmu
 
-        return model_from_fmu(path, inputs, outputs, disturbances, at=at, method=method, **options)
+        tol = minreal_option(options.pop("minimal", None), options.pop("minreal_tol", None))
+        model = model_from_fmu(path, inputs, outputs, disturbances, at=at, method=method, **options)
+        return model if tol is None else model.minreal(tol)
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -371,6 +411,11 @@ class FDIModel:
                    | set(self.d_names) | set(self.w_names)},
         )
 
+    def minreal(self, tol: float | None = None) -> "FDIModel":
+        """This model in a minimal realisation (relative tolerance ``tol``, default ``n²·eps``);
+        see :func:`minimal_realisation`."""
+        return self._replace(minimal=True, minreal_tol=tol)
+
     def series(self, pre, **kw) -> "FDIModel":
         """This model driven through ``pre`` (e.g. actuators): see :func:`fmu_fdi.modelset.series`."""
         from .modelset import series
@@ -410,9 +455,15 @@ class FDIModel:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict, source: str = "model") -> "FDIModel":
-        """Build a model from the dict of a model file, checking every value's type first."""
+    def from_dict(cls, d: dict, source: str = "model", *, minimal: bool | None = None,
+                  minreal_tol: float | None = None) -> "FDIModel":
+        """Build a model from the dict of a model file, checking every value's type first.
+
+        ``minimal``/``minreal_tol`` given here override the file's keys of the same names.
+        """
         _check_model_dict(d, source)
+        if minimal is None and minreal_tol is None:
+            minimal, minreal_tol = d.get("minimal"), d.get("minreal_tol")
         sig, mats = d["signals"], d["matrices"]
         u = sig.get("u", [])
         try:
@@ -437,17 +488,19 @@ class FDIModel:
                 u_names=u, y_names=sig["y"], d_names=sig.get("d", []), w_names=sig.get("w", []),
                 units=d.get("units"), name=d.get("name", "plant"), description=d.get("description", ""),
                 operating_point=d.get("operating_point"), provenance=d.get("provenance"),
+                minimal=minimal, minreal_tol=minreal_tol,
             )
         except ModelError as exc:
             msg = str(exc)
             raise ModelError(msg if msg.startswith(source) else f"{source}: {msg}") from None
 
     @classmethod
-    def from_file(cls, path) -> "FDIModel":
+    def from_file(cls, path, *, minimal: bool | None = None, minreal_tol: float | None = None) -> "FDIModel":
         """Read a model file (``.json`` or ``.toml``, UTF-8; format ``fmu-fdi-model/1``).
 
         An FMU, a binary or UTF-16 file, a syntax error, too deep nesting or a value of the
         wrong type is a one-line :class:`ModelError` naming the file and the key.
+        ``minimal``/``minreal_tol`` (as in :meth:`from_matrices`) override the file's keys.
         """
         path = Path(path)
         set_stage(f"reading the model file {path}")
@@ -455,7 +508,8 @@ class FDIModel:
         suffix = path.suffix.lower()
         if suffix not in (".json", ".toml"):
             raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
-        return cls.from_dict(parse(text, suffix[1:], str(path), ModelError), source=str(path))
+        return cls.from_dict(parse(text, suffix[1:], str(path), ModelError), source=str(path), minimal=minimal,
+                             minreal_tol=minreal_tol)
 
     def to_file(self, path) -> Path:
         """Write the model as JSON or TOML (by extension); floats round-trip exactly."""
@@ -519,6 +573,53 @@ def _provenance(prov) -> dict:
     return out
 
 
+def minreal_option(minimal, minreal_tol, where: str = "") -> float | None:
+    """The relative tolerance of the minimal realisation asked for, or None for none.
+
+    ``minimal`` is None/True/False; ``minreal_tol`` a number in [0, 1) (0: the default
+    ``n²·eps``) and implies ``minimal``. One check for every entry point (constructors,
+    model files, CLI): anything else is a one-line :class:`ModelError`.
+    """
+    if minimal is not None and not isinstance(minimal, (bool, np.bool_)):
+        raise ModelError(f"{where}minimal must be true or false, got {S.type_name(minimal)}")
+    if minreal_tol is None:
+        return 0.0 if minimal else None
+    tol = S.real(minreal_tol, f"{where}minreal_tol", ModelError, lo=0.0, hi=1.0, hi_open=True)
+    if minimal is not None and not minimal:
+        raise ModelError(f"{where}minreal_tol = {tol:g} is given but minimal is false; drop one of them")
+    return tol
+
+
+def minimal_realisation(A, B, C, tol: float = 0.0):
+    """A minimal realisation ``(Ar, Br, Cr, tol_used)`` of ``C (λI - A)^{-1} B``.
+
+    Orthogonal controllability then observability staircases (SLICOT TB01PD, no diagonal
+    balancing, so the decisions are those of the coordinates given) on the data scaled
+    block-wise to unit norm, ``(A/||A||, B/||B||, C/||C||)``: a mode whose coupling to the
+    inputs (outputs) is at most ``tol`` relative to the norms of the data is removed (Varga
+    2017, sec. 10.3.1, the relative tolerance of ``gminreal``). Controllability and
+    observability are invariant under these scalings, so the reduced realisation is the
+    scaled-back one. ``tol = 0`` uses SLICOT's default ``n²·eps``.
+    """
+    A, B, C = (np.asarray(X, float) for X in (A, B, C))
+    n, m, p = A.shape[0], B.shape[1], C.shape[0]
+    used = float(tol) if tol > 0 else n * n * np.finfo(float).eps
+    if n == 0:
+        return A, B, C, used
+    if m == 0 or p == 0 or not np.any(B) or not np.any(C):
+        return np.zeros((0, 0)), np.zeros((0, m)), np.zeros((p, 0)), used
+    import slycot
+
+    sa, sb, sc = (float(np.linalg.norm(X)) or 1.0 for X in (A, B, C))
+    mp = max(m, p)
+    Bp = np.zeros((n, mp))
+    Bp[:, :m] = B / sb
+    Cp = np.zeros((mp, n))
+    Cp[:p] = C / sc
+    Ar, Br, Cr, nr = slycot.tb01pd(n, m, p, A / sa, Bp, Cp, job="M", equil="N", tol=used)
+    return sa * Ar[:nr, :nr], sb * Br[:nr, :m], sc * Cr[:p, :nr], used
+
+
 def _opt(X, name: str, rows: int, cols: int | None) -> np.ndarray:
     if X is None or (np.size(X) == 0):
         return np.zeros((rows, cols or 0))
@@ -552,6 +653,7 @@ def _check_model_dict(d, source: str) -> None:
     check_format(d, FORMAT, source, ModelError)
     S.check_depth(d, source, ModelError)
     check_keys(d, (), _TOP_KEYS, source, ModelError)
+    minreal_option(d.get("minimal"), d.get("minreal_tol"), f"{source}: ")
     for key in ("name", "description"):
         if key in d:
             S.text(d[key], f"{source}: {key}", ModelError, empty=key == "description")

@@ -11,6 +11,9 @@ Interconnections (state-space, no inverses beyond the algebraic loop ``I + D_K D
 
 Faults are carried over as component faults with their columns in the new model (their
 names, and their kind in the description), so every fault keeps acting where it acted.
+An interconnection is often not minimal (e.g. the same actuator dynamics twice, or a
+controller state the outputs do not see): ``minimal=True`` or ``minreal_tol=TOL`` reduce
+the result to a minimal realisation (:func:`fmu_fdi.model.minimal_realisation`).
 
 :func:`robustness` applies one residual filter to a list of models (e.g. the plant at
 several operating points) and reports the worst decoupling and fault-sensitivity figures
@@ -50,7 +53,8 @@ def _carried_faults(model: FDIModel, Bf: np.ndarray, Df: np.ndarray) -> list[Fau
     return out
 
 
-def series(model: FDIModel, pre, *, name: str | None = None) -> FDIModel:
+def series(model: FDIModel, pre, *, name: str | None = None, minimal: bool | None = None,
+           minreal_tol: float | None = None) -> FDIModel:
     """The model driven through ``pre``: ``u_plant = P(λ) u`` (P square, m×m).
 
     States ``[x_P; x]``: ``A = [A_P 0; Bu C_P  A]``, ``Bu' = [B_P; Bu D_P]``,
@@ -68,10 +72,11 @@ def series(model: FDIModel, pre, *, name: str | None = None) -> FDIModel:
                     faults=_carried_faults(model, z(model.Bf), model.Df), dt=model.dt, u_names=model.u_names,
                     y_names=model.y_names, d_names=model.d_names, w_names=model.w_names, units=model.units,
                     name=name or f"{model.name}_series", description=f"{model.name} with a {nP}-state pre-system "
-                    f"in series")
+                    f"in series", minimal=minimal, minreal_tol=minreal_tol)
 
 
-def feedback(model: FDIModel, K, *, name: str | None = None, r_names: Sequence[str] | None = None) -> FDIModel:
+def feedback(model: FDIModel, K, *, name: str | None = None, r_names: Sequence[str] | None = None,
+             minimal: bool | None = None, minreal_tol: float | None = None) -> FDIModel:
     """The closed loop ``u = r − K(λ) y`` (K static m×p gain or LTI controller).
 
     With ``E = (I + D_K Du)^{-1}`` (the algebraic loop must be well posed) and the other
@@ -105,10 +110,11 @@ def feedback(model: FDIModel, K, *, name: str | None = None, r_names: Sequence[s
                     units={k: v for k, v in model.units.items() if k in set(model.y_names) | set(model.d_names)
                            | set(model.w_names)},
                     name=name or f"{model.name}_loop", description=f"{model.name} in closed loop with a "
-                    f"{nk}-state controller (u = r - K y)")
+                    f"{nk}-state controller (u = r - K y)", minimal=minimal, minreal_tol=minreal_tol)
 
 
-def parallel(first: FDIModel, second: FDIModel, *, name: str | None = None) -> FDIModel:
+def parallel(first: FDIModel, second: FDIModel, *, name: str | None = None, minimal: bool | None = None,
+             minreal_tol: float | None = None) -> FDIModel:
     """Two models driven by the same known inputs, outputs stacked ``[y1; y2]``;
     their d, w and faults are kept apart (names must differ)."""
     if first.nu != second.nu or abs(first.dt - second.dt) > 1e-12:
@@ -130,7 +136,7 @@ def parallel(first: FDIModel, second: FDIModel, *, name: str | None = None) -> F
                     u_names=first.u_names, y_names=list(first.y_names) + list(second.y_names),
                     d_names=list(first.d_names) + list(second.d_names),
                     w_names=list(first.w_names) + list(second.w_names),
-                    name=name or f"{first.name}_{second.name}")
+                    name=name or f"{first.name}_{second.name}", minimal=minimal, minreal_tol=minreal_tol)
 
 
 def robustness(gen, models: Sequence[FDIModel], *, structure=None, faults=None) -> dict:
