@@ -60,7 +60,8 @@ def cascade(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     # distinct poles: a modal (partial-fraction) form, output the sum of the sections — its
     # basis functions 1/(λ - p_i) are far better conditioned than the cascade's products
     eig = np.array([complex(u[0, 0], u[0, 1] if u.shape[0] == 2 else 0.0) for u in units])
-    gaps = np.abs(eig[:, None] - eig[None, :]) + np.eye(eig.size) * np.inf if eig.size else np.zeros((0, 0))
+    gaps = np.abs(eig[:, None] - eig[None, :])
+    np.fill_diagonal(gaps, np.inf)
     modal = eig.size <= 1 or np.min(gaps) > 1e-6 * max(1.0, float(np.max(np.abs(eig))))
     k, prev = 0, None
     C = np.zeros((1, nu))
