@@ -62,13 +62,22 @@ def test_minimal_indices_match_polynomial_basis_degrees(seed):
     assert pencil_basis(model).degrees == minimal_basis(model).degrees
 
 
-def test_requested_poles_are_placed_exactly():
-    model = random_model(11)  # n = 7, one d: order-6 basis with 2 rows
-    pb = pencil_basis(model, poles=[-1.0, -2.0, -3.0 + 1j, -3.0 - 1j, -4.0, -5.0])
-    got = np.sort_complex(pb.N.poles())
-    want = np.sort_complex(np.array([-1.0, -2.0, -3.0 + 1j, -3.0 - 1j, -4.0, -5.0]))
-    # eigenvalues of a gain-assigned matrix: eps·||F||·cond(eigenvectors); 1e-6 covers the 6-state example
-    assert got.size == want.size and np.allclose(got, want, atol=1e-6)
+@pytest.mark.parametrize("seed, sdeg", [(6, -2.0), (1, 0.5)])
+def test_stability_degree_and_given_poles(seed, sdeg):
+    """Eigenvalues outside the region Re < sdeg (|z| < sdeg) move there, the given poles first."""
+    model = random_model(seed)
+    given = [0.2, 0.3] if model.dt else [-3.0, -4.0]
+    pb = pencil_basis(model, poles=given, sdeg=sdeg)
+    poles = pb.N.poles()
+    assert pb.info["moved_poles"] >= 2
+    # eigenvalues of a Schur-assigned block: eps·||F||·cond; 1e-6 covers these orders
+    for g in given:
+        assert np.min(np.abs(poles - g)) < 1e-6
+    assert np.all(np.abs(poles) <= sdeg + 1e-6) if model.dt else np.all(poles.real <= sdeg + 1e-6)
+    tol = 1e3 * (model.n + 1) * EPS * max(1.0, pb.info["feedback_norm"])
+    for lam in _points(model):
+        Nv, Gv = pb.N.evalfr(lam), _G(model, lam)
+        assert np.linalg.norm(Nv @ Gv, 2) <= tol * np.linalg.norm(Nv, 2) * np.linalg.norm(Gv, 2)
 
 
 def test_staircase_indices():
@@ -121,3 +130,10 @@ def test_pencil_basis_alone_decouples_to_rounding(seed, what):
     # not least order, but never above the basis' McMillan degree Σ indices
     assert gen.Q.n <= sum(gen.info["left_minimal_indices"])
     assert gen.Q.is_stable()
+
+
+def test_basis_option_is_validated():
+    from fmu_fdi import DesignError
+
+    with pytest.raises(DesignError, match="basis must be"):
+        nullspace_design(random_model(11), basis="kronecker")

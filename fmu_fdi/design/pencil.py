@@ -27,9 +27,9 @@ It is computed by orthogonal deflation (SVD at every step, rank decisions with
 Transposing back gives ``Nl(λ) = Cl (λI - Al)^{-1} Bl + Dl`` with ``Al = a_fᵀ`` — a
 proper basis of McMillan degree Σ indices (minimal when the realisation of ``[Gu Gd]``
 is). Its poles are free (state feedback on the controllable pair = a left coprime
-factor ``M⁻¹``): eigenvalues that break the stability margin are moved by a Schur
-method that leaves the others in place (Varga 1981), or all are placed when the caller
-gives ``poles``/``sdeg``.
+factor ``M⁻¹``): eigenvalues outside the stability region (margin, ``sdeg``) are moved,
+one Schur block at a time, leaving the others in place (Varga 1981); a full placement of a
+25-state pair with one or two inputs would need gains far above the data's norm.
 """
 from __future__ import annotations
 
@@ -134,10 +134,6 @@ def _output_nulling(a, b, c, d, tol):
     return P, af, bf, F, K, fnorm
 
 
-def _bad(eig: np.ndarray, dt: float, margin: float) -> np.ndarray:
-    return np.abs(eig) >= margin if dt else eig.real >= margin
-
-
 def _place(a: np.ndarray, b: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Gain F with ``eig(a + b F) = targets`` (scipy's robust KNV/YT method); targets of a
     multiplicity above rank b are spread by a relative 1e-3 so the method applies."""
@@ -146,12 +142,13 @@ def _place(a: np.ndarray, b: np.ndarray, targets: np.ndarray) -> np.ndarray:
     targets = np.asarray(targets, complex)
     if a.shape[0] == 0:
         return np.zeros((b.shape[1], 0))
-    rb = np.linalg.matrix_rank(b)
+    rb = max(1, np.linalg.matrix_rank(b))
     t = targets.copy()
-    for i in range(t.size):  # spread repeats (conjugate pairs move together)
-        same = np.nonzero(np.abs(t[:i] - t[i]) <= 1e-9 * max(1.0, abs(t[i])))[0]
-        if same.size >= rb:
-            t[i] = t[i] * (1 + 1e-3 * (same.size - rb + 1)) if t[i] != 0 else 1e-3 * (same.size - rb + 1)
+    for i in range(t.size):  # spread repeats of the *requested* values (conjugate pairs move together)
+        j = int(np.sum(np.abs(targets[:i] - targets[i]) <= 1e-9 * max(1.0, abs(targets[i]))))
+        if j >= rb:
+            step = 1e-3 * (j - rb + 1)
+            t[i] = targets[i] * (1 + step) if targets[i] != 0 else step
     # conjugate closure after spreading: rebuild pairs from the upper half-plane members
     out = [z for z in t if abs(z.imag) <= 1e-12 * max(1.0, abs(z))]
     for z in t:
@@ -159,31 +156,111 @@ def _place(a: np.ndarray, b: np.ndarray, targets: np.ndarray) -> np.ndarray:
             out += [z, np.conj(z)]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = place_poles(a, b, np.array(out[: a.shape[0]]), method="YT")
+        try:
+            res = place_poles(a, b, np.array(out[: a.shape[0]]), method="YT")
+        except ValueError as exc:
+            from .postconditions import NumericalDesignError
+
+            raise NumericalDesignError(f"pencil null space: the poles cannot be assigned ({exc}); pass other "
+                                       f"poles/sdeg") from None
     return -res.gain_matrix
 
 
-def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, margin: float, all_poles: bool):
-    """State feedback F for the controllable pair ``(a, b)``: ``(F, moved)``.
+def _pop_targets(targets: list, size: int, dt: float, spare: float) -> np.ndarray:
+    """Take ``size`` (1 or 2) targets for one Schur block: a real one, or a conjugate pair / two reals
+    (``spare`` when the list has run out)."""
+    if not targets:
+        return np.full(size, spare, complex)
+    real = [i for i, z in enumerate(targets) if abs(z.imag) <= 1e-12 * max(1.0, abs(z))]
+    if size == 1:
+        if real:
+            return np.array([targets.pop(real[0]).real])
+        z = targets.pop(0)  # a pair's member: take its speed as a real pole, drop its conjugate
+        targets[:] = [w for w in targets if abs(w - np.conj(z)) > 1e-9 * max(1.0, abs(z))] + [z]
+        return np.array([abs(z) if dt else z.real])
+    pair = [i for i, z in enumerate(targets) if z.imag > 1e-12 * max(1.0, abs(z))]
+    if pair:
+        z = targets.pop(pair[0])
+        k = next((i for i, w in enumerate(targets) if abs(w - np.conj(z)) <= 1e-9 * max(1.0, abs(z))), None)
+        if k is not None:
+            targets.pop(k)
+        return np.array([z, np.conj(z)])
+    return np.concatenate([_pop_targets(targets, 1, dt, spare), _pop_targets(targets, 1, dt, spare)])
 
-    ``all_poles``: every eigenvalue goes to ``choose(n)``. Otherwise only the eigenvalues
-    that break the margin (``Re λ ≥ margin`` or ``|λ| ≥ margin``) move, to ``choose(k)``:
-    an ordered real Schur form puts them in a trailing block, and a feedback acting on
-    that block's coordinates alone leaves the others where they are.
+
+def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good) -> tuple[np.ndarray, int]:
+    """State feedback F for the controllable pair ``(a, b)`` moving every eigenvalue outside the
+    region ``good(re, im)`` to the targets ``choose(bad_eigenvalues)``: ``(F, moved)``.
+
+    Schur method (Varga 1981, as in Varga's ``saloc``/``glcf``): an ordered real Schur form puts
+    one bad 1×1 or 2×2 block last; a feedback acting on its coordinates alone moves it and leaves
+    the other eigenvalues where they are; repeat. Each step solves a 1- or 2-state problem, so
+    the gains stay small where a full placement of a high-order, few-input pair would not.
     """
     n = a.shape[0]
+    F = np.zeros((b.shape[1], n))
     if n == 0:
-        return np.zeros((b.shape[1], 0)), 0
-    if all_poles:
-        return _place(a, b, choose(n)), n
-    sort = (lambda re, im: np.hypot(re, im) < margin) if dt else (lambda re, im: re < margin)
-    T, Z, kgood = sla.schur(a, output="real", sort=sort)
-    nb = n - kgood
-    if nb == 0:
-        return np.zeros((b.shape[1], n)), 0
-    B2 = (Z.T @ b)[kgood:]
-    F2 = _place(T[kgood:, kgood:], B2, choose(nb))
-    return F2 @ Z[:, kgood:].T, nb
+        return F, 0
+    eig = np.linalg.eigvals(a)
+    bad = eig[~np.array([good(z.real, z.imag) for z in eig])]
+    if bad.size == 0:
+        return F, 0
+    targets = list(np.asarray(choose(bad), complex))
+    last = targets[-1] if targets else complex(0.5 if dt else -1.0)
+    spare = abs(last) if dt else last.real  # a 2×2 block may need one target more than counted
+    moved = 0
+    for _ in range(n):
+        T, Z, kgood = sla.schur(a + b @ F, output="real", sort=good)
+        if kgood == n:
+            break
+        size = 2 if n - kgood >= 2 and abs(T[n - 1, n - 2]) > 0 else 1
+        blk, B2 = T[n - size:, n - size:], (Z.T @ b)[n - size:]
+        tg = _pop_targets(targets, size, dt, spare)
+        if size == 1:
+            nb = float(np.sum(B2 ** 2))
+            if nb <= 0:
+                break  # uncontrollable: cannot happen on the controllable part
+            F2 = (tg[0].real - blk[0, 0]) * B2.T / nb  # minimum-norm gain: blk + B2 F2 = target
+        else:
+            F2 = _place(blk, B2, tg)
+        F = F + F2 @ Z[:, n - size:].T
+        moved += size
+    return F, moved
+
+
+def mirror(eig: np.ndarray, beta: float, dt: bool) -> np.ndarray:
+    """Eigenvalues reflected into the region ``Re < β`` (``2β - Re``) or ``|z| < β`` (``β²/|z|``,
+    angle kept): distinct eigenvalues stay distinct, which a common target (a defective cluster
+    whose computed eigenvalues scatter by eps^(1/multiplicity)) would not."""
+    eig = np.asarray(eig, complex)
+    if dt:
+        r = np.maximum(np.abs(eig), 1e-300)
+        return np.where(r > beta, eig / r * beta**2 / r, eig)
+    return np.where(eig.real > beta, (2 * beta - eig.real) + 1j * eig.imag, eig)
+
+
+def _targets(model: FDIModel, poles, sdeg):
+    """``bad eigenvalues ↦ targets``: the plant's stabilised eigenvalues spread from slow to fast
+    (``_basis.pole_chooser``) with neither poles nor sdeg; else the given poles first and the
+    rest mirrored about ``sdeg`` (default -1, or 0.5 in discrete time)."""
+    from ._basis import pole_chooser
+
+    if poles is None and sdeg is None:
+        chooser = pole_chooser(model, None, None)
+        return lambda bad: chooser(bad.size)
+    beta = float(sdeg) if sdeg is not None else (0.5 if model.dt else -1.0)
+    given_all = np.zeros(0, complex) if poles is None else np.atleast_1d(np.asarray(poles, complex))
+
+    def choose(bad):
+        given = given_all[: bad.size]
+        if given.size and abs(given[-1].imag) > 0 and (given.size < 2 or given[-2] != np.conj(given[-1])):
+            given = given[:-1]  # do not split a pair
+        if given.size < given_all.size:
+            warnings.warn(f"poles {given_all[given.size:].tolist()} not used: the pencil basis has only {bad.size} "
+                          f"eigenvalues outside the stability region to move", UserWarning, stacklevel=6)
+        return np.concatenate([given, mirror(bad, beta, bool(model.dt))])[: max(bad.size, given.size)]
+
+    return choose
 
 
 def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.0, poles=None,
@@ -197,8 +274,10 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
         Rank decisions count singular values above ``max(atol, rtol·||[A B; C D]||_2)``
         (default ``rtol = (n + 1)·1e3·eps``) of the balanced minimal realisation of ``[Gu Gd]``.
     poles, sdeg : optional
-        Poles for the whole basis (conjugate-closed; missing ones at ``sdeg``); with neither,
-        only eigenvalues that break ``smarg`` are moved, to the plant's stabilised eigenvalues.
+        The basis' eigenvalues outside the stability region (``Re λ < smarg``, and ``< sdeg`` when
+        given; moduli in discrete time) are moved to ``poles`` first, then to ``sdeg`` (Varga's
+        ``poles``/``sdeg`` of ``glcf``); the others stay. With neither, the moved ones go to the
+        plant's stabilised eigenvalues (``_basis.pole_chooser``).
     smarg : float, optional
         Stability margin of the basis poles (default just inside the stability boundary).
 
@@ -209,20 +288,22 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
         degrees of a minimal polynomial basis); ``info``: rank tolerance, feedback norms, the
         number of moved poles.
     """
-    from ._basis import normal_rank, pole_chooser
+    from ._basis import normal_rank
     from .postconditions import NumericalDesignError, default_smarg
 
     p, m, md = model.ny, model.nu, model.nd
     G = model.lti("u", "d")
     if G.n and G.m:
-        G = G.minreal()
-    if G.n and G.m:
+        G = G.minreal()  # a minimal realisation of [Gu Gd] makes the basis minimal (Varga, glnull)
+    if not G.m:
+        G = LTI.static(G.D, G.dt)  # no u, no d: the basis is the identity
+    if G.n:
         G, _ = G.balanced()
     n = G.n
     A, C = G.A, G.C
     Bu, Bd = G.B[:, :m], G.B[:, m:]
     Du, Dd = G.D[:, :m], G.D[:, m:]
-    norm = float(np.linalg.norm(np.block([[A, G.B], [C, G.D]]), 2)) if (n or G.D.size) else 0.0
+    norm = float(np.linalg.norm(np.block([[A, G.B], [C, G.D]]), 2)) if (n + p) * (n + G.m) else 0.0
     if rtol is None:
         rtol = (n + 1) * 1e3 * EPS
     tol = max(atol, rtol * norm)
@@ -234,9 +315,16 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
     T1 = T[:, :nc]
     ac, bc, Fc, Pc = T1.T @ af @ T1, T1.T @ bf, F @ T1, P @ T1
     degrees = conjugate_partition(taus, k)
-    choose = pole_chooser(model, poles, sdeg)
+    choose = _targets(model, poles, sdeg)
     margin = default_smarg(model.dt) if smarg is None else float(smarg)
-    Fw, moved = assign_poles(ac, bc, model.dt, choose, margin, poles is not None or sdeg is not None)
+    # the stability region: strictly inside the margin, and at sdeg or better (the targets
+    # themselves sit on sdeg; 1e-9 relative lets them count as placed)
+    limit = np.inf if sdeg is None else float(sdeg) + 1e-9 * max(1.0, abs(float(sdeg)))
+    if model.dt:
+        good = lambda re, im: np.hypot(re, im) < margin and np.hypot(re, im) <= limit  # noqa: E731
+    else:
+        good = lambda re, im: re < margin and re <= limit  # noqa: E731
+    Fw, moved = assign_poles(ac, bc, model.dt, choose, good)
     if Fw.size:
         ac, Fc = ac + bc @ Fw, Fc + K @ Fw
         fnorm = max(fnorm, float(np.linalg.norm(Fw, 2)))
