@@ -19,6 +19,13 @@ from fmu_fdi import DesignError, nullspace_design, structured_bank  # noqa: E402
 from synthesis_models import contract, random_model, random_structure, row_achievable  # noqa: E402
 
 
+def _indices(gen) -> str:
+    """For a pencil row from a null space of several rows, its left minimal indices: the least
+    order is at least the smallest (a one-row null space's row is least order)."""
+    idx = gen.info.get("left_minimal_indices", [])
+    return str(idx).replace(" ", "") if len(idx) > 1 else ""
+
+
 def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
     counts = {"ok": 0, "refused": 0, "refused*": 0, "BROKEN": 0, "crash": 0}
     bases: dict[str, int] = {}  # residuals per basis: polynomial / sampled / pencil
@@ -42,8 +49,8 @@ def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
                 how = [g.info.get("basis", "sampled" if g.info.get("synthesis") else "?") for g in members]
                 for h in how:
                     bases[h] = bases.get(h, 0) + 1
-                msg = "; ".join(bad[:3]) or ("orders " + " ".join(f"{g.info.get('order')}{h[:2]}" for g, h in
-                                                                  zip(members, how)))
+                msg = "; ".join(bad[:3]) or ("orders " + " ".join(f"{g.info.get('order')}{h[:2]}{_indices(g)}"
+                                                                  for g, h in zip(members, how)))
             except DesignError as exc:
                 achievable = (all(row_achievable(model, r, names) for r in S) if what == "bank"
                               else all(row_achievable(model, [1] * len(names), names) for _ in [0]))

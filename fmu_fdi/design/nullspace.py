@@ -195,10 +195,14 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         least-order fallback (:mod:`.sampled`). 'pencil': the proper state-space basis from
         the system pencil (:mod:`.pencil`, Varga's ``glnull``), accurate at any degree; its
         residual is a constant combination of the basis rows, of order at most the sum of
-        the left minimal indices (not least order). 'auto' (default): polynomial, and the
-        pencil basis when neither polynomial nor sampled rows meet the post-conditions
-        (``info['basis']`` says which was used). The pencil basis decouples u and d only:
-        with noise and ``noise='optimize'`` it is not used.
+        the left minimal indices — least order when the null space has one row (then that
+        sum is its degree), higher otherwise. Its poles are the basis' own, except those
+        outside the stability region (``smarg``, and ``sdeg`` when given), which move to
+        ``poles`` first and then to their mirror image about ``sdeg``. 'auto' (default):
+        polynomial, and the pencil basis when neither polynomial nor sampled rows meet the
+        post-conditions (``info['basis']`` says which was used; ``info['left_minimal_indices']``
+        the degrees of a minimal polynomial basis). The pencil basis decouples u and d
+        only: with noise and ``noise='optimize'`` it is not used.
 
     Returns
     -------
