@@ -275,9 +275,10 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
         (default ``rtol = (n + 1)·1e3·eps``) of the balanced minimal realisation of ``[Gu Gd]``.
     poles, sdeg : optional
         The basis' eigenvalues outside the stability region (``Re λ < smarg``, and ``< sdeg`` when
-        given; moduli in discrete time) are moved to ``poles`` first, then to ``sdeg`` (Varga's
-        ``poles``/``sdeg`` of ``glcf``); the others stay. With neither, the moved ones go to the
-        plant's stabilised eigenvalues (``_basis.pole_chooser``).
+        given; moduli in discrete time) are moved to ``poles`` first, then to their mirror image
+        about ``sdeg`` (default -1, or 0.5 in discrete time; :func:`mirror`); the others stay, as
+        with Varga's ``sdeg`` in ``glcf``. With neither, the moved ones go to the plant's
+        stabilised eigenvalues (``_basis.pole_chooser``).
     smarg : float, optional
         Stability margin of the basis poles (default just inside the stability boundary).
 
