@@ -137,3 +137,18 @@ def test_basis_option_is_validated():
 
     with pytest.raises(DesignError, match="basis must be"):
         nullspace_design(random_model(11), basis="kronecker")
+
+
+def test_sampled_rows_report_whether_they_can_be_exact():
+    """A row of McMillan degree below the smallest left minimal index cannot annihilate G exactly
+    (every rational null row is r(λ)·N(λ) with N row-reduced of that degree): the sampled fallback
+    says which kind of decoupling it delivers. Published Ex. 5.3: the degree-1 detector is exact."""
+    import published as pub
+    from fmu_fdi.design.nullspace import _sampled
+
+    gen = _sampled(pub.ex5_3(), 1, [-3.0], None, None, 1e-4, 0.01, 0, None, DEC_TOL)
+    assert gen.info["left_minimal_indices"] == [1] and gen.info["decoupling_kind"].startswith("exact")
+    gen = nullspace_design(random_model(29))  # n = 29: only the sampled fallback meets the post-conditions
+    if gen.info.get("synthesis") == "frequency-sampled":
+        below = gen.Q.n < min(gen.info["left_minimal_indices"])
+        assert gen.info["decoupling_kind"].startswith("approximate") == below
