@@ -2,8 +2,11 @@
 
 Prints, per call, whether the design returned a contract-keeping generator ("ok"), raised
 DesignError ("refused"; "refused*" when the rank test says the request was achievable), or
-returned a generator that breaks its contract ("BROKEN"), and the totals.
-Run: python benchmarks/synthesis_random_set.py [N]
+returned a generator that breaks its contract ("BROKEN"), and the totals; for returned designs the
+order of every residual with the basis it came from (po: polynomial least order, sa: frequency-sampled
+least order, pe: pencil state-space basis, see nullspace_design's ``basis``).
+Run: python benchmarks/synthesis_random_set.py [N] [auto|polynomial|pencil] (the ``basis`` option: 'polynomial'
+shows what the least-order methods alone achieve).
 """
 import sys
 import time
@@ -16,8 +19,16 @@ from fmu_fdi import DesignError, nullspace_design, structured_bank  # noqa: E402
 from synthesis_models import contract, random_model, random_structure, row_achievable  # noqa: E402
 
 
-def run(N: int = 40, verbose: bool = True):
+def _indices(gen) -> str:
+    """For a pencil row from a null space of several rows, its left minimal indices: the least
+    order is at least the smallest (a one-row null space's row is least order)."""
+    idx = gen.info.get("left_minimal_indices", [])
+    return str(idx).replace(" ", "") if len(idx) > 1 else ""
+
+
+def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
     counts = {"ok": 0, "refused": 0, "refused*": 0, "BROKEN": 0, "crash": 0}
+    bases: dict[str, int] = {}  # residuals per basis: polynomial / sampled / pencil
     t0 = time.perf_counter()
     for seed in range(N):
         model = random_model(seed)
@@ -26,15 +37,20 @@ def run(N: int = 40, verbose: bool = True):
         for what in ("nullspace", "bank"):
             try:
                 if what == "nullspace":
-                    gen = nullspace_design(model)
+                    gen = nullspace_design(model, basis=basis)
                     bad = contract(gen, model)
                     achievable = True
                 else:
-                    gen = structured_bank(model, S)
+                    gen = structured_bank(model, S, basis=basis)
                     bad = contract(gen, model, S, names)
                     achievable = all(row_achievable(model, r, names) for r in S)
                 key = "BROKEN" if bad else "ok"
-                msg = "; ".join(bad[:3])
+                members = getattr(gen, "members", [gen])
+                how = [g.info.get("basis", "sampled" if g.info.get("synthesis") else "?") for g in members]
+                for h in how:
+                    bases[h] = bases.get(h, 0) + 1
+                msg = "; ".join(bad[:3]) or ("orders " + " ".join(f"{g.info.get('order')}{h[:2]}{_indices(g)}"
+                                                                  for g, h in zip(members, how)))
             except DesignError as exc:
                 achievable = (all(row_achievable(model, r, names) for r in S) if what == "bank"
                               else all(row_achievable(model, [1] * len(names), names) for _ in [0]))
@@ -46,9 +62,9 @@ def run(N: int = 40, verbose: bool = True):
             if verbose:
                 print(f"seed {seed:3d} n={model.n:2d} p={model.ny} m={model.nu} nd={model.nd} "
                       f"{'disc' if model.dt else 'cont'} {what:9s} {key:8s} {msg}")
-    print(counts, f"{time.perf_counter() - t0:.1f} s")
+    print(counts, "residuals by basis:", bases, f"{time.perf_counter() - t0:.1f} s")
     return counts
 
 
 if __name__ == "__main__":
-    run(int(sys.argv[1]) if len(sys.argv) > 1 else 40)
+    run(int(sys.argv[1]) if len(sys.argv) > 1 else 40, basis=sys.argv[2] if len(sys.argv) > 2 else "auto")

@@ -16,8 +16,9 @@ solutions are exactly the degree-ν members of the left null space (Varga 2017, 
 ``Q = Y N`` with N a proper basis).
 
 Numerics: the basis functions ``[C_m (λI − A_m)^{-1}, 1]`` are orthonormalised on the grid
-(eigen-decomposition of their Gram matrix), each point's equations are divided by
-``||Ge(λ_k)||``, and the null space is read from an SVD: a right-singular direction with
+(eigen-decomposition of their Gram matrix), every column of ``[Gu Gd; I 0]`` is scaled to
+unit peak over the grid and each point's equations are divided by their norm, and the null
+space is read from an SVD: a right-singular direction with
 singular value σ is a row whose relative leakage is σ (RMS over the grid), so the rank
 decision *is* the post-condition, with the threshold ``null_tol`` (default 1e-10; exact
 rows of low degree show ~1e-13, of degree 10-20 ~1e-10; nullspace_design passes
@@ -60,7 +61,8 @@ def cascade(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     # distinct poles: a modal (partial-fraction) form, output the sum of the sections — its
     # basis functions 1/(λ - p_i) are far better conditioned than the cascade's products
     eig = np.array([complex(u[0, 0], u[0, 1] if u.shape[0] == 2 else 0.0) for u in units])
-    gaps = np.abs(eig[:, None] - eig[None, :]) + np.eye(eig.size) * np.inf if eig.size else np.zeros((0, 0))
+    gaps = np.abs(eig[:, None] - eig[None, :])
+    np.fill_diagonal(gaps, np.inf)
     modal = eig.size <= 1 or np.min(gaps) > 1e-6 * max(1.0, float(np.max(np.abs(eig))))
     k, prev = 0, None
     C = np.zeros((1, nu))
@@ -121,9 +123,14 @@ def sampled_rows(model, choose, fault_cols: list[np.ndarray], rdim: int, *, freq
         T = V[:, keep] / np.sqrt(w[keep])  # basis ψ = Φ T, orthonormal on the grid
         Psi = Phi @ T  # (K, r)
         r = Psi.shape[1]
-        Gn = G / np.maximum(np.linalg.norm(G[:, :, ud], 2, axis=(1, 2)), 1e-300)[:, None, None] if ud.size else G
+        # every column of [Gu Gd; I 0] scaled to unit peak over the grid (the exact rows are unchanged), so
+        # that a weak column — a fault decoupled as d in a bank row, 1e3 below the strongest input — is
+        # decoupled to the same relative accuracy as the others: the bank checks each fault's own leak
+        Gud = G[:, :, ud]
+        Gud = Gud / np.maximum(np.max(np.linalg.norm(Gud, axis=1), axis=0), 1e-300)[None, None, :]
+        Gn = Gud / np.maximum(np.linalg.norm(Gud, 2, axis=(1, 2)), 1e-300)[:, None, None] if ud.size else Gud
         # equations: y (r·q) -> Σ_{i,a} Ψ_k[i] Y[i,a] Gn_k[a, c] for c in ud
-        L = np.einsum("ki,kac->iakc", Psi, Gn[:, :, ud]).reshape(r * q, -1)
+        L = np.einsum("ki,kac->iakc", Psi, Gn).reshape(r * q, -1)
         L = np.hstack([L.real, L.imag])
         # only U is needed: thin SVD unless there are fewer equations than unknowns
         U, s, _ = sla.svd(L, full_matrices=L.shape[0] > L.shape[1])
