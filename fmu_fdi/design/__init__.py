@@ -1,4 +1,5 @@
 """Residual generator design: one function per method, each returning a ResidualGenerator."""
+from .approximate_matching import approximate_model_matching
 from .banks import afdi_bank, dedicated_bank, generalized_bank, structured_bank
 from .beard_jones import fault_detection_filter
 from .coprime import factorized, left_coprime_factors
@@ -19,3 +20,4 @@ __all__ = [
     "rls_estimator", "RLSEstimator", "data_driven", "model_matching", "unified_observer", "afdi_bank",
     "model_detection_bank",
 ]
+__all__ += ["approximate_model_matching"]
