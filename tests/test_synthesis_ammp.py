@@ -18,14 +18,40 @@ s = pub.s
 
 
 def error_norm(gen, Mr, M, norm):
-    """``||Q [Gf Gw; 0 0] − M [Mr 0]||`` measured from the model, independent of the design's figures."""
+    """``||Q [Gf Gw; 0 0] − M [Mr 0]||`` measured from the model and the returned Q alone, factor by
+    factor on a dense grid (independent of the design's own figures and of realisation-level norms,
+    which lose digits on products with near-cancelling modes): H∞ as the peak over 1200
+    log-spaced points refined around the maximum, H2 by the trapezoidal rule on the same points."""
     from fmu_fdi.design.approximate_matching import fault_noise_map
 
     model = gen.model
     Mr = Mr if isinstance(Mr, LTI) else LTI.from_control(ct.ss(Mr))
+    if not Mr.n and Mr.dt != model.dt:
+        Mr = LTI.static(Mr.D, model.dt)
     F = hstack([Mr, LTI.zero(Mr.p, model.nw, model.dt)]) if model.nw else Mr
-    E = (gen.Q @ fault_noise_map(model) - M @ F).minreal()
-    return E.hinfnorm()[0] if norm == "inf" else E.h2norm()
+    MF = M @ F if M.n else M.D @ F
+    fnm = fault_noise_map(model)
+    top = np.pi / model.dt if model.dt else 1e5
+    w = np.concatenate([[0.0], np.logspace(-5, np.log10(top), 1200)])
+
+    def resp(S, w):  # C (λI − A)^{-1} B + D, batched over the points
+        lam = np.exp(1j * w * model.dt) if model.dt else 1j * w
+        if S.n == 0:
+            return np.broadcast_to(S.D.astype(complex), (w.size,) + S.D.shape)
+        X = np.linalg.solve(lam[:, None, None] * np.eye(S.n) - S.A, np.broadcast_to(S.B, (w.size,) + S.B.shape))
+        return S.C @ X + S.D
+
+    def values(w):
+        return np.einsum("kij,kjl->kil", resp(gen.Q, w), resp(fnm, w)) - resp(MF, w)
+
+    if norm == "inf":
+        sig = np.linalg.norm(values(w), 2, axis=(1, 2))
+        k = int(np.argmax(sig))
+        ww = np.linspace(w[max(k - 1, 0)], w[min(k + 1, w.size - 1)], 400)
+        return float(max(sig.max(), np.linalg.norm(values(ww), 2, axis=(1, 2)).max()))
+    f = np.sum(np.abs(values(w)) ** 2, axis=(1, 2))
+    tail = 0.0 if model.dt else f[-1] * w[-1]  # strictly proper: f ~ c/ω²
+    return float(np.sqrt((np.trapezoid(f, w) + tail) / np.pi * (model.dt if model.dt else 1.0)))
 
 
 def static(D):
@@ -50,13 +76,15 @@ MR14 = ct.ss(1 / (s + 3))
 MR17 = ct.ss(pub.tfm([[10 / (s + 10), 0], [0, 10 / (s + 10)]], ["f1", "f2"]))
 
 
-def check_contract(gen, Mr, norm, rel=1e-6):
+def check_contract(gen, Mr, norm, rel=None):
     """Decoupling to 1e-9 and the measured error equal to the reported gamma_sub."""
     info = gen.info
     assert info["postconditions"]["decoupling"] < 1e-9
     err = error_norm(gen, Mr, info["M"], norm)
-    # the two realisations differ only by rounding of products of order ≤ 10: 1e-6 relative
-    assert err == pytest.approx(info["gamma_sub"], rel=rel, abs=1e-12)
+    # H∞: both are peaks of the same response on refined grids, 1e-5 relative; H2: trapezoid on
+    # 1200 log points vs Gauss–Legendre panels, 1e-3 relative
+    rel = rel if rel is not None else (1e-5 if norm == "inf" else 1e-3)
+    assert err == pytest.approx(info["gamma_sub"], rel=rel, abs=1e-9 * max(1.0, info["gamma_sub"]))
     assert gen.Q.is_stable()
     return err
 
@@ -119,7 +147,7 @@ def test_example_5_14_hinf():
     on a 3000-point grid gives 0.1744575; FDT's test checks fdimmperf(R, M Mr) ≈ gammasub."""
     gen = approximate_model_matching(ex5_14(), MR14, sdeg=-1, normalize="gain", reltol=1e-5)
     info = gen.info
-    assert not info["standard"] and info["row_degrees"] == [1]
+    assert not info["standard"] and info["interactor_steps"] == 1
     assert info["gamma_opt0"] == pytest.approx(0.1744575, rel=2e-5)  # brute-force value, its 7 digits
     err = check_contract(gen, MR14, "inf")
     assert info["gamma_opt"] <= err * (1 + 1e-5)  # the updated problem's optimum is a lower bound of gammasub
@@ -156,8 +184,8 @@ def test_h2_and_hinf_optima_bound_each_other_standard_case():
     check_contract(gi, Mr, "inf")
     # standard case: the measured error is the optimum to the bisection's reltol
     lo, hi = gi.info["gamma_bracket"]
-    # 1e-6: the H∞ norms (AB13DD) of two realisations agree to ~1e-7
-    assert lo * (1 - 1e-6) <= gi.info["error"] <= hi * (1 + 1e-6) and hi <= lo * (1 + 1e-6) + 1e-12
+    # 1e-5: grid peaks of the same response (check_contract)
+    assert lo * (1 - 1e-5) <= gi.info["error"] <= hi * (1 + 1e-5) and hi <= lo * (1 + 2e-6) + 1e-12
     # a lower bound at ω = 0 (row 1: [y(0)/2 − 1, y(0)/2] from Gf11(0) = Gw1(0) = 1/2): ≥ 1/√2
     assert gi.info["gamma_opt"] >= np.sqrt(0.5) * (1 - 1e-6)
 
@@ -198,7 +226,7 @@ def test_example_5_16_hinf():
     published check err_sub − err_opt < 0.002 (sub-optimal vs optimal updated problem)."""
     gen = approximate_model_matching(ex5_16(), static(np.eye(2)), sdeg=-10, reltol=5e-4)
     info = gen.info
-    assert info["row_degrees"] == [1, 1]
+    assert info["interactor_steps"] == 1
     assert np.allclose(info["M"].freqresp([0.0, 10.0])[:, 0, 0], [1.0, 10 / (10 + 10j)], atol=1e-12)
     err = check_contract(gen, static(np.eye(2)), "inf")
     assert err - info["gamma_opt"] < 0.002 and err >= info["gamma_opt"] * (1 - 5e-4)
@@ -220,7 +248,7 @@ def test_niemann_exactly_matchable_references(row):
 
     gen = approximate_model_matching(niemann(), static([row]), sdeg=-5, reltol=1e-5)
     err = check_contract(gen, static([row]), "inf", rel=1.0)
-    assert err < 1e-7
+    assert err < 1e-7 and gen.info["gamma_sub"] < 1e-7
 
 
 # ------------------------------------------------------------------------------ refusals
@@ -259,7 +287,7 @@ def test_discrete_hinf_matches_its_own_bound():
     info = gen.info
     err = check_contract(gen, LTI.from_control(Mr), "inf")
     lo, hi = info["gamma_bracket"]
-    assert info["row_degrees"] == [1]
-    # |M| = 1 on the unit circle; 1e-6: the H∞ norms (AB13DD) of two realisations agree to ~1e-7
-    assert lo * (1 - 1e-6) <= err <= hi * (1 + 1e-6) and hi <= lo * (1 + 1e-6) + 1e-12
+    assert info["interactor_steps"] == 1
+    # |M| = 1 on the unit circle; 1e-5: grid peaks of the same response (check_contract)
+    assert lo * (1 - 1e-5) <= err <= hi * (1 + 1e-5) and hi <= lo * (1 + 2e-6) + 1e-12
     assert err == pytest.approx(info["gamma_opt0"], rel=1e-6)
