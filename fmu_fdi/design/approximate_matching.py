@@ -13,16 +13,24 @@ in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetection
    ``Y Q0`` with ``Y ∈ RH∞``); with d, the full minimal basis of
    :func:`~fmu_fdi.design.nullspace.nullspace_design`; the reduced system is
    ``G1 = Q0 [Gf Gw; 0 0]`` and (1) becomes ``min_{Y ∈ RH∞} ||Y G1 − F||``, ``F = [Mr 0]``;
-2. zeros of ``G1`` at infinity (a strictly proper plant gives them) make (1) *non-standard*: its infimum is approached only by improper Y. With ``k_i`` the
-   relative degree of row i of ``G1`` and ``m(s) = a/(s + a)`` (``a = −sdeg``), the rows are
-   regularised, ``Ĝ = diag(m^{−k_i}) G1`` (proper, full-row-rank feedthrough), and
-   ``γopt0 = min_Ŷ ||Ŷ Ĝ − F||`` is the infimum of (1). The stable proper filter
-   ``Q = Ŷ diag(m^{k−k_i}) Q0`` (``k = max k_i``) then matches the updated reference
-   ``M Mr`` with the diagonal updating factor ``M = m^k I`` (Varga's ``M``, normalised to
-   unit DC gain, or to unit zpk gain with ``normalize='gain'``; in discrete time ``m = 1/z``,
-   ``Ĝ_i = z^{k_i} G1_i``, and M is the all-pass delay ``z^{−k}``, so ``γsub = γopt0``):
-   ``Q G1 − M F = M (Ŷ Ĝ − F)``, whose norm is ``γsub`` (Varga's ``gammasub``);
-   ``γopt = min_Ŷ ||Ŷ Ĝ − M F||`` is the optimum of the updated problem (``gammaopt``);
+2. zeros of ``G1`` at infinity (a strictly proper plant gives them) make (1) *non-standard*:
+   its infimum is approached only by improper Y. Silverman's structure algorithm
+   (:func:`interactor`) compresses the rows of the feedthrough by an orthogonal ``T_j`` and
+   multiplies the rows with zero feedthrough by ``n = 1/m``, ``m(s) = a/(s + a)``
+   (``a = −sdeg``; ``m = 1/z`` in discrete time), until the feedthrough has full row rank:
+   ``Φ G1 = m^K Ĝ`` with ``Φ = Π diag(m I, I) T_j`` stable and proper and ``Ĝ`` standard,
+   and ``γopt0 = min_Ŷ ||Ŷ Ĝ − F||`` is the infimum of (1). The stable proper filter
+   ``Q = Ŷ Φ Q0`` then matches the updated reference ``M Mr`` with the diagonal updating
+   factor ``M = m^K I`` (Varga's ``M``, normalised to unit DC gain, or to unit zpk gain with
+   ``normalize='gain'``; in discrete time M is the all-pass delay ``z^{−K}``, so
+   ``γsub = γopt0`` in H∞): ``Q G1 − M F = M (Ŷ Ĝ − F)``, whose norm is ``γsub`` (Varga's
+   ``gammasub``); ``γopt = min_Ŷ ||Ŷ Ĝ − M F||`` is the optimum of the updated problem
+   (``gammaopt``, a lower bound of ``γsub``). Rows of ``Q0`` that see neither faults nor
+   noise (``G1`` of normal rank ρ below its rows, e.g. more basis rows than fault and noise
+   directions) are dropped where they are identically zero; those that no shift separates
+   once the feedthrough has rank ρ get fictitious noise ε (the smallest of 1e-6 … 1e-3
+   ``||Ĝ||∞`` that SLICOT solves; ``info['regularisation_eps']``), so ``γopt0`` is then the
+   optimum of the regularised problem, above the infimum by O(ε ||Y||);
 3. the standard problem ``min_{Y ∈ RH∞} ||Y Ĝ − F||`` is the model-matching form of the
    general control problem with ``P = [−F  I; Ĝ  0]`` (open-loop stable, ``P22 = 0``, so a
    controller is internally stabilising iff it is stable). H∞: γ-iteration by bisection
@@ -37,16 +45,16 @@ factorisation, 2-block γ-iteration) replaced by the equivalent standard H∞/H2
 the regularised reduced system, which SLICOT solves with orthogonal (Schur) Riccati
 solvers. The optimum does not depend on the basis Q0: ``Q0`` spans every admissible filter.
 
-Rows of ``Q0`` that see neither faults nor noise (``G1`` of normal rank below its rows,
-e.g. more basis rows than fault and noise columns) are dropped by an orthonormal
-compression when ``G1``'s column space is constant (:func:`compress_rows`).
+Before it returns, the error response of the returned filter, ``Q(λ) [Gf Gw; 0 0](λ) −
+M(λ) [Mr 0](λ)``, is compared point by point with the designed ``M (Ŷ Ĝ − F)`` (every
+factor evaluated from its own balanced realisation: norms of the product realisations,
+with near-cancelling modes, lost every digit on nearly exact matches); a difference above
+1e-6 of the data's size is refused. ``error``/``gamma_sub`` are the H∞ peak of that
+response on a refined grid (H2: Gauss–Legendre quadrature).
 
-Not covered: zeros of ``G1`` on the imaginary axis / unit circle, infinite zeros that are
-not row-aligned (a rank-deficient leading-coefficient matrix after row regularisation —
-it would need an interactor matrix), a rank-deficient ``G1`` whose column space varies
-with frequency, and
-H2 in discrete time (SLICOT SB10ED is not wrapped by slycot): each is refused with a
-:class:`~fmu_fdi.errors.DesignError` that names it.
+Not covered: zeros of ``G1`` on the imaginary axis / unit circle (the optimum is not
+attained by a stable filter), and H2 in discrete time (SLICOT SB10ED is not wrapped by
+slycot): each is refused with a :class:`~fmu_fdi.errors.DesignError` that names it.
 
 References
 ----------
@@ -58,17 +66,17 @@ all stabilizing controllers that satisfy an H∞-norm bound, Systems & Control L
 """
 from __future__ import annotations
 
-from math import comb
+from itertools import pairwise
 
 import numpy as np
 import scipy.linalg as sla
+from slycot.exceptions import SlycotError
 
 from ..errors import DesignError
 from ..generator import ResidualGenerator
 from ..linalg import EPS, single_blas_thread
-from ..lti import LTI, blockdiag, hstack
+from ..lti import LTI, blockdiag, frequency_grid, hstack
 from ..model import FDIModel
-from ..lti import frequency_grid
 from .postconditions import DEC_TOL, _nrm, _values, check_generator
 
 
@@ -92,8 +100,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``M(0) = I`` (default; then also ``||M||∞ = 1``) or unit zpk gain ``1/(s + a)^k``
         (Varga's ``normalize = "gain"``).
     reltol : float
-        Relative accuracy of the H∞ γ-iteration: the returned filter's error is within
-        ``[γ_lo, γ_lo (1 + reltol)]`` where γ_lo is infeasible.
+        Relative accuracy of the H∞ γ-iteration (Varga's ``reltol``): the bisection stops when
+        its feasible level is within ``1 + reltol`` of its infeasible one.
     smarg, dec_tol : float, optional
         Stability margin and decoupling tolerance of the post-conditions (:mod:`.postconditions`).
 
@@ -103,8 +111,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``info``: ``norm``, ``gamma_opt`` (optimum of the problem solved: (1) if standard,
         the updated problem with ``M Mr`` if not), ``gamma_opt0`` (infimum of (1)),
         ``gamma_sub`` and ``error`` (the error norm measured on the returned filter against
-        ``M Mr``), ``gamma_bracket`` (H∞: the bisection's infeasible/feasible levels),
-        ``standard``, ``M`` (LTI, identity if standard), ``row_degrees`` (``k_i``), ``order``,
+        ``M Mr``; equal to ``gamma_opt0`` in the standard case, within ``reltol`` for H∞),
+        ``gamma_bracket`` (H∞: the bisection's last infeasible and feasible levels),
+        ``standard``, ``M`` (LTI, the identity if standard), ``interactor_steps`` (K),
+        ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``order``, ``poles``,
         ``postconditions``.
 
     Raises
@@ -487,7 +497,7 @@ def _h2_quad(values, systems, dt: float) -> float:
     edges = np.concatenate([[0.0], edges])
     x, wq = np.polynomial.legendre.leggauss(16)
     total = 0.0
-    for a0, b0 in zip(edges[:-1], edges[1:]):
+    for a0, b0 in pairwise(edges):
         w = 0.5 * (b0 - a0) * x + 0.5 * (b0 + a0)
         L = np.exp(1j * w * dt) if dt else 1j * w
         f = np.sum(np.abs(values(L)) ** 2, axis=(1, 2))
@@ -545,7 +555,7 @@ def solve_standard(Gh: LTI, F: LTI, norm: str, reltol: float) -> tuple[LTI, dict
         A, B, C, D, n, m, np_, ncon, nmeas = _plant(Gh, F1)
         try:
             Ak, Bk, Ck, Dk, _ = slycot.sb10hd(n, m, np_, ncon, nmeas, A, B, C, D)
-        except Exception as exc:  # slycot raises its own error classes with SLICOT's info text
+        except (SlycotError, ValueError, np.linalg.LinAlgError) as exc:  # SLICOT's info text
             raise DesignError(f"H2 synthesis (SLICOT SB10HD) failed: {exc}") from None
         Y = LTI(Ak, Bk, Ck, Dk, dt) + LTI.static(Y0, dt)
         E = Y @ Gh - F
@@ -598,8 +608,8 @@ def _hinf_at(Gh: LTI, F: LTI, gamma: float):
                 Ak, Bk, Ck, Dk = slycot.sb10dd(n, m, np_, ncon, nmeas, gamma, A, B, C, D, tol=tol)[1:5]
             else:
                 Ak, Bk, Ck, Dk, _ = slycot.sb10fd(n, m, np_, ncon, nmeas, gamma, A, B, C, D, tol=tol)
-        except Exception:  # infeasible level (or a numerically singular Riccati solution at it)
-            continue
+        except (SlycotError, ValueError, np.linalg.LinAlgError):  # infeasible level, or a
+            continue  # numerically singular Riccati solution at it: the next tolerance decides
         Y = LTI(Ak, Bk, Ck, Dk, Gh.dt)
         break
     if Y is None:

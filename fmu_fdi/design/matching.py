@@ -144,7 +144,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
 def _updating(model, Mr, mr_poles, choose, ud, cols, q, max_degree, mm_tol, smarg, dec_tol, normalize):
     """Rows ``Q_i`` and factors ``m_i`` with ``Q_i Ge = [0 0 m_i Mr_i]`` of least added degree ν."""
     Ge = model.augmented()
-    rows, ms, degs, best = [], [], [], []
+    rows, ms, degs = [], [], []
     for i in range(Mr.p):
         found, low = None, np.inf
         for nu in range(max_degree + 1):
@@ -175,7 +175,7 @@ def _updating(model, Mr, mr_poles, choose, ud, cols, q, max_degree, mm_tol, smar
             if Z.shape[1]:
                 # the null vector with the largest m_i part (Q_i Ge = 0 with m_i = 0 is no solution)
                 Zn = Z / np.linalg.norm(Z, axis=0)
-                U, sm, Wt = np.linalg.svd(Zn[nq:], full_matrices=False)
+                _, sm, Wt = np.linalg.svd(Zn[nq:], full_matrices=False)
                 if sm.size and sm[0] > 1e-6:
                     x = Zn @ Wt[0]
                     found = (nu, A, C, Am, Cm, x[:nq].reshape(Phi.shape[1], q), x[nq:])
