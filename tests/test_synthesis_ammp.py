@@ -128,6 +128,19 @@ def test_example_5_13c_updating_factor():
                            atol=1e-9)
 
 
+def test_updating_factor_is_constant_when_the_exact_solution_is_admissible():
+    """FDT test_emmsyn.jl, Niemann (1998) bank references: emmsyn returns order-1 rows with
+    R = M Rf; here the exact solution is stable and proper, so M = 1 (ν = 0) and Q Ge = [0 0 Rf]."""
+    from test_synthesis_published import niemann
+    from fmu_fdi import structured_bank
+
+    model = niemann()
+    for g in structured_bank(model, [[1, 1], [0, 1], [1, 0]]).members:
+        mm = model_matching(model, g.Rf, updating=True)
+        assert mm.info["row_degrees"] == [0] and mm.Q.n == 1 and mm.info["M"].n == 0
+        assert np.allclose(mm.info["M"].D, 1.0) and mm.info["matching_error"] < 1e-9
+
+
 def test_example_5_12_triplex_sensors_emmp():
     """FDITools guide Example 12 (book Ex. 5.12): triplex sensor redundancy, Mr = [0 1 −1; −1 0 1;
     1 −1 0]; published Q = [Mr 0 ⋯ 0] (static, unique: Gf = I forces the y-part, Mr·1 = 0 the u-part)."""
@@ -265,6 +278,9 @@ def test_refusals_name_the_condition():
         approximate_model_matching(model, ct.ss(1 / (s - 1)))
     with pytest.raises(DesignError, match="proper"):
         approximate_model_matching(model, ct.tf([1, 0, 1], [1, 1]))
+    with pytest.raises(DesignError, match="finite matrix"):
+        approximate_model_matching(model, [[np.nan]])
+    assert approximate_model_matching(model, [[0.5]]).info["error"] > 0  # a constant reference is accepted
     with pytest.raises(DesignError, match="norm must be"):
         approximate_model_matching(model, MR14, norm="1")
     with pytest.raises(DesignError, match="continuous-time models only"):

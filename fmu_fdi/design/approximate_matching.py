@@ -89,8 +89,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     Parameters
     ----------
     model : FDIModel
-    Mr : LTI or python-control system
-        Reference fault-to-residual map (residuals × fault columns), proper and stable.
+    Mr : LTI, python-control system or array_like
+        Reference fault-to-residual map (residuals × fault columns), proper and stable; a
+        matrix is a constant reference.
     norm : {'inf', '2'}
         H∞ (default) or H2 norm of the model-matching error (noise response included).
     sdeg : float, optional
@@ -218,7 +219,13 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
 
 # ----------------------------------------------------------------------------- inputs
 def reference(model: FDIModel, Mr) -> LTI:
-    """Mr as an LTI in the model's time base, validated (shape, proper, stable)."""
+    """Mr as an LTI in the model's time base, validated (shape, proper, stable); a matrix is a
+    constant reference."""
+    if isinstance(Mr, (np.ndarray, list, tuple, int, float)):
+        D = np.atleast_2d(np.asarray(Mr, dtype=float))
+        if D.ndim != 2 or not np.all(np.isfinite(D)):
+            raise DesignError(f"a constant Mr must be a finite matrix, got shape {np.shape(Mr)}")
+        Mr = LTI.static(D, model.dt)
     if not isinstance(Mr, LTI):
         try:
             Mr = LTI.from_control(Mr)
