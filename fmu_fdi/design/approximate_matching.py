@@ -38,7 +38,8 @@ in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetection
    SB10FD, SB10DD in discrete time); the central controller at the smallest feasible γ is
    Y, and its measured error equals γopt to the bisection tolerance ``reltol``. H2: the
    optimal controller (SLICOT SB10HD) after removing the feedthrough with
-   ``Y0 = D_F D̂⁺`` (finite H2 norm needs ``D_F (I − D̂⁺ D̂) = 0``); H2 optimal, exact.
+   ``Y0 = D_F D̂⁺`` (finite H2 norm needs ``D_F (I − D̂⁺ D̂) = 0``); in discrete time the
+   Kalman filter estimating ``F v`` from ``Ĝ v`` (:func:`_h2_discrete`); H2 optimal, exact.
 
 This is Varga's Procedure AMMS with the Nehari/least-distance step (quasi-co-outer–co-inner
 factorisation, 2-block γ-iteration) replaced by the equivalent standard H∞/H2 problem on
@@ -53,8 +54,8 @@ with near-cancelling modes, lost every digit on nearly exact matches); a differe
 response on a refined grid (H2: Gauss–Legendre quadrature).
 
 Not covered: zeros of ``G1`` on the imaginary axis / unit circle (the optimum is not
-attained by a stable filter), and H2 in discrete time (SLICOT SB10ED is not wrapped by
-slycot): each is refused with a :class:`~fmu_fdi.errors.DesignError` that names it.
+attained by a stable filter): refused with a :class:`~fmu_fdi.errors.DesignError` that
+names them.
 
 References
 ----------
@@ -134,9 +135,6 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         raise DesignError(f"reltol must lie in (0, 1), got {reltol!r}")
     Mr = reference(model, Mr)
     dt = model.dt
-    if norm == "2" and dt:
-        raise DesignError("norm='2' is implemented for continuous-time models only (the discrete H2 synthesis, "
-                          "SLICOT SB10ED, is not available through slycot): use norm='inf'")
     sdeg = -1.0 if sdeg is None else float(sdeg)
     if not dt and not (np.isfinite(sdeg) and sdeg < 0):
         raise DesignError(f"sdeg must be negative (the pole of the updating factor M), got {sdeg!r}")
@@ -548,6 +546,8 @@ def solve_standard(Gh: LTI, F: LTI, norm: str, reltol: float) -> tuple[LTI, dict
     Dpinv = Vt[:q].T @ np.diag(1.0 / sv[:q]) @ U.T
     Y0 = F.D @ Dpinv  # best constant at infinity: min ||Y0 D̂ − D_F|| (Parrott with full-row-rank D̂)
     dres = F.D - Y0 @ Gh.D
+    if norm == "2" and dt:
+        return _h2_discrete(Gh, F)
     if norm == "2":
         if np.linalg.norm(dres) > 1e-9 * max(np.linalg.norm(F.D), np.linalg.norm(Gh.D) * np.linalg.norm(Y0), 1e-300):
             raise DesignError(f"the H2 problem has no solution: the error's feedthrough D_F − Y D_G cannot vanish "
@@ -598,6 +598,43 @@ def solve_standard(Gh: LTI, F: LTI, norm: str, reltol: float) -> tuple[LTI, dict
     else:  # SB10's certificate ||E|| < γ holds to the accuracy of its Riccati solutions (~1e-6)
         hi = max(hi, ebest)
     return Ybest, {"gamma": ebest, "bracket": (lo, hi)}
+
+
+def _h2_discrete(Gh: LTI, F: LTI) -> tuple[LTI, dict]:
+    """Discrete-time H2: ``Y`` is the minimum-variance causal estimator of ``s = F v`` from
+    ``y = Ĝ v`` (v unit white noise), a Kalman filter with the current measurement.
+
+    With ``x⁺ = A x + B v``, ``y = C2 x + D21 v``, ``s = C1 x + D11 v`` (the states of F and Ĝ),
+    ``P`` solves the filter DARE with ``R = D21 D21ᵀ`` (positive definite: Ĝ is standard) and
+    ``S = B D21ᵀ``; ``Σ = C2 P C2ᵀ + R``, ``L = (A P C2ᵀ + S) Σ⁻¹``, ``Kd = (C1 P C2ᵀ + D11 D21ᵀ) Σ⁻¹``
+    and ``Y = (A − L C2, L, C1 − Kd C2, Kd)``. It minimises ``E‖ŝ − s‖²`` = ``‖Y Ĝ − F‖₂²``
+    (Anderson & Moore, *Optimal Filtering*, 1979, ch. 5; the role of SLICOT SB10ED, which
+    slycot does not wrap).
+    """
+    dt = Gh.dt
+    A = sla.block_diag(F.A, Gh.A) if F.n + Gh.n else np.zeros((0, 0))
+    B = np.vstack([F.B, Gh.B])
+    C1 = np.hstack([F.C, np.zeros((F.p, Gh.n))])
+    C2 = np.hstack([np.zeros((Gh.p, F.n)), Gh.C])
+    D11, D21 = F.D, Gh.D
+    R = D21 @ D21.T
+    n = A.shape[0]
+    if n == 0:
+        Kd = np.linalg.solve(R, D21 @ D11.T).T
+        Y = LTI.static(Kd, dt)
+    else:
+        S = B @ D21.T
+        try:
+            P = sla.solve_discrete_are(A.T, C2.T, B @ B.T, R, s=S)
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            raise DesignError(f"discrete H2 synthesis: the filter Riccati equation has no stabilising solution "
+                              f"({exc})") from None
+        Sig = C2 @ P @ C2.T + R
+        L = np.linalg.solve(Sig, (A @ P @ C2.T + S).T).T
+        Kd = np.linalg.solve(Sig, (C1 @ P @ C2.T + D11 @ D21.T).T).T
+        Y = LTI(A - L @ C2, L, C1 - Kd @ C2, Kd, dt)
+    E = Y @ Gh - F
+    return Y, {"gamma": _h2_quad(lambda lam: _values(E, lam), [Gh, Y] + ([F] if F.n else []), dt)}
 
 
 def _hinf_at(Gh: LTI, F: LTI, gamma: float):
