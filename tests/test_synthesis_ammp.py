@@ -289,6 +289,10 @@ def test_refusals_name_the_condition():
     m2 = FDIModel.from_control(G, w=["w"], f=["f"])
     with pytest.raises(DesignError, match="H2 problem has no solution.*0.707"):
         approximate_model_matching(m2, static([[1.0]]), norm="2")
+    # [Gf Gw] vanishes at s = ±j (a zero on the imaginary axis): the optimum is not attained
+    G = pub.tfm([[(s**2 + 1) / (s + 1) ** 2, (s**2 + 1) / (s + 2) ** 2]], ["f", "w"])
+    with pytest.raises(DesignError, match="zeros on the imaginary axis"):
+        approximate_model_matching(FDIModel.from_control(G, w=["w"], f=["f"]), static([[1.0]]))
     # no residual: d reaches every output
     G = pub.tfm([[1 / (s + 1), 1 / (s + 2)]], ["d", "f"])
     m3 = FDIModel.from_control(G, d=["d"], f=["f"])

@@ -418,16 +418,9 @@ def lowpass_power(a: float, k: int, size: int, dt: float = 0.0) -> LTI:
 
 
 def _check_boundary_zeros(Gh: LTI) -> None:
-    """Refuse zeros of Ĝ at infinity (rank-deficient D) or on the stability boundary."""
+    """Refuse transmission zeros of Ĝ on the stability boundary (SLICOT AB08ND); its zeros at
+    infinity are gone (:func:`interactor` gives a full-row-rank feedthrough)."""
     q = Gh.p
-    s = np.linalg.svd(Gh.D, compute_uv=False) if Gh.D.size else np.zeros(0)
-    scale = max(Gh.scale_of(), 1e-300)
-    rk = int(np.sum(s > 1e-10 * scale))
-    if rk < q:
-        where = "on the unit circle's outside at z = ∞" if Gh.dt else "at infinity"
-        raise DesignError(f"non-standard problem not covered: after row regularisation the reduced system's "
-                          f"feedthrough has rank {rk} < {q} (zeros {where} that are not row-aligned; smallest "
-                          f"singular value {s.min() if s.size else 0.0:.3g} vs data size {scale:.3g})")
     if Gh.n == 0:
         return
     import slycot
@@ -515,18 +508,6 @@ def _h2_quad(values, systems, dt: float) -> float:
 
 
 # ------------------------------------------------------------------ standard problem
-def _norm(E: LTI, norm: str) -> float:
-    """H∞ (SLICOT AB13DD) or H2 norm; in continuous time a feedthrough that is rounding noise
-    (below 1e-9 times the data's size) counts as zero for H2, a larger one makes it infinite."""
-    if norm == "inf":
-        return float(E.hinfnorm()[0])
-    if not E.dt and np.any(E.D):
-        if np.linalg.norm(E.D) > 1e-9 * max(E.scale_of(), 1e-300):
-            return float("inf")
-        E = LTI(E.A, E.B, E.C, np.zeros(E.D.shape), E.dt)
-    return float(E.h2norm())
-
-
 def _plant(Gh: LTI, F: LTI):
     """Generalised plant ``P = [−F  I; Ĝ  0]`` (inputs [v; r], outputs [z; y])."""
     r, q, m1 = F.p, Gh.p, F.m
