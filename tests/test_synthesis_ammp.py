@@ -288,9 +288,15 @@ def test_example_5_16_hinf():
 
 
 def test_example_5_17_h2():
-    """FDT Ex5_17.jl: H2 with Mr = 10/(s+10) I; test: gl2norm(Me − Q Ge) ≈ gammasub."""
+    """FDT Ex5_17.jl: H2 with Mr = 10/(s+10) I; test: gl2norm(Me − Q Ge) ≈ gammasub. FDT's
+    test_ammsyn.jl also runs Ex. 5.16c in H2 with Mr = I (sdeg = -10): its infinite-norm error is
+    repaired by updating Mr with 10/(s+10), which is Ex. 5.17's problem, so M Mr and γsub coincide."""
     gen = approximate_model_matching(ex5_16(), MR17, norm="2", sdeg=-10)
     check_contract(gen, MR17, "2")
+    gI = approximate_model_matching(ex5_16(), static(np.eye(2)), norm="2", sdeg=-10)
+    assert gI.info["reference_lowpass"] and not gen.info["reference_lowpass"]
+    assert gI.info["gamma_sub"] == pytest.approx(gen.info["gamma_sub"], rel=1e-9)
+    assert check_contract(gI, static(np.eye(2)), "2") == pytest.approx(gen.info["gamma_sub"], rel=1e-3)
     # γopt0 = 1.1172 above the pointwise H2 bound 1.1138 (1e-3 for the quadrature)
     assert gen.info["gamma_opt0"] >= pointwise_bound(ex5_16(), MR17, "2") * (1 - 1e-3)
     assert gen.info["gamma_opt"] <= gen.info["gamma_sub"] * (1 + 1e-9)
@@ -322,11 +328,14 @@ def test_refusals_name_the_condition():
     assert approximate_model_matching(model, [[0.5]]).info["error"] > 0  # a constant reference is accepted
     with pytest.raises(DesignError, match="norm must be"):
         approximate_model_matching(model, MR14, norm="1")
-    # H2 with a feedthrough no filter can cancel: G = [(s+2)/(s+1), 1], Mr = 1 → D_F = [1 0] ∉ rowspace [1 1]
+    # H2 with a feedthrough no filter can cancel: G = [(s+2)/(s+1), 1], Mr = 1 → D_F = [1 0] ∉ rowspace [1 1]:
+    # every error has infinite H2 norm, so (as ammsyn) Mr is updated by a/(s+a), which joins M
     G = pub.tfm([[(s + 2) / (s + 1), 1]], ["f", "w"])
     m2 = FDIModel.from_control(G, w=["w"], f=["f"])
-    with pytest.raises(DesignError, match="H2 problem has no solution.*0.707"):
-        approximate_model_matching(m2, static([[1.0]]), norm="2")
+    g = approximate_model_matching(m2, static([[1.0]]), norm="2", sdeg=-2)
+    assert g.info["reference_lowpass"] and g.info["M"].n == 1
+    assert np.allclose(g.info["M"].freqresp([0.0, 2.0])[:, 0, 0], [1.0, 2 / (2 + 2j)], atol=1e-12)
+    check_contract(g, static([[1.0]]), "2")
     # [Gf Gw] vanishes at s = ±j (a zero on the imaginary axis): the optimum is not attained
     G = pub.tfm([[(s**2 + 1) / (s + 1) ** 2, (s**2 + 1) / (s + 2) ** 2]], ["f", "w"])
     with pytest.raises(DesignError, match="zeros on the imaginary axis"):

@@ -38,7 +38,9 @@ in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetection
    SB10FD, SB10DD in discrete time); the central controller at the smallest feasible γ is
    Y, and its measured error equals γopt to the bisection tolerance ``reltol``. H2: the
    optimal controller (SLICOT SB10HD) after removing the feedthrough with
-   ``Y0 = D_F D̂⁺`` (finite H2 norm needs ``D_F (I − D̂⁺ D̂) = 0``); in discrete time the
+   ``Y0 = D_F D̂⁺`` (finite H2 norm needs ``D_F (I − D̂⁺ D̂) = 0``; when it fails the
+   reference is first updated by the low-pass ``m``, which becomes a factor of M, as in
+   ``ammsyn``; ``info['reference_lowpass']``); in discrete time the
    Kalman filter estimating ``F v`` from ``Ĝ v`` (:func:`_h2_discrete`); H2 optimal, exact.
 
 This is Varga's Procedure AMMS with the Nehari/least-distance step (quasi-co-outer–co-inner
@@ -116,7 +118,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``M Mr``; equal to ``gamma_opt0`` in the standard case, within ``reltol`` for H∞),
         ``gamma_bracket`` (H∞: the bisection's last infeasible and feasible levels),
         ``standard``, ``M`` (LTI, the identity if standard), ``interactor_steps`` (K),
-        ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``order``, ``poles``,
+        ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``reference_lowpass``
+        (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``poles``,
         ``postconditions``.
 
     Raises
@@ -142,7 +145,16 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     F = hstack([Mr, LTI.zero(Mr.p, model.nw, dt)]) if model.nw else Mr
     a = -float(sdeg)
     Gh, Phi, K, dropped, left = interactor(G1, a)
-    standard = K == 0 and left == 0
+    # continuous H2 with an error feedthrough no filter cancels (D_F outside the row space of
+    # Ĝ's feedthrough): every error has infinite H2 norm. As Varga's ammsyn does, the reference
+    # is updated by the low-pass m = a/(s + a), which enters M (Kb = 1)
+    Kb = 0
+    if norm == "2" and not dt and F.D.size and np.any(F.D):
+        _, sv, Vt = np.linalg.svd(Gh.D)
+        Vr = Vt[:int(np.sum(sv > 1e-12 * max(sv.max(initial=0.0), 1e-300)))]
+        Kb = int(np.linalg.norm(F.D - F.D @ Vr.T @ Vr) > 1e-9 * np.linalg.norm(F.D))
+    F = lowpass_power(a, 1, Mr.p, dt) @ F if Kb else F
+    standard = K == 0 and left == 0 and Kb == 0
     # rank-deficient rows: fictitious noise ε on them makes the problem standard; its optimum
     # exceeds the infimum by O(ε ||Y||) (the returned error is measured without it). The
     # smallest ε of 1e-6, 1e-5, 1e-4, 1e-3 times ||Ĝ||∞ whose Riccati equations SLICOT solves
@@ -164,10 +176,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
             _refined_peak(lambda L: _values(E0, L), _points([Gh, Y] + ([F] if F.n else []), dt), dt)
     else:
         gamma_opt0 = info["gamma"]
-    scale = a ** -K if normalize == "gain" and not dt else 1.0
-    M = scale * lowpass_power(a, K, Mr.p, dt)
+    scale = a ** -(K + Kb) if normalize == "gain" and not dt else 1.0
+    M = scale * lowpass_power(a, K + Kb, Mr.p, dt)
     Qfull = scale * (Y @ Phi @ Q0)
-    MF = M @ F if M.n else M.D @ F
+    MF = scale * lowpass_power(a, K, Mr.p, dt) @ F if K else scale * F  # = M [Mr 0]
     fnm = fault_noise_map(model)
     # the error as shipped, Q(λ) [Gf Gw; 0 0](λ) − M(λ) [Mr 0](λ), must be the designed one,
     # scale m(λ)^K (Y(λ) Ĝ(λ) − F(λ)), compared factor by factor at the same points (each
@@ -198,7 +210,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     else:
         err = _h2_quad(lambda L: np.einsum("kij,kjl->kil", _values(Q, L), _values(fnm, L)) - _values(MF, L),
                        [model.lti(), Y] + ([Mr] if Mr.n else []), dt)
-    if K == 0:
+    if K == 0:  # (with Kb = 1 the problem solved is the one with M Mr already)
         gamma_opt = gamma_opt0
     else:
         Yu = solve_standard(*_regularised(Gh, MF, left, eps), norm, reltol)[0]
@@ -209,6 +221,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         "gamma_sub": float(err), "error": float(err), "M": M, "interactor_steps": int(K),
         "order": int(Q.n), "poles": np.asarray(Q.poles()).tolist(), "reduced_rows": int(G1.p),
         "dropped_rows": int(dropped), "regularised_rows": int(left), "regularisation_eps": eps,
+        "reference_lowpass": bool(Kb),
     })
     if "bracket" in info:
         gen.info["gamma_bracket"] = [float(x) for x in info["bracket"]]
