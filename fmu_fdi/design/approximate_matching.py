@@ -126,9 +126,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     ------
     DesignError
         Mr of the wrong shape, sample time, unstable or improper; no residual decouples u
-        and d; a non-standard problem outside the covered cases; an H2 problem whose
-        error has a feedthrough no filter can cancel (infinite H2 norm); a design that
-        fails its post-conditions.
+        and d; zeros of the reduced system on the stability boundary; SLICOT's Riccati
+        solvers failing at every level/regularisation; a returned filter whose error
+        response is not the designed one (realisation accuracy) or that fails its
+        post-conditions.
     """
     if norm not in ("inf", "2"):
         raise DesignError(f"norm must be 'inf' or '2', got {norm!r}")
