@@ -188,7 +188,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     # passes (with a large gain of Y, near-cancelling modes that SLICOT's staircase removes
     # can matter), else the non-minimal Y Φ Q0 is returned
     lam = _points([model.lti(), Y] + ([Mr] if Mr.n else []), dt)
-    designed = _values(Y @ Gh - F, lam) * (scale * _mk(lam, a, K, dt))[:, None, None]
+    designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) \
+        * (scale * _mk(lam, a, K, dt))[:, None, None]
     fv, mfv = _values(fnm, lam), _values(MF, lam)
     size = max(float(np.nanmax(_nrm(mfv))), float(np.nanmax(_nrm(designed))), 1e-300)
     for Q in (Qfull.minreal(), Qfull):
