@@ -1,6 +1,7 @@
 """fmu-fdi: model-based fault detection and isolation for linear systems, shipped as FMUs."""
 from .analysis import (detectability, fault_gains, fault_noise_gap, fault_sensitivity_condition, hinf_minus,
                        isolability, leakage, structure_matrix)
+from .design import approximate_model_matching, model_matching
 from .design import (RLSEstimator, dedicated_bank, factorized, fault_detection_filter, generalized_bank, kalman,
                      luenberger, nullspace_design, parity_space, rls_estimator, structured_bank,
                      unknown_input_observer)
@@ -29,3 +30,4 @@ __all__ = [
     "leakage", "detectability", "isolability",
     "CoSimulation", "Result", "Fault", "parse_fault", "InputSignals", "export_ssp", "SimulationFailed",
 ]
+__all__ += ["model_matching", "approximate_model_matching"]

@@ -1,4 +1,5 @@
 """Residual generator design: one function per method, each returning a ResidualGenerator."""
+from .approximate_matching import approximate_model_matching
 from .banks import afdi_bank, dedicated_bank, generalized_bank, structured_bank
 from .beard_jones import fault_detection_filter
 from .coprime import factorized, left_coprime_factors
@@ -21,3 +22,4 @@ __all__ = [
     "model_detection_bank",
     "approximate_model_detection_bank", "distance_mapping", "noise_gaps", "match_model",
 ]
+__all__ += ["approximate_model_matching"]

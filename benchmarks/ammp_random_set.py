@@ -1,0 +1,85 @@
+"""approximate_model_matching on the seeded random models: returned / refused / crashed, and time.
+
+For each model of tests/synthesis_models.py (n = 4-30, continuous and discrete, with and without
+unknown inputs d, two sensor and two actuator faults) and a random stable first-order reference
+Mr (1-2 residuals), the H∞ and the H2 design is run. A returned design is checked against its
+contract from the model and the returned filter alone (decoupling of u and d relative to the
+data, the error response of Q against M [Mr 0] at 600 points equal to the reported gamma_sub
+within 1e-5 relative in H∞); "BROKEN" counts returned designs that fail it, "crash" any exception
+other than DesignError. Run: python benchmarks/ammp_random_set.py [N]
+"""
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from fmu_fdi import DesignError, approximate_model_matching  # noqa: E402
+from fmu_fdi.design.approximate_matching import fault_noise_map  # noqa: E402
+from fmu_fdi.lti import LTI, hstack  # noqa: E402
+from synthesis_models import random_model  # noqa: E402
+
+
+def reference(model, seed: int) -> LTI:
+    rng = np.random.default_rng(100 + seed)
+    r = 1 + seed % 2
+    pole = np.array([[0.5]]) if model.dt else np.array([[-2.0]])
+    return LTI(np.kron(np.eye(r), pole), rng.normal(size=(r, model.nf)), np.eye(r), np.zeros((r, model.nf)),
+               model.dt)
+
+
+def peak_error(gen, Mr) -> float:
+    model = gen.model
+    F = hstack([Mr, LTI.zero(Mr.p, model.nw, model.dt)]) if model.nw else Mr
+    M = gen.info["M"]
+    MF = M @ F if M.n else M.D @ F
+    top = np.pi / model.dt if model.dt else 1e5
+    w = np.concatenate([[0.0], np.logspace(-5, np.log10(top), 600)])
+    lam = np.exp(1j * w * model.dt) if model.dt else 1j * w
+
+    def resp(S):
+        if S.n == 0:
+            return np.broadcast_to(S.D.astype(complex), (w.size,) + S.D.shape)
+        X = np.linalg.solve(lam[:, None, None] * np.eye(S.n) - S.A, np.broadcast_to(S.B, (w.size,) + S.B.shape))
+        return S.C @ X + S.D
+
+    E = np.einsum("kij,kjl->kil", resp(gen.Q), resp(fault_noise_map(model))) - resp(MF)
+    return float(np.max(np.linalg.norm(E, 2, axis=(1, 2))))
+
+
+def run(N: int = 30, verbose: bool = True) -> dict:
+    counts = {"ok": 0, "refused": 0, "BROKEN": 0, "crash": 0}
+    reasons: dict[str, int] = {}
+    times = []
+    for seed in range(N):
+        model = random_model(seed)
+        Mr = reference(model, seed)
+        for norm in ("inf", "2"):
+            t = time.perf_counter()
+            try:
+                gen = approximate_model_matching(model, Mr, norm=norm)
+                bad = gen.info["postconditions"]["decoupling"] > 1e-6
+                if norm == "inf":
+                    e = peak_error(gen, Mr)
+                    bad |= e > gen.info["gamma_sub"] * (1 + 1e-5) + 1e-9 * max(1.0, Mr.hinfnorm()[0])
+                key, msg = ("BROKEN" if bad else "ok"), f"gamma_sub={gen.info['gamma_sub']:.4g}"
+            except DesignError as exc:
+                key, msg = "refused", str(exc)[:110]
+                reasons[msg[:60]] = reasons.get(msg[:60], 0) + 1
+            except Exception as exc:  # noqa: BLE001 - a crash is what this benchmark counts
+                key, msg = "crash", repr(exc)[:110]
+            times.append(time.perf_counter() - t)
+            counts[key] += 1
+            if verbose:
+                print(f"seed {seed:2d} n={model.n:2d} {'dt' if model.dt else 'ct'} d={model.nd} {norm:>3}: "
+                      f"{key:8s} {times[-1]:5.2f} s  {msg}")
+    print("totals:", counts, f"| median time {np.median(times):.2f} s, max {np.max(times):.2f} s")
+    for r, c in sorted(reasons.items(), key=lambda x: -x[1]):
+        print(f"  refused {c:2d}x: {r}")
+    return counts
+
+
+if __name__ == "__main__":
+    run(int(sys.argv[1]) if len(sys.argv) > 1 else 30)

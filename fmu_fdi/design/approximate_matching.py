@@ -1,0 +1,665 @@
+"""Approximate model matching (AMMP): the residual generator whose fault response is nearest a reference.
+
+Find a stable proper ``Q`` that decouples u and d exactly and minimises
+
+    γ = || Q(λ) [Gf Gw; 0 0](λ) − [Mr(λ) 0] ||,     Q(λ) [Gu Gd; I 0](λ) = 0,        (1)
+
+in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetectionTools.jl
+``ammsyn``). The steps:
+
+1. a proper stable left null-space basis ``Q0`` of ``[Gu Gd; I 0]`` — without d,
+   ``[I  −Gu]`` when Gu is stable (``Q = [X  −X Gu]`` is stable iff X is) and the left
+   coprime factor ``[M̂  −N̂]`` of an observer otherwise (every admissible Q is then
+   ``Y Q0`` with ``Y ∈ RH∞``); with d, the full minimal basis of
+   :func:`~fmu_fdi.design.nullspace.nullspace_design`; the reduced system is
+   ``G1 = Q0 [Gf Gw; 0 0]`` and (1) becomes ``min_{Y ∈ RH∞} ||Y G1 − F||``, ``F = [Mr 0]``;
+2. zeros of ``G1`` at infinity (a strictly proper plant gives them) make (1) *non-standard*:
+   its infimum is approached only by improper Y. Silverman's structure algorithm
+   (:func:`interactor`) compresses the rows of the feedthrough by an orthogonal ``T_j`` and
+   multiplies the rows with zero feedthrough by ``n = 1/m``, ``m(s) = a/(s + a)``
+   (``a = −sdeg``; ``m = 1/z`` in discrete time), until the feedthrough has full row rank:
+   ``Φ G1 = m^K Ĝ`` with ``Φ = Π diag(m I, I) T_j`` stable and proper and ``Ĝ`` standard,
+   and ``γopt0 = min_Ŷ ||Ŷ Ĝ − F||`` is the infimum of (1). The stable proper filter
+   ``Q = Ŷ Φ Q0`` then matches the updated reference ``M Mr`` with the diagonal updating
+   factor ``M = m^K I`` (Varga's ``M``, normalised to unit DC gain, or to unit zpk gain with
+   ``normalize='gain'``; in discrete time M is the all-pass delay ``z^{−K}``, so
+   ``γsub = γopt0`` in H∞): ``Q G1 − M F = M (Ŷ Ĝ − F)``, whose norm is ``γsub`` (Varga's
+   ``gammasub``); ``γopt = min_Ŷ ||Ŷ Ĝ − M F||`` is the optimum of the updated problem
+   (``gammaopt``, a lower bound of ``γsub``). Rows of ``Q0`` that see neither faults nor
+   noise (``G1`` of normal rank ρ below its rows, e.g. more basis rows than fault and noise
+   directions) are dropped where they are identically zero; those that no shift separates
+   once the feedthrough has rank ρ get fictitious noise ε (the smallest of 1e-6 … 1e-3
+   ``||Ĝ||∞`` that SLICOT solves; ``info['regularisation_eps']``), so ``γopt0`` is then the
+   optimum of the regularised problem, above the infimum by O(ε ||Y||);
+3. the standard problem ``min_{Y ∈ RH∞} ||Y Ĝ − F||`` is the model-matching form of the
+   general control problem with ``P = [−F  I; Ĝ  0]`` (open-loop stable, ``P22 = 0``, so a
+   controller is internally stabilising iff it is stable). H∞: γ-iteration by bisection
+   on the solvability of the two Riccati equations of Glover and Doyle (1988) (SLICOT
+   SB10FD, SB10DD in discrete time); the central controller at the smallest feasible γ is
+   Y, and its measured error equals γopt to the bisection tolerance ``reltol``. H2: the
+   optimal controller (SLICOT SB10HD) after removing the feedthrough with
+   ``Y0 = D_F D̂⁺`` (finite H2 norm needs ``D_F (I − D̂⁺ D̂) = 0``; when it fails the
+   reference is first updated by the low-pass ``m``, which becomes a factor of M, as in
+   ``ammsyn``; ``info['reference_lowpass']``); in discrete time the
+   Kalman filter estimating ``F v`` from ``Ĝ v`` (:func:`_h2_discrete`); H2 optimal, exact.
+
+This is Varga's Procedure AMMS with the Nehari/least-distance step (quasi-co-outer–co-inner
+factorisation, 2-block γ-iteration) replaced by the equivalent standard H∞/H2 problem on
+the regularised reduced system, which SLICOT solves with orthogonal (Schur) Riccati
+solvers. The optimum does not depend on the basis Q0: ``Q0`` spans every admissible filter.
+
+Before it returns, the error response of the returned filter, ``Q(λ) [Gf Gw; 0 0](λ) −
+M(λ) [Mr 0](λ)``, is compared point by point with the designed ``M (Ŷ Ĝ − F)`` (every
+factor evaluated from its own balanced realisation: norms of the product realisations,
+with near-cancelling modes, lost every digit on nearly exact matches); a difference above
+1e-6 of the data's size is refused. ``error``/``gamma_sub`` are the H∞ peak of that
+response on a refined grid (H2: Gauss–Legendre quadrature).
+
+Not covered: zeros of ``G1`` on the imaginary axis / unit circle (the optimum is not
+attained by a stable filter): refused with a :class:`~fmu_fdi.errors.DesignError` that
+names them.
+
+References
+----------
+A. Varga, *Solving Fault Diagnosis Problems*, Springer 2017, sec. 5.7 (Procedure AMMS),
+Examples 5.14–5.17. A. Varga, Integrated computational algorithm for solving H∞-optimal
+FDI problems, IFAC World Congress 2011. K. Glover and J. C. Doyle, State-space formulae for
+all stabilizing controllers that satisfy an H∞-norm bound, Systems & Control Letters 11,
+1988. K. Zhou, J. C. Doyle and K. Glover, *Robust and Optimal Control*, 1996, chs. 14, 17.
+"""
+from __future__ import annotations
+
+from itertools import pairwise
+
+import numpy as np
+import scipy.linalg as sla
+from slycot.exceptions import SlycotError
+
+from ..errors import DesignError
+from ..generator import ResidualGenerator
+from ..linalg import EPS, single_blas_thread
+from ..lti import LTI, blockdiag, frequency_grid, hstack
+from ..model import FDIModel
+from .postconditions import DEC_TOL, _nrm, _values, check_generator
+
+
+@single_blas_thread
+def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: float | None = None,
+                               normalize: str = "dcgain", reltol: float = 1e-4, smarg: float | None = None,
+                               dec_tol: float = DEC_TOL) -> ResidualGenerator:
+    """H∞ or H2 optimal approximate model matching: ``min ||Q [Gf Gw; 0 0] − [Mr 0]||`` with ``Q [Gu Gd; I 0] = 0``.
+
+    Parameters
+    ----------
+    model : FDIModel
+    Mr : LTI, python-control system or array_like
+        Reference fault-to-residual map (residuals × fault columns), proper and stable; a
+        matrix is a constant reference.
+    norm : {'inf', '2'}
+        H∞ (default) or H2 norm of the model-matching error (noise response included).
+    sdeg : float, optional
+        Pole ``−a`` of the updating factor ``M = (a/(s + a))^k I`` used when the reduced
+        system has zeros at infinity (default −1).
+    normalize : {'dcgain', 'gain'}
+        ``M(0) = I`` (default; then also ``||M||∞ = 1``) or unit zpk gain ``1/(s + a)^k``
+        (Varga's ``normalize = "gain"``).
+    reltol : float
+        Relative accuracy of the H∞ γ-iteration (Varga's ``reltol``): the bisection stops when
+        its feasible level is within ``1 + reltol`` of its infeasible one.
+    smarg, dec_tol : float, optional
+        Stability margin and decoupling tolerance of the post-conditions (:mod:`.postconditions`).
+
+    Returns
+    -------
+    ResidualGenerator
+        ``info``: ``norm``, ``gamma_opt`` (optimum of the problem solved: (1) if standard,
+        the updated problem with ``M Mr`` if not), ``gamma_opt0`` (infimum of (1)),
+        ``gamma_sub`` and ``error`` (the error norm measured on the returned filter against
+        ``M Mr``; equal to ``gamma_opt0`` in the standard case, within ``reltol`` for H∞),
+        ``gamma_bracket`` (H∞: the bisection's last infeasible and feasible levels),
+        ``standard``, ``M`` (LTI, the identity if standard), ``interactor_steps`` (K),
+        ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``reference_lowpass``
+        (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``poles``,
+        ``postconditions``.
+
+    Raises
+    ------
+    DesignError
+        Mr of the wrong shape, sample time, unstable or improper; no residual decouples u
+        and d; zeros of the reduced system on the stability boundary; SLICOT's Riccati
+        solvers failing at every level/regularisation; a returned filter whose error
+        response is not the designed one (realisation accuracy) or that fails its
+        post-conditions.
+    """
+    if norm not in ("inf", "2"):
+        raise DesignError(f"norm must be 'inf' or '2', got {norm!r}")
+    if normalize not in ("dcgain", "gain"):
+        raise DesignError(f"normalize must be 'dcgain' or 'gain', got {normalize!r}")
+    if not (0 < reltol < 1):
+        raise DesignError(f"reltol must lie in (0, 1), got {reltol!r}")
+    Mr = reference(model, Mr)
+    dt = model.dt
+    sdeg = -1.0 if sdeg is None else float(sdeg)
+    if not dt and not (np.isfinite(sdeg) and sdeg < 0):
+        raise DesignError(f"sdeg must be negative (the pole of the updating factor M), got {sdeg!r}")
+    Q0, G1 = reduced_system(model)
+    F = hstack([Mr, LTI.zero(Mr.p, model.nw, dt)]) if model.nw else Mr
+    a = -float(sdeg)
+    Gh, Phi, K, dropped, left = interactor(G1, a)
+    # continuous H2 with an error feedthrough no filter cancels (D_F outside the row space of
+    # Ĝ's feedthrough): every error has infinite H2 norm. As Varga's ammsyn does, the reference
+    # is updated by the low-pass m = a/(s + a), which enters M (Kb = 1)
+    Kb = 0
+    if norm == "2" and not dt and F.D.size and np.any(F.D):
+        _, sv, Vt = np.linalg.svd(Gh.D)
+        Vr = Vt[:int(np.sum(sv > 1e-12 * max(sv.max(initial=0.0), 1e-300)))]
+        Kb = int(np.linalg.norm(F.D - F.D @ Vr.T @ Vr) > 1e-9 * np.linalg.norm(F.D))
+    F = lowpass_power(a, 1, Mr.p, dt) @ F if Kb else F
+    standard = K == 0 and left == 0 and Kb == 0
+    # rank-deficient rows: fictitious noise ε on them makes the problem standard; its optimum
+    # exceeds the infimum by O(ε ||Y||) (the returned error is measured without it). The
+    # smallest ε of 1e-6, 1e-5, 1e-4, 1e-3 times ||Ĝ||∞ whose Riccati equations SLICOT solves
+    ladder = [1e-6, 1e-5, 1e-4, 1e-3] if left else [0.0]
+    gsize = float(Gh.hinfnorm()[0]) if left else 0.0
+    for k_eps, factor in enumerate(ladder):
+        eps = factor * gsize
+        G2, F2 = _regularised(Gh, F, left, eps)
+        _check_boundary_zeros(G2)
+        try:
+            Y, info = solve_standard(G2, F2, norm, reltol)
+            break
+        except DesignError:
+            if k_eps == len(ladder) - 1:
+                raise
+    if left:  # the error without the fictitious noise
+        E0 = Y @ Gh - F
+        gamma_opt0 = _h2_quad(lambda L: _values(E0, L), [Gh, Y] + ([F] if F.n else []), dt) if norm == "2" else \
+            _refined_peak(lambda L: _values(E0, L), _points([Gh, Y] + ([F] if F.n else []), dt), dt)
+    else:
+        gamma_opt0 = info["gamma"]
+    scale = a ** -(K + Kb) if normalize == "gain" and not dt else 1.0
+    M = scale * lowpass_power(a, K + Kb, Mr.p, dt)
+    Qfull = scale * (Y @ Phi @ Q0)
+    MF = scale * lowpass_power(a, K, Mr.p, dt) @ F if K else scale * F  # = M [Mr 0]
+    fnm = fault_noise_map(model)
+    # the error as shipped, Q(λ) [Gf Gw; 0 0](λ) − M(λ) [Mr 0](λ), must be the designed one,
+    # scale m(λ)^K (Y(λ) Ĝ(λ) − F(λ)), compared factor by factor at the same points (each
+    # factor from a balanced realisation): the minimal realisation of Q is kept only if it
+    # passes (with a large gain of Y, near-cancelling modes that SLICOT's staircase removes
+    # can matter), else the non-minimal Y Φ Q0 is returned
+    lam = _points([model.lti(), Y] + ([Mr] if Mr.n else []), dt)
+    designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) \
+        * (scale * _mk(lam, a, K, dt))[:, None, None]
+    fv, mfv = _values(fnm, lam), _values(MF, lam)
+    size = max(float(np.nanmax(_nrm(mfv))), float(np.nanmax(_nrm(designed))), 1e-300)
+    for Q in (Qfull.minreal(), Qfull):
+        shipped = np.einsum("kij,kjl->kil", _values(Q, lam), fv) - mfv
+        ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
+        gap = float(np.max(_nrm(shipped[ok] - designed[ok])))
+        # rounding of the factors' values (~1e-13 relative) times the gain of Y: 1e-6 is ample
+        if gap <= 1e-6 * size:
+            break
+    else:
+        raise DesignError(f"approximate_model_matching: the returned filter's error response differs from the "
+                          f"designed one by {gap:.3g} (relative {gap / size:.3g} > 1e-6): the realisation of "
+                          f"Q = Y Φ Q0 lost accuracy (peak gain of Y {float(np.nanmax(_nrm(_values(Y, lam)))):.3g}; "
+                          f"an ill-conditioned, nearly exactly matchable problem: try model_matching, or another sdeg)")
+    gen = ResidualGenerator(Q, model, "approximate_model_matching")
+    check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
+    if norm == "inf":
+        err = _refined_peak(lambda L: np.einsum("kij,kjl->kil", _values(Q, L), _values(fnm, L)) - _values(MF, L),
+                            lam, dt)
+    else:
+        err = _h2_quad(lambda L: np.einsum("kij,kjl->kil", _values(Q, L), _values(fnm, L)) - _values(MF, L),
+                       [model.lti(), Y] + ([Mr] if Mr.n else []), dt)
+    if K == 0:  # (with Kb = 1 the problem solved is the one with M Mr already)
+        gamma_opt = gamma_opt0
+    else:
+        Yu = solve_standard(*_regularised(Gh, MF, left, eps), norm, reltol)[0]
+        gamma_opt = _h2_quad(lambda L: _values(Yu @ Gh - MF, L), [Gh, Yu, MF], dt) if norm == "2" else \
+            _refined_peak(lambda L: _values(Yu @ Gh - MF, L), lam, dt)
+    gen.info.update({
+        "norm": norm, "standard": bool(standard), "gamma_opt": float(gamma_opt), "gamma_opt0": float(gamma_opt0),
+        "gamma_sub": float(err), "error": float(err), "M": M, "interactor_steps": int(K),
+        "order": int(Q.n), "poles": np.asarray(Q.poles()).tolist(), "reduced_rows": int(G1.p),
+        "dropped_rows": int(dropped), "regularised_rows": int(left), "regularisation_eps": eps,
+        "reference_lowpass": bool(Kb),
+    })
+    if "bracket" in info:
+        gen.info["gamma_bracket"] = [float(x) for x in info["bracket"]]
+    return gen
+
+
+# ----------------------------------------------------------------------------- inputs
+def reference(model: FDIModel, Mr) -> LTI:
+    """Mr as an LTI in the model's time base, validated (shape, proper, stable); a matrix is a
+    constant reference."""
+    if isinstance(Mr, (np.ndarray, list, tuple, int, float)):
+        D = np.atleast_2d(np.asarray(Mr, dtype=float))
+        if D.ndim != 2 or not np.all(np.isfinite(D)):
+            raise DesignError(f"a constant Mr must be a finite matrix, got shape {np.shape(Mr)}")
+        Mr = LTI.static(D, model.dt)
+    if not isinstance(Mr, LTI):
+        try:
+            Mr = LTI.from_control(Mr)
+        except ValueError as exc:
+            raise DesignError(f"Mr must be a proper system: {exc}") from None
+        except TypeError as exc:
+            raise DesignError(f"Mr: {exc}") from None
+    if Mr.m != model.nf:
+        raise DesignError(f"Mr must have {model.nf} inputs (the fault columns {model.fault_names}), got {Mr.m}")
+    if Mr.p < 1:
+        raise DesignError("Mr must have at least one output (residual)")
+    if Mr.n and abs(Mr.dt - model.dt) > 1e-12 * max(1.0, model.dt):
+        raise DesignError(f"Mr has sample time {Mr.dt} but the model has {model.dt}")
+    Mr = LTI(Mr.A, Mr.B, Mr.C, Mr.D, model.dt)
+    if Mr.n:
+        Mr = Mr.minreal()
+        if not Mr.is_stable():
+            bad = Mr.poles()
+            worst = float(np.max(np.abs(bad))) if model.dt else float(np.max(bad.real))
+            what = "largest |pole|" if model.dt else "largest Re(pole)"
+            raise DesignError(f"Mr must be stable ({what} = {worst:.6g}): every filter's fault response Q Gf is")
+    return Mr
+
+
+def fault_noise_map(model: FDIModel) -> LTI:
+    """``[Gf Gw; 0 0]``: from [f; w] to [y; u] (the columns of F = [Mr 0])."""
+    Ge = model.augmented()
+    sl = model.group_slices()
+    cols = np.r_[np.arange(sl["f"].start, sl["f"].stop), np.arange(sl["w"].start, sl["w"].stop)]
+    return Ge[:, cols]
+
+
+def reduced_system(model: FDIModel) -> tuple[LTI, LTI]:
+    """``(Q0, G1)``: a proper stable left null-space basis of ``[Gu Gd; I 0]`` and ``Q0 [Gf Gw; 0 0]``."""
+    dt = model.dt
+    if model.nd == 0 and (model.nu == 0 or LTI(model.A, model.Bu, model.C, model.Du, dt).is_stable()):
+        # Gu stable: Q0 = [I  −Gu] (Q = [X  −X Gu] is stable iff X is), the identity without u
+        if model.nu == 0:
+            Q0 = LTI.static(np.eye(model.ny), dt)
+        else:
+            Q0 = LTI(model.A, np.hstack([np.zeros((model.n, model.ny)), model.Bu]), -model.C,
+                     np.hstack([np.eye(model.ny), -model.Du]), dt)
+        return Q0, model.lti("f", "w")
+    if model.nd == 0:
+        from .coprime import _factor_filter
+
+        try:
+            Q0, _ = _factor_filter(model, None, False)
+        except DesignError as exc:
+            raise DesignError(f"approximate_model_matching: no observer-based basis: {exc}") from None
+        # output error e = x − x̂ of the observer: G1 = (A − LC, [Bf − L Df, Bw − L Dw], C, [Df Dw])
+        L = Q0.B[:, :model.ny]
+        B = np.hstack([model.Bf, model.Bw])
+        D = np.hstack([model.Df, model.Dw])
+        return Q0, LTI(Q0.A, B - L @ D, model.C, D, dt)
+    from .nullspace import nullspace_design
+
+    try:
+        basis = nullspace_design(model, rdim="all", noise="ignore", FDtol=0.0)
+    except DesignError as exc:
+        raise DesignError(f"approximate_model_matching: no residual decouples u and d: {exc}") from None
+    Q0 = basis.Q
+    # no minimal realisation here: the basis cancels plant modes only to its own accuracy
+    # (~1e-7), and removing them would make G1 differ from Q0 [Gf Gw] by that much divided
+    # by the distance of those poles to the boundary; the interactor keeps only the
+    # controllable part, which is exact
+    return Q0, Q0 @ fault_noise_map(model)
+
+
+# ------------------------------------------------------------------- regularisation
+def interactor(G1: LTI, a: float) -> tuple[LTI, LTI, int, int, int]:
+    """Silverman's structure algorithm: ``(Ĝ, Φ, K, dropped, left)`` with ``Φ G1 = m^K Ĝ``.
+
+    ``Ĝ`` is proper with a full-row-rank feedthrough (no zeros at infinity), ``Φ`` stable and
+    proper (poles at −a, or delays in discrete time), ``m = a/(s + a)`` (``1/z``). Each step
+    splits the rows by an orthogonal ``T`` from the SVD of the feedthrough: rows in its range
+    stay, rows with zero feedthrough are multiplied by ``n = 1/m`` (``n·(A, B, c, 0) =
+    (A, B, (c A + a c)/a, c B/a)``, or ``(A, B, c A, c B)``), and combinations that are
+    identically zero (``c = 0`` in a controllable realisation) are dropped — they are the
+    residual directions that see neither faults nor noise (``G1`` rank-deficient), which loses
+    nothing: ``Y G1`` does not depend on them. The step factor is
+    ``Φ_j = diag(m I, I) T_j`` (kept rows), so ``Φ_K ⋯ Φ_1 G1 = m^K Ĝ``. Rows of ``[C D]``
+    are kept at unit norm (a row scaling folded into T) so that one relative tolerance
+    serves every step: the feedthrough's singular values count above ``1e-9 ||B||``, a row
+    combination is identically zero when its ``c`` is below 1e-9.
+
+    When ``G1`` has normal rank ``ρ`` below its rows and the feedthrough reaches rank ρ, the
+    ``left`` remaining zero-feedthrough rows are rational combinations of the others that
+    no shift makes independent: they stay, last, with zero feedthrough (see
+    :func:`approximate_model_matching`, which regularises them).
+
+    Reference: L. M. Silverman, Inversion of multivariable linear systems, IEEE TAC 14, 1969;
+    the interactor of W. A. Wolovich and P. L. Falb, SIAM J. Control 14, 1976.
+    """
+    dt = G1.dt
+    G = G1.minreal(job="C") if G1.n else G1
+    if G.n:
+        G, _ = G.balanced()
+    w0 = 1.0 / np.maximum(np.linalg.norm(np.hstack([G.C, G.D]), axis=1), 1e-300)
+    G = LTI(G.A, G.B, G.C * w0[:, None], G.D * w0[:, None], dt)
+    A, B, C, D = G.A, G.B, G.C, G.D
+    nB = max(float(np.linalg.norm(B, 2)) if B.size else 0.0, 1e-300)
+    Phi = LTI.static(np.diag(w0), dt)
+    rank_n = _normal_rank(G)
+    K = dropped = left = 0
+    for _ in range(G.n + G.p + 1):
+        # rows of [C D] are kept at unit norm (a constant row scaling folded into T), so one
+        # relative tolerance serves every step: D is rank-deficient below 1e-9·||B||, a row
+        # combination is identically zero below 1e-9 (its c, controllable realisation)
+        U, sv, _ = np.linalg.svd(D) if D.size else (np.eye(D.shape[0]), np.zeros(0), None)
+        r = int(np.sum(sv > 1e-9 * max(nB, 1.0)))
+        if r == D.shape[0]:
+            break
+        Ct, Dt = U.T @ C, U.T @ D
+        Cb = Ct[r:]
+        U2, s2, _ = np.linalg.svd(Cb) if Cb.size else (np.eye(Cb.shape[0]), np.zeros(0), None)
+        rc = int(np.sum(s2 > 1e-9))
+        dropped += Cb.shape[0] - rc
+        T = np.vstack([U.T[:r], (U2.T @ U.T[r:])[:rc]])
+        Cm = (U2.T @ Cb)[:rc]
+        if r + rc == 0:
+            raise DesignError("the reduced system Q0 [Gf Gw] is zero: no residual that decouples u and d sees the "
+                              "faults or the noise")
+        if rc and r >= rank_n:
+            # rank-deficient rest: combinations of the first r rows that shifting never separates
+            C, D = np.vstack([Ct[:r], Cm]), np.vstack([Dt[:r], np.zeros((rc, D.shape[1]))])
+            left = rc
+            w = 1.0 / np.maximum(np.linalg.norm(np.hstack([C, D]), axis=1), 1e-300)
+            C, D = C * w[:, None], D * w[:, None]
+            Phi = LTI.static(np.diag(w) @ T, dt) @ Phi
+            break
+        if rc:
+            if dt:
+                Cn, Dn = Cm @ A, Cm @ B
+            else:
+                Cn, Dn = (Cm @ A + a * Cm) / a, (Cm @ B) / a
+            C, D = np.vstack([Ct[:r], Cn]), np.vstack([Dt[:r], Dn])
+            K += 1
+            step = blockdiag([lowpass_power(a, 1, r, dt), LTI.static(np.eye(rc), dt)]) if r else \
+                LTI.static(np.eye(rc), dt)
+        else:
+            C, D = Ct[:r], Dt[:r]
+            step = LTI.static(np.eye(r), dt)  # only drops: Φ_j = T_j (kept rows), no shift
+        w = 1.0 / np.maximum(np.linalg.norm(np.hstack([C, D]), axis=1), 1e-300)
+        C, D = C * w[:, None], D * w[:, None]
+        # rows kept unshifted take m when the others are shifted: Φ_j = diag(w) diag(m I_r, I_rc) T_j
+        step = np.diag(w) @ step
+        Phi = (step @ T) @ Phi if step.n else LTI.static(step.D @ T, dt) @ Phi
+    else:
+        raise DesignError(f"no full-row-rank feedthrough after {G.n + G.p + 1} interactor steps: the reduced system "
+                          f"Q0 [Gf Gw] is numerically rank-deficient at infinity (relative tolerance 1e-9)")
+    return LTI(A, B, C, D, dt), Phi, K, dropped, left
+
+
+def _normal_rank(G: LTI) -> int:
+    """Largest rank of G at four points off the axes (singular values above 1e-9 × the largest)."""
+    rng = np.random.default_rng(7)
+    lam = np.exp(1j * rng.uniform(0.3, 2.8, 4)) * 0.7 if G.dt else rng.uniform(0.3, 2, 4) * (1 + 1j)
+    out = 0
+    for l in lam:
+        sv = np.linalg.svd(G.evalfr(l), compute_uv=False)
+        out = max(out, int(np.sum(sv > 1e-9 * max(sv[0] if sv.size else 0.0, 1e-300))))
+    return out
+
+
+def _regularised(Gh: LTI, F: LTI, left: int, eps: float) -> tuple[LTI, LTI]:
+    """``[Ĝ  ε E]`` and ``[F  0]``: fictitious noise ε on the ``left`` last (rank-deficient) rows."""
+    if not left:
+        return Gh, F
+    E = np.zeros((Gh.p, left))
+    E[-left:, :] = eps * np.eye(left)
+    G2 = LTI(Gh.A, np.hstack([Gh.B, np.zeros((Gh.n, left))]), Gh.C, np.hstack([Gh.D, E]), Gh.dt)
+    F2 = LTI(F.A, np.hstack([F.B, np.zeros((F.n, left))]), F.C, np.hstack([F.D, np.zeros((F.p, left))]), F.dt)
+    return G2, F2
+
+
+def lowpass_power(a: float, k: int, size: int, dt: float = 0.0) -> LTI:
+    """``(a/(s + a))^k I_size``, in discrete time the delay ``z^{-k} I_size`` (the identity for k = 0)."""
+    if k == 0:
+        return LTI.static(np.eye(size), dt)
+    if dt:
+        A = np.diag(np.ones(k - 1), -1)
+        a = 1.0
+    else:
+        A = -a * np.eye(k) + np.diag(np.full(k - 1, a), -1)
+    b = np.zeros((k, 1))
+    b[0, 0] = a
+    c = np.zeros((1, k))
+    c[0, -1] = 1.0
+    m = LTI(A, b, c, np.zeros((1, 1)), dt)
+    return blockdiag([m] * size)
+
+
+def _check_boundary_zeros(Gh: LTI) -> None:
+    """Refuse transmission zeros of Ĝ on the stability boundary (SLICOT AB08ND); its zeros at
+    infinity are gone (:func:`interactor` gives a full-row-rank feedthrough)."""
+    q = Gh.p
+    if Gh.n == 0:
+        return
+    import slycot
+
+    n, m = Gh.n, Gh.m
+    # workspace of SLICOT AB08ND's documentation (slycot's default is too small for some shapes)
+    ldwork = max(1, min(q, m) + max(3 * m - 1, n), min(q, n) + max(3 * q - 1, n + q, n + m),
+                 min(m, n) + max(3 * m - 1, n + m)) * 4
+    out = slycot.ab08nd(n, m, q, Gh.A.copy(), Gh.B.copy(), Gh.C.copy(), Gh.D.copy(), equil="S", ldwork=ldwork)
+    nu, Af, Bf = out[0], out[-2], out[-1]
+    if nu == 0:
+        return
+    z = sla.eigvals(Af[:nu, :nu], Bf[:nu, :nu])
+    z = z[np.isfinite(z)]
+    dist = np.abs(np.abs(z) - 1.0) if Gh.dt else np.abs(z.real)
+    bad = z[dist < 1e-7 * max(1.0, float(np.max(np.abs(z), initial=0.0)))]
+    if bad.size:
+        where = "on the unit circle" if Gh.dt else "on the imaginary axis"
+        raise DesignError(f"non-standard problem not covered: the reduced system Q0 [Gf Gw] has zeros {where} "
+                          f"({', '.join(f'{x:.4g}' for x in bad[:4])}); the optimum is not attained by a stable "
+                          f"filter")
+
+
+# ------------------------------------------------------------------ evaluation
+def _points(systems, dt: float, num: int = 400) -> np.ndarray:
+    """Points λ of a frequency grid over every system's poles (and ω → ∞ in continuous time)."""
+    omega = frequency_grid(systems, num=num)
+    omega = omega[np.isfinite(omega)]
+    if not dt:
+        omega = np.append(omega, 1e4 * max(omega.max(), 1.0))
+    return np.exp(1j * omega * dt) if dt else 1j * omega
+
+
+def _mk(lam: np.ndarray, a: float, K: int, dt: float) -> np.ndarray:
+    """``m(λ)^K`` with ``m = a/(s + a)`` or ``1/z``."""
+    return (1.0 / lam) ** K if dt else (a / (lam + a)) ** K
+
+
+def _refined_peak(values, lam: np.ndarray, dt: float) -> float:
+    """Peak of ``σ_max`` of ``values(λ)`` on the grid, refined by 60 points around the 3 highest."""
+    w = np.angle(lam) / dt if dt else lam.imag
+    sig = _nrm(values(lam))
+    sig[~np.isfinite(sig)] = 0.0
+    best = float(np.max(sig))
+    order = np.argsort(w)
+    w, sig = w[order], sig[order]
+    for i in np.argsort(sig)[-3:]:
+        lo, hi = w[max(i - 1, 0)], w[min(i + 1, w.size - 1)]
+        ww = np.linspace(lo, hi, 60)
+        L = np.exp(1j * ww * dt) if dt else 1j * ww
+        v = _nrm(values(L))
+        best = max(best, float(np.max(v[np.isfinite(v)], initial=0.0)))
+    return best
+
+
+def _h2_quad(values, systems, dt: float) -> float:
+    """H2 norm of a stable system given by its values: ``(1/π) ∫_0^Ω ||E(λ(ω))||_F² dω`` with
+    Gauss–Legendre rules (16 nodes) on log-spaced panels, 4 per decade, from 1e-4 times the
+    slowest to 1e4 times the fastest pole scale (Ω = π/dt in discrete time, where the rule
+    runs on a linear grid below the slowest scale), plus the tail ``f(ω_end) ω_end`` of an
+    integrand decaying like 1/ω² (continuous time, strictly proper).
+
+    Used instead of the Gramian formula ``tr(C P Cᵀ)`` on the product realisations, where the
+    output cancels much larger states and the trace loses every digit (a matched error of
+    ~1e-8 came out as 0.05)."""
+    omega = frequency_grid(systems, num=8)
+    omega = omega[np.isfinite(omega) & (omega > 0)]
+    lo, hi = omega.min() * 1e-2, omega.max() * 1e2
+    if dt:
+        hi = np.pi / dt
+    edges = np.logspace(np.log10(lo), np.log10(hi), max(int(4 * np.log10(hi / lo)), 1) + 1)
+    edges = np.concatenate([[0.0], edges])
+    x, wq = np.polynomial.legendre.leggauss(16)
+    total = 0.0
+    for a0, b0 in pairwise(edges):
+        w = 0.5 * (b0 - a0) * x + 0.5 * (b0 + a0)
+        L = np.exp(1j * w * dt) if dt else 1j * w
+        f = np.sum(np.abs(values(L)) ** 2, axis=(1, 2))
+        total += 0.5 * (b0 - a0) * float(np.sum(wq * f))
+    if dt:
+        return float(np.sqrt(total * dt / np.pi))
+    L = np.array([1j * hi])
+    total += float(np.sum(np.abs(values(L)) ** 2)) * hi
+    return float(np.sqrt(total / np.pi))
+
+
+# ------------------------------------------------------------------ standard problem
+def _plant(Gh: LTI, F: LTI):
+    """Generalised plant ``P = [−F  I; Ĝ  0]`` (inputs [v; r], outputs [z; y])."""
+    r, q, m1 = F.p, Gh.p, F.m
+    nF, nG = F.n, Gh.n
+    A = sla.block_diag(F.A, Gh.A) if nF + nG else np.zeros((0, 0))
+    B = np.hstack([np.vstack([F.B, Gh.B]), np.zeros((nF + nG, r))])
+    C = np.vstack([np.hstack([-F.C, np.zeros((r, nG))]), np.hstack([np.zeros((q, nF)), Gh.C])])
+    D = np.block([[-F.D, np.eye(r)], [Gh.D, np.zeros((q, r))]])
+    return A, B, C, D, nF + nG, m1 + r, r + q, r, q
+
+
+def solve_standard(Gh: LTI, F: LTI, norm: str, reltol: float) -> tuple[LTI, dict]:
+    """``Y ∈ RH∞`` minimising ``||Y Ĝ − F||`` (Ĝ stable with full-row-rank feedthrough)."""
+    dt = Gh.dt
+    U, sv, Vt = np.linalg.svd(Gh.D, full_matrices=True)
+    q = Gh.p
+    Dpinv = Vt[:q].T @ np.diag(1.0 / sv[:q]) @ U.T
+    Y0 = F.D @ Dpinv  # best constant at infinity: min ||Y0 D̂ − D_F|| (Parrott with full-row-rank D̂)
+    dres = F.D - Y0 @ Gh.D
+    if norm == "2" and dt:
+        return _h2_discrete(Gh, F)
+    if norm == "2":
+        if np.linalg.norm(dres) > 1e-9 * max(np.linalg.norm(F.D), np.linalg.norm(Gh.D) * np.linalg.norm(Y0), 1e-300):
+            raise DesignError(f"the H2 problem has no solution: the error's feedthrough D_F − Y D_G cannot vanish "
+                              f"(smallest reachable size {np.linalg.norm(dres, 2):.3g}): use a strictly proper Mr "
+                              f"(e.g. Mr·a/(s+a)) or norm='inf'")
+        F1 = (F - Y0 @ Gh).minreal() if F.n or Gh.n else LTI.static(np.zeros(F.shape), dt)
+        F1 = LTI(F1.A, F1.B, F1.C, np.zeros(F1.D.shape), dt)
+        if F1.n == 0:
+            return LTI.static(Y0, dt), {"gamma": 0.0}
+        import slycot
+
+        A, B, C, D, n, m, np_, ncon, nmeas = _plant(Gh, F1)
+        try:
+            Ak, Bk, Ck, Dk, _ = slycot.sb10hd(n, m, np_, ncon, nmeas, A, B, C, D)
+        except (SlycotError, ValueError, np.linalg.LinAlgError) as exc:  # SLICOT's info text
+            raise DesignError(f"H2 synthesis (SLICOT SB10HD) failed: {exc}") from None
+        Y = LTI(Ak, Bk, Ck, Dk, dt) + LTI.static(Y0, dt)
+        E = Y @ Gh - F
+        return Y, {"gamma": _h2_quad(lambda L: _values(E, L), [Gh, Y] + ([F] if F.n else []), dt)}
+    lo = float(np.linalg.norm(dres, 2)) if not dt else 0.0
+    hi = 1.01 * float(F.hinfnorm()[0]) + 1e-12
+    if F.n + Gh.n == 0:
+        return LTI.static(Y0, dt), {"gamma": lo, "bracket": (lo, lo)}
+    hi0 = hi
+    lo = max(lo, hi * 1e-9)
+    best = _hinf_at(Gh, F, hi)
+    if best is None:
+        raise DesignError(f"H∞ synthesis failed even at γ = {hi:.6g} > ||Mr||∞ (where Q = 0 is feasible): the "
+                          f"Riccati equations of the reduced problem are ill-conditioned")
+    Ybest, ebest = best
+    # bisection on the level; the controller kept is the one with the smallest measured error
+    # (near γopt the central controller loses accuracy, and far below ||F|| SLICOT's conditioning
+    # checks refuse levels that are feasible: an exactly matchable reference reached 3e-11 at
+    # γ = 1e-3 but 1.6e-6 at the smallest accepted level); it stops when the bracket is within
+    # reltol, or when a measured error is already below the infeasible level (then that level
+    # was a numerical refusal, and the error — an upper bound of γopt — is the answer)
+    while hi > lo * (1 + reltol) and ebest > lo and ebest > 1e-12 * hi0:
+        mid = np.sqrt(lo * hi)
+        got = _hinf_at(Gh, F, mid)
+        if got is None:
+            lo = mid
+        else:
+            hi = mid
+            if got[1] < ebest:
+                Ybest, ebest = got
+    if ebest < lo:  # the last refusal was numerical: the measured error bounds γopt from above
+        lo = hi = ebest
+    else:  # SB10's certificate ||E|| < γ holds to the accuracy of its Riccati solutions (~1e-6)
+        hi = max(hi, ebest)
+    return Ybest, {"gamma": ebest, "bracket": (lo, hi)}
+
+
+def _h2_discrete(Gh: LTI, F: LTI) -> tuple[LTI, dict]:
+    """Discrete-time H2: ``Y`` is the minimum-variance causal estimator of ``s = F v`` from
+    ``y = Ĝ v`` (v unit white noise), a Kalman filter with the current measurement.
+
+    With ``x⁺ = A x + B v``, ``y = C2 x + D21 v``, ``s = C1 x + D11 v`` (the states of F and Ĝ),
+    ``P`` solves the filter DARE with ``R = D21 D21ᵀ`` (positive definite: Ĝ is standard) and
+    ``S = B D21ᵀ``; ``Σ = C2 P C2ᵀ + R``, ``L = (A P C2ᵀ + S) Σ⁻¹``, ``Kd = (C1 P C2ᵀ + D11 D21ᵀ) Σ⁻¹``
+    and ``Y = (A − L C2, L, C1 − Kd C2, Kd)``. It minimises ``E‖ŝ − s‖²`` = ``‖Y Ĝ − F‖₂²``
+    (Anderson & Moore, *Optimal Filtering*, 1979, ch. 5; the role of SLICOT SB10ED, which
+    slycot does not wrap).
+    """
+    dt = Gh.dt
+    A = sla.block_diag(F.A, Gh.A) if F.n + Gh.n else np.zeros((0, 0))
+    B = np.vstack([F.B, Gh.B])
+    C1 = np.hstack([F.C, np.zeros((F.p, Gh.n))])
+    C2 = np.hstack([np.zeros((Gh.p, F.n)), Gh.C])
+    D11, D21 = F.D, Gh.D
+    R = D21 @ D21.T
+    n = A.shape[0]
+    if n == 0:
+        Kd = np.linalg.solve(R, D21 @ D11.T).T
+        Y = LTI.static(Kd, dt)
+    else:
+        S = B @ D21.T
+        try:
+            P = sla.solve_discrete_are(A.T, C2.T, B @ B.T, R, s=S)
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            raise DesignError(f"discrete H2 synthesis: the filter Riccati equation has no stabilising solution "
+                              f"({exc})") from None
+        Sig = C2 @ P @ C2.T + R
+        L = np.linalg.solve(Sig, (A @ P @ C2.T + S).T).T
+        Kd = np.linalg.solve(Sig, (C1 @ P @ C2.T + D11 @ D21.T).T).T
+        Y = LTI(A - L @ C2, L, C1 - Kd @ C2, Kd, dt)
+    E = Y @ Gh - F
+    return Y, {"gamma": _h2_quad(lambda lam: _values(E, lam), [Gh, Y] + ([F] if F.n else []), dt)}
+
+
+def _hinf_at(Gh: LTI, F: LTI, gamma: float):
+    """The central controller for level γ and its measured error, or None if γ is infeasible."""
+    import slycot
+
+    A, B, C, D, n, m, np_, ncon, nmeas = _plant(Gh, F)
+    Y = None
+    # SLICOT's default tolerance (√eps) on the conditioning of the Riccati solutions refuses
+    # levels far below ||F|| that are feasible (exactly matchable references: γopt = 0); a
+    # level refused with it is tried once more with 1e3·eps, the measured error deciding
+    for tol in (0.0, 1e3 * EPS):
+        try:
+            if Gh.dt:
+                Ak, Bk, Ck, Dk = slycot.sb10dd(n, m, np_, ncon, nmeas, gamma, A, B, C, D, tol=tol)[1:5]
+            else:
+                Ak, Bk, Ck, Dk, _ = slycot.sb10fd(n, m, np_, ncon, nmeas, gamma, A, B, C, D, tol=tol)
+        except (SlycotError, ValueError, np.linalg.LinAlgError):  # infeasible level, or a
+            continue  # numerically singular Riccati solution at it: the next tolerance decides
+        Y = LTI(Ak, Bk, Ck, Dk, Gh.dt)
+        break
+    if Y is None:
+        return None
+    if not np.all(np.isfinite(Y.A)) or not Y.is_stable():
+        return None
+    # SB10FD/SB10DD certify ||Y Ĝ − F||∞ < γ; a refined grid peak checks it (H∞ norms of the
+    # product realisation, order 2 (nF + nĜ), lose digits when Y's gain is large)
+    E = Y @ Gh - F
+    e = _refined_peak(lambda L: _values(E, L), _points([Gh, Y] + ([F] if F.n else []), Gh.dt, 200), Gh.dt)
+    if not np.isfinite(e) or e > gamma * (1 + 1e-6):
+        return None
+    return Y, e
