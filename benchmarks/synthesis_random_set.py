@@ -29,6 +29,7 @@ def _indices(gen) -> str:
 def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
     counts = {"ok": 0, "refused": 0, "refused*": 0, "BROKEN": 0, "crash": 0}
     bases: dict[str, int] = {}  # residuals per basis: polynomial / sampled / pencil
+    kinds: dict[str, int] = {}  # residuals per decoupling kind: exact / approximate
     t0 = time.perf_counter()
     for seed in range(N):
         model = random_model(seed)
@@ -49,6 +50,9 @@ def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
                 how = [g.info.get("basis", "sampled" if g.info.get("synthesis") else "?") for g in members]
                 for h in how:
                     bases[h] = bases.get(h, 0) + 1
+                for g in members:
+                    kind = str(g.info.get("decoupling_kind", "exact")).split(" ")[0].rstrip(":")
+                    kinds[kind] = kinds.get(kind, 0) + 1
                 msg = "; ".join(bad[:3]) or ("orders " + " ".join(f"{g.info.get('order')}{h[:2]}{_indices(g)}"
                                                                   for g, h in zip(members, how)))
             except DesignError as exc:
@@ -62,7 +66,7 @@ def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
             if verbose:
                 print(f"seed {seed:3d} n={model.n:2d} p={model.ny} m={model.nu} nd={model.nd} "
                       f"{'disc' if model.dt else 'cont'} {what:9s} {key:8s} {msg}")
-    print(counts, "residuals by basis:", bases, f"{time.perf_counter() - t0:.1f} s")
+    print(counts, "residuals by basis:", bases, "by decoupling kind:", kinds, f"{time.perf_counter() - t0:.1f} s")
     return counts
 
 

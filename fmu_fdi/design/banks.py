@@ -118,6 +118,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         bank, fig = check(redone)
     if fig.get("failures"):
         check(bank.members, raise_error=True)  # raises the DesignError naming every failed condition
+    bank.info["decoupling_kinds"] = [g.info.get("decoupling_kind", "exact") for g in bank.members]
     return bank
 
 
