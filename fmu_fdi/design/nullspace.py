@@ -130,17 +130,32 @@ def visibility_gated(objective, P: list[np.ndarray], Y: np.ndarray, gnorms: list
     ``γ_j(h) = max_λ ||h P_j(λ)|| / (||h Y(λ)|| ||Gf_j(λ)||)`` (``Y``: the rows' y-part,
     (points, rows, p); ``gnorms[j]``: ``||Gf_j(λ)||``, :func:`.postconditions._cosine`) must
     exceed ``gate`` (FDtol); below it the value is ``min_j γ_j - 1 < 0``, under every admissible one.
+    ``objective`` must be ``sensitivity_objective(P, strong)``: without ``strong`` its value is
+    computed here from the same products.
     With ``strong`` (gains at given frequencies in the objective, whose ratio to the peak a
     near-degenerate combination also inflates) the value is ``min(objective, min_j γ_j)``, so the
     optimum stays away from the gate instead of sitting on it.
     """
+    Pall = np.concatenate(P, axis=2) if P else np.zeros((Y.shape[0], Y.shape[1], 0))
+    starts = np.cumsum([0] + [Pj.shape[2] for Pj in P[:-1]])
+    G = np.stack(gnorms, axis=1) if gnorms else np.zeros((Y.shape[0], 0))  # (K, faults)
+
     def gated(h: np.ndarray) -> float:
-        ny = np.linalg.norm(np.einsum("r,krc->kc", h, Y), axis=1)
-        g = min((_cosine(np.linalg.norm(np.einsum("r,krc->kc", h, Pj), axis=1), ny * gj)
-                 for Pj, gj in zip(P, gnorms)), default=np.inf)
+        if not P:
+            return objective(h)
+        hp = np.einsum("r,krc->kc", h, Pall)
+        resp = np.sqrt(np.add.reduceat(np.abs(hp) ** 2, starts, axis=1))  # (K, faults): ||h P_j(λ)||
+        bound = np.linalg.norm(np.einsum("r,krc->kc", h, Y), axis=1)[:, None] * G
+        top = bound.max(axis=0)
+        keep = bound >= 1e-6 * top  # as postconditions._cosine: zeros of Gf_j are left out
+        ratio = np.where(keep, resp / np.where(keep, bound, 1.0), 0.0).max(axis=0)
+        g = float(np.min(np.where(top > 0, ratio, 0.0)))
         if g <= gate:
-            return float(g) - 1.0
-        return min(objective(h), float(g)) if strong else objective(h)
+            return g - 1.0
+        if strong:
+            return min(objective(h), g)
+        peaks = resp.max(axis=0)  # sensitivity_objective(P) without strong frequencies, from the same values
+        return float(peaks.min() / peaks.max()) if peaks.max() > 0 else 0.0
 
     return gated
 
