@@ -4,7 +4,9 @@ Prints, per call, whether the design returned a contract-keeping generator ("ok"
 DesignError ("refused"; "refused*" when the rank test says the request was achievable), or
 returned a generator that breaks its contract ("BROKEN"), and the totals; for returned designs the
 order of every residual with the basis it came from (po: polynomial least order, sa: frequency-sampled
-least order, pe: pencil state-space basis, see nullspace_design's ``basis``).
+least order, pe: pencil state-space basis, see nullspace_design's ``basis``), and the totals of
+residuals per basis and per ``info['decoupling_kind']`` (exact, or approximate: a sampled row of order
+below the smallest left minimal index, which 'auto' returns only when no exact row passes).
 Run: python benchmarks/synthesis_random_set.py [N] [auto|polynomial|pencil] (the ``basis`` option: 'polynomial'
 shows what the least-order methods alone achieve).
 """

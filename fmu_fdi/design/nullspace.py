@@ -307,6 +307,21 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
             gen.info["postconditions"]["dec_tol"] = dec_tol
             return gen
     exact_only = not (model.nw and noise == "optimize")
+    auto = basis == "auto" and exact_only
+
+    def pencil():
+        gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol)
+        gen.info["fallback_from"] = str(first)[:300]
+        return gen
+
+    pencil_failed = None
+    if auto and rdim != "all" and len(_left_minimal_indices(model) or ()) == 1:
+        # one basis row: the pencil row's order is the left minimal index, the least order of any exact
+        # row, and a sampled row can only be approximate (below it) or of that order — skip its search
+        try:
+            return pencil()
+        except DesignError as exc:
+            pencil_failed = exc
     approximate = None  # a sampled row below the smallest left minimal index: returned only without an exact one
     if rdim != "all" and exact_only:
         # the polynomial basis is too ill-conditioned here: design from frequency samples
@@ -314,28 +329,39 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         try:
             gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol)
             gen.info["fallback_from"] = str(first)[:300]
-            if basis != "auto" or not gen.info["decoupling_kind"].startswith("approximate"):
+            if not auto or not gen.info["decoupling_kind"].startswith("approximate"):
                 return _announce(model, gen)
             approximate = gen
         except DesignError as exc:
             first = type(first)(f"{first} | the frequency-sampled fallback failed too: {exc}")
-    if basis == "auto" and exact_only:
+    if auto:
         # no least-order row could be made accurate (or the sampled one is below the smallest left
         # minimal index, i.e. approximate): the state-space (pencil) basis never forms powers of A
         # and keeps ~1e-13 leakage at any degree, at the price of a higher order
         try:
-            gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol)
+            if pencil_failed is not None:
+                raise pencil_failed
+            gen = pencil()
         except DesignError as exc:
             if approximate is not None:
                 approximate.info["exact_alternative"] = f"the pencil (state-space) basis failed: {exc}"[:300]
                 return _announce(model, approximate)
             raise type(first)(f"{first} | the pencil (state-space) basis failed too: {exc}") from None
-        gen.info["fallback_from"] = str(first)[:300]
         if approximate is not None:
             gen.info["replaces"] = (f"an approximate frequency-sampled row of order {approximate.Q.n} (below the "
                                     f"smallest left minimal index {min(approximate.info['left_minimal_indices'])})")
         return gen
     raise first
+
+
+def _left_minimal_indices(model: FDIModel) -> list[int] | None:
+    """The left minimal indices of ``[Gu Gd; I 0]`` (pencil staircase; None when it fails)."""
+    from .pencil import pencil_basis
+
+    try:
+        return pencil_basis(model).degrees
+    except DesignError:
+        return None
 
 
 #: ``info['decoupling_kind']`` of a row that annihilates ``[Gu Gd; I 0]`` identically (up to rounding)
