@@ -131,6 +131,17 @@ def test_designable_iff_achievable(make):
         assert _designable(model, row, [0, 1], 1e-3) == (tuple(row) in strong), row
 
 
+def test_weak_but_flat_fault_is_designable():
+    """Gf = diag(1, 1e-4)/(s + 1): at ω = 1 each fault keeps 1/sqrt(2) of its own peak gain, so both rows
+    with f2 are strongly achievable at FDGainTol = 1e-3 although f2 is 1e-4 of f1 (strong detectability
+    compares a fault's gain with its own peak, in the analysis and in the post-condition alike)."""
+    m = _tf_model([[[1], [0]], [[0], [1e-4]]], [[[1, 1], [1]], [[1], [1, 1]]], "ff")
+    S = achievable_structure(m, freqs=[1], FDGainTol=1e-3)
+    assert _rows(S) == _rows([[1, 1], [0, 1], [1, 0]])
+    for row in S.tolist():
+        assert _designable(m, row, [1], 1e-3), row
+
+
 @pytest.mark.parametrize("kw, message", [
     ({"freqs": [-1.0]}, "finite non-negative"), ({"freqs": [np.nan]}, "finite non-negative"),
     ({"freqs": [0], "FDGainTol": 0.0}, "FDGainTol must be in (0, 1)"),

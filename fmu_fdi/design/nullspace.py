@@ -577,9 +577,10 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         if freqs is not None and model.faults:
             lam_s, Ge_s = _strong_points(model, Ge, freqs)
             strong = [row_responses(cand, basis, Ge_s, lam_s, c, den_mu) for c in fcols]
-            peak = max(np.max(np.abs(Pj)) for Pj in P)
-            ok = [[np.max(np.linalg.norm(Sj[w], axis=1)) > FDGainTol * peak for w in range(freqs.size)]
-                  for Sj in strong]
+            # as the post-condition: each fault's gain at ω against that fault's own peak (not the
+            # strongest fault's, which would refuse a weak but flat fault response)
+            ok = [[np.max(np.linalg.norm(Sj[w], axis=1)) > FDGainTol * np.max(np.linalg.norm(Pj, axis=2))
+                   for w in range(freqs.size)] for Sj, Pj in zip(strong, P)]
             if not all(all(o) for o in ok):
                 if nu == max(degrees):
                     bad = [(model.fault_names[j], float(freqs[w])) for j, o in enumerate(ok)
