@@ -4,7 +4,9 @@ Prints, per call, whether the design returned a contract-keeping generator ("ok"
 DesignError ("refused"; "refused*" when the rank test says the request was achievable), or
 returned a generator that breaks its contract ("BROKEN"), and the totals; for returned designs the
 order of every residual with the basis it came from (po: polynomial least order, sa: frequency-sampled
-least order, pe: pencil state-space basis, see nullspace_design's ``basis``).
+least order, pe: pencil state-space basis, see nullspace_design's ``basis``), and the totals of
+residuals per basis and per ``info['decoupling_kind']`` (exact, or approximate: a sampled row of order
+below the smallest left minimal index, which 'auto' returns only when no exact row passes).
 Run: python benchmarks/synthesis_random_set.py [N] [auto|polynomial|pencil] (the ``basis`` option: 'polynomial'
 shows what the least-order methods alone achieve).
 """
@@ -29,6 +31,7 @@ def _indices(gen) -> str:
 def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
     counts = {"ok": 0, "refused": 0, "refused*": 0, "BROKEN": 0, "crash": 0}
     bases: dict[str, int] = {}  # residuals per basis: polynomial / sampled / pencil
+    kinds: dict[str, int] = {}  # residuals per decoupling kind: exact / approximate
     t0 = time.perf_counter()
     for seed in range(N):
         model = random_model(seed)
@@ -49,6 +52,9 @@ def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
                 how = [g.info.get("basis", "sampled" if g.info.get("synthesis") else "?") for g in members]
                 for h in how:
                     bases[h] = bases.get(h, 0) + 1
+                for g in members:
+                    kind = str(g.info.get("decoupling_kind", "exact")).split(" ")[0].rstrip(":")
+                    kinds[kind] = kinds.get(kind, 0) + 1
                 msg = "; ".join(bad[:3]) or ("orders " + " ".join(f"{g.info.get('order')}{h[:2]}{_indices(g)}"
                                                                   for g, h in zip(members, how)))
             except DesignError as exc:
@@ -62,7 +68,7 @@ def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
             if verbose:
                 print(f"seed {seed:3d} n={model.n:2d} p={model.ny} m={model.nu} nd={model.nd} "
                       f"{'disc' if model.dt else 'cont'} {what:9s} {key:8s} {msg}")
-    print(counts, "residuals by basis:", bases, f"{time.perf_counter() - t0:.1f} s")
+    print(counts, "residuals by basis:", bases, "by decoupling kind:", kinds, f"{time.perf_counter() - t0:.1f} s")
     return counts
 
 

@@ -95,18 +95,61 @@ REFUSED_BEFORE = [(3, "bank"), (6, "bank"), (7, "bank"), (15, "bank"), (22, "ban
                   (33, "bank"), (39, "bank")]
 
 
+def _row_model(model, row, names):
+    """The model a structure row is designed on: the faults with s_j = 0 are unknown inputs."""
+    return model.with_disturbances([nm for nm, s in zip(names, row) if not s])
+
+
+def _pointwise_leak(Q, model, num=300):
+    """``max_λ ||Q(λ) Ge_ud(λ)|| / (||Q(λ)|| ||Ge_ud(λ)||)`` per residual on a grid: relative to |G|
+    *at each sample*, not to its peak (the post-condition's measure), so that a row which only
+    makes the leak small where |G| is large shows it where |G| is small."""
+    from fmu_fdi.design.postconditions import _values
+    from fmu_fdi.lti import frequency_grid
+
+    om = frequency_grid([model.lti(), Q], num=num)
+    lam = np.exp(1j * om * model.dt) if model.dt else 1j * om
+    Ge, Qv = _values(model.augmented(), lam), _values(Q, lam)
+    ok = np.all(np.isfinite(Ge), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))
+    sl = model.group_slices()
+    ud = np.r_[np.arange(sl["u"].start, sl["u"].stop), np.arange(sl["d"].start, sl["d"].stop)]
+    G, Qv = Ge[ok][:, :, ud], Qv[ok]
+    out = []
+    for i in range(Q.p):
+        R = np.einsum("kq,kqc->kc", Qv[:, i], G)
+        out.append(float(np.max(np.linalg.norm(R, axis=1)
+                                / (np.linalg.norm(Qv[:, i], axis=1) * np.linalg.norm(G, 2, axis=(1, 2))))))
+    return out
+
+
 @pytest.mark.parametrize("seed, what", [REFUSED_BEFORE[i] for i in (1, 2, 5, 6)])
 def test_formerly_refused_designs_keep_their_contract(seed, what):
+    """Contract, and exactness: before, these rows came from the frequency-sampled fallback at orders
+    9-18 below the smallest left minimal index (13-26) — approximate, pointwise leaks up to 1e-2. Now
+    every row is exact: its order is at least the smallest left minimal index of its own decoupling
+    problem, and a pencil row (orthogonal reductions only) decouples to 1e-9 *pointwise* — the
+    rounding of an order-30 reduction (~1e-13, see test_pencil_basis_alone_decouples_to_rounding) with
+    the grid's conditioning as headroom; an approximate row of the same order would show ≥ 1e-5."""
     model = random_model(seed)
     S = random_structure(model, seed)
+    names = model.fault_names
     if what == "bank":
         gen = structured_bank(model, S)
-        assert contract(gen, model, S, model.fault_names) == []
+        assert contract(gen, model, S, names) == []
+        rows = list(zip(gen.members, S))
+        assert gen.info["decoupling_kinds"] == ["exact"] * len(S)
     else:
         gen = nullspace_design(model)
         assert contract(gen, model) == []
+        rows = [(gen, [1] * len(names))]
     pc = gen.info["postconditions"]
     assert pc["decoupling"] <= DEC_TOL and pc["structure_leak"] <= DEC_TOL and "failures" not in pc
+    for g, row in rows:
+        mi = _row_model(model, row, names)
+        assert g.info["decoupling_kind"] == "exact"
+        assert g.Q.n >= min(pencil_basis(mi).degrees)
+        if g.info["basis"] == "pencil":
+            assert max(_pointwise_leak(g.Q, mi)) <= 1e-9
 
 
 @pytest.mark.parametrize("seed, what", REFUSED_BEFORE)
@@ -148,7 +191,16 @@ def test_sampled_rows_report_whether_they_can_be_exact():
 
     gen = _sampled(pub.ex5_3(), 1, [-3.0], None, None, 1e-4, 0.01, 0, None, DEC_TOL)
     assert gen.info["left_minimal_indices"] == [1] and gen.info["decoupling_kind"].startswith("exact")
-    gen = nullspace_design(random_model(29))  # n = 29: only the sampled fallback meets the post-conditions
-    if gen.info.get("synthesis") == "frequency-sampled":
-        below = gen.Q.n < min(gen.info["left_minimal_indices"])
-        assert gen.info["decoupling_kind"].startswith("approximate") == below
+    # n = 29: without the pencil basis only the sampled fallback meets the post-conditions, at an order
+    # below the smallest index; it is returned only with basis='polynomial', labelled and with a warning
+    model = random_model(29)
+    with pytest.warns(UserWarning, match="decouples u and d approximate"):
+        gen = nullspace_design(model, basis="polynomial")
+    assert gen.info.get("synthesis") == "frequency-sampled"
+    assert gen.Q.n < min(gen.info["left_minimal_indices"]) and gen.info["decoupling_kind"].startswith("approximate")
+    assert max(_pointwise_leak(gen.Q, model)) > 1e-5  # the approximation shows where |G| is small
+    # basis='auto' prefers the exact pencil row, at its higher order
+    auto = nullspace_design(model)
+    assert auto.info["basis"] == "pencil" and auto.info["decoupling_kind"] == "exact"
+    assert auto.Q.n >= min(auto.info["left_minimal_indices"]) and "approximate" in auto.info["replaces"]
+    assert max(_pointwise_leak(auto.Q, model)) <= 1e-9

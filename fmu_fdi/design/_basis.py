@@ -345,7 +345,7 @@ def spread_poles(pool: list[complex], count: int) -> np.ndarray:
     return np.array(out[:count])
 
 
-def pole_chooser(model: FDIModel, poles, sdeg):
+def pole_chooser(model: FDIModel, poles, sdeg, freqs=None):
     """``count ↦ poles`` for a filter row of that degree.
 
     With neither ``poles`` nor ``sdeg`` the rows take the plant's own (stabilised)
@@ -353,9 +353,23 @@ def pole_chooser(model: FDIModel, poles, sdeg):
     ``N(λ)/d(λ)`` whose denominator shares the plant's dynamics responds to faults with a
     nearly flat gain (for a row of full degree n, ``r = y_i - G_i u`` exactly), instead of a
     spike that dies away (a much faster filter) or a sluggish integral.
+
+    With ``freqs`` (strong detectability at those frequencies) the pool's poles slower than the
+    fastest requested frequency ω are sped up to it: a pole of speed a < ω attenuates the
+    residual at ω by ~a/ω against its low-frequency peak (the Boeing 747's altitude mode,
+    3.1e-5 rad/s, makes the ω = 1 gain 3e-5 of the peak: every FDGainTol above fails).
     """
     if poles is None and sdeg is None:
         pool = plant_pole_pool(model.A, model.dt)
+        wmax = float(np.max(freqs, initial=0.0)) if freqs is not None else 0.0
+        if wmax > 0:
+            if model.dt:
+                rmax = float(np.exp(-wmax * model.dt))
+                pool = [z if abs(z) <= rmax else z / abs(z) * rmax for z in pool]
+            else:
+                pool = [complex(min(z.real, -wmax), z.imag) for z in pool]
+            speed = (lambda z: -np.log(max(abs(z), 1e-300))) if model.dt else abs
+            pool = sorted(pool, key=lambda z: (speed(z), z.imag))
         return lambda count: spread_poles(pool, count)
     s = (0.0 if model.dt else -1.0) if sdeg is None else float(sdeg)
     return lambda count: pick_poles(poles, s, count)

@@ -46,7 +46,10 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         Faults not listed are neither required nor decoupled.
     poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol, minimal, basis
         As in :func:`~fmu_fdi.design.nullspace.nullspace_design`, per row; with ``freqs`` every
-        fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies. With
+        fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies (a row is
+        designed when :func:`~fmu_fdi.analysis.achievable_structure` with the same ``freqs`` and
+        ``FDGainTol`` lists it; checked on the published examples in
+        tests/test_achievable_structure.py). With
         ``basis='auto'``, a row that passes its own check but breaks the bank's (leakage just
         above ``dec_tol`` on the bank's frequency grid) is redesigned from the pencil basis.
 
@@ -54,7 +57,8 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     -------
     ResidualBank
         ``info['postconditions']`` holds the figures of the whole bank against S
-        (:func:`~fmu_fdi.design.postconditions.check_generator`).
+        (:func:`~fmu_fdi.design.postconditions.check_generator`); ``info['decoupling_kinds']``
+        each row's ``info['decoupling_kind']`` ('exact', or 'approximate: ...' with a warning).
 
     Raises
     ------
@@ -118,6 +122,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         bank, fig = check(redone)
     if fig.get("failures"):
         check(bank.members, raise_error=True)  # raises the DesignError naming every failed condition
+    bank.info["decoupling_kinds"] = [g.info.get("decoupling_kind", "exact") for g in bank.members]
     return bank
 
 

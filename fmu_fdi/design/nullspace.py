@@ -120,6 +120,46 @@ def undetectable_error(model: FDIModel, seen: np.ndarray, what: str = "d is deco
                        f"{model.fault_names}: {weak.astype(int).tolist()}")
 
 
+def visibility_gated(objective, P: list[np.ndarray], Y: np.ndarray, gnorms: list[np.ndarray], gate: float,
+                     strong: bool = False):
+    """``objective`` restricted to combinations that keep every fault visible.
+
+    The fault sensitivity condition is a ratio of fault gains and cannot tell a combination
+    whose fault responses are rounding noise (``h`` in the rows' common fault-free direction:
+    noise over noise ≈ 1) from a good one. The post-condition's cosine
+    ``γ_j(h) = max_λ ||h P_j(λ)|| / (||h Y(λ)|| ||Gf_j(λ)||)`` (``Y``: the rows' y-part,
+    (points, rows, p); ``gnorms[j]``: ``||Gf_j(λ)||``, :func:`.postconditions._cosine`) must
+    exceed ``gate`` (FDtol); below it the value is ``min_j γ_j - 1 < 0``, under every admissible one.
+    ``objective`` must be ``sensitivity_objective(P, strong)``: without ``strong`` its value is
+    computed here from the same products.
+    With ``strong`` (gains at given frequencies in the objective, whose ratio to the peak a
+    near-degenerate combination also inflates) the value is ``min(objective, min_j γ_j)``, so the
+    optimum stays away from the gate instead of sitting on it.
+    """
+    Pall = np.concatenate(P, axis=2) if P else np.zeros((Y.shape[0], Y.shape[1], 0))
+    starts = np.cumsum([0] + [Pj.shape[2] for Pj in P[:-1]])
+    G = np.stack(gnorms, axis=1) if gnorms else np.zeros((Y.shape[0], 0))  # (K, faults)
+
+    def gated(h: np.ndarray) -> float:
+        if not P:
+            return objective(h)
+        hp = np.einsum("r,krc->kc", h, Pall)
+        resp = np.sqrt(np.add.reduceat(np.abs(hp) ** 2, starts, axis=1))  # (K, faults): ||h P_j(λ)||
+        bound = np.linalg.norm(np.einsum("r,krc->kc", h, Y), axis=1)[:, None] * G
+        top = bound.max(axis=0)
+        keep = bound >= 1e-6 * top  # as postconditions._cosine: zeros of Gf_j are left out
+        ratio = np.where(keep, resp / np.where(keep, bound, 1.0), 0.0).max(axis=0)
+        g = float(np.min(np.where(top > 0, ratio, 0.0)))
+        if g <= gate:
+            return g - 1.0
+        if strong:
+            return min(objective(h), g)
+        peaks = resp.max(axis=0)  # sensitivity_objective(P) without strong frequencies, from the same values
+        return float(peaks.min() / peaks.max()) if peaks.max() > 0 else 0.0
+
+    return gated
+
+
 def structural_zeros(Rf: list[np.ndarray], Rw: np.ndarray, rtol: float = 1e-9):
     """Set to exact zero every row response (per fault, and to the noise) whose peak is
     below ``rtol`` times that row's largest response: rounding noise of an exact
@@ -164,7 +204,12 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         nearly flat over frequency (``_basis.pole_chooser``).
     freqs : array_like, optional
         Frequencies (rad/s) at which every fault must be *strongly* detectable
-        (``|Rf_j(jω)| > 0``); the combination is chosen with these gains in its objective.
+        (``|Rf_j(jω)| > 0``); the combination is chosen with these gains in its objective,
+        among the combinations whose every fault is visible (:func:`visibility_gated`). At a
+        pole of the plant on the stability boundary (an integrator at ω = 0) the gain is the
+        limit of the stable fault response (:func:`_strong_points`). With neither ``poles`` nor
+        ``sdeg``, plant poles slower than the fastest frequency are sped up to it
+        (``_basis.pole_chooser``).
     FDtol, FDGainTol : float
         Relative thresholds for (weak) detectability and for strong detectability.
     noise : {'optimize', 'ignore'}
@@ -200,8 +245,15 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         outside the stability region (``smarg``, and ``sdeg`` when given), which move to
         ``poles`` first and then to their mirror image about ``sdeg``. 'auto' (default):
         polynomial, and the pencil basis when neither polynomial nor sampled rows meet the
-        post-conditions (``info['basis']`` says which was used; ``info['left_minimal_indices']``
-        the degrees of a minimal polynomial basis). The pencil basis decouples u and d
+        post-conditions, or when the sampled row's order is below the smallest left minimal
+        index — such a row cannot annihilate ``[Gu Gd; I 0]`` exactly, it only decouples to the
+        peak-relative ``dec_tol`` (pointwise leaks up to 1e-2 where |G| is small) — and the pencil
+        row passes every post-condition (``info['basis']`` says which was used;
+        ``info['left_minimal_indices']`` the degrees of a minimal polynomial basis;
+        ``info['replaces']`` the approximate row a pencil row replaced).
+        ``info['decoupling_kind']`` is 'exact' or, for a sampled row below the smallest index
+        returned because no exact row was found (or with ``basis='polynomial'``), starts with
+        'approximate' — and a ``UserWarning`` says so. The pencil basis decouples u and d
         only: with noise and ``noise='optimize'`` it is not used.
 
     Returns
@@ -251,28 +303,81 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
                 continue
             gen.info["rank_rtol"] = rtol
             gen.info["basis"] = "polynomial"
+            gen.info["decoupling_kind"] = EXACT
             gen.info["postconditions"]["dec_tol"] = dec_tol
             return gen
     exact_only = not (model.nw and noise == "optimize")
+    auto = basis == "auto" and exact_only
+
+    def pencil():
+        gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol)
+        gen.info["fallback_from"] = str(first)[:300]
+        return gen
+
+    pencil_failed = None
+    if auto and rdim != "all" and len(_left_minimal_indices(model) or ()) == 1:
+        # one basis row: the pencil row's order is the left minimal index, the least order of any exact
+        # row, and a sampled row can only be approximate (below it) or of that order — skip its search
+        try:
+            return pencil()
+        except DesignError as exc:
+            pencil_failed = exc
+    approximate = None  # a sampled row below the smallest left minimal index: returned only without an exact one
     if rdim != "all" and exact_only:
         # the polynomial basis is too ill-conditioned here: design from frequency samples
         # with a fixed stable denominator (exact poles, rank decision = post-condition)
         try:
             gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol)
             gen.info["fallback_from"] = str(first)[:300]
-            return gen
+            if not auto or not gen.info["decoupling_kind"].startswith("approximate"):
+                return _announce(model, gen)
+            approximate = gen
         except DesignError as exc:
             first = type(first)(f"{first} | the frequency-sampled fallback failed too: {exc}")
-    if basis == "auto" and exact_only:
-        # no least-order row could be made accurate: the state-space (pencil) basis never forms
-        # powers of A and keeps ~1e-13 leakage at any degree, at the price of a higher order
+    if auto:
+        # no least-order row could be made accurate (or the sampled one is below the smallest left
+        # minimal index, i.e. approximate): the state-space (pencil) basis never forms powers of A
+        # and keeps ~1e-13 leakage at any degree, at the price of a higher order
         try:
-            gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol)
+            if pencil_failed is not None:
+                raise pencil_failed
+            gen = pencil()
         except DesignError as exc:
+            if approximate is not None:
+                approximate.info["exact_alternative"] = f"the pencil (state-space) basis failed: {exc}"[:300]
+                return _announce(model, approximate)
             raise type(first)(f"{first} | the pencil (state-space) basis failed too: {exc}") from None
-        gen.info["fallback_from"] = str(first)[:300]
+        if approximate is not None:
+            gen.info["replaces"] = (f"an approximate frequency-sampled row of order {approximate.Q.n} (below the "
+                                    f"smallest left minimal index {min(approximate.info['left_minimal_indices'])})")
         return gen
     raise first
+
+
+def _left_minimal_indices(model: FDIModel) -> list[int] | None:
+    """The left minimal indices of ``[Gu Gd; I 0]`` (pencil staircase; None when it fails)."""
+    from .pencil import pencil_basis
+
+    try:
+        return pencil_basis(model).degrees
+    except DesignError:
+        return None
+
+
+#: ``info['decoupling_kind']`` of a row that annihilates ``[Gu Gd; I 0]`` identically (up to rounding)
+EXACT = "exact"
+
+
+def _announce(model: FDIModel, gen: ResidualGenerator) -> ResidualGenerator:
+    """Warn when a returned row decouples only approximately (its ``info['decoupling_kind']``)."""
+    import warnings
+
+    kind = gen.info.setdefault("decoupling_kind", EXACT)
+    if not kind.startswith(EXACT):
+        warnings.warn(f"model '{model.name}': the residual generator decouples u and d {kind} (order {gen.Q.n}, "
+                      f"left minimal indices {gen.info.get('left_minimal_indices', '?')}); "
+                      f"{gen.info.get('exact_alternative', 'no exact row was found')}", UserWarning, stacklevel=3)
+    return gen
 
 
 def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol) -> ResidualGenerator:
@@ -280,7 +385,7 @@ def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec
 
     from .sampled import sampled_rows
 
-    choose = pole_chooser(model, poles, sdeg)
+    choose = pole_chooser(model, poles, sdeg, freqs)
     # a direction whose RMS relative leak is 1/100 of dec_tol passes the post-condition's peak test
     Q, info = sampled_rows(model, choose, fault_columns(model), rdim, freqs=freqs, FDtol=FDtol,
                            FDGainTol=FDGainTol, seed=seed, null_tol=1e-2 * dec_tol)
@@ -300,7 +405,9 @@ def _exactness(model: FDIModel, gen: ResidualGenerator) -> None:
 
     try:
         degrees = pencil_basis(model).degrees
-    except DesignError:
+    except DesignError as exc:
+        gen.info["decoupling_kind"] = (f"unverified: the left minimal indices are not available ({exc}"[:200] + "); "
+                                       "decoupled to the post-condition tolerance (dec_tol, peak-relative)")
         return
     gen.info["left_minimal_indices"] = degrees
     exact = bool(degrees) and gen.Q.n >= min(degrees)
@@ -348,20 +455,20 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
         raise undetectable_error(model, gains > FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
     strong = None
     if freqs is not None and model.faults:
-        Gs = _values(Ge, _points(model, freqs))
-        if not np.all(np.isfinite(Gs)):
-            raise DesignError(f"freqs {freqs.tolist()} include a pole of the plant on the stability boundary: "
-                              f"strong detectability there is not defined; pass other freqs")
-        Ns = _values(N, _points(model, freqs))
+        lam_s, Gs = _strong_points(model, Ge, freqs)
+        Ns = _values(N, lam_s)
         strong = [np.einsum("kiq,kqc->kic", Ns, Gs[:, :, c]) for c in fcols]
     if rdim == "all" or rdim >= k:
         H = np.eye(k)
         Q = N
     else:
-        H = greedy_combinations(sensitivity_objective(P, strong), k, int(rdim), seed) if model.faults \
-            else np.eye(k)[: int(rdim)]
+        gnorms = [np.linalg.norm(Gv[:, :p, c], 2, axis=(1, 2)) for c in fcols]
+        H = greedy_combinations(visibility_gated(sensitivity_objective(P, strong), P, Nv[:, :, :p], gnorms, FDtol,
+                                                 strong is not None),
+                                k, int(rdim), seed) if model.faults else np.eye(k)[: int(rdim)]
         Q = (H @ N).minreal()
     info = {"order": int(Q.n), "rdim": int(H.shape[0]), "combination": H.tolist(), "basis": "pencil",
+            "decoupling_kind": EXACT,
             "left_minimal_indices": pb.degrees, "pencil": pb.info}
     gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, pb.degrees)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
@@ -376,7 +483,7 @@ def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol,
             f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
             f"output direction (normal rank of Gd = {basis.rank_d} = number of outputs {model.ny})"
         )
-    choose = pole_chooser(model, poles, sdeg)
+    choose = pole_chooser(model, poles, sdeg, freqs)
     seen = detectability_by_rows(model, basis, FDtol)
     if model.faults and not np.all(seen.max(axis=0) > FDtol):
         raise undetectable_error(model, seen > FDtol, gains=seen, FDtol=FDtol, numerical=NumericalDesignError)
@@ -386,7 +493,7 @@ def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol,
         check_generator(gen, decouple=("u", "d", "w") if exact_w else ("u", "d"), block=True, FDtol=FDtol,
                         smarg=smarg, dec_tol=dec_tol)
         return gen
-    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed, minimal)
+    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed, minimal, FDtol)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen
@@ -404,7 +511,34 @@ def _points(model: FDIModel, omega: np.ndarray) -> np.ndarray:
     return 1j * omega
 
 
-def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bool = True) -> ResidualGenerator:
+def _strong_points(model: FDIModel, Ge: LTI, freqs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The points of the strong-detectability frequencies and ``Ge`` there.
+
+    At a pole of the plant on the stability boundary (an integrator at ω = 0), ``Ge`` is
+    infinite, but a stable residual's fault response ``R_f = Q Ge_f`` is not: every decoupling
+    row cancels the poles of ``Gu``/``Gd`` (``Q_y Gu = -Q_u``), and what it keeps there is the
+    limit of ``R_f`` — the stable factor of a left coprime factorisation, as Varga's
+    ``fdigenspec`` with ``FDfreq`` (Varga 2017, sec. 5.4). The limit is taken at ``λ`` moved by
+    ``δ = 1e-7`` (relative) into the stability region: ``R_f`` changes by O(δ), and the
+    cancellation of ``N(λ)`` against ``Ge(λ) ~ 1/δ`` costs ``eps/δ ~ 1e-9`` relative, both far
+    below any FDGainTol.
+    """
+    lam = _points(model, freqs)
+    G = _values(Ge, lam)
+    bad = ~np.all(np.isfinite(G), axis=(1, 2))
+    if np.any(bad):
+        delta = 1e-7
+        lam = lam.copy()
+        lam[bad] = lam[bad] * (1 - delta) if model.dt else lam[bad] - delta * np.maximum(1.0, np.abs(lam[bad]))
+        G[bad] = _values(Ge, lam[bad])
+        if not np.all(np.isfinite(G)):
+            raise DesignError(f"freqs {freqs.tolist()}: the plant cannot be evaluated near its poles on the stability "
+                              f"boundary; pass other freqs")
+    return lam, G
+
+
+def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bool = True,
+           FDtol: float = 1e-4) -> ResidualGenerator:
     rows = basis.rows
     order = np.argsort([r.degree for r in rows], kind="stable")
     rows = [rows[i] for i in order]
@@ -441,15 +575,12 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         P = [row_responses(cand, basis, Ge_grid, lam, c, den_mu) for c in fcols]
         strong = None
         if freqs is not None and model.faults:
-            lam_s = _points(model, freqs)
-            Ge_s = _values(Ge, lam_s)
-            if not np.all(np.isfinite(Ge_s)):
-                raise DesignError(f"freqs {freqs.tolist()} include a pole of the plant on the stability boundary: "
-                                  f"strong detectability there is not defined; pass other freqs")
+            lam_s, Ge_s = _strong_points(model, Ge, freqs)
             strong = [row_responses(cand, basis, Ge_s, lam_s, c, den_mu) for c in fcols]
-            peak = max(np.max(np.abs(Pj)) for Pj in P)
-            ok = [[np.max(np.linalg.norm(Sj[w], axis=1)) > FDGainTol * peak for w in range(freqs.size)]
-                  for Sj in strong]
+            # as the post-condition: each fault's gain at ω against that fault's own peak (not the
+            # strongest fault's, which would refuse a weak but flat fault response)
+            ok = [[np.max(np.linalg.norm(Sj[w], axis=1)) > FDGainTol * np.max(np.linalg.norm(Pj, axis=2))
+                   for w in range(freqs.size)] for Sj, Pj in zip(strong, P)]
             if not all(all(o) for o in ok):
                 if nu == max(degrees):
                     bad = [(model.fault_names[j], float(freqs[w])) for j, o in enumerate(ok)
@@ -460,7 +591,11 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
                             f"u and d" for f, w in bad))
                 continue
         if model.faults:
-            objective = sensitivity_objective(P, strong)
+            mu = _lam_to_mu(lam, basis.rho)
+            dvals = np.prod(mu[:, None] - den_mu[None, :], axis=1) if den_mu.size else np.ones(mu.size)
+            Y = np.stack([r.at(mu)[:, :model.ny] for r in cand], axis=1) / dvals[:, None, None]
+            gnorms = [np.linalg.norm(Ge_grid[:, :model.ny, c], 2, axis=(1, 2)) for c in fcols]
+            objective = visibility_gated(sensitivity_objective(P, strong), P, Y, gnorms, FDtol, strong is not None)
             H = greedy_combinations(objective, k, int(rdim), seed)
             fsc = min(objective(h) for h in H)
         else:
