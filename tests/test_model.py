@@ -126,3 +126,24 @@ def test_discretize_keeps_names_and_resolves_faults():
     assert np.allclose(md.Bf[:, md.fault("p1").columns], md.Bu[:, [0]])
     with pytest.raises(ModelError, match="already discrete"):
         md.discretize(1.0)
+
+
+def test_freqresp_on_a_pole_warns_once_with_the_count():
+    """A grid through a pole (here an uncontrollable integrator a non-minimal realisation
+    carries) gives one LinAlgWarning for the call, naming how many frequencies were singular,
+    not one per frequency; the other frequencies are exact."""
+    import warnings
+
+    import scipy.linalg as sla
+
+    from fmu_fdi.lti import LTI
+
+    # the mode at -1e-18 is singular to working precision at omega = 0 (rcond ~1e-18 < eps)
+    G = LTI(np.diag([-1e-18, -1.0]), np.array([[0.0], [1.0]]), np.array([[1.0, 1.0]]), np.zeros((1, 1)))
+    omega = np.array([0.0, 0.0, 0.0, 1.0])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        H = G.freqresp(omega)
+    lin = [c for c in caught if issubclass(c.category, sla.LinAlgWarning)]
+    assert len(lin) == 1 and "at 3 of 4 frequencies" in str(lin[0].message)
+    assert abs(H[3, 0, 0] - 1 / (1j + 1)) < 1e-15
