@@ -417,12 +417,19 @@ def _exactness(model: FDIModel, gen: ResidualGenerator) -> None:
 
 
 def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol) -> ResidualGenerator:
-    """Residual from the proper stable pencil basis (:func:`.pencil.pencil_basis`): the constant
-    combination of its rows with the best fault sensitivity condition (as for the polynomial
-    rows), realised from the basis' own state space and reduced to a minimal realisation."""
-    from types import SimpleNamespace
+    """Residual from the proper stable pencil basis (:func:`.pencil.pencil_basis`), least order first.
 
-    from .pencil import pencil_basis
+    With several basis rows and ``rdim`` below their number, each row is first taken on its own at
+    its left minimal index ν_i (a simple basis, :func:`.pencil.simple_rows`), and sets of rows are
+    tried in increasing total order Σ ν_i (single rows first): the first set whose constant
+    combination keeps every fault visible (:func:`visibility_gated`) and passes every post-condition
+    is returned — a single row of index ν is least order for the faults it sees, as every null row
+    of McMillan degree ν is a polynomial combination of the minimal basis rows of degree ≤ ν
+    (predictable degree property; Varga 2017, sec. 7.5, Type 1 minimum dynamic covers). Otherwise
+    (or with ``rdim`` = 'all' / the whole basis) the constant combination of all rows with the
+    best fault sensitivity condition, realised from the basis' own state space and reduced to a
+    minimal realisation."""
+    from .pencil import pencil_basis, simple_rows
 
     pb = pencil_basis(model, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
     N = pb.N
@@ -437,6 +444,63 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     freqs = None if freqs is None else np.atleast_1d(np.asarray(freqs, float))
     if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
         raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {freqs.tolist()}")
+    full = rdim == "all" or rdim >= k
+    rows = [] if full or k == 1 else simple_rows(pb, model.dt)
+    base = {"basis": "pencil", "decoupling_kind": EXACT, "left_minimal_indices": pb.degrees, "pencil": pb.info}
+    gains = _pencil_gains(model, N, freqs, FDtol)
+    if model.faults and not np.all(gains.max(axis=0) > FDtol):
+        raise undetectable_error(model, gains > FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
+    tried = []
+    if len(rows) == k:
+        from itertools import combinations
+
+        Ns = [r[0] for r in rows]
+        seen = _pencil_gains(model, vstack(Ns), freqs, FDtol) > FDtol
+        sets = sorted((c for size in range(int(rdim), k) for c in combinations(range(k), size)),
+                      key=lambda c: (sum(rows[i][1] for i in c), len(c)))
+        for c in sets:
+            if model.faults and not np.all(seen[list(c)].max(axis=0)):
+                continue  # some fault is seen by none of these rows: no combination of them sees it
+            sub = vstack([Ns[i] for i in c])
+            try:
+                gen = _pencil_combine(model, sub, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
+                                      dict(base, simple_rows=[rows[i][1] for i in c],
+                                           cover_conditioning=max(rows[i][2] for i in c)), pb.degrees)
+            except DesignError as exc:
+                tried.append(f"rows {list(c)} (order {sub.n}): {exc}"[:200])
+                continue
+            return gen
+    gen = _pencil_combine(model, N, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, dict(base), pb.degrees)
+    if tried:
+        gen.info["simple_rows_refused"] = tried
+    return gen
+
+
+def _pencil_gains(model, N: LTI, freqs, FDtol) -> np.ndarray:
+    """Per row of ``N``, the relative gain (post-condition cosine) to every fault on the design grid."""
+    Ge = model.augmented()
+    lam = _points(model, _grid(model, N.poles(), freqs))
+    Gv, Nv = _values(Ge, lam), _values(N, lam)
+    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Nv), axis=(1, 2))
+    Gv, Nv = Gv[ok], Nv[ok]
+    p = model.ny
+    nNy = np.linalg.norm(Nv[:, :, :p], axis=2)
+    fcols = fault_columns(model)
+    gains = np.zeros((N.p, len(fcols)))
+    for j, c in enumerate(fcols):
+        gfj = np.linalg.norm(Gv[:, :p, c], 2, axis=(1, 2))
+        resp = np.linalg.norm(np.einsum("kiq,kqc->kic", Nv, Gv[:, :, c]), axis=2)
+        gains[:, j] = [_cosine(resp[:, i], nNy[:, i] * gfj) for i in range(N.p)]
+    return gains
+
+
+def _pencil_combine(model, N: LTI, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, info: dict,
+                    degrees) -> ResidualGenerator:
+    """The constant combination ``H N`` (``rdim`` rows) with the best fault sensitivity condition among
+    those keeping every fault visible, reduced to a minimal realisation and checked."""
+    from types import SimpleNamespace
+
+    k = N.p
     Ge = model.augmented()
     lam = _points(model, _grid(model, N.poles(), freqs))
     Gv, Nv = _values(Ge, lam), _values(N, lam)
@@ -445,14 +509,6 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     fcols = fault_columns(model)
     P = [np.einsum("kiq,kqc->kic", Nv, Gv[:, :, c]) for c in fcols]
     p = model.ny
-    nNy = np.linalg.norm(Nv[:, :, :p], axis=2)  # (K, k)
-    gains = np.zeros((k, len(fcols)))
-    for j, (Pj, c) in enumerate(zip(P, fcols)):
-        gfj = np.linalg.norm(Gv[:, :p, c], 2, axis=(1, 2))
-        resp = np.linalg.norm(Pj, axis=2)
-        gains[:, j] = [_cosine(resp[:, i], nNy[:, i] * gfj) for i in range(k)]
-    if model.faults and not np.all(gains.max(axis=0) > FDtol):
-        raise undetectable_error(model, gains > FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
     strong = None
     if freqs is not None and model.faults:
         lam_s, Gs = _strong_points(model, Ge, freqs)
@@ -467,10 +523,8 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
                                                  strong is not None),
                                 k, int(rdim), seed) if model.faults else np.eye(k)[: int(rdim)]
         Q = (H @ N).minreal()
-    info = {"order": int(Q.n), "rdim": int(H.shape[0]), "combination": H.tolist(), "basis": "pencil",
-            "decoupling_kind": EXACT,
-            "left_minimal_indices": pb.degrees, "pencil": pb.info}
-    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, pb.degrees)
+    info.update({"order": int(Q.n), "rdim": int(H.shape[0]), "combination": H.tolist()})
+    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, degrees)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen
