@@ -238,10 +238,14 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         Which left null-space basis the design starts from. 'polynomial': the minimal
         polynomial (parity) basis (:mod:`._basis`, least order), with the frequency-sampled
         least-order fallback (:mod:`.sampled`). 'pencil': the proper state-space basis from
-        the system pencil (:mod:`.pencil`, Varga's ``glnull``), accurate at any degree; its
-        residual is a constant combination of the basis rows, of order at most the sum of
-        the left minimal indices — least order when the null space has one row (then that
-        sum is its degree), higher otherwise. Its poles are the basis' own, except those
+        the system pencil (:mod:`.pencil`, Varga's ``glnull``), accurate at any degree. With
+        several basis rows each row is first taken on its own at its left minimal index ν_i
+        (a simple basis from Type 1 minimum dynamic covers, :func:`.pencil.simple_rows`) and the
+        residual is the first set of them, in increasing total order (single rows first), whose
+        combination sees every fault and passes every post-condition — least order when one row
+        suffices (``info['simple_rows']`` the indices used); otherwise (or when the covers are
+        too ill-conditioned, ``info['simple_rows_refused']``) a combination of the whole basis,
+        of order at most the sum of the indices. Its poles are the basis' own, except those
         outside the stability region (``smarg``, and ``sdeg`` when given), which move to
         ``poles`` first and then to their mirror image about ``sdeg``. 'auto' (default):
         polynomial, and the pencil basis when neither polynomial nor sampled rows meet the
@@ -451,16 +455,19 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     if model.faults and not np.all(gains.max(axis=0) > FDtol):
         raise undetectable_error(model, gains > FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
     tried = []
-    if len(rows) == k:
+    if rows:
         from itertools import combinations
 
         Ns = [r[0] for r in rows]
         seen = _pencil_gains(model, vstack(Ns), freqs, FDtol) > FDtol
-        sets = sorted((c for size in range(int(rdim), k) for c in combinations(range(k), size)),
+        top = min(len(rows), k - 1)  # all k rows: the whole basis below, at no higher order
+        sets = sorted((c for size in range(int(rdim), top + 1) for c in combinations(range(len(rows)), size)),
                       key=lambda c: (sum(rows[i][1] for i in c), len(c)))
         for c in sets:
             if model.faults and not np.all(seen[list(c)].max(axis=0)):
                 continue  # some fault is seen by none of these rows: no combination of them sees it
+            if len(tried) >= 6:
+                break  # bounded search: the whole basis below
             sub = vstack([Ns[i] for i in c])
             try:
                 gen = _pencil_combine(model, sub, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,

@@ -444,25 +444,57 @@ def row_cover(a, b, c, d, i: int, tol: float):
     return a1, bb[x1, :1], c1, dd[:, :1], cond
 
 
+#: a cover whose non-orthogonal transformations exceed this norm is retried with another input direction of
+#: the same index (the accuracy lost is about cond·eps: 1e6 keeps ~1e-10 of the 1e-16 working precision)
+COVER_COND = 1e6
+#: covers beyond this are left out (cond·eps ~ 1e-8: a row must decouple far below dec_tol = 1e-6 pointwise)
+COVER_COND_MAX = 1e8
+
+
 def simple_rows(pb: PencilBasis, dt: float) -> list[tuple[LTI, int, float]]:
     """Each basis row on its own, at its left minimal index: ``[(N_i, ν_i, cond_i)]``, ascending in ν_i.
 
     A *simple* basis (Varga's ``glnull(simple=true)``): the dual pair is put in chain order
     (:func:`chain_ordered`), each input column i is covered by the others (:func:`row_cover`) — a row
     ``N_i + Y N_rest`` of McMillan degree ``ν_i`` — and its poles outside the stability region are moved
-    by single-input state feedback as for the whole basis (:func:`assign_poles`). A cover whose order is
-    not the index (a rank decision the cover's staircase made differently) is left out.
+    by single-input state feedback as for the whole basis (:func:`assign_poles`). When the cover's
+    transformations exceed ``COVER_COND``, fixed-seed rotations within the inputs of the same index are
+    tried and the best conditioned cover kept; one still above ``COVER_COND_MAX`` is left out (two
+    intertwined chains of equal length can need transformations of norm 1e13 to separate). A cover
+    whose order is
+    not the index (a rank decision the cover's staircase made differently), or whose poles cannot be
+    moved (an ordered Schur form that fails to converge), is left out.
     """
     a, b, c, d = pb.dual
     choose, good = pb.placement
     T, V, idx = chain_ordered(a, b, pb.rank_tol)
     a, b, c, d = T.T @ a @ T, T.T @ b @ V, c @ T, d @ V
     out = []
+    idx_arr = np.asarray(idx)
+    rng = np.random.default_rng(0)
     for i, nu in enumerate(idx):
-        a1, b1, c1, d1, cond = row_cover(a, b, c, d, i, pb.rank_tol)
-        if a1.shape[0] != nu:
+        group = np.flatnonzero(idx_arr == nu)  # inputs of the same index: any combination of them has index ν
+        best = None
+        for trial in range(4 if group.size > 1 else 1):
+            W = np.eye(len(idx))
+            if trial:  # a fixed-seed rotation within the group, when the chain-ordered column covers badly
+                Qg, _ = np.linalg.qr(rng.standard_normal((group.size, group.size)))
+                W[np.ix_(group, group)] = Qg
+            try:
+                cov = row_cover(a, b @ W, c, d @ W, i, pb.rank_tol)
+            except np.linalg.LinAlgError:
+                continue
+            if cov[0].shape[0] == nu and (best is None or cov[4] < best[4]):
+                best = cov
+            if best is not None and best[4] <= COVER_COND:
+                break
+        if best is None or best[4] > COVER_COND_MAX:
+            continue  # no cover of order ν (a rank decision made differently), or too ill-conditioned: left out
+        a1, b1, c1, d1, cond = best
+        try:
+            F, _ = assign_poles(a1, b1, dt, choose, good)
+        except (np.linalg.LinAlgError, DesignError):  # an ordered Schur form / placement that fails: row left out
             continue
-        F, _ = assign_poles(a1, b1, dt, choose, good)
         a1, c1 = a1 + b1 @ F, c1 + d1 @ F
         out.append((LTI(a1.T, c1.T, b1.T, d1.T, dt), nu, max(cond, float(np.linalg.norm(F, 2)) if F.size else 0.0)))
     return out
