@@ -291,7 +291,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     if basis == "pencil":
         if model.nw and noise == "optimize":
             raise DesignError("basis='pencil' decouples u and d only: pass noise='ignore' for a model with noise w")
-        return _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol)
+        return _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
+                       minimal)
     ladder = [tol] if (tol is not None or atol) else [None, 1e-15, 1e-9]
     first = None
     # aim at a tenth of dec_tol over the whole ladder first, so that a rank tolerance that
@@ -314,18 +315,24 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     auto = basis == "auto" and exact_only
 
     def pencil():
-        gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol)
+        gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
+                       minimal)
         gen.info["fallback_from"] = str(first)[:300]
         return gen
 
-    pencil_failed = None
-    if auto and rdim != "all" and len(_left_minimal_indices(model) or ()) == 1:
-        # one basis row: the pencil row's order is the left minimal index, the least order of any exact
-        # row, and a sampled row can only be approximate (below it) or of that order — skip its search
+    pencil_failed = pencil_gen = None
+    if auto and rdim != "all":
+        # a pencil row at the smallest left minimal index (one basis row: its index; several: a simple row,
+        # nullspace._pencil) is the least order of any exact row, and a sampled row can only be approximate
+        # (below it) or of that order — skip its search
         try:
-            return pencil()
+            pencil_gen = pencil()
         except DesignError as exc:
             pencil_failed = exc
+        else:
+            idx = pencil_gen.info["left_minimal_indices"]
+            if len(idx) == 1 or (rdim == 1 and pencil_gen.Q.n == min(idx)):
+                return pencil_gen
     approximate = None  # a sampled row below the smallest left minimal index: returned only without an exact one
     if rdim != "all" and exact_only:
         # the polynomial basis is too ill-conditioned here: design from frequency samples
@@ -345,7 +352,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         try:
             if pencil_failed is not None:
                 raise pencil_failed
-            gen = pencil()
+            gen = pencil_gen if pencil_gen is not None else pencil()
         except DesignError as exc:
             if approximate is not None:
                 approximate.info["exact_alternative"] = f"the pencil (state-space) basis failed: {exc}"[:300]
@@ -420,7 +427,8 @@ def _exactness(model: FDIModel, gen: ResidualGenerator) -> None:
                                    "post-condition tolerance (dec_tol, peak-relative) only")
 
 
-def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol) -> ResidualGenerator:
+def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
+            minimal: bool = True) -> ResidualGenerator:
     """Residual from the proper stable pencil basis (:func:`.pencil.pencil_basis`), least order first.
 
     With several basis rows and ``rdim`` below their number, each row is first taken on its own at
@@ -432,7 +440,7 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     (predictable degree property; Varga 2017, sec. 7.5, Type 1 minimum dynamic covers). Otherwise
     (or with ``rdim`` = 'all' / the whole basis) the constant combination of all rows with the
     best fault sensitivity condition, realised from the basis' own state space and reduced to a
-    minimal realisation."""
+    minimal realisation — also with ``minimal=False`` (fixed order: the whole basis' freedom)."""
     from .pencil import pencil_basis, simple_rows
 
     pb = pencil_basis(model, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
@@ -449,7 +457,7 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
         raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {freqs.tolist()}")
     full = rdim == "all" or rdim >= k
-    rows = [] if full or k == 1 else simple_rows(pb, model.dt)
+    rows = [] if full or k == 1 or not minimal else simple_rows(pb, model.dt)
     base = {"basis": "pencil", "decoupling_kind": EXACT, "left_minimal_indices": pb.degrees, "pencil": pb.info}
     gains = _pencil_gains(model, N, freqs, FDtol)
     if model.faults and not np.all(gains.max(axis=0) > FDtol):
