@@ -6,7 +6,9 @@ returned a generator that breaks its contract ("BROKEN"), and the totals; for re
 order of every residual with the basis it came from (po: polynomial least order, sa: frequency-sampled
 least order, pe: pencil state-space basis, see nullspace_design's ``basis``), and the totals of
 residuals per basis and per ``info['decoupling_kind']`` (exact, or approximate: a sampled row of order
-below the smallest left minimal index, which 'auto' returns only when no exact row passes).
+below the smallest left minimal index, which 'auto' returns only when no exact row passes), and for the
+pencil rows from a null space of several rows how many sit at the smallest left minimal index (the least
+order of any exact row) and their total order above it.
 Run: python benchmarks/synthesis_random_set.py [N] [auto|polynomial|pencil] (the ``basis`` option: 'polynomial'
 shows what the least-order methods alone achieve).
 """
@@ -32,6 +34,7 @@ def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
     counts = {"ok": 0, "refused": 0, "refused*": 0, "BROKEN": 0, "crash": 0}
     bases: dict[str, int] = {}  # residuals per basis: polynomial / sampled / pencil
     kinds: dict[str, int] = {}  # residuals per decoupling kind: exact / approximate
+    multi = {"pencil rows": 0, "at min index": 0, "excess order": 0}  # pencil rows, null space of several rows
     t0 = time.perf_counter()
     for seed in range(N):
         model = random_model(seed)
@@ -52,7 +55,12 @@ def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
                 how = [g.info.get("basis", "sampled" if g.info.get("synthesis") else "?") for g in members]
                 for h in how:
                     bases[h] = bases.get(h, 0) + 1
-                for g in members:
+                for g, h in zip(members, how):
+                    idx = g.info.get("left_minimal_indices", [])
+                    if h == "pencil" and len(idx) > 1:
+                        multi["pencil rows"] += 1
+                        multi["at min index"] += int(g.Q.n == min(idx))
+                        multi["excess order"] += int(g.Q.n - min(idx))
                     kind = str(g.info.get("decoupling_kind", "exact")).split(" ")[0].rstrip(":")
                     kinds[kind] = kinds.get(kind, 0) + 1
                 msg = "; ".join(bad[:3]) or ("orders " + " ".join(f"{g.info.get('order')}{h[:2]}{_indices(g)}"
@@ -68,7 +76,7 @@ def run(N: int = 40, verbose: bool = True, basis: str = "auto"):
             if verbose:
                 print(f"seed {seed:3d} n={model.n:2d} p={model.ny} m={model.nu} nd={model.nd} "
                       f"{'disc' if model.dt else 'cont'} {what:9s} {key:8s} {msg}")
-    print(counts, "residuals by basis:", bases, "by decoupling kind:", kinds, f"{time.perf_counter() - t0:.1f} s")
+    print(counts, "residuals by basis:", bases, "by decoupling kind:", kinds, multi, f"{time.perf_counter() - t0:.1f} s")
     return counts
 
 

@@ -199,8 +199,50 @@ def test_sampled_rows_report_whether_they_can_be_exact():
     assert gen.info.get("synthesis") == "frequency-sampled"
     assert gen.Q.n < min(gen.info["left_minimal_indices"]) and gen.info["decoupling_kind"].startswith("approximate")
     assert max(_pointwise_leak(gen.Q, model)) > 1e-5  # the approximation shows where |G| is small
-    # basis='auto' prefers the exact pencil row, at its higher order
+    # basis='auto' prefers the exact pencil row, at its higher order: a simple row at the smallest index (the
+    # least order of any exact row), so the sampled search is not even run
     auto = nullspace_design(model)
     assert auto.info["basis"] == "pencil" and auto.info["decoupling_kind"] == "exact"
-    assert auto.Q.n >= min(auto.info["left_minimal_indices"]) and "approximate" in auto.info["replaces"]
+    assert auto.Q.n == min(auto.info["left_minimal_indices"]) and "replaces" not in auto.info
     assert max(_pointwise_leak(auto.Q, model)) <= 1e-9
+
+
+@pytest.mark.parametrize("seed", [0, 4, 20, 29])
+def test_simple_basis_rows_have_their_own_index(seed):
+    """A simple basis (Type 1 minimum dynamic covers of each row by the others): row i alone has McMillan
+    degree ν_i (the left minimal indices), annihilates [Gu Gd; I 0], is stable, and together the rows keep
+    rank p - rank Gd (they are a basis, not k copies of one row)."""
+    from fmu_fdi.design.pencil import simple_rows
+
+    model = random_model(seed)
+    pb = pencil_basis(model)
+    rows = simple_rows(pb, model.dt)
+    assert [nu for _, nu, _ in rows] == pb.degrees and [N.n for N, _, _ in rows] == pb.degrees
+    for N, _, cond in rows:
+        assert N.is_stable()
+        # as above, with the cover's non-orthogonal transformations and feedback (cond) as the amplification
+        tol = 1e3 * (model.n + 1) * EPS * max(1.0, pb.info["feedback_norm"], cond)
+        for lam in _points(model):
+            Nv, Gv = N.evalfr(lam), _G(model, lam)
+            assert np.linalg.norm(Nv @ Gv) <= tol * np.linalg.norm(Nv) * np.linalg.norm(Gv, 2)
+    for lam in _points(model, 2):
+        Nv = np.vstack([N.evalfr(lam) for N, _, _ in rows])
+        sv = np.linalg.svd(Nv / np.linalg.norm(Nv, axis=1, keepdims=True), compute_uv=False)
+        assert sv[-1] > np.sqrt(EPS) * sv[0]
+
+
+@pytest.mark.parametrize("seed", [20, 29])
+def test_pencil_row_is_least_order(seed):
+    """Several basis rows (seed 20: indices [9, 9, 9]; 29: [14, 14]), formerly a pencil row of order 27 / 28:
+    every exact row has order ≥ the smallest left minimal index (each null row is a polynomial combination
+    of the minimal basis rows, predictable degree property), so a returned order equal to it is least
+    order; the row decouples pointwise to 1e-9 (the rounding of order-30 orthogonal reductions, ~1e-13,
+    with the cover's transformations and the grid's conditioning as headroom)."""
+    model = random_model(seed)
+    gen = nullspace_design(model)
+    assert contract(gen, model) == []
+    assert gen.info["basis"] == "pencil" and gen.info["decoupling_kind"] == "exact"
+    assert gen.Q.n == min(pencil_basis(model).degrees) == min(gen.info["left_minimal_indices"])
+    assert max(_pointwise_leak(gen.Q, model)) <= 1e-9
+    forced = nullspace_design(model, basis="pencil")
+    assert forced.Q.n == gen.Q.n and max(_pointwise_leak(forced.Q, model)) <= 1e-9

@@ -238,10 +238,14 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         Which left null-space basis the design starts from. 'polynomial': the minimal
         polynomial (parity) basis (:mod:`._basis`, least order), with the frequency-sampled
         least-order fallback (:mod:`.sampled`). 'pencil': the proper state-space basis from
-        the system pencil (:mod:`.pencil`, Varga's ``glnull``), accurate at any degree; its
-        residual is a constant combination of the basis rows, of order at most the sum of
-        the left minimal indices — least order when the null space has one row (then that
-        sum is its degree), higher otherwise. Its poles are the basis' own, except those
+        the system pencil (:mod:`.pencil`, Varga's ``glnull``), accurate at any degree. With
+        several basis rows each row is first taken on its own at its left minimal index ν_i
+        (a simple basis from Type 1 minimum dynamic covers, :func:`.pencil.simple_rows`) and the
+        residual is the first set of them, in increasing total order (single rows first), whose
+        combination sees every fault and passes every post-condition — least order when one row
+        suffices (``info['simple_rows']`` the indices used); otherwise (or when the covers are
+        too ill-conditioned, ``info['simple_rows_refused']``) a combination of the whole basis,
+        of order at most the sum of the indices. Its poles are the basis' own, except those
         outside the stability region (``smarg``, and ``sdeg`` when given), which move to
         ``poles`` first and then to their mirror image about ``sdeg``. 'auto' (default):
         polynomial, and the pencil basis when neither polynomial nor sampled rows meet the
@@ -287,7 +291,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     if basis == "pencil":
         if model.nw and noise == "optimize":
             raise DesignError("basis='pencil' decouples u and d only: pass noise='ignore' for a model with noise w")
-        return _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol)
+        return _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
+                       minimal)
     ladder = [tol] if (tol is not None or atol) else [None, 1e-15, 1e-9]
     first = None
     # aim at a tenth of dec_tol over the whole ladder first, so that a rank tolerance that
@@ -310,18 +315,24 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     auto = basis == "auto" and exact_only
 
     def pencil():
-        gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol)
+        gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
+                       minimal)
         gen.info["fallback_from"] = str(first)[:300]
         return gen
 
-    pencil_failed = None
-    if auto and rdim != "all" and len(_left_minimal_indices(model) or ()) == 1:
-        # one basis row: the pencil row's order is the left minimal index, the least order of any exact
-        # row, and a sampled row can only be approximate (below it) or of that order — skip its search
+    pencil_failed = pencil_gen = None
+    if auto and rdim != "all":
+        # a pencil row at the smallest left minimal index (one basis row: its index; several: a simple row,
+        # nullspace._pencil) is the least order of any exact row, and a sampled row can only be approximate
+        # (below it) or of that order — skip its search
         try:
-            return pencil()
+            pencil_gen = pencil()
         except DesignError as exc:
             pencil_failed = exc
+        else:
+            idx = pencil_gen.info["left_minimal_indices"]
+            if len(idx) == 1 or (rdim == 1 and pencil_gen.Q.n == min(idx)):
+                return pencil_gen
     approximate = None  # a sampled row below the smallest left minimal index: returned only without an exact one
     if rdim != "all" and exact_only:
         # the polynomial basis is too ill-conditioned here: design from frequency samples
@@ -341,7 +352,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         try:
             if pencil_failed is not None:
                 raise pencil_failed
-            gen = pencil()
+            gen = pencil_gen if pencil_gen is not None else pencil()
         except DesignError as exc:
             if approximate is not None:
                 approximate.info["exact_alternative"] = f"the pencil (state-space) basis failed: {exc}"[:300]
@@ -416,13 +427,21 @@ def _exactness(model: FDIModel, gen: ResidualGenerator) -> None:
                                    "post-condition tolerance (dec_tol, peak-relative) only")
 
 
-def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol) -> ResidualGenerator:
-    """Residual from the proper stable pencil basis (:func:`.pencil.pencil_basis`): the constant
-    combination of its rows with the best fault sensitivity condition (as for the polynomial
-    rows), realised from the basis' own state space and reduced to a minimal realisation."""
-    from types import SimpleNamespace
+def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
+            minimal: bool = True) -> ResidualGenerator:
+    """Residual from the proper stable pencil basis (:func:`.pencil.pencil_basis`), least order first.
 
-    from .pencil import pencil_basis
+    With several basis rows and ``rdim`` below their number, each row is first taken on its own at
+    its left minimal index ν_i (a simple basis, :func:`.pencil.simple_rows`), and sets of rows are
+    tried in increasing total order Σ ν_i (single rows first): the first set whose constant
+    combination keeps every fault visible (:func:`visibility_gated`) and passes every post-condition
+    is returned — a single row of index ν is least order for the faults it sees, as every null row
+    of McMillan degree ν is a polynomial combination of the minimal basis rows of degree ≤ ν
+    (predictable degree property; Varga 2017, sec. 7.5, Type 1 minimum dynamic covers). Otherwise
+    (or with ``rdim`` = 'all' / the whole basis) the constant combination of all rows with the
+    best fault sensitivity condition, realised from the basis' own state space and reduced to a
+    minimal realisation — also with ``minimal=False`` (fixed order: the whole basis' freedom)."""
+    from .pencil import pencil_basis, simple_rows
 
     pb = pencil_basis(model, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
     N = pb.N
@@ -437,6 +456,66 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     freqs = None if freqs is None else np.atleast_1d(np.asarray(freqs, float))
     if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
         raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {freqs.tolist()}")
+    full = rdim == "all" or rdim >= k
+    rows = [] if full or k == 1 or not minimal else simple_rows(pb, model.dt)
+    base = {"basis": "pencil", "decoupling_kind": EXACT, "left_minimal_indices": pb.degrees, "pencil": pb.info}
+    gains = _pencil_gains(model, N, freqs, FDtol)
+    if model.faults and not np.all(gains.max(axis=0) > FDtol):
+        raise undetectable_error(model, gains > FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
+    tried = []
+    if rows:
+        from itertools import combinations
+
+        Ns = [r[0] for r in rows]
+        seen = _pencil_gains(model, vstack(Ns), freqs, FDtol) > FDtol
+        top = min(len(rows), k - 1)  # all k rows: the whole basis below, at no higher order
+        sets = sorted((c for size in range(int(rdim), top + 1) for c in combinations(range(len(rows)), size)),
+                      key=lambda c: (sum(rows[i][1] for i in c), len(c)))
+        for c in sets:
+            if model.faults and not np.all(seen[list(c)].max(axis=0)):
+                continue  # some fault is seen by none of these rows: no combination of them sees it
+            if len(tried) >= 6:
+                break  # bounded search: the whole basis below
+            sub = vstack([Ns[i] for i in c])
+            try:
+                gen = _pencil_combine(model, sub, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
+                                      dict(base, simple_rows=[rows[i][1] for i in c],
+                                           cover_conditioning=max(rows[i][2] for i in c)), pb.degrees)
+            except DesignError as exc:
+                tried.append(f"rows {list(c)} (order {sub.n}): {exc}"[:200])
+                continue
+            return gen
+    gen = _pencil_combine(model, N, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, dict(base), pb.degrees)
+    if tried:
+        gen.info["simple_rows_refused"] = tried
+    return gen
+
+
+def _pencil_gains(model, N: LTI, freqs, FDtol) -> np.ndarray:
+    """Per row of ``N``, the relative gain (post-condition cosine) to every fault on the design grid."""
+    Ge = model.augmented()
+    lam = _points(model, _grid(model, N.poles(), freqs))
+    Gv, Nv = _values(Ge, lam), _values(N, lam)
+    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Nv), axis=(1, 2))
+    Gv, Nv = Gv[ok], Nv[ok]
+    p = model.ny
+    nNy = np.linalg.norm(Nv[:, :, :p], axis=2)
+    fcols = fault_columns(model)
+    gains = np.zeros((N.p, len(fcols)))
+    for j, c in enumerate(fcols):
+        gfj = np.linalg.norm(Gv[:, :p, c], 2, axis=(1, 2))
+        resp = np.linalg.norm(np.einsum("kiq,kqc->kic", Nv, Gv[:, :, c]), axis=2)
+        gains[:, j] = [_cosine(resp[:, i], nNy[:, i] * gfj) for i in range(N.p)]
+    return gains
+
+
+def _pencil_combine(model, N: LTI, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, info: dict,
+                    degrees) -> ResidualGenerator:
+    """The constant combination ``H N`` (``rdim`` rows) with the best fault sensitivity condition among
+    those keeping every fault visible, reduced to a minimal realisation and checked."""
+    from types import SimpleNamespace
+
+    k = N.p
     Ge = model.augmented()
     lam = _points(model, _grid(model, N.poles(), freqs))
     Gv, Nv = _values(Ge, lam), _values(N, lam)
@@ -445,14 +524,6 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     fcols = fault_columns(model)
     P = [np.einsum("kiq,kqc->kic", Nv, Gv[:, :, c]) for c in fcols]
     p = model.ny
-    nNy = np.linalg.norm(Nv[:, :, :p], axis=2)  # (K, k)
-    gains = np.zeros((k, len(fcols)))
-    for j, (Pj, c) in enumerate(zip(P, fcols)):
-        gfj = np.linalg.norm(Gv[:, :p, c], 2, axis=(1, 2))
-        resp = np.linalg.norm(Pj, axis=2)
-        gains[:, j] = [_cosine(resp[:, i], nNy[:, i] * gfj) for i in range(k)]
-    if model.faults and not np.all(gains.max(axis=0) > FDtol):
-        raise undetectable_error(model, gains > FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
     strong = None
     if freqs is not None and model.faults:
         lam_s, Gs = _strong_points(model, Ge, freqs)
@@ -467,10 +538,8 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
                                                  strong is not None),
                                 k, int(rdim), seed) if model.faults else np.eye(k)[: int(rdim)]
         Q = (H @ N).minreal()
-    info = {"order": int(Q.n), "rdim": int(H.shape[0]), "combination": H.tolist(), "basis": "pencil",
-            "decoupling_kind": EXACT,
-            "left_minimal_indices": pb.degrees, "pencil": pb.info}
-    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, pb.degrees)
+    info.update({"order": int(Q.n), "rdim": int(H.shape[0]), "combination": H.tolist()})
+    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, degrees)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen

@@ -53,6 +53,11 @@ class PencilBasis:
     degrees: list[int]
     rank_d: int
     info: dict = field(default_factory=dict)
+    #: ``(a, b, c, d)``: realisation of ``Nlᵀ`` (dual, input w = the k basis rows) before the poles are moved
+    dual: tuple | None = None
+    #: ``(choose, good)`` of :func:`assign_poles` as used for ``N``
+    placement: tuple | None = None
+    rank_tol: float = 0.0
 
 
 def _rank(s: np.ndarray, tol: float) -> int:
@@ -325,14 +330,15 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
         good = lambda re, im: np.hypot(re, im) < margin and np.hypot(re, im) <= limit  # noqa: E731
     else:
         good = lambda re, im: re < margin and re <= limit  # noqa: E731
+    # the dual realisation (ac, bc, Cz, Dz) of Nlᵀ before any pole is moved: the rows' covers start here
+    Cz = np.vstack([Fc, -(Bu.T @ Pc + Du.T @ Fc)]) if m else Fc  # Nuᵀ = -(Buᵀ X + Duᵀ N)
+    Dz = np.vstack([K, -(Du.T @ K)]) if m else K
+    dual = (ac.copy(), bc.copy(), Cz.copy(), Dz.copy())
     Fw, moved = assign_poles(ac, bc, model.dt, choose, good)
     if Fw.size:
-        ac, Fc = ac + bc @ Fw, Fc + K @ Fw
+        ac, Cz = ac + bc @ Fw, Cz + Dz @ Fw  # state feedback w = Fw ξ + v on the dual: a right coprime factor
         fnorm = max(fnorm, float(np.linalg.norm(Fw, 2)))
-    Cu = -(Bu.T @ Pc + Du.T @ Fc)  # Nuᵀ = -(Buᵀ X + Duᵀ N)
-    Dl = np.hstack([K.T, -(Du.T @ K).T]) if m else K.T
-    Bl = np.hstack([Fc.T, Cu.T]) if m else Fc.T
-    N = LTI(ac.T, Bl, bc.T, Dl, model.dt)
+    N = LTI(ac.T, Cz.T, bc.T, Dz.T, model.dt)
     rank_d = normal_rank(model.lti("d"), rtol=None) if md else 0
     if k != p - rank_d:
         raise NumericalDesignError(
@@ -341,4 +347,154 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
             f"rank of Gd — pass other rtol/atol")
     info = {"rank_tol": tol, "feedback_norm": fnorm, "moved_poles": moved, "order": nc,
             "controllable_order": n, "staircase": taus}
-    return PencilBasis(N, degrees, rank_d, info)
+    return PencilBasis(N, degrees, rank_d, info, dual, (choose, good), tol)
+
+
+def chain_ordered(a: np.ndarray, b: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """Orthogonal ``(T, V, indices)`` putting the controllable pair ``(a, b)`` into a staircase whose
+    sub-diagonal blocks are ``[0 R]`` with R upper triangular, and ordering the inputs ``b V`` by
+    ascending controllability index.
+
+    In ``Tᵀ a T``, ``Tᵀ b V``, the first ``τ_j - τ_{j+1}`` columns of block j reach no further block (chain
+    ends of length j) and column ``τ_j - τ_{j+1} + l`` of block j reaches rows ``≤ l`` of block j+1 only; so
+    input column i of ``b V`` starts a chain of length ``indices[i]`` (the conjugate partition of the block
+    sizes, ascending) — the ordering in which a Type 1 minimum dynamic cover of column i by the other
+    columns has order ``indices[i]`` (Varga 2017, sec. 10.4.2; Van Dooren's upper-triangular staircase).
+    """
+    n, k = b.shape
+    T, taus = controllable_staircase(a, b, tol)
+    at, bt = T.T @ a @ T, T.T @ b
+    starts = np.cumsum([0] + taus)
+    for j in range(len(taus) - 2, -1, -1):  # RQ of A_{j+1,j} = [0 R] Qᵀ, block j rotated by Q, backwards
+        rows, cols = slice(starts[j + 1], starts[j + 2]), slice(starts[j], starts[j + 1])
+        _, Q = sla.rq(at[rows, cols], mode="full")
+        Z = np.eye(n)
+        Z[cols, cols] = Q.T
+        at, bt, T = Z.T @ at @ Z, Z.T @ bt, T @ Z
+    V = np.eye(k)
+    if taus:
+        _, Q = sla.rq(bt[: taus[0]], mode="full")  # b_1 = [0 R] Q: inputs Qᵀ, the k - τ_1 static ones first
+        V = Q.T
+    return T, V, conjugate_partition(taus, k)
+
+
+def row_cover(a, b, c, d, i: int, tol: float):
+    """Type 1 minimum dynamic cover of input column i of the dual basis by the other columns.
+
+    Finds the least-order ``N_i + N_rest Y(λ)`` (a row of the null space; Varga 2003, "Reliable
+    algorithms for computing minimal dynamic covers", as ``grmcover1``): an orthogonal staircase of
+    ``(a, [b_i  b_rest])`` that compresses the ``b_i`` part before the ``b_rest`` part at every step; the
+    ``b_i``-blocks x1 are then made invariant by a non-orthogonal elimination of the ``b_rest``-block rows
+    (column operations with the full-row-rank sub-diagonal ``b_rest``-blocks) and a feedback of
+    ``b_rest`` on the first of them. Returns ``(a1, b1, c1, d1, cond)``: the realisation of order
+    ``dim x1`` and the largest norm of the non-orthogonal transformations and the feedback (``cond``).
+    """
+    n, k = b.shape
+    a, c = a.copy(), c.copy()
+    bb = np.hstack([b[:, [i]], np.delete(b, i, axis=1)])
+    dd = np.hstack([d[:, [i]], np.delete(d, i, axis=1)])
+    blocks: list[tuple[int, int, bool]] = []  # (start, size, is_b1)
+    r0 = 0
+    # the current "inputs" of the staircase step: columns of bb (step 0), then of a (the last two blocks)
+    src1, src2 = ("b", np.arange(1)), ("b", np.arange(1, k))
+    while r0 < n:
+        step = []
+        for (which, cols), is_b1 in ((src1, True), (src2, False)):
+            part = (bb if which == "b" else a)[r0:, cols]
+            rho = 0
+            if part.size:
+                U, s, _ = sla.svd(part, full_matrices=True)
+                rho = _rank(s, tol)
+                if rho:  # rotate rows/cols ≥ r0 only: the source columns (< r0 for a) are not touched
+                    Z = np.eye(n)
+                    Z[r0:, r0:] = U
+                    a, bb, c = Z.T @ a @ Z, Z.T @ bb, c @ Z
+            step.append((r0, rho, is_b1))
+            r0 += rho
+        if step[0][1] + step[1][1] == 0:
+            break
+        blocks += step
+        src1 = ("a", np.arange(step[0][0], step[0][0] + step[0][1]))
+        src2 = ("a", np.arange(step[1][0], step[1][0] + step[1][1]))
+    odd = [blk for blk in blocks if blk[2]]
+    even = [blk for blk in blocks if not blk[2]]
+    idx = lambda blks: np.concatenate([np.arange(s0, s0 + sz) for s0, sz, _ in blks]) if blks else np.zeros(0, int)  # noqa: E731
+    x1 = idx(odd)
+    cond = 1.0
+    # eliminate the rows of even block l+1 in the x1 columns of the odd blocks from l+1 on, with even block l
+    for l in range(len(even) - 1, 0, -1):
+        (r2, n2, _), (c2, m2, _) = even[l], even[l - 1]
+        if n2 == 0:
+            continue
+        ic1 = idx([blk for blk in odd[l:]])
+        ir2, ic2 = np.arange(r2, r2 + n2), np.arange(c2, c2 + m2)
+        X = -np.linalg.lstsq(a[np.ix_(ir2, ic2)], a[np.ix_(ir2, ic1)], rcond=None)[0]
+        cond = max(cond, float(np.linalg.norm(X, 2)) if X.size else 0.0)
+        a[:, ic1] += a[:, ic2] @ X   # a T with T = I + E (E: X at rows ic2, columns ic1)
+        c[:, ic1] += c[:, ic2] @ X
+        a[ic2, :] -= X @ a[ic1, :]   # T⁻¹ = I - E
+        bb[ic2, :] -= X @ bb[ic1, :]
+    f2 = np.zeros((k - 1, x1.size))
+    if even and even[0][1] and x1.size:
+        ir = np.arange(even[0][0], even[0][0] + even[0][1])
+        f2 = -np.linalg.lstsq(bb[np.ix_(ir, np.arange(1, k))], a[np.ix_(ir, x1)], rcond=None)[0]
+        cond = max(cond, float(np.linalg.norm(f2, 2)))
+    a1 = a[np.ix_(x1, x1)] + bb[np.ix_(x1, np.arange(1, k))] @ f2
+    c1 = c[:, x1] + dd[:, 1:] @ f2
+    return a1, bb[x1, :1], c1, dd[:, :1], cond
+
+
+#: a cover whose non-orthogonal transformations exceed this norm is retried with another input direction of
+#: the same index (the accuracy lost is about cond·eps: 1e6 keeps ~1e-10 of the 1e-16 working precision)
+COVER_COND = 1e6
+#: covers beyond this are left out (cond·eps ~ 1e-8: a row must decouple far below dec_tol = 1e-6 pointwise)
+COVER_COND_MAX = 1e8
+
+
+def simple_rows(pb: PencilBasis, dt: float) -> list[tuple[LTI, int, float]]:
+    """Each basis row on its own, at its left minimal index: ``[(N_i, ν_i, cond_i)]``, ascending in ν_i.
+
+    A *simple* basis (Varga's ``glnull(simple=true)``): the dual pair is put in chain order
+    (:func:`chain_ordered`), each input column i is covered by the others (:func:`row_cover`) — a row
+    ``N_i + Y N_rest`` of McMillan degree ``ν_i`` — and its poles outside the stability region are moved
+    by single-input state feedback as for the whole basis (:func:`assign_poles`). When the cover's
+    transformations exceed ``COVER_COND``, fixed-seed rotations within the inputs of the same index are
+    tried and the best conditioned cover kept; one still above ``COVER_COND_MAX`` is left out (two
+    intertwined chains of equal length can need transformations of norm 1e13 to separate). A cover
+    whose order is
+    not the index (a rank decision the cover's staircase made differently), or whose poles cannot be
+    moved (an ordered Schur form that fails to converge), is left out.
+    """
+    a, b, c, d = pb.dual
+    choose, good = pb.placement
+    T, V, idx = chain_ordered(a, b, pb.rank_tol)
+    a, b, c, d = T.T @ a @ T, T.T @ b @ V, c @ T, d @ V
+    out = []
+    idx_arr = np.asarray(idx)
+    rng = np.random.default_rng(0)
+    for i, nu in enumerate(idx):
+        group = np.flatnonzero(idx_arr == nu)  # inputs of the same index: any combination of them has index ν
+        best = None
+        for trial in range(4 if group.size > 1 else 1):
+            W = np.eye(len(idx))
+            if trial:  # a fixed-seed rotation within the group, when the chain-ordered column covers badly
+                Qg, _ = np.linalg.qr(rng.standard_normal((group.size, group.size)))
+                W[np.ix_(group, group)] = Qg
+            try:
+                cov = row_cover(a, b @ W, c, d @ W, i, pb.rank_tol)
+            except np.linalg.LinAlgError:
+                continue
+            if cov[0].shape[0] == nu and (best is None or cov[4] < best[4]):
+                best = cov
+            if best is not None and best[4] <= COVER_COND:
+                break
+        if best is None or best[4] > COVER_COND_MAX:
+            continue  # no cover of order ν (a rank decision made differently), or too ill-conditioned: left out
+        a1, b1, c1, d1, cond = best
+        try:
+            F, _ = assign_poles(a1, b1, dt, choose, good)
+        except (np.linalg.LinAlgError, DesignError):  # an ordered Schur form / placement that fails: row left out
+            continue
+        a1, c1 = a1 + b1 @ F, c1 + d1 @ F
+        out.append((LTI(a1.T, c1.T, b1.T, d1.T, dt), nu, max(cond, float(np.linalg.norm(F, 2)) if F.size else 0.0)))
+    return out
