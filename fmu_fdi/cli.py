@@ -203,7 +203,7 @@ def _model(args) -> int:
                            at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
                            sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
                            excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
-                           validation_png=args.plot, record=args.record)
+                           validation_png=args.plot, record=args.record, noise=args.noise)
     if tol is not None:
         model = model.minreal(tol)
         _report_minreal(model)
@@ -595,6 +595,10 @@ def build_parser() -> argparse.ArgumentParser:
     mo.add_argument("--min-fit", type=float, default=50.0, help="refuse a validation fit below this (%%, default 50)")
     mo.add_argument("--plot", help="PNG of measured vs model outputs on the validation run (default: none)")
     mo.add_argument("--record", help="CSV of the identification run, a fault-free log for --method data (default: none)")
+    mo.add_argument("--noise", choices=("innovation", "measurement"),
+                    help="identification: add unit white noise inputs w_<output> learned from the data: the Kalman "
+                         "innovation form, or output noise from the validation error (default: none; "
+                         "docs/plant-fmu.md)")
     _minreal_options(mo)
     mo.set_defaults(func=_model)
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import IdentificationError
+from .noise import check_noise_option
 
 METHODS = ("auto", "linearise", "identify")
 
@@ -35,7 +36,7 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
                    trim: bool = True, sensor_faults=None, actuator_faults=None, ts: float | None = None,
                    excite=None, excitation=None, parameters=None, order: int | None = None,
                    max_order: int = 10, min_fit: float = 50.0, validation_png=None, name: str | None = None,
-                   record=None):
+                   record=None, noise: str | None = None):
     """An :class:`~fmu_fdi.model.FDIModel` of a plant FMU (see the module docstring).
 
     Parameters
@@ -75,6 +76,16 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
     record : path, optional
         Identification: write the identification run (time, u, d and y columns) as CSV here,
         a fault-free log for ``design --method data``.
+    noise : {None, 'innovation', 'measurement'}
+        Identification: add noise inputs ``w_<output>`` (unit white) learned from the data
+        (:mod:`fmu_fdi.identify.noise`): 'innovation', the steady-state Kalman innovation form
+        estimated on the estimation run (``Bw = K Lₑ``, ``Dw = Lₑ``, ``Lₑ Lₑᵀ = Re``);
+        'measurement', output noise only (``Bw = 0``, ``Dw`` the Cholesky factor of the
+        output-error covariance on the validation run). Default None: no noise inputs.
+        The identified noise model is discrete (sample time ts); the continuous model's Bw is
+        the exact inverse of its zero-order hold, like B, so ``model.discretize(ts)`` (and a
+        design at ``--ts`` = ts) has exactly the identified noise model, w a unit white
+        sequence held over each sample.
 
     Returns
     -------
@@ -88,9 +99,13 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         raise IdentificationError(f"no such FMU file: {path}")
     if method not in METHODS:
         raise IdentificationError(f"method must be one of {METHODS}, got {method!r}")
+    check_noise_option(noise)
     md = read_description(path)
     if method == "auto":
         method = "linearise" if md.modelExchange is not None else "identify"
+    if noise is not None and method != "identify":
+        raise IdentificationError(f"{path}: noise={noise!r} needs identification from data (method='identify'); "
+                                  f"a linearisation has no noise to learn from")
     at = dict(at or {})
     params = dict(parameters or {})
     by_name = {v.name: v for v in md.modelVariables}
@@ -116,7 +131,10 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         if len(d_names):
             prov["disturbance_values"] = lin.v0[nu:].tolist()
     else:
+        from dataclasses import replace
+
         from .experiment import Excitation, run_experiment
+        from .noise import innovation_noise, measurement_noise
         from .subspace import moesp
         from .validation import validate
 
@@ -142,6 +160,14 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         sub = moesp(ident.u - ident.u0, ident.y - ident.y0, ts, order, max_order=max_order, feedthrough=False)
         A, B, C, D = sub.to_continuous()
         rep = validate(sub, check.u - check.u0, check.y - check.y0, check.t, np.linalg.eigvals(A), y_names)
+        nm = None
+        if noise == "measurement":
+            nm = measurement_noise(sub, check.u - check.u0, rep.y, rep.y_hat)
+        elif noise == "innovation":
+            nm = innovation_noise(sub, ident.u - ident.u0, ident.y - ident.y0, check.u - check.u0,
+                                  check.y - check.y0)
+        if nm is not None:  # Bw: the inverse zero-order hold of the discrete K Lₑ, as for B
+            Bw = replace(sub, B=np.hstack([sub.B, nm.Bw])).to_continuous()[1][:, sub.B.shape[1]:]
         if validation_png is not None:
             rep.plot(validation_png)
         if np.min(rep.fit) < min_fit:
@@ -162,17 +188,20 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
                                    + ", ".join(f"{k}={v:g}" for k, v in ident.excited.items()),
                      "fit_percent": rep.fit.tolist(), "fit_kind": rep.kind,
                      "poles": [f"{p.real:.6g}{p.imag:+.6g}j" for p in rep.poles_continuous]})
+        if nm is not None:
+            prov.update(nm.provenance(y_names))
         if d_names:
             prov["disturbance_values"] = ident.u0[nu:].tolist()
     from ..model import FDIModel
 
+    noise_kw = {} if noise is None else {"Bw": Bw, "Dw": nm.Dw, "w_names": [f"w_{n}" for n in y_names]}
     nu = len(u_names)
     faults = _fault_list(sensor_faults, y_names, "sensor") + _fault_list(actuator_faults, u_names, "actuator")
     return FDIModel(A, B[:, :nu], C, D[:, :nu], Bd=B[:, nu:], Dd=D[:, nu:], faults=faults,
                     u_names=u_names, y_names=y_names, d_names=d_names,
                     name=_model_name(name or md.modelName), operating_point={"u": u0, "y": y0},
                     description=f"{prov['method']} of {path.name} at its operating point",
-                    provenance=prov)
+                    provenance=prov, **noise_kw)
 
 
 def parse_values(items, option: str) -> dict:
