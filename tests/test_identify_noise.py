@@ -133,3 +133,86 @@ def test_predictor_innovations_of_the_true_model_have_its_covariance():
     u, y = _record(4)
     e = predictor_innovations(t, K, u, y, drop=100)
     assert np.all(np.abs(np.cov(e, rowvar=False) - Re) <= _wishart_bound(Re, len(e)))
+
+
+# ---- through the plant FMU and the model file ----------------------------------------------------
+
+@pytest.fixture(scope="module")
+def dts200(tmp_path_factory):
+    import shutil
+
+    if shutil.which("gcc") is None:
+        pytest.skip("needs gcc to build the plant FMU")
+    import plant_fmus
+
+    return plant_fmus.build("dts200", tmp_path_factory.mktemp("plant"))
+
+
+# PRBS of period 20 steps: the slow mode (τ ≈ 520 s) is excited above the 0.1 cm sensor noise
+_EXPERIMENT = ["--inputs", "Q1", "Q2", "--outputs", "h1", "h2", "h3", "--signal", "prbs", "--period", "20",
+               "--amplitude", "Q1=3", "Q2=5", "--samples", "3000", "--settle", "40", "--order", "3",
+               "--sensor-faults", "all"]
+
+
+def test_cli_model_noise_round_trip_and_default_unchanged(dts200, tmp_path, capsys):
+    from fmu_fdi.cli import main
+
+    files = {}
+    for noise in (None, "innovation", "measurement"):
+        files[noise] = tmp_path / f"{noise}.toml"
+        assert main(["model", str(dts200), *_EXPERIMENT, "-o", str(files[noise])]
+                    + (["--noise", noise] if noise else [])) == 0
+    plain = FDIModel.from_file(files[None])
+    assert plain.nw == 0 and not any(k.startswith("noise") for k in plain.provenance)
+    n, p, ts = plain.n, plain.ny, plain.provenance["sample_time"]
+    sigma2 = 0.1 ** 2  # the FMU's sensor noise variance (plant_fmus/dts200: NOISE_STD = 0.1 cm, white)
+    cov = {}
+    for noise in ("innovation", "measurement"):
+        m = FDIModel.from_file(files[noise])
+        assert m.w_names == ["w_h1", "w_h2", "w_h3"] and m.provenance["noise_model"] == noise
+        assert m.provenance["noise_run"] == ("estimation" if noise == "innovation" else "validation")
+        cov[noise] = np.reshape(m.provenance["noise_covariance"], (p, p))
+        assert np.allclose(m.Dw @ m.Dw.T, cov[noise], rtol=1e-9)
+        # the option adds w and its provenance and changes nothing else, to the byte
+        d = m.to_dict()
+        d["signals"].pop("w")
+        d["matrices"].pop("Bw", None), d["matrices"].pop("Dw")
+        d["provenance"] = {k: v for k, v in d["provenance"].items() if not k.startswith("noise")}
+        assert FDIModel.from_dict(d).to_file(tmp_path / "stripped.toml").read_bytes() == files[None].read_bytes()
+        if noise == "innovation":
+            # the continuous Bw is the inverse ZOH of K Lₑ: sampled at ts it is the innovation form again
+            K = np.reshape(m.provenance["noise_gain"], (n, p))
+            assert np.allclose(m.discretize(ts).Bw, K @ m.Dw, rtol=1e-8, atol=1e-12 * np.abs(K).max())
+            val = np.reshape(m.provenance["noise_covariance_validation"], (p, p))
+        else:
+            assert not m.Bw.any()
+    # the innovations hold at least the sensor noise (Re ≥ R for any predictor; 4 Wishart SE, N = 3000), and
+    # the one-step predictor's error is at most the simulation error the measurement model takes as noise
+    N = 3000
+    assert np.all(np.diag(val) >= sigma2 * (1 - 4 * np.sqrt(2 / N))), np.diag(val)
+    assert np.all(np.diag(val) <= np.diag(cov["measurement"])), (np.diag(val), np.diag(cov["measurement"]))
+    assert not any(k in files[None].read_text() for k in ("Bw", "Dw", "noise"))
+
+
+def test_bad_noise_option_is_refused(dts200, tmp_path, capsys):
+    from fmu_fdi.cli import main
+
+    with pytest.raises(IdentificationError, match="noise must be one of \\('innovation', 'measurement'\\)"):
+        FDIModel.from_fmu(dts200, ["Q1"], ["h1"], noise="kalman")
+    with pytest.raises(SystemExit):
+        main(["model", str(dts200), "--inputs", "Q1", "--outputs", "h1", "--noise", "white", "-o",
+              str(tmp_path / "m.toml")])
+    err = capsys.readouterr().err
+    assert "invalid choice: 'white'" in err and not (tmp_path / "m.toml").exists()
+
+
+def test_noise_needs_identification(tmp_path):
+    import shutil
+
+    if shutil.which("gcc") is None:
+        pytest.skip("needs gcc")
+    from me_fmus import build_me_fmu
+
+    fmu = build_me_fmu(tmp_path, "linear", 2, True)
+    with pytest.raises(IdentificationError, match="noise='innovation' needs identification"):
+        FDIModel.from_fmu(fmu, ["u1"], ["y1"], at={"u1": 1.0, "u2": -1.0}, noise="innovation")
