@@ -9,14 +9,18 @@ This package only *produces* models (nothing else in fmu_fdi imports it):
   :class:`fmu_fdi.cosim.CoSimulation` (:mod:`.experiment`).
 - :func:`moesp` — PO-MOESP subspace identification with order selection (:mod:`.subspace`).
 - :func:`validate` — fit (NRMSE %) per output on an independent run, poles, PNG (:mod:`.validation`).
+- :func:`innovation_noise`, :func:`measurement_noise` — opt-in noise models (w unit white) of an
+  identified model: Kalman innovation form or output-error covariance (:mod:`.noise`).
 - :func:`model_from_fmu` — the door used by ``FDIModel.from_fmu`` and ``fmu-fdi model`` (:mod:`.fmu_model`).
 """
 from .errors import IdentificationError
 from .experiment import Excitation, run_experiment
 from .fmu_model import model_from_fmu
 from .linearise import Linearisation, linearise
+from .noise import NoiseModel, innovation_noise, measurement_noise
 from .subspace import SubspaceModel, moesp
 from .validation import ValidationReport, validate
 
 __all__ = ["IdentificationError", "Excitation", "run_experiment", "model_from_fmu", "Linearisation", "linearise",
+           "NoiseModel", "innovation_noise", "measurement_noise",
            "SubspaceModel", "moesp", "ValidationReport", "validate"]
