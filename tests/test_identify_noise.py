@@ -94,7 +94,7 @@ def test_measurement_noise_from_the_validation_error():
     u, y = _noise_free(rng, 4000)
     y = y + rng.standard_normal(y.shape) @ np.sqrt(RM)
     nm = measurement_noise(sub, u, y, sub.simulate(u))
-    assert nm.run == "validation" and not nm.Bw.any()
+    assert nm.run == "validation (simulation)" and not nm.Bw.any()
     assert np.all(np.abs(nm.covariance - RM) <= _wishart_bound(RM, 4000)), nm.covariance
     assert np.allclose(nm.Dw @ nm.Dw.T, nm.covariance)
 
@@ -170,7 +170,7 @@ def test_cli_model_noise_round_trip_and_default_unchanged(dts200, tmp_path, caps
     for noise in ("innovation", "measurement"):
         m = FDIModel.from_file(files[noise])
         assert m.w_names == ["w_h1", "w_h2", "w_h3"] and m.provenance["noise_model"] == noise
-        assert m.provenance["noise_run"] == ("estimation" if noise == "innovation" else "validation")
+        assert m.provenance["noise_run"] == ("estimation" if noise == "innovation" else "validation (simulation)")
         cov[noise] = np.reshape(m.provenance["noise_covariance"], (p, p))
         assert np.allclose(m.Dw @ m.Dw.T, cov[noise], rtol=1e-9)
         # the option adds w and its provenance and changes nothing else, to the byte

@@ -162,7 +162,7 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         rep = validate(sub, check.u - check.u0, check.y - check.y0, check.t, np.linalg.eigvals(A), y_names)
         nm = None
         if noise == "measurement":
-            nm = measurement_noise(sub, check.u - check.u0, rep.y, rep.y_hat)
+            nm = measurement_noise(sub, check.u - check.u0, rep.y, rep.y_hat, rep.kind)
         elif noise == "innovation":
             nm = innovation_noise(sub, ident.u - ident.u0, ident.y - ident.y0, check.u - check.u0,
                                   check.y - check.y0)

@@ -99,13 +99,16 @@ def check_noise_option(noise) -> None:
         raise IdentificationError(f"noise must be one of {NOISE_MODELS} or None (no noise inputs), got {noise!r}")
 
 
-def measurement_noise(model, u_val, y_val, y_hat) -> NoiseModel:
-    """``Dw = chol(cov(y − ŷ))`` on the validation run, ``Bw = 0`` (module docstring)."""
+def measurement_noise(model, u_val, y_val, y_hat, kind: str = "simulation") -> NoiseModel:
+    """``Dw = chol(cov(y − ŷ))`` on the validation run, ``Bw = 0`` (module docstring).
+
+    ``kind`` says what ŷ is (:func:`~fmu_fdi.identify.validation.validate`: 'simulation', or for
+    an unstable model 'one-step predictor'); it is recorded with the run."""
     eps = np.asarray(y_val, float) - np.asarray(y_hat, float)
     cov = np.cov(eps, rowvar=False).reshape(eps.shape[1], eps.shape[1])
     Dw = _chol(cov, "the output error y − ŷ on the validation run", y_val)
     n, p = model.A.shape[0], Dw.shape[0]
-    return NoiseModel("measurement", np.zeros((n, p)), Dw, cov, np.zeros((n, p)), "validation", len(eps))
+    return NoiseModel("measurement", np.zeros((n, p)), Dw, cov, np.zeros((n, p)), f"validation ({kind})", len(eps))
 
 
 def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = None) -> NoiseModel:
