@@ -278,7 +278,7 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
 def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
     """The predicate ``(names, row) -> bool`` of strong achievability at ``freqs``
     (see :func:`achievable_structure`)."""
-    from .design._basis import minimal_basis, pole_chooser
+    from .design._basis import minimal_basis
 
     omega = np.atleast_1d(np.asarray(freqs, float))
     if omega.ndim != 1 or not omega.size or np.any(omega < 0) or not np.all(np.isfinite(omega)):

@@ -146,3 +146,26 @@ def test_runtime_with_a_re_discretised_plan_round_trips_through_the_fmu_state_co
     a = [rt.advance(u[k], y[k], 0.013) for k in range(30, 60)]
     b = [copy.advance(u[k], y[k], 0.013) for k in range(30, 60)]
     assert a == b
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda c: c.update(A=[row + [0.0] for row in c["A"]] + [[0.0] * (len(c["A"]) + 1)],
+                        B=c["B"] + [[0.0] * len(c["B"][0])], C=[row + [0.0] for row in c["C"]]), "has order"),
+    (lambda c: c["A"][0].__setitem__(0, c["A"][0][0] * (1 + 1e-6)), "discrete.A is not the zero-order hold"),
+    (lambda c: c["C"][0].__setitem__(0, -c["C"][0][0]), "discrete.C is not the zero-order hold"),
+])
+def test_a_continuous_generator_that_is_not_the_discrete_ones_filter_is_refused(dg, edit, message):
+    """generator.continuous serves steps of another size with the discrete state carried over, so
+    it must be the same filter: its zero-order hold at dt equals generator.discrete (to 1e-8
+    relative). Another order, an edited entry (1e-6 relative) or another sign is refused by the
+    one validator, before any step could fail in one runtime and not the other."""
+    import copy
+
+    from fmu_fdi.designfile import DesignFileError
+
+    assert dg.design["generator"].get("continuous") is not None
+    Diagnoser.from_design(dg.design)  # the design as made passes
+    bad = copy.deepcopy(dg.design)
+    edit(bad["generator"]["continuous"])
+    with pytest.raises(DesignFileError, match=message):
+        Diagnoser.from_design(bad)

@@ -19,7 +19,9 @@ Rules (docs/design-file.md lists them with the keys):
   ``alpha + beta`` > 0, thresholds finite; forgetting factors in their open ranges;
 - shapes agree: the generator reads ``ny + nu`` signals, the groups partition its
   residuals, one evaluation per group, a structure matrix of groups × faults;
-- ``generator.discrete.dt`` (when written) equals ``generator.dt``.
+- ``generator.discrete.dt`` (when written) equals ``generator.dt``;
+- ``generator.continuous`` (when written) is the same filter: ``generator.discrete`` is its
+  zero-order hold at ``dt`` (same order, same coordinates, to :data:`ZOH_RTOL`).
 """
 from __future__ import annotations
 
@@ -29,6 +31,7 @@ import re
 import numpy as np
 
 from . import schema as S
+from .expm import zoh
 
 FORMAT = "fmu-fdi-design/1"
 #: windows, persistence and tap counts: integers in [1, MAX_SAMPLES] (semantics decision S5)
@@ -179,6 +182,42 @@ def _lti(spec, where: str, n_in: int, extra=()) -> int:
     return p
 
 
+#: largest relative difference between generator.discrete and the zero-order hold of
+#: generator.continuous at dt: two Padé/scaling-and-squaring exponentials of the same matrix
+#: agree to ~1e-13 relative (n·eps·||A h|| growth), so 1e-8 only refuses realisations that are
+#: not the same filter (another order, other coordinates, an edited matrix)
+ZOH_RTOL = 1e-8
+
+
+def _zoh_consistent(cont: dict, disc: dict, dt: float, where: str) -> None:
+    """``generator.discrete`` must be the zero-order hold of ``generator.continuous`` at ``dt`` in
+    the same coordinates: a step of another size re-discretises the continuous one and carries
+    the discrete state over (docs/semantics.md), which only means something if they agree."""
+    n_c, n_d = len(cont["A"]), len(disc["A"])
+    if n_c != n_d:
+        raise E(f"{where}.continuous has order {n_c} but generator.discrete has order {n_d}: a step of another "
+                f"size could not carry the state over; re-design instead of editing one of them")
+    if n_c == 0:
+        pairs = [("D", cont["D"], disc["D"])]
+    else:
+        Ac = np.asarray(cont["A"], float)
+        Bc = np.asarray(cont["B"], float)
+        with np.errstate(all="ignore"):
+            try:
+                Ad, Bd = zoh(Ac, Bc, dt)
+            except (np.linalg.LinAlgError, ValueError):
+                raise E(f"{where}.continuous: its zero-order hold at dt = {dt!r} cannot be computed") from None
+        pairs = [("A", Ad, disc["A"]), ("B", Bd, disc["B"]), ("C", cont["C"], disc["C"]), ("D", cont["D"], disc["D"])]
+    for key, want, got in pairs:
+        want, got = np.asarray(want, float), np.asarray(got, float)
+        scale = max(1.0, float(np.max(np.abs(want), initial=0.0)))
+        err = float(np.max(np.abs(want - got), initial=0.0))
+        if not err <= ZOH_RTOL * scale:
+            raise E(f"{where}.discrete.{key} is not the zero-order hold of {where}.continuous at dt = {dt!r} "
+                    f"(largest difference {err:.3g}, allowed {ZOH_RTOL * scale:.3g}): the two realisations are not "
+                    f"the same filter; re-design instead of editing one of them")
+
+
 def _generator(g: dict, where: str, n_in: int) -> tuple[int, list[list[int]]]:
     S.check_keys(g, _GEN_REQUIRED, _GEN_ALLOWED, where, E)
     S.text(g["method"], f"{where}.method", E)
@@ -203,6 +242,7 @@ def _generator(g: dict, where: str, n_in: int) -> tuple[int, list[list[int]]]:
             raise E(f"{where}.continuous is only meaningful for an 'lti' generator")
         if _lti(g["continuous"], f"{where}.continuous", n_in) != nr:
             raise E(f"{where}.continuous has a different number of residuals than generator.discrete ({nr})")
+        _zoh_consistent(g["continuous"], disc, dt, where)
     names = S.names(g["residual_names"], f"{where}.residual_names", E)
     if len(names) != nr:
         raise E(f"{where}: {len(names)} residual names for {nr} residuals")
