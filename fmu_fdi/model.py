@@ -260,8 +260,10 @@ class FDIModel:
 
         Delegates to :func:`fmu_fdi.identify.model_from_fmu`, which documents ``at``,
         ``method`` and the further options (``trim``, ``sensor_faults``, ``actuator_faults``,
-        ``ts``, ``excite``, ``excitation``, ``parameters``, ``order``, ...). The model carries
-        the operating point and a ``provenance`` table (FMU, GUID, method, fit).
+        ``ts``, ``excite``, ``excitation``, ``parameters``, ``order``, ``noise`` —
+        ``"innovation"`` or ``"measurement"`` adds unit white noise inputs ``w_<output>``
+        learned from the data, docs/plant-fmu.md —, ...). The model carries the operating point
+        and a ``provenance`` table (FMU, GUID, method, fit, noise model).
         ``minimal``/``minreal_tol`` reduce the linear model as in :meth:`from_matrices`
         (checked before the FMU is touched).
         """
