@@ -37,7 +37,7 @@ def validate_design(d, source: str = "design") -> dict:
 
     try:
         check_design(d, source)
-        DiagnoserRuntime(d)
+        DiagnoserRuntime(d, checked=True)  # d has just passed check_design
     except DesignCheckError as exc:
         raise DesignFileError(str(exc)) from None
     except (KeyError, TypeError, ValueError, IndexError, OverflowError) as exc:

@@ -113,7 +113,7 @@ class Diagnoser:
         if valid_range:
             self.design["signals"]["valid_range"] = {k: _jsonable_range(v) for k, v in valid_range.items()}
         validate_design(self.design, "diagnoser")
-        self.runtime = DiagnoserRuntime(self.design)
+        self.runtime = DiagnoserRuntime(self.design, checked=True)  # validated just above
 
     # ----------------------------------------------------------------- design
     def _build_design(self, gen, cont, model: FDIModel, evals, thrs, decision, name) -> dict:
@@ -251,7 +251,7 @@ class Diagnoser:
     def from_design(cls, design: dict) -> "Diagnoser":
         self = cls.__new__(cls)
         self.design = validate_design(copy.deepcopy(design), "design")
-        self.runtime = DiagnoserRuntime(self.design)
+        self.runtime = DiagnoserRuntime(self.design, checked=True)  # validated just above
         self.Ts = float(design["generator"]["dt"])
         self.generator = self.continuous = None
         g = design["generator"]

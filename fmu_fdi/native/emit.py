@@ -114,7 +114,7 @@ def _fnv1a(text: str) -> int:
 def emit_design_c(design: dict, source: str = "design") -> str:
     """C99 source of ``const fdi_design FDI_DESIGN`` for ``design`` (raises NativeDesignError)."""
     validate_design(design, source)
-    rt = DiagnoserRuntime(design)
+    rt = DiagnoserRuntime(design, checked=True)  # validated just above
     em = _Emitter()
     g = design["generator"]
     kind = g["discrete"].get("kind")

@@ -83,8 +83,12 @@ def valid_ranges(signals: dict) -> tuple[list[float], list[float], list[float], 
 class DiagnoserRuntime:
     """Per-sample diagnosis from a design dict (numpy only); semantics: docs/semantics.md."""
 
-    def __init__(self, design: dict):
-        check_design(design)  # the one validation every entry point shares (raises DesignCheckError)
+    def __init__(self, design: dict, *, checked: bool = False):
+        # The one validation every entry point shares (raises DesignCheckError). ``checked=True``
+        # is only for a caller that passes the very dict check_design has just accepted, unchanged
+        # (validate_design, and Diagnoser/emit_design_c right after validate_design).
+        if not checked:
+            check_design(design)
         sig = design["signals"]
         self.u_names, self.y_names = list(sig["u"]), list(sig["y"])
         self.nu, self.ny = len(self.u_names), len(self.y_names)
