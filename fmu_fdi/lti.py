@@ -234,14 +234,16 @@ class LTI:
         return LTI(self.A.T, self.C.T, self.B.T, self.D.T, self.dt)
 
     # --------------------------------------------------------- realisation
-    def minreal(self, tol: float | None = None, job: str = "M") -> "LTI":
+    def minreal(self, tol: float | None = None, job: str = "M", equil: str = "S") -> "LTI":
         """Minimal (or controllable 'C' / observable 'O') realisation by SLICOT TB01PD.
 
         The orthogonal staircase keeps the computation backward stable; ``tol`` is the
         rank tolerance of the staircase (SLICOT's default ``n*n*eps*||[A B; C 0]||`` when
         None). The triplet is balanced first (SLICOT TB01ID, ``equil="S"``): without it the
         rank decisions failed on badly scaled rows, e.g. the sampled row of three identical
-        pitch systems kept two unobservable states.
+        pitch systems kept two unobservable states. ``equil="N"`` skips the balancing (the
+        decisions are then those of the coordinates given, as :func:`.model.minimal_realisation`
+        wants).
         """
         n, m, p = self.n, self.m, self.p
         if n == 0:
@@ -255,7 +257,7 @@ class LTI:
         B[:, :m] = self.B
         C = np.zeros((mp, n))
         C[:p, :] = self.C
-        Ar, Br, Cr, nr = slycot.tb01pd(n, m, p, self.A.copy(), B, C, job=job, equil="S",
+        Ar, Br, Cr, nr = slycot.tb01pd(n, m, p, self.A.copy(), B, C, job=job, equil=equil,
                                        tol=0.0 if tol is None else tol)
         return LTI(Ar[:nr, :nr], Br[:nr, :m], Cr[:p, :nr], self.D, self.dt)
 

@@ -610,16 +610,9 @@ def minimal_realisation(A, B, C, tol: float = 0.0):
         return A, B, C, used
     if m == 0 or p == 0 or not np.any(B) or not np.any(C):
         return np.zeros((0, 0)), np.zeros((0, m)), np.zeros((p, 0)), used
-    import slycot
-
     sa, sb, sc = (float(np.linalg.norm(X)) or 1.0 for X in (A, B, C))
-    mp = max(m, p)
-    Bp = np.zeros((n, mp))
-    Bp[:, :m] = B / sb
-    Cp = np.zeros((mp, n))
-    Cp[:p] = C / sc
-    Ar, Br, Cr, nr = slycot.tb01pd(n, m, p, A / sa, Bp, Cp, job="M", equil="N", tol=used)
-    return sa * Ar[:nr, :nr], sb * Br[:nr, :m], sc * Cr[:p, :nr], used
+    r = LTI(A / sa, B / sb, C / sc, np.zeros((p, m))).minreal(used, job="M", equil="N")
+    return sa * r.A, sb * r.B, sc * r.C, used
 
 
 def _opt(X, name: str, rows: int, cols: int | None) -> np.ndarray:
