@@ -192,21 +192,21 @@ def _minreal_options(parser) -> None:
 
 
 def _model(args) -> int:
-    from .identify import Excitation, model_from_fmu
+    from .identify import Excitation
     from .identify.fmu_model import parse_values, summary
-    from .model import minreal_option
+    from .model import FDIModel, minreal_option
 
-    tol = minreal_option(args.minimal, args.minreal_tol)  # checked before the FMU's work
+    # only checked here, before the excitation options (FDIModel.from_fmu applies them)
+    minreal_option(args.minimal, args.minreal_tol)
     exc = Excitation(signal=args.signal, amplitude=parse_values(args.amplitude, "--amplitude") or None,
                      samples=args.samples, settle=args.settle, period=args.period, seed=args.seed)
-    model = model_from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
-                           at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
-                           sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
-                           excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
-                           validation_png=args.plot, record=args.record, noise=args.noise)
-    if tol is not None:
-        model = model.minreal(tol)
-        _report_minreal(model)
+    model = FDIModel.from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
+                              at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
+                              sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
+                              excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
+                              validation_png=args.plot, record=args.record, noise=args.noise,
+                              minimal=args.minimal, minreal_tol=args.minreal_tol)
+    _report_minreal(model)
     print(f"wrote {model.to_file(args.output)}: {summary(model)}")
     return 0
 
@@ -481,6 +481,8 @@ def _version() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .identify.noise import NOISE_MODELS
+
     p = argparse.ArgumentParser(prog="fmu-fdi", description="Model-based fault detection and isolation as FMUs.")
     p.add_argument("--version", action="version", version=f"fmu-fdi {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
@@ -595,7 +597,7 @@ def build_parser() -> argparse.ArgumentParser:
     mo.add_argument("--min-fit", type=float, default=50.0, help="refuse a validation fit below this (%%, default 50)")
     mo.add_argument("--plot", help="PNG of measured vs model outputs on the validation run (default: none)")
     mo.add_argument("--record", help="CSV of the identification run, a fault-free log for --method data (default: none)")
-    mo.add_argument("--noise", choices=("innovation", "measurement"),
+    mo.add_argument("--noise", choices=NOISE_MODELS,
                     help="identification: add unit white noise inputs w_<output> learned from the data: the Kalman "
                          "innovation form, or output noise from the validation error (default: none; "
                          "docs/plant-fmu.md)")
