@@ -126,6 +126,7 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
         s, block rows of the past used for the state estimates (default
         ``max(model.block_rows, 2 n + 2, 10)``).
     """
+    from ..design._basis import _block_toeplitz
     from ..design._observer import filter_riccati
     from ..design.datadriven import block_hankel
     from ..errors import DesignError
@@ -147,11 +148,7 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
     for i in range(s):
         O[i * p:(i + 1) * p] = M
         M = M @ A
-    H = np.zeros((s * p, s * m))
-    for i in range(s):
-        H[i * p:(i + 1) * p, i * m:(i + 1) * m] = D
-        for k in range(i):
-            H[i * p:(i + 1) * p, k * m:(k + 1) * m] = O[(i - k - 1) * p:(i - k) * p] @ B
+    H = _block_toeplitz([D] + [O[i * p:(i + 1) * p] @ B for i in range(s - 1)], s - 1)
     su = np.sqrt(np.mean(u * u, axis=0)) + np.finfo(float).tiny
     sy = np.sqrt(np.mean(y * y, axis=0)) + np.finfo(float).tiny
     Zp = np.vstack([block_hankel(u / su, 0, s, j), block_hankel(y / sy, 0, s, j)])  # row scaling: same projection
