@@ -93,7 +93,7 @@ def test_measurement_noise_from_the_validation_error():
     sub = moesp(*_noise_free(rng, 4000), 1.0, order=2, feedthrough=False)
     u, y = _noise_free(rng, 4000)
     y = y + rng.standard_normal(y.shape) @ np.sqrt(RM)
-    nm = measurement_noise(sub, u, y, sub.simulate(u))
+    nm = measurement_noise(sub, y, sub.simulate(u))
     assert nm.run == "validation (simulation)" and not nm.Bw.any()
     assert np.all(np.abs(nm.covariance - RM) <= _wishart_bound(RM, 4000)), nm.covariance
     assert np.allclose(nm.Dw @ nm.Dw.T, nm.covariance)
@@ -113,7 +113,7 @@ def test_noise_free_output_is_refused():
     u, y = _noise_free(rng, 3000)
     sub = moesp(u, y, 1.0, order=2, feedthrough=False)
     with pytest.raises(IdentificationError, match="not positive definite.*noise-free"):
-        measurement_noise(sub, u, y, sub.simulate(u))
+        measurement_noise(sub, y, sub.simulate(u))
 
 
 def test_too_little_data_for_the_noise_model(identified):

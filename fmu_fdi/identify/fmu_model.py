@@ -157,15 +157,16 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
             runs.append(run_experiment(path, sig, y_names, excite=excite, at=at, parameters=params, step=ts,
                                        excitation=e))
         ident, check = runs
-        sub = moesp(ident.u - ident.u0, ident.y - ident.y0, ts, order, max_order=max_order, feedthrough=False)
+        du, dy = ident.u - ident.u0, ident.y - ident.y0      # deviations from the operating point
+        du_val, dy_val = check.u - check.u0, check.y - check.y0
+        sub = moesp(du, dy, ts, order, max_order=max_order, feedthrough=False)
         A, B, C, D = sub.to_continuous()
-        rep = validate(sub, check.u - check.u0, check.y - check.y0, check.t, np.linalg.eigvals(A), y_names)
+        rep = validate(sub, du_val, dy_val, check.t, np.linalg.eigvals(A), y_names)
         nm = None
         if noise == "measurement":
-            nm = measurement_noise(sub, check.u - check.u0, rep.y, rep.y_hat, rep.kind)
+            nm = measurement_noise(sub, rep.y, rep.y_hat, rep.kind)
         elif noise == "innovation":
-            nm = innovation_noise(sub, ident.u - ident.u0, ident.y - ident.y0, check.u - check.u0,
-                                  check.y - check.y0)
+            nm = innovation_noise(sub, du, dy, du_val, dy_val)
         if nm is not None:  # Bw: the inverse zero-order hold of the discrete K Lₑ, as for B
             Bw = replace(sub, B=np.hstack([sub.B, nm.Bw])).to_continuous()[1][:, sub.B.shape[1]:]
         if validation_png is not None:
@@ -194,7 +195,7 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
             prov["disturbance_values"] = ident.u0[nu:].tolist()
     from ..model import FDIModel
 
-    noise_kw = {} if noise is None else {"Bw": Bw, "Dw": nm.Dw, "w_names": [f"w_{n}" for n in y_names]}
+    noise_kw = {} if noise is None else {"Bw": Bw, "Dw": nm.Dw, "w_names": list(prov["noise_inputs"])}
     nu = len(u_names)
     faults = _fault_list(sensor_faults, y_names, "sensor") + _fault_list(actuator_faults, u_names, "actuator")
     return FDIModel(A, B[:, :nu], C, D[:, :nu], Bd=B[:, nu:], Dd=D[:, nu:], faults=faults,

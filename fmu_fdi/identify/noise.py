@@ -99,7 +99,7 @@ def check_noise_option(noise) -> None:
         raise IdentificationError(f"noise must be one of {NOISE_MODELS} or None (no noise inputs), got {noise!r}")
 
 
-def measurement_noise(model, u_val, y_val, y_hat, kind: str = "simulation") -> NoiseModel:
+def measurement_noise(model, y_val, y_hat, kind: str = "simulation") -> NoiseModel:
     """``Dw = chol(cov(y − ŷ))`` on the validation run, ``Bw = 0`` (module docstring).
 
     ``kind`` says what ŷ is (:func:`~fmu_fdi.identify.validation.validate`: 'simulation', or for
@@ -165,7 +165,7 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
         kf = filter_riccati(A, C, Q, R, S, model.dt, what="the innovation noise model")
     except DesignError as exc:
         raise IdentificationError(str(exc)) from None
-    Re = (kf.Sigma + kf.Sigma.T) / 2
+    Re = kf.Sigma  # filter_riccati returns it symmetrised, (Σ + Σᵀ)/2
     Le = _chol(Re, "the innovation covariance Re", y)
     K = kf.L
     val = None
