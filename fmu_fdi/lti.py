@@ -142,12 +142,12 @@ class LTI:
             return out
         # One Hessenberg reduction makes every frequency an O(n^2) solve.
         H, Z = sla.hessenberg(self.A, calc_q=True)
-        Bh = Z.T @ self.B
+        Bh = (Z.T @ self.B).astype(complex)
         Ch = self.C @ Z
         eye = np.eye(self.n)
         # scipy warns once per point where lam I - A is singular to working precision; a grid
         # through a pole (e.g. one a non-minimal realisation cancels) would flood the user, so
-        # the warnings are gathered and said once, with the count and the worst rcond.
+        # the warnings are gathered and said once, with the count and the first one's message.
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", sla.LinAlgWarning)
             for k, w in enumerate(omega):
@@ -155,7 +155,7 @@ class LTI:
                     out[k] = self.D
                     continue
                 lam = np.exp(1j * w * self.dt) if self.is_discrete else 1j * w
-                out[k] = Ch @ sla.solve(lam * eye - H, Bh.astype(complex)) + self.D
+                out[k] = Ch @ sla.solve(lam * eye - H, Bh) + self.D
         near = [c for c in caught if issubclass(c.category, sla.LinAlgWarning)]
         for c in caught:
             if not issubclass(c.category, sla.LinAlgWarning):

@@ -206,6 +206,17 @@ def test_bad_noise_option_is_refused(dts200, tmp_path, capsys):
     assert "invalid choice: 'white'" in err and not (tmp_path / "m.toml").exists()
 
 
+def test_cli_noise_choices_are_the_identifications():
+    """cli.py writes the choices out (importing them would load the identification package on
+    every CLI call); they must stay the list the identification accepts."""
+    from fmu_fdi.cli import build_parser
+    from fmu_fdi.identify.noise import NOISE_MODELS
+
+    model_parser = build_parser()._subparsers._group_actions[0].choices["model"]
+    noise = next(a for a in model_parser._actions if a.dest == "noise")
+    assert tuple(noise.choices) == NOISE_MODELS
+
+
 def test_noise_needs_identification(tmp_path):
     import shutil
 

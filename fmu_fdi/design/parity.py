@@ -129,8 +129,8 @@ def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None 
                                  lambda c: np.zeros(c, complex), None, 0.01, seed)
                     gen.method = "parity"
                 check_generator(gen, decouple=("u", "d"), block=True, FDtol=FDtol)
-                gen.info.setdefault("parity_matrix",
-                                    np.array([r.coef[:, : model.ny].ravel() for r in rows]).tolist())
+                if "parity_matrix" not in gen.info:  # the full basis, when the generator has none of its own
+                    gen.info["parity_matrix"] = np.array([r.coef[:, : model.ny].ravel() for r in rows]).tolist()
                 gen.info.update({"mode": "exact", "parity_order": s})
                 return gen
         if robust is False:
@@ -162,14 +162,21 @@ def _fault_to_noise(model: FDIModel, data: ParityData, N: np.ndarray, s: int, rd
     basis = NullspaceBasis(rows, data.rho, model.dt, model.ny, model.nu, 0)
     if not np.all(detectability_by_rows(model, basis, FDtol).max(axis=0) > FDtol):
         return None
-    Q = realize_rows([r.coef for r in rows], [np.zeros(s)] * len(rows), data.rho, model.dt)
-    gen = ResidualGenerator(Q, model, "parity")
+    gen = _fir_generator(model, data, rows, s)
+    Q = gen.Q
     gen.info.update({"order": int(Q.n), "rdim": len(rows), "combination": X.T.tolist(), "rho": data.rho,
                      "poles": [0.0] * int(Q.n), "basis_degrees": [s] * len(rows),
                      "selection": "steady-state fault-to-noise ratio",
                      "fault_to_noise": np.sqrt(np.maximum(lam[::-1][:rdim], 0.0)).tolist(),
                      "parity_matrix": np.array([r.coef[:, : model.ny].ravel() for r in rows]).tolist()})
     return gen
+
+
+def _fir_generator(model: FDIModel, data: ParityData, rows, s: int) -> ResidualGenerator:
+    """The parity relations ``rows`` of order ``s`` realised as one generator (all poles at 0,
+    in the scaled operator of ``data.rho``); the caller records its own info."""
+    Q = realize_rows([r.coef for r in rows], [np.zeros(s)] * len(rows), data.rho, model.dt)
+    return ResidualGenerator(Q, model, "parity")
 
 
 def _robust(model: FDIModel, data: ParityData, s: int, rdim: int, tol) -> ResidualGenerator:
@@ -198,8 +205,7 @@ def _robust(model: FDIModel, data: ParityData, s: int, rdim: int, tol) -> Residu
     V = (X[:, :rdim].T @ T.T) @ Z  # parity vectors, rows
     ratio = float(np.sqrt(max(lam[0], 0.0)))
     rows = [data.row(v, s) for v in V]
-    Q = realize_rows([r_.coef for r_ in rows], [np.zeros(s)] * len(rows), data.rho, model.dt)
-    gen = ResidualGenerator(Q, model, "parity")
+    gen = _fir_generator(model, data, rows, s)
     check_generator(gen, decouple=("u",), block=True, FDtol=0.0)  # robust: d minimised, not decoupled
     gen.info.update({"mode": "robust", "parity_order": s, "robustness_ratio": ratio,
                      "parity_matrix": V.tolist(), "rho": data.rho, "poles": [0.0] * (s * len(rows))})

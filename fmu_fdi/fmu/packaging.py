@@ -301,8 +301,7 @@ def build_slave_fmu(
             patch_options["model_description"] += f" (binaries: {', '.join(platforms)})"
         patch_fmu(staged, **patch_options)
         check_fmu_archive(staged, resources)
-        os.chmod(staged, FMU_MODE)
-        _replace(staged, fmu_path)
+        _replace(staged, fmu_path)  # write_atomically gives the renamed file FMU_MODE
     return fmu_path
 
 
