@@ -138,7 +138,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
         return gen
     raise DesignError(f"no stable proper Q with up to {max_degree} poles added to those of Mr matches Mr exactly "
                       f"(smallest relative matching residual {best:.3g} > mm_tol = {mm_tol:g}): the reference is not "
-                      f"achievable without an updating factor (not implemented), or pass a larger max_degree")
+                      f"achievable without an updating factor (pass updating=True), or pass a larger max_degree")
 
 
 def _updating(model, Mr, mr_poles, choose, ud, cols, q, max_degree, mm_tol, smarg, dec_tol, normalize):
