@@ -106,7 +106,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
         allp = np.concatenate([mr_poles, extra])
         A, C = cascade(allp)
         K = max(160, 3 * (model.n + allp.size) + 40)
-        omega = frequency_grid([model.lti()] + ([Mr] if Mr.n else []), num=K, poles=allp)
+        omega = frequency_grid([model.lti(), Mr], num=K, poles=allp)
         lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
         G = _values(Ge, lam)
         T = _values(Mr, lam)
@@ -153,7 +153,7 @@ def _updating(model, Mr, mr_poles, choose, ud, cols, q, max_degree, mm_tol, smar
             A, C = cascade(allp)
             Am, Cm = cascade(extra)
             K = max(160, 3 * (model.n + allp.size) + 40)
-            omega = frequency_grid([model.lti()] + ([Mr] if Mr.n else []), num=K, poles=allp)
+            omega = frequency_grid([model.lti(), Mr], num=K, poles=allp)
             lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
             G, T = _values(Ge, lam), _values(Mr, lam)
             ok = np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(T), axis=(1, 2))
@@ -196,9 +196,9 @@ def _updating(model, Mr, mr_poles, choose, ud, cols, q, max_degree, mm_tol, smar
     M = blockdiag(ms)
     gen = ResidualGenerator(Q, model, "model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
-    omega = frequency_grid([model.lti()] + ([Mr] if Mr.n else []), num=200)
+    omega = frequency_grid([model.lti(), Mr], num=200)
     lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
-    MMr = _values(M @ Mr if Mr.n else M @ Mr.D, lam)
+    MMr = _values(M @ Mr, lam)
     H = _values(gen.Rf, lam) - MMr
     ok = np.all(np.isfinite(H), axis=(1, 2))
     gen.info.update({"degree": int(max(degs)), "row_degrees": degs, "order": int(Q.n), "M": M,
