@@ -274,13 +274,12 @@ def fault_noise_map(model: FDIModel) -> LTI:
 def reduced_system(model: FDIModel) -> tuple[LTI, LTI]:
     """``(Q0, G1)``: a proper stable left null-space basis of ``[Gu Gd; I 0]`` and ``Q0 [Gf Gw; 0 0]``."""
     dt = model.dt
-    if model.nd == 0 and (model.nu == 0 or LTI(model.A, model.Bu, model.C, model.Du, dt).is_stable()):
+    if model.nd == 0 and (model.nu == 0 or model.lti("u").is_stable()):
         # Gu stable: Q0 = [I  −Gu] (Q = [X  −X Gu] is stable iff X is), the identity without u
         if model.nu == 0:
             Q0 = LTI.static(np.eye(model.ny), dt)
         else:
-            Q0 = LTI(model.A, np.hstack([np.zeros((model.n, model.ny)), model.Bu]), -model.C,
-                     np.hstack([np.eye(model.ny), -model.Du]), dt)
+            Q0 = hstack([LTI.static(np.eye(model.ny), dt), -model.lti("u")])
         return Q0, model.lti("f", "w")
     if model.nd == 0:
         from .coprime import _factor_filter
@@ -410,9 +409,7 @@ def _regularised(Gh: LTI, F: LTI, left: int, eps: float) -> tuple[LTI, LTI]:
         return Gh, F
     E = np.zeros((Gh.p, left))
     E[-left:, :] = eps * np.eye(left)
-    G2 = LTI(Gh.A, np.hstack([Gh.B, np.zeros((Gh.n, left))]), Gh.C, np.hstack([Gh.D, E]), Gh.dt)
-    F2 = LTI(F.A, np.hstack([F.B, np.zeros((F.n, left))]), F.C, np.hstack([F.D, np.zeros((F.p, left))]), F.dt)
-    return G2, F2
+    return hstack([Gh, LTI.static(E, Gh.dt)]), hstack([F, LTI.zero(F.p, left, F.dt)])
 
 
 def lowpass_power(a: float, k: int, size: int, dt: float = 0.0) -> LTI:
