@@ -1,10 +1,9 @@
 """fmu-fdi: model-based fault detection and isolation for linear systems, shipped as FMUs."""
 from .analysis import (detectability, fault_gains, fault_noise_gap, fault_sensitivity_condition, hinf_minus,
                        isolability, leakage, structure_matrix)
-from .design import approximate_model_matching, model_matching
-from .design import (RLSEstimator, dedicated_bank, factorized, fault_detection_filter, generalized_bank, kalman,
-                     luenberger, nullspace_design, parity_space, rls_estimator, structured_bank,
-                     unknown_input_observer)
+from .design import (RLSEstimator, approximate_model_matching, dedicated_bank, factorized, fault_detection_filter,
+                     generalized_bank, kalman, luenberger, model_matching, nullspace_design, parity_space,
+                     rls_estimator, structured_bank, unknown_input_observer)
 from .cosim import CoSimulation, Fault, InputSignals, Result, SimulationFailed, export_ssp, parse_fault
 from .diagnoser import Diagnoser
 from .evaluation import (ThresholdDesign, ThresholdEstimate, analytic_threshold, data_driven_threshold,
@@ -24,10 +23,10 @@ __all__ = [
     "LTI", "ResidualGenerator", "ResidualBank", "DesignError", "ModelError",
     "luenberger", "kalman", "unknown_input_observer", "fault_detection_filter", "factorized",
     "nullspace_design", "parity_space", "rls_estimator", "RLSEstimator", "structured_bank", "dedicated_bank", "generalized_bank",
+    "model_matching", "approximate_model_matching",
     "Diagnoser", "build_fmu", "metrics", "DiagnosisMetrics", "analytic_threshold", "data_driven_threshold",
     "ThresholdEstimate", "residual_autocovariance", "threshold_selector", "ThresholdDesign", "sensor_gain_plants", "fault_size_thresholds",
     "structure_matrix", "fault_gains", "hinf_minus", "fault_sensitivity_condition", "fault_noise_gap",
     "leakage", "detectability", "isolability",
     "CoSimulation", "Result", "Fault", "parse_fault", "InputSignals", "export_ssp", "SimulationFailed",
 ]
-__all__ += ["model_matching", "approximate_model_matching"]

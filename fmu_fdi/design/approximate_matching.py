@@ -173,8 +173,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
                 raise
     if left:  # the error without the fictitious noise
         E0 = Y @ Gh - F
-        gamma_opt0 = _h2_quad(lambda L: _values(E0, L), [Gh, Y] + ([F] if F.n else []), dt) if norm == "2" else \
-            _refined_peak(lambda L: _values(E0, L), _points([Gh, Y] + ([F] if F.n else []), dt), dt)
+        gamma_opt0 = _h2_quad(lambda L: _values(E0, L), [Gh, Y, F], dt) if norm == "2" else \
+            _refined_peak(lambda L: _values(E0, L), _points([Gh, Y, F], dt), dt)
     else:
         gamma_opt0 = info["gamma"]
     scale = a ** -(K + Kb) if normalize == "gain" and not dt else 1.0
@@ -187,7 +187,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     # factor from a balanced realisation): the minimal realisation of Q is kept only if it
     # passes (with a large gain of Y, near-cancelling modes that SLICOT's staircase removes
     # can matter), else the non-minimal Y Φ Q0 is returned
-    lam = _points([model.lti(), Y] + ([Mr] if Mr.n else []), dt)
+    lam = _points([model.lti(), Y, Mr], dt)
     designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) \
         * (scale * _mk(lam, a, K, dt))[:, None, None]
     fv, mfv = _values(fnm, lam), _values(MF, lam)
@@ -211,7 +211,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
                             lam, dt)
     else:
         err = _h2_quad(lambda L: np.einsum("kij,kjl->kil", _values(Q, L), _values(fnm, L)) - _values(MF, L),
-                       [model.lti(), Y] + ([Mr] if Mr.n else []), dt)
+                       [model.lti(), Y, Mr], dt)
     if K == 0:  # (with Kb = 1 the problem solved is the one with M Mr already)
         gamma_opt = gamma_opt0
     else:
@@ -274,13 +274,12 @@ def fault_noise_map(model: FDIModel) -> LTI:
 def reduced_system(model: FDIModel) -> tuple[LTI, LTI]:
     """``(Q0, G1)``: a proper stable left null-space basis of ``[Gu Gd; I 0]`` and ``Q0 [Gf Gw; 0 0]``."""
     dt = model.dt
-    if model.nd == 0 and (model.nu == 0 or LTI(model.A, model.Bu, model.C, model.Du, dt).is_stable()):
+    if model.nd == 0 and (model.nu == 0 or model.lti("u").is_stable()):
         # Gu stable: Q0 = [I  −Gu] (Q = [X  −X Gu] is stable iff X is), the identity without u
         if model.nu == 0:
             Q0 = LTI.static(np.eye(model.ny), dt)
         else:
-            Q0 = LTI(model.A, np.hstack([np.zeros((model.n, model.ny)), model.Bu]), -model.C,
-                     np.hstack([np.eye(model.ny), -model.Du]), dt)
+            Q0 = hstack([LTI.static(np.eye(model.ny), dt), -model.lti("u")])
         return Q0, model.lti("f", "w")
     if model.nd == 0:
         from .coprime import _factor_filter
@@ -386,7 +385,7 @@ def interactor(G1: LTI, a: float) -> tuple[LTI, LTI, int, int, int]:
         C, D = C * w[:, None], D * w[:, None]
         # rows kept unshifted take m when the others are shifted: Φ_j = diag(w) diag(m I_r, I_rc) T_j
         step = np.diag(w) @ step
-        Phi = (step @ T) @ Phi if step.n else LTI.static(step.D @ T, dt) @ Phi
+        Phi = (step @ T) @ Phi
     else:
         raise DesignError(f"no full-row-rank feedthrough after {G.n + G.p + 1} interactor steps: the reduced system "
                           f"Q0 [Gf Gw] is numerically rank-deficient at infinity (relative tolerance 1e-9)")
@@ -410,9 +409,7 @@ def _regularised(Gh: LTI, F: LTI, left: int, eps: float) -> tuple[LTI, LTI]:
         return Gh, F
     E = np.zeros((Gh.p, left))
     E[-left:, :] = eps * np.eye(left)
-    G2 = LTI(Gh.A, np.hstack([Gh.B, np.zeros((Gh.n, left))]), Gh.C, np.hstack([Gh.D, E]), Gh.dt)
-    F2 = LTI(F.A, np.hstack([F.B, np.zeros((F.n, left))]), F.C, np.hstack([F.D, np.zeros((F.p, left))]), F.dt)
-    return G2, F2
+    return hstack([Gh, LTI.static(E, Gh.dt)]), hstack([F, LTI.zero(F.p, left, F.dt)])
 
 
 def lowpass_power(a: float, k: int, size: int, dt: float = 0.0) -> LTI:
@@ -562,7 +559,7 @@ def solve_standard(Gh: LTI, F: LTI, norm: str, reltol: float) -> tuple[LTI, dict
             raise DesignError(f"H2 synthesis (SLICOT SB10HD) failed: {exc}") from None
         Y = LTI(Ak, Bk, Ck, Dk, dt) + LTI.static(Y0, dt)
         E = Y @ Gh - F
-        return Y, {"gamma": _h2_quad(lambda L: _values(E, L), [Gh, Y] + ([F] if F.n else []), dt)}
+        return Y, {"gamma": _h2_quad(lambda L: _values(E, L), [Gh, Y, F], dt)}
     lo = float(np.linalg.norm(dres, 2)) if not dt else 0.0
     hi = 1.01 * float(F.hinfnorm()[0]) + 1e-12
     if F.n + Gh.n == 0:
@@ -630,7 +627,7 @@ def _h2_discrete(Gh: LTI, F: LTI) -> tuple[LTI, dict]:
         Kd = np.linalg.solve(Sig, (C1 @ P @ C2.T + D11 @ D21.T).T).T
         Y = LTI(A - L @ C2, L, C1 - Kd @ C2, Kd, dt)
     E = Y @ Gh - F
-    return Y, {"gamma": _h2_quad(lambda lam: _values(E, lam), [Gh, Y] + ([F] if F.n else []), dt)}
+    return Y, {"gamma": _h2_quad(lambda lam: _values(E, lam), [Gh, Y, F], dt)}
 
 
 def _hinf_at(Gh: LTI, F: LTI, gamma: float):
@@ -659,7 +656,7 @@ def _hinf_at(Gh: LTI, F: LTI, gamma: float):
     # SB10FD/SB10DD certify ||Y Ĝ − F||∞ < γ; a refined grid peak checks it (H∞ norms of the
     # product realisation, order 2 (nF + nĜ), lose digits when Y's gain is large)
     E = Y @ Gh - F
-    e = _refined_peak(lambda L: _values(E, L), _points([Gh, Y] + ([F] if F.n else []), Gh.dt, 200), Gh.dt)
+    e = _refined_peak(lambda L: _values(E, L), _points([Gh, Y, F], Gh.dt, 200), Gh.dt)
     if not np.isfinite(e) or e > gamma * (1 + 1e-6):
         return None
     return Y, e

@@ -98,24 +98,14 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
     ud = np.r_[np.arange(sl["u"].start, sl["u"].stop), np.arange(sl["d"].start, sl["d"].stop)]
     cols = np.r_[ud, np.arange(sl["f"].start, sl["f"].stop)]
     max_degree = model.n + 1 if max_degree is None else max_degree
+    sample = _sampler(model, Ge, Mr, mr_poles, choose, cols)
     if updating:
-        return _updating(model, Mr, mr_poles, choose, ud, cols, q, max_degree, mm_tol, smarg, dec_tol, normalize)
+        return _updating(model, Mr, sample, ud, cols, q, max_degree, mm_tol, smarg, dec_tol, normalize)
     best = np.inf
     for nu in range(max_degree + 1):
-        extra = np.asarray(choose(nu), complex) if nu else np.zeros(0, complex)
-        allp = np.concatenate([mr_poles, extra])
-        A, C = cascade(allp)
-        K = max(160, 3 * (model.n + allp.size) + 40)
-        omega = frequency_grid([model.lti()] + ([Mr] if Mr.n else []), num=K, poles=allp)
-        lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
-        G = _values(Ge, lam)
-        T = _values(Mr, lam)
-        ok = np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(T), axis=(1, 2))
-        G, T, lam = G[ok], T[ok], lam[ok]
-        Phi = _basis_values(A, C, lam)
-        w = 1.0 / np.maximum(np.linalg.norm(G[:, :, cols], 2, axis=(1, 2)), 1e-300)  # scale each point
+        _, A, C, lam, T, Phi, w, E = sample(nu)
         # unknown X (r, q): Q = Φ X; equations Φ_k X G_k[:, cols] = [0 Mr_k] for each residual row
-        L = np.einsum("ki,kac->kcia", Phi * w[:, None], G[:, :, cols]).reshape(-1, Phi.shape[1] * q)
+        L = E.reshape(-1, Phi.shape[1] * q)
         L = np.vstack([L.real, L.imag])
         rows, err = [], 0.0
         for i in range(Mr.p):
@@ -138,30 +128,51 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
         return gen
     raise DesignError(f"no stable proper Q with up to {max_degree} poles added to those of Mr matches Mr exactly "
                       f"(smallest relative matching residual {best:.3g} > mm_tol = {mm_tol:g}): the reference is not "
-                      f"achievable without an updating factor (not implemented), or pass a larger max_degree")
+                      f"achievable without an updating factor (pass updating=True), or pass a larger max_degree")
 
 
-def _updating(model, Mr, mr_poles, choose, ud, cols, q, max_degree, mm_tol, smarg, dec_tol, normalize):
-    """Rows ``Q_i`` and factors ``m_i`` with ``Q_i Ge = [0 0 m_i Mr_i]`` of least added degree ν."""
-    Ge = model.augmented()
-    rows, ms, degs = [], [], []
-    for i in range(Mr.p):
-        found, low = None, np.inf
-        for nu in range(max_degree + 1):
+def _sampler(model, Ge, Mr, mr_poles, choose, cols):
+    """``ν ↦ (extra, A, C, λ, Mr(λ), Φ(λ), w, E)``, cached per ν: the ν added poles, the filter
+    denominator's cascade ``(A, C)`` (poles of Mr and the added ones), the grid points where Ge
+    and Mr are finite, the reference's values, the basis values, the point weights
+    ``1/||Ge(λ)[:, cols]||`` and the coefficients ``E[k, c, i, a] = w_k Φ_k,i Ge_k[a, cols[c]]``
+    of the equations ``Φ_k X Ge_k[:, cols]`` in the numerator X."""
+    cache = {}
+
+    def sample(nu):
+        if nu not in cache:
             extra = np.asarray(choose(nu), complex) if nu else np.zeros(0, complex)
             allp = np.concatenate([mr_poles, extra])
             A, C = cascade(allp)
-            Am, Cm = cascade(extra)
             K = max(160, 3 * (model.n + allp.size) + 40)
-            omega = frequency_grid([model.lti()] + ([Mr] if Mr.n else []), num=K, poles=allp)
+            omega = frequency_grid([model.lti(), Mr], num=K, poles=allp)
             lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
             G, T = _values(Ge, lam), _values(Mr, lam)
             ok = np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(T), axis=(1, 2))
             G, T, lam = G[ok], T[ok], lam[ok]
-            Phi, Phm = _basis_values(A, C, lam), _basis_values(Am, Cm, lam)
-            w = 1.0 / np.maximum(np.linalg.norm(G[:, :, cols], 2, axis=(1, 2)), 1e-300)
+            Phi = _basis_values(A, C, lam)
+            w = 1.0 / np.maximum(np.linalg.norm(G[:, :, cols], 2, axis=(1, 2)), 1e-300)  # scale each point
+            E = np.einsum("ki,kac->kcia", Phi * w[:, None], G[:, :, cols])
+            cache[nu] = (extra, A, C, lam, T, Phi, w, E)
+        return cache[nu]
+
+    return sample
+
+
+def _updating(model, Mr, sample, ud, cols, q, max_degree, mm_tol, smarg, dec_tol, normalize):
+    """Rows ``Q_i`` and factors ``m_i`` with ``Q_i Ge = [0 0 m_i Mr_i]`` of least added degree ν."""
+    rows, ms, degs = [], [], []
+    factor = {}  # ν ↦ the cascade of the ν added poles (m_i's denominator) and its basis values
+    for i in range(Mr.p):
+        found, low = None, np.inf
+        for nu in range(max_degree + 1):
+            extra, A, C, lam, T, Phi, w, E = sample(nu)
+            if nu not in factor:
+                Am, Cm = cascade(extra)
+                factor[nu] = (Am, Cm, _basis_values(Am, Cm, lam))
+            Am, Cm, Phm = factor[nu]
             # Φ_k X G_k[:, cols] − φm_k x_m [0 Mr_i,k] = 0 for the unknowns (X, x_m)
-            Lq = np.einsum("ki,kac->kcia", Phi * w[:, None], G[:, :, cols]).reshape(lam.size, cols.size, -1)
+            Lq = E.reshape(lam.size, cols.size, -1)
             tgt = np.concatenate([np.zeros((lam.size, ud.size)), T[:, i, :]], axis=1) * w[:, None]
             Lm = -np.einsum("kj,kc->kcj", Phm, tgt)
             L = np.concatenate([Lq, Lm], axis=2).reshape(lam.size * cols.size, -1)
@@ -196,9 +207,9 @@ def _updating(model, Mr, mr_poles, choose, ud, cols, q, max_degree, mm_tol, smar
     M = blockdiag(ms)
     gen = ResidualGenerator(Q, model, "model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
-    omega = frequency_grid([model.lti()] + ([Mr] if Mr.n else []), num=200)
+    omega = frequency_grid([model.lti(), Mr], num=200)
     lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
-    MMr = _values(M @ Mr if Mr.n else M @ Mr.D, lam)
+    MMr = _values(M @ Mr, lam)
     H = _values(gen.Rf, lam) - MMr
     ok = np.all(np.isfinite(H), axis=(1, 2))
     gen.info.update({"degree": int(max(degs)), "row_degrees": degs, "order": int(Q.n), "M": M,

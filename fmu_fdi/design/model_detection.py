@@ -151,14 +151,13 @@ def _check_set(models: Sequence[FDIModel]) -> list[FDIModel]:
         if (mj.ny, mj.nu) != (m0.ny, m0.nu) or abs(mj.dt - m0.dt) > 1e-12 * max(1.0, m0.dt):
             raise DesignError(f"model '{mj.name}' has {mj.ny} outputs, {mj.nu} known inputs and dt = {mj.dt:g}; "
                               f"model '{m0.name}' has {m0.ny}, {m0.nu} and dt = {m0.dt:g}: a model set must agree")
-        if mj.n:
+        if not mj.lti().is_stable():
             poles = np.linalg.eigvals(mj.A)
             worst = float(np.max(np.abs(poles))) if mj.dt else float(np.max(poles.real))
-            if worst >= (1.0 if mj.dt else 0.0):
-                what = "largest |pole|" if mj.dt else "largest Re(pole)"
-                raise DesignError(f"model '{mj.name}' is not stable ({what} = {worst:.6g}): the distance mapping "
-                                  f"||Q_i [Gu_j; I]|| of an unstable model is unbounded; stabilise the plant "
-                                  f"(e.g. FDIModel.feedback) and detect the closed-loop models")
+            what = "largest |pole|" if mj.dt else "largest Re(pole)"
+            raise DesignError(f"model '{mj.name}' is not stable ({what} = {worst:.6g}): the distance mapping "
+                              f"||Q_i [Gu_j; I]|| of an unstable model is unbounded; stabilise the plant "
+                              f"(e.g. FDIModel.feedback) and detect the closed-loop models")
     names = [mj.name for mj in models]
     if len(set(names)) != len(names):
         raise DesignError(f"model names must be unique (they name the filters and faults), got {names}")
@@ -427,6 +426,7 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
     bare = [mj._replace(Bw=np.zeros((mj.n, 0)), Dw=np.zeros((mj.ny, 0)), w_names=[]) for mj in stripped]
     design_kw = dict(poles=poles, sdeg=sdeg, FDtol=FDtol, FDGainTol=FDGainTol, tol=tol, atol=atol, seed=seed,
                      smarg=smarg, dec_tol=dec_tol)
+    umaps = [_u_map(mj) for mj in models]
     members, figures, rows, gammas = [], [], [], []
     for i, mi in enumerate(stripped):
         md = _with_model_faults(bare, i)
@@ -438,14 +438,14 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
                 Q, info = g.Q, dict(g.info, noise="no noise inputs")
             elif rdim == "all":
                 def gap_of(Qc, i=i, mi=mi):
-                    return min(_gain(Qc @ _u_map(mj), freqs) for j, mj in enumerate(models) if j != i) / max(
+                    return min(_gain(Qc @ Gj, freqs) for j, Gj in enumerate(umaps) if j != i) / max(
                         _gain(Qc @ _w_map(mi)), np.finfo(float).tiny)
 
                 Q, info = _full_order(md, design_kw, gap_of)
             else:
                 g = nullspace_design(md, rdim=rdim, noise="optimize", **design_kw)
                 Q, info = g.Q, dict(g.info)
-            row = np.array([_gain(Q @ _u_map(mj), freqs) for mj in models])
+            row = distance_mapping([Q], models, freqs=freqs)[0]
             beta = float(np.min(np.delete(row, i)))
             if not beta > 0:
                 raise DesignError(f"every other model has zero distance to filter {i + 1} (β = {beta:.3g})")
@@ -467,9 +467,10 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
         members.append(ResidualGenerator(Q, mi, "approximate_model_detection", info=dict(info, postconditions=fig)))
         figures.append(fig)
     bank = ResidualBank(members, "approximate_model_detection", info={"models": [mj.name for mj in models]})
-    # the rows measured for the scaling: off-diagonal minimum exactly 1 (β_i), gap_i = 1 / γ_i
+    # the rows measured for the scaling, divided by their off-diagonal minimum β_i: that minimum
+    # is now exactly 1 (β_i / β_i), so gap_i = 1 / γ_i
     perf, gamma = np.array(rows), np.array(gammas)
-    beta = np.array([np.min(np.delete(r, i)) for i, r in enumerate(perf)])
+    beta = np.ones(len(perf))
     gap = np.where(gamma > 0, beta / np.where(gamma > 0, gamma, 1.0), np.inf)
     bank.info.update({
         "MDperf": perf.tolist(), "MDperf_h2": distance_mapping(bank, models, norm="2").tolist(),
