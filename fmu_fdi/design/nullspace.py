@@ -365,16 +365,6 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     raise first
 
 
-def _left_minimal_indices(model: FDIModel) -> list[int] | None:
-    """The left minimal indices of ``[Gu Gd; I 0]`` (pencil staircase; None when it fails)."""
-    from .pencil import pencil_basis
-
-    try:
-        return pencil_basis(model).degrees
-    except DesignError:
-        return None
-
-
 #: ``info['decoupling_kind']`` of a row that annihilates ``[Gu Gd; I 0]`` identically (up to rounding)
 EXACT = "exact"
 
