@@ -338,7 +338,12 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         # the polynomial basis is too ill-conditioned here: design from frequency samples
         # with a fixed stable denominator (exact poles, rank decision = post-condition)
         try:
-            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol)
+            # the pencil row's left minimal indices are those _exactness would compute again when that
+            # pencil_basis call had exactly its own arguments (all defaults)
+            same_call = pencil_gen is not None and tol is None and not atol and poles is None and sdeg is None \
+                and smarg is None
+            degrees = list(pencil_gen.info["left_minimal_indices"]) if same_call else None
+            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, degrees)
             gen.info["fallback_from"] = str(first)[:300]
             if not auto or not gen.info["decoupling_kind"].startswith("approximate"):
                 return _announce(model, gen)
@@ -381,7 +386,8 @@ def _announce(model: FDIModel, gen: ResidualGenerator) -> ResidualGenerator:
     return gen
 
 
-def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol) -> ResidualGenerator:
+def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
+             degrees: list[int] | None = None) -> ResidualGenerator:
     from types import SimpleNamespace
 
     from .sampled import sampled_rows
@@ -393,23 +399,25 @@ def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec
     gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, [info["degree"]])
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
-    _exactness(model, gen)
+    _exactness(model, gen, degrees)
     return gen
 
 
-def _exactness(model: FDIModel, gen: ResidualGenerator) -> None:
+def _exactness(model: FDIModel, gen: ResidualGenerator, degrees: list[int] | None = None) -> None:
     """Record the left minimal indices (pencil basis, ms) next to a sampled row's order: a row whose
     order is below the smallest index cannot annihilate ``[Gu Gd; I 0]`` exactly — it decouples to the
     post-condition's peak-relative tolerance only (on the random set: orders 9-18 against indices
-    13-26, pointwise relative leak up to 1e-2 where |G| is 1e-7 of its peak)."""
+    13-26, pointwise relative leak up to 1e-2 where |G| is 1e-7 of its peak). ``degrees``: those
+    indices when already known from ``pencil_basis(model)`` itself (not computed again)."""
     from .pencil import pencil_basis
 
-    try:
-        degrees = pencil_basis(model).degrees
-    except DesignError as exc:
-        gen.info["decoupling_kind"] = (f"unverified: the left minimal indices are not available ({exc}"[:200] + "); "
-                                       "decoupled to the post-condition tolerance (dec_tol, peak-relative)")
-        return
+    if degrees is None:
+        try:
+            degrees = pencil_basis(model).degrees
+        except DesignError as exc:
+            gen.info["decoupling_kind"] = (f"unverified: the left minimal indices are not available ({exc}"[:200]
+                                           + "); decoupled to the post-condition tolerance (dec_tol, peak-relative)")
+            return
     gen.info["left_minimal_indices"] = degrees
     exact = bool(degrees) and gen.Q.n >= min(degrees)
     gen.info["decoupling_kind"] = ("exact (order ≥ the smallest left minimal index)" if exact else
