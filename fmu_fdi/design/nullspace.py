@@ -520,17 +520,18 @@ def _pencil_combine(model, N: LTI, rdim, freqs, FDtol, FDGainTol, seed, smarg, d
     ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Nv), axis=(1, 2))
     Gv, Nv = Gv[ok], Nv[ok]
     fcols = fault_columns(model)
-    P = [np.einsum("kiq,kqc->kic", Nv, Gv[:, :, c]) for c in fcols]
     p = model.ny
-    strong = None
-    if freqs is not None and model.faults:
-        lam_s, Gs = _strong_points(model, Ge, freqs)
-        Ns = _values(N, lam_s)
-        strong = [np.einsum("kiq,kqc->kic", Ns, Gs[:, :, c]) for c in fcols]
+    # _strong_points refuses freqs where the plant cannot be evaluated, whatever rdim is
+    lam_s, Gs = _strong_points(model, Ge, freqs) if freqs is not None and model.faults else (None, None)
     if rdim == "all" or rdim >= k:
         H = np.eye(k)
         Q = N
     else:
+        P = [np.einsum("kiq,kqc->kic", Nv, Gv[:, :, c]) for c in fcols]
+        strong = None
+        if lam_s is not None:
+            Ns = _values(N, lam_s)
+            strong = [np.einsum("kiq,kqc->kic", Ns, Gs[:, :, c]) for c in fcols]
         gnorms = [np.linalg.norm(Gv[:, :p, c], 2, axis=(1, 2)) for c in fcols]
         H = greedy_combinations(visibility_gated(sensitivity_objective(P, strong), P, Nv[:, :, :p], gnorms, FDtol,
                                                  strong is not None),
