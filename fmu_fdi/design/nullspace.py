@@ -27,7 +27,7 @@ from ..generator import ResidualGenerator
 from ..lti import LTI, frequency_grid, vstack
 from ..model import FDIModel
 from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
-from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective
+from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
 from .approximate import coouter_inverse, gap_objective
 from .postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
 
@@ -118,46 +118,6 @@ def undetectable_error(model: FDIModel, seen: np.ndarray, what: str = "d is deco
     cls = numerical if any("numerically inaccurate" in x for x in parts) else DesignError
     return cls("; ".join(parts) + f". Achievable weak structure of the faults "
                        f"{model.fault_names}: {weak.astype(int).tolist()}")
-
-
-def visibility_gated(objective, P: list[np.ndarray], Y: np.ndarray, gnorms: list[np.ndarray], gate: float,
-                     strong: bool = False):
-    """``objective`` restricted to combinations that keep every fault visible.
-
-    The fault sensitivity condition is a ratio of fault gains and cannot tell a combination
-    whose fault responses are rounding noise (``h`` in the rows' common fault-free direction:
-    noise over noise ≈ 1) from a good one. The post-condition's cosine
-    ``γ_j(h) = max_λ ||h P_j(λ)|| / (||h Y(λ)|| ||Gf_j(λ)||)`` (``Y``: the rows' y-part,
-    (points, rows, p); ``gnorms[j]``: ``||Gf_j(λ)||``, :func:`.postconditions._cosine`) must
-    exceed ``gate`` (FDtol); below it the value is ``min_j γ_j - 1 < 0``, under every admissible one.
-    ``objective`` must be ``sensitivity_objective(P, strong)``: without ``strong`` its value is
-    computed here from the same products.
-    With ``strong`` (gains at given frequencies in the objective, whose ratio to the peak a
-    near-degenerate combination also inflates) the value is ``min(objective, min_j γ_j)``, so the
-    optimum stays away from the gate instead of sitting on it.
-    """
-    Pall = np.concatenate(P, axis=2) if P else np.zeros((Y.shape[0], Y.shape[1], 0))
-    starts = np.cumsum([0] + [Pj.shape[2] for Pj in P[:-1]])
-    G = np.stack(gnorms, axis=1) if gnorms else np.zeros((Y.shape[0], 0))  # (K, faults)
-
-    def gated(h: np.ndarray) -> float:
-        if not P:
-            return objective(h)
-        hp = np.einsum("r,krc->kc", h, Pall)
-        resp = np.sqrt(np.add.reduceat(np.abs(hp) ** 2, starts, axis=1))  # (K, faults): ||h P_j(λ)||
-        bound = np.linalg.norm(np.einsum("r,krc->kc", h, Y), axis=1)[:, None] * G
-        top = bound.max(axis=0)
-        keep = bound >= 1e-6 * top  # as postconditions._cosine: zeros of Gf_j are left out
-        ratio = np.where(keep, resp / np.where(keep, bound, 1.0), 0.0).max(axis=0)
-        g = float(np.min(np.where(top > 0, ratio, 0.0)))
-        if g <= gate:
-            return g - 1.0
-        if strong:
-            return min(objective(h), g)
-        peaks = resp.max(axis=0)  # sensitivity_objective(P) without strong frequencies, from the same values
-        return float(peaks.min() / peaks.max()) if peaks.max() > 0 else 0.0
-
-    return gated
 
 
 def structural_zeros(Rf: list[np.ndarray], Rw: np.ndarray, rtol: float = 1e-9):
@@ -532,9 +492,7 @@ def _pencil_combine(model, N: LTI, rdim, freqs, FDtol, FDGainTol, seed, smarg, d
         if lam_s is not None:
             Ns = _values(N, lam_s)
             strong = [np.einsum("kiq,kqc->kic", Ns, Gs[:, :, c]) for c in fcols]
-        gnorms = [np.linalg.norm(Gv[:, :p, c], 2, axis=(1, 2)) for c in fcols]
-        H = greedy_combinations(visibility_gated(sensitivity_objective(P, strong), P, Nv[:, :, :p], gnorms, FDtol,
-                                                 strong is not None),
+        H = greedy_combinations(visibility_gated(P, Nv[:, :, :p], Gv, fcols, FDtol, strong),
                                 k, int(rdim), seed) if model.faults else np.eye(k)[: int(rdim)]
         Q = (H @ N).minreal()
     info.update({"order": int(Q.n), "rdim": int(H.shape[0]), "combination": H.tolist()})
@@ -662,8 +620,7 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
             mu = _lam_to_mu(lam, basis.rho)
             dvals = np.prod(mu[:, None] - den_mu[None, :], axis=1) if den_mu.size else np.ones(mu.size)
             Y = np.stack([r.at(mu)[:, :model.ny] for r in cand], axis=1) / dvals[:, None, None]
-            gnorms = [np.linalg.norm(Ge_grid[:, :model.ny, c], 2, axis=(1, 2)) for c in fcols]
-            objective = visibility_gated(sensitivity_objective(P, strong), P, Y, gnorms, FDtol, strong is not None)
+            objective = visibility_gated(P, Y, Ge_grid, fcols, FDtol, strong)
             H = greedy_combinations(objective, k, int(rdim), seed)
             fsc = min(objective(h) for h in H)
         else:
