@@ -311,6 +311,9 @@ def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
     Gf_vals = [Gf.evalfr(x) for x in points(w_all)]
     finite = np.array([bool(np.all(np.isfinite(v))) for v in Gf_vals])
     nk = int(np.sum(~at_pole))
+    # ||Gf_j(λ)|| at the kept frequencies (0 where Gf is not finite): per fault, the same for every row
+    local_all = {nm: np.array([np.linalg.norm(Gf_vals[k][:, model.fault(nm).columns], 2) if finite[k] else 0.0
+                               for k in range(nk)]) for nm in model.fault_names}
 
     def test(names, row) -> bool:
         ignore = [nm for nm, s in zip(names, row) if not s]
@@ -319,6 +322,8 @@ def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
         mi = mi._replace(faults=[f for f in mi.faults if f.name in keep])
         basis = minimal_basis(mi, tol, atol)
         gains, local = np.zeros((len(keep), w_all.size)), np.zeros((len(keep), nk))
+        for j, nm in enumerate(keep):
+            local[j] = local_all[nm]
         for k, x in enumerate(points(w_all)):
             if not finite[k]:
                 continue
@@ -330,8 +335,6 @@ def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
             for j, nm in enumerate(keep):
                 Gj = Gf_vals[k][:, model.fault(nm).columns]
                 gains[j, k] = np.linalg.norm(Pi.T @ Gj, 2)
-                if k < nk:
-                    local[j, k] = np.linalg.norm(Gj, 2)
         ref = np.minimum(local, gains.max(axis=1, initial=0.0)[:, None])
         if np.any(gains[:, :nk] <= FDGainTol * ref) or np.any(ref == 0):
             return False

@@ -36,6 +36,7 @@ from ..generator import ResidualGenerator
 from ..linalg import EPS, default_rtol
 from ..lti import LTI
 from ..model import FDIModel
+from .pencil import controllable_staircase
 
 
 # ------------------------------------------------------------------------ formatting
@@ -162,26 +163,13 @@ def observable_staircase(A: np.ndarray, C: np.ndarray, tol: float | None = None)
     eps ||[A; C]||₂``).
     """
     n, p = A.shape[0], C.shape[0]
-    Z = np.eye(n)
     if n == 0:
-        return Z, 0
+        return np.eye(n), 0
     if tol is None:
         tol = default_rtol((n, n + p)) * max(float(np.linalg.norm(np.vstack([A, C]), 2)), np.finfo(float).tiny)
-    At = A.T.copy()
-    Bk = C.T.copy()  # the block of the dual input acting on the not yet reached states
-    n_o = 0
-    while n_o < n and Bk.size:
-        U, s, _ = sla.svd(Bk, full_matrices=True)
-        r = int(np.sum(s > tol))
-        if r == 0:
-            break
-        Zk = np.eye(n)
-        Zk[n_o:, n_o:] = U
-        Z = Z @ Zk
-        At = Zk.T @ At @ Zk
-        Bk = At[n_o + r:, n_o:n_o + r]
-        n_o += r
-    return Z, n_o
+    # the controllability staircase of the dual pair (Aᵀ, Cᵀ): its T is Z, its blocks sum to n_o
+    Z, taus = controllable_staircase(A.T, C.T, tol)
+    return Z, sum(taus)
 
 
 # -------------------------------------------------------------------- placement

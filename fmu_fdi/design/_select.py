@@ -65,6 +65,48 @@ def sensitivity_objective(P: list[np.ndarray], strong: list[np.ndarray] | None =
     return objective
 
 
+def visibility_gated(P: list[np.ndarray], Y: np.ndarray, G: np.ndarray, fcols: list, gate: float,
+                     strong: list[np.ndarray] | None = None):
+    """:func:`sensitivity_objective` ``(P, strong)`` restricted to combinations that keep every fault visible.
+
+    The fault sensitivity condition is a ratio of fault gains and cannot tell a combination
+    whose fault responses are rounding noise (``h`` in the rows' common fault-free direction:
+    noise over noise ≈ 1) from a good one. The post-condition's cosine
+    ``γ_j(h) = max_λ ||h P_j(λ)|| / (||h Y(λ)|| ||Gf_j(λ)||)`` (``Y``: the rows' y-part,
+    (points, rows, p); ``Gf_j = G[:, :p, fcols[j]]``: the plant's values on the same points,
+    :func:`.postconditions._cosine`) must exceed ``gate`` (FDtol); below it the value is
+    ``min_j γ_j - 1 < 0``, under every admissible one. Without ``strong`` the objective's value is
+    computed here from the same products.
+    With ``strong`` (gains at given frequencies in the objective, whose ratio to the peak a
+    near-degenerate combination also inflates) the value is ``min(objective, min_j γ_j)``, so the
+    optimum stays away from the gate instead of sitting on it.
+    """
+    objective = sensitivity_objective(P, strong)
+    gnorms = [np.linalg.norm(G[:, :Y.shape[2], c], 2, axis=(1, 2)) for c in fcols]  # ||Gf_j(λ)||
+    Pall = np.concatenate(P, axis=2) if P else np.zeros((Y.shape[0], Y.shape[1], 0))
+    starts = np.cumsum([0] + [Pj.shape[2] for Pj in P[:-1]])
+    Gn = np.stack(gnorms, axis=1) if gnorms else np.zeros((Y.shape[0], 0))  # (K, faults)
+
+    def gated(h: np.ndarray) -> float:
+        if not P:
+            return objective(h)
+        hp = np.einsum("r,krc->kc", h, Pall)
+        resp = np.sqrt(np.add.reduceat(np.abs(hp) ** 2, starts, axis=1))  # (K, faults): ||h P_j(λ)||
+        bound = np.linalg.norm(np.einsum("r,krc->kc", h, Y), axis=1)[:, None] * Gn
+        top = bound.max(axis=0)
+        keep = bound >= 1e-6 * top  # as postconditions._cosine: zeros of Gf_j are left out
+        ratio = np.where(keep, resp / np.where(keep, bound, 1.0), 0.0).max(axis=0)
+        g = float(np.min(np.where(top > 0, ratio, 0.0)))
+        if g <= gate:
+            return g - 1.0
+        if strong is not None:
+            return min(objective(h), g)
+        peaks = resp.max(axis=0)  # sensitivity_objective(P) without strong frequencies, from the same values
+        return float(peaks.min() / peaks.max()) if peaks.max() > 0 else 0.0
+
+    return gated
+
+
 def greedy_combinations(objective: Callable[[np.ndarray], float], k: int, rdim: int,
                         seed: int = 0) -> np.ndarray:
     """``rdim`` orthonormal combination rows, each the best in the orthogonal complement

@@ -27,7 +27,7 @@ from ..generator import ResidualGenerator
 from ..lti import LTI, frequency_grid, vstack
 from ..model import FDIModel
 from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
-from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective
+from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
 from .approximate import coouter_inverse, gap_objective
 from .postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
 
@@ -118,46 +118,6 @@ def undetectable_error(model: FDIModel, seen: np.ndarray, what: str = "d is deco
     cls = numerical if any("numerically inaccurate" in x for x in parts) else DesignError
     return cls("; ".join(parts) + f". Achievable weak structure of the faults "
                        f"{model.fault_names}: {weak.astype(int).tolist()}")
-
-
-def visibility_gated(objective, P: list[np.ndarray], Y: np.ndarray, gnorms: list[np.ndarray], gate: float,
-                     strong: bool = False):
-    """``objective`` restricted to combinations that keep every fault visible.
-
-    The fault sensitivity condition is a ratio of fault gains and cannot tell a combination
-    whose fault responses are rounding noise (``h`` in the rows' common fault-free direction:
-    noise over noise ≈ 1) from a good one. The post-condition's cosine
-    ``γ_j(h) = max_λ ||h P_j(λ)|| / (||h Y(λ)|| ||Gf_j(λ)||)`` (``Y``: the rows' y-part,
-    (points, rows, p); ``gnorms[j]``: ``||Gf_j(λ)||``, :func:`.postconditions._cosine`) must
-    exceed ``gate`` (FDtol); below it the value is ``min_j γ_j - 1 < 0``, under every admissible one.
-    ``objective`` must be ``sensitivity_objective(P, strong)``: without ``strong`` its value is
-    computed here from the same products.
-    With ``strong`` (gains at given frequencies in the objective, whose ratio to the peak a
-    near-degenerate combination also inflates) the value is ``min(objective, min_j γ_j)``, so the
-    optimum stays away from the gate instead of sitting on it.
-    """
-    Pall = np.concatenate(P, axis=2) if P else np.zeros((Y.shape[0], Y.shape[1], 0))
-    starts = np.cumsum([0] + [Pj.shape[2] for Pj in P[:-1]])
-    G = np.stack(gnorms, axis=1) if gnorms else np.zeros((Y.shape[0], 0))  # (K, faults)
-
-    def gated(h: np.ndarray) -> float:
-        if not P:
-            return objective(h)
-        hp = np.einsum("r,krc->kc", h, Pall)
-        resp = np.sqrt(np.add.reduceat(np.abs(hp) ** 2, starts, axis=1))  # (K, faults): ||h P_j(λ)||
-        bound = np.linalg.norm(np.einsum("r,krc->kc", h, Y), axis=1)[:, None] * G
-        top = bound.max(axis=0)
-        keep = bound >= 1e-6 * top  # as postconditions._cosine: zeros of Gf_j are left out
-        ratio = np.where(keep, resp / np.where(keep, bound, 1.0), 0.0).max(axis=0)
-        g = float(np.min(np.where(top > 0, ratio, 0.0)))
-        if g <= gate:
-            return g - 1.0
-        if strong:
-            return min(objective(h), g)
-        peaks = resp.max(axis=0)  # sensitivity_objective(P) without strong frequencies, from the same values
-        return float(peaks.min() / peaks.max()) if peaks.max() > 0 else 0.0
-
-    return gated
 
 
 def structural_zeros(Rf: list[np.ndarray], Rw: np.ndarray, rtol: float = 1e-9):
@@ -338,7 +298,12 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         # the polynomial basis is too ill-conditioned here: design from frequency samples
         # with a fixed stable denominator (exact poles, rank decision = post-condition)
         try:
-            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol)
+            # the pencil row's left minimal indices are those _exactness would compute again when that
+            # pencil_basis call had exactly its own arguments (all defaults)
+            same_call = pencil_gen is not None and tol is None and not atol and poles is None and sdeg is None \
+                and smarg is None
+            degrees = list(pencil_gen.info["left_minimal_indices"]) if same_call else None
+            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, degrees)
             gen.info["fallback_from"] = str(first)[:300]
             if not auto or not gen.info["decoupling_kind"].startswith("approximate"):
                 return _announce(model, gen)
@@ -365,16 +330,6 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     raise first
 
 
-def _left_minimal_indices(model: FDIModel) -> list[int] | None:
-    """The left minimal indices of ``[Gu Gd; I 0]`` (pencil staircase; None when it fails)."""
-    from .pencil import pencil_basis
-
-    try:
-        return pencil_basis(model).degrees
-    except DesignError:
-        return None
-
-
 #: ``info['decoupling_kind']`` of a row that annihilates ``[Gu Gd; I 0]`` identically (up to rounding)
 EXACT = "exact"
 
@@ -391,7 +346,8 @@ def _announce(model: FDIModel, gen: ResidualGenerator) -> ResidualGenerator:
     return gen
 
 
-def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol) -> ResidualGenerator:
+def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
+             degrees: list[int] | None = None) -> ResidualGenerator:
     from types import SimpleNamespace
 
     from .sampled import sampled_rows
@@ -403,23 +359,25 @@ def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec
     gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, [info["degree"]])
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
-    _exactness(model, gen)
+    _exactness(model, gen, degrees)
     return gen
 
 
-def _exactness(model: FDIModel, gen: ResidualGenerator) -> None:
+def _exactness(model: FDIModel, gen: ResidualGenerator, degrees: list[int] | None = None) -> None:
     """Record the left minimal indices (pencil basis, ms) next to a sampled row's order: a row whose
     order is below the smallest index cannot annihilate ``[Gu Gd; I 0]`` exactly — it decouples to the
     post-condition's peak-relative tolerance only (on the random set: orders 9-18 against indices
-    13-26, pointwise relative leak up to 1e-2 where |G| is 1e-7 of its peak)."""
+    13-26, pointwise relative leak up to 1e-2 where |G| is 1e-7 of its peak). ``degrees``: those
+    indices when already known from ``pencil_basis(model)`` itself (not computed again)."""
     from .pencil import pencil_basis
 
-    try:
-        degrees = pencil_basis(model).degrees
-    except DesignError as exc:
-        gen.info["decoupling_kind"] = (f"unverified: the left minimal indices are not available ({exc}"[:200] + "); "
-                                       "decoupled to the post-condition tolerance (dec_tol, peak-relative)")
-        return
+    if degrees is None:
+        try:
+            degrees = pencil_basis(model).degrees
+        except DesignError as exc:
+            gen.info["decoupling_kind"] = (f"unverified: the left minimal indices are not available ({exc}"[:200]
+                                           + "); decoupled to the post-condition tolerance (dec_tol, peak-relative)")
+            return
     gen.info["left_minimal_indices"] = degrees
     exact = bool(degrees) and gen.Q.n >= min(degrees)
     gen.info["decoupling_kind"] = ("exact (order ≥ the smallest left minimal index)" if exact else
@@ -522,20 +480,19 @@ def _pencil_combine(model, N: LTI, rdim, freqs, FDtol, FDGainTol, seed, smarg, d
     ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Nv), axis=(1, 2))
     Gv, Nv = Gv[ok], Nv[ok]
     fcols = fault_columns(model)
-    P = [np.einsum("kiq,kqc->kic", Nv, Gv[:, :, c]) for c in fcols]
     p = model.ny
-    strong = None
-    if freqs is not None and model.faults:
-        lam_s, Gs = _strong_points(model, Ge, freqs)
-        Ns = _values(N, lam_s)
-        strong = [np.einsum("kiq,kqc->kic", Ns, Gs[:, :, c]) for c in fcols]
+    # _strong_points refuses freqs where the plant cannot be evaluated, whatever rdim is
+    lam_s, Gs = _strong_points(model, Ge, freqs) if freqs is not None and model.faults else (None, None)
     if rdim == "all" or rdim >= k:
         H = np.eye(k)
         Q = N
     else:
-        gnorms = [np.linalg.norm(Gv[:, :p, c], 2, axis=(1, 2)) for c in fcols]
-        H = greedy_combinations(visibility_gated(sensitivity_objective(P, strong), P, Nv[:, :, :p], gnorms, FDtol,
-                                                 strong is not None),
+        P = [np.einsum("kiq,kqc->kic", Nv, Gv[:, :, c]) for c in fcols]
+        strong = None
+        if lam_s is not None:
+            Ns = _values(N, lam_s)
+            strong = [np.einsum("kiq,kqc->kic", Ns, Gs[:, :, c]) for c in fcols]
+        H = greedy_combinations(visibility_gated(P, Nv[:, :, :p], Gv, fcols, FDtol, strong),
                                 k, int(rdim), seed) if model.faults else np.eye(k)[: int(rdim)]
         Q = (H @ N).minreal()
     info.update({"order": int(Q.n), "rdim": int(H.shape[0]), "combination": H.tolist()})
@@ -663,8 +620,7 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
             mu = _lam_to_mu(lam, basis.rho)
             dvals = np.prod(mu[:, None] - den_mu[None, :], axis=1) if den_mu.size else np.ones(mu.size)
             Y = np.stack([r.at(mu)[:, :model.ny] for r in cand], axis=1) / dvals[:, None, None]
-            gnorms = [np.linalg.norm(Ge_grid[:, :model.ny, c], 2, axis=(1, 2)) for c in fcols]
-            objective = visibility_gated(sensitivity_objective(P, strong), P, Y, gnorms, FDtol, strong is not None)
+            objective = visibility_gated(P, Y, Ge_grid, fcols, FDtol, strong)
             H = greedy_combinations(objective, k, int(rdim), seed)
             fsc = min(objective(h) for h in H)
         else:

@@ -32,7 +32,7 @@ import scipy.linalg as sla
 
 from ..errors import DesignError
 from ..lti import LTI, frequency_grid
-from ._select import greedy_combinations, sensitivity_objective
+from ._select import greedy_combinations, visibility_gated
 from .postconditions import _cosine, _values
 
 
@@ -157,11 +157,7 @@ def sampled_rows(model, choose, fault_cols: list[np.ndarray], rdim: int, *, freq
             idx = [int(np.argmin(np.abs(omega - f))) for f in freqs_arr]
             strong = [Pj[idx] for Pj in P]
         if fault_cols:
-            from .nullspace import visibility_gated
-
-            gnorms = [np.linalg.norm(G[:, :model.ny, c], 2, axis=(1, 2)) for c in fault_cols]
-            objective = visibility_gated(sensitivity_objective(P, strong), P, Qz[:, :, :model.ny], gnorms, FDtol,
-                                         strong is not None)
+            objective = visibility_gated(P, Qz[:, :, :model.ny], G, fault_cols, FDtol, strong)
             H = greedy_combinations(objective, Z.shape[0], rdim, seed)
             if strong is not None and min(objective(h) for h in H) <= FDGainTol:
                 last = f"at degree {nu} no exact row is strongly sensitive at {freqs_arr.tolist()}"
