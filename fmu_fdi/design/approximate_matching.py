@@ -231,9 +231,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
 
 
 # ----------------------------------------------------------------------------- inputs
-def reference(model: FDIModel, Mr) -> LTI:
-    """Mr as an LTI in the model's time base, validated (shape, proper, stable); a matrix is a
-    constant reference."""
+def reference(model: FDIModel, Mr, stable: bool = True, minimal: bool = True) -> LTI:
+    """Mr as an LTI in the model's time base, validated (shape, proper, and stable unless
+    ``stable=False``), minimal unless ``minimal=False``; a matrix is a constant reference."""
     if isinstance(Mr, (np.ndarray, list, tuple, int, float)):
         D = np.atleast_2d(np.asarray(Mr, dtype=float))
         if D.ndim != 2 or not np.all(np.isfinite(D)):
@@ -253,9 +253,9 @@ def reference(model: FDIModel, Mr) -> LTI:
     if Mr.n and abs(Mr.dt - model.dt) > 1e-12 * max(1.0, model.dt):
         raise DesignError(f"Mr has sample time {Mr.dt} but the model has {model.dt}")
     Mr = LTI(Mr.A, Mr.B, Mr.C, Mr.D, model.dt)
-    if Mr.n:
+    if Mr.n and minimal:
         Mr = Mr.minreal()
-        if not Mr.is_stable():
+        if stable and not Mr.is_stable():
             bad = Mr.poles()
             worst = float(np.max(np.abs(bad))) if model.dt else float(np.max(bad.real))
             what = "largest |pole|" if model.dt else "largest Re(pole)"

@@ -5,26 +5,43 @@ Find a proper stable ``Q`` with
     Q(λ) [Gu Gd Gf; I 0 0](λ) = [0 0 Mr(λ)]
 
 (Varga 2017, sec. 5.6, Procedure EMM; FaultDetectionTools.jl ``emmsyn``) — u and d
-decoupled and the fault-to-residual map equal to the reference ``Mr``. Q is sought with a
-fixed denominator: the poles of Mr (every solution's denominator must hold them, Mr being
-``Q Ge``) plus ν further stable poles, ν = 0, 1, ... until the equations — linear in Q's
-numerator, sampled on a frequency grid as in :mod:`.sampled` — hold exactly (relative
-residual ``≤ mm_tol``). Least squares gives the minimum-norm numerator when several exist.
+decoupled and the fault-to-residual map equal to the reference ``Mr``.
 
-With ``updating=True`` (Varga 2017, Procedure EMM step 3; ``emmsyn``'s ``info.M``) the
-reference may be matched only up to a diagonal updating factor: when the exact solution
-``Q0`` of ``Q0 Ge = [0 0 Mr]`` is improper or unstable, the returned filter is
-``Q = M Q0``, stable and proper, with
+**Least order, row by row** (``emmsyn``'s default ``minimal = true``: ``glsol(…; mindeg =
+true)`` then a coprime factor per row). Each row ``Q_i`` of the solution is designed on its
+own, so its McMillan degree — the degree δ of the least common denominator of a row — is
+the least of any row solving ``Q_i Ge = [0 0 Mr_i]``. A row of degree ≤ δ is
+``Q_i = n(λ)/d(λ)`` with a polynomial row n and polynomial d of degree ≤ δ, and the matching
+equation ``n Ge = d [0 0 Mr_i]`` is *linear and homogeneous* in the pair ``(n, d)`` — the
+denominator is an unknown, not a guess (a reference's poles need not be the filter's:
+``Mr = Gf`` is matched by the static ``Q = [I 0]``). Both are written over a reference
+denominator e of degree δ with stable, well-separated roots,
+``Q̃_i = n/e = C (λI − A)^{-1} B + D`` and ``m_i = d/e`` (same ``(A, C)``, :func:`.sampled.cascade`),
+so that the equation ``Q̃_i(λ_k) Ge(λ_k) − m_i(λ_k) [0 0 Mr_i(λ_k)] = 0`` at K grid points
+(K far above the degrees involved, so a rational identity holding there holds everywhere)
+is a linear system in ``(B, D, b_m, d_m)``. Its null space, read from an SVD with
+the relative threshold ``mm_tol``, is non-trivial with ``m_i ≠ 0`` first at the least
+degree δ; then ``Q_i = m_i^{-1} Q̃_i`` (biproper ``m_i``, ``d_m ≠ 0``) has the realisation
 
-    Q(λ) Ge(λ) = [0  0  M(λ) Mr(λ)],     M = diag(m_1, …, m_r),
+    Q_i = (A − b_m C / d_m,  B − b_m D / d_m,  C / d_m,  D / d_m)      (order δ),
 
-each ``m_i`` stable with poles at the ν added poles (``sdeg``/``poles``; numerator free).
-Row i is the least ν for which the homogeneous equations
-``Q_i Ge − m_i [0 0 Mr_i] = 0`` (linear in the numerators of ``Q_i`` and ``m_i``, sampled
-on the grid) have a solution with ``m_i ≠ 0``: the null vector of the stacked equations
-(SVD) with the largest ``m_i`` part. ``m_i`` is normalised to unit zpk gain (the first
-nonzero Markov parameter, ``normalize='gain'``, as in Varga's Example 5.13) or to unit
-H∞ norm (``'infnorm'``, ``emmsyn``'s default).
+whose poles are the zeros of ``m_i``. When this least-order row is unstable or improper:
+
+- ``updating=False``: rows with a *fixed* stable denominator (the stable poles of ``Mr_i``
+  plus ν chosen poles, ν = 0, 1, …; the numerator from the same sampled equations, now
+  inhomogeneous) — a stable Q of higher order if one exists;
+- ``updating=True`` (Procedure EMM step 3; ``emmsyn``'s ``info.M``): the reference is matched
+  up to a diagonal updating factor, ``Q Ge = [0 0 M Mr]``. For an unstable but proper least
+  row, ``[Q_i  Mr_i] = m_i^{-1} [Q̃_i  R̃_i]`` is a stable left coprime factorisation of the
+  whole row (output injection moving only the poles outside the stability region, as
+  ``glcf(…; mindeg = true)``; :func:`.pencil.assign_poles`), so that both the filter and its
+  fault response ``m_i Mr_i`` are stable; for an improper one, the least ν for which
+  ``Q_i Ge = m_i [0 0 Mr_i]`` has a solution with both ``Q_i`` and ``m_i`` over ν chosen
+  stable poles. ``m_i`` is normalised to unit zpk gain (the first nonzero Markov parameter,
+  ``normalize='gain'``, as in Varga's Example 5.13) or to unit H∞ norm (``'infnorm'``).
+
+Every returned row is verified on an independent grid: the relative matching error must
+not exceed ``sqrt(mm_tol)`` and the post-conditions (:mod:`.postconditions`) must hold.
 
 The approximate problem (AMMP, H∞/H2 optimal) is :mod:`.approximate_matching`.
 """
@@ -39,185 +56,318 @@ from ..linalg import single_blas_thread
 from ..lti import LTI, blockdiag, frequency_grid, vstack
 from ..model import FDIModel
 from ._basis import check_poles, pole_chooser
-from .postconditions import DEC_TOL, _values, check_generator
+from .approximate_matching import reference
+from .postconditions import DEC_TOL, _values, check_generator, default_smarg
 from .sampled import _basis_values, cascade
 
 
 @single_blas_thread
 def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None, max_degree: int | None = None,
                    mm_tol: float = 1e-9, smarg: float | None = None, dec_tol: float = DEC_TOL,
-                   updating: bool = False, normalize: str = "gain") -> ResidualGenerator:
-    """Exact model matching: ``Q Ge = [0 0 Mr]`` with a stable proper Q of least added order.
+                   updating: bool = False, normalize: str = "gain", atol: float = 0.0) -> ResidualGenerator:
+    """Exact model matching ``Q Ge = [0 0 Mr]`` by a stable proper Q whose rows have least order.
 
     Parameters
     ----------
     model : FDIModel
-    Mr : LTI or python-control system
-        Reference fault-to-residual map: (residuals × fault columns), stable.
+    Mr : LTI, python-control system or matrix
+        Reference fault-to-residual map: (residuals × fault columns). Stable unless
+        ``updating=True`` (then the updating factor also stabilises ``M Mr``).
     poles, sdeg : optional
-        Filter poles added to those of Mr (as in :func:`~fmu_fdi.design.nullspace.nullspace_design`).
+        Poles given to the filter where they are free: the reference denominators of the
+        sampled equations, the fixed-denominator rows, and the poles moved by the updating
+        factor (as in :func:`~fmu_fdi.design.nullspace.nullspace_design`).
     max_degree : int, optional
-        Largest number of added poles tried (default n + 1).
+        Largest row degree tried (default ``n + order(Mr_i) + 1``); for the fixed-denominator
+        rows, the largest number of poles added to those of ``Mr_i``.
     mm_tol : float
-        Largest relative matching residual on the grid accepted as exact.
+        Relative singular-value threshold of the sampled matching equations (the rank
+        decision); a returned row's relative matching error must be ≤ ``sqrt(mm_tol)``.
+    smarg, dec_tol : float, optional
+        Stability margin and decoupling tolerance of the post-conditions.
     updating : bool
         Allow a diagonal stable updating factor M: ``Q Ge = [0 0 M Mr]`` (``emmsyn``'s
-        ``info.M``); needed when the exact solution is improper or unstable.
+        ``info.M``); needed when the least-order solution is improper or unstable.
     normalize : {'gain', 'infnorm'}
         Normalisation of each ``m_i`` with ``updating=True``: unit zpk gain or unit H∞ norm.
+    atol : float
+        Absolute rank tolerance (Varga's ``atol``): singular values of the model's and the
+        reference's realisations below it are zero in the minimal realisations of ``Mr_i``
+        and of each row, and ``|d_m| ≤ atol`` makes a least-order row improper.
 
     Returns
     -------
     ResidualGenerator
-        ``info``: ``degree`` (added poles), ``order``, ``matching_error`` (grid peak of
-        ``||Rf − M Mr||`` relative to ``||M Mr||``), ``postconditions``, and with
-        ``updating=True`` ``M`` (LTI, diagonal) and ``M_zeros`` (zeros of each ``m_i``).
+        ``info``: ``row_orders`` (McMillan degree of each row), ``degree`` (their largest),
+        ``order``, ``row_methods`` ('least order', 'fixed denominator', 'coprime factor',
+        'updating'), ``matching_error`` (grid peak of ``||Rf − M Mr||`` relative to
+        ``||M Mr||``), ``postconditions``, ``poles``; with ``updating=True`` ``M`` (LTI,
+        diagonal), ``row_degrees`` (order of each ``m_i``) and ``M_zeros``.
 
     Raises
     ------
     DesignError
-        Mr has the wrong shape or is unstable, or no Q with up to ``max_degree`` added poles
-        matches it (the reference is then not achievable without an updating factor).
+        Mr has the wrong shape, a zero row, or is unstable (without ``updating``), or no
+        stable proper row of degree ≤ ``max_degree`` matches a row of it.
     """
     if normalize not in ("gain", "infnorm"):
         raise DesignError(f"normalize must be 'gain' or 'infnorm', got {normalize!r}")
-    Mr = Mr if isinstance(Mr, LTI) else LTI.from_control(Mr)
-    if Mr.m != model.nf:
-        raise DesignError(f"Mr must have {model.nf} inputs (the fault columns {model.fault_names}), got {Mr.m}")
-    if Mr.n and abs(Mr.dt - model.dt) > 1e-12:
-        raise DesignError(f"Mr has sample time {Mr.dt} but the model has {model.dt}")
-    Mr = LTI(Mr.A, Mr.B, Mr.C, Mr.D, model.dt)
-    if Mr.n and not Mr.is_stable():
-        raise DesignError("Mr must be stable: every residual generator's fault response Q Gf has Q's poles")
+    if not (np.isfinite(atol) and atol >= 0):
+        raise DesignError(f"atol must be a finite non-negative number, got {atol!r}")
+    if not (0 < mm_tol < 1):
+        raise DesignError(f"mm_tol must lie in (0, 1), got {mm_tol!r}")
+    if max_degree is not None and not (isinstance(max_degree, (int, np.integer)) and max_degree >= 0):
+        raise DesignError(f"max_degree must be a non-negative integer, got {max_degree!r}")
+    Mr = reference(model, Mr, stable=False, minimal=False)
     check_poles(poles, model.dt)
-    mr_poles = Mr.minreal().poles() if Mr.n else np.zeros(0, complex)
     choose = pole_chooser(model, poles, sdeg)
-    Ge = model.augmented()
-    q = model.ny + model.nu
-    sl = model.group_slices()
-    ud = np.r_[np.arange(sl["u"].start, sl["u"].stop), np.arange(sl["d"].start, sl["d"].stop)]
-    cols = np.r_[ud, np.arange(sl["f"].start, sl["f"].stop)]
-    max_degree = model.n + 1 if max_degree is None else max_degree
-    sample = _sampler(model, Ge, Mr, mr_poles, choose, cols)
-    if updating:
-        return _updating(model, Mr, sample, ud, cols, q, max_degree, mm_tol, smarg, dec_tol, normalize)
-    best = np.inf
-    for nu in range(max_degree + 1):
-        _, A, C, lam, T, Phi, w, E = sample(nu)
-        # unknown X (r, q): Q = Φ X; equations Φ_k X G_k[:, cols] = [0 Mr_k] for each residual row
-        L = E.reshape(-1, Phi.shape[1] * q)
-        L = np.vstack([L.real, L.imag])
-        rows, err = [], 0.0
-        for i in range(Mr.p):
-            tgt = np.concatenate([np.zeros((lam.size, ud.size)), T[:, i, :]], axis=1) * w[:, None]
-            b = np.concatenate([tgt.real.ravel(), tgt.imag.ravel()])
-            x, *_ = sla.lstsq(L, b, lapack_driver="gelsy")
-            err = max(err, float(np.linalg.norm(L @ x - b) / max(np.linalg.norm(b), 1e-300)))
-            X = x.reshape(Phi.shape[1], q)
-            rows.append(LTI(A, X[:-1], C, X[-1:], model.dt))
-        best = min(best, err)
-        if err > mm_tol:
-            continue
-        Q = (vstack(rows) if len(rows) > 1 else rows[0]).minreal()
-        gen = ResidualGenerator(Q, model, "model_matching")
-        check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
-        H = _values(gen.Rf, lam) - T
-        gen.info.update({"degree": nu, "order": int(Q.n), "matching_error":
-                         float(np.max(np.linalg.norm(H, 2, axis=(1, 2))) / max(np.max(np.linalg.norm(T, 2, axis=(1, 2))), 1e-300)),
-                         "poles": np.asarray(Q.poles()).tolist()})
-        return gen
-    raise DesignError(f"no stable proper Q with up to {max_degree} poles added to those of Mr matches Mr exactly "
-                      f"(smallest relative matching residual {best:.3g} > mm_tol = {mm_tol:g}): the reference is not "
-                      f"achievable without an updating factor (pass updating=True), or pass a larger max_degree")
-
-
-def _sampler(model, Ge, Mr, mr_poles, choose, cols):
-    """``ν ↦ (extra, A, C, λ, Mr(λ), Φ(λ), w, E)``, cached per ν: the ν added poles, the filter
-    denominator's cascade ``(A, C)`` (poles of Mr and the added ones), the grid points where Ge
-    and Mr are finite, the reference's values, the basis values, the point weights
-    ``1/||Ge(λ)[:, cols]||`` and the coefficients ``E[k, c, i, a] = w_k Φ_k,i Ge_k[a, cols[c]]``
-    of the equations ``Φ_k X Ge_k[:, cols]`` in the numerator X."""
-    cache = {}
-
-    def sample(nu):
-        if nu not in cache:
-            extra = np.asarray(choose(nu), complex) if nu else np.zeros(0, complex)
-            allp = np.concatenate([mr_poles, extra])
-            A, C = cascade(allp)
-            K = max(160, 3 * (model.n + allp.size) + 40)
-            omega = frequency_grid([model.lti(), Mr], num=K, poles=allp)
-            lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
-            G, T = _values(Ge, lam), _values(Mr, lam)
-            ok = np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(T), axis=(1, 2))
-            G, T, lam = G[ok], T[ok], lam[ok]
-            Phi = _basis_values(A, C, lam)
-            w = 1.0 / np.maximum(np.linalg.norm(G[:, :, cols], 2, axis=(1, 2)), 1e-300)  # scale each point
-            E = np.einsum("ki,kac->kcia", Phi * w[:, None], G[:, :, cols])
-            cache[nu] = (extra, A, C, lam, T, Phi, w, E)
-        return cache[nu]
-
-    return sample
-
-
-def _updating(model, Mr, sample, ud, cols, q, max_degree, mm_tol, smarg, dec_tol, normalize):
-    """Rows ``Q_i`` and factors ``m_i`` with ``Q_i Ge = [0 0 m_i Mr_i]`` of least added degree ν."""
-    rows, ms, degs = [], [], []
-    factor = {}  # ν ↦ the cascade of the ν added poles (m_i's denominator) and its basis values
+    margin = default_smarg(model.dt) if smarg is None else float(smarg)
+    eq = _Equations(model, choose)
+    rows, ms, methods, degs = [], [], [], []
     for i in range(Mr.p):
-        found, low = None, np.inf
-        for nu in range(max_degree + 1):
-            extra, A, C, lam, T, Phi, w, E = sample(nu)
-            if nu not in factor:
-                Am, Cm = cascade(extra)
-                factor[nu] = (Am, Cm, _basis_values(Am, Cm, lam))
-            Am, Cm, Phm = factor[nu]
-            # Φ_k X G_k[:, cols] − φm_k x_m [0 Mr_i,k] = 0 for the unknowns (X, x_m)
-            Lq = E.reshape(lam.size, cols.size, -1)
-            tgt = np.concatenate([np.zeros((lam.size, ud.size)), T[:, i, :]], axis=1) * w[:, None]
-            Lm = -np.einsum("kj,kc->kcj", Phm, tgt)
-            L = np.concatenate([Lq, Lm], axis=2).reshape(lam.size * cols.size, -1)
-            L = np.vstack([L.real, L.imag])
-            cn = np.linalg.norm(L, axis=0)
-            cn[cn == 0] = 1.0
-            _, sv, Vt = np.linalg.svd(L / cn, full_matrices=True)
-            sv = np.concatenate([sv, np.zeros(Vt.shape[0] - sv.size)])
-            Z = (Vt[sv <= mm_tol * sv[0]].T) / cn[:, None]  # null vectors (column scaling undone)
-            nq = Phi.shape[1] * q
-            if Z.shape[1]:
-                # the null vector with the largest m_i part (Q_i Ge = 0 with m_i = 0 is no solution)
-                Zn = Z / np.linalg.norm(Z, axis=0)
-                _, sm, Wt = np.linalg.svd(Zn[nq:], full_matrices=False)
-                if sm.size and sm[0] > 1e-6:
-                    x = Zn @ Wt[0]
-                    found = (nu, A, C, Am, Cm, x[:nq].reshape(Phi.shape[1], q), x[nq:])
-                    break
-            low = min(low, float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0)
-        if found is None:
-            raise DesignError(f"residual {i + 1}: no stable proper Q_i and m_i ≠ 0 with up to {max_degree} added poles "
-                              f"give Q_i Ge = [0 0 m_i Mr_i] (smallest relative residual {low:.3g} > mm_tol = "
-                              f"{mm_tol:g}): the reference row is not achievable (pass a larger max_degree)")
-        nu, A, C, Am, Cm, X, xm = found
-        Qi = LTI(A, X[:-1], C, X[-1:], model.dt)
-        mi = LTI(Am, xm[:-1, None], Cm, xm[-1:, None], model.dt)
-        sc = _markov_gain(mi) if normalize == "gain" else mi.hinfnorm()[0] * np.sign(_markov_gain(mi))
-        rows.append(Qi * (1.0 / sc))
-        ms.append(mi * (1.0 / sc))
-        degs.append(nu)
-    Q = (vstack(rows) if len(rows) > 1 else rows[0]).minreal()
+        # each row is solved at unit peak gain (a row of gain 1e-8 next to rows of gain 1 would
+        # otherwise lose its dynamics to the others' rank tolerance) and scaled back
+        scale = _peak(model, Mr[i, :])
+        if not scale > 0:
+            raise DesignError(f"row {i + 1} of Mr is zero: the only match is the zero filter, which detects no fault")
+        Mi = _minimal(Mr[i, :] * (1.0 / scale), atol)
+        if not updating and not _stable(Mi, margin, model.dt):
+            bad = Mi.poles()
+            worst, what = (float(np.max(np.abs(bad))), "largest |pole|") if model.dt else \
+                (float(np.max(bad.real)), "largest Re(pole)")
+            raise DesignError(f"row {i + 1} of Mr is not stable ({what} = {worst:.6g}, stability margin "
+                              f"{margin:.3g}): the fault response Rf = Mr would be; pass updating=True (the "
+                              f"updating factor M makes M Mr stable) or a stable reference")
+        top = model.n + Mi.n + 1 if max_degree is None else int(max_degree)
+        Q0, low = _least_order_row(eq, Mi, top, mm_tol, atol)
+        if Q0 is not None and _stable(Q0, margin, model.dt):
+            rows.append(Q0), ms.append(LTI.static(np.ones((1, 1)), model.dt))
+            methods.append("least order"), degs.append(0)
+        elif updating and Q0 is not None:
+            Qi, mi = _coprime_row(model, Q0, Mi, choose, margin, atol)
+            sc = _markov_gain(mi) if normalize == "gain" else mi.hinfnorm()[0] * np.sign(_markov_gain(mi))
+            rows.append(Qi * (1.0 / sc)), ms.append(mi * (1.0 / sc))
+            methods.append("coprime factor"), degs.append(int(mi.n))
+        elif updating:
+            Qi, mi, nu = _updating_row(eq, Mi, top, mm_tol, i, low)
+            sc = _markov_gain(mi) if normalize == "gain" else mi.hinfnorm()[0] * np.sign(_markov_gain(mi))
+            rows.append(_minimal(Qi * (1.0 / sc), atol)), ms.append(mi * (1.0 / sc))
+            methods.append("updating"), degs.append(nu)
+        else:
+            why = ("its least-order solution is unstable" if Q0 is not None else
+                   "it has no proper solution of degree ≤ %d" % top)
+            rows.append(_fixed_row(eq, Mi, top, mm_tol, margin, atol, i, why, low))
+            ms.append(LTI.static(np.ones((1, 1)), model.dt))
+            methods.append("fixed denominator"), degs.append(0)
+        rows[-1] = rows[-1] * scale
+    Q = vstack(rows) if len(rows) > 1 else rows[0]
     M = blockdiag(ms)
     gen = ResidualGenerator(Q, model, "model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
-    omega = frequency_grid([model.lti(), Mr], num=200)
-    lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
-    MMr = _values(M @ Mr, lam)
-    H = _values(gen.Rf, lam) - MMr
-    ok = np.all(np.isfinite(H), axis=(1, 2))
-    gen.info.update({"degree": int(max(degs)), "row_degrees": degs, "order": int(Q.n), "M": M,
-                     "M_zeros": [np.asarray(_zeros(m)).tolist() for m in ms],
-                     "matching_error": float(np.max(np.linalg.norm(H[ok], 2, axis=(1, 2)))
-                                             / max(np.max(np.linalg.norm(MMr[ok], 2, axis=(1, 2))), 1e-300)),
+    err = _matching_error(model, gen, M @ Mr)
+    if not err <= np.sqrt(mm_tol):
+        raise DesignError(f"model matching: the returned filter's fault response differs from the reference by "
+                          f"{err:.3g} (relative) > sqrt(mm_tol) = {np.sqrt(mm_tol):.3g}: the realisation lost "
+                          f"accuracy; pass other poles/sdeg")
+    gen.info.update({"row_orders": [int(r.n) for r in rows], "degree": int(max(r.n for r in rows)),
+                     "order": int(Q.n), "row_methods": methods, "matching_error": err,
                      "poles": np.asarray(Q.poles()).tolist()})
+    if updating:
+        gen.info.update({"M": M, "row_degrees": degs, "M_zeros": [np.asarray(_zeros(m)).tolist() for m in ms]})
     return gen
+
+
+def _minimal(sys: LTI, atol: float) -> LTI:
+    """Minimal realisation with the absolute rank tolerance ``atol`` (SLICOT's default when 0)."""
+    return sys.minreal(tol=atol if atol > 0 else None) if sys.n else sys
+
+
+def _stable(sys: LTI, margin: float, dt: float) -> bool:
+    if not sys.n:
+        return True
+    p = sys.poles()
+    return bool(np.max(np.abs(p)) < margin if dt else np.max(p.real) < margin)
+
+
+class _Equations:
+    """The sampled matching equations of one model: grid, values of ``Ge`` (u, d, f columns), the
+    per-point weights ``1/||Ge(λ_k)||`` and the basis values of a denominator, cached per pole set."""
+
+    def __init__(self, model: FDIModel, choose):
+        self.model, self.choose = model, choose
+        sl = model.group_slices()
+        self.ud = np.r_[np.arange(sl["u"].start, sl["u"].stop), np.arange(sl["d"].start, sl["d"].stop)]
+        self.cols = np.r_[self.ud, np.arange(sl["f"].start, sl["f"].stop)]
+        self.Ge = model.augmented()
+        self.q = model.ny + model.nu
+
+    def sample(self, Mi: LTI, den: np.ndarray):
+        """``(A, C, λ, Mr_i(λ) padded with zeros for u, d, w_k, Φ(λ), E)`` for the denominator roots
+        ``den``: ``E[k, c, j, a] = w_k Φ_k,j Ge_k[a, cols[c]]`` are the coefficients of ``Q̃ Ge``."""
+        model = self.model
+        A, C = cascade(den)
+        K = max(160, 3 * (model.n + Mi.n + den.size) + 40)
+        omega = frequency_grid([model.lti(), Mi], num=K, poles=den)
+        lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
+        G, T = _values(self.Ge, lam)[:, :, self.cols], _values(Mi, lam)[:, 0, :]
+        ok = np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(T), axis=1)
+        G, T, lam = G[ok], T[ok], lam[ok]
+        if lam.size < 2 * (model.n + Mi.n + den.size) + 4:
+            raise DesignError(f"model matching: only {lam.size} grid points where the model and Mr are finite")
+        w = 1.0 / np.maximum(np.linalg.norm(G, 2, axis=(1, 2)), 1e-300)
+        tgt = np.concatenate([np.zeros((lam.size, self.ud.size)), T], axis=1) * w[:, None]
+        Phi = _basis_values(A, C, lam)
+        E = np.einsum("kj,kac->kcja", Phi * w[:, None], G)
+        return A, C, lam, tgt, Phi, E
+
+
+def _null(L: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
+    """Null vectors of the complex equations ``L x = 0`` in real unknowns (columns scaled to unit
+    norm for the rank decision, the scaling undone): ``(Z, σ_min/σ_max)``."""
+    L = np.vstack([L.real, L.imag])
+    cn = np.linalg.norm(L, axis=0)
+    cn[cn == 0] = 1.0
+    _, sv, Vt = np.linalg.svd(L / cn, full_matrices=True)
+    sv = np.concatenate([sv, np.zeros(Vt.shape[0] - sv.size)])
+    Z = Vt[sv <= tol * sv[0]].T / cn[:, None] if sv[0] > 0 else Vt.T / cn[:, None]
+    return Z, float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
+
+
+def _least_order_row(eq: _Equations, Mi: LTI, top: int, mm_tol: float, atol: float):
+    """The least-degree row ``Q_i = n/d`` with ``Q_i Ge = [0 0 Mr_i]``: ``(Q_i, low)``, ``Q_i`` None when
+    no proper one of degree ≤ ``top`` exists (``low``: smallest relative singular value seen)."""
+    model, low = eq.model, np.inf
+    for delta in range(top + 1):
+        den = np.asarray(eq.choose(delta), complex) if delta else np.zeros(0, complex)
+        A, C, lam, tgt, Phi, E = eq.sample(Mi, den)
+        nb = Phi.shape[1]
+        Lm = -np.einsum("kj,kc->kcj", Phi, tgt)
+        L = np.concatenate([E.reshape(lam.size, eq.cols.size, -1), Lm], axis=2).reshape(lam.size * eq.cols.size, -1)
+        Z, s = _null(L, mm_tol)
+        low = min(low, s)
+        nq = nb * eq.q
+        if not Z.shape[1]:
+            continue
+        Zn = Z / np.linalg.norm(Z, axis=0)
+        if np.max(np.linalg.norm(Zn[nq:], axis=0), initial=0.0) <= 1e-6:
+            continue  # only annihilators of the whole Ge (m_i = 0): no match at this degree
+        # the null vector with the largest feedthrough d_m of m_i (a biproper m_i: a proper Q_i)
+        g = Zn[-1]
+        x = Zn @ g / max(np.linalg.norm(g), 1e-300)
+        X, xm = x[:nq].reshape(nb, eq.q), x[nq:]
+        dm = xm[-1]
+        if abs(dm) <= max(atol, 1e-8 * np.linalg.norm(xm)):
+            return None, low  # the least-degree solution is improper
+        bm = xm[:-1, None]
+        Q0 = LTI(A - bm @ C / dm, X[:-1] - bm @ X[-1:] / dm, C / dm, X[-1:] / dm, model.dt)
+        return _minimal(Q0, atol), low
+    return None, low
+
+
+def _fixed_row(eq: _Equations, Mi: LTI, top: int, mm_tol: float, margin: float, atol: float, i: int, why: str,
+               low: float) -> LTI:
+    """A stable row with the fixed denominator: the stable poles of ``Mr_i`` and ν chosen ones."""
+    model = eq.model
+    mp = Mi.poles() if Mi.n else np.zeros(0, complex)
+    mp = mp[np.abs(mp) < margin] if model.dt else mp[mp.real < margin]
+    best = np.inf
+    for nu in range(top + 1):
+        den = np.concatenate([mp, np.asarray(eq.choose(nu), complex) if nu else np.zeros(0, complex)])
+        A, C, lam, tgt, Phi, E = eq.sample(Mi, den)
+        L = E.reshape(lam.size * eq.cols.size, -1)
+        L = np.vstack([L.real, L.imag])
+        b = np.concatenate([tgt.real.ravel(), tgt.imag.ravel()])
+        x, *_ = sla.lstsq(L, b, lapack_driver="gelsy")
+        err = float(np.linalg.norm(L @ x - b) / max(np.linalg.norm(b), 1e-300))
+        best = min(best, err)
+        if err <= mm_tol:
+            X = x.reshape(Phi.shape[1], eq.q)
+            return _minimal(LTI(A, X[:-1], C, X[-1:], model.dt), atol)
+    raise DesignError(f"row {i + 1} of Mr: {why}, and no stable proper row with up to {top} poles added to the "
+                      f"stable poles of Mr_{i + 1} matches it (smallest relative matching residual {best:.3g} > "
+                      f"mm_tol = {mm_tol:g}): the reference is not achievable without an updating factor (pass "
+                      f"updating=True), or pass a larger max_degree")
+
+
+def _coprime_row(model: FDIModel, Q0: LTI, Mi: LTI, choose, margin: float, atol: float) -> tuple[LTI, LTI]:
+    """``[Q_i  R_i] = m_i [Q0  Mr_i]`` stable: a left coprime factorisation of the row ``[Q0 Mr_i]``
+    by output injection L moving the eigenvalues outside the region (``Re λ < margin``, ``|λ| <
+    margin``), one Schur block at a time (:func:`.pencil.assign_poles` on the dual pair):
+    ``Ã = A + L C``, ``[Q_i R_i] = (Ã, B + L D, C, D)``, ``m_i = (Ã, L, C, 1)``."""
+    from .pencil import assign_poles
+
+    row = _minimal(LTI(sla.block_diag(Q0.A, Mi.A), sla.block_diag(Q0.B, Mi.B), np.hstack([Q0.C, Mi.C]),
+                       np.hstack([Q0.D, Mi.D]), model.dt), atol)
+    if model.dt:
+        good = lambda re, im: np.hypot(re, im) < margin  # noqa: E731
+    else:
+        good = lambda re, im: re < margin  # noqa: E731
+    F, _ = assign_poles(row.A.T, row.C.T, model.dt, lambda bad: choose(bad.size), good)
+    Lg = F.T
+    At = row.A + Lg @ row.C
+    if not _stable(LTI(At, np.zeros((row.n, 0)), row.C, np.zeros((1, 0)), model.dt), margin, model.dt):
+        raise DesignError("model matching: the unstable poles of the least-order row cannot all be moved by an "
+                          "updating factor (an unobservable unstable mode of [Q_i Mr_i])")
+    full = LTI(At, row.B + Lg @ row.D, row.C, row.D, model.dt)
+    q = Q0.m
+    return _minimal(full[:, :q], atol), LTI(At, Lg, row.C, np.ones((1, 1)), model.dt)
+
+
+def _updating_row(eq: _Equations, Mi: LTI, top: int, mm_tol: float, i: int, low0: float):
+    """``(Q_i, m_i, ν)``: the least ν with ``Q_i Ge = m_i [0 0 Mr_i]``, both over ν chosen stable poles."""
+    model, low = eq.model, low0
+    for nu in range(top + 1):
+        den = np.asarray(eq.choose(nu), complex) if nu else np.zeros(0, complex)
+        A, C, lam, tgt, Phi, E = eq.sample(Mi, den)
+        nb, nq = Phi.shape[1], Phi.shape[1] * eq.q
+        Lm = -np.einsum("kj,kc->kcj", Phi, tgt)
+        L = np.concatenate([E.reshape(lam.size, eq.cols.size, -1), Lm], axis=2).reshape(lam.size * eq.cols.size, -1)
+        Z, s = _null(L, mm_tol)
+        low = min(low, s)
+        if Z.shape[1]:
+            Zn = Z / np.linalg.norm(Z, axis=0)
+            _, sm, Wt = np.linalg.svd(Zn[nq:], full_matrices=False)
+            if sm.size and sm[0] > 1e-6:  # the null vector with the largest m_i part (m_i = 0 is no solution)
+                x = Zn @ Wt[0]
+                X, xm = x[:nq].reshape(nb, eq.q), x[nq:]
+                return (LTI(A, X[:-1], C, X[-1:], model.dt), LTI(A, xm[:-1, None], C, xm[-1:, None], model.dt), nu)
+    raise DesignError(f"residual {i + 1}: no stable proper Q_i and m_i ≠ 0 with up to {top} poles give Q_i Ge = "
+                      f"[0 0 m_i Mr_i] (smallest relative residual {low:.3g} > mm_tol = {mm_tol:g}): the reference "
+                      f"row is not achievable (pass a larger max_degree)")
+
+
+def _grid_points(model: FDIModel, systems) -> np.ndarray:
+    """A grid over the model's and the systems' pole scales, leaving out scales below 1e-8 of the
+    largest: those are modes of a non-minimal product realisation cancelled only to rounding
+    (an integrator of Gf that a row cancels), whose values near λ = 0 are rounding noise."""
+    poles = np.concatenate([np.zeros(0, complex)] + [np.asarray(s.poles(), complex) for s in systems if s.n])
+    scale = np.abs(np.log(np.where(poles == 0, 1.0, poles))) / model.dt if model.dt else np.abs(poles)
+    keep = scale >= 1e-8 * max(float(np.max(scale, initial=0.0)), 1e-300)
+    omega = frequency_grid([model.lti()], num=200, poles=poles[keep])
+    lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
+    # and the points next to a pole (λ = 0 beside an integrator cancelled to rounding evaluates
+    # to a finite but meaningless value)
+    dist = np.min(np.abs(lam[:, None] - poles[None, :]), axis=1, initial=np.inf) if poles.size else np.inf
+    return lam[dist > 1e-6 * np.maximum(1.0, np.abs(lam))]
+
+
+def _peak(model: FDIModel, sys: LTI) -> float:
+    """Grid peak of ``||sys(λ)||`` (finite points only)."""
+    V = _values(sys, _grid_points(model, [sys]))
+    V = V[np.all(np.isfinite(V), axis=(1, 2))]
+    return float(np.max(np.linalg.norm(V, 2, axis=(1, 2)), initial=0.0))
+
+
+def _matching_error(model: FDIModel, gen: ResidualGenerator, MMr: LTI) -> float:
+    """Largest over the rows of the grid peak of ``|Rf_i − (M Mr)_i|`` relative to the peak of
+    ``|(M Mr)_i|`` (a grid of its own; row by row, so that a row of small gain is judged too)."""
+    lam = _grid_points(model, [MMr, gen.Q])
+    T = _values(MMr, lam)
+    H = _values(gen.Rf, lam) - T
+    ok = np.all(np.isfinite(H), axis=(1, 2))
+    num = np.max(np.linalg.norm(H[ok], 2, axis=2), axis=0, initial=0.0)
+    top = np.max(np.linalg.norm(T[ok], 2, axis=2), axis=0, initial=0.0)
+    return float(np.max(num / np.maximum(top, 1e-300)))
 
 
 def _markov_gain(m: LTI) -> float:
