@@ -140,7 +140,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
                               f"updating factor M makes M Mr stable) or a stable reference")
         top = model.n + Mi.n + 1 if max_degree is None else int(max_degree)
         Q0, low = _least_order_row(eq, Mi, top, mm_tol, atol)
-        if Q0 is not None and _stable(Q0, margin, model.dt):
+        if Q0 is not None and _stable(Q0, margin, model.dt) and _stable(Mi, margin, model.dt):
             rows.append(Q0), ms.append(LTI.static(np.ones((1, 1)), model.dt))
             methods.append("least order"), degs.append(0)
         elif updating and Q0 is not None:
