@@ -317,3 +317,46 @@ def test_model_detection_refusals():
         approximate_model_detection_bank(models, rdim=0)
     with pytest.raises(DesignError, match="has 1 outputs"):
         approximate_model_detection_bank([stable, FDIModel.from_matrices([[-1.0]], [[1.0]], [[1.0]], name="siso")])
+
+
+def _fr(A, B, C, D, lam):
+    """``C (λI − A)^{-1} B + D`` by numpy solves (independent of the package's LTI code)."""
+    n = np.shape(A)[0]
+    return np.array([D + (C @ np.linalg.solve(l * np.eye(n) - A, B) if n else 0.0) for l in lam])
+
+
+def test_emdsyn_bank_is_normalised_to_unit_nearest_distance():
+    """emdsyn's default (normalize = false): filter i is scaled so that its smallest distance to
+    another model is 1 — the normalised internal form, the other models being the faults filter i
+    must see. MDperf is the distance mapping of the returned filters: zero diagonal, off-diagonal
+    row minimum 1. (Before, the filters were returned unscaled and MDperf rows scaled to maximum 1,
+    so a filter's gains and its MDperf row disagreed.) Judged by numpy frequency responses of
+    Q_i [Gu_j; I] on a dense grid: the grid peak is at most the H∞ norm, and within 1e-3 of it (the
+    peaks of these first/second-order responses are flat to that on 2000 log points per 9 decades)."""
+    k = 14.0
+    models = [_actuator(x) for x in (k, 0.5 * k, 10 * k, 0.01 * k)]
+    bank = model_detection_bank(models, sdeg=-15.0, poles=[-20.0], atol=1e-10)
+    perf = np.array(bank.info["MDperf"])
+    off = ~np.eye(4, dtype=bool)
+    assert np.allclose([perf[i, off[i]].min() for i in range(4)], 1.0, rtol=1e-12)
+    assert np.max(np.abs(np.diag(perf))) < 1e-7
+    assert np.allclose(np.array(bank.info["MDperf_abs"]) / np.array(bank.info["beta"])[:, None], perf)
+    lam = 1j * np.logspace(-4, 5, 2000)
+    for i, g in enumerate(bank.members):
+        Qv = _fr(g.Q.A, g.Q.B, g.Q.C, g.Q.D, lam)
+        for j, mj in enumerate(models):
+            Gj = np.concatenate([_fr(mj.A, mj.Bu, mj.C, mj.Du, lam), np.ones((lam.size, 1, 1))], axis=1)
+            peak = np.max(np.abs(Qv @ Gj))
+            if i == j:
+                assert peak < 1e-7
+            else:
+                assert perf[i, j] * (1 - 1e-3) <= peak <= perf[i, j] * (1 + 1e-9)
+
+
+def test_emdsyn_refuses_unstable_models_and_bad_atol():
+    k = 14.0
+    stable, unstable = _actuator(k), FDIModel.from_matrices([[1.0]], [[1.0]], [[1.0]], name="unstable")
+    with pytest.raises(DesignError, match="not stable"):
+        model_detection_bank([stable, unstable])
+    with pytest.raises(DesignError, match="atol"):
+        model_detection_bank([stable, _actuator(2.0)], atol=-1.0)

@@ -86,7 +86,7 @@ from .postconditions import DEC_TOL, _nrm, _values, check_generator
 @single_blas_thread
 def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: float | None = None,
                                normalize: str = "dcgain", reltol: float = 1e-4, smarg: float | None = None,
-                               dec_tol: float = DEC_TOL) -> ResidualGenerator:
+                               dec_tol: float = DEC_TOL, atol: float = 0.0) -> ResidualGenerator:
     """H∞ or H2 optimal approximate model matching: ``min ||Q [Gf Gw; 0 0] − [Mr 0]||`` with ``Q [Gu Gd; I 0] = 0``.
 
     Parameters
@@ -108,6 +108,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         its feasible level is within ``1 + reltol`` of its infeasible one.
     smarg, dec_tol : float, optional
         Stability margin and decoupling tolerance of the post-conditions (:mod:`.postconditions`).
+    atol : float
+        Absolute rank tolerance (Varga's ``atol``), passed to the null-space basis
+        (:func:`~fmu_fdi.design.nullspace.nullspace_design`) and to the minimal realisations of
+        Mr, of the reduced system and of the filter (SLICOT's default when 0).
 
     Returns
     -------
@@ -137,15 +141,17 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         raise DesignError(f"normalize must be 'dcgain' or 'gain', got {normalize!r}")
     if not (0 < reltol < 1):
         raise DesignError(f"reltol must lie in (0, 1), got {reltol!r}")
-    Mr = reference(model, Mr)
+    if not (np.isfinite(atol) and atol >= 0):
+        raise DesignError(f"atol must be a finite non-negative number, got {atol!r}")
+    Mr = reference(model, Mr, atol=atol)
     dt = model.dt
     sdeg = -1.0 if sdeg is None else float(sdeg)
     if not dt and not (np.isfinite(sdeg) and sdeg < 0):
         raise DesignError(f"sdeg must be negative (the pole of the updating factor M), got {sdeg!r}")
-    Q0, G1 = reduced_system(model)
+    Q0, G1 = reduced_system(model, atol)
     F = hstack([Mr, LTI.zero(Mr.p, model.nw, dt)]) if model.nw else Mr
     a = -float(sdeg)
-    Gh, Phi, K, dropped, left = interactor(G1, a)
+    Gh, Phi, K, dropped, left = interactor(G1, a, atol)
     # continuous H2 with an error feedthrough no filter cancels (D_F outside the row space of
     # Ĝ's feedthrough): every error has infinite H2 norm. As Varga's ammsyn does, the reference
     # is updated by the low-pass m = a/(s + a), which enters M (Kb = 1)
@@ -192,7 +198,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         * (scale * _mk(lam, a, K, dt))[:, None, None]
     fv, mfv = _values(fnm, lam), _values(MF, lam)
     size = max(float(np.nanmax(_nrm(mfv))), float(np.nanmax(_nrm(designed))), 1e-300)
-    for Q in (Qfull.minreal(), Qfull):
+    for Q in (Qfull.minreal(atol if atol > 0 else None), Qfull):
         shipped = np.einsum("kij,kjl->kil", _values(Q, lam), fv) - mfv
         ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
         gap = float(np.max(_nrm(shipped[ok] - designed[ok])))
@@ -231,7 +237,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
 
 
 # ----------------------------------------------------------------------------- inputs
-def reference(model: FDIModel, Mr, stable: bool = True, minimal: bool = True) -> LTI:
+def reference(model: FDIModel, Mr, stable: bool = True, minimal: bool = True, atol: float = 0.0) -> LTI:
     """Mr as an LTI in the model's time base, validated (shape, proper, and stable unless
     ``stable=False``), minimal unless ``minimal=False``; a matrix is a constant reference."""
     if isinstance(Mr, (np.ndarray, list, tuple, int, float)):
@@ -254,7 +260,7 @@ def reference(model: FDIModel, Mr, stable: bool = True, minimal: bool = True) ->
         raise DesignError(f"Mr has sample time {Mr.dt} but the model has {model.dt}")
     Mr = LTI(Mr.A, Mr.B, Mr.C, Mr.D, model.dt)
     if Mr.n and minimal:
-        Mr = Mr.minreal()
+        Mr = Mr.minreal(atol if atol > 0 else None)
         if stable and not Mr.is_stable():
             bad = Mr.poles()
             worst = float(np.max(np.abs(bad))) if model.dt else float(np.max(bad.real))
@@ -271,7 +277,7 @@ def fault_noise_map(model: FDIModel) -> LTI:
     return Ge[:, cols]
 
 
-def reduced_system(model: FDIModel) -> tuple[LTI, LTI]:
+def reduced_system(model: FDIModel, atol: float = 0.0) -> tuple[LTI, LTI]:
     """``(Q0, G1)``: a proper stable left null-space basis of ``[Gu Gd; I 0]`` and ``Q0 [Gf Gw; 0 0]``."""
     dt = model.dt
     if model.nd == 0 and (model.nu == 0 or model.lti("u").is_stable()):
@@ -296,7 +302,7 @@ def reduced_system(model: FDIModel) -> tuple[LTI, LTI]:
     from .nullspace import nullspace_design
 
     try:
-        basis = nullspace_design(model, rdim="all", noise="ignore", FDtol=0.0)
+        basis = nullspace_design(model, rdim="all", noise="ignore", FDtol=0.0, atol=atol)
     except DesignError as exc:
         raise DesignError(f"approximate_model_matching: no residual decouples u and d: {exc}") from None
     Q0 = basis.Q
@@ -308,7 +314,7 @@ def reduced_system(model: FDIModel) -> tuple[LTI, LTI]:
 
 
 # ------------------------------------------------------------------- regularisation
-def interactor(G1: LTI, a: float) -> tuple[LTI, LTI, int, int, int]:
+def interactor(G1: LTI, a: float, atol: float = 0.0) -> tuple[LTI, LTI, int, int, int]:
     """Silverman's structure algorithm: ``(Ĝ, Φ, K, dropped, left)`` with ``Φ G1 = m^K Ĝ``.
 
     ``Ĝ`` is proper with a full-row-rank feedthrough (no zeros at infinity), ``Φ`` stable and
@@ -333,7 +339,7 @@ def interactor(G1: LTI, a: float) -> tuple[LTI, LTI, int, int, int]:
     the interactor of W. A. Wolovich and P. L. Falb, SIAM J. Control 14, 1976.
     """
     dt = G1.dt
-    G = G1.minreal(job="C") if G1.n else G1
+    G = G1.minreal(atol if atol > 0 else None, job="C") if G1.n else G1
     if G.n:
         G, _ = G.balanced()
     w0 = 1.0 / np.maximum(np.linalg.norm(np.hstack([G.C, G.D]), axis=1), 1e-300)
@@ -348,13 +354,13 @@ def interactor(G1: LTI, a: float) -> tuple[LTI, LTI, int, int, int]:
         # relative tolerance serves every step: D is rank-deficient below 1e-9·||B||, a row
         # combination is identically zero below 1e-9 (its c, controllable realisation)
         U, sv, _ = np.linalg.svd(D) if D.size else (np.eye(D.shape[0]), np.zeros(0), None)
-        r = int(np.sum(sv > 1e-9 * max(nB, 1.0)))
+        r = int(np.sum(sv > max(1e-9 * max(nB, 1.0), atol)))
         if r == D.shape[0]:
             break
         Ct, Dt = U.T @ C, U.T @ D
         Cb = Ct[r:]
         U2, s2, _ = np.linalg.svd(Cb) if Cb.size else (np.eye(Cb.shape[0]), np.zeros(0), None)
-        rc = int(np.sum(s2 > 1e-9))
+        rc = int(np.sum(s2 > max(1e-9, atol)))
         dropped += Cb.shape[0] - rc
         T = np.vstack([U.T[:r], (U2.T @ U.T[r:])[:rc]])
         Cm = (U2.T @ Cb)[:rc]

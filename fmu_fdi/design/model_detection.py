@@ -57,7 +57,7 @@ from .nullspace import nullspace_design
 from .postconditions import DEC_TOL, check_generator
 
 
-def _with_model_faults(models: Sequence[FDIModel], i: int) -> FDIModel:
+def _with_model_faults(models: Sequence[FDIModel], i: int, atol: float = 0.0) -> FDIModel:
     base = models[i]
     n0 = base.n
     blocks_A, blocks_B, blocks_C, faults = [base.A], [], [base.C], []
@@ -66,7 +66,8 @@ def _with_model_faults(models: Sequence[FDIModel], i: int) -> FDIModel:
         if j == i:
             continue
         diff = LTI(np.block([[base.A, np.zeros((n0, mj.n))], [np.zeros((mj.n, n0)), mj.A]]),
-                   np.vstack([-base.Bu, mj.Bu]), np.hstack([base.C, mj.C]), mj.Du - base.Du, base.dt).minreal()
+                   np.vstack([-base.Bu, mj.Bu]), np.hstack([base.C, mj.C]), mj.Du - base.Du,
+                   base.dt).minreal(atol if atol > 0 else None)
         blocks_A.append(diff.A)
         blocks_C.append(diff.C)
         blocks_B.append((k, diff))
@@ -87,47 +88,64 @@ def _with_model_faults(models: Sequence[FDIModel], i: int) -> FDIModel:
 
 @single_blas_thread
 def model_detection_bank(models: Sequence[FDIModel], *, poles=None, sdeg=None, FDtol: float = 1e-4,
-                         **kwargs) -> ResidualBank:
+                         atol: float = 0.0, **kwargs) -> ResidualBank:
     """A bank of least-order filters, filter i exact for model i and sensitive to all others.
 
     Parameters
     ----------
     models : sequence of FDIModel
-        The model set: same outputs, known inputs and sample time; unknown inputs d of each
-        model are decoupled by its own filter; faults and noise of the models are ignored.
+        The model set: same outputs, known inputs and sample time, each stable (the distances
+        are H∞ norms); unknown inputs d of each model are decoupled by its own filter; faults
+        and noise of the models are ignored.
     poles, sdeg, FDtol, **kwargs
         Passed to :func:`~fmu_fdi.design.nullspace.nullspace_design` for each filter.
+    atol : float
+        Absolute rank tolerance (Varga's ``atol``): passed to ``nullspace_design`` and to the
+        minimal realisations of the model differences ``Gu_j − Gu_i``.
 
     Returns
     -------
     ResidualBank
-        Designed against ``models[0]``; ``info['MDperf']`` the distance-mapping matrix
-        (rows scaled to max 1), ``info['MDperf_abs']`` unscaled, ``info['models']`` the names.
+        Designed against ``models[0]``. Each filter is normalised as ``emdsyn`` does by default
+        (the normalised internal form: its smallest required "fault" gain — the distance to
+        the nearest other model — is 1): ``Q_i ← Q_i / β_i``, ``β_i = min_{j≠i} ||R_ij||∞``.
+        ``info['MDperf']``: the distance mapping ``||Q_i [Gu_j; I]||∞`` of the returned
+        filters (zero diagonal, off-diagonal row minimum 1); ``info['MDperf_abs']`` the same
+        before the normalisation (filters as designed); ``info['beta']`` the β_i divided out;
+        ``info['models']`` the names.
+
+    Raises
+    ------
+    DesignError
+        Fewer than two models, models that do not form a set (outputs, inputs, sample time,
+        unique names), an unstable model, or a filter that cannot be designed.
     """
-    models = list(models)
-    if len(models) < 2:
-        raise DesignError("model detection needs at least two models")
-    m0 = models[0]
-    for mj in models[1:]:
-        if (mj.ny, mj.nu, abs(mj.dt - m0.dt) < 1e-12) != (m0.ny, m0.nu, True):
-            raise DesignError(f"model '{mj.name}' has other outputs/inputs/sample time than '{m0.name}'")
+    if not (np.isfinite(atol) and atol >= 0):
+        raise DesignError(f"atol must be a finite non-negative number, got {atol!r}")
+    models = _check_set(models)
     bare = [mj._replace(faults=[], Bw=np.zeros((mj.n, 0)), Dw=np.zeros((mj.ny, 0)), w_names=[]) for mj in models]
-    members = []
+    umaps = [_u_map(mj) for mj in bare]
+    members, perf_abs, betas = [], [], []
     for i in range(len(bare)):
-        mi = _with_model_faults(bare, i)
+        mi = _with_model_faults(bare, i, atol)
         try:
-            g = nullspace_design(mi, rdim=1, poles=poles, sdeg=sdeg, FDtol=FDtol, **kwargs)
+            g = nullspace_design(mi, rdim=1, poles=poles, sdeg=sdeg, FDtol=FDtol, atol=atol, **kwargs)
         except DesignError as exc:
-            raise DesignError(f"filter {i + 1} (model '{models[i].name}'): {exc}") from None
-        members.append(ResidualGenerator(g.Q, bare[0], "model_detection", info=g.info))
-    perf = np.zeros((len(bare), len(bare)))
-    for i, g in enumerate(members):
-        for j, mj in enumerate(bare):
-            Gj = mj.augmented()[:, np.arange(mj.nu)]
-            perf[i, j] = (g.Q @ Gj).minreal().hinfnorm()[0]
-    scaled = perf / np.maximum(perf.max(axis=1, keepdims=True), np.finfo(float).tiny)
-    return ResidualBank(members, "model_detection", info={"MDperf": scaled.tolist(), "MDperf_abs": perf.tolist(),
-                                                            "models": [mj.name for mj in models]})
+            msg = str(exc).replace("fault 'model_", "model '")  # the fault channels stand for the other models
+            raise type(exc)(f"filter {i + 1} (model '{models[i].name}'): {msg}") from None
+        row = np.array([_gain(g.Q @ Gj) for Gj in umaps])
+        beta = float(np.min(np.delete(row, i)))
+        if not (np.isfinite(beta) and beta > 0):
+            raise DesignError(f"filter {i + 1} (model '{models[i].name}'): the nearest other model has distance "
+                              f"β = {beta:.3g}: it cannot be told apart")
+        info = dict(g.info, scale=1.0 / beta)
+        members.append(ResidualGenerator(g.Q * (1.0 / beta), bare[0], "model_detection", info=info))
+        perf_abs.append(row)
+        betas.append(beta)
+    perf_abs = np.array(perf_abs)
+    perf = perf_abs / np.array(betas)[:, None]  # ||(Q_i / β_i) G_j|| = ||Q_i G_j|| / β_i
+    return ResidualBank(members, "model_detection", info={"MDperf": perf.tolist(), "MDperf_abs": perf_abs.tolist(),
+                                                            "beta": betas, "models": [mj.name for mj in models]})
 
 
 def nu_gap_siso(G1: LTI, G2: LTI, omega) -> float:

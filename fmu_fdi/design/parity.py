@@ -54,7 +54,7 @@ from .postconditions import check_generator
 @single_blas_thread
 def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None = None, rdim: int | None = None,
                  robust: str | bool = "auto", FDtol: float = 1e-4, tol: float | None = None,
-                 seed: int = 0) -> ResidualGenerator:
+                 seed: int = 0, atol: float = 0.0) -> ResidualGenerator:
     """Finite-memory parity-space residual generator of order ``order``.
 
     Parameters
@@ -80,6 +80,10 @@ def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None 
         a DesignError when exact decoupling is impossible at this order.
     FDtol, tol, seed
         Detectability threshold, rank tolerance, seed of the combination search.
+    atol : float
+        Absolute rank tolerance (Varga's ``atol``): singular values at or below
+        ``max(tol·σ_max, atol)`` of the column-normalised ``[O_s H_d,s]`` (exact design) and of
+        ``O_s`` and ``Z H_f,s`` (robust design) count as zero.
 
     Returns
     -------
@@ -94,6 +98,8 @@ def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None 
         raise DesignError(f"robust must be 'auto', True or False, got {robust!r}")
     if rdim is not None and (not isinstance(rdim, (int, np.integer)) or rdim < 1):
         raise DesignError(f"rdim must be a positive integer, got {rdim!r}")
+    if not (np.isfinite(atol) and atol >= 0):
+        raise DesignError(f"atol must be a finite non-negative number, got {atol!r}")
     if not model.is_discrete:
         if Ts is None:
             raise DesignError("parity_space is a finite-memory (discrete-time) design: pass Ts=... to sample "
@@ -104,7 +110,7 @@ def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None 
     if order is None:
         for s in range(model.n + 2):
             try:
-                return parity_space(model, s, rdim=rdim, robust=False, FDtol=FDtol, tol=tol, seed=seed)
+                return parity_space(model, s, rdim=rdim, robust=False, FDtol=FDtol, tol=tol, seed=seed, atol=atol)
             except DesignError:
                 continue
         if robust is False:
@@ -113,7 +119,7 @@ def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None 
     s = int(order)
     data = ParityData(model, reduce=False)  # annihilate the whole state: no initial-state transient
     if robust is not True:
-        N = data.parity_vectors(s, tol)
+        N = data.parity_vectors(s, tol, atol)
         rows = [data.row(v, s) for v in N]
         if rows:
             basis = NullspaceBasis(rows, data.rho, model.dt, model.ny, model.nu, 0)
@@ -138,7 +144,7 @@ def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None 
                 raise DesignError(f"no parity relation of order {s} decouples the state and d: "
                                   f"[O_s H_d,s] has full row rank; increase the order or allow robust=True")
             raise undetectable_error(model, seen, what=f"d is decoupled by parity relations of order {s}")
-    return _robust(model, data, s, 1 if rdim is None else int(rdim), tol)
+    return _robust(model, data, s, 1 if rdim is None else int(rdim), tol, atol)
 
 
 def _fault_to_noise(model: FDIModel, data: ParityData, N: np.ndarray, s: int, rdim: int,
@@ -179,7 +185,7 @@ def _fir_generator(model: FDIModel, data: ParityData, rows, s: int) -> ResidualG
     return ResidualGenerator(Q, model, "parity")
 
 
-def _robust(model: FDIModel, data: ParityData, s: int, rdim: int, tol) -> ResidualGenerator:
+def _robust(model: FDIModel, data: ParityData, s: int, rdim: int, tol, atol: float = 0.0) -> ResidualGenerator:
     if not model.faults:
         raise DesignError("the robust parity vector maximises fault sensitivity: the model has no faults")
     sl = model.group_slices()
@@ -188,13 +194,13 @@ def _robust(model: FDIModel, data: ParityData, s: int, rdim: int, tol) -> Residu
     Hdw = (_block_toeplitz(data.markov(G.B[:, dw], G.D[:, dw], s), s) if dw.size
            else np.zeros(((s + 1) * model.ny, 0)))
     Hf = _block_toeplitz(data.markov(G.B[:, sl["f"]], G.D[:, sl["f"]], s), s)
-    Z = left_null(data.O(s), tol) if data.n else np.eye((s + 1) * model.ny)
+    Z = left_null(data.O(s), tol, atol) if data.n else np.eye((s + 1) * model.ny)
     if Z.shape[0] == 0:
         raise DesignError(f"no parity vector of order {s} removes the state (O_s has full row rank): increase "
                           f"the order above {s}")
     Wf = Z @ Hf
     U, sv, _ = sla.svd(Wf, full_matrices=False)
-    r = int(np.sum(sv > rank_tol(sv, Wf.shape, None)))
+    r = int(np.sum(sv > rank_tol(sv, Wf.shape, None, atol)))
     if r == 0:
         raise DesignError(f"no fault reaches the parity space of order {s}: Z H_f,s = 0 (increase the order)")
     T = U[:, :r] / sv[:r]  # c = x T^T makes ||c Z H_f||^2 = ||x||^2

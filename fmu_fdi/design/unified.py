@@ -27,7 +27,7 @@ from .postconditions import check_generator
 
 
 @single_blas_thread
-def unified_observer(model: FDIModel, poles=None) -> ResidualGenerator:
+def unified_observer(model: FDIModel, poles=None, *, atol: float = 0.0) -> ResidualGenerator:
     """Ding's unified H−/H∞ (and H∞/H∞, H2/H2) optimal residual generator.
 
     Parameters
@@ -38,6 +38,9 @@ def unified_observer(model: FDIModel, poles=None) -> ResidualGenerator:
     poles : array_like, optional
         Poles of the coprime factorisation (as in :func:`~fmu_fdi.design.coprime.factorized`);
         the optimum does not depend on them.
+    atol : float
+        Absolute rank tolerance (Varga's ``atol``) of the minimal realisations of the noise
+        response and of the filter (SLICOT's default relative tolerance when 0).
 
     Returns
     -------
@@ -50,6 +53,9 @@ def unified_observer(model: FDIModel, poles=None) -> ResidualGenerator:
         No noise inputs, unknown inputs present, or the noise response lacks full row rank /
         has zeros on the stability boundary (the co-outer factor is then not invertible).
     """
+    if not (np.isfinite(atol) and atol >= 0):
+        raise DesignError(f"atol must be a finite non-negative number, got {atol!r}")
+    tol = atol if atol > 0 else None
     if not model.nw:
         raise DesignError("the unified solution trades fault sensitivity against noise: the model has no noise "
                           "inputs w")
@@ -58,13 +64,13 @@ def unified_observer(model: FDIModel, poles=None) -> ResidualGenerator:
                           f"model without d (or treat d as noise with with_disturbances)")
     Q0 = factorized(model, poles).Q
     sl = model.group_slices()
-    Rw0 = (Q0 @ model.augmented())[:, sl["w"]].minreal()
+    Rw0 = (Q0 @ model.augmented())[:, sl["w"]].minreal(tol)
     fac = coouter_inverse(Rw0)
     if fac is None:
         raise DesignError("the noise response M̂⁻¹-factor N̂w has no invertible co-outer factor: its feedthrough "
                           "must have full row rank (measurement noise on every output, Dw of full row rank) and "
                           "no zeros on the stability boundary")
-    Q = (fac[0] @ Q0).minreal()
+    Q = (fac[0] @ Q0).minreal(tol)
     gen = ResidualGenerator(Q, model, "unified")
     check_generator(gen, decouple=("u",), faults=[], block=True)
     Rw = gen.Rw
