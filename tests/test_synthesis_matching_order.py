@@ -145,3 +145,70 @@ def test_options_are_validated_as_design_errors():
             model_matching(model, model.lti("f"), **kw)
     with pytest.raises(DesignError, match="row 2 of Mr is zero"):
         model_matching(model, np.array([[1.0, 0.0], [0.0, 0.0]]))
+
+
+def _random_model(seed, unstable=False):
+    """Seeded random model: n 1-6, p 2-4, up to two u, d of rank < p, one or two faults, every
+    third one discrete (dt = 0.1); stable, or with poles up to 1 right of the axis."""
+    rng = np.random.default_rng(seed)
+    n, p = int(rng.integers(1, 7)), int(rng.integers(2, 5))
+    mu, md, mf = int(rng.integers(0, 3)), int(rng.integers(0, p - 1)), int(rng.integers(1, 3))
+    dt = 0.1 if seed % 3 == 0 else 0.0
+    A = rng.normal(size=(n, n))
+    shift = -rng.uniform(0.1, 1.0) if unstable else rng.uniform(0.1, 1.0)
+    A -= (np.max(np.linalg.eigvals(A).real) + shift) * np.eye(n)
+    if dt:
+        import scipy.linalg as sla
+
+        A = sla.expm(A * dt)
+    Bf, Df = rng.normal(size=(n, mf)), rng.normal(size=(p, mf)) * (seed % 2)
+    faults = [component_fault(f"f{j}", Bf[:, [j]], Df[:, [j]]) for j in range(mf)]
+    return FDIModel.from_matrices(A, rng.normal(size=(n, mu)), rng.normal(size=(p, n)), Bd=rng.normal(size=(n, md)),
+                                  faults=faults, dt=dt)
+
+
+def _points(model):
+    w = np.logspace(-2, 1.4, 30)  # below the Nyquist frequency 31.4 rad/s of dt = 0.1
+    return np.exp(1j * w * model.dt) if model.dt else 1j * w
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_random_references_are_matched_at_no_higher_order(seed):
+    """Reference = the fault response of a least-order detection row Q* (any admissible row):
+    model_matching must match it exactly by a row of order ≤ order(Q*) (least order), judged
+    by numpy evaluation of Q* [Gf; 0] and Q [Gu Gd; I 0], Q [Gf; 0]."""
+    from fmu_fdi import nullspace_design
+
+    model = _random_model(seed)
+    try:
+        ref = nullspace_design(model, rdim=1)
+    except DesignError:
+        pytest.skip("no detection row to build a reference from")
+    lam = _points(model)
+    _, Gf = plant_fr(model, lam)
+    vals = sys_fr(ref.Q, lam) @ Gf
+    gen = model_matching(model, ref.Rf)
+    assert gen.info["row_orders"][0] <= ref.Q.n
+    dec, err = judge(model, gen, vals, lam)
+    assert dec < TOL and np.all(err < TOL), (dec, err)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_unstable_plants_get_a_stable_updating_factor(seed):
+    """Unstable plants: the reference Q* [Gf; 0] of a detection row is unstable, so updating=True
+    must return a stable Q and a stable (minimal) diagonal M with Q [Gf; 0] = M Mr, judged by numpy."""
+    from fmu_fdi import nullspace_design
+
+    model = _random_model(seed, unstable=True)
+    try:
+        ref = nullspace_design(model, rdim=1)
+    except DesignError:
+        pytest.skip("no detection row to build a reference from")
+    gen = model_matching(model, ref.Rf, updating=True)
+    M = gen.info["M"]
+    assert gen.Q.is_stable() and M.is_stable() and M.minreal().n == M.n
+    lam = _points(model)
+    _, Gf = plant_fr(model, lam)
+    vals = sys_fr(M, lam) @ sys_fr(ref.Q, lam) @ Gf
+    dec, err = judge(model, gen, vals, lam)
+    assert dec < TOL and np.all(err < TOL), (dec, err)

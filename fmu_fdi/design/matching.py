@@ -47,6 +47,8 @@ The approximate problem (AMMP, H∞/H2 optimal) is :mod:`.approximate_matching`.
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import scipy.linalg as sla
 
@@ -120,7 +122,13 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
         raise DesignError(f"max_degree must be a non-negative integer, got {max_degree!r}")
     Mr = reference(model, Mr, stable=False, minimal=False)
     check_poles(poles, model.dt)
-    choose = pole_chooser(model, poles, sdeg)
+    chooser = pole_chooser(model, poles, sdeg)
+
+    def choose(count):  # "poles not used" is no news for the internal reference denominators
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            return chooser(count)
+
     margin = default_smarg(model.dt) if smarg is None else float(smarg)
     eq = _Equations(model, choose)
     rows, ms, methods, degs = [], [], [], []
@@ -310,7 +318,7 @@ def _coprime_row(model: FDIModel, Q0: LTI, Mi: LTI, choose, margin: float, atol:
                           "updating factor (an unobservable unstable mode of [Q_i Mr_i])")
     full = LTI(At, row.B + Lg @ row.D, row.C, row.D, model.dt)
     q = Q0.m
-    return _minimal(full[:, :q], atol), LTI(At, Lg, row.C, np.ones((1, 1)), model.dt)
+    return _minimal(full[:, :q], atol), _minimal(LTI(At, Lg, row.C, np.ones((1, 1)), model.dt), atol)
 
 
 def _updating_row(eq: _Equations, Mi: LTI, top: int, mm_tol: float, i: int, low0: float):
