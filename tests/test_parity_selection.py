@@ -6,6 +6,7 @@ fault-to-noise ratio ``|r_ss| / std(r)`` (a generalised eigenvalue problem on th
 space): properties any such choice must have, on a plant with two redundant sensors.
 """
 import numpy as np
+import pytest
 import scipy.linalg as sla
 
 from fmu_fdi import FDIModel, sensor_fault
@@ -60,3 +61,20 @@ def test_choice_independent_of_state_units_and_noise_white():
     assert abs(ra[0] - rb[0]) <= 1e-9 * ra[0] and max(ra[1], rb[1]) <= 1e-6 * ra[0]
     # generalised eigenvectors: unit noise variance per sample, uncorrelated residuals
     assert np.allclose(_noise_cov(a), np.eye(2), atol=1e-9)
+
+
+def test_atol_is_the_absolute_rank_tolerance():
+    """atol (Varga's absolute rank tolerance) reaches the parity-vector rank decisions: a tiny one
+    changes nothing; one above every singular value of the column-normalised [O_s H_d,s] (≤ its
+    column count) declares the whole space "parity" and the design is refused (exact: its u
+    leakage fails the post-condition; robust: no fault reaches a zero-dimensional parity space)."""
+    from fmu_fdi import DesignError
+
+    a, b = parity_space(_plant(), S, rdim=1), parity_space(_plant(), S, rdim=1, atol=1e-12)
+    assert np.allclose(a.Q.D, b.Q.D) and np.allclose(a.Q.C, b.Q.C)
+    with pytest.raises(DesignError, match="decoupling"):
+        parity_space(_plant(), S, robust=False, atol=1e6)
+    with pytest.raises(DesignError, match="no fault reaches"):
+        parity_space(_plant(), S, robust=True, atol=1e6)
+    with pytest.raises(DesignError, match="atol"):
+        parity_space(_plant(), S, atol=-1.0)

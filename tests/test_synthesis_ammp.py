@@ -419,3 +419,13 @@ def test_nearly_exact_ill_conditioned_problem_is_refused_not_returned():
     model, Mr = _random_case(7)
     with pytest.raises(DesignError, match="lost accuracy.*gain of Y"):
         approximate_model_matching(model, Mr)
+
+
+def test_atol_accepted_and_validated():
+    """A tiny absolute rank tolerance leaves Example 5.14's optimum unchanged (the same rank
+    decisions); a negative one is a DesignError, not a ValueError."""
+    a = approximate_model_matching(ex5_14(), MR14, sdeg=-1, normalize="gain", reltol=1e-5)
+    b = approximate_model_matching(ex5_14(), MR14, sdeg=-1, normalize="gain", reltol=1e-5, atol=1e-12)
+    assert b.info["gamma_opt0"] == pytest.approx(a.info["gamma_opt0"], rel=1e-9)
+    with pytest.raises(DesignError, match="atol"):
+        approximate_model_matching(ex5_14(), MR14, atol=-1.0)

@@ -29,3 +29,14 @@ def test_unified_is_coinner_and_dominates_other_designs():
     best = _fault_gains(opt, w)
     for other in (factorized(model), kalman(model, Qw=np.eye(model.nw), Rv=np.eye(model.ny)), nullspace_design(model)):
         assert np.all(_fault_gains(other, w) <= best * (1 + 1e-6))
+
+
+def test_atol_accepted_and_validated():
+    import pytest
+
+    from fmu_fdi import DesignError
+
+    model = linear_model()
+    assert abs(unified_observer(model, atol=1e-12).info["noise_hinf"] - 1.0) < 1e-6
+    with pytest.raises(DesignError, match="atol"):
+        unified_observer(model, atol=-1.0)

@@ -235,7 +235,8 @@ def _null(L: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
     L = np.vstack([L.real, L.imag])
     cn = np.linalg.norm(L, axis=0)
     cn[cn == 0] = 1.0
-    _, sv, Vt = np.linalg.svd(L / cn, full_matrices=True)
+    # thin SVD of the tall system (only V is needed; a full U would be K·cols squared)
+    _, sv, Vt = np.linalg.svd(L / cn, full_matrices=L.shape[0] < L.shape[1])
     sv = np.concatenate([sv, np.zeros(Vt.shape[0] - sv.size)])
     Z = Vt[sv <= tol * sv[0]].T / cn[:, None] if sv[0] > 0 else Vt.T / cn[:, None]
     return Z, float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
