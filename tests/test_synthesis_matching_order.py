@@ -120,6 +120,24 @@ def test_reference_equal_to_fault_channel_gives_identity(dt):
         assert np.all(err < TOL)
 
 
+def test_bank_of_references_and_badly_scaled_rows():
+    """test_emmsyn.jl "bank of two reference models" ``[Gf; Gf]``: Q = [I; I]; and rows of gains
+    1 and 1e-8 side by side (the Xiong-Saif bank row of gain ~1e-8): each row is matched to its
+    own relative accuracy, not to the other rows' scale (Q = diag(1, 1e-8, 1) exactly)."""
+    model = _faults_only()
+    Gf = model.lti("f")
+    lam = 1j * W
+    vals = fr(model.A, model.Bf, model.C, model.Df, lam)
+    gen = model_matching(model, vstack([Gf, Gf]))
+    assert gen.info["row_orders"] == [0] * 6 and np.allclose(gen.Q.D, np.vstack([np.eye(3)] * 2), atol=1e-9)
+    S = np.diag([1.0, 1e-8, 1.0])
+    gen = model_matching(model, LTI.static(S) @ Gf)
+    assert gen.info["row_orders"] == [0, 0, 0]
+    assert np.allclose(gen.Q.D / np.diag(S)[:, None], np.eye(3), atol=1e-9)  # relative to each row's scale
+    _, err = judge(model, gen, S @ vals, lam)
+    assert np.all(err < TOL)
+
+
 def test_unstable_reference_needs_updating_factor():
     """Gf = 1/s, no u, d: Q0 = 1 matches Mr = Gf, but Rf = 1/s is not stable. Without updating a
     clear DesignError; with it, the coprime factor m = s/(s + 1) of the whole row [Q0 Mr] gives

@@ -314,9 +314,13 @@ def _coprime_row(model: FDIModel, Q0: LTI, Mi: LTI, choose, margin: float, atol:
     F, _ = assign_poles(row.A.T, row.C.T, model.dt, lambda bad: choose(bad.size), good)
     Lg = F.T
     At = row.A + Lg @ row.C
-    if not _stable(LTI(At, np.zeros((row.n, 0)), row.C, np.zeros((1, 0)), model.dt), margin, model.dt):
-        raise DesignError("model matching: the unstable poles of the least-order row cannot all be moved by an "
-                          "updating factor (an unobservable unstable mode of [Q_i Mr_i])")
+    eig = np.linalg.eigvals(At) if row.n else np.zeros(0)
+    worst = float(np.max(np.abs(eig) if model.dt else eig.real, initial=-np.inf))
+    if worst >= margin:
+        what = "largest |pole|" if model.dt else "largest Re(pole)"
+        raise DesignError(f"model matching: the updating factor cannot move every pole of the least-order row "
+                          f"[Q_i Mr_i] into the stability region ({what} left = {worst:.6g} ≥ smarg = {margin:.6g}: "
+                          f"an unobservable unstable mode)")
     full = LTI(At, row.B + Lg @ row.D, row.C, row.D, model.dt)
     q = Q0.m
     return _minimal(full[:, :q], atol), _minimal(LTI(At, Lg, row.C, np.ones((1, 1)), model.dt), atol)
