@@ -6,6 +6,8 @@ test/test_emmsyn.jl, and the printed results of the FDITools user's guide (fdito
 Examples 12-14 = book Examples 5.12, 5.13, 5.11). Where no γ value is printed, the optimum is
 checked against an independent bound (a point evaluation or a brute-force optimisation).
 """
+import re
+
 import control as ct
 import numpy as np
 import published as pub
@@ -110,10 +112,38 @@ MR14 = ct.ss(1 / (s + 3))
 MR17 = ct.ss(pub.tfm([[10 / (s + 10), 0], [0, 10 / (s + 10)]], ["f1", "f2"]))
 
 
+def decoupling(gen):
+    """``max_ω ||Q [Gu Gd; I 0]|| / max_ω ||Q|| ||[Gu Gd; I 0]||`` on 400 log points, by numpy solves
+    on the returned Q and the model's matrices (independent of the package's judge, whose figure
+    changed meaning with issue 17: absolute on the normalised form)."""
+    model = gen.model
+    top = np.pi / model.dt if model.dt else 1e4
+    w = np.concatenate([[0.0], np.logspace(-4, np.log10(top), 400)])
+    lam = np.exp(1j * w * model.dt) if model.dt else 1j * w
+    B, D = np.hstack([model.Bu, model.Bd]), np.hstack([model.Du, model.Dd])
+    if B.shape[1] == 0:
+        return 0.0
+
+    def resp(A, B, C, D):
+        if A.shape[0] == 0:
+            return np.broadcast_to(D.astype(complex), (w.size,) + D.shape)
+        X = np.linalg.solve(lam[:, None, None] * np.eye(A.shape[0]) - A, np.broadcast_to(B, (w.size,) + B.shape))
+        return C @ X + D
+
+    G = np.concatenate([resp(model.A, B, model.C, D), np.broadcast_to(np.eye(model.nu, B.shape[1]), (w.size, model.nu,
+                                                                                                      B.shape[1]))], axis=1)
+    Q = resp(gen.Q.A, gen.Q.B, gen.Q.C, gen.Q.D)
+    ok = np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(Q), axis=(1, 2))
+    R = np.linalg.norm(Q[ok] @ G[ok], 2, axis=(1, 2))
+    bound = np.linalg.norm(Q[ok], 2, axis=(1, 2)) * np.linalg.norm(G[ok], 2, axis=(1, 2))
+    return float(R.max() / bound.max())
+
+
 def check_contract(gen, Mr, norm, rel=None):
-    """Decoupling to 1e-9 and the measured error equal to the reported gamma_sub."""
+    """Decoupling to 1e-9 (relative, independent numpy measure) and the measured error equal to the
+    reported gamma_sub."""
     info = gen.info
-    assert info["postconditions"]["decoupling"] < 1e-9
+    assert decoupling(gen) < 1e-9
     err = error_norm(gen, Mr, info["M"], norm)
     # H∞: both are peaks of the same response on refined grids, 1e-5 relative; H2: trapezoid on
     # 1200 log points vs Gauss–Legendre panels, 1e-3 relative
@@ -414,11 +444,18 @@ def test_random_models_keep_the_contract(seed, norms):
 
 
 def test_nearly_exact_ill_conditioned_problem_is_refused_not_returned():
-    """Seed 7 (discrete, n = 29, d present): the optimal Y has gain ~2e5 and the realisation of
-    Q = Y Φ Q0 cannot reproduce the designed error; the design refuses and says why."""
+    """Seed 7 (discrete, n = 29, d present): with the polynomial null-space basis the optimal Y has
+    gain ~2e5 and the realisation of Q = Y Φ Q0 cannot reproduce the designed error; the design
+    must then refuse and say why. (The basis of the issue-17 synthesis core may make it well
+    conditioned: then the returned filter must meet its contract, judged independently.)"""
     model, Mr = _random_case(7)
-    with pytest.raises(DesignError, match="lost accuracy.*gain of Y"):
-        approximate_model_matching(model, Mr)
+    try:
+        gen = approximate_model_matching(model, Mr)
+    except DesignError as exc:
+        assert re.search("lost accuracy.*gain of Y", str(exc))
+    else:
+        check_contract(gen, Mr, "inf")
+        assert gen.info["gamma_sub"] <= Mr.hinfnorm()[0] * (1 + 1e-6)
 
 
 def test_atol_accepted_and_validated():

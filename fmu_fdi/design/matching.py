@@ -138,7 +138,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
         scale = _peak(model, Mr[i, :])
         if not scale > 0:
             raise DesignError(f"row {i + 1} of Mr is zero: the only match is the zero filter, which detects no fault")
-        Mi = _minimal(Mr[i, :] * (1.0 / scale), atol)
+        Mi = _drop_cancelled(_minimal(Mr[i, :] * (1.0 / scale), atol), margin, max(atol, CANCEL_TOL))
         if not updating and not _stable(Mi, margin, model.dt):
             bad = Mi.poles()
             worst, what = (float(np.max(np.abs(bad))), "largest |pole|") if model.dt else \
@@ -188,6 +188,40 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
 def _minimal(sys: LTI, atol: float) -> LTI:
     """Minimal realisation with the absolute rank tolerance ``atol`` (SLICOT's default when 0)."""
     return sys.minreal(tol=atol if atol > 0 else None) if sys.n else sys
+
+
+#: Hankel size (on a reference row of unit peak gain) below which an unstable or marginal mode of
+#: the reference's realisation is a plant mode that the product Q·Ge cancels only to rounding
+#: (a residue ~1e-12 that SLICOT's rank tolerance ~1e-14 keeps), not a pole of the reference
+CANCEL_TOL = 1e-9
+
+
+def _drop_cancelled(sys: LTI, margin: float, tol: float) -> LTI:
+    """``sys`` without the modes outside the stability region whose contribution is negligible.
+
+    Additive stable/unstable decomposition (Varga's ``gsdec``): an ordered real Schur form puts
+    the modes inside the region first, a Sylvester equation ``A11 X − X A22 = −A12`` decouples the
+    blocks, and the unstable part ``(A22, B2, C2)`` is dropped when the largest singular value of
+    its Hankel matrix ``[C2 (A22/ρ)^k] [(A22/ρ)^k B2]`` (ρ = max(1, ||A22||)) is ≤ ``tol``.
+    """
+    n = sys.n
+    if not n or _stable(sys, margin, sys.dt):
+        return sys
+    good = (lambda re, im: np.hypot(re, im) < margin) if sys.dt else (lambda re, im: re < margin)
+    T, Z, k = sla.schur(sys.A, output="real", sort=good)
+    if k == n:
+        return sys
+    A11, A12, A22 = T[:k, :k], T[:k, k:], T[k:, k:]
+    X = sla.solve_sylvester(A11, -A22, -A12) if k else np.zeros((0, n - k))
+    Bt, Ct = Z.T @ sys.B, sys.C @ Z
+    B1, B2 = Bt[:k] - X @ Bt[k:], Bt[k:]
+    C1, C2 = Ct[:, :k], Ct[:, :k] @ X + Ct[:, k:]
+    rho = max(1.0, float(np.linalg.norm(A22, 2)))
+    Ap = [np.linalg.matrix_power(A22 / rho, j) for j in range(n - k)]
+    H = np.vstack([C2 @ P for P in Ap]) @ np.hstack([P @ B2 for P in Ap])
+    if float(np.linalg.norm(H, 2)) > tol:
+        return sys
+    return LTI(A11, B1, C1, sys.D, sys.dt)
 
 
 def _stable(sys: LTI, margin: float, dt: float) -> bool:
