@@ -242,3 +242,36 @@ def test_unstable_plants_get_a_stable_updating_factor(seed):
     vals = sys_fr(M, lam) @ sys_fr(ref.Q, lam) @ Gf
     dec, err = judge(model, gen, vals, lam)
     assert dec < TOL and np.all(err < TOL), (dec, err)
+
+
+def _static_plant(Du, faults=(), name="static", dt=0.0):
+    """A static plant y = Du u (+ sensor faults); skipped where FDIModel has no n = 0 support yet."""
+    from fmu_fdi.errors import ModelError
+
+    try:
+        return FDIModel.from_matrices(np.zeros((0, 0)), np.zeros((0, Du.shape[1])), np.zeros((Du.shape[0], 0)),
+                                      Du=Du, faults=list(faults), name=name, dt=dt)
+    except ModelError as exc:
+        pytest.skip(f"static plants need FDIModel n = 0 support (issue 17, core): {exc}")
+
+
+def test_static_plant():
+    """y = [1; 2] u + f (two sensor faults), n = 0: Q = [1 0 −1] gives Q [Du; I] = 1 − 1 = 0 and
+    Q [I; 0] = [1 0] = Mr. A static Mr gives a static Q, a dynamic Mr = [1/(s+1) 0] a first-order
+    one; updating=True on a static plant gives M = 1. Judged by numpy: Q [Du Df; I 0] = [0 M Mr]."""
+    from fmu_fdi import sensor_fault
+
+    Du = np.array([[1.0], [2.0]])
+    model = _static_plant(Du, [sensor_fault("s1", "y0"), sensor_fault("s2", "y1")])
+    Ge = np.block([[Du, np.eye(2)], [np.eye(1), np.zeros((1, 2))]])
+    gen = model_matching(model, np.array([[1.0, 0.0]]))
+    assert gen.Q.n == 0 and np.allclose(gen.Q.D @ Ge, [[0.0, 1.0, 0.0]], atol=1e-12)
+    Mr = LTI([[-1.0]], [[1.0, 0.0]], [[1.0]], [[0.0, 0.0]])
+    gen = model_matching(model, Mr)
+    assert gen.info["row_orders"] == [1]
+    lam = 1j * W
+    R = sys_fr(gen.Q, lam) @ Ge
+    assert np.abs(R[:, :, :1]).max() < 1e-12 and np.allclose(R[:, :, 1:], sys_fr(Mr, lam), atol=1e-12)
+    gen = model_matching(model, np.array([[2.0, -1.0]]), updating=True)
+    assert gen.info["M"].n == 0 and np.allclose(gen.info["M"].D, 1.0)
+    assert np.allclose(gen.Q.D @ Ge, [[0.0, 2.0, -1.0]], atol=1e-12)

@@ -360,3 +360,21 @@ def test_emdsyn_refuses_unstable_models_and_bad_atol():
         model_detection_bank([stable, unstable])
     with pytest.raises(DesignError, match="atol"):
         model_detection_bank([stable, _actuator(2.0)], atol=-1.0)
+
+
+def test_emdsyn_static_models():
+    """Static models y = [1; 2] u and y = [1; 3] u (n = 0): filter i is the row annihilating
+    [Du_i; I], scaled to distance 1 from the other model; MDperf = [[0, 1], [1, 0]]. Skipped where
+    FDIModel has no n = 0 support yet (issue 17, core)."""
+    from fmu_fdi.errors import ModelError
+
+    try:
+        models = [FDIModel.from_matrices(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((2, 0)), Du=np.array(Du),
+                                         name=nm) for nm, Du in (("a", [[1.0], [2.0]]), ("b", [[1.0], [3.0]]))]
+    except ModelError as exc:
+        pytest.skip(f"static plants need FDIModel n = 0 support: {exc}")
+    bank = model_detection_bank(models)
+    assert np.allclose(bank.info["MDperf"], [[0.0, 1.0], [1.0, 0.0]], atol=1e-12)
+    for i, g in enumerate(bank.members):  # independent: Q_i [Du_j; 1] by matrix products
+        dist = [abs((g.Q.D @ np.vstack([m.Du, np.eye(1)]))[0, 0]) for m in models]
+        assert dist[i] < 1e-12 and abs(dist[1 - i] - 1.0) < 1e-12
