@@ -360,6 +360,9 @@ def test_emdsyn_refuses_unstable_models_and_bad_atol():
         model_detection_bank([stable, unstable])
     with pytest.raises(DesignError, match="atol"):
         model_detection_bank([stable, _actuator(2.0)], atol=-1.0)
+    # a copy of a model: no filter exact for one sees the other (was a ModelError about a zero fault)
+    with pytest.raises(DesignError, match="cannot be told from"):
+        model_detection_bank([stable, stable._replace(name="copy")])
 
 
 def test_emdsyn_static_models():

@@ -118,11 +118,13 @@ def model_detection_bank(models: Sequence[FDIModel], *, poles=None, sdeg=None, F
     ------
     DesignError
         Fewer than two models, models that do not form a set (outputs, inputs, sample time,
-        unique names), an unstable model, or a filter that cannot be designed.
+        unique names), an unstable model, a model no filter exact for another can see (the rank
+        condition, with numbers), or a filter that cannot be designed.
     """
     if not (np.isfinite(atol) and atol >= 0):
         raise DesignError(f"atol must be a finite non-negative number, got {atol!r}")
     models = _check_set(models)
+    _check_distinguishable(models, rtol=np.sqrt(np.finfo(float).eps))
     bare = [mj._replace(faults=[], Bw=np.zeros((mj.n, 0)), Dw=np.zeros((mj.ny, 0)), w_names=[]) for mj in models]
     umaps = [_u_map(mj) for mj in bare]
     members, perf_abs, betas = [], [], []
