@@ -168,7 +168,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
             ms.append(LTI.static(np.ones((1, 1)), model.dt))
             methods.append("fixed denominator"), degs.append(0)
         rows[-1] = rows[-1] * scale
-    Q = vstack(rows) if len(rows) > 1 else rows[0]
+    Q = _cancel_plant_modes(model, vstack(rows) if len(rows) > 1 else rows[0], margin)
     M = blockdiag(ms)
     gen = ResidualGenerator(Q, model, "model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
@@ -222,6 +222,51 @@ def _drop_cancelled(sys: LTI, margin: float, tol: float) -> LTI:
     if float(np.linalg.norm(H, 2)) > tol:
         return sys
     return LTI(A11, B1, C1, sys.D, sys.dt)
+
+
+def _cancel_plant_modes(model: FDIModel, Q: LTI, margin: float, tol: float = 1e-6) -> LTI:
+    """Q with its y-input part corrected (least squares, relative size ≤ ``tol``) so that the plant
+    modes outside the stability region cancel *exactly* in ``R = Q Ge``.
+
+    A plant mode with invariant subspace ``V_u`` (``A V_u = V_u A_u``, ordered real Schur form)
+    is not a pole of R iff ``Q_y(A_u) C V_u = 0``, i.e. ``Cq Y + Dq_y C V_u = 0`` with
+    ``Aq Y − Y A_u = −Bq_y C V_u`` (a Sylvester equation): linear in ``(Bq_y, Dq_y)`` for fixed
+    ``(Aq, Cq)``. Every exact match satisfies it (its R = M Mr is stable), but a row from sampled
+    equations does so only to ~1e-13, which leaves the unstable plant pole in R with a residue of
+    that size. The minimum-norm correction makes the cancellation exact; a correction above
+    ``tol`` means the condition does not hold for this Q (then Q is returned unchanged and the
+    post-conditions judge it).
+    """
+    n, p = model.n, model.ny
+    if not n or not p:
+        return Q
+    good = (lambda re, im: np.hypot(re, im) < margin) if model.dt else (lambda re, im: re < margin)
+    T, Z, k = sla.schur(model.A, output="real", sort=lambda re, im: not good(re, im))
+    if k == 0:
+        return Q
+    CV, Au = model.C @ Z[:, :k], T[:k, :k]
+    nq, r = Q.n, Q.p
+
+    def condition(By, Dy):
+        out = Dy @ CV
+        if nq:
+            out = out + Q.C @ sla.solve_sylvester(Q.A, -Au, -By @ CV)
+        return out.ravel()
+
+    size = nq * p + r * p
+    L = np.empty((r * k, size))
+    for j in range(size):
+        e = np.zeros(size)
+        e[j] = 1.0
+        L[:, j] = condition(e[:nq * p].reshape(nq, p), e[nq * p:].reshape(r, p))
+    x = np.concatenate([Q.B[:, :p].ravel(), Q.D[:, :p].ravel()])
+    dx = -np.linalg.lstsq(L, L @ x, rcond=None)[0]
+    if not np.linalg.norm(dx) <= tol * max(np.linalg.norm(x), 1e-300):
+        return Q
+    x = x + dx
+    B, D = Q.B.copy(), Q.D.copy()
+    B[:, :p], D[:, :p] = x[:nq * p].reshape(nq, p), x[nq * p:].reshape(r, p)
+    return LTI(Q.A, B, Q.C, D, Q.dt)
 
 
 def _stable(sys: LTI, margin: float, dt: float) -> bool:
