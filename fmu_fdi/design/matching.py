@@ -40,8 +40,15 @@ whose poles are the zeros of ``m_i``. When this least-order row is unstable or i
   stable poles. ``m_i`` is normalised to unit zpk gain (the first nonzero Markov parameter,
   ``normalize='gain'``, as in Varga's Example 5.13) or to unit H∞ norm (``'infnorm'``).
 
-Every returned row is verified on an independent grid: the relative matching error must
-not exceed ``sqrt(mm_tol)`` and the post-conditions (:mod:`.postconditions`) must hold.
+Numerics. Each reference row is solved at unit peak gain and scaled back (a row of gain
+1e-8 beside rows of gain 1 keeps its own accuracy); unstable or marginal modes of its
+realisation with a Hankel size at rounding level (plant modes a product ``Q Ge`` cancels only
+to ~1e-12) are dropped (:func:`_drop_cancelled`); the plant modes outside the stability region
+are made to cancel exactly in ``R = Q Ge`` by a minimum-norm correction of Q's y-input part
+(:func:`_cancel_plant_modes`). Every returned row is verified on an independent grid: the
+relative matching error of each row must not exceed ``sqrt(mm_tol)`` and the post-conditions
+(:mod:`.postconditions`) must hold. ``atol`` is the absolute rank tolerance of the minimal
+realisations and of the properness decision.
 
 The approximate problem (AMMP, H∞/H2 optimal) is :mod:`.approximate_matching`.
 """
