@@ -38,7 +38,8 @@ class __CLASS__(FdiSlave):
     description = __DESCRIPTION__
 
     log_categories = dict(FdiSlave.log_categories, logFdiNumeric=(
-        "Samples discarded because a value inside the runtime became NaN/Inf (numeric_reset)."))
+        "Samples that overflowed the evaluation (a value became NaN/Inf): fault evidence, sample discarded, "
+        "generator and evaluation restarted (numeric_reset, input_invalid)."))
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -105,17 +106,18 @@ class __CLASS__(FdiSlave):
             return False
         self.out[:] = out
         if self.rt.sample_ratio != ratio_before:
-            self.log_event(f"t={current_time:g}: step size changed from {h_before:g} s to {self.rt.h:g} s "
+            self.log_event(f"step size changed from {h_before:g} s to {self.rt.h:g} s "
                            f"(design Ts = {self.rt.Ts:g} s): evaluation windows and thresholds restarted "
                            f"(docs/semantics.md, step sizes)", "logStatusWarning", Fmi2Status.warning)
-        if out[INPUT_INVALID]:
-            self.invalid_count += 1
-            self.log_event(f"t={current_time:g}: invalid input sample (NaN/Inf or outside its valid range); "
-                           f"diagnosis held", "logFdiInput", Fmi2Status.warning)
         if out[NUMERIC_RESET]:
             self.numeric_reset_count += 1
-            self.log_event(f"t={current_time:g}: a value inside the diagnoser became NaN/Inf; sample discarded, "
-                           f"generator and evaluation restarted (numeric_reset)", "logFdiNumeric", Fmi2Status.warning)
+            self.log_event(f"the sample overflowed the evaluation (a value became NaN/Inf); "
+                           f"counted as fault evidence, sample discarded, generator and evaluation restarted "
+                           f"(numeric_reset, input_invalid)", "logFdiNumeric", Fmi2Status.warning)
+        elif out[INPUT_INVALID]:
+            self.invalid_count += 1
+            self.log_event(f"invalid input sample (NaN/Inf or outside its valid range); "
+                           f"diagnosis held", "logFdiInput", Fmi2Status.warning)
         detected = out[FAULT_DETECTED] != 0.0
         if detected != self.last_detected:
             iso = int(out[ISOLATED_FAULT])

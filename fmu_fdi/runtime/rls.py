@@ -203,6 +203,9 @@ class RLSStep:
         if len(items) != len(self.estimators):
             raise ValueError(f"rls state has {len(items)} estimators, this generator has {len(self.estimators)}")
         new = []
+        k = int(state["k"])
+        if not 0 <= k < 2 ** 53:
+            raise ValueError(f"rls state: sample counter {k} outside [0, 2^53)")
         for i, (est, item) in enumerate(zip(self.estimators, items)):
             x = np.array(item["x"], float).reshape(-1)
             th = np.array(item["theta"], float).reshape(-1)
@@ -216,10 +219,24 @@ class RLSStep:
             if not (all(np.isfinite(a).all() for a in entry[:3]) and math.isfinite(entry[3])
                     and math.isfinite(entry[4])):
                 raise ValueError(f"rls state of estimator {i} holds NaN or Inf")
+            self._check_counts(i, est, k, *entry)
             new.append(entry)
-        self.k = int(state["k"])
+        self.k = k
         (self._x, self._theta, self._P, self._sigma2, self._psi2, self._updates,
          self._resets) = (list(t) for t in zip(*new))
+
+    def _check_counts(self, i, est, k, x, th, P, sigma2, psi2, updates, resets) -> None:
+        """A state as a run from reset leaves it (docs/semantics.md §10): every sample from ``skip``
+        on updates, resets as the policy makes them, P exactly symmetric (symmetrised every
+        update), the noise estimates >= 0."""
+        want = max(0, k - est.skip)
+        policy_ok = (resets == updates // self.period if self.policy == "periodic"
+                     else resets <= updates if self.policy == "floor" else resets == 0)
+        if updates != want or not 0 <= resets <= updates or not policy_ok:
+            raise ValueError(f"rls state of estimator {i}: {updates} updates and {resets} resets after {k} samples "
+                             f"(expected {want} updates, resets by the '{self.policy}' policy)")
+        if not (sigma2 >= 0.0 and psi2 >= 0.0 and np.array_equal(P, P.T)):
+            raise ValueError(f"rls state of estimator {i}: P not symmetric or a negative noise estimate")
 
     def finite(self) -> bool:
         """Every entry of the state (x, θ̂, P, σ̂², ψ²_ms of every estimator) is finite."""
