@@ -118,7 +118,7 @@ def test_every_state_bit_flip_of_every_test_design(tmp_path):
 if __name__ == "__main__":  # the measurement: python tests/test_native_state_fuzz.py [SOURCE_TREE] [STRIDE]
     import tempfile
 
-    tree = sys.argv[1] if len(sys.argv) > 1 else None
+    tree = (sys.argv[1] if len(sys.argv) > 1 else "") or None
     stride = int(sys.argv[2]) if len(sys.argv) > 2 else 1
     with tempfile.TemporaryDirectory() as tmp:
         total = dict.fromkeys(FIELDS, 0)

@@ -230,6 +230,16 @@ class DiagnoserRuntime:
         if plan is not None:
             self._adopt(h, plan)
 
+    def set_threshold_scale(self, value) -> None:
+        """Set the tunable ``threshold_scale`` (docs/semantics.md §6): a finite number >= 0, else
+        ValueError and the scale kept."""
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise ValueError(f"threshold_scale must be a finite number >= 0, got {value!r}")
+        scale = float(value)
+        if not (scale >= 0.0 and math.isfinite(scale)):
+            raise ValueError(f"threshold_scale must be a finite number >= 0, got {scale!r}")
+        self.threshold_scale = scale
+
     # ----------------------------------------------------------------- state
     def reset(self) -> None:
         self.generator = self._native

@@ -221,7 +221,7 @@ int fdi_do_step(fdi_instance *fi, const char *fn, double t, double h) {
     int detected, isolated;
     double h_before = fdi_runtime_step(fi->rt), ratio_before = fdi_runtime_sample_ratio(fi->rt);
     fdi_status s;
-    if (!isfinite(t) || !isfinite(t + h)) {   /* docs/semantics.md S9: times are finite */
+    if (!isfinite(t) || (isfinite(h) && !isfinite(t + h))) {   /* S9: times are finite (a bad h: Discard) */
         fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s: communication point t=%g with step %g: the time must be a finite "
                 "number and stay one (refused, nothing changed)", fn, t, h);
         return FDI_S_ERROR;
