@@ -40,7 +40,7 @@ def record():
 
 def _threshold(rec, ev):
     """Half the evaluation the bias reaches at the end of the record: the bias is detectable."""
-    probe = Diagnoser(rec["gen"], Ts=TS, evaluation=ev, thresholds=1e300).run(rec["t"], rec["u"], rec["y"])
+    probe = Diagnoser(rec["gen"], Ts=TS, evaluation=ev, thresholds=1e150).run(rec["t"], rec["u"], rec["y"])
     return 0.5 * float(probe["evaluation_1"][-1])
 
 
