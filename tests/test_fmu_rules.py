@@ -10,18 +10,13 @@ the same fmpy contract (tests/hosts/scenarios.py, a process of its own):
   overflow), with no ``t=`` prefix of their own (a host adds the time: "at t=0: t=0: ..." was
   doubled).
 """
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from fmu_fdi import Diagnoser, FDIModel, build_fmu, nullspace_design
 from fmu_fdi.faults import sensor_fault
-from fmu_fdi.fmu import hosts
+from test_diagnostic_fmu import _errors, contract  # the fmpy contract runner (a process of its own)
 
-HOSTS_DIR = Path(__file__).parent / "hosts"
 H = 0.1
 ROW = {"u": 0.3, "y": 0.1}
 
@@ -36,26 +31,8 @@ def fmus(tmp_path_factory):
             "python": build_fmu(dg, folder / "python.fmu")}
 
 
-def _contract(tmp_path, fmu, actions):
-    import json
-
-    work = tmp_path / fmu.stem
-    work.mkdir()
-    spec = work / "spec.json"
-    spec.write_text(json.dumps({"fmus": {"f": str(fmu)}, "workdir": str(work), "actions": actions}))
-    proc = subprocess.run([sys.executable, "-I", str(HOSTS_DIR / "scenarios.py"), "contract", str(spec)],
-                          capture_output=True, text=True, env=hosts.python_env(), timeout=300)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    answer = json.loads((work / "answer.json").read_text())
-    return answer["actions"], answer["outputs"]
-
-
 def _both(tmp_path, fmus, actions):
-    return {kind: _contract(tmp_path, fmus[kind], actions) for kind in ("native", "python")}
-
-
-def _errors(action):
-    return " | ".join(m for s, _, m in action["log"] if s >= 3)
+    return {kind: contract(tmp_path, {"f": fmus[kind]}, actions) for kind in ("native", "python")}
 
 
 INIT = [["instantiate", "a", "f"], ["setup", "a"], ["enter", "a"], ["exit", "a"]]
