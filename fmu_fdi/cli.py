@@ -297,7 +297,7 @@ def _threshold_values(kind, nums, gen, evaluation, calibrate):
         from .diagnoser import Diagnoser
 
         t, u, y = _read_record(calibrate, gen.model)
-        probe = Diagnoser(gen, evaluation=evaluation, thresholds=1e300)  # evaluations only
+        probe = Diagnoser(gen, evaluation=evaluation, thresholds=1e150)  # evaluations only (reachable: design_check)
         out = probe.run(t, u, y)
         return [data_driven_threshold(out[f"evaluation_{i + 1}"], nums[0]) for i in range(len(gen.groups))]
     if kind == "fixed":

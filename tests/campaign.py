@@ -235,7 +235,7 @@ def probes(c: Campaign, sub: Subsystem) -> dict:
     for name, design in sub.methods.items():
         gen = design(model)
         own = name in sub.banks or name in sub.data_driven
-        out[name] = Diagnoser(gen, evaluation=c.evaluation, thresholds=1e300,
+        out[name] = Diagnoser(gen, evaluation=c.evaluation, thresholds=1e150,
                               groups=None if own else [list(range(gen.n_residuals))])
     return out
 

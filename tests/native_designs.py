@@ -51,7 +51,7 @@ def _calibrated(d, rng, n=400):
     pilot = copy.deepcopy(d)
     for e in pilot["evaluation"]:
         if e["threshold"]["kind"] == "fixed" and e["threshold"]["value"] is None:
-            e["threshold"]["value"] = 1e300
+            e["threshold"]["value"] = 1e150
     rt = DiagnoserRuntime(pilot)
     nu, ny = rt.nu, rt.ny
     rows = [rt.advance(rng.standard_normal(nu), rng.standard_normal(ny)) for _ in range(n)]

@@ -562,18 +562,23 @@ def diagnostic_fmu(tmp_path_factory):
 
 
 def test_fmu_warnings_reach_the_user(fmus, diagnostic_fmu, tmp_path, capsys):
+    # u = 1e300: ||u - u0||^2 overflows on every sample, a warning the FMU logs each step (§8)
     s = CoSimulation({"plant": fmus["plant"], "diagnoser": diagnostic_fmu}, step=H, stop=N * H,
-                     parameters={"diagnoser.threshold_scale": -1.0, "diagnoser.u": 1.0})
+                     parameters={"diagnoser.u": 1e300})
     r = s.run()
-    assert any("threshold_scale must be a finite number >= 0" in w and "diagnoser" in w for w in r.warnings)
+    assert any("the sample overflowed the evaluation" in w and "diagnoser" in w for w in r.warnings)
     assert r.warnings == s.warnings
     args = argparse.Namespace(plant=[str(fmus["plant"])], diagnoser=str(diagnostic_fmu), stop=N * H, step=H,
                               start=0.0, input=None, interpolation="zoh", fault=[], connect=None,
-                              param=["diagnoser.threshold_scale=-1"], order="gauss-seidel", ssp=None,
+                              param=["diagnoser.u=1e300"], order="gauss-seidel", ssp=None,
                               output=str(tmp_path / "o.csv"), allow_unconnected=True)  # u: a start value
     assert cli.run(args) == 0
     err = capsys.readouterr().err
-    assert "warning: FMU 'diagnoser' at t=0: threshold_scale must be a finite number >= 0" in err
+    assert "warning: FMU 'diagnoser' at t=0: the sample overflowed the evaluation" in err  # one time prefix
+    # a threshold_scale that is not a finite number >= 0 is refused, not run at another scale (§6)
+    args.param, args.output = ["diagnoser.threshold_scale=-1"], str(tmp_path / "o2.csv")
+    assert cli.run(args) != 0
+    assert "threshold_scale must be a finite number >= 0" in capsys.readouterr().err
 
 
 def test_result_from_csv_refuses_broken_files_in_one_line(tmp_path):

@@ -26,7 +26,6 @@ from fmu_fdi.runtime.engine import DiagnoserRuntime, output_type
 from native_designs import METHOD_RUNS, feature_designs, method_designs
 from native_runtime import CRuntime, c_outputs, compile_runtime
 from native_scenario import compare, make_scenario, python_outputs
-from native_sequential import sequential_rls
 
 pytestmark = pytest.mark.slow
 
@@ -86,23 +85,12 @@ def _check(name, runs, designs):
     ops, ref, native, names = runs[name]
     types = [output_type(n) for n in names]
     is_rls = designs[name]["generator"]["discrete"]["kind"] == "rls"
-    if is_rls:
-        # The RLS recursion amplifies last-bit differences of the summation order (numpy's
-        # blocked BLAS sums vs sequential sums) to ~1e-12: the native FMU must equal, bit for
-        # bit, the Python runtime doing the C runtime's operations in the C runtime's order.
-        with sequential_rls():
-            seq = python_outputs(designs[name], ops)
     for fmi, got in native.items():
-        if is_rls:
-            worst_seq, bad = compare(names, types, seq, got, rtol=0.0)
-            assert not bad, f"{name} FMI {fmi} vs sequential-order Python:\n" + "\n".join(bad)
-            worst, _ = compare(names, types, ref, got, rtol=np.inf)
-            print(f"{name} FMI {fmi}: max deviation from the numpy runtime {worst:.3g} (bit-exact with the "
-                  f"sequential-order runtime)")
-        else:
-            worst, bad = compare(names, types, ref, got, rtol=RTOL)
-            assert not bad, f"{name} FMI {fmi}:\n" + "\n".join(bad)
-            print(f"{name} FMI {fmi}: max deviation {worst:.3g}")
+        # RLS: both runtimes sum sequentially in index order (docs/semantics.md §4.2), because the
+        # recursion amplifies last-bit differences of a summation order: equal bit for bit
+        worst, bad = compare(names, types, ref, got, rtol=0.0 if is_rls else RTOL)
+        assert not bad, f"{name} FMI {fmi}:\n" + "\n".join(bad)
+        print(f"{name} FMI {fmi}: max deviation {worst:.3g}")
     # the scenario exercised what it is meant to (else the comparison proves little)
     steps = [r for r in ref if r != "discard"]
     arr = np.array(steps)

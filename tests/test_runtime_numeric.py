@@ -1,6 +1,7 @@
 """Issue 12 item 1: a finite but huge sample must not switch diagnosis off (S1, S2 of
 docs/semantics.md): the non-finite value is caught at the sample it appears, flagged on
-``numeric_reset``, the stages restart and a later fault is still detected.
+``numeric_reset`` and ``input_invalid`` and counted as fault evidence (issue 21, §8), the
+stages restart and a later fault is still detected.
 
 Plant: Ex 5.3 (tests/published.py) simulated exactly (tests/simulate.py), Ts = 0.01 s, the
 sensor fault fs2 (an additive bias on y2) of 0.05 ("5 cm") from sample K0.
@@ -39,7 +40,7 @@ def record():
 
 def _threshold(rec, ev):
     """Half the evaluation the bias reaches at the end of the record: the bias is detectable."""
-    probe = Diagnoser(rec["gen"], Ts=TS, evaluation=ev, thresholds=1e300).run(rec["t"], rec["u"], rec["y"])
+    probe = Diagnoser(rec["gen"], Ts=TS, evaluation=ev, thresholds=1e150).run(rec["t"], rec["u"], rec["y"])
     return 0.5 * float(probe["evaluation_1"][-1])
 
 
@@ -60,10 +61,11 @@ def test_bias_after_a_1e300_glitch_is_still_detected(record, ev):
         warnings.simplefilter("error")  # the overflow is handled, not merely tolerated by numpy
         out = dg.run(t, u, yg)
     assert list(np.flatnonzero(out["numeric_reset"])) == [GLITCH]
-    assert not out["input_invalid"].any()
+    # §8: the overflow is said in the outputs: an unusable sample, and evidence (persistence 1/1: alarm)
+    assert list(np.flatnonzero(out["input_invalid"])) == [GLITCH] and out["fault_detected"][GLITCH]
     for name in _real_columns(out):
         assert np.all(np.isfinite(out[name])), name
-        assert out[name][GLITCH] == out[name][GLITCH - 1], name  # the discarded sample holds every output
+        assert out[name][GLITCH] == out[name][GLITCH - 1], name  # the discarded sample holds every real output
     # the restarted generator's transient decays (pole -3: e^{-3·2.5} < 1e-3 by K0); then the
     # diagnosis is the glitch-free one: the bias is detected at the same sample
     first = np.flatnonzero(clean["fault_detected"][K0:])[0] + K0

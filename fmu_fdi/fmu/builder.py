@@ -83,9 +83,11 @@ def _descriptions(design: dict) -> dict[str, str]:
     out["fault_detected"] = "any alarm"
     legend = ", ".join(f"{j + 1} = {nm}" for j, nm in enumerate(faults)) or "no faults modelled"
     out["isolated_fault"] = f"0 none, -1 unknown or several, else the fault: {legend}"
-    out["input_invalid"] = "the last input sample had NaN/Inf or was outside its valid range (diagnosis held)"
-    out["numeric_reset"] = ("a value inside the diagnoser became NaN/Inf in the last step: sample discarded, "
-                            "generator and evaluation restarted (docs/semantics.md)")
+    out["input_invalid"] = ("the last input sample had NaN/Inf or was outside its valid range (diagnosis held), "
+                            "or overflowed the evaluation (numeric_reset)")
+    out["numeric_reset"] = ("the last sample overflowed the evaluation (a value became NaN/Inf): counted as fault "
+                            "evidence for the groups it reached, sample discarded, generator and evaluation "
+                            "restarted (docs/semantics.md)")
     return out
 
 

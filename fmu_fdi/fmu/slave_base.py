@@ -145,6 +145,10 @@ class FdiSlave(Fmi2Slave):
         if self._misplaced("fmi2SetupExperiment", "instantiated"):
             return
         try:
+            if not math.isfinite(float(start_time)):  # times are finite (docs/semantics.md §9)
+                self.log(f"fmi2SetupExperiment refused: startTime {start_time!r} is not a finite number",
+                         status=Fmi2Status.error, category="logStatusError")
+                return
             self.start_time = float(start_time)
         except BaseException as exc:
             self._fail("setup_experiment", exc)

@@ -5,7 +5,11 @@ import, so it must not import anything from ``fmu_fdi``.
 
 Layout of an encoded state::
 
-    MAGIC (8 bytes) | header length n (8 bytes, little endian) | header (n bytes, UTF-8 JSON) | buffers
+    MAGIC (8 bytes) | header length n (8 bytes, little endian) | header (n bytes, UTF-8 JSON) | buffers |
+    SHA-256 of everything before it (32 bytes)
+
+The digest makes any change of the bytes after serialization (a flipped bit, a bad copy) a clean
+refusal; what the bytes say is then validated by the slave (``validate_fmu_state``).
 
 The JSON header holds the object tree; numpy arrays, numpy scalars and ``bytes`` are stored as
 raw little-endian buffers after it and referenced by index, so every value comes back bit for
@@ -19,14 +23,16 @@ for classes whose module is already imported, by ``cls.__new__`` plus ``__dict__
 from __future__ import annotations
 
 import enum
+import hashlib
 import json
 import struct
 import sys
 
 import numpy as np
 
-MAGIC = b"FDISTAT1"
-FORMAT = "fmu-fdi-state/1"
+MAGIC = b"FDISTAT2"
+FORMAT = "fmu-fdi-state/2"
+DIGEST = 32  # SHA-256
 
 
 class StateCodecError(ValueError):
@@ -43,7 +49,8 @@ def encode_state(state) -> bytes:
         pos += len(b)
     header = json.dumps({"format": FORMAT, "tree": tree, "buffers": offsets},
                         separators=(",", ":")).encode("utf-8")
-    return b"".join([MAGIC, struct.pack("<Q", len(header)), header, *buffers])
+    body = b"".join([MAGIC, struct.pack("<Q", len(header)), header, *buffers])
+    return body + hashlib.sha256(body).digest()
 
 
 def decode_state(data: bytes):
@@ -52,8 +59,13 @@ def decode_state(data: bytes):
     if len(data) < 16 or data[:8] != MAGIC:
         raise StateCodecError("not an fmu-fdi FMU state (bad magic)")
     (n,) = struct.unpack("<Q", data[8:16])
-    if len(data) < 16 + n:
-        raise StateCodecError(f"truncated FMU state: {len(data)} bytes, the header alone needs {16 + n}")
+    if len(data) < 16 + n + DIGEST:
+        raise StateCodecError(f"truncated FMU state: {len(data)} bytes, the header and checksum alone need "
+                              f"{16 + n + DIGEST}")
+    data, digest = data[:-DIGEST], data[-DIGEST:]
+    if hashlib.sha256(data).digest() != digest:
+        raise StateCodecError("FMU state checksum mismatch: the bytes were changed after serialization (a truncated "
+                              "or corrupt copy)")
     try:
         header = json.loads(data[16:16 + n].decode("utf-8"))
     except ValueError as exc:

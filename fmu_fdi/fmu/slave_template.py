@@ -38,7 +38,8 @@ class __CLASS__(FdiSlave):
     description = __DESCRIPTION__
 
     log_categories = dict(FdiSlave.log_categories, logFdiNumeric=(
-        "Samples discarded because a value inside the runtime became NaN/Inf (numeric_reset)."))
+        "Samples that overflowed the evaluation (a value became NaN/Inf): fault evidence, sample discarded, "
+        "generator and evaluation restarted (numeric_reset, input_invalid)."))
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -53,6 +54,7 @@ class __CLASS__(FdiSlave):
         self.y_in = [float(v) for v in rt.y0]
         self.out = [0.0] * len(rt.names)
         self.last_detected = False
+        self._nostate_scale_error = ""  # why the last threshold_scale was refused ("" if it was not)
         self.invalid_count = 0
         self.numeric_reset_count = 0
         inp = Fmi2Causality.input
@@ -77,12 +79,18 @@ class __CLASS__(FdiSlave):
             self.register_variable(var, nested=False)
 
     def _set_scale(self, value):
-        value = float(value)
-        if not (value >= 0.0 and math.isfinite(value)):
-            self.log_event(f"threshold_scale must be a finite number >= 0, got {value}; kept "
-                           f"{self.rt.threshold_scale}", "logStatusWarning", Fmi2Status.warning)
+        # docs/semantics.md §6: a value that is not a finite number >= 0 is refused, the scale kept.
+        # pythonfmu cannot return fmi2Error from a setter: the refusal is an error-status message and
+        # the following doSteps are discarded with it until a valid value is set or the FMU is reset
+        # (the native FMU returns fmi2Error), so a master that ignored the log cannot go on silently.
+        try:
+            self.rt.set_threshold_scale(value)
+        except ValueError as exc:
+            self._nostate_scale_error = f"{exc}; it stays {self.rt.threshold_scale!r}"
+            self.log(f"threshold_scale refused: {self._nostate_scale_error}", status=Fmi2Status.error,
+                     category="logStatusError")
             return
-        self.rt.threshold_scale = value
+        self._nostate_scale_error = ""
 
     def validate_fmu_state(self, attributes):
         if attributes.get("design_sha256") != self.design_sha256:
@@ -90,13 +98,35 @@ class __CLASS__(FdiSlave):
         rt = attributes.get("rt")
         if type(rt) is not type(self.rt):
             raise ValueError(f"FMU state holds no diagnoser runtime (got {type(rt).__name__})")
-        copy.deepcopy(self.rt).set_state(rt.get_state())  # shapes, lengths, finiteness; raises ValueError
+        # Only the state is taken from the bytes, into a copy of this FMU's own runtime (its design
+        # constants are never read from a state); set_state validates it (docs/semantics.md §10).
+        fresh = copy.deepcopy(self.rt)
+        fresh.set_state(rt.get_state())
+        attributes["rt"] = fresh
         for name, n in (("u_in", self.rt.nu), ("y_in", self.rt.ny), ("out", len(self.rt.names))):
             value = attributes.get(name)
             if type(value) is not list or len(value) != n or not all(isinstance(x, float) for x in value):
                 raise ValueError(f"FMU state: {name} must be {n} floats")
+        if attributes["out"] != fresh.outputs:
+            raise ValueError("FMU state: the outputs differ from the runtime's")
+        for name in ("invalid_count", "numeric_reset_count"):
+            if type(attributes.get(name)) is not int or not 0 <= attributes[name] < 2 ** 53:
+                raise ValueError(f"FMU state: {name} must be a count")
+        if type(attributes.get("last_detected")) is not bool:
+            raise ValueError("FMU state: last_detected must be a bool")
 
     def step(self, current_time, step_size):
+        if self._nostate_scale_error:
+            self.log(f"do_step refused: threshold_scale was refused ({self._nostate_scale_error}); set a valid "
+                     f"value or reset the FMU", status=Fmi2Status.error, category="logStatusError")
+            return False
+        if not math.isfinite(current_time) or (math.isfinite(step_size) and not math.isfinite(current_time + step_size)):
+            # docs/semantics.md §9: times are finite (the native FMU answers fmi2Error); a non-finite
+            # step is the runtime's to refuse (Discard)
+            self.log(f"fmi2DoStep: communication point t={current_time!r} with step {step_size!r}: the time must be "
+                     f"a finite number and stay one (refused, nothing changed)", status=Fmi2Status.error,
+                     category="logStatusError")
+            return False
         h_before, ratio_before = self.rt.h, self.rt.sample_ratio
         try:
             out = self.rt.advance(self.u_in, self.y_in, step_size)
@@ -105,17 +135,18 @@ class __CLASS__(FdiSlave):
             return False
         self.out[:] = out
         if self.rt.sample_ratio != ratio_before:
-            self.log_event(f"t={current_time:g}: step size changed from {h_before:g} s to {self.rt.h:g} s "
+            self.log_event(f"step size changed from {h_before:g} s to {self.rt.h:g} s "
                            f"(design Ts = {self.rt.Ts:g} s): evaluation windows and thresholds restarted "
                            f"(docs/semantics.md, step sizes)", "logStatusWarning", Fmi2Status.warning)
-        if out[INPUT_INVALID]:
-            self.invalid_count += 1
-            self.log_event(f"t={current_time:g}: invalid input sample (NaN/Inf or outside its valid range); "
-                           f"diagnosis held", "logFdiInput", Fmi2Status.warning)
         if out[NUMERIC_RESET]:
             self.numeric_reset_count += 1
-            self.log_event(f"t={current_time:g}: a value inside the diagnoser became NaN/Inf; sample discarded, "
-                           f"generator and evaluation restarted (numeric_reset)", "logFdiNumeric", Fmi2Status.warning)
+            self.log_event(f"the sample overflowed the evaluation (a value became NaN/Inf); "
+                           f"counted as fault evidence, sample discarded, generator and evaluation restarted "
+                           f"(numeric_reset, input_invalid)", "logFdiNumeric", Fmi2Status.warning)
+        elif out[INPUT_INVALID]:
+            self.invalid_count += 1
+            self.log_event(f"invalid input sample (NaN/Inf or outside its valid range); "
+                           f"diagnosis held", "logFdiInput", Fmi2Status.warning)
         detected = out[FAULT_DETECTED] != 0.0
         if detected != self.last_detected:
             iso = int(out[ISOLATED_FAULT])
@@ -138,7 +169,8 @@ def _bool_item(values, i):
 
 
 def _int_item(values, i):
-    return lambda: int(values[i])
+    # an FMI Integer is 32 bits: clamped (the outputs are validated, this is the last guard)
+    return lambda: max(-2147483648, min(2147483647, int(values[i]))) if math.isfinite(values[i]) else 0
 
 
 def _set_item(values, i):

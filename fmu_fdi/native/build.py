@@ -48,15 +48,19 @@ PLATFORMS = {("Linux", "x86_64"): {2: "linux64", 3: "x86_64-linux"},
              ("Linux", "aarch64"): {2: None, 3: "aarch64-linux"}}
 FMI_HEADERS = {2: ("fmi2Functions.h", "fmi2FunctionTypes.h", "fmi2TypesPlatform.h"),
                3: ("fmi3Functions.h", "fmi3FunctionTypes.h", "fmi3PlatformTypes.h")}
+#: the logFdiNumeric category's description, in both targets
+NUMERIC_LOG = ("Samples that overflowed the evaluation (a value became NaN/Inf): fault evidence, sample discarded, "
+               "generator and evaluation restarted (numeric_reset, input_invalid).")
 LOG_CATEGORIES = {  # the Python target's (fmu_fdi/fmu/slave_base.py), in fdi_glue.h order
     "logStatusWarning": "Messages with status Warning.",
     "logStatusDiscard": "Messages with status Discard: a step the runtime refused, with the reason.",
     "logStatusError": "Messages with status Error: calls out of order, bad values, refused FMU states.",
     "logStatusFatal": "Messages with status Fatal.",
     "logAll": "All messages without a more specific category.",
-    "logFdiEvents": "Diagnostic events: alarms raised and cleared, isolation changes, numeric resets.",
+    "logFdiEvents": "Diagnostic events: alarms raised and cleared, isolation changes.",
     "logFdiInput": "Inputs rejected as invalid (not finite or outside the valid range).",
     "logFdiState": "FMU state saved and restored.",
+    "logFdiNumeric": NUMERIC_LOG,
 }
 
 

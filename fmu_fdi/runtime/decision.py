@@ -78,21 +78,57 @@ class Decision:
                 or len(latched) != ng or not -1 <= isolated <= self.n_faults):
             raise ValueError(f"decision state does not fit {ng} groups with persistence [{self.k_of}, {self.n_of}] "
                              f"and {self.n_faults} faults")
+        for h, alarm, latched_g in zip(raw_hist, alarms, latched):  # alarms as persistence and latch make them
+            up = sum(h) >= self.k_of
+            if (alarm != latched_g or (up and not latched_g)) if self.latch else (latched_g or alarm != up):
+                raise ValueError(f"decision state: alarms {alarms} do not follow from the raw tests with "
+                                 f"persistence [{self.k_of}, {self.n_of}]" + (" and latch" if self.latch else ""))
+        before = self.get_state()
         self.raw_hist, self.alarms, self.latched, self.isolated = raw_hist, alarms, latched, isolated
         self.status = str(s["status"])
         self.margin = float(s["margin"])
+        if not self._isolation_fits():
+            self.set_state(before)
+            raise ValueError(f"decision state: isolated fault {isolated} does not fit the alarms {alarms} "
+                             f"({self.mode} isolation)")
+
+    def _structure_isolated(self) -> tuple[int, str]:
+        """The fault whose column of S equals the alarm pattern (1-based), else -1 (none or several)."""
+        pattern = np.array(self.alarms)
+        matches = np.flatnonzero(np.all(self.S == pattern[:, None], axis=0))
+        if matches.size == 1:
+            return int(matches[0]) + 1, "isolated"
+        return -1, "several" if matches.size > 1 else "unknown"
+
+    def _isolation_fits(self) -> bool:
+        """isolated_fault as the isolation makes it from the alarms: 0 without an alarm; with one,
+        the structure isolation of the pattern, a fault with a direction or -1 (direction), -1 (none)."""
+        iso = self.isolated
+        if not any(self.alarms):
+            return iso == 0
+        if self.mode == "structure":
+            return iso == self._structure_isolated()[0]
+        if self.mode == "direction":
+            return iso == -1 or (1 <= iso <= self.n_faults and bool(self.valid[iso - 1]))
+        return iso == -1
 
     def step(self, evaluations, thresholds, residual) -> None:
         """``evaluations``/``thresholds``: per group; ``residual``: the residual vector."""
+        self.step_fired([e >= t for e, t in zip(evaluations, thresholds)], residual)
+
+    def step_fired(self, fired, residual) -> None:
+        """One sub-sample with the raw tests ``fired`` (per group, bool) given directly;
+        ``residual`` None: its direction is unknown (an overflowed sub-sample, docs/semantics.md
+        §8), so direction isolation answers -1 when alarmed."""
         if self.n_of == 1 and not self.latch:  # the common case: alarm = raw test
-            self.alarms = [e >= t for e, t in zip(evaluations, thresholds)]
+            self.alarms = [bool(f) for f in fired]
             self.raw_hist = [[a] for a in self.alarms]
             self._isolate(residual)
             return
         for i in range(self.n_groups):
             h = self.raw_hist[i]
             h.pop(0)
-            h.append(bool(evaluations[i] >= thresholds[i]))
+            h.append(bool(fired[i]))
             up = sum(h) >= self.k_of
             if self.latch:
                 self.latched[i] = self.latched[i] or up
@@ -106,13 +142,11 @@ class Decision:
             self.isolated, self.status = 0, "none"
             return
         if self.mode == "structure":
-            pattern = np.array(self.alarms)
-            matches = np.flatnonzero(np.all(self.S == pattern[:, None], axis=0))
-            if matches.size == 1:
-                self.isolated, self.status = int(matches[0]) + 1, "isolated"
-            else:
-                self.isolated, self.status = -1, "several" if matches.size > 1 else "unknown"
+            self.isolated, self.status = self._structure_isolated()
         elif self.mode == "direction":
+            if residual is None:
+                self.isolated, self.status = -1, "unknown"
+                return
             residual = np.asarray(residual, float)
             nr = float(np.linalg.norm(residual))
             if nr == 0.0:

@@ -16,7 +16,8 @@ Rules (docs/design-file.md lists them with the keys):
   size buffers allocated at instantiation, so the C runtime may rely on the bound;
 - every parameter whose zero, NaN or infinity would switch detection off is refused:
   CUSUM ``delta`` > 0, whitening ``sigma`` > 0 or a nonsingular ``W``, Narendra
-  ``alpha + beta`` > 0, thresholds finite; forgetting factors in their open ranges;
+  ``alpha + beta`` > 0, thresholds finite and reachable (:func:`check_reachable`: no threshold
+  above the largest evaluation its evaluator can produce); forgetting factors in their open ranges;
 - shapes agree: the generator reads ``ny + nu`` signals, the groups partition its
   residuals, one evaluation per group, a structure matrix of groups × faults;
 - ``generator.discrete.dt`` (when written) equals ``generator.dt``;
@@ -27,6 +28,7 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 
 import numpy as np
 
@@ -95,6 +97,7 @@ def check_design(d, source: str = "design") -> dict:
         S.check_keys(S.table(entry, where, E), ("evaluator", "threshold"), ("evaluator", "threshold"), where, E)
         evaluator = check_evaluator(entry["evaluator"], f"{where}.evaluator", len(groups[i]))
         check_threshold(entry["threshold"], f"{where}.threshold", evaluator)
+        check_reachable(entry["threshold"], f"{where}.threshold", evaluator)
     _decision(S.table(d["decision"], f"{source}: decision", E), f"{source}: decision", len(groups), len(faults), nr)
     return d
 
@@ -399,6 +402,38 @@ def check_threshold(spec, where: str, evaluator: dict) -> None:
             raise E(f"{where}.taps must hold between 1 and {MAX_SAMPLES} numbers, got {len(taps)}")
         S.vector(taps, f"{where}.taps", E, lo=0.0)
         S.real(spec.get("tail", 0.0), f"{where}.tail", E, lo=0.0)
+
+
+#: the largest evaluation a norm-based kind can give: it squares the residual, and a square
+#: that overflows is an overflow (docs/semantics.md §8), not an evaluation
+NORM_EVALUATION_MAX = math.sqrt(sys.float_info.max)  # 1.34e154
+
+
+def evaluation_max(evaluator: dict) -> float:
+    """The largest finite evaluation J the (checked) ``evaluator`` can produce: sqrt(DBL_MAX) for
+    norm, rms, ewrms and peak (each is the square root of a finite square or mean of squares);
+    (alpha + beta / (1 - gamma)) sqrt(DBL_MAX) for narendra (re sums x gamma^j); DBL_MAX for the
+    statistical tests (sums of whitened squares, CUSUM and GLR statistics)."""
+    kind = evaluator["kind"]
+    if kind in ("norm", "rms", "ewrms", "peak"):
+        return NORM_EVALUATION_MAX
+    if kind == "narendra":
+        alpha, beta, gamma = (float(evaluator.get(k, v)) for k, v in (("alpha", 0.0), ("beta", 1.0), ("gamma", 0.9)))
+        return min(sys.float_info.max, (alpha + beta / (1.0 - gamma)) * NORM_EVALUATION_MAX)
+    return sys.float_info.max
+
+
+def check_reachable(spec: dict, where: str, evaluator: dict) -> None:
+    """A group must be able to alarm: its threshold's least value at threshold_scale 1 (fixed:
+    ``value``; adaptive, majorant: ``J0``) may not exceed the largest evaluation its evaluator can
+    produce (:func:`evaluation_max`). A threshold beyond is no threshold: only an overflow (§8)
+    could raise that alarm, and the design would pass as a detector that never detects."""
+    least = float(spec["value"] if spec["kind"] == "fixed" else spec.get("J0", 0.0))
+    top = evaluation_max(evaluator)
+    if least > top:
+        raise E(f"{where}: {spec['kind']} threshold {least:g} can never be reached: a {evaluator['kind']} evaluation "
+                f"is at most {top:.3g} (larger values overflow), so this group could never alarm; give a threshold "
+                f"from the design's noise and fault sizes (fmu-fdi design --threshold)")
 
 
 # ---------------------------------------------------------------- decision

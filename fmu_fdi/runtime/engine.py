@@ -14,9 +14,10 @@ native C runtime implements too, are written down in docs/semantics.md:
   (at most 8 cached); anything else raises :class:`StepSizeError` and changes nothing;
 * invalid samples (NaN/Inf, or outside ``signals.valid_range``) set ``input_invalid``; every
   other output holds its last value and the states stay as they were;
-* a non-finite value inside the runtime (e.g. the square of one y = 1e300) discards the
-  sub-sample: generator, evaluators and thresholds restart from their initial state, the
-  decision and the outputs are kept, and ``numeric_reset`` is set for that call.
+* a non-finite value inside the runtime (e.g. the square of one y = 1e300) is an overflow:
+  the sub-sample is discarded, generator, evaluators and thresholds restart from their
+  initial state, the raw test of every group whose evaluation overflowed fires (the value is
+  evidence of a fault), and ``numeric_reset`` and ``input_invalid`` are set for that call.
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from .decision import Decision
 from .design_check import check_design
-from .evaluation import MONOTONE, Evaluator
+from .evaluation import EXACT_MAX, MONOTONE, Evaluator
 from .expm import zoh
 from .generators import make_generator
 from .thresholds import Threshold
@@ -229,6 +230,16 @@ class DiagnoserRuntime:
         if plan is not None:
             self._adopt(h, plan)
 
+    def set_threshold_scale(self, value) -> None:
+        """Set the tunable ``threshold_scale`` (docs/semantics.md §6): a finite number >= 0, else
+        ValueError and the scale kept."""
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise ValueError(f"threshold_scale must be a finite number >= 0, got {value!r}")
+        scale = float(value)
+        if not (scale >= 0.0 and math.isfinite(scale)):
+            raise ValueError(f"threshold_scale must be a finite number >= 0, got {scale!r}")
+        self.threshold_scale = scale
+
     # ----------------------------------------------------------------- state
     def reset(self) -> None:
         self.generator = self._native
@@ -295,6 +306,22 @@ class DiagnoserRuntime:
         self.threshold_scale = scale
         if not (self._stages_finite() and all(map(math.isfinite, outputs))):
             raise ValueError("the state holds NaN or Inf values")
+        self._check_counts_and_outputs()
+
+    def _check_counts_and_outputs(self) -> None:
+        """The counters and outputs of a restored state as a run leaves them (docs/semantics.md §10):
+        counts below 2^53 (numeric resets at most one per sample); alarms, fault_detected and
+        isolated_fault the decision's; the two flags 0 or 1; every evaluation >= 0."""
+        out, dec = self.outputs, self.decision
+        nr, ng = self.n_residuals, self.n_groups
+        if not 0 <= self.n_numeric_resets <= self.n_samples < EXACT_MAX:
+            raise ValueError(f"sample counters {self.n_samples} (numeric resets {self.n_numeric_resets}) out of range")
+        alarms = [1.0 if a else 0.0 for a in dec.alarms]
+        if (out[nr + 2 * ng:nr + 3 * ng] != alarms or out[FAULT_DETECTED] != (1.0 if any(alarms) else 0.0)
+                or out[ISOLATED_FAULT] != float(dec.isolated) or out[INPUT_INVALID] not in (0.0, 1.0)
+                or out[NUMERIC_RESET] not in (0.0, 1.0) or min(out[nr:nr + ng]) < 0.0):
+            raise ValueError("the outputs do not fit the decision state (alarms, fault_detected, isolated_fault, "
+                             "flags 0/1, evaluations >= 0)")
 
     def _stages_finite(self) -> bool:
         return (self.generator.finite() and all(e.finite() for e in self.evaluators)
@@ -302,12 +329,13 @@ class DiagnoserRuntime:
 
     # ------------------------------------------------------------------ step
     def _sample(self, v, unorm: float) -> bool:
-        """One sub-sample; False (outputs and decision untouched) when a value is not finite."""
+        """One sub-sample; False when a value is not finite (an overflow, §8): the decision has
+        then stepped with :meth:`_overflow`'s raw tests and only the decision outputs changed."""
+        rl, evals, thrs = None, [], []
         try:
             r = self.generator.step(v)
             rl = r.tolist()
             scale = self.threshold_scale
-            evals, thrs = [], []
             for single, grp, ev, norm_based, thr in self._stage:
                 if single >= 0:
                     x = rl[single]
@@ -318,10 +346,12 @@ class DiagnoserRuntime:
                     evals.append(ev.step(r[grp]))
                 thrs.append(scale * thr.step(unorm))
         except ArithmeticError:  # e.g. an OverflowError of math.fsum: a non-finite value
+            self._overflow(None, evals, thrs)
             return False
         isfinite = math.isfinite
         if not (all(map(isfinite, rl)) and all(map(isfinite, evals)) and all(map(isfinite, thrs))
                 and self.generator.finite() and (not self._hidden or all(e.finite() for e in self._hidden))):
+            self._overflow(rl, evals, thrs)
             return False
         dec = self.decision
         dec.step(evals, thrs, rl)
@@ -330,11 +360,31 @@ class DiagnoserRuntime:
         out[:nr] = rl
         out[nr:nr + ng] = evals
         out[nr + ng:nr + 2 * ng] = thrs
+        self._decision_outputs()
+        return True
+
+    def _overflow(self, rl, evals, thrs) -> None:
+        """The decision step of an overflowed sub-sample (docs/semantics.md §8): group g's raw
+        test fires if its evaluation overflowed (a residual of the group, its evaluation J_g or
+        its evaluator's state not finite; every group if the generator state or the sample
+        offsets are not finite), else it is J_g >= threshold_g as computed; the residual
+        direction is unknown. Only the decision outputs change."""
+        isfinite = math.isfinite
+        if rl is None or len(evals) < self.n_groups or not self.generator.finite():
+            fired = [True] * self.n_groups
+        else:
+            fired = [not (isfinite(e) and all(isfinite(rl[j]) for j in grp) and ev.finite()) or e >= t
+                     for (_, grp, ev, _, _), e, t in zip(self._stage, evals, thrs)]
+        self.decision.step_fired(fired, None)
+        self._decision_outputs()
+
+    def _decision_outputs(self) -> None:
+        dec, out = self.decision, self.outputs
+        nr, ng = self.n_residuals, self.n_groups
         alarms = dec.alarms
         out[nr + 2 * ng:nr + 3 * ng] = [1.0 if a else 0.0 for a in alarms]
         out[FAULT_DETECTED] = 1.0 if True in alarms else 0.0
         out[ISOLATED_FAULT] = float(dec.isolated)
-        return True
 
     def _valid(self, u: list, y: list) -> bool:
         isfinite = math.isfinite
@@ -371,9 +421,12 @@ class DiagnoserRuntime:
                 if not self._sample(v, unorm):
                     ok = False
                     break
-        if not ok:
+        else:
+            self._overflow(None, [], [])
+        if not ok:  # §8: an overflow is fault evidence (its raw tests fired) and an unusable sample
             self._restart_stages()
             out[NUMERIC_RESET] = 1.0
+            out[INPUT_INVALID] = 1.0
             self.n_numeric_resets += 1
         self.n_samples += 1
         return list(out)

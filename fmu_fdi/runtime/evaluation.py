@@ -65,13 +65,36 @@ class _Ring:
         return {"buf": list(self.buf), "i": self.i, "count": self.count, "sum": self.sum}
 
     def load(self, s: dict) -> None:
+        """Restore :meth:`state`: a state a run leaves (count = min(pushes, n), index = count
+        until the ring is full, unfilled slots 0, values >= 0: squares); ValueError otherwise."""
         buf, i, count = list(map(float, s["buf"])), int(s["i"]), int(s["count"])
-        if len(buf) != len(self.buf) or not 0 <= i < len(buf) or not 0 <= count <= len(buf):
-            raise ValueError(f"ring state of length {len(buf)} (index {i}, count {count}) for a window of "
-                             f"{len(self.buf)}")
-        if not all(map(math.isfinite, buf)):
-            raise ValueError("ring buffer holds NaN or Inf")
+        n = len(self.buf)
+        if len(buf) != n or not 0 <= i < n or not 0 <= count <= n or (count < n and i != count):
+            raise ValueError(f"ring state of length {len(buf)} (index {i}, count {count}) for a window of {n}")
+        if not all(x >= 0.0 and math.isfinite(x) for x in buf) or any(x != 0.0 for x in buf[count:]):
+            raise ValueError("ring buffer holds a negative, NaN or Inf value, or a filled slot beyond its count")
         self.buf, self.i, self.count, self.sum = buf, i, count, float(s["sum"])
+
+
+#: sample counters stay below 2^53, where every integer is a float (the peak evaluator stores
+#: sample indices as floats); a state claiming more is refused (docs/semantics.md §10)
+EXACT_MAX = 2 ** 53
+
+
+def _check_peak(dq: list, k: int, n: int, value: float) -> None:
+    """The peak deque as a run leaves it: at most n entries, sample indices integral, increasing,
+    the newest k - 1, none older than k - n; values decreasing, >= 0; J the oldest entry's value.
+    This bounds every later step's work (a state at k >= 2^53 made the loop that drops old
+    entries endless: k and k - n are then the same float)."""
+    ok = 0 <= k < EXACT_MAX and len(dq) <= n and (len(dq) == 0) == (k == 0)
+    prev_i, prev_v = -1.0, math.inf
+    for i, x in dq:
+        ok = ok and i == math.floor(i) and prev_i < i and i >= k - n and 0.0 <= x < prev_v
+        prev_i, prev_v = i, x
+    ok = ok and (value == (dq[0][1] if dq else 0.0)) and (not dq or prev_i == k - 1)
+    if not ok:
+        raise ValueError(f"peak state: {len(dq)} entries at sample {k} for a window of {n} are not what a run "
+                         f"leaves (indices k-n..k-1 increasing, values decreasing, J the oldest)")
 
 
 def _exact_sum(values) -> float:
@@ -180,10 +203,8 @@ class Evaluator:
             self.acc = float(s["acc"])
         elif k == "peak":
             dq = [[float(a), float(b)] for a, b in s["deque"]]
-            if len(dq) > self.n or not all(map(math.isfinite, (b for _, b in dq))):
-                raise ValueError(f"peak state: {len(dq)} entries for a window of {self.n}, or NaN/Inf values")
-            self.deque = dq
-            self.k = int(s["k"])
+            self.deque, self.k = dq, int(s["k"])
+            _check_peak(dq, self.k, self.n, self.value)
         elif k == "narendra":
             self.re = float(s["re"])
         elif k == "cusum":
@@ -199,6 +220,26 @@ class Evaluator:
             self.hist = hist
         if not self.finite():
             raise ValueError(f"{k} evaluator state holds NaN or Inf")
+        self._check_values()
+
+    def _check_values(self) -> None:
+        """The value J and the state fit as a run leaves them (docs/semantics.md §10): J >= 0 for
+        every kind, and J is what the state gives where it is a function of it."""
+        k, v = self.kind, self.value
+        if k == "rms":
+            ok = v == math.sqrt(max(self.ring.sum, 0.0) / self.n)
+        elif k == "chi2":
+            ok = v == max(self.ring.sum, 0.0)
+        elif k == "ewrms":
+            ok = self.acc >= 0.0 and v == math.sqrt(self.acc)
+        elif k == "narendra":
+            ok = self.re >= 0.0 and v >= 0.0
+        elif k == "cusum":
+            ok = min(self.gp + self.gm) >= 0.0 and v == max(max(self.gp), max(self.gm))
+        else:  # norm, glr (peak: _check_peak)
+            ok = v >= 0.0
+        if not ok:
+            raise ValueError(f"{k} evaluator state: the value {v!r} does not fit the state")
 
     def finite(self) -> bool:
         """Every value written by the last step is finite (S1, docs/semantics.md §8).

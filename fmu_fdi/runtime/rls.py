@@ -86,6 +86,26 @@ def _matrix(value, rows: int, cols: int, what: str) -> np.ndarray:
     return M
 
 
+def _dot(a, b) -> float:
+    """Σ a_i b_i from 0.0, in index order (the C runtime's order)."""
+    acc = 0.0
+    for x, y in zip(a, b):
+        acc += x * y
+    return acc
+
+
+def _mv(M, x) -> list:
+    """M x (M a list of rows), every row summed from 0.0 in column order (fdi_matvec)."""
+    return [_dot(row, x) for row in M]
+
+
+def _trace(P) -> float:
+    acc = 0.0
+    for r in range(len(P)):
+        acc += P[r][r]
+    return acc
+
+
 class _Estimator:
     """The constant data of one estimator (prefilter, nominal parameters, counts)."""
 
@@ -121,6 +141,8 @@ class _Estimator:
         if not 0 <= self.trace_min < self.trace_max:
             raise ValueError(f"rls spec: {where} trace_min must be in [0, trace_max), got {self.trace_min!r}")
         self.npar, self.nx = npar, nx
+        # row lists for the sequential sums of the prefilter (docs/semantics.md §4.2)
+        self.Al, self.Bl, self.Cl, self.Dl = (M.tolist() for M in (self.A, self.B, self.C, self.D))
 
 
 class RLSStep:
@@ -203,6 +225,9 @@ class RLSStep:
         if len(items) != len(self.estimators):
             raise ValueError(f"rls state has {len(items)} estimators, this generator has {len(self.estimators)}")
         new = []
+        k = int(state["k"])
+        if not 0 <= k < 2 ** 53:
+            raise ValueError(f"rls state: sample counter {k} outside [0, 2^53)")
         for i, (est, item) in enumerate(zip(self.estimators, items)):
             x = np.array(item["x"], float).reshape(-1)
             th = np.array(item["theta"], float).reshape(-1)
@@ -216,10 +241,24 @@ class RLSStep:
             if not (all(np.isfinite(a).all() for a in entry[:3]) and math.isfinite(entry[3])
                     and math.isfinite(entry[4])):
                 raise ValueError(f"rls state of estimator {i} holds NaN or Inf")
+            self._check_counts(i, est, k, *entry)
             new.append(entry)
-        self.k = int(state["k"])
+        self.k = k
         (self._x, self._theta, self._P, self._sigma2, self._psi2, self._updates,
          self._resets) = (list(t) for t in zip(*new))
+
+    def _check_counts(self, i, est, k, x, th, P, sigma2, psi2, updates, resets) -> None:
+        """A state as a run from reset leaves it (docs/semantics.md §10): every sample from ``skip``
+        on updates, resets as the policy makes them, P exactly symmetric (symmetrised every
+        update), the noise estimates >= 0."""
+        want = max(0, k - est.skip)
+        policy_ok = (resets == updates // self.period if self.policy == "periodic"
+                     else resets <= updates if self.policy == "floor" else resets == 0)
+        if updates != want or not 0 <= resets <= updates or not policy_ok:
+            raise ValueError(f"rls state of estimator {i}: {updates} updates and {resets} resets after {k} samples "
+                             f"(expected {want} updates, resets by the '{self.policy}' policy)")
+        if not (sigma2 >= 0.0 and psi2 >= 0.0 and np.array_equal(P, P.T)):
+            raise ValueError(f"rls state of estimator {i}: P not symmetric or a negative noise estimate")
 
     def finite(self) -> bool:
         """Every entry of the state (x, θ̂, P, σ̂², ψ²_ms of every estimator) is finite."""
@@ -253,37 +292,43 @@ class RLSStep:
         return out
 
     def _step_one(self, i: int, est: _Estimator, w: np.ndarray) -> np.ndarray:
-        x = self._x[i]
-        z = est.C @ x + est.D @ w
-        self._x[i] = est.A @ x + est.B @ w
+        x, wl = self._x[i].tolist(), w.tolist()
+        z = [a + b for a, b in zip(_mv(est.Cl, x), _mv(est.Dl, wl))]
+        self._x[i] = np.array([a + b for a, b in zip(_mv(est.Al, x), _mv(est.Bl, wl))])
         if self.k < est.skip:
             return np.zeros(est.npar)
-        psi, phi = z[0], z[1:]
-        self._update(i, psi, phi)
+        self._update(i, z[0], z[1:])
         if self.k + 1 < est.warmup:
             return np.zeros(est.npar)
         return self._residual(i, est)
 
-    def _update(self, i: int, psi: float, phi: np.ndarray) -> None:
+    def _update(self, i: int, psi: float, phi: list) -> None:
+        """One RLS update, every sum sequential in index order (docs/semantics.md §4.2): the
+        recursion amplifies last-bit differences of a summation order, so both runtimes use
+        this one (the C runtime's fdi_rls.c does the same operations in the same order)."""
         est = self.estimators[i]
-        mu, P, theta = self.mu, self._P[i], self._theta[i]
-        Pphi = P @ phi
-        s = mu + phi @ Pphi
-        K = Pphi / s
-        err = psi - phi @ theta
-        self._theta[i] = theta + K * err
-        J = np.eye(P.shape[0]) - np.outer(K, phi)
-        P = (J @ P @ J.T + mu * np.outer(K, K)) / mu
-        P = 0.5 * (P + P.T)
-        tr = np.trace(P)
+        mu, n_p = self.mu, est.npar
+        P = self._P[i].tolist()
+        theta = self._theta[i].tolist()
+        Pphi = _mv(P, phi)
+        s = mu + _dot(phi, Pphi)
+        K = [a / s for a in Pphi]
+        err = psi - _dot(phi, theta)
+        self._theta[i] = np.array([t + k * err for t, k in zip(theta, K)])
+        J = [[(1.0 if r == c else 0.0) - K[r] * phi[c] for c in range(n_p)] for r in range(n_p)]
+        JP = [[_dot(row, [P[q][c] for q in range(n_p)]) for c in range(n_p)] for row in J]
+        Pn = [[(_dot(JP[r], J[c]) + mu * (K[r] * K[c])) / mu for c in range(n_p)] for r in range(n_p)]
+        P = [[0.5 * (Pn[r][c] + Pn[c][r]) for c in range(n_p)] for r in range(n_p)]
+        tr = _trace(P)
         if tr > est.trace_max:
-            P = P * (est.trace_max / tr)
+            f = est.trace_max / tr
+            P = [[v * f for v in row] for row in P]
         n = self._updates[i] = self._updates[i] + 1
-        if (self.policy == "floor" and np.trace(P) < est.trace_min) or (
+        if (self.policy == "floor" and _trace(P) < est.trace_min) or (
                 self.policy == "periodic" and n % self.period == 0):
-            P = self.P0 * np.eye(P.shape[0])
+            P = [[self.P0 if r == c else 0.0 for c in range(n_p)] for r in range(n_p)]
             self._resets[i] += 1
-        self._P[i] = P
+        self._P[i] = np.array(P)
         gamma = max(1.0 / n, 1.0 - self.mu_sigma)
         e2 = err * err * mu / s
         if self.clip and n > self.clip_after:

@@ -113,6 +113,11 @@ class Threshold:
             raise ValueError(f"fixed threshold state {self.value!r} differs from the design's {self.value0!r}")
         if not self.finite():
             raise ValueError(f"{self.kind} threshold state holds NaN or Inf")
+        # J_th is what its evaluator's value gives (the same operations as step); the input norms >= 0
+        if ((self.kind == "adaptive" and self.value != self.J0 + self.a * self.u_eval.value)
+                or (self.kind == "majorant" and (self.value != self.J0 + self.b_eval.value
+                                                 or min(self.hist + [self.old_max]) < 0.0))):
+            raise ValueError(f"{self.kind} threshold state: the value {self.value!r} does not fit its evaluator")
 
     def resampled(self, ratio: float, residual_eval: dict) -> "Threshold":
         if self.kind == "majorant":

@@ -200,6 +200,16 @@ def contract(spec):
                     inst.t += float(h)
                 finally:
                     values = inst.read()
+            elif op == "step_at":  # doStep from an explicit communication point; the time moves on only if OK
+                t, h, row = args
+                inst.set(row)
+                try:
+                    inst.fmu.doStep(currentCommunicationPoint=float(t), communicationStepSize=float(h))
+                    inst.t = float(t) + float(h)
+                finally:
+                    values = inst.read()
+            elif op == "scale":
+                inst.fmu.setReal([inst.vars["threshold_scale"].valueReference], [float(args[0])])
             elif op == "read":
                 values = inst.read()
             elif op == "get_state":
@@ -214,7 +224,7 @@ def contract(spec):
                 src = blobs[args[1]]
                 blobs[args[0]] = {"truncate": src[: len(src) // 2], "zeros": bytes(len(src))}[args[2]]
             else:
-                call = {"setup": lambda: inst.fmu.setupExperiment(startTime=0.0),
+                call = {"setup": lambda: inst.fmu.setupExperiment(startTime=float(args[0]) if args else 0.0),
                         "enter": inst.fmu.enterInitializationMode, "exit": inst.fmu.exitInitializationMode,
                         "terminate": inst.fmu.terminate, "reset": inst.fmu.reset}[op]
                 call()

@@ -13,6 +13,9 @@
 
 #include "fdi_internal.h"
 
+static void isolate(fdi_decision *dec, const double *r);
+static int fdi_isolation_valid(fdi_decision *dec, int any);
+
 void fdi_decision_layout(fdi_decision *dec, fdi_slots *s, fdi_carver *c, const fdi_design *d)
 {
     size_t ng = (size_t)d->n_groups;
@@ -36,14 +39,16 @@ void fdi_decision_reset(fdi_decision *dec)
     *dec->isolated = 0;
 }
 
+/* Validate a loaded image and rebuild the counts: rings of 0/1 tests, alarms as persistence and
+ * latch make them from the rings, isolated_fault as the isolation makes it from the alarms. */
 int fdi_decision_load(fdi_decision *dec)
 {
     const fdi_design *d = dec->d;
     long g, j, n = d->n_of;
-    if (*dec->isolated < -1 || *dec->isolated > d->n_faults)
-        return 0;
+    int any = 0;
     for (g = 0; g < d->n_groups; g++) {
         fdi_int cnt = 0;
+        int up;
         if (dec->pos[g] < 0 || dec->pos[g] >= n || dec->alarms[g] > 1 || dec->latched[g] > 1)
             return 0;
         for (j = 0; j < n; j++) {
@@ -53,8 +58,30 @@ int fdi_decision_load(fdi_decision *dec)
             cnt += b;
         }
         dec->count[g] = cnt;
+        up = cnt >= d->k_of;
+        if (d->latch ? (dec->alarms[g] != dec->latched[g] || (up && !dec->latched[g]))
+                     : (dec->latched[g] != 0 || dec->alarms[g] != up))
+            return 0;
+        any |= dec->alarms[g];
     }
-    return 1;
+    return fdi_isolation_valid(dec, any);
+}
+
+/* isolated_fault fits the alarms: 0 without an alarm; with one, what structure isolation gives
+ * for the pattern, a fault with a direction or -1 (direction: the residual decided), -1 (none). */
+static int fdi_isolation_valid(fdi_decision *dec, int any)
+{
+    const fdi_design *d = dec->d;
+    fdi_int iso = *dec->isolated;
+    if (!any)
+        return iso == 0;
+    if (d->isolation == FDI_ISO_STRUCTURE) {
+        isolate(dec, NULL);
+        return *dec->isolated == iso;
+    }
+    if (d->isolation == FDI_ISO_DIRECTION)
+        return iso == -1 || (iso >= 1 && iso <= d->n_faults && d->Dvalid[iso - 1]);
+    return iso == -1;
 }
 
 static void isolate(fdi_decision *dec, const double *r)
@@ -84,6 +111,10 @@ static void isolate(fdi_decision *dec, const double *r)
     } else if (d->isolation == FDI_ISO_DIRECTION) {
         long nr = d->n_r, i, best = -1;
         double nrm = 0.0, a_best = INFINITY, a_second = INFINITY, margin;
+        if (!r) {   /* an overflowed sub-sample: the residual direction is unknown */
+            *dec->isolated = -1;
+            return;
+        }
         for (i = 0; i < nr; i++)
             nrm += r[i] * r[i];
         nrm = sqrt(nrm);
@@ -115,17 +146,17 @@ static void isolate(fdi_decision *dec, const double *r)
     }
 }
 
-void fdi_decision_step(fdi_decision *dec, const double *evals, const double *thrs, const double *r)
+void fdi_decision_step_fired(fdi_decision *dec, const unsigned char *fired, const double *r)
 {
     const fdi_design *d = dec->d;
     long g, n = d->n_of;
     for (g = 0; g < d->n_groups; g++) {
         unsigned char *ring = dec->raw + (size_t)g * (size_t)n;
-        unsigned char fired = evals[g] >= thrs[g];
+        unsigned char f = fired[g] != 0;
         fdi_int p = dec->pos[g];
         int up;
-        dec->count[g] += (fdi_int)fired - (fdi_int)ring[p];
-        ring[p] = fired;
+        dec->count[g] += (fdi_int)f - (fdi_int)ring[p];
+        ring[p] = f;
         dec->pos[g] = (p + 1) % n;
         up = dec->count[g] >= d->k_of;
         if (d->latch) {
@@ -135,4 +166,13 @@ void fdi_decision_step(fdi_decision *dec, const double *evals, const double *thr
         dec->alarms[g] = (unsigned char)up;
     }
     isolate(dec, r);
+}
+
+void fdi_decision_step(fdi_decision *dec, const double *evals, const double *thrs, const double *r,
+                       unsigned char *fired)
+{
+    long g;
+    for (g = 0; g < dec->d->n_groups; g++)
+        fired[g] = evals[g] >= thrs[g];
+    fdi_decision_step_fired(dec, fired, r);
 }

@@ -78,20 +78,91 @@ void fdi_evaluator_reset(fdi_evaluator *e)
     }
 }
 
+/* Slots [from, to) of buf hold zeros (the unfilled part of a ring, docs/semantics.md S5). */
+static int zeros(const double *buf, size_t from, size_t to)
+{
+    for (; from < to; from++)
+        if (buf[from] != 0.0)
+            return 0;
+    return 1;
+}
+
+/* A ring (rms, chi2) or a history (glr) of window n: position, count and contents as a run
+ * from the initial state leaves them (count = min(samples, n); position = count until full). */
+static int ring_check(const fdi_evaluator *e, fdi_int n, size_t width)
+{
+    const fdi_int *i = e->i;
+    if (!(n >= 1 && n <= e->cap && i[0] >= 0 && i[0] < n && i[1] >= 0 && i[1] <= n && i[2] == 0))
+        return 0;
+    if (i[1] < n && i[0] != i[1])
+        return 0;
+    return zeros(e->buf, (size_t)i[1] * width, (size_t)e->cap * width);
+}
+
+/* The peak evaluator's deque: sample indices (integers) increasing, the newest k - 1, none older
+ * than the window; values decreasing, >= 0; J the oldest value. Bounds every later step's work. */
+static int peak_check(const fdi_evaluator *e, fdi_int n)
+{
+    fdi_int head = e->i[0], len = e->i[1], k = e->i[2], j;
+    long ring = (long)n + 1;
+    double prev_idx = -1.0, prev_val = INFINITY;
+    if (!(n >= 1 && n <= e->cap && head >= 0 && head < ring && len >= 0 && len <= n && k >= 0 &&
+          k < FDI_EXACT_MAX && (len == 0) == (k == 0)))
+        return 0;
+    for (j = 0; j < len; j++) {
+        double idx = e->buf[(head + j) % ring], val = e->buf2[(head + j) % ring];
+        if (!(idx == floor(idx) && idx > prev_idx && idx >= (double)(k - n) && val >= 0.0 && val < prev_val))
+            return 0;
+        prev_idx = idx;
+        prev_val = val;
+    }
+    if (len > 0 && (prev_idx != (double)(k - 1) || *e->value != e->buf2[head]))
+        return 0;
+    return len > 0 || *e->value == 0.0;
+}
+
 int fdi_evaluator_check(const fdi_evaluator *e, const fdi_eval_def *def)
 {
     fdi_int n = def->window, *i = e->i;
+    double v = *e->value, a = *e->acc;
+    long j;
     switch (e->kind) {
     case FDI_EV_RMS:
+        return ring_check(e, n, 1) && v == sqrt((0.0 > a ? 0.0 : a) / (double)n) &&
+               fdi_nonnegative(e->buf, (size_t)i[1]);
     case FDI_EV_CHI2:
-        return n <= e->cap && i[0] >= 0 && i[0] < n && i[1] >= 0 && i[1] <= n && i[2] == 0;
-    case FDI_EV_PEAK:
-        return n <= e->cap && i[0] >= 0 && i[0] <= n && i[1] >= 0 && i[1] <= n && i[2] >= 0 && i[2] < FDI_COUNTER_MAX;
+        return ring_check(e, n, 1) && v == (0.0 > a ? 0.0 : a) && fdi_nonnegative(e->buf, (size_t)i[1]);
     case FDI_EV_GLR:
-        return n <= e->cap && i[0] >= 0 && i[0] < n && i[1] >= 0 && i[1] <= n && i[2] == 0;
-    default:
-        return i[0] == 0 && i[1] == 0 && i[2] == 0;
+        return ring_check(e, n, (size_t)e->dim) && v >= 0.0;
+    case FDI_EV_PEAK:
+        return peak_check(e, n);
+    case FDI_EV_EWRMS:
+        return i[0] == 0 && i[1] == 0 && i[2] == 0 && a >= 0.0 && v == sqrt(a);
+    case FDI_EV_CUSUM: {
+        double best = e->buf[0], bm = e->buf2[0];
+        if (i[0] != 0 || i[1] != 0 || i[2] != 0 || a != 0.0 || !fdi_nonnegative(e->buf, (size_t)e->dim) ||
+            !fdi_nonnegative(e->buf2, (size_t)e->dim))
+            return 0;
+        for (j = 1; j < e->dim; j++) {
+            best = pymax(best, e->buf[j]);
+            bm = pymax(bm, e->buf2[j]);
+        }
+        return v == pymax(best, bm);
     }
+    case FDI_EV_NARENDRA:
+        return i[0] == 0 && i[1] == 0 && i[2] == 0 && a >= 0.0 && v >= 0.0;
+    default:   /* norm */
+        return i[0] == 0 && i[1] == 0 && i[2] == 0 && a == 0.0 && v >= 0.0;
+    }
+}
+
+int fdi_nonnegative(const double *x, size_t n)
+{
+    size_t j;
+    for (j = 0; j < n; j++)
+        if (!(x[j] >= 0.0))
+            return 0;
+    return 1;
 }
 
 int fdi_evaluator_finite(const fdi_evaluator *e)
@@ -161,7 +232,7 @@ double fdi_evaluator_step_sq(fdi_evaluator *e, const fdi_eval_def *def, double s
         e->buf[(head + len) % cap] = (double)k;
         e->buf2[(head + len) % cap] = x;
         len++;
-        while (e->buf[head] <= (double)(k - def->window)) {
+        while (len > 1 && e->buf[head] <= (double)(k - def->window)) {   /* the newest (k) always stays */
             head = (head + 1) % cap;
             len--;
         }
@@ -271,11 +342,15 @@ void fdi_threshold_reset(fdi_threshold *t)
 
 int fdi_threshold_check(const fdi_threshold *t, const fdi_eval_def *ev)
 {
-    if (t->def->kind == FDI_TH_FIXED)
-        return 1;
+    const fdi_threshold_def *def = t->def;
+    if (def->kind == FDI_TH_FIXED)
+        return *t->value == def->value;
     if (!fdi_evaluator_check(&t->ev, ev))
         return 0;
-    return t->def->kind != FDI_TH_MAJORANT || (*t->pos >= 0 && *t->pos < t->def->n_taps);
+    if (def->kind == FDI_TH_ADAPTIVE)
+        return *t->value == def->J0 + def->a * *t->ev.value;
+    return *t->value == def->J0 + *t->ev.value && *t->pos >= 0 && *t->pos < def->n_taps &&
+           fdi_nonnegative(t->hist, (size_t)def->n_taps) && *t->old_max >= 0.0;
 }
 
 int fdi_threshold_finite(const fdi_threshold *t)

@@ -14,7 +14,7 @@ static const unsigned char IMAGE_MAGIC[8] = {'f', 'd', 'i', 'F', 'M', 'U', '0', 
 
 const char *const FDI_CATEGORY_NAMES[FDI_N_CATEGORIES] = {
     "logStatusWarning", "logStatusDiscard", "logStatusError", "logStatusFatal",
-    "logAll", "logFdiEvents", "logFdiInput", "logFdiState",
+    "logAll", "logFdiEvents", "logFdiInput", "logFdiState", "logFdiNumeric",
 };
 
 const signed char FDI_OUTPUT_KIND_TABLE[FDI_N_OUTPUTS > 0 ? FDI_N_OUTPUTS : 1] = FDI_OUTPUT_KINDS;
@@ -146,7 +146,8 @@ int fdi_set_logging(fdi_instance *fi, int on, size_t n, const char *const catego
             if (categories[i] && strcmp(categories[i], FDI_CATEGORY_NAMES[c]) == 0) break;
         if (c == FDI_N_CATEGORIES) {
             fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s: unknown log category '%s' (known: logStatusWarning, "
-                    "logStatusDiscard, logStatusError, logStatusFatal, logAll, logFdiEvents, logFdiInput, logFdiState)",
+                    "logStatusDiscard, logStatusError, logStatusFatal, logAll, logFdiEvents, logFdiInput, logFdiState, "
+                    "logFdiNumeric)",
                     fn, categories[i] ? categories[i] : "(null)");
             return FDI_S_ERROR;  /* settings unchanged */
         }
@@ -218,13 +219,18 @@ int fdi_do_step(fdi_instance *fi, const char *fn, double t, double h) {
     const double *out;
     const size_t nu = fdi_n_u(&FDI_DESIGN);
     int detected, isolated;
+    double h_before = fdi_runtime_step(fi->rt), ratio_before = fdi_runtime_sample_ratio(fi->rt);
     fdi_status s;
+    if (!isfinite(t) || (isfinite(h) && !isfinite(t + h))) {   /* S9: times are finite (a bad h: Discard) */
+        fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s: communication point t=%g with step %g: the time must be a finite "
+                "number and stay one (refused, nothing changed)", fn, t, h);
+        return FDI_S_ERROR;
+    }
     fi->why[0] = 0;
     s = fdi_runtime_advance(fi->rt, fi->inputs, fi->inputs + nu, h, fi->why, sizeof fi->why);
     fi->outputs = fdi_runtime_outputs(fi->rt);
     if (s == FDI_DISCARD) {
-        fdi_log(fi, FDI_S_DISCARD, FDI_C_DISCARD, "%s at t=%.17g, step %.17g refused: %s (nothing changed)", fn, t,
-                h, fi->why);
+        fdi_log(fi, FDI_S_DISCARD, FDI_C_DISCARD, "step at t=%g refused: %s", t, fi->why);
         return FDI_S_DISCARD;
     }
     if (s != FDI_OK) {
@@ -234,13 +240,19 @@ int fdi_do_step(fdi_instance *fi, const char *fn, double t, double h) {
     }
     fi->time = t + h;
     out = fi->outputs;
-    if (out[FDI_IDX_INPUT_INVALID] != 0.0)
-        fdi_log(fi, FDI_S_WARNING, FDI_C_INPUT, "t=%g: invalid (NaN/Inf) input sample; diagnosis held", t);
-#if FDI_IDX_NUMERIC_RESET >= 0
+    /* the messages and categories of the pythonfmu target (fmu_fdi/fmu/slave_template.py); warnings
+     * carry no time: the host knows the call, and identical texts can be counted */
+    if (fdi_runtime_sample_ratio(fi->rt) != ratio_before)
+        fdi_log(fi, FDI_S_WARNING, FDI_C_WARNING, "step size changed from %g s to %g s (design Ts = %g s): evaluation "
+                "windows and thresholds restarted (docs/semantics.md, step sizes)", h_before,
+                fdi_runtime_step(fi->rt), fdi_sample_time(&FDI_DESIGN));
     if (out[FDI_IDX_NUMERIC_RESET] != 0.0)
-        fdi_log(fi, FDI_S_WARNING, FDI_C_EVENTS, "t=%g: a value became non-finite inside the diagnosis; generator, "
-                "evaluation and thresholds restarted (numeric_reset)", t);
-#endif
+        fdi_log(fi, FDI_S_WARNING, FDI_C_NUMERIC, "the sample overflowed the evaluation (a value became NaN/Inf); "
+                "counted as fault evidence, sample discarded, generator and evaluation restarted (numeric_reset, "
+                "input_invalid)");
+    else if (out[FDI_IDX_INPUT_INVALID] != 0.0)
+        fdi_log(fi, FDI_S_WARNING, FDI_C_INPUT, "invalid input sample (NaN/Inf or outside its valid range); "
+                "diagnosis held");
     detected = out[FDI_IDX_FAULT_DETECTED] != 0.0;
     isolated = (int)out[FDI_IDX_ISOLATED_FAULT];
     if (detected != fi->last_detected || (detected && isolated != fi->last_isolated)) {
@@ -260,11 +272,13 @@ int fdi_do_step(fdi_instance *fi, const char *fn, double t, double h) {
 
 /* ---- FMU state image --------------------------------------------------------------------
  * magic[8] | u64 total | u64 n_inputs | u64 runtime bytes | f64 time | f64 inputs[n] |
- * i32 last_detected | i32 last_isolated | runtime image (fdi_runtime_get_state) */
+ * i32 last_detected | i32 last_isolated | runtime image (fdi_runtime_get_state) |
+ * u64 FNV-1a 64 of every byte before it (a flipped bit, byte or truncation changes it) */
 #define IMAGE_HEADER (8 + 3 * 8 + 8)
+#define IMAGE_TRAILER 8
 
 size_t fdi_image_bytes(const fdi_instance *fi) {
-    return IMAGE_HEADER + 8 * (size_t)FDI_N_INPUTS + 8 + fdi_runtime_state_size(fi->rt);
+    return IMAGE_HEADER + 8 * (size_t)FDI_N_INPUTS + 8 + fdi_runtime_state_size(fi->rt) + IMAGE_TRAILER;
 }
 
 static void put_u64(unsigned char **p, uint64_t v) { memcpy(*p, &v, 8); *p += 8; }
@@ -274,12 +288,28 @@ static uint64_t get_u64(const unsigned char **p) { uint64_t v; memcpy(&v, *p, 8)
 static double get_f64(const unsigned char **p) { double v; memcpy(&v, *p, 8); *p += 8; return v; }
 static int32_t get_i32(const unsigned char **p) { int32_t v; memcpy(&v, *p, 4); *p += 4; return v; }
 
+/* FNV-1a 64 (Fowler, Noll, Vo): every step is a bijection of the hash given the byte, so two
+ * inputs that differ in one byte always differ in the hash. */
+static uint64_t fnv1a64(const unsigned char *p, size_t n) {
+    uint64_t h = 1469598103934665603ULL;
+    size_t i;
+    for (i = 0; i < n; i++) {
+        h ^= p[i];
+        h *= 1099511628211ULL;
+    }
+    return h;
+}
+
+static size_t runtime_image_bytes(size_t len) {
+    return len - IMAGE_HEADER - 8 * (size_t)FDI_N_INPUTS - 8 - IMAGE_TRAILER;
+}
+
 void fdi_image_get(const fdi_instance *fi, unsigned char *buf) {
     unsigned char *p = buf;
-    size_t i, rt = fdi_runtime_state_size(fi->rt);
+    size_t i, rt = fdi_runtime_state_size(fi->rt), len = fdi_image_bytes(fi);
     memcpy(p, IMAGE_MAGIC, 8);
     p += 8;
-    put_u64(&p, fdi_image_bytes(fi));
+    put_u64(&p, len);
     put_u64(&p, FDI_N_INPUTS);
     put_u64(&p, rt);
     put_f64(&p, fi->time);
@@ -287,12 +317,15 @@ void fdi_image_get(const fdi_instance *fi, unsigned char *buf) {
     put_i32(&p, fi->last_detected);
     put_i32(&p, fi->last_isolated);
     fdi_runtime_get_state(fi->rt, p);
+    p = buf + len - IMAGE_TRAILER;
+    put_u64(&p, fnv1a64(buf, len - IMAGE_TRAILER));
 }
 
 int fdi_image_check(fdi_instance *fi, const unsigned char *buf, size_t len, const char *fn) {
     const unsigned char *p = buf + 8;
-    uint64_t total, n, rt;
+    uint64_t total, n, rt, sum;
     double t;
+    int32_t detected, isolated;
     if (!buf || len < IMAGE_HEADER || memcmp(buf, IMAGE_MAGIC, 8) != 0) {
         fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s: not an FMU state of an fmu-fdi native FMU (%zu bytes, bad magic)",
                 fn, len);
@@ -302,15 +335,25 @@ int fdi_image_check(fdi_instance *fi, const unsigned char *buf, size_t len, cons
     n = get_u64(&p);
     rt = get_u64(&p);
     t = get_f64(&p);
-    if (total != len || n != FDI_N_INPUTS || len != fdi_image_bytes(fi) ||
-        rt != len - IMAGE_HEADER - 8 * (uint64_t)FDI_N_INPUTS - 8) {
+    if (total != len || n != FDI_N_INPUTS || len != fdi_image_bytes(fi) || rt != runtime_image_bytes(len)) {
         fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s: FMU state of %zu bytes (header: %llu bytes, %llu inputs) does not "
                 "fit this FMU (%zu bytes, %d inputs)", fn, len, (unsigned long long)total, (unsigned long long)n,
                 fdi_image_bytes(fi), FDI_N_INPUTS);
         return FDI_S_ERROR;
     }
-    if (!isfinite(t)) {
-        fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s: FMU state with time %g", fn, t);
+    p = buf + len - IMAGE_TRAILER;
+    sum = get_u64(&p);
+    if (sum != fnv1a64(buf, len - IMAGE_TRAILER)) {
+        fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s: FMU state checksum mismatch: the bytes were changed after "
+                "fmiXSerializeFMUstate wrote them (corrupt copy)", fn);
+        return FDI_S_ERROR;
+    }
+    p = buf + IMAGE_HEADER + 8 * (size_t)FDI_N_INPUTS;
+    detected = get_i32(&p);
+    isolated = get_i32(&p);
+    if (!isfinite(t) || (detected != 0 && detected != 1) || isolated < -1 || isolated > FDI_N_FAULTS) {
+        fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s: FMU state with time %g, logged detection %ld and isolation %ld "
+                "(needs a finite time, 0 or 1, and -1..%d)", fn, t, (long)detected, (long)isolated, FDI_N_FAULTS);
         return FDI_S_ERROR;
     }
     return FDI_S_OK;
@@ -318,13 +361,12 @@ int fdi_image_check(fdi_instance *fi, const unsigned char *buf, size_t len, cons
 
 int fdi_image_set(fdi_instance *fi, const unsigned char *buf, size_t len, const char *fn) {
     const unsigned char *p;
-    size_t i, rt_len;
+    size_t i;
     fdi_status s;
     if (fdi_image_check(fi, buf, len, fn) != FDI_S_OK) return FDI_S_ERROR;
-    rt_len = len - IMAGE_HEADER - 8 * (size_t)FDI_N_INPUTS - 8;
     p = buf + IMAGE_HEADER + 8 * (size_t)FDI_N_INPUTS + 8;
     fi->why[0] = 0;
-    s = fdi_runtime_set_state(fi->rt, p, rt_len, fi->why, sizeof fi->why);
+    s = fdi_runtime_set_state(fi->rt, p, runtime_image_bytes(len), fi->why, sizeof fi->why);
     fi->outputs = fdi_runtime_outputs(fi->rt);
     if (s != FDI_OK) {
         fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "%s: FMU state refused: %s (instance unchanged)", fn, fi->why);

@@ -39,7 +39,7 @@ enum { FDI_M_INSTANTIATED = 0, FDI_M_INITIALIZATION, FDI_M_EVENT, FDI_M_STEP, FD
 
 /* log categories, the same as the Python target's (fmu_fdi/fmu/slave_base.py) */
 enum { FDI_C_WARNING = 0, FDI_C_DISCARD, FDI_C_ERROR, FDI_C_FATAL, FDI_C_ALL, FDI_C_EVENTS, FDI_C_INPUT,
-       FDI_C_STATE, FDI_N_CATEGORIES };
+       FDI_C_STATE, FDI_C_NUMERIC, FDI_N_CATEGORIES };
 extern const char *const FDI_CATEGORY_NAMES[FDI_N_CATEGORIES];
 
 /* The host's logger as the glue sees it: a plain message (no printf format). */
@@ -109,6 +109,10 @@ static inline int fdi_set_fast(fdi_instance *fi, int kind, unsigned vr, double v
         return 1;
     }
     return 0;
+}
+/* An output as an FMI Integer: clamped to the 32-bit range (NaN: 0), never undefined behaviour. */
+static inline int fdi_int_output(double v) {
+    return v != v ? 0 : v <= -2147483648.0 ? (-2147483647 - 1) : v >= 2147483647.0 ? 2147483647 : (int)v;
 }
 /* The step; returns FDI_S_OK, FDI_S_DISCARD (reason logged; nothing changed) or FDI_S_ERROR. */
 int fdi_do_step(fdi_instance *fi, const char *fn, double t, double h);

@@ -13,9 +13,10 @@
 #include "fdi_design.h"
 
 typedef long long fdi_int;
-/* Counters in a state image are below this (they grow by one per sample: never reached, and an
- * image claiming more is refused rather than overflowing). */
-#define FDI_COUNTER_MAX (1LL << 62)
+/* Counters in a state image are below 2^53 (they grow by one per sample: never reached), where
+ * every integer is a double: the peak evaluator stores sample indices as doubles, and an image
+ * claiming more is refused (docs/semantics.md S10). */
+#define FDI_EXACT_MAX (1LL << 53)
 
 /* Bump allocator over the instance block; with base == NULL it only counts. */
 typedef struct {
@@ -55,6 +56,8 @@ int fdi_evaluator_finite(const fdi_evaluator *e);
 double fdi_evaluator_step_sq(fdi_evaluator *e, const fdi_eval_def *def, double sq);
 double fdi_evaluator_step(fdi_evaluator *e, const fdi_eval_def *def, const double *r, double *work);
 
+int fdi_nonnegative(const double *x, size_t n);   /* every x[j] >= 0 */
+
 /* Correctly rounded sum of x[0..n) (Python's math.fsum: Shewchuk's partials, half-even fix). */
 double fdi_fsum(const double *x, long n);
 
@@ -87,7 +90,11 @@ typedef struct {
 void fdi_decision_layout(fdi_decision *dec, fdi_slots *s, fdi_carver *c, const fdi_design *d);
 void fdi_decision_reset(fdi_decision *dec);
 int fdi_decision_load(fdi_decision *dec);   /* validate image, rebuild counts; 0 if bad */
-void fdi_decision_step(fdi_decision *dec, const double *evals, const double *thrs, const double *r);
+/* raw tests evals >= thrs (written to fired, n_groups bytes of scratch) */
+void fdi_decision_step(fdi_decision *dec, const double *evals, const double *thrs, const double *r,
+                       unsigned char *fired);
+/* raw tests given; r NULL: direction unknown (an overflowed sub-sample, docs/semantics.md S8) */
+void fdi_decision_step_fired(fdi_decision *dec, const unsigned char *fired, const double *r);
 
 /* ------------------------------------------------------------------ RLS generator */
 typedef struct {
@@ -147,6 +154,7 @@ struct fdi_runtime {
     int cur;
     long n_in, n_out, max_dim, xv_len;
     double *xv, *z, *v, *res, *evals, *thrs, *work, *zoh_work;
+    unsigned char *fired;   /* per group: raw test of the sub-sample (S8: overflow counts as fired) */
 };
 
 #endif

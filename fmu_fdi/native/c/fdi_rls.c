@@ -70,15 +70,33 @@ void fdi_rls_reset(fdi_rls *g)
     }
 }
 
+/* A state image as a run from the initial state leaves it: every sample from `skip` on updates
+ * (updates = max(0, k - skip)), resets as the policy makes them, P exactly symmetric (it is
+ * symmetrised every update), the noise estimates >= 0. */
 int fdi_rls_check(const fdi_rls *g)
 {
-    long e;
-    if (*g->k < 0 || *g->k >= FDI_COUNTER_MAX)
+    const fdi_design *d = g->d;
+    long e, i, j;
+    fdi_int k = *g->k;
+    if (k < 0 || k >= FDI_EXACT_MAX)
         return 0;
-    for (e = 0; e < g->d->rls_n_est; e++)
-        if (*g->updates[e] < 0 || *g->resets[e] < 0 || *g->updates[e] >= FDI_COUNTER_MAX ||
-            *g->resets[e] >= FDI_COUNTER_MAX)
+    for (e = 0; e < d->rls_n_est; e++) {
+        const fdi_rls_est_def *est = &d->rls_est[e];
+        fdi_int n = *g->updates[e], r = *g->resets[e];
+        const double *P = g->P[e];
+        long np = est->npar;
+        if (n != (k > est->skip ? k - est->skip : 0) || r < 0 || r > n)
             return 0;
+        if ((d->rls_policy == FDI_RLS_RESET_PERIODIC && r != n / d->rls_period) ||
+            (d->rls_policy != FDI_RLS_RESET_PERIODIC && d->rls_policy != FDI_RLS_RESET_FLOOR && r != 0))
+            return 0;
+        if (!(*g->sigma2[e] >= 0.0 && *g->psi2[e] >= 0.0))
+            return 0;
+        for (i = 0; i < np; i++)
+            for (j = 0; j < i; j++)
+                if (P[i * np + j] != P[j * np + i])
+                    return 0;
+    }
     return 1;
 }
 

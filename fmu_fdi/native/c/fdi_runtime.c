@@ -128,6 +128,7 @@ static size_t layout(fdi_runtime *rt, const fdi_design *d, unsigned char *base)
     rt->evals = fdi_carve(&c, (size_t)ng * sizeof(double));
     rt->thrs = fdi_carve(&c, (size_t)ng * sizeof(double));
     rt->work = fdi_carve(&c, (size_t)(3 * rt->max_dim) * sizeof(double));  /* evaluator work, group residual */
+    rt->fired = fdi_carve(&c, (size_t)ng);
     rt->zoh_work = resamplable(d)
         ? fdi_carve(&c, (fdi_zoh_work(d->n_xc, m) + (size_t)(d->n_xc * (d->n_xc + m))) * sizeof(double)) : NULL;
     return c.off + 16;
@@ -310,14 +311,17 @@ fdi_status fdi_runtime_init(fdi_runtime *rt, const fdi_design *d, size_t nbytes)
 
 /* ------------------------------------------------------------------ one sample */
 /* Generator, evaluators and thresholds for one (sub-)sample into rt->res/evals/thrs;
- * 0 if anything became non-finite (docs/semantics.md S1). */
+ * 0 if anything became non-finite (docs/semantics.md S8, an overflow). rt->fired gets each
+ * group's raw test for the overflow case: fired if the group's evaluation overflowed (a residual
+ * of the group, J_g or the evaluator's state not finite; every group if the generator state is
+ * not finite), else J_g >= threshold_g. */
 static int sample(fdi_runtime *rt, double unorm)
 {
     const fdi_design *d = rt->d;
     const fdi_plan *pl = &rt->plan[rt->cur];
     long g, j, nr = d->n_r, ng = d->n_groups;
     double scale = *rt->scale;
-    int ok = 1;
+    int ok = 1, gen_ok = 1;
     if (d->gen_kind == FDI_GEN_LTI) {
         long n = pl->n_x, m = rt->n_in;
         memcpy(rt->xv, rt->x, (size_t)n * sizeof(double));
@@ -325,20 +329,21 @@ static int sample(fdi_runtime *rt, double unorm)
         fdi_matvec(pl->M, nr + n, n + m, rt->xv, rt->z);
         memcpy(rt->x, rt->z + nr, (size_t)n * sizeof(double));
         memcpy(rt->res, rt->z, (size_t)nr * sizeof(double));
-        for (j = 0; j < n && ok; j++)
-            ok = isfinite(rt->x[j]);
+        for (j = 0; j < n && gen_ok; j++)
+            gen_ok = isfinite(rt->x[j]);
     } else {
         fdi_rls_step(&rt->rls, rt->v, rt->res);
-        ok = fdi_rls_finite(&rt->rls);
+        gen_ok = fdi_rls_finite(&rt->rls);
     }
-    for (j = 0; j < nr && ok; j++)
-        ok = isfinite(rt->res[j]);
+    ok = gen_ok;
     for (g = 0; g < ng; g++) {
         const long *idx = d->group_idx + d->group_start[g];
         long dim = group_dim(d, g);
         fdi_evaluator *ev = &rt->ev[g];
-        int kind = ev->kind;
+        int kind = ev->kind, group_ok = gen_ok;
         double e;
+        for (j = 0; j < dim; j++)
+            group_ok = group_ok && isfinite(rt->res[idx[j]]);
         if (kind == FDI_EV_CHI2 || kind == FDI_EV_CUSUM || kind == FDI_EV_GLR) {
             double *rg = rt->work + 2 * rt->max_dim;   /* after the evaluator's own work */
             for (j = 0; j < dim; j++)
@@ -358,9 +363,25 @@ static int sample(fdi_runtime *rt, double unorm)
         }
         rt->evals[g] = e;
         rt->thrs[g] = scale * fdi_threshold_step(&rt->th[g], &pl->thev[g], unorm);
-        ok = ok && isfinite(e) && isfinite(rt->thrs[g]) && fdi_evaluator_finite(ev) && fdi_threshold_finite(&rt->th[g]);
+        group_ok = group_ok && isfinite(e) && fdi_evaluator_finite(ev);
+        rt->fired[g] = (unsigned char)(!group_ok || e >= rt->thrs[g]);
+        ok = ok && group_ok && isfinite(rt->thrs[g]) && fdi_threshold_finite(&rt->th[g]);
     }
     return ok;
+}
+
+/* The decision outputs (alarms, fault_detected, isolated_fault) from rt->dec. */
+static void decision_outputs(fdi_runtime *rt)
+{
+    long i, nr = rt->d->n_r, ng = rt->d->n_groups;
+    double *out = rt->outputs;
+    int any = 0;
+    for (i = 0; i < ng; i++) {
+        out[nr + 2 * ng + i] = rt->dec.alarms[i] ? 1.0 : 0.0;
+        any |= rt->dec.alarms[i];
+    }
+    out[nr + 3 * ng] = any ? 1.0 : 0.0;
+    out[nr + 3 * ng + 1] = (double)*rt->dec.isolated;
 }
 
 fdi_status fdi_runtime_advance(fdi_runtime *rt, const double *u, const double *y, double h,
@@ -414,26 +435,28 @@ fdi_status fdi_runtime_advance(fdi_runtime *rt, const double *u, const double *y
     }
     unorm = sqrt(unorm);
     ok = ok && isfinite(unorm);
+    if (!ok) {   /* the sample offsets overflowed: every group's raw test fires (S8) */
+        memset(rt->fired, 1, (size_t)ng);
+        fdi_decision_step_fired(&rt->dec, rt->fired, NULL);
+        decision_outputs(rt);
+    }
     for (s = 0; ok && s < rt->plan[rt->cur].substeps; s++) {
-        int any = 0;
-        if (!sample(rt, unorm)) {
+        if (!sample(rt, unorm)) {   /* overflow: the decision steps with the overflow raw tests */
             ok = 0;
+            fdi_decision_step_fired(&rt->dec, rt->fired, NULL);
+            decision_outputs(rt);
             break;
         }
-        fdi_decision_step(&rt->dec, rt->evals, rt->thrs, rt->res);
+        fdi_decision_step(&rt->dec, rt->evals, rt->thrs, rt->res, rt->fired);
         memcpy(out, rt->res, (size_t)nr * sizeof(double));
         memcpy(out + nr, rt->evals, (size_t)ng * sizeof(double));
         memcpy(out + nr + ng, rt->thrs, (size_t)ng * sizeof(double));
-        for (i = 0; i < ng; i++) {
-            out[nr + 2 * ng + i] = rt->dec.alarms[i] ? 1.0 : 0.0;
-            any |= rt->dec.alarms[i];
-        }
-        out[nr + 3 * ng] = any ? 1.0 : 0.0;
-        out[nr + 3 * ng + 1] = (double)*rt->dec.isolated;
+        decision_outputs(rt);
     }
-    if (!ok) {   /* S1: discard the sub-sample, restart generator, evaluators and thresholds */
+    if (!ok) {   /* S8: discard the sub-sample, restart generator, evaluators and thresholds */
         reset_generator(rt);
         reset_stage(rt);
+        out[nr + 3 * ng + 2] = 1.0;
         out[nr + 3 * ng + 3] = 1.0;
         *rt->n_numeric_resets += 1;
     }
@@ -442,6 +465,8 @@ fdi_status fdi_runtime_advance(fdi_runtime *rt, const double *u, const double *y
 }
 
 const double *fdi_runtime_outputs(const fdi_runtime *rt) { return rt->outputs; }
+double fdi_runtime_step(const fdi_runtime *rt) { return *rt->h; }
+double fdi_runtime_sample_ratio(const fdi_runtime *rt) { return rt->plan[rt->cur].ratio; }
 
 fdi_status fdi_runtime_set_threshold_scale(fdi_runtime *rt, double scale, char *why, size_t whylen)
 {
@@ -484,20 +509,38 @@ void fdi_runtime_get_state(const fdi_runtime *rt, unsigned char *buf)
     memcpy(buf, rt->st.b, rt->st.nb);
 }
 
-/* The loaded regions describe a state the runtime can continue from (indices in range). */
+/* The outputs fit the decision state: alarms, fault_detected and isolated_fault are the
+ * decision's; the two flags are 0 or 1; evaluations are >= 0 (every kind's J is). */
+static int outputs_sane(const fdi_runtime *rt)
+{
+    const double *out = rt->outputs;
+    long i, nr = rt->d->n_r, ng = rt->d->n_groups;
+    int any = 0;
+    for (i = 0; i < ng; i++) {
+        if (out[nr + 2 * ng + i] != (rt->dec.alarms[i] ? 1.0 : 0.0) || !(out[nr + i] >= 0.0))
+            return 0;
+        any |= rt->dec.alarms[i];
+    }
+    return out[nr + 3 * ng] == (any ? 1.0 : 0.0) && out[nr + 3 * ng + 1] == (double)*rt->dec.isolated &&
+           (out[nr + 3 * ng + 2] == 0.0 || out[nr + 3 * ng + 2] == 1.0) &&
+           (out[nr + 3 * ng + 3] == 0.0 || out[nr + 3 * ng + 3] == 1.0);
+}
+
+/* The loaded regions describe a state a run of this design can reach (docs/semantics.md S10):
+ * every count and index within what the design allows, every derived value consistent. */
 static int state_sane(fdi_runtime *rt)
 {
     const fdi_plan *pl = &rt->plan[rt->cur];
     long g;
-    if (*rt->n_samples < 0 || *rt->n_samples >= FDI_COUNTER_MAX || *rt->n_numeric_resets < 0 ||
-        *rt->n_numeric_resets >= FDI_COUNTER_MAX || !(*rt->scale >= 0.0))
+    if (*rt->n_samples < 0 || *rt->n_samples >= FDI_EXACT_MAX || *rt->n_numeric_resets < 0 ||
+        *rt->n_numeric_resets > *rt->n_samples || !(*rt->scale >= 0.0))
         return 0;
     for (g = 0; g < rt->d->n_groups; g++)
         if (!fdi_evaluator_check(&rt->ev[g], &pl->ev[g]) || !fdi_threshold_check(&rt->th[g], &pl->thev[g]))
             return 0;
     if (rt->d->gen_kind == FDI_GEN_RLS && !fdi_rls_check(&rt->rls))
         return 0;
-    return fdi_decision_load(&rt->dec);
+    return fdi_decision_load(&rt->dec) && outputs_sane(rt);
 }
 
 fdi_status fdi_runtime_set_state(fdi_runtime *rt, const unsigned char *buf, size_t len,
@@ -551,7 +594,8 @@ fdi_status fdi_runtime_set_state(fdi_runtime *rt, const unsigned char *buf, size
         memcpy(rt->st.b, rt->bk_b, nb);
         rt->cur = old_cur;
         fdi_decision_load(&rt->dec);
-        say(why, whylen, "FMU state image is inconsistent (an index or count out of range)");
+        say(why, whylen, "FMU state image is inconsistent with this design (a count, index or derived value that "
+            "no run of the design can produce)");
         return FDI_ERROR;
     }
     return FDI_OK;

@@ -44,6 +44,8 @@ void fdi_runtime_reset(fdi_runtime *rt);                        /* to the initia
 fdi_status fdi_runtime_advance(fdi_runtime *rt, const double *u, const double *y, double h,
                                char *why, size_t whylen);
 const double *fdi_runtime_outputs(const fdi_runtime *rt);       /* n_outputs values */
+double fdi_runtime_step(const fdi_runtime *rt);                 /* the current communication step */
+double fdi_runtime_sample_ratio(const fdi_runtime *rt);         /* effective sample time / Ts */
 
 /* The tunable parameter threshold_scale (finite, >= 0 as docs/semantics.md §6;
  * else FDI_ERROR with a reason and the scale unchanged). */

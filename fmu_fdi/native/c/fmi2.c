@@ -14,6 +14,7 @@
  * only later allocations are FMU-state objects (fmi2GetFMUstate, fmi2DeSerializeFMUstate),
  * also through allocateMemory, released by fmi2FreeFMUstate.
  */
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -130,7 +131,7 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fm
     GUARD("fmi2SetupExperiment", FDI_ALLOW(FDI_M_INSTANTIATED));
     (void)toleranceDefined;
     (void)tolerance;
-    if (!(startTime == startTime) || (stopTimeDefined && !(stopTime >= startTime))) {
+    if (!isfinite(startTime) || (stopTimeDefined && !(stopTime >= startTime))) {   /* times are finite */
         fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "fmi2SetupExperiment: startTime %g, stopTime %g", startTime, stopTime);
         return fmi2Error;
     }
@@ -184,7 +185,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
     }
 
 GETTER(fmi2GetReal, fmi2Real, FDI_KIND_REAL, v)
-GETTER(fmi2GetInteger, fmi2Integer, FDI_KIND_INTEGER, (fmi2Integer)v)
+GETTER(fmi2GetInteger, fmi2Integer, FDI_KIND_INTEGER, (fmi2Integer)fdi_int_output(v))
 GETTER(fmi2GetBoolean, fmi2Boolean, FDI_KIND_BOOLEAN, v != 0.0 ? fmi2True : fmi2False)
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {

@@ -14,6 +14,7 @@
  * instantiation; later only FMU-state objects (fmi3GetFMUState, fmi3DeserializeFMUState),
  * released by fmi3FreeFMUState.
  */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -154,7 +155,7 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
     GUARD("fmi3EnterInitializationMode", FDI_ALLOW(FDI_M_INSTANTIATED));
     (void)toleranceDefined;
     (void)tolerance;
-    if (!(startTime == startTime) || (stopTimeDefined && !(stopTime >= startTime))) {
+    if (!isfinite(startTime) || (stopTimeDefined && !(stopTime >= startTime))) {   /* times are finite */
         fdi_log(fi, FDI_S_ERROR, FDI_C_ERROR, "fmi3EnterInitializationMode: startTime %g, stopTime %g", startTime,
                 stopTime);
         return fmi3Error;
@@ -242,7 +243,7 @@ fmi3Status fmi3Reset(fmi3Instance instance) {
     }
 
 GETTER(fmi3GetFloat64, fmi3Float64, FDI_KIND_REAL, v)
-GETTER(fmi3GetInt32, fmi3Int32, FDI_KIND_INTEGER, (fmi3Int32)v)
+GETTER(fmi3GetInt32, fmi3Int32, FDI_KIND_INTEGER, (fmi3Int32)fdi_int_output(v))
 GETTER(fmi3GetBoolean, fmi3Boolean, FDI_KIND_BOOLEAN, v != 0.0)
 
 #define SETTER(NAME, TYPE, KIND)                                                                                 \
