@@ -200,6 +200,10 @@ def _model(args) -> int:
     minreal_option(args.minimal, args.minreal_tol)
     exc = Excitation(signal=args.signal, amplitude=parse_values(args.amplitude, "--amplitude") or None,
                      samples=args.samples, settle=args.settle, period=args.period, seed=args.seed)
+    if args.at_grid:  # several operating points: a model set (fmu_fdi/modelset.py)
+        from .modelset import envelope_cli
+
+        return envelope_cli(args, exc, parse_values(args.at, "--at"))
     model = FDIModel.from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
                               at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
                               sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
@@ -601,6 +605,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="identification: add unit white noise inputs w_<output> learned from the data: the Kalman "
                          "innovation form, or output noise from the validation error (default: none; "
                          "docs/plant-fmu.md)")
+    mo.add_argument("--at-grid", nargs="+", metavar="NAME=LO:HI:K",
+                    help="operating envelope: model the plant at K values of each NAME from LO to HI and write a "
+                         "model set (.json) for a scheduled design (default: one point, --at)")
+    mo.add_argument("--grid-mode", choices=("product", "path"), default="product",
+                    help="--at-grid points: every combination (product, default) or the axes walked together (path)")
+    mo.add_argument("--schedule-on", nargs="+", metavar="NAME",
+                    help="measured scheduling signal(s), model inputs or outputs (default: the grid's variables)")
     _minreal_options(mo)
     mo.set_defaults(func=_model)
 
