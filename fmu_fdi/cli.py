@@ -328,6 +328,12 @@ def _design(args) -> int:
     from .diagnoser import Diagnoser
 
     check_output_path(args.output, (".json",), "design file")
+    from .modelset import is_model_set_file
+
+    if is_model_set_file(args.model):  # one design per member, scheduled (fmu_fdi/schedule.py)
+        from .schedule import design_cli
+
+        return design_cli(args, _design)
     if args.calibrate:
         check_input_file(args.calibrate, "calibration record")
 
@@ -430,11 +436,12 @@ def _design_for_labels(path):
 
 def _diagnose(args) -> int:
     from .cosim import Result
-    from .diagnoser import Diagnoser
     from .recorded import read_log
 
     check_output_path(args.output, (".csv",), "diagnosis CSV")
-    dg = Diagnoser.load(check_input_file(args.design, "design file"))
+    from .schedule import load_diagnoser  # a plain or a scheduled design
+
+    dg = load_diagnoser(check_input_file(args.design, "design file"))
     sig = dg.design["signals"]
     log = read_log(check_input_file(args.log, "log CSV"), sig["u"], sig["y"], prefix=args.prefix)
     print(f"{args.log}: {log.describe()}")
@@ -571,6 +578,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a sample of input or output NAME outside [LO, HI] is refused like a NaN (input_invalid), "
                         "e.g. a glitching sensor's 1e300; empty LO or HI: open; repeat per signal "
                         "(default: none, docs/semantics.md S2)")
+    d.add_argument("--hysteresis", type=float, default=0.2, metavar="ETA",
+                   help="model set: switch to the nearest member only when it is nearer than the active one by "
+                        "ETA grid steps (default: 0.2; docs/semantics.md, scheduled designs)")
+    d.add_argument("--warm-start", action=argparse.BooleanOptionalAction, default=True,
+                   help="model set: start each member's filter at its steady state for the first sample "
+                        "(default: on)")
     _minreal_options(d)
     d.set_defaults(func=_design)
 
