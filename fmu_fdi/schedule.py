@@ -15,6 +15,7 @@ member designs (each an ordinary ``fmu-fdi-design/1``) and the schedule.
 from __future__ import annotations
 
 import copy
+import json
 import time
 from pathlib import Path
 
@@ -228,3 +229,33 @@ def design_cli(args, design_one) -> int:
     print(f"wrote {path}: {len(members)} members scheduled on {mset.schedule} (nearest, hysteresis "
           f"{args.hysteresis:g}), {members[0].runtime.n_residuals} residual(s) each")
     return 0
+
+
+def design_of(obj):
+    """The validated scheduled design of a ScheduledDiagnoser, scheduled design dict or file; None
+    for anything else (``build_fmu``'s hook)."""
+    if isinstance(obj, ScheduledDiagnoser):
+        return validate_scheduled_design(json.loads(json.dumps(_clean(obj.design))), "scheduled diagnoser")
+    if isinstance(obj, dict):
+        return validate_scheduled_design(obj) if is_scheduled(obj) else None
+    if isinstance(obj, Diagnoser):
+        return None
+    try:
+        d = _read(obj)
+    except DesignFileError:
+        return None  # the plain loader reports it
+    return validate_scheduled_design(d, str(obj)) if is_scheduled(d) else None
+
+
+def scheduled_outputs(design: dict, names: list, descriptions: dict) -> tuple[list, dict]:
+    """The FMU's output names and variable descriptions of a scheduled design (member 1's plus
+    ``active_member``)."""
+    from .runtime.schedule import output_names
+
+    sch = design["schedule"]
+    where = ", ".join(f"{k + 1} at " + ", ".join(f"{s}={p:g}" for s, p in zip(sch["signals"], pt))
+                      for k, pt in enumerate(sch["points"]))
+    descriptions = dict(descriptions, active_member=f"member whose outputs are shown (0 before the first valid "
+                                                    f"sample; nearest on {', '.join(sch['signals'])}, hysteresis "
+                                                    f"{sch['hysteresis']:g}): {where}")
+    return output_names(names), descriptions
