@@ -430,7 +430,10 @@ def _verdict(t, detected, isolated, faults) -> tuple[str, str]:
 
 def _design_for_labels(path):
     from .designfile import load_design
+    from .schedule import design_of
 
+    if path and (scheduled := design_of(check_input_file(path, "design file"))) is not None:
+        return scheduled["members"][0]  # the members share faults, residuals and groups
     return load_design(check_input_file(path, "design file")) if path else None
 
 

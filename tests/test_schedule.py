@@ -155,6 +155,8 @@ def test_cli_designs_a_model_set_and_diagnoses_a_log(mset, tmp_path, capsys):
     got = np.genfromtxt(tmp_path / "d.csv", delimiter=",", names=True)
     assert np.array_equal(got["active_member"], sd.run(t, u, y)["active_member"])
     assert main(["design", str(path), "--method", "data", "--ts", "0.1", "-o", str(out)]) == 2
+    assert main(["plot", str(tmp_path / "d.csv"), "--design", str(out), "-o", str(tmp_path / "d.png")]) == 0
+    assert main(["build", str(out), "-o", str(tmp_path / "s.fmu")]) == 0 and (tmp_path / "s.fmu").is_file()
 
 
 def test_pythonfmu_fmu_runs_the_schedule_as_scheduled_diagnoser_run(mset, tmp_path):

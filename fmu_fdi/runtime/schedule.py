@@ -86,7 +86,10 @@ def check_scheduled_design(d, source: str = "scheduled design") -> dict:
                  "residual_names": m["generator"]["residual_names"], "groups": m["generator"]["groups"],
                  "dt": m["generator"]["dt"], "isolation": m["decision"].get("isolation", "none"),
                  "continuous": m["generator"].get("continuous") is not None,
-                 "kind": m["generator"]["discrete"].get("kind")}
+                 "kind": m["generator"]["discrete"].get("kind"),
+                 # the same kinds accept the same step sizes (docs/semantics.md §9, §12)
+                 "evaluator kinds": [e["evaluator"]["kind"] for e in m["evaluation"]],
+                 "threshold kinds": [e["threshold"]["kind"] for e in m["evaluation"]]}
         if first is None:
             first = shape
             continue
