@@ -393,6 +393,10 @@ def envelope_cli(args, excitation, fixed: dict) -> int:
     clash = sorted(set(fixed) & {g[0] for g in grids})
     if clash:
         raise ModelError(f"{clash} are given both in --at and --at-grid")
+    single = [opt for opt, val in (("--record", args.record), ("--plot", args.plot)) if val]
+    if single:
+        raise ModelError(f"{' and '.join(single)} write one file for one operating point; with --at-grid run "
+                         f"'fmu-fdi model' at that point (--at) for it")
 
     def progress(k, K, point, model):
         where = ", ".join(f"{n}={v:g}" for n, v in point.items())

@@ -70,6 +70,7 @@ def test_cli_grid_product_path_and_output_schedule(me_fmu, tmp_path, capsys):
     (["--at-grid", "u1=0.5:2:3", "--schedule-on", "x1"], "not measured"),
     (["--at-grid", "u1=0.5:2:3", "u2=0:1:2", "--grid-mode", "path"], "same K"),
     (["--at-grid", "u1=0.5:2:3", "--at", "u1=1"], "both in --at and --at-grid"),
+    (["--at-grid", "u1=0.5:2:3", "--record", "log.csv"], "one operating point"),
 ])
 def test_bad_grids_are_one_line_errors(me_fmu, tmp_path, capsys, argv, message):
     assert main(["model", str(me_fmu), *argv, "-o", str(tmp_path / "s.json")]) == 2
