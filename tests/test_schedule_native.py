@@ -1,4 +1,4 @@
-"""The native FMU (FMI 2.0 and 3.0) of a scheduled design runs the schedule of
+"""The native FMU (FMI 2.0 and 3.0) and the pythonfmu FMU of a scheduled design run the schedule of
 docs/semantics.md §12 exactly as the Python runtime (ScheduledDiagnoser.run): judged to 1e-12
 as tests/test_native_conformance.py judges plain designs, on a scenario that sweeps the
 scheduling signal back and forth across the members (many switches, both directions), with
@@ -63,12 +63,14 @@ def test_native_fmus_equal_the_python_schedule(tmp_path):
     for fmi in (2, 3):
         path = build_fmu(design, tmp_path / f"s{fmi}.fmu", target="native", fmi_version=fmi)
         jobs.append({"fmu": str(path), "fmi": fmi, "ops": ops})
+    # the pythonfmu FMU too (the same Python runtime inside: its FMU state codec and step logic)
+    jobs.append({"fmu": str(build_fmu(design, tmp_path / "py.fmu")), "fmi": 2, "ops": ops})
     (tmp_path / "jobs.json").write_text(json.dumps(jobs), encoding="utf-8")
     proc = subprocess.run([sys.executable, str(RUNNER), str(tmp_path / "jobs.json"), str(tmp_path / "res.json")],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     types = [output_type(n) for n in names]
-    for fmi, res in zip((2, 3), json.loads((tmp_path / "res.json").read_text(encoding="utf-8"))):
+    for fmi, res in zip(("2", "3", "2 (pythonfmu)"), json.loads((tmp_path / "res.json").read_text(encoding="utf-8"))):
         assert res["names"] == names
         worst, bad = compare(names, types, ref, res["outputs"], rtol=RTOL)
         assert not bad, f"FMI {fmi}:\n" + "\n".join(bad)
