@@ -31,6 +31,11 @@ def mset():
     return ModelSet([_member(1.0 + 0.5 * k, float(k + 1)) for k in range(3)], ["u0"])
 
 
+@pytest.fixture(scope="module")
+def good_design(mset):
+    return json.dumps(_design(mset).design)
+
+
 def _design(mset, **kw):
     return ScheduledDiagnoser.design(mset, dedicated_bank, kind="sensor", Ts=TS, evaluation=EVAL, thresholds=0.05,
                                      **kw)
@@ -133,8 +138,8 @@ def test_file_round_trip_invalid_samples_and_refused_steps(mset, tmp_path):
     (lambda d: d["schedule"].update(rule="linear"), "rule"),
     (lambda d: d.update(extra=1), "unknown keys"),
 ])
-def test_malformed_scheduled_designs_are_refused(mset, edit, message):
-    d = json.loads(json.dumps(_design(mset).design))
+def test_malformed_scheduled_designs_are_refused(good_design, edit, message):
+    d = json.loads(good_design)
     edit(d)
     with pytest.raises(DesignFileError, match=message):
         ScheduledDiagnoser.from_design(d)
