@@ -360,7 +360,12 @@ def model_set_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at: 
     if not points:
         raise ModelError("at=[...] holds no operating point")
     fixed = dict(options.pop("fixed", None) or {})
-    varied = [k for k in points[0] if any(p.get(k) != points[0].get(k) for p in points)] or list(points[0])
+    keys = list(dict.fromkeys(k for p in points for k in p))  # every name any point sets, in order
+    missing = [(i + 1, [k for k in keys if k not in p]) for i, p in enumerate(points) if set(p) != set(keys)]
+    if missing:
+        raise ModelError(f"every operating point must set the same variables {keys}; point {missing[0][0]} lacks "
+                         f"{missing[0][1]}")
+    varied = [k for k in keys if any(p[k] != points[0][k] for p in points)] or keys
     members = []
     for k, pt in enumerate(points, 1):
         model = model_from_fmu(path, inputs, outputs, disturbances, at={**fixed, **pt}, **options)

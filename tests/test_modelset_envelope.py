@@ -11,7 +11,7 @@ import pytest
 from fmu_fdi import FDIModel
 from fmu_fdi.cli import main
 from fmu_fdi.errors import ModelError
-from fmu_fdi.modelset import MODEL_SET_FORMAT, ModelSet, grid_points, parse_grid
+from fmu_fdi.modelset import MODEL_SET_FORMAT, ModelSet, grid_points, model_set_from_fmu, parse_grid
 from me_fmus import analytic, build_me_fmu, equilibrium
 
 
@@ -87,6 +87,8 @@ def test_grid_helpers_and_set_consistency():
     with pytest.raises(ModelError, match="same scheduling point"):
         ModelSet([m1, m2], ["u0"])
     assert ModelSet([m1, m2], ["y0"]).points[:, 0].tolist() == [1.0, 0.5]
+    with pytest.raises(ModelError, match="point 2 lacks"):
+        model_set_from_fmu("none.fmu", at=[{"u1": 1.0, "u2": 0.5}, {"u1": 2.0}])
     m3 = FDIModel.from_matrices([[-2.0]], [[1.0]], [[1.0], [1.0]])
     with pytest.raises(ModelError, match="same signals"):
         ModelSet([m1, m3], ["u0"])
