@@ -16,10 +16,6 @@ from .emit import _Emitter, _fnv1a, _hex, emit_design_c
 SCHEDULE_SOURCES = ("fdi_schedule.c",)
 
 
-def is_scheduled(design: dict) -> bool:
-    return "members" in design
-
-
 def member_sources(design: dict) -> dict[str, bytes]:
     """``design_member_<k>.c`` per member and the scheduler's own C source."""
     from . import C_DIR
