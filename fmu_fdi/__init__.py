@@ -15,6 +15,8 @@ from .faults import FaultSpec, actuator_fault, component_fault, parametric_fault
 from .generator import ResidualBank, ResidualGenerator
 from .lti import LTI
 from .model import FDIModel
+from .modelset import ModelSet
+from .schedule import ScheduledDiagnoser, load_diagnoser
 
 __version__ = "0.1.0"
 
@@ -30,3 +32,4 @@ __all__ = [
     "leakage", "detectability", "isolability",
     "CoSimulation", "Result", "Fault", "parse_fault", "InputSignals", "export_ssp", "SimulationFailed",
 ]
+__all__ += ["ModelSet", "ScheduledDiagnoser", "load_diagnoser"]  # the operating envelope (docs/envelope.md)

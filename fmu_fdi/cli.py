@@ -200,6 +200,10 @@ def _model(args) -> int:
     minreal_option(args.minimal, args.minreal_tol)
     exc = Excitation(signal=args.signal, amplitude=parse_values(args.amplitude, "--amplitude") or None,
                      samples=args.samples, settle=args.settle, period=args.period, seed=args.seed)
+    if args.at_grid:  # several operating points: a model set (fmu_fdi/modelset.py)
+        from .modelset import envelope_cli
+
+        return envelope_cli(args, exc, parse_values(args.at, "--at"))
     model = FDIModel.from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
                               at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
                               sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
@@ -324,6 +328,12 @@ def _design(args) -> int:
     from .diagnoser import Diagnoser
 
     check_output_path(args.output, (".json",), "design file")
+    from .modelset import is_model_set_file
+
+    if is_model_set_file(args.model):  # one design per member, scheduled (fmu_fdi/schedule.py)
+        from .schedule import design_cli
+
+        return design_cli(args, _design)
     if args.calibrate:
         check_input_file(args.calibrate, "calibration record")
 
@@ -420,17 +430,21 @@ def _verdict(t, detected, isolated, faults) -> tuple[str, str]:
 
 def _design_for_labels(path):
     from .designfile import load_design
+    from .schedule import design_of
 
+    if path and (scheduled := design_of(check_input_file(path, "design file"))) is not None:
+        return scheduled["members"][0]  # the members share faults, residuals and groups
     return load_design(check_input_file(path, "design file")) if path else None
 
 
 def _diagnose(args) -> int:
     from .cosim import Result
-    from .diagnoser import Diagnoser
     from .recorded import read_log
 
     check_output_path(args.output, (".csv",), "diagnosis CSV")
-    dg = Diagnoser.load(check_input_file(args.design, "design file"))
+    from .schedule import load_diagnoser  # a plain or a scheduled design
+
+    dg = load_diagnoser(check_input_file(args.design, "design file"))
     sig = dg.design["signals"]
     log = read_log(check_input_file(args.log, "log CSV"), sig["u"], sig["y"], prefix=args.prefix)
     print(f"{args.log}: {log.describe()}")
@@ -567,6 +581,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a sample of input or output NAME outside [LO, HI] is refused like a NaN (input_invalid), "
                         "e.g. a glitching sensor's 1e300; empty LO or HI: open; repeat per signal "
                         "(default: none, docs/semantics.md S2)")
+    d.add_argument("--hysteresis", type=float, default=0.2, metavar="ETA",
+                   help="model set: switch to the nearest member only when it is nearer than the active one by "
+                        "ETA grid steps (default: 0.2; docs/semantics.md, scheduled designs)")
+    d.add_argument("--warm-start", action=argparse.BooleanOptionalAction, default=True,
+                   help="model set: start each member's filter at its steady state for the first sample "
+                        "(default: on)")
     _minreal_options(d)
     d.set_defaults(func=_design)
 
@@ -601,6 +621,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="identification: add unit white noise inputs w_<output> learned from the data: the Kalman "
                          "innovation form, or output noise from the validation error (default: none; "
                          "docs/plant-fmu.md)")
+    mo.add_argument("--at-grid", nargs="+", metavar="NAME=LO:HI:K",
+                    help="operating envelope: model the plant at K values of each NAME from LO to HI and write a "
+                         "model set (.json) for a scheduled design (default: one point, --at)")
+    mo.add_argument("--grid-mode", choices=("product", "path"), default="product",
+                    help="--at-grid points: every combination (product, default) or the axes walked together (path)")
+    mo.add_argument("--schedule-on", nargs="+", metavar="NAME",
+                    help="measured scheduling signal(s), model inputs or outputs (default: the grid's variables)")
     _minreal_options(mo)
     mo.set_defaults(func=_model)
 

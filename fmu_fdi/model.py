@@ -265,11 +265,19 @@ class FDIModel:
         learned from the data, docs/plant-fmu.md —, ...). The model carries the operating point
         and a ``provenance`` table (FMU, GUID, method, fit, noise model).
         ``minimal``/``minreal_tol`` reduce the linear model as in :meth:`from_matrices`
-        (checked before the FMU is touched).
+        (checked before the FMU is touched). ``at`` a list of operating points gives a
+        :class:`~fmu_fdi.modelset.ModelSet`, one member per point (``schedule=[...]`` names
+        its scheduling signals; :func:`fmu_fdi.modelset.model_set_from_fmu`).
         """
         from .identify import model_from_fmu
 
         tol = minreal_option(options.pop("minimal", None), options.pop("minreal_tol", None))
+        if isinstance(at, (list, tuple)):  # several operating points: a ModelSet (fmu_fdi.modelset)
+            from .modelset import model_set_from_fmu
+
+            mset = model_set_from_fmu(path, inputs, outputs, disturbances, at=at, method=method, **options)
+            mset.members = [m if tol is None else m.minreal(tol) for m in mset.members]
+            return mset
         model = model_from_fmu(path, inputs, outputs, disturbances, at=at, method=method, **options)
         return model if tol is None else model.minreal(tol)
 

@@ -99,9 +99,10 @@ def python_step_ok(design, h):
     return True
 
 
-def python_outputs(design, ops):
-    """The reference: the Python runtime of ``Diagnoser.from_design`` on the operations."""
-    rt = Diagnoser.from_design(design).runtime
+def python_outputs(design, ops, runtime=None):
+    """The reference: the Python runtime of ``Diagnoser.from_design`` (or ``runtime``, e.g. a
+    scheduled one) on the operations."""
+    rt = Diagnoser.from_design(design).runtime if runtime is None else runtime
     saved, out = {}, []
     for op in ops:
         if op[0] == "step":

@@ -41,7 +41,11 @@ DEFAULT_SAMPLES = 1000
 
 def _design_of(diagnoser_or_path) -> dict:
     from ..diagnoser import Diagnoser
+    from ..schedule import design_of  # a scheduled design (fmu_fdi/schedule.py) or None
 
+    scheduled = design_of(diagnoser_or_path)
+    if scheduled is not None:
+        return scheduled
     if isinstance(diagnoser_or_path, Diagnoser):
         return validate_design(json.loads(json.dumps(diagnoser_or_path.design)), "diagnoser")
     if isinstance(diagnoser_or_path, dict):
@@ -140,9 +144,12 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     """
     fmu_path = checked_destination(fmu_path)
     design = _design_of(diagnoser_or_path)
+    # a scheduled design: the members share signals and residual structure, so member 1
+    # describes the variables; active_member is added (fmu_fdi/schedule.py)
+    view = design["members"][0] if "members" in design else design
     # signal names are valid identifiers and clash with none of the FMU's own variables:
     # checked with everything else by the one validator (runtime/design_check.py)
-    g = design["generator"]
+    g = view["generator"]
     if stop_time is None:
         stop_time = DEFAULT_SAMPLES * float(g["dt"])
     elif not (isinstance(stop_time, (int, float)) and math.isfinite(stop_time) and stop_time > 0):
@@ -163,12 +170,17 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     modules["diagnoser_slave.py"] = TEMPLATE.replace("__CLASS__", ident).replace(
         "__DESCRIPTION__", repr(f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {g['dt']:g} s)"))
     names = output_names(len(g["residual_names"]), len(g["groups"]))
-    units = _units(design)
+    descriptions = _descriptions(view)
+    if view is not design:
+        from ..schedule import scheduled_outputs
+
+        names, descriptions = scheduled_outputs(design, names, descriptions)
+    units = _units(view)
     dt = float(g["dt"])
     return build_slave_fmu(
         modules, f"diagnoser_slave:{ident}", fmu_path, bundle_name=f"{ident}_fmu",
         data_files={"design.json": design_bytes},
-        units=units, descriptions=_descriptions(design),
+        units=units, descriptions=descriptions,
         output_dependencies={n: [] for n in names},
         capabilities={"canGetAndSetFMUstate": True, "canSerializeFMUstate": True,
                       "canHandleVariableCommunicationStepSize": True},

@@ -26,6 +26,7 @@ from pythonfmu.enums import Fmi2Initial, Fmi2Status
 
 from .engine import (FAULT_DETECTED, INPUT_INVALID, ISOLATED_FAULT, NUMERIC_RESET, DiagnoserRuntime, StepSizeError,
                      output_type)
+from .schedule import runtime_for  # a plain or a scheduled design (schedule.py)
 from .slave_base import FdiSlave
 
 # The design is read from *this instance's* resources folder: a host may run an FMU again after
@@ -47,7 +48,7 @@ class __CLASS__(FdiSlave):
             raw = fh.read()
         design = json.loads(raw.decode("utf-8"))
         self.design_sha256 = hashlib.sha256(raw).hexdigest()  # an FMU state names the design it belongs to
-        self.rt = DiagnoserRuntime(design)
+        self.rt = runtime_for(design)
         self._nostate_faults = [f["name"] for f in design.get("faults", [])]
         rt = self.rt
         self.u_in = [float(v) for v in rt.u0]

@@ -41,7 +41,7 @@ from ..outpath import write_atomically
 from ..runtime.engine import BOOLEAN_OUTPUTS, output_names
 from . import C_DIR, RUNTIME_HEADERS, RUNTIME_SOURCES
 
-GLUE_SOURCES = ("fdi_glue.c", "fdi_glue.h")
+GLUE_SOURCES = ("fdi_glue.c", "fdi_glue.h", "fdi_schedule.h")
 CFLAGS = ("-std=c99", "-pedantic", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror")
 #: (system, machine) -> binaries/ folder for FMI 2 and FMI 3 (None: the standard names none)
 PLATFORMS = {("Linux", "x86_64"): {2: "linux64", 3: "x86_64-linux"},
@@ -84,6 +84,10 @@ def variables(design: dict) -> list[dict]:
     """
     from ..fmu.builder import _descriptions, _units
 
+    if "members" in design:  # a scheduled design: member 1's variables and active_member
+        from .schedule_emit import scheduled_variables
+
+        return scheduled_variables(design, variables)
     sig, g = design["signals"], design["generator"]
     desc = _descriptions(design)
     units = _units(design)
@@ -142,6 +146,7 @@ def model_header(design: dict, identifier: str, token: str) -> str:
         f"#define FDI_INPUT_STARTS {arr([_c_double(v['start']) for v in inputs])}",
         f"#define FDI_VARIABLE_NAMES {arr([_c_string('time')] + [_c_string(v['name']) for v in vs])}",
         f"#define FDI_FAULT_NAMES {arr([_c_string(f) for f in faults])}",
+        *(["#define FDI_SCHEDULED 1"] if "members" in design else []),  # c/fdi_schedule.h
         "", "#endif", ""])
 
 
@@ -149,6 +154,10 @@ def design_source(design: dict) -> str:
     """``design_data.c`` from :mod:`fmu_fdi.native.emit` (raises a DesignError for what C cannot express)."""
     from .emit import emit_design_c
 
+    if "members" in design:  # the schedule; the members: schedule_emit.member_sources
+        from .schedule_emit import schedule_source
+
+        return schedule_source(design)
     return emit_design_c(design)
 
 
@@ -161,7 +170,7 @@ def model_description(design: dict, identifier: str, token: str, fmi_version: in
                       stop_time: float | None = None) -> bytes:
     """modelDescription.xml for FMI 2.0 or 3.0 (see the module docstring)."""
     vs = variables(design)
-    g = design["generator"]
+    g = design["members"][0]["generator"] if "members" in design else design["generator"]
     fmi3 = fmi_version == 3
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "3.0" if fmi3 else "2.0", "modelName": design["name"],
@@ -355,6 +364,10 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2, stop_time: fl
     token = "{" + str(uuid.UUID(hashlib.sha256(ident.encode()).hexdigest()[:32])) + "}"
     sources = dict(runtime)
     sources["design_data.c"] = data
+    if "members" in design:  # a scheduled design: member designs and the scheduler
+        from .schedule_emit import member_sources
+
+        sources.update(member_sources(design))
     sources["fdi_model.h"] = model_header(design, ident, token).encode("utf-8")
     sources.update(headers)
     names = sorted(sources)

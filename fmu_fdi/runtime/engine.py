@@ -59,10 +59,11 @@ BOOLEAN_OUTPUTS = ("fault_detected", "input_invalid", "numeric_reset")
 
 
 def output_type(name: str) -> str:
-    """FMI type of an output: 'Boolean' (alarms, flags), 'Integer' (isolated_fault) or 'Real'."""
+    """FMI type of an output: 'Boolean' (alarms, flags), 'Integer' (isolated_fault, a scheduled
+    design's active_member) or 'Real'."""
     if name.startswith("alarm_") or name in BOOLEAN_OUTPUTS:
         return "Boolean"
-    return "Integer" if name == "isolated_fault" else "Real"
+    return "Integer" if name in ("isolated_fault", "active_member") else "Real"
 
 
 def valid_ranges(signals: dict) -> tuple[list[float], list[float], list[float], list[float]]:

@@ -20,6 +20,7 @@
 
 #include "fdi_model.h"
 #include "fdi_runtime.h"
+#include "fdi_schedule.h"  /* a scheduled design (FDI_SCHEDULED) renames the runtime API used below */
 
 enum { FDI_KIND_REAL = 0, FDI_KIND_BOOLEAN = 1, FDI_KIND_INTEGER = 2 };
 
