@@ -214,7 +214,7 @@ def test_cli_noise_choices_are_the_identifications():
 
     model_parser = build_parser()._subparsers._group_actions[0].choices["model"]
     noise = next(a for a in model_parser._actions if a.dest == "noise")
-    assert tuple(noise.choices) == NOISE_MODELS
+    assert tuple(noise.choices) == NOISE_MODELS + ("none",)
 
 
 def test_noise_needs_identification(tmp_path):
