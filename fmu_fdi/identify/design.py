@@ -20,19 +20,23 @@ None, no ``ts``) is made from what a short pre-test on the plant FMU shows:
 
    - *signal*: a PRBS — crest factor 1, the most power for a given peak, which is what the
      declared limits and the plant's linear range bound;
-   - *sample time* ts: the FMU's default step, or its largest multiple below τ_min/10 — ten
+   - *sample time* ts (when neither it nor samples nor period, counted in steps, is given):
+     the FMU's default step, or its largest multiple below τ_min/10 — ten
      samples per fastest time scale (the pre-test's τ_min may be off by 2); finer sampling leaves the s = max_order + 1 block rows of
      the subspace method a window far shorter than the dynamics, and the estimates scatter
      (DTS200: ts = 1 s against τ_min ≈ 21 s gave a 17 % frequency-response error, ts = 4 s 7 %);
    - *clock period* P = round(τ_min / ts) ≥ 1: the PRBS spectrum is flat to within 3 dB up to
-     0.44/(P ts) Hz, which covers 1/(2π τ_min);
+     0.44/(P ts) Hz, which covers 1/(2π τ_min); at most a fiftieth of a given record (the
+     input must stay persistently exciting of order 2s);
    - *duration* T = 6 τ_max (frequency resolution 1/T below the slowest mode's corner
      1/(2π τ_max)), at least 1000 samples; when the wall-time budget (the pre-test's measured
      steps per second; three runs: estimation, validation and its noise repeat) does not allow
      T/ts samples, ts becomes a multiple of the FMU's step, at most τ_min/3;
    - *amplitude*: the rough model's response to the chosen PRBS at the seed amplitude
      predicts each output's response std r_j; the amplitude is scaled by c ≥ 1 so that
-     min_j r_j c / σ_j reaches ``SNR_TARGET``; in all, at most ``MAX_GROWTH`` times the seed
+     min_j r_j c / σ_j reaches ``SNR_TARGET``; a probe run of the chosen signal
+     (``PROBE_SAMPLES``) then measures r_j at that amplitude and c is set again from it
+     (up or down, not below the seed); in all, at most ``MAX_GROWTH`` times the seed
      amplitude (the plant's linear range is unknown; 100 times when the seed is the bare FMI
      default nominal, whose scale means nothing) and within 90 % of the declared min/max. When the cap leaves the
      signal-to-noise ratio short, the record is lengthened by (target/achieved)² (the
@@ -55,6 +59,8 @@ from .errors import IdentificationError
 from .experiment import Excitation, _limit, excitation_signals, run_experiment
 
 PRETEST_SAMPLES = 1000
+#: length of the probe run of the chosen signal that measures the response at the chosen amplitude
+PROBE_SAMPLES = 400
 SNR_TARGET = 10.0
 MAX_GROWTH = 4.0
 MIN_SAMPLES = 1000
@@ -241,7 +247,7 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     runs_steps = budget * rate / 3.0
     want = 6.0 * tau_max
     ts_new = ts0
-    if ts is None:
+    if ts is None and user.samples is None and user.period is None:  # (given in steps: at the FMU's step)
         k = max(1, int(np.floor(tau_min / (TS_PER_TAU * ts0))))
         if want / (k * ts0) > min(MAX_SAMPLES, runs_steps):
             k_budget = int(np.ceil(want / (ts0 * min(MAX_SAMPLES, runs_steps))))
@@ -261,6 +267,8 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
         period = max(1, int(round(tau_min / ts_new)))
         chosen.append("period")
     samples = user.samples
+    if samples is not None and user.period is None:  # at least 50 clock periods in a given record
+        period = max(1, min(period, samples // 50))
     if samples is None:
         samples = int(min(cap, max(MIN_SAMPLES, np.ceil(want / ts_new), 40 * period)))
         chosen.append("samples")
@@ -274,16 +282,23 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     auto_limits = {}
     noisy = sigma > 0
     if given_amp is None or isinstance(given_amp, dict) and len(given_amp) < len(amp):
-        snr = np.min(r[noisy] / sigma[noisy]) if np.any(noisy) and np.all(r[noisy] > 0) else np.inf
-        c = 1.0 if not np.isfinite(snr) else max(SNR_TARGET / max(snr, 1e-12), 1.0)
-        for k in amp:
-            if isinstance(given_amp, dict) and k in given_amp:
-                continue
-            amp[k] = min(seed_amp[k] * c, limit[k])
+        free = [k for k in amp if not (isinstance(given_amp, dict) and k in given_amp)]
         chosen.append("amplitude")
-        auto_limits = {k: limit[k] for k in amp if not (isinstance(given_amp, dict) and k in given_amp)}
-        scale = np.array([amp[k] / seed_amp[k] for k in amp]).min() if amp else 1.0
-        r = r * scale
+        auto_limits = {k: limit[k] for k in free}
+        for trial in range(2):  # the rough model's guess, then the measured response of the signal itself
+            snr = np.min(r[noisy] / sigma[noisy]) if np.any(noisy) and np.all(r[noisy] > 0) else np.inf
+            c = 1.0 if not np.isfinite(snr) else max(SNR_TARGET / max(snr, 1e-12), 1.0 if trial == 0 else 0.0)
+            new = {k: (min(amp[k] * c, limit[k]) if k in free else amp[k]) for k in amp}
+            r = r * min(new[k] / amp[k] for k in amp)
+            amp = new
+            if trial == 1 or not np.any(noisy):
+                break
+            # a short run of the chosen signal: what the outputs really do at this amplitude
+            probe = Excitation(signal, dict(amp), int(min(samples, max(PROBE_SAMPLES, 20 * period))), settle,
+                               user.band, period, user.seed + 2000)
+            rec = run_experiment(path, sig, y_names, excite=excite, at=at, parameters=parameters, step=ts_new,
+                                 excitation=probe, check_settle=False)
+            r = np.sqrt(np.maximum((rec.y - rec.y0).var(axis=0) - sigma ** 2, 0.0))
         snr_now = np.min(r[noisy] / sigma[noisy]) if np.any(noisy) and np.all(r[noisy] > 0) else np.inf
         if user.samples is None and np.isfinite(snr_now) and snr_now < SNR_TARGET:
             longer = int(min(cap, np.ceil(samples * (SNR_TARGET / snr_now) ** 2)))

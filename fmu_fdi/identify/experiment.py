@@ -275,8 +275,8 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
 
 def _check_settled(path, res, outputs, n_settle, y, settle, noise_std=None):
     """The outputs' drift over the last quarter of settling (least-squares slope times its
-    duration) is below 5 % of their spread during the excitation, or within 3 standard
-    deviations of what measurement noise alone gives the fitted drift, or within twice the
+    duration) is below 5 % of their spread during the excitation, or within the two-sided
+    0.1 % Student-t bound of what white measurement noise alone gives the fitted drift, or within twice the
     spread about the fitted line (coloured noise, e.g. process noise through a slow mode,
     wanders by about its standard deviation over any window, without being a drift), or
     within 3 noise std measured beforehand (``noise_std``, a designed experiment) or 15 % of
@@ -285,16 +285,20 @@ def _check_settled(path, res, outputs, n_settle, y, settle, noise_std=None):
     below it; the fitted initial state of the validation absorbs such a transient)."""
     if n_settle < 8:
         return
+    from scipy.stats import t as student
+
     q = n_settle // 4
+    t_crit = float(student.ppf(0.9995, max(q - 2, 1)))
     k = np.arange(q, dtype=float)
     k -= k.mean()
     for j, nm in enumerate(outputs):
         tail = np.asarray(res[f"plant.{nm}"], float)[n_settle - q + 1:n_settle + 1]
         slope = float(k @ (tail - tail.mean()) / (k @ k))
         drift = abs(slope) * q
-        # 3 standard deviations of the fitted drift for white noise of the residual's size
-        resid = float(np.std(tail - tail.mean() - slope * k))
-        noise = resid * max(3.0 * np.sqrt(12.0 / q), 2.0)
+        # the fitted drift's two-sided 0.1 % Student-t bound for white noise of the residual's size
+        # (q − 2 degrees of freedom: few samples give a loose estimate of that size)
+        resid = float(np.sqrt(np.sum((tail - tail.mean() - slope * k) ** 2) / max(q - 2, 1)))
+        noise = resid * max(t_crit * np.sqrt(12.0 / q), 2.0)
         if noise_std is not None:  # designed experiment (signal/noise ≥ 10): coloured noise wanders ~1.5 σ
             noise = max(noise, 3.0 * float(noise_std[j]), 0.15 * float(np.std(y[:, j])))
         spread = float(np.std(y[:, j]))

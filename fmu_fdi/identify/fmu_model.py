@@ -163,7 +163,7 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         exc = excitation or Excitation()
         exc.check()
         sig = u_names + d_names
-        if design:
+        if design and not _fully_given(exc, excite, sig, user_ts, md):
             from .design import plan_experiment
 
             plan = plan_experiment(path, sig, y_names, excite=excite, at=at, parameters=params, ts=user_ts,
@@ -208,17 +208,18 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
             rep = validate(sub, du_val, dy_val, check.t, np.linalg.eigvals(A), y_names)
         sigma = check.settle_y[len(check.settle_y) // 2:].std(axis=0) if len(check.settle_y) > 1 else None
         floor = noise_floor(dy_val, rep.y_hat, repeat.y - check.y0, sigma)
+        # the innovation form is estimated whatever noise model is asked for: its innovations are what
+        # the whiteness test judges
         nm, inn, why_none = None, None, None
-        want = "innovation" if noise == "auto" else noise
-        if want == "measurement":
+        try:
+            inn = innovation_noise(sub, du, dy, du_val, dy_val)
+        except IdentificationError as exc_:
+            if noise == "innovation":
+                raise
+            why_none = str(exc_)
+        if noise == "measurement":
             nm = measurement_noise(sub, rep.y, rep.y_hat, rep.kind)
-        elif want == "innovation":
-            try:
-                inn = innovation_noise(sub, du, dy, du_val, dy_val)
-            except IdentificationError as exc_:
-                if noise != "auto":
-                    raise
-                why_none = str(exc_)
+        elif noise in ("innovation", "auto"):
             nm = inn
         eps = None
         if inn is not None:
@@ -231,8 +232,16 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         verdict = _verdict(y_names, rep, floor, tests, sub.order, exc, plan)
         if log is not None:
             log(verdict)
-        if np.min(floor.fit_noise_free) < min_fit:
-            worst = int(np.argmin(floor.fit_noise_free))
+        if rep.kind != "simulation" and not tests.independent and np.max(tests.whiteness) > 10:
+            raise IdentificationError(
+                f"{path}: the identified model (order {sub.order}) is unstable, so it is validated by its one-step "
+                f"predictor, whose fit flatters it; its output error is correlated with past inputs and its own "
+                f"innovations are far from white (over 10× the bound), so it is wrong: {verdict}; next: a plant in its own loop identified with noise is biased (its inputs "
+                f"follow the noise): excite more strongly (--amplitude) so the noise matters less, give --order, "
+                f"or switch the noise off if the FMU allows")
+        clean = np.nan_to_num(floor.fit_noise_free, nan=-np.inf)
+        if np.min(clean) < min_fit:
+            worst = int(np.argmin(clean))
             raise IdentificationError(
                 f"{path}: the identified model (order {sub.order}) fits the validation run poorly: {verdict} "
                 f"(worst {y_names[worst]}, minimum {min_fit:g} % of the noise-free response); next: "
@@ -251,8 +260,8 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
                                    + f", seed {exc.seed}, settle {exc.settle if exc.settle is not None else 200 * ts:g} s, amplitudes "
                                    + ", ".join(f"{k}={v:g}" for k, v in ident.excited.items()),
                      "fit_percent": rep.fit.tolist(), "fit_kind": rep.kind,
-                     "noise_floor_percent": floor.floor.tolist(), "fit_noise_free_percent": floor.fit_noise_free.tolist(),
-                     "noise_floor_source": floor.source, "noise_rms": floor.noise_rms.tolist(),
+                     "floor_percent": floor.floor.tolist(), "fit_corrected_percent": floor.fit_noise_free.tolist(),
+                     "floor_source": floor.source, "floor_rms": floor.noise_rms.tolist(),
                      "whiteness": tests.whiteness.tolist(), "independence": tests.independence.tolist(),
                      "residual_lags": tests.lags,
                      "poles": [f"{p.real:.6g}{p.imag:+.6g}j" for p in rep.poles_continuous]})
@@ -274,7 +283,7 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
 
 def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
     """The order from the singular values, or a lower-error one on the validation run (Ljung 1999,
-    sec. 16.4, cross-validation): among the stable candidates that have a continuous model, the
+    sec. 16.4, cross-validation): among the stable candidates within 3 of it that have a continuous model, the
     smallest order whose mean normalised squared simulation error Σ_j ||e_j||²/||y_j − ȳ_j||² / p
     is within 2 % of the best. The gap order stands when it is unstable (a plant in its own
     loop, judged by its one-step predictor instead)."""
@@ -289,7 +298,7 @@ def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
         return judged(gap)
     scored = []
     for sub in cands[1:]:
-        if sub.order > 2 * gap.order + 2 or np.any(np.abs(np.linalg.eigvals(sub.A)) >= 1.0):
+        if abs(sub.order - gap.order) > 3 or np.any(np.abs(np.linalg.eigvals(sub.A)) >= 1.0):
             continue
         try:
             res = judged(sub)
@@ -305,6 +314,17 @@ def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
     return min((o, r) for e, o, r in scored if e <= 1.02 * best + 1e-15)[1]
 
 
+def _fully_given(exc, excite, sig, ts, md) -> bool:
+    """Every choice of the experiment given (signal, samples, PRBS period, an amplitude for each
+    excited input): nothing to design, no pre-test."""
+    names = excite if excite is not None else [v.name for v in md.modelVariables
+                                               if v.name in sig and v.causality == "input"]
+    amp = exc.amplitude
+    amps = amp is not None and (not isinstance(amp, dict) or all(n in amp for n in names))
+    return (exc.signal is not None and exc.samples is not None and amps
+            and (exc.signal != "prbs" or exc.period is not None))
+
+
 def _noise_seed_parameter(md, params):
     """The FMU's Integer parameter that seeds its noise (named ``seed`` or ending in ``seed``,
     case-insensitive), or None; a seed the user fixed in ``at`` is still varied per run."""
@@ -316,7 +336,8 @@ def _noise_seed_parameter(md, params):
 
 def _verdict(y_names, rep, floor, tests, order, exc, plan) -> str:
     """One line: fit per output against the noise floor, and the residual tests."""
-    per = ", ".join(f"{n} {f:.1f} % (floor {fl:.1f} %, noise-free {fn:.1f} %)"
+    per = ", ".join(f"{n} {f:.1f} % (floor {fl:.1f} %, noise-free "
+                    + (f"{fn:.1f} %)" if np.isfinite(fn) else "n/a: no response beyond the noise)")
                     for n, f, fl, fn in zip(y_names, rep.fit, floor.floor, floor.fit_noise_free))
     white = ("innovations white" if tests.white else
              f"innovations not white (worst {y_names[int(np.argmax(tests.whiteness))]}: "
@@ -329,12 +350,12 @@ def _verdict(y_names, rep, floor, tests, order, exc, plan) -> str:
 
 def _next_step(floor, tests, exc, plan, worst) -> str:
     """What to change first, from which figure failed (Ljung 1999, sec. 16.6)."""
+    if not floor.floor[worst] >= 50:
+        return ("the noise hides the response on this output (floor below 50 %): excite more strongly "
+                "(--amplitude) or record longer (--samples)")
     if not tests.independent:
         return ("the output error still follows the inputs (dynamics missing): give a higher --order or a "
                 "longer record (--samples)")
-    if floor.floor[worst] < 50:
-        return ("the noise hides the response on this output (floor below 50 %): excite more strongly "
-                "(--amplitude) or record longer (--samples)")
     return ("the model error is larger than the noise but not linear in the inputs (a nonlinear plant at "
             "this amplitude?): lower --amplitude and record longer (--samples), or move the operating point")
 

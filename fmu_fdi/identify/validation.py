@@ -117,7 +117,8 @@ class NoiseFloor:
     - ``fit_noise_free`` — the fit to the noise-free response,
       ``100 (1 − sqrt(max(||e||² − ||v||², 0)) / sqrt(max(||y − ȳ||² − ||v||², tiny)))``:
       the misfit beyond the noise, relative to the response beyond the noise (100 % for a
-      model whose error is noise alone; equals the plain fit on a noise-free plant).
+      model whose error is noise alone; equals the plain fit on a noise-free plant); NaN when
+      the response is within 1 % of the noise power (nothing to fit beyond it).
     - ``source`` — 'repeat' (noise from the repeated run) or 'settle' (the repeat came out
       identical — deterministic noise — so ||v||² = N σ² from the settle phase's std σ).
     """
@@ -141,7 +142,9 @@ def noise_floor(y, y_hat, y_rep, sigma_settle=None) -> NoiseFloor:
     e2 = np.sum((y - y_hat) ** 2, axis=0)
     tiny = np.finfo(float).tiny
     floor = 100.0 * (1.0 - np.sqrt(v2 / np.maximum(tot2, tiny)))
-    fit = 100.0 * (1.0 - np.sqrt(np.maximum(e2 - v2, 0.0) / np.maximum(tot2 - v2, tiny)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fit = 100.0 * (1.0 - np.sqrt(np.maximum(e2 - v2, 0.0) / (tot2 - v2)))
+    fit = np.where(tot2 - v2 > 0.01 * tot2, fit, np.nan)  # no response beyond the noise: undefined
     return NoiseFloor(floor, fit, np.sqrt(v2 / N), source)
 
 
