@@ -383,6 +383,15 @@ def _design(args) -> int:
     else:
         evaluation = parse_evaluation(args.evaluation or "rms:10")
         thresholds = _thresholds(args.threshold or "fault-size:1", gen, evaluation, args.calibrate)
+    # plantfmu (issue 18): what the thresholds mean under the model's noise (evaluation/guidance.py)
+    from .evaluation.guidance import describe, threshold_guidance
+
+    try:
+        guidance = threshold_guidance(gen, evaluation, thresholds)
+    except (ValueError, DesignError, np.linalg.LinAlgError, AttributeError) as exc:
+        print(f"note: no threshold guidance for this design ({exc})")
+    else:
+        describe(gen, guidance, warn=lambda text: print(text, file=sys.stderr))
     decision = {"persistence": args.persistence, "latch": args.latch}
     dg = Diagnoser(gen, evaluation=evaluation, thresholds=thresholds, decision=decision, name=args.name,
                    valid_range=valid_range or None)
