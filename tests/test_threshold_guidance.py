@@ -56,3 +56,26 @@ def test_threshold_inside_the_noise_warns_with_its_rate():
     assert g[0].alpha < WARN_RATE
     describe(gen, g, lines.append, warnings.append)
     assert not warnings
+
+
+def test_data_threshold_explains_effective_samples_and_asks_for_a_log_long_enough():
+    """A slowly correlated evaluation (AR(1), pole 0.999) refused on 60 001 samples: the message says what
+    an effective sample is and how long a log is needed at least — and a log 4 times that long (an
+    independent realisation; the 60 001-sample log underestimates the correlation length, 1113 against
+    the true ln 0.05 / ln 0.999 = 2993, which the message warns of) is accepted."""
+    import re
+
+    import pytest
+
+    from fmu_fdi.evaluation import data_driven_threshold
+
+    rng = np.random.default_rng(0)
+    J = lfilter([1.0], [1.0, -0.999], rng.standard_normal(60_001))
+    with pytest.raises(ValueError, match="effective samples: the evaluation stays correlated over") as err:
+        data_driven_threshold(J, 0.001)
+    need = int(re.search(r"a fault-free log of at least about (\d+) samples", str(err.value)).group(1))
+    L = int(re.search(r"correlated over (\d+) samples", str(err.value)).group(1))
+    assert need > 60_001 and need % L == 0
+    longer = lfilter([1.0], [1.0, -0.999], rng.standard_normal(4 * need))
+    est = data_driven_threshold(longer, 0.001)
+    assert est.n_effective >= need // L
