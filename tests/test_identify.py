@@ -55,6 +55,13 @@ def test_linearise_at_given_states_without_trim(tmp_path):
     assert not lin.trimmed and np.array_equal(lin.x0, x)
     assert lin.derivative_residual == pytest.approx(np.abs(f).max(), rel=1e-12)  # reported, not hidden
     assert np.abs(np.block([[lin.A, lin.B], [lin.C, lin.D]]) - J).max() <= 1e-6 * np.abs(J).max()
+    # the point is no equilibrium: a warning names the largest derivative (from the analytic f)
+    i = int(np.argmax(np.abs(f[:2])))
+    assert f"der({lin.state_names[i]}) = {f[i]:.4g} is the largest derivative" in lin.warning
+    # at an equilibrium, untrimmed: no warning
+    xe = equilibrium("nonlinear", u)
+    quiet = linearise(fmu, at={"x1": xe[0], "x2": xe[1], "u1": u[0], "u2": u[1]}, trim=False)
+    assert quiet.warning == ""
 
 
 def test_trim_without_steady_state_is_a_clear_error(tmp_path):

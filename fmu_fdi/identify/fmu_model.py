@@ -135,6 +135,10 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         u_names, d_names, y_names = lin.input_names[:nu], lin.input_names[nu:], lin.output_names
         A, B, C, D = lin.A, lin.B, lin.C, lin.D
         u0, y0 = lin.v0[:nu], lin.y0
+        if lin.warning:
+            prov["warning"] = lin.warning
+            if log is not None:
+                log(f"warning: {lin.warning}")
         prov.update({"method": f"linearisation ({lin.method})", "trimmed": lin.trimmed,
                      "states": list(lin.state_names), "state_values": lin.x0.tolist(),
                      "derivative_residual": lin.derivative_residual})

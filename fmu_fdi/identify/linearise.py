@@ -62,6 +62,8 @@ class Linearisation:
         Whether the states were found by trimming.
     info : dict
         FMU name, GUID/instantiation token, FMI version.
+    warning : str
+        Without trim: the point is not a steady state (the largest derivative named), else "".
     """
 
     A: np.ndarray
@@ -78,6 +80,7 @@ class Linearisation:
     method: str
     trimmed: bool
     info: dict = field(default_factory=dict)
+    warning: str = ""
 
 
 class _MEInstance:
@@ -323,9 +326,10 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
                                       f"returned NaN/inf): choose another point with at=...")
         info = {"fmu": md.modelName, "guid": (md.instantiationToken if inst.v3 else md.guid),
                 "fmi_version": md.fmiVersion}
+        warning = "" if trimmed else _not_steady(f0[:nx], A, B, x0, v0, trim_tol, inst.state_names)
         return Linearisation(A, B, C, D, list(inst.state_names), v_names, y_names, np.asarray(x0, float), v0,
                              y0, float(np.max(np.abs(f0), initial=0.0)),
-                             "directional derivatives" if use_dd else "central differences", trimmed, info)
+                             "directional derivatives" if use_dd else "central differences", trimmed, info, warning)
     finally:
         if inst is not None:
             inst.close()
@@ -348,6 +352,23 @@ def _provides_directional(path, md) -> bool:
     me = root.find("ModelExchange")
     flag = me.get("providesDirectionalDerivatives", me.get("providesDirectionalDerivative", "false")) if me is not None else "false"
     return flag.strip().lower() in ("true", "1")
+
+
+def _not_steady(f0, A, B, x0, v0, tol, state_names) -> str:
+    """A warning when the untrimmed point is not a steady state by the trim's own test
+    (``max|f| > tol · (|A||x| + |B||v| + 1)``), naming the largest derivative; else ""."""
+    f0 = np.asarray(f0, float)
+    if not f0.size:
+        return ""
+    scale = (np.linalg.norm(A, np.inf) * np.linalg.norm(x0, np.inf)
+             + (np.linalg.norm(B, np.inf) * np.linalg.norm(v0, np.inf) if B.size else 0.0) + 1.0)
+    worst = float(np.max(np.abs(f0)))
+    if worst <= tol * scale:
+        return ""
+    i = int(np.argmax(np.abs(f0)))
+    return (f"not at a steady state (trim off): der({state_names[i]}) = {f0[i]:.4g} is the largest derivative "
+            f"(> {tol:g}·{scale:.3g}); the model describes deviations around a moving point — trim, or give "
+            f"states that are an equilibrium")
 
 
 def _trim(inst, F, jac, x0, v0, tol, path, v_names):
