@@ -145,7 +145,8 @@ def test_plant_fmu_identified_as_black_box(plant_dir, case, tmp_path):
     png = tmp_path / "validation.png"
     m = FDIModel.from_fmu(plant_dir[fmu], u, y, d, at={"noise_enable": False}, excite=excite, max_order=8,
                           validation_png=png,
-                          excitation=Excitation(amplitude=amp, samples=500, settle=40 * plant_fmus.PLANTS[fmu].step))
+                          excitation=Excitation("multisine", amplitude=amp, samples=500,
+                                                settle=40 * plant_fmus.PLANTS[fmu].step))
     assert m.n == ref.n
     ts = m.provenance["sample_time"]
     # the plant's bandwidth: from the lowest frequency the record resolves to half the Nyquist frequency

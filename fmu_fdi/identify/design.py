@@ -222,6 +222,9 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
             f"{', '.join(f'{n} {r:.3g}' for n, r in zip(y_names, resp))}, noise std "
             f"{', '.join(f'{n} {s:.3g}' for n, s in zip(y_names, sigma))}, amplitudes {seed_amp}): give larger "
             f"amplitudes (--amplitude NAME=A) or check that the inputs act on the outputs")
+    # round-off is no noise: a std below 1e-9 of the output's level and response counts as zero
+    level = np.maximum(np.abs(pre.y0), dy.std(axis=0))
+    sigma = np.where(sigma > 1e-9 * level, sigma, 0.0)
     rate = pre.steps / max(pre.seconds, 1e-6)
     names = list(pre.excited)
     # the rough model maps the applied excitation (references, for a plant in its own loop) to the outputs
@@ -235,7 +238,7 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     if rough is not None:  # coloured noise outlasts a short settle window: the misfit bounds it from above
         res = dy - rough.simulate(dev)
         res = res[len(res) // 5:]
-        sigma = np.maximum(sigma, res.std(axis=0))
+        sigma = np.where(sigma > 0, np.maximum(sigma, res.std(axis=0)), 0.0)
     T_pre = PRETEST_SAMPLES * ts0
     lam = np.log(np.where(np.abs(z) > 1e-12, z, 1e-12).astype(complex)) / ts0
     tau_min = max(1.0 / np.max(np.abs(lam)), ts0) if lam.size else ts0
@@ -288,7 +291,7 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
         for trial in range(2):  # the rough model's guess, then the measured response of the signal itself
             snr = np.min(r[noisy] / sigma[noisy]) if np.any(noisy) and np.all(r[noisy] > 0) else np.inf
             c = 1.0 if not np.isfinite(snr) else max(SNR_TARGET / max(snr, 1e-12), 1.0 if trial == 0 else 0.0)
-            new = {k: (min(amp[k] * c, limit[k]) if k in free else amp[k]) for k in amp}
+            new = {k: (min(max(amp[k] * c, seed_amp[k]), limit[k]) if k in free else amp[k]) for k in amp}
             r = r * min(new[k] / amp[k] for k in amp)
             amp = new
             if trial == 1 or not np.any(noisy):

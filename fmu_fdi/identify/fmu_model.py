@@ -217,10 +217,10 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         nm, inn, why_none = None, None, None
         try:
             inn = innovation_noise(sub, du, dy, du_val, dy_val)
-        except IdentificationError as exc_:
+        except (IdentificationError, np.linalg.LinAlgError) as exc_:
+            why_none = f"the innovation form cannot be estimated ({exc_}): is the run noise-free?"
             if noise == "innovation":
-                raise
-            why_none = str(exc_)
+                raise IdentificationError(f"{path}: {why_none}") from None
         if noise == "measurement":
             nm = measurement_noise(sub, rep.y, rep.y_hat, rep.kind)
         elif noise in ("innovation", "auto"):
@@ -289,7 +289,8 @@ def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
     """The order from the singular values, or a lower-error one on the validation run (Ljung 1999,
     sec. 16.4, cross-validation): among the stable candidates within 3 of it that have a continuous model, the
     smallest order whose mean normalised squared simulation error Σ_j ||e_j||²/||y_j − ȳ_j||² / p
-    is within 2 % of the best. The gap order stands when it is unstable (a plant in its own
+    is within 2 % of the best plus 1e-4 (a 1 % NRMSE: on noise-free data a higher order only fits
+    a nonlinearity a little better). The gap order stands when it is unstable (a plant in its own
     loop, judged by its one-step predictor instead)."""
     from .validation import validate
 
@@ -315,7 +316,7 @@ def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
     if not scored:
         return judged(gap)
     best = min(e for e, _, _ in scored)
-    return min((o, r) for e, o, r in scored if e <= 1.02 * best + 1e-15)[1]
+    return min(((o, r) for e, o, r in scored if e <= 1.02 * best + 1e-4), key=lambda t: t[0])[1]
 
 
 def _fully_given(exc, excite, sig, ts, md) -> bool:
