@@ -304,3 +304,36 @@ def test_data_driven_forms_on_a_fast_plant(form, kind):
         if kind == "sensor":  # the other relation does not read sensor j
             other = gen.groups[1 - j]
             assert np.sqrt(np.mean(r[500:, other] ** 2)) < 1.5
+
+
+def _with_discrete_input(fmu, name, out):
+    """A copy of ``fmu`` whose input ``name`` is declared discrete-variability (the binary is unchanged:
+    what changes is what FMI lets a master do with it — set it only at events)."""
+    import zipfile
+
+    with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(out, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                text = data.decode()
+                head = f'name="{name}"'
+                i = text.index(head)
+                j = text.index('variability="continuous"', i)
+                text = text[:j] + 'variability="discrete"' + text[j + len('variability="continuous"'):]
+                data = text.encode()
+            dst.writestr(item, data)
+    return out
+
+
+def test_discrete_input_is_held_at_its_value_not_perturbed(tmp_path):
+    fmu = _with_discrete_input(build_me_fmu(tmp_path, "nonlinear", 2, False), "u2", tmp_path / "discrete.fmu")
+    # default inputs: the continuous ones only; u2 held at the value given, which moves the steady state
+    lin = linearise(fmu, at={"u2": 0.8})
+    assert lin.input_names == ["u1"]
+    xe = equilibrium("nonlinear", [1.0, 0.8])        # u1 at its start value 1.0
+    assert np.allclose(lin.x0, xe, rtol=1e-8)
+    _, _, J = analytic("nonlinear", xe, [1.0, 0.8])
+    assert np.abs(lin.A - J[:2, :2]).max() <= 1e-6 * np.abs(J).max()
+    # naming it as an input is a clear refusal, not an FMU call failing
+    with pytest.raises(IdentificationError, match="u2 .*discrete.*change only at events.*at="):
+        linearise(fmu, inputs=["u1", "u2"])

@@ -242,7 +242,10 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
     if md.modelExchange is None:
         raise IdentificationError(f"{path} has no model-exchange interface: identify it from an experiment "
                                   f"instead (method='identify')")
-    real_in = [v.name for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")]
+    # continuous Real inputs can be perturbed; discrete-variability, Integer and Boolean inputs change only
+    # at events (FMI 2.0.4 sec. 3.2.3, FMI 3.0 sec. 3.2.3): they are held at their values (``at`` or start)
+    real_in = [v.name for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")
+               and v.variability in (None, "continuous")]
     real_out = [v.name for v in md.modelVariables if v.causality == "output" and v.type in ("Real", "Float64")]
     d_names = check_names(md, path, list(disturbances), "disturbance", ("input",))
     u_names = (check_names(md, path, list(inputs), "input", ("input",)) if inputs is not None
@@ -263,11 +266,18 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
     for k in [k for k in at if by_name[k].causality in ("parameter", "calculatedParameter", "structuralParameter")]:
         parameters[k] = at.pop(k)
     v_names = u_names + d_names
+    held_only = [n for n in v_names if n not in real_in]
+    if held_only:
+        kinds = ", ".join(f"{n} ({by_name[n].type}, {by_name[n].variability or 'continuous'})" for n in held_only)
+        raise IdentificationError(f"{path}: inputs {kinds} change only at events, so a linearisation cannot "
+                                  f"perturb them; they are held at their values: give them with at=... "
+                                  f"(--at NAME=VALUE) and leave them out of the inputs")
+    held = {k: at.pop(k) for k in [k for k in at if by_name[k].causality == "input" and k not in v_names]}
     unzipdir = extract(str(path), tempfile.mkdtemp(prefix="fmu_fdi_lin_"))
     inst = None
     try:
         try:
-            inst = _MEInstance(path, md, unzipdir, parameters)
+            inst = _MEInstance(path, md, unzipdir, {**parameters, **held})
         except Exception as exc:
             raise IdentificationError(f"{path}: the FMU failed to instantiate/initialise for linearisation: "
                                       f"{exc}") from None
@@ -317,8 +327,12 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
         if trim and inst.nx:
             x0 = _trim(inst, F, jac, x0, v0, trim_tol, path, v_names)
             trimmed = True
-        J = jac(x0, v0)
-        f0, y0 = inst.evaluate(x0, v0, in_vrs, out_vrs)
+        try:
+            J = jac(x0, v0)
+            f0, y0 = inst.evaluate(x0, v0, in_vrs, out_vrs)
+        except Exception as exc:  # fmpy raises FMICallException (a bare Exception subclass) on a failed call
+            raise IdentificationError(f"{path}: the FMU failed while being linearised at the operating point: "
+                                      f"{exc}") from None
         nx = inst.nx
         A, B, C, D = J[:nx, :nx], J[:nx, nx:], J[nx:, :nx], J[nx:, nx:]
         if not np.all(np.isfinite(J)):
