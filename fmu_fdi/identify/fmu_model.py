@@ -88,7 +88,9 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         estimated on the estimation run (``Bw = K Lₑ``, ``Dw = Lₑ``, ``Lₑ Lₑᵀ = Re``);
         'measurement', output noise only (``Bw = 0``, ``Dw`` the Cholesky factor of the
         output-error covariance on the validation run); None: no noise inputs. Default 'auto':
-        'innovation' when the data has noise to learn (else none, with a note to ``log``).
+        'innovation' when the runs have noise (the noise floor's repeat run differs, or the
+        settle phase shows it); else none, with a note to ``log`` (the misfit of a noise-free
+        run is model error, not noise).
         The identified noise model is discrete (sample time ts); the continuous model's Bw is
         the exact inverse of its zero-order hold, like B, so ``model.discretize(ts)`` (and a
         design at ``--ts`` = ts) has exactly the identified noise model, w a unit white
@@ -221,10 +223,15 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
             why_none = f"the innovation form cannot be estimated ({exc_}): is the run noise-free?"
             if noise == "innovation":
                 raise IdentificationError(f"{path}: {why_none}") from None
+        # noise: above round-off (1e-9 of the outputs' level)
+        noisy = np.any(floor.noise_rms > 1e-9 * np.sqrt(np.mean(check.y ** 2, axis=0)))
         if noise == "measurement":
             nm = measurement_noise(sub, rep.y, rep.y_hat, rep.kind)
-        elif noise in ("innovation", "auto"):
+        elif noise == "innovation" or (noise == "auto" and noisy):
             nm = inn
+        elif noise == "auto":  # what the innovation form would hold is model error (e.g. a nonlinearity), no noise
+            why_none = ("the runs are noise-free (the validation run repeated with another noise seed came out "
+                        "identical, and the outputs are constant at the operating point)")
         eps = None
         if inn is not None:
             eps = predictor_innovations(sub, inn.K, du_val, dy_val, drop=2 * sub.block_rows * max(sub.order, 1))
