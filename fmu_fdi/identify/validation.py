@@ -175,9 +175,14 @@ class ResidualTests:
 
 
 def _acf(x, lags):
-    x = x - x.mean()
+    """Sample autocorrelation ``Σ_t x_t x_{t+k} / Σ_t x_t²`` (mean removed) at lags 0..lags, by FFT."""
+    x = np.asarray(x, float) - np.mean(x)
     d = float(x @ x)
-    return np.array([float(x[: len(x) - k] @ x[k:]) / d if d > 0 else 0.0 for k in range(lags + 1)])
+    if d <= 0:
+        return np.zeros(lags + 1)
+    n = 1 << int(np.ceil(np.log2(2 * len(x))))
+    f = np.fft.rfft(x, n)
+    return np.fft.irfft(f * np.conj(f), n)[: lags + 1] / d
 
 
 def residual_tests(eps, e, u, lags: int = 25) -> ResidualTests:
@@ -199,6 +204,7 @@ def residual_tests(eps, e, u, lags: int = 25) -> ResidualTests:
     z = norm.ppf(1 - 0.005 / ((M + 1) * max(u.shape[1], 1)))
     indep = np.zeros(p)
     K = min(N // 4, 10 * M + 50)
+    rus = [_acf(u[:, i], K) for i in range(u.shape[1])]
     for j in range(p):
         ej = e[:, j] - e[:, j].mean()
         re = _acf(e[:, j], K)
@@ -207,7 +213,7 @@ def residual_tests(eps, e, u, lags: int = 25) -> ResidualTests:
             den = np.sqrt(float(ej @ ej) * float(ui @ ui))
             if den == 0:
                 continue
-            ru = _acf(u[:, i], K)
+            ru = rus[i]
             sd = np.sqrt(max(re[0] * ru[0] + 2 * float(re[1:] @ ru[1:]), 1.0 / N) / N)
             r = np.array([float(ej[k:] @ ui[: N - k]) for k in range(M + 1)]) / den
             indep[j] = max(indep[j], float(np.max(np.abs(r))) / (z * sd))
