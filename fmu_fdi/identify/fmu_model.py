@@ -247,9 +247,11 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
             raise IdentificationError(
                 f"{path}: the identified model (order {sub.order}) is unstable, so it is validated by its one-step "
                 f"predictor, whose fit flatters it; its output error is correlated with past inputs and its own "
-                f"innovations are far from white (over 10× the bound), so it is wrong: {verdict}; next: a plant in its own loop identified with noise is biased (its inputs "
-                f"follow the noise): excite more strongly (--amplitude) so the noise matters less, give --order, "
-                f"or switch the noise off if the FMU allows")
+                f"innovations are far from white (over 10× the bound), so it is wrong: {verdict}; next: "
+                + ("a plant in its own loop identified with noise is biased (its inputs follow the noise): excite "
+                   "more strongly (--amplitude) so the noise matters less, give --order, or switch the noise off "
+                   "if the FMU allows" if set(ident.excited) != set(sig) else
+                   _next_step(floor, tests, exc, plan, int(np.argmin(floor.floor)))))
         clean = np.nan_to_num(floor.fit_noise_free, nan=-np.inf)
         if np.min(clean) < min_fit:
             worst = int(np.argmin(clean))
