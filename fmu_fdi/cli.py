@@ -603,7 +603,8 @@ def build_parser() -> argparse.ArgumentParser:
     mo.add_argument("--settle", type=float, help="seconds at the operating point first (default 200 steps)")
     mo.add_argument("--period", type=int, help="PRBS clock period in steps (default: chosen, fastest time scale)")
     mo.add_argument("--seed", type=int, default=0, help="excitation seed (default: 0; validation run: seed + 1)")
-    mo.add_argument("--order", type=int, help="model order (default: from the singular values)")
+    mo.add_argument("--order", type=int, help="model order (default: by cross-validation near the singular "
+                                              "values' largest gap)")
     mo.add_argument("--min-fit", type=float, default=50.0,
                     help="refuse a fit to the noise-free response below this (%%, default 50)")
     mo.add_argument("--plot", help="PNG of measured vs model outputs on the validation run (default: none)")

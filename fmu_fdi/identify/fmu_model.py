@@ -251,14 +251,14 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
                 + ("a plant in its own loop identified with noise is biased (its inputs follow the noise): excite "
                    "more strongly (--amplitude) so the noise matters less, give --order, or switch the noise off "
                    "if the FMU allows" if set(ident.excited) != set(sig) else
-                   _next_step(floor, tests, exc, plan, int(np.argmin(floor.floor)))))
+                   _next_step(floor, tests, exc, plan, int(np.argmin(floor.floor)), y_names)))
         clean = np.nan_to_num(floor.fit_noise_free, nan=-np.inf)
         if np.min(clean) < min_fit:
             worst = int(np.argmin(clean))
             raise IdentificationError(
                 f"{path}: the identified model (order {sub.order}) fits the validation run poorly: {verdict} "
                 f"(worst {y_names[worst]}, minimum {min_fit:g} % of the noise-free response); next: "
-                f"{_next_step(floor, tests, exc, plan, worst)}")
+                f"{_next_step(floor, tests, exc, plan, worst, y_names)}")
         if noise == "auto" and nm is None and log is not None:
             log(f"no noise model: {why_none}")
         noise = nm.kind if nm is not None else None
@@ -362,11 +362,11 @@ def _verdict(y_names, rep, floor, tests, order, exc, plan) -> str:
     return f"validation fit (order {order}): {per}; residuals: {white}, {indep} (lags 0..{tests.lags})"
 
 
-def _next_step(floor, tests, exc, plan, worst) -> str:
+def _next_step(floor, tests, exc, plan, worst, y_names) -> str:
     """What to change first, from which figure failed (Ljung 1999, sec. 16.6)."""
     if not floor.floor[worst] >= 50:
-        return ("the noise hides the response on this output (floor below 50 %): excite more strongly "
-                "(--amplitude) or record longer (--samples)")
+        return (f"the noise hides the response on {y_names[worst]} (floor {floor.floor[worst]:.1f} % < 50 %): "
+                f"excite more strongly (--amplitude) or record longer (--samples)")
     if not tests.independent:
         return ("the output error still follows the inputs (dynamics missing): give a higher --order or a "
                 "longer record (--samples)")
