@@ -388,7 +388,7 @@ def _design(args) -> int:
 
     try:
         guidance = threshold_guidance(gen, evaluation, thresholds)
-    except (ValueError, DesignError, np.linalg.LinAlgError, AttributeError) as exc:
+    except (ValueError, TypeError, DesignError, np.linalg.LinAlgError, AttributeError) as exc:
         print(f"note: no threshold guidance for this design ({exc})")
     else:
         describe(gen, guidance, warn=lambda text: print(text, file=sys.stderr))

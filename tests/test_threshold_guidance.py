@@ -79,3 +79,12 @@ def test_data_threshold_explains_effective_samples_and_asks_for_a_log_long_enoug
     longer = lfilter([1.0], [1.0, -0.999], rng.standard_normal(4 * need))
     est = data_driven_threshold(longer, 0.001)
     assert est.n_effective >= need // L
+
+
+def test_guidance_reads_estimated_thresholds_and_leaves_adaptive_ones_out():
+    from types import SimpleNamespace
+
+    gen = _open_loop_observer()
+    g, = threshold_guidance(gen, {"kind": "norm"}, [SimpleNamespace(value=4.4965)])   # a ThresholdEstimate
+    assert g.group == 0 and np.isclose(g.alpha, 0.05, rtol=1e-3)
+    assert threshold_guidance(gen, {"kind": "norm"}, [{"kind": "adaptive"}]) == []

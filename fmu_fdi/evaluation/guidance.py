@@ -31,11 +31,13 @@ WARN_RATE = 1e-3
 @dataclass
 class GroupGuidance:
     """One residual group: its threshold, α (None without a noise model or for a non-quadratic
-    evaluator) and the smallest detectable step fault per fault name (None: not seen)."""
+    evaluator), the smallest detectable step fault per fault name (None: not seen) and the
+    group's index (0-based)."""
 
     threshold: float
     alpha: float | None
     smallest: dict
+    group: int = 0
 
 
 def false_alarm_probability(gen, evaluation: dict, threshold: float, group: int) -> float | None:
@@ -64,28 +66,41 @@ def false_alarm_probability(gen, evaluation: dict, threshold: float, group: int)
 
 
 def threshold_guidance(gen, evaluation, thresholds) -> list[GroupGuidance]:
-    """Per residual group of a discrete ``gen``: :class:`GroupGuidance` (module docstring)."""
+    """Per residual group of a discrete ``gen`` with a fixed threshold (a number or a
+    ThresholdEstimate; adaptive thresholds are left out): :class:`GroupGuidance` (module docstring)."""
     from .defaults import _settled_gain, settled_fault_gains
 
     evals = evaluation if isinstance(evaluation, list) else [evaluation] * len(gen.groups)
-    ths = thresholds if np.ndim(thresholds) else [thresholds] * len(gen.groups)
+    ths = list(thresholds) if isinstance(thresholds, (list, tuple, np.ndarray)) else [thresholds] * len(gen.groups)
     out = []
     for i, gains in enumerate(settled_fault_gains(gen)):
-        th = float(ths[i])
+        th = _fixed_value(ths[i])
+        if th is None:  # an adaptive threshold: no single value to judge
+            continue
         try:
             s = _settled_gain(evals[i])
         except Exception:  # a statistical test: no settled value
             s = None
         smallest = {f.name: (th / (g * s) if s and g > 1e-12 * max(gains + [1e-300]) else None)
                     for f, g in zip(gen.model.faults, gains)}
-        out.append(GroupGuidance(th, false_alarm_probability(gen, evals[i], th, i), smallest))
+        out.append(GroupGuidance(th, false_alarm_probability(gen, evals[i], th, i), smallest, i))
     return out
+
+
+def _fixed_value(t) -> float | None:
+    """The value of a fixed threshold (a number or a ThresholdEstimate's ``value``), else None."""
+    t = getattr(t, "value", t)
+    try:
+        return float(t)
+    except (TypeError, ValueError):
+        return None
 
 
 def describe(gen, guidance, emit=print, warn=None) -> None:
     """Lines per group: threshold, α and mean samples between false alarms, smallest faults; a warning
     (to ``warn``) for each group whose α exceeds WARN_RATE."""
-    for i, g in enumerate(guidance):
+    for g in guidance:
+        i = g.group
         far = ("no noise model: false-alarm rate unknown" if g.alpha is None else
                f"false alarms {g.alpha:.2g} per sample (one per {1 / max(g.alpha, 1e-300):.3g} samples = "
                f"{gen.dt / max(g.alpha, 1e-300):.3g} s) under the model's noise")
