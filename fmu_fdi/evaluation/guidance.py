@@ -7,8 +7,10 @@ fault-free stationary operation with the model's noise inputs w unit white is
     α_i = P(J ≥ J_th) = P(Q ≥ J_th²)    (Q = Σ λ_j χ²_1, Imhof 1961),
 
 computed from the exact residual autocovariance (:mod:`.covariance`) as in
-:func:`~fmu_fdi.evaluation.analytic_threshold`, whose quantile this inverts; for windows too
-long for the exact route, the Satterthwaite match ``g χ²_h`` of its mean and variance.
+:func:`~fmu_fdi.evaluation.analytic_threshold`, whose quantile this inverts; for a stacked
+window longer than ``EXACT_SIZE`` values, the Satterthwaite match ``g χ²_h`` of its mean and
+variance (its tail is lighter than Q's: α is then underestimated, by up to ×5 at 1e-4 for
+strongly correlated residuals, see analytic_threshold).
 
 The smallest step fault of each kind the group detects at steady state is
 ``J_th / (||Rf_ij(1)|| · s)``, with s the evaluator's settled gain (1 for ``norm``, ``rms``,
@@ -26,6 +28,9 @@ import numpy as np
 from scipy import stats
 
 WARN_RATE = 1e-3
+#: largest stacked window (samples × residuals) whose eigenvalues are computed for the exact tail;
+#: beyond it the Satterthwaite match (a guidance printed at every design must stay cheap)
+EXACT_SIZE = 400
 
 
 @dataclass
@@ -43,7 +48,7 @@ class GroupGuidance:
 def false_alarm_probability(gen, evaluation: dict, threshold: float, group: int) -> float | None:
     """``P(J ≥ threshold)`` per sample under the model's w unit white noise (module docstring)."""
     from ..runtime.evaluation import Evaluator
-    from .analytic import MAX_EXACT_SIZE, _eigenvalues, _moments, _weights_of
+    from .analytic import _eigenvalues, _moments, _weights_of
     from .covariance import group_rows, residual_covariance
     from .quadform import imhof_sf
 
@@ -58,7 +63,7 @@ def false_alarm_probability(gen, evaluation: dict, threshold: float, group: int)
         cov = cov.weighted(ev.W)
     x = float(threshold) if ev.kind == "chi2" else float(threshold) ** 2
     c = _weights_of(ev, truncate=True)
-    if c is not None and c.size * len(rows) <= MAX_EXACT_SIZE:
+    if c is not None and c.size * len(rows) <= EXACT_SIZE:
         return float(imhof_sf(x, _eigenvalues(cov, ev)))
     mean, var = _moments(cov, ev)
     g, h = var / (2 * mean), 2 * mean * mean / var
