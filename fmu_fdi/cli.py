@@ -208,8 +208,9 @@ def _model(args) -> int:
                               at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
                               sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
                               excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
-                              validation_png=args.plot, record=args.record, noise=args.noise,
-                              minimal=args.minimal, minreal_tol=args.minreal_tol)
+                              validation_png=args.plot, record=args.record,
+                              noise=None if args.noise == "none" else args.noise,
+                              minimal=args.minimal, minreal_tol=args.minreal_tol, log=print)
     _report_minreal(model)
     print(f"wrote {model.to_file(args.output)}: {summary(model)}")
     return 0
@@ -392,6 +393,15 @@ def _design(args) -> int:
     else:
         evaluation = parse_evaluation(args.evaluation or "rms:10")
         thresholds = _thresholds(args.threshold or "fault-size:1", gen, evaluation, args.calibrate)
+    # plantfmu (issue 18): what the thresholds mean under the model's noise (evaluation/guidance.py)
+    from .evaluation.guidance import describe, threshold_guidance
+
+    try:
+        guidance = threshold_guidance(gen, evaluation, thresholds)
+    except (ValueError, TypeError, DesignError, np.linalg.LinAlgError, AttributeError) as exc:
+        print(f"note: no threshold guidance for this design ({exc})")
+    else:
+        describe(gen, guidance, warn=lambda text: print(text, file=sys.stderr))
     decision = {"persistence": args.persistence, "latch": args.latch}
     dg = Diagnoser(gen, evaluation=evaluation, thresholds=thresholds, decision=decision, name=args.name,
                    valid_range=valid_range or None)
@@ -605,22 +615,26 @@ def build_parser() -> argparse.ArgumentParser:
     mo.add_argument("--actuator-faults", nargs="+", help="'all' or input names: additive actuator faults (default: none)")
     mo.add_argument("--ts", type=float, help="identification sample time (default: the FMU's default step)")
     mo.add_argument("--excite", nargs="+", help="FMU inputs to excite (default: the model inputs that are FMU inputs)")
-    mo.add_argument("--signal", default="multisine", choices=("multisine", "prbs"))
-    mo.add_argument("--amplitude", nargs="+", metavar="NAME=A", help="peak excitation per input (default 5 %%)")
-    mo.add_argument("--samples", type=int, default=2000, help="recorded steps per run (default 2000)")
+    # plantfmu (issue 18): the experiment options default to the automatic design (identify/design.py)
+    mo.add_argument("--signal", choices=("multisine", "prbs"), help="excitation signal (default: chosen, PRBS)")
+    mo.add_argument("--amplitude", nargs="+", metavar="NAME=A",
+                    help="peak excitation per input (default: chosen from a pre-test for signal/noise 10)")
+    mo.add_argument("--samples", type=int, help="recorded steps per run (default: chosen, 6 slowest time scales)")
     mo.add_argument("--settle", type=float, help="seconds at the operating point first (default 200 steps)")
-    mo.add_argument("--period", type=int, default=1, help="PRBS clock period in steps (default: 1)")
+    mo.add_argument("--period", type=int, help="PRBS clock period in steps (default: chosen, fastest time scale)")
     mo.add_argument("--seed", type=int, default=0, help="excitation seed (default: 0; validation run: seed + 1)")
-    mo.add_argument("--order", type=int, help="model order (default: from the singular values)")
-    mo.add_argument("--min-fit", type=float, default=50.0, help="refuse a validation fit below this (%%, default 50)")
+    mo.add_argument("--order", type=int, help="model order (default: by cross-validation near the singular "
+                                              "values' largest gap)")
+    mo.add_argument("--min-fit", type=float, default=50.0,
+                    help="refuse a fit to the noise-free response below this (%%, default 50)")
     mo.add_argument("--plot", help="PNG of measured vs model outputs on the validation run (default: none)")
     mo.add_argument("--record", help="CSV of the identification run, a fault-free log for --method data (default: none)")
     # identify.noise.NOISE_MODELS, written out: importing it would load the identification
     # package on every CLI call; test_identify_noise checks the two lists agree
-    mo.add_argument("--noise", choices=("innovation", "measurement"),
-                    help="identification: add unit white noise inputs w_<output> learned from the data: the Kalman "
-                         "innovation form, or output noise from the validation error (default: none; "
-                         "docs/plant-fmu.md)")
+    mo.add_argument("--noise", choices=("innovation", "measurement", "none"), default="auto",
+                    help="identification: unit white noise inputs w_<output> learned from the data: the Kalman "
+                         "innovation form, or output noise from the validation error (default: innovation when "
+                         "the data has noise; docs/plant-fmu.md)")
     mo.add_argument("--at-grid", nargs="+", metavar="NAME=LO:HI:K",
                     help="operating envelope: model the plant at K values of each NAME from LO to HI and write a "
                          "model set (.json) for a scheduled design (default: one point, --at)")

@@ -55,6 +55,13 @@ def test_linearise_at_given_states_without_trim(tmp_path):
     assert not lin.trimmed and np.array_equal(lin.x0, x)
     assert lin.derivative_residual == pytest.approx(np.abs(f).max(), rel=1e-12)  # reported, not hidden
     assert np.abs(np.block([[lin.A, lin.B], [lin.C, lin.D]]) - J).max() <= 1e-6 * np.abs(J).max()
+    # the point is no equilibrium: a warning names the largest derivative (from the analytic f)
+    i = int(np.argmax(np.abs(f[:2])))
+    assert f"der({lin.state_names[i]}) = {f[i]:.4g} is the largest derivative" in lin.warning
+    # at an equilibrium, untrimmed: no warning
+    xe = equilibrium("nonlinear", u)
+    quiet = linearise(fmu, at={"x1": xe[0], "x2": xe[1], "u1": u[0], "u2": u[1]}, trim=False)
+    assert quiet.warning == ""
 
 
 def test_trim_without_steady_state_is_a_clear_error(tmp_path):
@@ -138,7 +145,8 @@ def test_plant_fmu_identified_as_black_box(plant_dir, case, tmp_path):
     png = tmp_path / "validation.png"
     m = FDIModel.from_fmu(plant_dir[fmu], u, y, d, at={"noise_enable": False}, excite=excite, max_order=8,
                           validation_png=png,
-                          excitation=Excitation(amplitude=amp, samples=500, settle=40 * plant_fmus.PLANTS[fmu].step))
+                          excitation=Excitation("multisine", amplitude=amp, samples=500,
+                                                settle=40 * plant_fmus.PLANTS[fmu].step))
     assert m.n == ref.n
     ts = m.provenance["sample_time"]
     # the plant's bandwidth: from the lowest frequency the record resolves to half the Nyquist frequency
@@ -296,3 +304,36 @@ def test_data_driven_forms_on_a_fast_plant(form, kind):
         if kind == "sensor":  # the other relation does not read sensor j
             other = gen.groups[1 - j]
             assert np.sqrt(np.mean(r[500:, other] ** 2)) < 1.5
+
+
+def _with_discrete_input(fmu, name, out):
+    """A copy of ``fmu`` whose input ``name`` is declared discrete-variability (the binary is unchanged:
+    what changes is what FMI lets a master do with it — set it only at events)."""
+    import zipfile
+
+    with zipfile.ZipFile(fmu) as src, zipfile.ZipFile(out, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item.filename)
+            if item.filename == "modelDescription.xml":
+                text = data.decode()
+                head = f'name="{name}"'
+                i = text.index(head)
+                j = text.index('variability="continuous"', i)
+                text = text[:j] + 'variability="discrete"' + text[j + len('variability="continuous"'):]
+                data = text.encode()
+            dst.writestr(item, data)
+    return out
+
+
+def test_discrete_input_is_held_at_its_value_not_perturbed(tmp_path):
+    fmu = _with_discrete_input(build_me_fmu(tmp_path, "nonlinear", 2, False), "u2", tmp_path / "discrete.fmu")
+    # default inputs: the continuous ones only; u2 held at the value given, which moves the steady state
+    lin = linearise(fmu, at={"u2": 0.8})
+    assert lin.input_names == ["u1"]
+    xe = equilibrium("nonlinear", [1.0, 0.8])        # u1 at its start value 1.0
+    assert np.allclose(lin.x0, xe, rtol=1e-8)
+    _, _, J = analytic("nonlinear", xe, [1.0, 0.8])
+    assert np.abs(lin.A - J[:2, :2]).max() <= 1e-6 * np.abs(J).max()
+    # naming it as an input is a clear refusal, not an FMU call failing
+    with pytest.raises(IdentificationError, match="u2 .*discrete.*change only at events.*at="):
+        linearise(fmu, inputs=["u1", "u2"])

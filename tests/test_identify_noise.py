@@ -161,7 +161,7 @@ def test_cli_model_noise_round_trip_and_default_unchanged(dts200, tmp_path, caps
     for noise in (None, "innovation", "measurement"):
         files[noise] = tmp_path / f"{noise}.toml"
         assert main(["model", str(dts200), *_EXPERIMENT, "-o", str(files[noise])]
-                    + (["--noise", noise] if noise else [])) == 0
+                    + ["--noise", noise or "none"]) == 0
     plain = FDIModel.from_file(files[None])
     assert plain.nw == 0 and not any(k.startswith("noise") for k in plain.provenance)
     n, p, ts = plain.n, plain.ny, plain.provenance["sample_time"]
@@ -214,7 +214,7 @@ def test_cli_noise_choices_are_the_identifications():
 
     model_parser = build_parser()._subparsers._group_actions[0].choices["model"]
     noise = next(a for a in model_parser._actions if a.dest == "noise")
-    assert tuple(noise.choices) == NOISE_MODELS
+    assert tuple(noise.choices) == NOISE_MODELS + ("none",)
 
 
 def test_noise_needs_identification(tmp_path):

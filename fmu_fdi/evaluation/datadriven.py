@@ -156,12 +156,22 @@ def _gpd_fit(y: np.ndarray, start: tuple[float, float] | None = None) -> tuple[f
     return float(xi), float(sigma)
 
 
-def _gpd(x: np.ndarray, rate: float, confidence: float, tail_fraction: float, n_boot: int, seed: int):
+def _effective(n: int, n_all: int, L: int) -> str:
+    """What 'effective samples' are, with the numbers of this log."""
+    return (f"{n} effective samples: the evaluation stays correlated over {L} samples (autocorrelation ≥ "
+            f"{ACF_LEVEL}), so only every {L}-th of the log's {n_all} samples counts as an independent draw")
+
+
+def _gpd(x: np.ndarray, rate: float, confidence: float, tail_fraction: float, n_boot: int, seed: int,
+         L: int = 1, n_all: int | None = None):
     n = x.size
     k = max(MIN_EXCESSES, int(np.ceil(tail_fraction * n)))
     if 2 * k > n:
-        raise ValueError(f"{n} effective samples are too few for a tail fit ({k} excesses needed, at most half the "
-                         "samples): give longer or more records")
+        need = 2 * MIN_EXCESSES  # k = MIN_EXCESSES excesses, at most half the samples
+        raise ValueError(f"{_effective(n, n_all or n, L)}: too few for a tail fit, which needs {need} ({k} excesses, "
+                         f"at most half the samples): a fault-free log of at least about {need * L} samples (or several "
+                         f"independent runs adding up to it; a short log underestimates the correlation length, so "
+                         f"allow more), or a shorter evaluation window (less correlation)")
     xs = np.sort(x)
     u = float(xs[n - k - 1])
     y = xs[n - k:] - u
@@ -265,12 +275,13 @@ def data_driven_threshold(evaluations, rate: float, confidence: float = 0.95, me
     if method == "empirical" and r is None:
         need = int(np.ceil(np.log1p(-confidence) / np.log1p(-rate)))
         raise ValueError(f"the empirical bound needs at least {need} effective samples for rate {rate} at confidence "
-                         f"{confidence}, got {n} ({n_all} samples thinned by {L}); use method='gpd'")
+                         f"{confidence} (a log of at least about {need * L} samples), got {_effective(n, n_all, L)}; use "
+                         f"method='gpd'")
     if method == "empirical" or (method == "auto" and r is not None):
         value = float(np.sort(x)[r - 1])
         achieved = float(stats.binom.cdf(r - 1, n, 1.0 - rate))
         point = float(np.quantile(np.concatenate(recs), 1.0 - rate))
         return ThresholdEstimate(value=value, method="empirical", confidence=achieved, point=point,
                                  details={"order": r}, **common)
-    value, point, details = _gpd(x, rate, confidence, tail_fraction, int(n_boot), int(seed))
+    value, point, details = _gpd(x, rate, confidence, tail_fraction, int(n_boot), int(seed), L, n_all)
     return ThresholdEstimate(value=value, method="gpd", confidence=confidence, point=point, details=details, **common)

@@ -35,13 +35,20 @@ def fault_size_thresholds(gen, evaluation: dict | list, size: float = 1.0) -> li
     if not model.faults:
         raise DesignError("the model has no faults to size a threshold by: give a threshold")
     evals = evaluation if isinstance(evaluation, list) else [evaluation] * len(gen.groups)
-    dc = gen.Rf.dcgain() if gen.Rf.m else np.zeros((gen.Q.p, 0))
     out = []
-    for i, grp in enumerate(gen.groups):
-        settled = [np.linalg.norm(dc[np.ix_(grp, np.arange(model.nf)[f.columns])], 2) for f in model.faults]
+    for i, settled in enumerate(settled_fault_gains(gen)):
         seen = [v for v in settled if v > 1e-9 * max(settled + [1e-300])]
         if not seen:
             raise DesignError(f"residual group {i + 1} has zero steady-state response to every fault: "
                               f"give a threshold")
         out.append(0.5 * size * min(seen) * _settled_gain(evals[i]))
     return out
+
+
+def settled_fault_gains(gen) -> list[list[float]]:
+    """Per residual group, per fault of the model: ``||Rf_ij(1)||``, the settled residual of that
+    group per unit step fault (discrete DC gain, block 2-norm); ``gen`` discrete."""
+    model = gen.model
+    dc = gen.Rf.dcgain() if gen.Rf.m else np.zeros((gen.Q.p, 0))
+    return [[float(np.linalg.norm(dc[np.ix_(grp, np.arange(model.nf)[f.columns])], 2)) for f in model.faults]
+            for grp in gen.groups]

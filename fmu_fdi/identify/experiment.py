@@ -34,44 +34,59 @@ SIGNALS = ("multisine", "prbs")
 class Excitation:
     """How the plant is excited (configuration only; see the module docstring).
 
+    A field left at None is chosen by the automatic experiment design
+    (:mod:`fmu_fdi.identify.design`) when the model is made with ``FDIModel.from_fmu``; a bare
+    :func:`run_experiment` uses the fixed fallbacks :data:`FALLBACK` instead.
+
     Parameters
     ----------
-    signal : {'multisine', 'prbs'}
+    signal : {'multisine', 'prbs'}, optional
     amplitude : float or dict of str to float, optional
-        Peak deviation per excited input in its unit (a float: the same for all). Default
+        Peak deviation per excited input in its unit (a float: the same for all). Fallback
         5 % of the operating value; an input at 0 needs an explicit amplitude.
-    samples : int
+    samples : int, optional
         Number of recorded steps.
-    settle : float
-        Seconds at the operating point before recording.
+    settle : float, optional
+        Seconds at the operating point before recording (fallback 200 steps).
     band : float
         Highest multisine frequency as a fraction of the Nyquist frequency.
-    period : int
+    period : int, optional
         PRBS clock period in steps.
     seed : int
     """
 
-    signal: str = "multisine"
+    signal: str | None = None
     amplitude: float | dict | None = None
-    samples: int = 2000
+    samples: int | None = None
     settle: float | None = None
     band: float = 0.5
-    period: int = 1
+    period: int | None = None
     seed: int = 0
 
     def check(self):
-        if self.signal not in SIGNALS:
+        if self.signal is not None and self.signal not in SIGNALS:
             raise IdentificationError(f"excitation signal {self.signal!r} is not one of {SIGNALS}")
-        if int(self.samples) != self.samples or self.samples < 10:
+        if self.samples is not None and (int(self.samples) != self.samples or self.samples < 10):
             raise IdentificationError(f"samples must be an integer >= 10, got {self.samples!r}")
         if not 0 < self.band <= 1:
             raise IdentificationError(f"band must be in (0, 1] (fraction of Nyquist), got {self.band!r}")
-        if int(self.period) != self.period or self.period < 1:
+        if self.period is not None and (int(self.period) != self.period or self.period < 1):
             raise IdentificationError(f"PRBS period must be a positive integer, got {self.period!r}")
+        if self.settle is not None and not (np.isfinite(self.settle) and self.settle >= 0):
+            raise IdentificationError(f"settle must be a non-negative number of seconds, got {self.settle!r}")
+
+    def resolved(self) -> "Excitation":
+        """A copy with the fixed fallbacks (:data:`FALLBACK`) in place of the fields left at None."""
+        return Excitation(**{k: (FALLBACK[k] if v is None and k in FALLBACK else v) for k, v in self.__dict__.items()})
+
+
+#: what a bare run_experiment uses for fields left at None (no automatic design)
+FALLBACK = {"signal": "multisine", "samples": 2000, "period": 1}
 
 
 def excitation_signals(exc: Excitation, names, amplitudes) -> np.ndarray:
     """``samples × len(names)`` deviations (module docstring)."""
+    exc = exc.resolved()
     N, m = int(exc.samples), len(names)
     rng = np.random.default_rng(exc.seed)
     out = np.zeros((N, m))
@@ -110,10 +125,15 @@ class Record:
     u_names: list
     y_names: list
     excited: dict = field(default_factory=dict)
+    #: outputs over the settle phase (operating point, no excitation): the noise level is read there
+    settle_y: np.ndarray | None = field(default=None, repr=False)
+    #: wall-clock seconds of the run and the number of communication steps it took
+    seconds: float = 0.0
+    steps: int = 0
 
 
 def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=None, step: float,
-                   excitation: Excitation | None = None) -> Record:
+                   excitation: Excitation | None = None, noise_std=None, check_settle: bool = True) -> Record:
     """Settle, excite and record a co-simulation plant FMU.
 
     Parameters
@@ -134,6 +154,11 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
     step : float
         Communication step = sample time of the record.
     excitation : Excitation
+    noise_std : array_like, optional
+        The outputs' noise std at the operating point, measured beforehand (pre-test): a drift
+        within 3 of them at the end of settling is noise wandering (coloured noise), not drift.
+    check_settle : bool
+        Check that the outputs settled (off for a pre-test that measures the noise).
 
     Raises
     ------
@@ -146,6 +171,7 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
 
     exc = excitation or Excitation()
     exc.check()
+    exc = exc.resolved()
     try:
         fmu = FMUInstance("plant", path)
     except (CoSimulationError, FileNotFoundError) as err:
@@ -202,10 +228,14 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
     for j, nm in enumerate(excite):
         values[nm][n_settle:n_settle + N] += dev[:, j]
     bool_outs = [n for n in fmu.names("output") if fmu.kind(n) == "boolean"]
+    import time
+
+    clock = time.perf_counter()
     try:
         sim = CoSimulation({"plant": path}, None, InputSignals(t, values), step=step, stop=float(t[-1]),
                            parameters={f"plant.{k}": v for k, v in params.items()})
         res = sim.run()
+        clock = time.perf_counter() - clock
     except SimulationFailed as err:
         raise IdentificationError(f"{path}: the plant FMU failed during the experiment ({err}); lower the "
                                   f"amplitude or check the operating point") from None
@@ -236,25 +266,41 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
     u0 = np.array([v0[nm] if nm in fmu_inputs else col(nm)[n_settle] for nm in inputs])
     tail = slice(max(n_settle - max(n_settle // 4, 1), 0) + 1, n_settle + 1)
     y0 = np.array([col(nm)[tail].mean() for nm in outputs])  # settled value, noise averaged
-    _check_settled(path, res, outputs, n_settle, y, settle)
-    return Record(t[rows] - t[n_settle], u, y, u0, y0, list(inputs), list(outputs), dict(zip(excite, amps)))
+    if check_settle:
+        _check_settled(path, res, outputs, n_settle, y, settle, noise_std)
+    settle_y = np.column_stack([col(nm)[1:n_settle + 1] for nm in outputs])
+    return Record(t[rows] - t[n_settle], u, y, u0, y0, list(inputs), list(outputs), dict(zip(excite, amps)),
+                  settle_y, clock, int(t.size - 1))
 
 
-def _check_settled(path, res, outputs, n_settle, y, settle):
+def _check_settled(path, res, outputs, n_settle, y, settle, noise_std=None):
     """The outputs' drift over the last quarter of settling (least-squares slope times its
-    duration) is below 5 % of their spread during the excitation, or within 3 standard
-    deviations of what measurement noise alone gives the fitted drift."""
+    duration) is below 5 % of their spread during the excitation, or within the two-sided
+    0.1 % Student-t bound of what white measurement noise alone gives the fitted drift, or within twice the
+    spread about the fitted line (coloured noise, e.g. process noise through a slow mode,
+    wanders by about its standard deviation over any window, without being a drift), or
+    within 3 noise std measured beforehand (``noise_std``, a designed experiment) or 15 % of
+    the spread (a designed experiment aims at a response of 10 noise std, so a wander of
+    1.5 σ of noise coloured by a slow mode, which no short window tells from drift, stays
+    below it; the fitted initial state of the validation absorbs such a transient)."""
     if n_settle < 8:
         return
+    from scipy.stats import t as student
+
     q = n_settle // 4
+    t_crit = float(student.ppf(0.9995, max(q - 2, 1)))
     k = np.arange(q, dtype=float)
     k -= k.mean()
     for j, nm in enumerate(outputs):
         tail = np.asarray(res[f"plant.{nm}"], float)[n_settle - q + 1:n_settle + 1]
         slope = float(k @ (tail - tail.mean()) / (k @ k))
         drift = abs(slope) * q
-        # 3 standard deviations of the fitted drift for white noise of the residual's size
-        noise = float(np.std(tail - tail.mean() - slope * k)) * np.sqrt(12.0 / q) * 3.0
+        # the fitted drift's two-sided 0.1 % Student-t bound for white noise of the residual's size
+        # (q − 2 degrees of freedom: few samples give a loose estimate of that size)
+        resid = float(np.sqrt(np.sum((tail - tail.mean() - slope * k) ** 2) / max(q - 2, 1)))
+        noise = resid * max(t_crit * np.sqrt(12.0 / q), 2.0)
+        if noise_std is not None:  # designed experiment (signal/noise ≥ 10): coloured noise wanders ~1.5 σ
+            noise = max(noise, 3.0 * float(noise_std[j]), 0.15 * float(np.std(y[:, j])))
         spread = float(np.std(y[:, j]))
         if spread > 0 and drift > max(0.05 * spread, noise):
             raise IdentificationError(

@@ -62,6 +62,8 @@ class Linearisation:
         Whether the states were found by trimming.
     info : dict
         FMU name, GUID/instantiation token, FMI version.
+    warning : str
+        Without trim: the point is not a steady state (the largest derivative named), else "".
     """
 
     A: np.ndarray
@@ -78,6 +80,7 @@ class Linearisation:
     method: str
     trimmed: bool
     info: dict = field(default_factory=dict)
+    warning: str = ""
 
 
 class _MEInstance:
@@ -239,7 +242,10 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
     if md.modelExchange is None:
         raise IdentificationError(f"{path} has no model-exchange interface: identify it from an experiment "
                                   f"instead (method='identify')")
-    real_in = [v.name for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")]
+    # continuous Real inputs can be perturbed; discrete-variability, Integer and Boolean inputs change only
+    # at events (FMI 2.0.4 sec. 3.2.3, FMI 3.0 sec. 3.2.3): they are held at their values (``at`` or start)
+    real_in = [v.name for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")
+               and v.variability in (None, "continuous")]
     real_out = [v.name for v in md.modelVariables if v.causality == "output" and v.type in ("Real", "Float64")]
     d_names = check_names(md, path, list(disturbances), "disturbance", ("input",))
     u_names = (check_names(md, path, list(inputs), "input", ("input",)) if inputs is not None
@@ -260,11 +266,18 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
     for k in [k for k in at if by_name[k].causality in ("parameter", "calculatedParameter", "structuralParameter")]:
         parameters[k] = at.pop(k)
     v_names = u_names + d_names
+    held_only = [n for n in v_names if n not in real_in]
+    if held_only:
+        kinds = ", ".join(f"{n} ({by_name[n].type}, {by_name[n].variability or 'continuous'})" for n in held_only)
+        raise IdentificationError(f"{path}: inputs {kinds} change only at events, so a linearisation cannot "
+                                  f"perturb them; they are held at their values: give them with at=... "
+                                  f"(--at NAME=VALUE) and leave them out of the inputs")
+    held = {k: at.pop(k) for k in [k for k in at if by_name[k].causality == "input" and k not in v_names]}
     unzipdir = extract(str(path), tempfile.mkdtemp(prefix="fmu_fdi_lin_"))
     inst = None
     try:
         try:
-            inst = _MEInstance(path, md, unzipdir, parameters)
+            inst = _MEInstance(path, md, unzipdir, {**parameters, **held})
         except Exception as exc:
             raise IdentificationError(f"{path}: the FMU failed to instantiate/initialise for linearisation: "
                                       f"{exc}") from None
@@ -314,8 +327,12 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
         if trim and inst.nx:
             x0 = _trim(inst, F, jac, x0, v0, trim_tol, path, v_names)
             trimmed = True
-        J = jac(x0, v0)
-        f0, y0 = inst.evaluate(x0, v0, in_vrs, out_vrs)
+        try:
+            J = jac(x0, v0)
+            f0, y0 = inst.evaluate(x0, v0, in_vrs, out_vrs)
+        except Exception as exc:  # fmpy raises FMICallException (a bare Exception subclass) on a failed call
+            raise IdentificationError(f"{path}: the FMU failed while being linearised at the operating point: "
+                                      f"{exc}") from None
         nx = inst.nx
         A, B, C, D = J[:nx, :nx], J[:nx, nx:], J[nx:, :nx], J[nx:, nx:]
         if not np.all(np.isfinite(J)):
@@ -323,9 +340,10 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
                                       f"returned NaN/inf): choose another point with at=...")
         info = {"fmu": md.modelName, "guid": (md.instantiationToken if inst.v3 else md.guid),
                 "fmi_version": md.fmiVersion}
+        warning = "" if trimmed else _not_steady(f0[:nx], A, B, x0, v0, trim_tol, inst.state_names)
         return Linearisation(A, B, C, D, list(inst.state_names), v_names, y_names, np.asarray(x0, float), v0,
                              y0, float(np.max(np.abs(f0), initial=0.0)),
-                             "directional derivatives" if use_dd else "central differences", trimmed, info)
+                             "directional derivatives" if use_dd else "central differences", trimmed, info, warning)
     finally:
         if inst is not None:
             inst.close()
@@ -348,6 +366,23 @@ def _provides_directional(path, md) -> bool:
     me = root.find("ModelExchange")
     flag = me.get("providesDirectionalDerivatives", me.get("providesDirectionalDerivative", "false")) if me is not None else "false"
     return flag.strip().lower() in ("true", "1")
+
+
+def _not_steady(f0, A, B, x0, v0, tol, state_names) -> str:
+    """A warning when the untrimmed point is not a steady state by the trim's own test
+    (``max|f| > tol · (|A||x| + |B||v| + 1)``), naming the largest derivative; else ""."""
+    f0 = np.asarray(f0, float)
+    if not f0.size:
+        return ""
+    scale = (np.linalg.norm(A, np.inf) * np.linalg.norm(x0, np.inf)
+             + (np.linalg.norm(B, np.inf) * np.linalg.norm(v0, np.inf) if B.size else 0.0) + 1.0)
+    worst = float(np.max(np.abs(f0)))
+    if worst <= tol * scale:
+        return ""
+    i = int(np.argmax(np.abs(f0)))
+    return (f"not at a steady state (trim off): der({state_names[i]}) = {f0[i]:.4g} is the largest derivative "
+            f"(> {tol:g}·{scale:.3g}); the model describes deviations around a moving point — trim, or give "
+            f"states that are an equilibrium")
 
 
 def _trim(inst, F, jac, x0, v0, tol, path, v_names):

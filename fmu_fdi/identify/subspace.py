@@ -89,7 +89,7 @@ class SubspaceModel:
 
 
 def moesp(u, y, dt: float, order: int | None = None, *, block_rows: int | None = None, max_order: int = 10,
-          rtol: float = 1e-9, feedthrough: bool = True) -> SubspaceModel:
+          rtol: float = 1e-9, feedthrough: bool = True, candidates: bool = False) -> SubspaceModel:
     """Identify a discrete state-space model by PO-MOESP (module docstring).
 
     Parameters
@@ -109,6 +109,9 @@ def moesp(u, y, dt: float, order: int | None = None, *, block_rows: int | None =
     feedthrough : bool
         Estimate D; False fixes D = 0 (a record whose y_k is read before u_k acts, as from a
         co-simulation master, has no feedthrough).
+    candidates : bool
+        Return a list from one factorisation: the order from the singular values first, then
+        every order 1 … min(max_order, s·p − 1) (for an order chosen by cross-validation).
 
     Raises
     ------
@@ -141,12 +144,18 @@ def moesp(u, y, dt: float, order: int | None = None, *, block_rows: int | None =
         L11, L31, L32 = past_future_lq(u, y, s, IdentificationError)
     except IdentificationError as exc:
         raise IdentificationError(str(exc).replace("too little data", f"too little data for order {order or max_order}")) from None
-    try:
-        A, B, C, D, sv = realize_from_lq(L11, L31, L32, s, m, p, order, max_order=max_order, rtol=rtol,
-                                         feedthrough=feedthrough)
-    except DesignError as exc:
-        raise IdentificationError(str(exc)) from None
-    n = A.shape[0]
-    C, D, B = sy[:, None] * C, sy[:, None] * D / su, B / su
-    return SubspaceModel(A, B, C, D, float(dt), sv[: min(len(sv), max_order + 1)], n, s,
-                         info={"samples": N})
+    orders = [order] if not candidates else [None] + list(range(1, min(max_order, s * p - 1) + 1))
+    out = []
+    for n_ in orders:
+        try:
+            A, B, C, D, sv = realize_from_lq(L11, L31, L32, s, m, p, n_, max_order=max_order, rtol=rtol,
+                                             feedthrough=feedthrough)
+        except DesignError as exc:
+            if n_ is None or n_ == order:
+                raise IdentificationError(str(exc)) from None
+            continue
+        n = A.shape[0]
+        C, D, B = sy[:, None] * C, sy[:, None] * D / su, B / su
+        out.append(SubspaceModel(A, B, C, D, float(dt), sv[: min(len(sv), max_order + 1)], n, s,
+                                 info={"samples": N}))
+    return out if candidates else out[0]

@@ -101,3 +101,120 @@ def validate(model, u, y, t=None, continuous_poles=None, output_names=None) -> V
     return ValidationReport(names, fit, poles, np.asarray(continuous_poles if continuous_poles is not None
                                                           else [], complex), kind, y, y_hat,
                             np.arange(N) * model.dt if t is None else np.asarray(t))
+
+
+# ---- judging against the noise floor (Ljung 1999, sec. 16.6) ----------------------------------------
+
+@dataclass
+class NoiseFloor:
+    """The validation fit set against what the plant's noise allows.
+
+    A repeat of the validation input with another noise realisation gives the noise-only
+    mismatch ``v = (y_val − y_rep)/√2`` (the input response cancels; two independent
+    realisations differ by √2 times one). With the model error ``e = y_val − ŷ``:
+
+    - ``floor`` — the best fit any model can reach on this run, ``100 (1 − ||v|| / ||y − ȳ||)``;
+    - ``fit_noise_free`` — the fit to the noise-free response,
+      ``100 (1 − sqrt(max(||e||² − ||v||², 0)) / sqrt(max(||y − ȳ||² − ||v||², tiny)))``:
+      the misfit beyond the noise, relative to the response beyond the noise (100 % for a
+      model whose error is noise alone; equals the plain fit on a noise-free plant); NaN when
+      the response is within 1 % of the noise power (nothing to fit beyond it).
+    - ``source`` — 'repeat' (noise from the repeated run) or 'settle' (the repeat came out
+      identical — deterministic noise — so ||v||² = N σ² from the settle phase's std σ).
+    """
+
+    floor: np.ndarray
+    fit_noise_free: np.ndarray
+    noise_rms: np.ndarray
+    source: str
+
+
+def noise_floor(y, y_hat, y_rep, sigma_settle=None) -> NoiseFloor:
+    """:class:`NoiseFloor` of a validation run ``y`` (deviations), the model's ``y_hat`` and the repeat ``y_rep``."""
+    y, y_hat, y_rep = (np.asarray(a, float) for a in (y, y_hat, y_rep))
+    N = len(y)
+    v2 = np.sum((y - y_rep) ** 2, axis=0) / 2.0
+    source = "repeat"
+    if not np.any(v2 > 0) and sigma_settle is not None:
+        v2 = N * np.asarray(sigma_settle, float) ** 2
+        source = "settle"
+    tot2 = np.sum((y - y.mean(axis=0)) ** 2, axis=0)
+    e2 = np.sum((y - y_hat) ** 2, axis=0)
+    tiny = np.finfo(float).tiny
+    floor = 100.0 * (1.0 - np.sqrt(v2 / np.maximum(tot2, tiny)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fit = 100.0 * (1.0 - np.sqrt(np.maximum(e2 - v2, 0.0) / (tot2 - v2)))
+    fit = np.where(tot2 - v2 > 0.01 * tot2, fit, np.nan)  # no response beyond the noise: undefined
+    return NoiseFloor(floor, fit, np.sqrt(v2 / N), source)
+
+
+@dataclass
+class ResidualTests:
+    """Ljung's residual tests (Ljung 1999, sec. 16.6) at lags up to ``lags``, risk 1 % per test.
+
+    - whiteness: the normalised autocorrelation of the predictor innovations ε_j,
+      ``N Σ_{τ=1..M} r_ε(τ)²`` against χ²(M);
+    - independence: the cross-correlation of the output error e_j (simulation) with each
+      input u_i at lags 0..M, ``r_eu(τ)``, against its standard deviation under independence
+      ``sqrt(Σ_k ρ_e(k) ρ_u(k) / N)`` (Bartlett; e and u may each be coloured).
+
+    ``whiteness`` and ``independence`` hold the largest statistic relative to its 99 % bound
+    (≤ 1 passes) per output."""
+
+    lags: int
+    whiteness: np.ndarray
+    independence: np.ndarray
+
+    @property
+    def white(self) -> bool:
+        return bool(np.all(self.whiteness <= 1.0))
+
+    @property
+    def independent(self) -> bool:
+        return bool(np.all(self.independence <= 1.0))
+
+
+def _acf(x, lags):
+    """Sample autocorrelation ``Σ_t x_t x_{t+k} / Σ_t x_t²`` (mean removed) at lags 0..lags, by FFT."""
+    x = np.asarray(x, float) - np.mean(x)
+    d = float(x @ x)
+    if d <= 0:
+        return np.zeros(lags + 1)
+    n = 1 << int(np.ceil(np.log2(2 * len(x))))
+    f = np.fft.rfft(x, n)
+    return np.fft.irfft(f * np.conj(f), n)[: lags + 1] / d
+
+
+def residual_tests(eps, e, u, lags: int = 25) -> ResidualTests:
+    """:class:`ResidualTests` of innovations ``eps`` (N×p, may be None) and output error ``e`` vs inputs ``u``."""
+    from scipy.stats import chi2, norm
+
+    e = np.asarray(e, float)
+    u = np.asarray(u, float).reshape(len(u), -1)
+    N, p = e.shape
+    M = int(min(lags, N // 5))
+    white = np.zeros(p)
+    if eps is not None:
+        eps = np.asarray(eps, float)
+        bound = chi2.ppf(0.99, M)
+        for j in range(p):
+            r = _acf(eps[:, j], M)[1:]
+            white[j] = len(eps) * float(r @ r) / bound
+    # two-sided 1 % per test, Bonferroni over the M + 1 lags and the inputs
+    z = norm.ppf(1 - 0.005 / ((M + 1) * max(u.shape[1], 1)))
+    indep = np.zeros(p)
+    K = min(N // 4, 10 * M + 50)
+    rus = [_acf(u[:, i], K) for i in range(u.shape[1])]
+    for j in range(p):
+        ej = e[:, j] - e[:, j].mean()
+        re = _acf(e[:, j], K)
+        for i in range(u.shape[1]):
+            ui = u[:, i] - u[:, i].mean()
+            den = np.sqrt(float(ej @ ej) * float(ui @ ui))
+            if den == 0:
+                continue
+            ru = rus[i]
+            sd = np.sqrt(max(re[0] * ru[0] + 2 * float(re[1:] @ ru[1:]), 1.0 / N) / N)
+            r = np.array([float(ej[k:] @ ui[: N - k]) for k in range(M + 1)]) / den
+            indep[j] = max(indep[j], float(np.max(np.abs(r))) / (z * sd))
+    return ResidualTests(M, white, indep)

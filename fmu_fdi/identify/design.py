@@ -1,0 +1,329 @@
+"""Automatic experiment design: sample time, duration, signal and amplitude from a pre-test.
+
+Every choice the user left open (an :class:`~fmu_fdi.identify.experiment.Excitation` field at
+None, no ``ts``) is made from what a short pre-test on the plant FMU shows:
+
+1. **Noise level at the operating point.** The pre-test first holds every input at its
+   operating value for the settle phase; the standard deviation σ_j of each output over the
+   second half of it is the noise level (white sensor noise and coloured process noise alike).
+   Noise coloured by a slow or lightly damped mode outlasts that window, so σ_j is raised to
+   the std of the pre-test model's output error (after its first fifth) when that is larger.
+2. **Time scales.** Then a multisine (all inputs at once, disjoint lines log-spaced from the
+   lowest resolvable frequency to half the Nyquist frequency, :func:`excitation_signals`)
+   runs for ``PRETEST_SAMPLES`` steps; a PO-MOESP model of it gives the poles z_i, and with
+   λ_i = log(z_i)/ts the fastest time scale τ_min = 1/max|λ_i| (at least ts) and the slowest
+   τ_max = 1/min|Re λ_i| (at most 10× the pre-test's length).
+   If no output's response std rises above its σ, the pre-test amplitude is raised by the
+   factor that would give 2 σ (2 to 10-fold, within the limits below) and the pre-test
+   repeated, three times at most.
+3. **Choices** (Ljung 1999, ch. 13; Pintelon & Schoukens 2012, ch. 5):
+
+   - *signal*: a PRBS — crest factor 1, the most power for a given peak, which is what the
+     declared limits and the plant's linear range bound;
+   - *sample time* ts (when neither it nor samples nor period, counted in steps, is given):
+     the FMU's default step, or its largest multiple below τ_min/10 — ten
+     samples per fastest time scale (the pre-test's τ_min may be off by 2); finer sampling leaves the s = max_order + 1 block rows of
+     the subspace method a window far shorter than the dynamics, and the estimates scatter
+     (DTS200: ts = 1 s against τ_min ≈ 21 s gave a 17 % frequency-response error, ts = 4 s 7 %);
+   - *clock period* P = round(τ_min / ts) ≥ 1: the PRBS spectrum is flat to within 3 dB up to
+     0.44/(P ts) Hz, which covers 1/(2π τ_min); at most a fiftieth of a given record (the
+     input must stay persistently exciting of order 2s);
+   - *duration* T = 6 τ_max (frequency resolution 1/T below the slowest mode's corner
+     1/(2π τ_max)), at least 1000 samples; when the wall-time budget (the pre-test's measured
+     steps per second; three runs: estimation, validation and its noise repeat) does not allow
+     T/ts samples, ts becomes a multiple of the FMU's step, at most τ_min/3;
+   - *amplitude*: the rough model's response to the chosen PRBS at the seed amplitude
+     predicts each output's response std r_j; the amplitude is scaled by c ≥ 1 so that
+     min_j r_j c / σ_j reaches ``SNR_TARGET``; a probe run of the chosen signal
+     (``PROBE_SAMPLES``) then measures r_j at that amplitude and c is set again from it
+     (up or down, not below the seed); in all, at most ``MAX_GROWTH`` times the seed
+     amplitude (the plant's linear range is unknown; 100 times when the seed is the bare FMI
+     default nominal, whose scale means nothing) and within 90 % of the declared min/max. When the cap leaves the
+     signal-to-noise ratio short, the record is lengthened by (target/achieved)² (the
+     variance of the estimates falls as 1/(N·SNR²), Ljung 1999 eq. 9.62) within the budget.
+   - *seed amplitude* per input: 5 % of its operating value; at a zero operating point
+     5 % of its declared range (max − min), else 5 % of its nominal (FMI default 1).
+
+References
+----------
+L. Ljung, *System Identification: Theory for the User*, 2nd ed., Prentice Hall 1999.
+R. Pintelon and J. Schoukens, *System Identification: A Frequency Domain Approach*, 2nd ed., Wiley 2012.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .errors import IdentificationError
+from .experiment import Excitation, _limit, excitation_signals, run_experiment
+
+PRETEST_SAMPLES = 1000
+#: length of the probe run of the chosen signal that measures the response at the chosen amplitude
+PROBE_SAMPLES = 400
+SNR_TARGET = 10.0
+MAX_GROWTH = 4.0
+MIN_SAMPLES = 1000
+#: samples per fastest time scale: ts = the FMU step's largest multiple below τ_min / TS_PER_TAU
+TS_PER_TAU = 10.0
+MAX_SAMPLES = 20000
+#: wall-clock seconds the three main runs (estimation, validation, noise repeat) may take
+BUDGET = 15.0
+
+
+@dataclass
+class ExperimentPlan:
+    """The experiment chosen for a plant FMU and what the choice was based on."""
+
+    ts: float
+    excitation: Excitation
+    noise_std: dict
+    response_std: dict
+    tau: tuple
+    chosen: list
+    steps_per_second: float
+    notes: list = field(default_factory=list)
+    #: largest amplitude of each input whose amplitude was chosen here
+    limits: dict = field(default_factory=dict)
+
+    def adapted(self, record) -> Excitation | None:
+        """A stronger excitation when the run ``record`` fell short of the signal/noise target.
+
+        The achieved response std per output is ``sqrt(max(var(y − y0) − σ², 0))``; when its
+        smallest ratio to σ (noisy outputs) is below ``SNR_TARGET``/2, the chosen amplitudes grow
+        by the missing factor within their limits (the pre-test's model predicts the response
+        only roughly). None when nothing is to change."""
+        if not self.limits:
+            return None
+        sigma = np.array([self.noise_std[n] for n in record.y_names])
+        noisy = sigma > 0
+        if not np.any(noisy):
+            return None
+        dy = record.y - record.y0
+        r = np.sqrt(np.maximum(dy.var(axis=0) - sigma ** 2, 0.0))
+        snr = float(np.min(r[noisy] / sigma[noisy]))
+        if snr >= SNR_TARGET / 2:
+            return None
+        c = SNR_TARGET / max(snr, 1e-3)
+        amp = dict(self.excitation.amplitude)
+        grown = {k: (min(a * c, self.limits[k]) if k in self.limits else a) for k, a in amp.items()}
+        if all(grown[k] <= amp[k] * 1.01 for k in grown):
+            return None
+        self.notes.append(f"the estimation run reached signal/noise {snr:.2g} (< {SNR_TARGET / 2:g}): amplitudes "
+                          f"raised to {', '.join(f'{k} ±{v:.4g}' for k, v in grown.items())} and the run repeated")
+        self.excitation = replace(self.excitation, amplitude=grown)
+        return self.excitation
+
+    def describe(self) -> str:
+        """Multi-line text: the experiment and why (printed by ``fmu-fdi model``)."""
+        e = self.excitation
+        amps = ", ".join(f"{k} ±{v:.4g}" for k, v in e.amplitude.items())
+        auto = f" (chosen: {', '.join(self.chosen)})" if self.chosen else " (all given)"
+        lines = [f"experiment{auto}: {e.signal}"
+                 + (f" clock {e.period} steps" if e.signal == "prbs" else "")
+                 + f", {amps}; ts = {self.ts:g} s, {e.samples} samples ({e.samples * self.ts:g} s) per run, "
+                   f"settle {e.settle:g} s",
+                 "  pre-test: time scales {:.3g} .. {:.3g} s; noise std at the operating point {}".format(
+                     self.tau[0], self.tau[1], ", ".join(f"{k} {v:.3g}" for k, v in self.noise_std.items())),
+                 "  predicted response std (signal/noise) {}".format(", ".join(
+                     f"{k} {v:.3g} ({v / self.noise_std[k]:.3g})" if self.noise_std[k] > 0 else f"{k} {v:.3g} (no noise)"
+                     for k, v in self.response_std.items()))]
+        lines += [f"  note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+
+def seed_amplitude(var, v0: float) -> float:
+    """5 % of the operating value; at 0, of the declared range; else of the nominal (default 1)."""
+    if v0 != 0.0:
+        return 0.05 * abs(v0)
+    lo, hi = _limit(var.min), _limit(var.max)
+    if lo is not None and hi is not None and hi > lo:
+        return 0.05 * (hi - lo)
+    nominal = _limit(getattr(var, "nominal", None))
+    return 0.05 * abs(nominal) if nominal else 0.05
+
+
+def headroom(var, v0: float) -> float:
+    """Largest symmetric deviation from v0 inside the declared [min, max] (inf if undeclared)."""
+    lo, hi = _limit(var.min), _limit(var.max)
+    room = np.inf
+    if lo is not None:
+        room = min(room, v0 - lo)
+    if hi is not None:
+        room = min(room, hi - v0)
+    return room
+
+
+def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, excitation: Excitation,
+                    max_order: int = 10, budget: float = BUDGET) -> ExperimentPlan:
+    """Choose what ``excitation`` and ``ts`` leave open from a pre-test (module docstring).
+
+    Parameters
+    ----------
+    path : FMU; sig, y_names : recorded model inputs (u then d) and outputs;
+    excite : FMU inputs to excite (None: the model inputs that are FMU inputs);
+    at, parameters : operating point and parameters;
+    ts : the user's sample time or None; step : the FMU's default step;
+    excitation : the user's choices (None fields are chosen here).
+    """
+    from .linearise import read_description
+    from .subspace import moesp
+
+    md = read_description(path)
+    by_name = {v.name: v for v in md.modelVariables}
+    excite = list(excite) if excite is not None else [n for n in sig if by_name.get(n) is not None
+                                                      and by_name[n].causality == "input"]
+    if not excite:  # run_experiment names the problem
+        excite = None
+    at = dict(at or {})
+    user = excitation
+    ts0 = float(ts if ts is not None else step)
+    given_amp = user.amplitude
+    v0, seed_amp, room, limit = {}, {}, {}, {}
+    for nm in excite or []:
+        var = by_name.get(nm)
+        if var is None:
+            continue
+        start = _limit(var.start)
+        v0[nm] = float(at[nm]) if nm in at else (start or 0.0)
+        a = given_amp.get(nm) if isinstance(given_amp, dict) else given_amp
+        seed_amp[nm] = float(a) if a is not None else seed_amplitude(var, v0[nm])
+        room[nm] = headroom(var, v0[nm])
+        if a is None and seed_amp[nm] > room[nm]:
+            seed_amp[nm] = 0.5 * room[nm]
+        # the amplitude may grow MAX_GROWTH-fold from a seed that has a scale (operating value, range or
+        # declared nominal); from the bare FMI default nominal 1 the scale is unknown: 100-fold
+        scaled = v0[nm] != 0.0 or _limit(getattr(var, "nominal", None)) or headroom(var, 0.0) < np.inf
+        limit[nm] = min(seed_amp[nm] * (MAX_GROWTH if scaled else 100.0), 0.9 * room[nm])
+    settle = user.settle if user.settle is not None else 200 * ts0
+    settle_given = user.settle is not None
+    notes = []
+    sigma = None
+    for attempt in range(4):
+        pre_exc = Excitation("multisine", dict(seed_amp), PRETEST_SAMPLES, settle, 0.5, 1, user.seed + 1000)
+        pre = run_experiment(path, sig, y_names, excite=excite, at=at, parameters=parameters, step=ts0,
+                             excitation=pre_exc, check_settle=False)
+        half = pre.settle_y[len(pre.settle_y) // 2:]
+        sigma = half.std(axis=0) if len(half) > 1 else np.zeros(len(y_names))
+        dy = pre.y - pre.y0
+        resp = np.sqrt(np.maximum(dy.var(axis=0) - sigma ** 2, 0.0))
+        if np.any(resp > sigma) or given_amp is not None:
+            break
+        factor = float(np.clip(2.0 / max(float(np.max(resp / np.maximum(sigma, 1e-300))), 1e-3), 2.0, 10.0))
+        grown = {k: min(factor * a, limit[k]) for k, a in seed_amp.items()}
+        if all(grown[k] <= seed_amp[k] for k in grown):
+            break
+        notes.append(f"pre-test {attempt + 1}: no output above its noise; amplitude raised to "
+                     + ", ".join(f"{k} ±{v:.3g}" for k, v in grown.items()))
+        seed_amp = grown
+    if not np.any(resp > sigma):
+        raise IdentificationError(
+            f"{path}: no output responds above its noise in the pre-test (response std "
+            f"{', '.join(f'{n} {r:.3g}' for n, r in zip(y_names, resp))}, noise std "
+            f"{', '.join(f'{n} {s:.3g}' for n, s in zip(y_names, sigma))}, amplitudes {seed_amp}): give larger "
+            f"amplitudes (--amplitude NAME=A) or check that the inputs act on the outputs")
+    # round-off is no noise: a std below 1e-9 of the output's level and response counts as zero
+    level = np.maximum(np.abs(pre.y0), dy.std(axis=0))
+    sigma = np.where(sigma > 1e-9 * level, sigma, 0.0)
+    rate = pre.steps / max(pre.seconds, 1e-6)
+    names = list(pre.excited)
+    # the rough model maps the applied excitation (references, for a plant in its own loop) to the outputs
+    dev = excitation_signals(pre_exc, names, [pre.excited[k] for k in names])
+    try:
+        rough = moesp(dev, dy, ts0, None, max_order=max_order, feedthrough=False)
+        z = np.linalg.eigvals(rough.A)
+    except IdentificationError as exc:
+        notes.append(f"pre-test model failed ({exc}); time scales assumed from the pre-test's length")
+        rough, z = None, np.zeros(0)
+    if rough is not None:  # coloured noise outlasts a short settle window: the misfit bounds it from above
+        res = dy - rough.simulate(dev)
+        res = res[len(res) // 5:]
+        sigma = np.where(sigma > 0, np.maximum(sigma, res.std(axis=0)), 0.0)
+    T_pre = PRETEST_SAMPLES * ts0
+    lam = np.log(np.where(np.abs(z) > 1e-12, z, 1e-12).astype(complex)) / ts0
+    tau_min = max(1.0 / np.max(np.abs(lam)), ts0) if lam.size else ts0
+    slow = np.abs(lam.real)
+    tau_max = min(1.0 / max(float(slow.min()), 1e-300), 10 * T_pre) if lam.size else T_pre
+    tau_max = max(tau_max, tau_min)
+    chosen = []
+    # sample time and duration within the budget
+    runs_steps = budget * rate / 3.0
+    want = 6.0 * tau_max
+    ts_new = ts0
+    if ts is None and user.samples is None and user.period is None:  # (given in steps: at the FMU's step)
+        k = max(1, int(np.floor(tau_min / (TS_PER_TAU * ts0))))
+        if want / (k * ts0) > min(MAX_SAMPLES, runs_steps):
+            k_budget = int(np.ceil(want / (ts0 * min(MAX_SAMPLES, runs_steps))))
+            k = max(k, min(k_budget, int(np.floor(tau_min / (3 * ts0)))))
+        ts_new = k * ts0
+        if k > 1:
+            chosen.append("ts")
+    if not settle_given:  # 200 samples at the chosen ts: the noise level is read over the second half
+        settle = 200 * ts_new
+    n_settle = int(round(settle / ts_new))
+    cap = int(max(MIN_SAMPLES, min(MAX_SAMPLES, runs_steps - n_settle)))
+    signal = user.signal or "prbs"
+    if user.signal is None:
+        chosen.append("signal")
+    period = user.period
+    if period is None:
+        period = max(1, int(round(tau_min / ts_new)))
+        chosen.append("period")
+    samples = user.samples
+    if samples is not None and user.period is None:  # at least 50 clock periods in a given record
+        period = max(1, min(period, samples // 50))
+    if samples is None:
+        samples = int(min(cap, max(MIN_SAMPLES, np.ceil(want / ts_new), 40 * period)))
+        chosen.append("samples")
+        if samples * ts_new < want:
+            notes.append(f"the record covers {samples * ts_new / tau_max:.2g} slowest time scales (6 wanted) "
+                         f"within the {budget:g} s budget")
+    # amplitude: predicted response of the rough model to the chosen signal at the seed amplitude
+    exc = Excitation(signal, dict(seed_amp), samples, settle, user.band, period, user.seed)
+    r = _predicted_response(rough, exc, names, seed_amp, pre, ts_new, ts0)
+    amp = dict(seed_amp)
+    auto_limits = {}
+    noisy = sigma > 0
+    if given_amp is None or isinstance(given_amp, dict) and len(given_amp) < len(amp):
+        free = [k for k in amp if not (isinstance(given_amp, dict) and k in given_amp)]
+        chosen.append("amplitude")
+        auto_limits = {k: limit[k] for k in free}
+        for trial in range(2):  # the rough model's guess, then the measured response of the signal itself
+            snr = np.min(r[noisy] / sigma[noisy]) if np.any(noisy) and np.all(r[noisy] > 0) else np.inf
+            c = 1.0 if not np.isfinite(snr) else max(SNR_TARGET / max(snr, 1e-12), 1.0 if trial == 0 else 0.0)
+            new = {k: (min(max(amp[k] * c, seed_amp[k]), limit[k]) if k in free else amp[k]) for k in amp}
+            r = r * min(new[k] / amp[k] for k in amp)
+            amp = new
+            if trial == 1 or not np.any(noisy):
+                break
+            # a short run of the chosen signal: what the outputs really do at this amplitude
+            probe = Excitation(signal, dict(amp), int(min(samples, max(PROBE_SAMPLES, 20 * period))), settle,
+                               user.band, period, user.seed + 2000)
+            rec = run_experiment(path, sig, y_names, excite=excite, at=at, parameters=parameters, step=ts_new,
+                                 excitation=probe, check_settle=False)
+            r = np.sqrt(np.maximum((rec.y - rec.y0).var(axis=0) - sigma ** 2, 0.0))
+        snr_now = np.min(r[noisy] / sigma[noisy]) if np.any(noisy) and np.all(r[noisy] > 0) else np.inf
+        if user.samples is None and np.isfinite(snr_now) and snr_now < SNR_TARGET:
+            longer = int(min(cap, np.ceil(samples * (SNR_TARGET / snr_now) ** 2)))
+            if longer > samples:
+                notes.append(f"signal/noise {snr_now:.2g} < {SNR_TARGET:g} at the largest amplitude allowed: "
+                             f"{longer} samples instead of {samples}")
+                samples = longer
+    exc = replace(exc, amplitude=amp, samples=samples)
+    exc = replace(exc, settle=settle)
+    return ExperimentPlan(ts_new, exc, dict(zip(y_names, sigma.tolist())), dict(zip(y_names, r.tolist())),
+                          (tau_min, tau_max), chosen, rate, notes, auto_limits)
+
+
+def _predicted_response(rough, exc, names, seed_amp, pre, ts, ts0) -> np.ndarray:
+    """Std per output of the rough model's response to ``exc`` (seed amplitudes) on the inputs ``names``.
+
+    The model runs at the pre-test's ts0; a signal designed at ts = k·ts0 is held k steps and
+    the response read every k-th sample. Without a model the pre-test's own response std
+    stands in."""
+    if rough is None:
+        return (pre.y - pre.y0).std(axis=0)
+    k = max(1, int(round(ts / ts0)))
+    u = np.repeat(excitation_signals(exc, names, [seed_amp[n] for n in names]), k, axis=0)
+    y = rough.simulate(u)[::k]
+    return y[len(y) // 10:].std(axis=0)
