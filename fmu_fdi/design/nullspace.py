@@ -29,6 +29,7 @@ from ..model import FDIModel
 from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
 from .approximate import coouter_inverse, gap_objective
+from .coprime import stable_internal_form
 from .postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
 
 
@@ -141,7 +142,8 @@ def _normalize_rows(Q: LTI, scale: np.ndarray) -> LTI:
 def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: float | None = None,
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
                      tol: float | None = None, atol: float = 0.0, seed: int = 0, smarg: float | None = None,
-                     dec_tol: float = DEC_TOL, minimal: bool = True, basis: str = "auto") -> ResidualGenerator:
+                     dec_tol: float = DEC_TOL, minimal: bool = True, basis: str = "auto",
+                     keep_stable_poles: bool = True) -> ResidualGenerator:
     """Least-order residual generator from a minimal proper stable left null space of ``[Gu Gd; I 0]``.
 
     Solves the exact fault detection problem (Varga 2017, Procedure EFD; FaultDetectionTools.jl
@@ -243,16 +245,18 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         raise DesignError(f"noise must be 'optimize' or 'ignore', got {noise!r}")
     if not (rdim == "all" or (isinstance(rdim, (int, np.integer)) and rdim >= 1)):
         raise DesignError(f"rdim must be a positive integer or 'all', got {rdim!r}")
-    check_poles(poles, model.dt)
+    check_poles(poles, model.dt, smarg)
     if sdeg is not None:
         check_poles([sdeg], model.dt)
     if basis not in ("auto", "polynomial", "pencil"):
         raise DesignError(f"basis must be 'auto', 'polynomial' or 'pencil', got {basis!r}")
+    # where every path ends (_finish): the poles of the internal form [Q R] to move, and where to
+    place = {"poles": poles, "sdeg": sdeg, "smarg": smarg, "keep_stable_poles": bool(keep_stable_poles)}
     if basis == "pencil":
         if model.nw and noise == "optimize":
             raise DesignError("basis='pencil' decouples u and d only: pass noise='ignore' for a model with noise w")
         return _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-                       minimal)
+                       minimal, place)
     ladder = [tol] if (tol is not None or atol) else [None, 1e-15, 1e-9]
     first = None
     # aim at a tenth of dec_tol over the whole ladder first, so that a rank tolerance that
@@ -262,7 +266,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         for rtol in ladder:
             try:
                 gen = _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, rtol, atol, seed, smarg,
-                              target, minimal)
+                              target, minimal, place)
             except NumericalDesignError as exc:
                 first = first or exc
                 continue
@@ -276,7 +280,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
 
     def pencil():
         gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-                       minimal)
+                       minimal, place)
         gen.info["fallback_from"] = str(first)[:300]
         return gen
 
@@ -303,7 +307,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
             same_call = pencil_gen is not None and tol is None and not atol and poles is None and sdeg is None \
                 and smarg is None
             degrees = list(pencil_gen.info["left_minimal_indices"]) if same_call else None
-            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, degrees)
+            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, degrees,
+                           place)
             gen.info["fallback_from"] = str(first)[:300]
             if not auto or not gen.info["decoupling_kind"].startswith("approximate"):
                 return _announce(model, gen)
@@ -347,7 +352,7 @@ def _announce(model: FDIModel, gen: ResidualGenerator) -> ResidualGenerator:
 
 
 def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
-             degrees: list[int] | None = None) -> ResidualGenerator:
+             degrees: list[int] | None = None, place: dict | None = None) -> ResidualGenerator:
     from types import SimpleNamespace
 
     from .sampled import sampled_rows
@@ -356,7 +361,7 @@ def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec
     # a direction whose RMS relative leak is 1/100 of dec_tol passes the post-condition's peak test
     Q, info = sampled_rows(model, choose, fault_columns(model), rdim, freqs=freqs, FDtol=FDtol,
                            FDGainTol=FDGainTol, seed=seed, null_tol=1e-2 * dec_tol)
-    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, [info["degree"]])
+    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, [info["degree"]], place=place)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     _exactness(model, gen, degrees)
@@ -386,7 +391,7 @@ def _exactness(model: FDIModel, gen: ResidualGenerator, degrees: list[int] | Non
 
 
 def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-            minimal: bool = True) -> ResidualGenerator:
+            minimal: bool = True, place: dict | None = None) -> ResidualGenerator:
     """Residual from the proper stable pencil basis (:func:`.pencil.pencil_basis`), least order first.
 
     With several basis rows and ``rdim`` below their number, each row is first taken on its own at
@@ -438,12 +443,13 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
             try:
                 gen = _pencil_combine(model, sub, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
                                       dict(base, simple_rows=[rows[i][1] for i in c],
-                                           cover_conditioning=max(rows[i][2] for i in c)), pb.degrees)
+                                           cover_conditioning=max(rows[i][2] for i in c)), pb.degrees, place)
             except DesignError as exc:
                 tried.append(f"rows {list(c)} (order {sub.n}): {exc}"[:200])
                 continue
             return gen
-    gen = _pencil_combine(model, N, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, dict(base), pb.degrees)
+    gen = _pencil_combine(model, N, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, dict(base), pb.degrees,
+                          place)
     if tried:
         gen.info["simple_rows_refused"] = tried
     return gen
@@ -468,7 +474,7 @@ def _pencil_gains(model, N: LTI, freqs, FDtol) -> np.ndarray:
 
 
 def _pencil_combine(model, N: LTI, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, info: dict,
-                    degrees) -> ResidualGenerator:
+                    degrees, place: dict | None = None) -> ResidualGenerator:
     """The constant combination ``H N`` (``rdim`` rows) with the best fault sensitivity condition among
     those keeping every fault visible, reduced to a minimal realisation and checked."""
     from types import SimpleNamespace
@@ -496,13 +502,14 @@ def _pencil_combine(model, N: LTI, rdim, freqs, FDtol, FDGainTol, seed, smarg, d
                                 k, int(rdim), seed) if model.faults else np.eye(k)[: int(rdim)]
         Q = (H @ N).minreal()
     info.update({"order": int(Q.n), "rdim": int(H.shape[0]), "combination": H.tolist()})
-    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, degrees)
+    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, degrees, place=place)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen
 
 
-def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol, minimal=True):
+def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol, minimal=True,
+            place: dict | None = None):
     basis = minimal_basis(model, tol, atol)
     if not basis.rows:
         raise DesignError(
@@ -514,12 +521,12 @@ def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol,
     if model.faults and not np.all(seen.max(axis=0) > FDtol):
         raise undetectable_error(model, seen > FDtol, gains=seen, FDtol=FDtol, numerical=NumericalDesignError)
     if model.nw and noise == "optimize":
-        gen = _approximate(model, basis, rdim, choose, FDtol, tol, seed, atol)
+        gen = _approximate(model, basis, rdim, choose, FDtol, tol, seed, atol, place)
         exact_w = gen.info.get("noise") == "decoupled exactly"
         check_generator(gen, decouple=("u", "d", "w") if exact_w else ("u", "d"), block=True, FDtol=FDtol,
                         smarg=smarg, dec_tol=dec_tol)
         return gen
-    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed, minimal, FDtol)
+    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed, minimal, FDtol, place)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen
@@ -564,7 +571,7 @@ def _strong_points(model: FDIModel, Ge: LTI, freqs: np.ndarray) -> tuple[np.ndar
 
 
 def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bool = True,
-           FDtol: float = 1e-4) -> ResidualGenerator:
+           FDtol: float = 1e-4, place: dict | None = None) -> ResidualGenerator:
     rows = basis.rows
     order = np.argsort([r.degree for r in rows], kind="stable")
     rows = [rows[i] for i in order]
@@ -579,7 +586,7 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         # McMillan degree of a minimal basis, so no reduction is needed.
         Q = realize_rows([r.coef for r in rows], dens, basis.rho, model.dt)
         return _finish(model, Q, basis, "nullspace", {"order": int(sum(degrees)), "rdim": len(rows)},
-                       [r.degree for r in rows])
+                       [r.degree for r in rows], place=place)
 
     freqs = None if freqs is None else np.atleast_1d(np.asarray(freqs, float))
     if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
@@ -630,7 +637,7 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         Q = realize_rows(coefs, [den_mu] * len(coefs), basis.rho, model.dt)
         info = {"order": int(Q.n), "rdim": len(coefs), "combination": H.tolist(),
                 "fault_sensitivity_estimate": fsc}
-        gen = _finish(model, Q, basis, "nullspace", info, degrees)
+        gen = _finish(model, Q, basis, "nullspace", info, degrees, place=place)
         return gen
     raise DesignError(
         f"rdim = {rdim} residuals requested but the null space of [Gu Gd; I 0] has only "
@@ -639,8 +646,18 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
 
 
 def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degrees,
-            scale_rows: bool = True) -> ResidualGenerator:
-    """Normalise each residual to unit peak fault gain (scale-free designs read better)."""
+            scale_rows: bool = True, place: dict | None = None) -> ResidualGenerator:
+    """Where every null-space design ends: make the whole internal form stable, then normalise
+    each residual to unit peak fault gain (scale-free designs read better).
+
+    ``Q ← M·Q`` with the stable left factor of ``[Q R]`` (:func:`.coprime.stable_internal_form`)
+    when ``R = Q·Ge`` keeps a pole of the plant outside the stability region (``place``: the
+    design's ``poles``, ``sdeg``, ``smarg``, ``keep_stable_poles``); ``info['internal_form']``
+    then names the moved poles.
+    """
+    Q, moved = stable_internal_form(model, Q, **(place or {}))
+    if moved:
+        info = dict(info, internal_form=moved, order=int(Q.n))
     gen = ResidualGenerator(Q, model, method)
     if scale_rows and model.faults:
         Rf = gen.Rf
@@ -662,7 +679,8 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
     return gen
 
 
-def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, tol, seed, atol=0.0):
+def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, tol, seed, atol=0.0,
+                 place: dict | None = None):
     exact_w = model.with_disturbances(noise=True)
     try:
         basis2 = minimal_basis(exact_w, tol, atol)
@@ -670,7 +688,7 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
     except DesignError:
         basis2, seen2 = None, np.zeros((0, len(model.faults)))
     if basis2 is not None and basis2.rows and (not model.faults or np.all(seen2.max(axis=0) > FDtol)):
-        gen = _exact(exact_w, basis2, seen2 > FDtol, rdim, choose, None, 0.01, seed)
+        gen = _exact(exact_w, basis2, seen2 > FDtol, rdim, choose, None, 0.01, seed, place=place)
         gen = ResidualGenerator(gen.Q, model, "nullspace", info=gen.info)
         gen.info["gap_estimate"] = float("inf")
         gen.info["noise"] = "decoupled exactly"
@@ -694,7 +712,9 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
             chosen.append(i)
         if len(chosen) == k - k2:
             break
-    Q1 = Q0[chosen, :]
+    # the rows that see w: their internal form stable first (Procedure AFD, Varga 2017 sec. 5.3: the
+    # co-outer factor of Rw exists only for a stable Rw; an integrator of Gw left in Rw1 breaks it)
+    Q1, _ = stable_internal_form(model, Q0[chosen, :], **(place or {}))
     sl = model.group_slices()
     Ge = model.augmented()
     Rw1 = (Q1 @ Ge)[:, sl["w"]].minreal()
@@ -706,8 +726,9 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
     Qc = vstack([Q1] + ([Q2] if Q2 is not None else []))
     grid = frequency_grid([Qc, model.lti()], num=200)
     lam_g = _points(model, grid)
-    Qv = Qc.freqresp(grid)
-    Gv = np.stack([Ge.evalfr(l) for l in lam_g])
+    Qv, Gv = _values(Qc, lam_g), _values(Ge, lam_g)
+    finite = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))  # plant poles on the axis
+    Qv, Gv = Qv[finite], Gv[finite]
     Rv = np.einsum("kiq,kqc->kic", Qv, Gv)
     Rw = Rv[:, :, sl["w"]].copy()
     Rw[:, Q1.p:, :] = 0.0  # the Q2 rows decouple w exactly
@@ -730,4 +751,4 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
     info = {"order": int(Q.n), "rdim": int(H.shape[0]), "gap_estimate": min(objective(h) for h in H),
             "noise": "co-outer normalised" if normalized else "weighted by the filter poles",
             "combination": H.tolist()}
-    return _finish(model, Q, basis, "nullspace", info, basis.degrees)
+    return _finish(model, Q, basis, "nullspace", info, basis.degrees, place=place)
