@@ -186,8 +186,19 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     seed : int
         Seed of the deterministic combination search.
     smarg : float, optional
-        Stability margin the filter poles must satisfy (``Re p < smarg``, or ``|p| < smarg``
-        in discrete time); default just inside the stability boundary.
+        Stability margin the poles of the filter *and of its internal form* ``R = Q·Ge`` must
+        satisfy (``Re p < smarg``, or ``|p| < smarg`` in discrete time); default just inside the
+        stability boundary. Given ``poles`` outside it are refused. When ``R`` keeps a pole of the
+        plant outside it (``Gf = [1/(s−1); 1/(s+2)]``: the basis is static and ``Q·Gf`` keeps +1),
+        Q is replaced by ``M·Q``, M the stable left factor of a coprime factorisation of the whole
+        ``[Q R]`` that moves only the violating poles (:func:`.coprime.stable_internal_form`; Varga's
+        ``glcf``): to ``poles`` first, then mirrored about ``sdeg`` when given, else to the plant's
+        own speed with damping 0.7 (:func:`.coprime.moved_pole_targets`). ``info['internal_form']``
+        names the moved poles; the order grows, typically by their number.
+    keep_stable_poles : bool
+        True (default): only poles violating ``smarg`` move, the plant's stable poles stay in R.
+        False: with ``sdeg`` given, the stable poles of ``[Q R]`` slower than ``sdeg`` move too, so
+        that the residual's whole response has that stability degree (Varga's ``sdeg`` in ``glcf``).
     dec_tol : float
         Largest relative leakage of u and d (and w when it is decoupled) the returned filter
         may show (:mod:`.postconditions`).
