@@ -268,6 +268,22 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
             raise DesignError("basis='pencil' decouples u and d only: pass noise='ignore' for a model with noise w")
         return _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
                        minimal, place)
+    exact_only = not (model.nw and noise == "optimize")
+    auto = basis == "auto" and exact_only
+    pencil_failed = pencil_gen = None
+    if auto and rdim != "all" and poles is None and sdeg is None and tol is None and not atol:
+        # the state-space core first: a pencil row at the smallest left minimal index is least order and
+        # exact (orthogonal reductions, no powers of A); the polynomial ladder and the sampled rows remain
+        # for what it does not settle — given poles/sdeg (a polynomial row's denominator is exactly them,
+        # the pencil moves only its basis' unstable eigenvalues), rank tolerances, several rows
+        try:
+            pencil_gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol,
+                                 atol, minimal, place)
+        except DesignError as exc:
+            pencil_failed = exc
+        else:
+            if _least_order(pencil_gen, rdim):
+                return pencil_gen
     ladder = [tol] if (tol is not None or atol) else [None, 1e-15, 1e-9]
     first = None
     # aim at a tenth of dec_tol over the whole ladder first, so that a rank tolerance that
@@ -286,8 +302,6 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
             gen.info["decoupling_kind"] = EXACT
             gen.info["postconditions"]["dec_tol"] = dec_tol
             return gen
-    exact_only = not (model.nw and noise == "optimize")
-    auto = basis == "auto" and exact_only
 
     def pencil():
         gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
@@ -295,8 +309,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         gen.info["fallback_from"] = str(first)[:300]
         return gen
 
-    pencil_failed = pencil_gen = None
-    if auto and rdim != "all":
+    if auto and rdim != "all" and pencil_gen is None and pencil_failed is None:
         # a pencil row at the smallest left minimal index (one basis row: its index; several: a simple row,
         # nullspace._pencil) is the least order of any exact row, and a sampled row can only be approximate
         # (below it) or of that order — skip its search
@@ -305,9 +318,10 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         except DesignError as exc:
             pencil_failed = exc
         else:
-            idx = pencil_gen.info["left_minimal_indices"]
-            if len(idx) == 1 or (rdim == 1 and pencil_gen.Q.n == min(idx)):
+            if _least_order(pencil_gen, rdim):
                 return pencil_gen
+    elif pencil_gen is not None:
+        pencil_gen.info["fallback_from"] = str(first)[:300]
     approximate = None  # a sampled row below the smallest left minimal index: returned only without an exact one
     if rdim != "all" and exact_only:
         # the polynomial basis is too ill-conditioned here: design from frequency samples
@@ -344,6 +358,14 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
                                     f"smallest left minimal index {min(approximate.info['left_minimal_indices'])})")
         return gen
     raise first
+
+
+def _least_order(gen: ResidualGenerator, rdim) -> bool:
+    """A pencil design is least order: one basis row (its index), or one residual at the smallest left
+    minimal index — counted before the stable factorisation of the internal form added the moved poles."""
+    idx = gen.info["left_minimal_indices"]
+    order = gen.info.get("internal_form", {}).get("order_before", gen.Q.n)
+    return len(idx) == 1 or (rdim == 1 and order == min(idx))
 
 
 #: ``info['decoupling_kind']`` of a row that annihilates ``[Gu Gd; I 0]`` identically (up to rounding)
@@ -676,12 +698,15 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
         try:
             peaks = np.max(np.abs(Rf.freqresp(grid)), axis=(0, 2))
         except np.linalg.LinAlgError:
-            poles = Q.poles()
-            worst = np.max(np.abs(poles)) if model.dt else np.max(poles.real)
-            raise NumericalDesignError(f"{method} design fails its post-conditions (stability): a filter pole lies on the "
-                              f"stability boundary ({'largest |pole|' if model.dt else 'largest Re(pole)'} = "
-                              f"{worst:.6g}); the realisation of the basis rows is ill-conditioned for this model — "
-                              f"pass other poles/sdeg or rank tolerances (tol)") from None
+            # a pole of R_f = Q·Gf on the frequency axis: of Q, or of the plant, which the stable
+            # factorisation above could not move (it raises when it cannot; this is the backstop)
+            poles = Rf.poles()
+            worst = (np.max(np.abs(poles)) if model.dt else np.max(poles.real)) if poles.size else float("nan")
+            raise NumericalDesignError(f"{method} design fails its post-conditions (stability): a pole of the fault "
+                              f"response R_f = Q·Gf lies on the stability boundary "
+                              f"({'largest |pole|' if model.dt else 'largest Re(pole)'} = {worst:.6g}); the "
+                              f"realisation of the basis rows is ill-conditioned for this model — pass other "
+                              f"poles/sdeg or rank tolerances (tol)") from None
         scale = np.where(peaks > 0, peaks, 1.0)
         gen = ResidualGenerator(_normalize_rows(Q, scale), model, method)
     gen.info.update(info)
