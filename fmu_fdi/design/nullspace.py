@@ -362,10 +362,11 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
 
 def _least_order(gen: ResidualGenerator, rdim) -> bool:
     """A pencil design is least order: one basis row (its index), or one residual at the smallest left
-    minimal index — counted before the stable factorisation of the internal form added the moved poles."""
+    minimal index — counted before the stable factorisation of the internal form added the moved poles —
+    or one simple row whose lower-index rows cannot see every fault (``info['least_order']``, :func:`_pencil`)."""
     idx = gen.info["left_minimal_indices"]
     order = gen.info.get("internal_form", {}).get("order_before", gen.Q.n)
-    return len(idx) == 1 or (rdim == 1 and order == min(idx))
+    return len(idx) == 1 or (rdim == 1 and (order == min(idx) or gen.info.get("least_order", False)))
 
 
 #: ``info['decoupling_kind']`` of a row that annihilates ``[Gu Gd; I 0]`` identically (up to rounding)
@@ -480,6 +481,12 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
             except DesignError as exc:
                 tried.append(f"rows {list(c)} (order {sub.n}): {exc}"[:200])
                 continue
+            if len(c) == 1 and len(rows) == k and not tried:
+                # one simple row of index ν, every row covered and no set refused before it: least order
+                # unless the rows of lower index together see every fault (a combination of them with one
+                # common denominator, as the polynomial basis builds, has their largest index < ν)
+                lower = [j for j in range(len(rows)) if rows[j][1] < rows[c[0]][1]]
+                gen.info["least_order"] = not (lower and model.faults and np.all(seen[lower].max(axis=0)))
             return gen
     gen = _pencil_combine(model, N, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, dict(base), pb.degrees,
                           place)
@@ -750,7 +757,7 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
             break
     # the rows that see w: their internal form stable first (Procedure AFD, Varga 2017 sec. 5.3: the
     # co-outer factor of Rw exists only for a stable Rw; an integrator of Gw left in Rw1 breaks it)
-    Q1, _ = stable_internal_form(model, Q0[chosen, :], **(place or {}))
+    Q1, moved = stable_internal_form(model, Q0[chosen, :], **(place or {}))
     sl = model.group_slices()
     Ge = model.augmented()
     Rw1 = (Q1 @ Ge)[:, sl["w"]].minreal()
@@ -787,4 +794,6 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
     info = {"order": int(Q.n), "rdim": int(H.shape[0]), "gap_estimate": min(objective(h) for h in H),
             "noise": "co-outer normalised" if normalized else "weighted by the filter poles",
             "combination": H.tolist()}
+    if moved:
+        info["internal_form"] = moved
     return _finish(model, Q, basis, "nullspace", info, basis.degrees, place=place)
