@@ -399,15 +399,23 @@ def test_static_model_file_round_trip(tmp_path):
 
 
 # ------------------------------------------------------------------ 4. the state-space core first
-@pytest.mark.parametrize("seed", [1, 6, 7, 8])
-def test_auto_prefers_the_pencil_core_at_least_order(seed):
-    """On seeded random models (n 16-29, state scalings over decades), basis='auto' returns the
+def _auto_cases():
+    from published import three_tank_like
+    from synthesis_models import random_model  # tests/ is on the path (conftest.py)
+    from test_synthesis_published import xiong_saif_2
+
+    return {**{f"random{s}": (lambda s=s: random_model(s)) for s in (1, 6, 7, 8)},
+            "tanks": three_tank_like, "xiong_saif_2": xiong_saif_2}
+
+
+@pytest.mark.parametrize("name", ["random1", "random6", "random7", "random8", "tanks", "xiong_saif_2"])
+def test_auto_prefers_the_pencil_core_at_least_order(name):
+    """On seeded random models (n 16-29, state scalings over decades) and two published ones whose least
+    order needs two basis rows of index 1 combined over one denominator, basis='auto' returns the
     state-space (pencil) row, of the same order as the least-order polynomial row, decoupling u and d
     *pointwise* to 1e-11 of |Q||Ge| (orthogonal reductions: ~1e-14 seen; the polynomial rows of these
     models leak up to 1e-9 pointwise)."""
-    from synthesis_models import random_model  # tests/ is on the path (conftest.py)
-
-    model = random_model(seed)
+    model = _auto_cases()[name]()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         auto = nullspace_design(model)
@@ -422,3 +430,24 @@ def test_auto_prefers_the_pencil_core_at_least_order(seed):
         Qv, Gv = _tf_value(_Q(auto), lam), _tf_value(_Ge(model), lam)[:, ud]
         worst = max(worst, np.linalg.norm(Qv @ Gv) / (np.linalg.norm(Qv) * np.linalg.norm(Gv, 2)))
     assert worst <= 1e-11
+
+
+def test_boeing747_detection_of_every_fault_is_designed():
+    """Varga's Boeing 747 (5 faults): the polynomial row puts fault f5 at relative gain 1e-4 = FDtol
+    exactly and was refused; the pencil row at order 1 sees every fault with a relative gain
+    ``max_ω |R_fj| / (|Q_y||Gf_j|)`` (numpy, 200 points) well above FDtol, and decouples u."""
+    from test_synthesis_published import boeing747
+
+    model = boeing747()
+    gen = nullspace_design(model)
+    assert gen.Q.n == 1 and gen.info["basis"] == "pencil"
+    p, fc = model.ny, _fault_cols(model)
+    gains = np.zeros(model.nf)
+    for w in np.logspace(-4, 2, 200):
+        Qv, Gv = _tf_value(_Q(gen), 1j * w), _tf_value(_Ge(model), 1j * w)
+        R = Qv @ Gv
+        assert np.linalg.norm(R[:, :model.nu]) <= 1e-10 * np.linalg.norm(Qv) * np.linalg.norm(Gv[:, :model.nu], 2)
+        for j in range(model.nf):
+            col = fc.start + j
+            gains[j] = max(gains[j], abs(R[0, col]) / (np.linalg.norm(Qv[:, :p]) * np.linalg.norm(Gv[:p, col])))
+    assert np.all(gains > 1e-3), gains

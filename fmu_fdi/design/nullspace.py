@@ -454,7 +454,7 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
         raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {freqs.tolist()}")
     full = rdim == "all" or rdim >= k
-    rows = [] if full or k == 1 or not minimal else simple_rows(pb, model.dt)
+    rows = [] if full or k == 1 or not minimal else _common_poles(simple_rows(pb, model.dt), model.dt)
     base = {"basis": "pencil", "decoupling_kind": EXACT, "left_minimal_indices": pb.degrees, "pencil": pb.info}
     gains = _pencil_gains(model, N, freqs, FDtol)
     if model.faults and not np.all(gains.max(axis=0) > FDtol):
@@ -465,9 +465,15 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
 
         Ns = [r[0] for r in rows]
         seen = _pencil_gains(model, vstack(Ns), freqs, FDtol) > FDtol
-        top = min(len(rows), k - 1)  # all k rows: the whole basis below, at no higher order
+        # all k rows: the whole basis below, at no higher order — unless rows of one index share their poles
+        shared = any(r[3] for r in rows)
+        top = len(rows) if shared else min(len(rows), k - 1)
+
+        def order(c):  # the McMillan degree of a combination: rows of one index with common poles count once
+            return sum({rows[i][1] for i in c if rows[i][3]}) + sum(rows[i][1] for i in c if not rows[i][3])
+
         sets = sorted((c for size in range(int(rdim), top + 1) for c in combinations(range(len(rows)), size)),
-                      key=lambda c: (sum(rows[i][1] for i in c), len(c)))
+                      key=lambda c: (order(c), len(c)))
         for c in sets:
             if model.faults and not np.all(seen[list(c)].max(axis=0)):
                 continue  # some fault is seen by none of these rows: no combination of them sees it
@@ -481,11 +487,13 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
             except DesignError as exc:
                 tried.append(f"rows {list(c)} (order {sub.n}): {exc}"[:200])
                 continue
-            if len(c) == 1 and len(rows) == k and not tried:
-                # one simple row of index ν, every row covered and no set refused before it: least order
-                # unless the rows of lower index together see every fault (a combination of them with one
-                # common denominator, as the polynomial basis builds, has their largest index < ν)
-                lower = [j for j in range(len(rows)) if rows[j][1] < rows[c[0]][1]]
+            nu = max(rows[i][1] for i in c)
+            if len(rows) == k and not tried and gen.info.get("internal_form", {}).get("order_before", gen.Q.n) == nu and (
+                    len(c) == 1 or all(rows[i][1] == nu and rows[i][3] for i in c)):
+                # one simple row of index ν (or rows of index ν with common poles, combined at order ν), every
+                # row covered and no set refused before: least order unless the rows of lower index together
+                # see every fault (a combination of them with one common denominator has their largest index)
+                lower = [j for j in range(len(rows)) if rows[j][1] < nu]
                 gen.info["least_order"] = not (lower and model.faults and np.all(seen[lower].max(axis=0)))
             return gen
     gen = _pencil_combine(model, N, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, dict(base), pb.degrees,
@@ -493,6 +501,42 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     if tried:
         gen.info["simple_rows_refused"] = tried
     return gen
+
+
+def _common_poles(rows: list, dt: float) -> list:
+    """Simple rows of one index ν ≥ 1 with the same poles: ``[(N_i, ν_i, cond_i, shared_i)]``.
+
+    Each row ``N_i`` (one output, McMillan degree ν, observable) is replaced by ``m_i N_i``, ``m_i`` the
+    scalar stable biproper left factor of the output injection that places all its poles at those of
+    the first row of its index (:func:`.pencil._place` on the dual pair) — again a null-space row
+    seeing the same faults. Rows with one denominator ``p(λ)`` combine as ``(Σ h_i n_i)/p``: McMillan
+    degree ν, not Σ ν (the least order of a constant combination, as the polynomial basis has it). A row
+    whose placement fails or needs a gain above ``COVER_COND`` keeps its poles (``shared_i`` False).
+    """
+    from .pencil import COVER_COND, _place
+
+    out = [(N, nu, cond, False) for N, nu, cond in rows]
+    for nu in sorted({r[1] for r in rows if r[1] >= 1}):
+        group = [i for i, r in enumerate(rows) if r[1] == nu]
+        if len(group) < 2:
+            continue
+        target = rows[group[0]][0].poles()
+        placed = []
+        for i in group:
+            N, _, cond = rows[i]
+            try:
+                F = _place(N.A.T, N.C.T, target)
+            except (DesignError, ValueError, np.linalg.LinAlgError):
+                continue
+            g = float(np.linalg.norm(F, 2))
+            if g > COVER_COND:
+                continue
+            Nm = LTI(N.A + F.T @ N.C, N.B + F.T @ N.D, N.C, N.D, dt)
+            placed.append((i, Nm, max(cond, g)))
+        if len(placed) >= 2:
+            for i, Nm, cond in placed:
+                out[i] = (Nm, nu, cond, True)
+    return out
 
 
 def _pencil_gains(model, N: LTI, freqs, FDtol) -> np.ndarray:
