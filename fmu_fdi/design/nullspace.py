@@ -220,7 +220,11 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         too ill-conditioned, ``info['simple_rows_refused']``) a combination of the whole basis,
         of order at most the sum of the indices. Its poles are the basis' own, except those
         outside the stability region (``smarg``, and ``sdeg`` when given), which move to
-        ``poles`` first and then to their mirror image about ``sdeg``. 'auto' (default):
+        ``poles`` first and then to their mirror image about ``sdeg``. Simple rows of one index
+        get common poles (:func:`_common_poles`), so that a combination of them keeps that order.
+        'auto' (default): the pencil row first when it is least order and passes every
+        post-condition — ``rdim = 1`` (or one basis row), no ``poles``/``sdeg``/``tol``/``atol``, no
+        noise to optimise (``info['least_order']`` when a simple row proves it); else the
         polynomial, and the pencil basis when neither polynomial nor sampled rows meet the
         post-conditions, or when the sampled row's order is below the smallest left minimal
         index — such a row cannot annihilate ``[Gu Gd; I 0]`` exactly, it only decouples to the
