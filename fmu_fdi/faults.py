@@ -91,7 +91,10 @@ class FaultSpec:
             Df[i, 0] = 1.0
             return np.zeros((n, 1)), Df
         if self.kind == "component":
-            Bf = _matrix(self.Bf, f"fault '{self.name}' Bf", rows=n)
+            if n == 0 and np.size(self.Bf) == 0 and self.Df is not None:  # static plant: Df's columns
+                Bf = np.zeros((0, _matrix(self.Df, f"fault '{self.name}' Df", rows=p).shape[1]))
+            else:
+                Bf = _matrix(self.Bf, f"fault '{self.name}' Bf", rows=n)
             k = Bf.shape[1]
             Df = np.zeros((p, k)) if self.Df is None else _matrix(self.Df, f"fault '{self.name}' Df", rows=p)
             if Df.shape[1] != k:

@@ -48,16 +48,26 @@ class FDIModel:
                  operating_point: dict | None = None, provenance: dict | None = None,
                  minimal: bool | None = None, minreal_tol: float | None = None):
         tol = minreal_option(minimal, minreal_tol)
-        A = _matrix(A, "A")
+        # a static plant (n = 0) has an empty A; its outputs are the rows of C (p x 0) or of the
+        # feedthroughs, its inputs the columns of Du
+        A = _matrix(A, "A") if np.size(A) else np.zeros((0, 0))
         n = A.shape[0]
         if A.shape != (n, n):
             raise ModelError(f"A must be square, got shape {A.shape}")
-        C = _matrix(C, "C", cols=n) if np.size(C) else np.zeros((0, n))
+        if np.size(C):
+            C = _matrix(C, "C", cols=n)
+        else:
+            rows = [np.shape(X)[0] for X in (C, Du, Dd, Dw) if X is not None and np.ndim(X) == 2]
+            C = np.zeros((max(rows, default=0), n))
         p = C.shape[0]
         if p == 0:
             raise ModelError("the model has no measured outputs (C has no rows)")
         Bu = _opt(Bu, "Bu", n, len(u_names) if u_names is not None else None)
         m = Bu.shape[1]
+        if n == 0 and m == 0 and Du is not None and np.size(Du):
+            Du = _matrix(Du, "Du", rows=p)  # static plant: the known inputs are the columns of Du
+            m = Du.shape[1]
+            Bu = np.zeros((0, m))
         Du = _opt(Du, "Du", p, m)
         if Du.shape[1] != m:
             raise ModelError(f"Du must be {p}x{m} to match Bu, got shape {Du.shape}")
@@ -488,8 +498,10 @@ class FDIModel:
                     return np.zeros((rows, cols))
                 return _matrix(val, f"{source}: matrix {key}", rows=rows, cols=cols)
 
-            A = _matrix(mats["A"], f"{source}: matrix A", rows=n, cols=n)
-            C = _matrix(mats["C"], f"{source}: matrix C", rows=p, cols=n)
+            # a static plant (n = 0): A is [] and C is [] or p empty rows
+            A = _matrix(mats["A"], f"{source}: matrix A", rows=n, cols=n) if n else np.zeros((0, 0))
+            C = _matrix(mats["C"], f"{source}: matrix C", rows=p, cols=n) if n or np.size(mats["C"]) else \
+                np.zeros((p, 0))
             nd, nw = len(sig.get("d", [])), len(sig.get("w", []))
             return cls(
                 A, get("Bu", n, len(u)), C, get("Du", p, len(u)),
@@ -625,6 +637,8 @@ def minimal_realisation(A, B, C, tol: float = 0.0):
 
 def _opt(X, name: str, rows: int, cols: int | None) -> np.ndarray:
     if X is None or (np.size(X) == 0):
+        if cols is None and np.ndim(X) == 2 and np.shape(X)[0] == rows:
+            cols = np.shape(X)[1]  # an empty (0 x m) input matrix of a static plant keeps its m columns
         return np.zeros((rows, cols or 0))
     return _matrix(X, name, rows=rows, cols=cols)
 

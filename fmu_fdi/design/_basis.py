@@ -402,7 +402,8 @@ def pick_poles(poles, sdeg: float, count: int) -> np.ndarray:
     return np.array(out[:count])
 
 
-def check_poles(poles, dt: float) -> None:
+def check_poles(poles, dt: float, smarg: float | None = None) -> None:
+    """Refuse non-finite or unstable filter poles, and (with ``smarg``) poles outside the margin."""
     poles = np.atleast_1d(np.asarray(poles, complex)) if poles is not None else np.zeros(0)
     if poles.size and not np.all(np.isfinite(poles)):
         raise DesignError("poles must be finite numbers")
@@ -410,6 +411,12 @@ def check_poles(poles, dt: float) -> None:
     if bad.size:
         region = "inside the unit circle" if dt else "in the open left half-plane"
         raise DesignError(f"poles {bad.tolist()} are not stable: residual generator poles must lie {region}")
+    if smarg is not None:
+        bad = poles[np.abs(poles) >= smarg] if dt else poles[poles.real >= smarg]
+        if bad.size:
+            what = "|pole|" if dt else "Re(pole)"
+            raise DesignError(f"poles {bad.tolist()} break the stability margin smarg = {smarg:g} (every {what} "
+                              f"must be below it): pass faster poles or relax smarg")
 
 
 def realize_fir(coefs: list[np.ndarray], rho: float, dt: float) -> LTI:

@@ -33,7 +33,7 @@ from .postconditions import DEC_TOL, check_generator
 def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, noise: str = "optimize",
                     FDtol: float = 1e-4, FDGainTol: float = 0.01, freqs=None, tol: float | None = None,
                     seed: int = 0, smarg: float | None = None, dec_tol: float = DEC_TOL,
-                    minimal: bool = True, basis: str = "auto") -> ResidualBank:
+                    minimal: bool = True, basis: str = "auto", keep_stable_poles: bool = True) -> ResidualBank:
     """One least-order residual per row of the structure matrix ``S``.
 
     Parameters
@@ -44,7 +44,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     faults : list of str, optional
         The faults the columns of S refer to (default: all faults of the model, in order).
         Faults not listed are neither required nor decoupled.
-    poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol, minimal, basis
+    poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol, minimal, basis, keep_stable_poles
         As in :func:`~fmu_fdi.design.nullspace.nullspace_design`, per row; with ``freqs`` every
         fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies (a row is
         designed when :func:`~fmu_fdi.analysis.achievable_structure` with the same ``freqs`` and
@@ -83,7 +83,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         mi_design = mi._replace(faults=[f for f in mi.faults if f.name in keep]) if extra else mi
         g = nullspace_design(mi_design, rdim=1, poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol,
                              FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol,
-                             minimal=minimal, basis=how)
+                             minimal=minimal, basis=how, keep_stable_poles=keep_stable_poles)
         return ResidualGenerator(g.Q, model, "structured", info=g.info)
 
     members, failures = [], []

@@ -29,6 +29,7 @@ from ..model import FDIModel
 from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
 from .approximate import coouter_inverse, gap_objective
+from .coprime import stable_internal_form
 from .postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
 
 
@@ -141,7 +142,8 @@ def _normalize_rows(Q: LTI, scale: np.ndarray) -> LTI:
 def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: float | None = None,
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
                      tol: float | None = None, atol: float = 0.0, seed: int = 0, smarg: float | None = None,
-                     dec_tol: float = DEC_TOL, minimal: bool = True, basis: str = "auto") -> ResidualGenerator:
+                     dec_tol: float = DEC_TOL, minimal: bool = True, basis: str = "auto",
+                     keep_stable_poles: bool = True) -> ResidualGenerator:
     """Least-order residual generator from a minimal proper stable left null space of ``[Gu Gd; I 0]``.
 
     Solves the exact fault detection problem (Varga 2017, Procedure EFD; FaultDetectionTools.jl
@@ -184,8 +186,19 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     seed : int
         Seed of the deterministic combination search.
     smarg : float, optional
-        Stability margin the filter poles must satisfy (``Re p < smarg``, or ``|p| < smarg``
-        in discrete time); default just inside the stability boundary.
+        Stability margin the poles of the filter *and of its internal form* ``R = Q·Ge`` must
+        satisfy (``Re p < smarg``, or ``|p| < smarg`` in discrete time); default just inside the
+        stability boundary. Given ``poles`` outside it are refused. When ``R`` keeps a pole of the
+        plant outside it (``Gf = [1/(s−1); 1/(s+2)]``: the basis is static and ``Q·Gf`` keeps +1),
+        Q is replaced by ``M·Q``, M the stable left factor of a coprime factorisation of the whole
+        ``[Q R]`` that moves only the violating poles (:func:`.coprime.stable_internal_form`; Varga's
+        ``glcf``): to ``poles`` first, then mirrored about ``sdeg`` when given, else to the plant's
+        own speed with damping 0.7 (:func:`.coprime.moved_pole_targets`). ``info['internal_form']``
+        names the moved poles; the order grows, typically by their number.
+    keep_stable_poles : bool
+        True (default): only poles violating ``smarg`` move, the plant's stable poles stay in R.
+        False: with ``sdeg`` given, the stable poles of ``[Q R]`` slower than ``sdeg`` move too, so
+        that the residual's whole response has that stability degree (Varga's ``sdeg`` in ``glcf``).
     dec_tol : float
         Largest relative leakage of u and d (and w when it is decoupled) the returned filter
         may show (:mod:`.postconditions`).
@@ -207,7 +220,11 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         too ill-conditioned, ``info['simple_rows_refused']``) a combination of the whole basis,
         of order at most the sum of the indices. Its poles are the basis' own, except those
         outside the stability region (``smarg``, and ``sdeg`` when given), which move to
-        ``poles`` first and then to their mirror image about ``sdeg``. 'auto' (default):
+        ``poles`` first and then to their mirror image about ``sdeg``. Simple rows of one index
+        get common poles (:func:`_common_poles`), so that a combination of them keeps that order.
+        'auto' (default): the pencil row first when it is least order and passes every
+        post-condition — ``rdim = 1`` (or one basis row), no ``poles``/``sdeg``/``tol``/``atol``, no
+        noise to optimise (``info['least_order']`` when a simple row proves it); else the
         polynomial, and the pencil basis when neither polynomial nor sampled rows meet the
         post-conditions, or when the sampled row's order is below the smallest left minimal
         index — such a row cannot annihilate ``[Gu Gd; I 0]`` exactly, it only decouples to the
@@ -243,16 +260,34 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         raise DesignError(f"noise must be 'optimize' or 'ignore', got {noise!r}")
     if not (rdim == "all" or (isinstance(rdim, (int, np.integer)) and rdim >= 1)):
         raise DesignError(f"rdim must be a positive integer or 'all', got {rdim!r}")
-    check_poles(poles, model.dt)
+    check_poles(poles, model.dt, smarg)
     if sdeg is not None:
         check_poles([sdeg], model.dt)
     if basis not in ("auto", "polynomial", "pencil"):
         raise DesignError(f"basis must be 'auto', 'polynomial' or 'pencil', got {basis!r}")
+    # where every path ends (_finish): the poles of the internal form [Q R] to move, and where to
+    place = {"poles": poles, "sdeg": sdeg, "smarg": smarg, "keep_stable_poles": bool(keep_stable_poles)}
     if basis == "pencil":
         if model.nw and noise == "optimize":
             raise DesignError("basis='pencil' decouples u and d only: pass noise='ignore' for a model with noise w")
         return _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-                       minimal)
+                       minimal, place)
+    exact_only = not (model.nw and noise == "optimize")
+    auto = basis == "auto" and exact_only
+    pencil_failed = pencil_gen = None
+    if auto and rdim != "all" and poles is None and sdeg is None and tol is None and not atol:
+        # the state-space core first: a pencil row at the smallest left minimal index is least order and
+        # exact (orthogonal reductions, no powers of A); the polynomial ladder and the sampled rows remain
+        # for what it does not settle — given poles/sdeg (a polynomial row's denominator is exactly them,
+        # the pencil moves only its basis' unstable eigenvalues), rank tolerances, several rows
+        try:
+            pencil_gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol,
+                                 atol, minimal, place)
+        except DesignError as exc:
+            pencil_failed = exc
+        else:
+            if _least_order(pencil_gen, rdim):
+                return pencil_gen
     ladder = [tol] if (tol is not None or atol) else [None, 1e-15, 1e-9]
     first = None
     # aim at a tenth of dec_tol over the whole ladder first, so that a rank tolerance that
@@ -262,7 +297,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         for rtol in ladder:
             try:
                 gen = _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, rtol, atol, seed, smarg,
-                              target, minimal)
+                              target, minimal, place)
             except NumericalDesignError as exc:
                 first = first or exc
                 continue
@@ -271,17 +306,14 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
             gen.info["decoupling_kind"] = EXACT
             gen.info["postconditions"]["dec_tol"] = dec_tol
             return gen
-    exact_only = not (model.nw and noise == "optimize")
-    auto = basis == "auto" and exact_only
 
     def pencil():
         gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-                       minimal)
+                       minimal, place)
         gen.info["fallback_from"] = str(first)[:300]
         return gen
 
-    pencil_failed = pencil_gen = None
-    if auto and rdim != "all":
+    if auto and rdim != "all" and pencil_gen is None and pencil_failed is None:
         # a pencil row at the smallest left minimal index (one basis row: its index; several: a simple row,
         # nullspace._pencil) is the least order of any exact row, and a sampled row can only be approximate
         # (below it) or of that order — skip its search
@@ -290,9 +322,10 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         except DesignError as exc:
             pencil_failed = exc
         else:
-            idx = pencil_gen.info["left_minimal_indices"]
-            if len(idx) == 1 or (rdim == 1 and pencil_gen.Q.n == min(idx)):
+            if _least_order(pencil_gen, rdim):
                 return pencil_gen
+    elif pencil_gen is not None:
+        pencil_gen.info["fallback_from"] = str(first)[:300]
     approximate = None  # a sampled row below the smallest left minimal index: returned only without an exact one
     if rdim != "all" and exact_only:
         # the polynomial basis is too ill-conditioned here: design from frequency samples
@@ -303,7 +336,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
             same_call = pencil_gen is not None and tol is None and not atol and poles is None and sdeg is None \
                 and smarg is None
             degrees = list(pencil_gen.info["left_minimal_indices"]) if same_call else None
-            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, degrees)
+            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, degrees,
+                           place)
             gen.info["fallback_from"] = str(first)[:300]
             if not auto or not gen.info["decoupling_kind"].startswith("approximate"):
                 return _announce(model, gen)
@@ -330,6 +364,15 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     raise first
 
 
+def _least_order(gen: ResidualGenerator, rdim) -> bool:
+    """A pencil design is least order: one basis row (its index), or one residual at the smallest left
+    minimal index — counted before the stable factorisation of the internal form added the moved poles —
+    or one simple row whose lower-index rows cannot see every fault (``info['least_order']``, :func:`_pencil`)."""
+    idx = gen.info["left_minimal_indices"]
+    order = gen.info.get("internal_form", {}).get("order_before", gen.Q.n)
+    return len(idx) == 1 or (rdim == 1 and (order == min(idx) or gen.info.get("least_order", False)))
+
+
 #: ``info['decoupling_kind']`` of a row that annihilates ``[Gu Gd; I 0]`` identically (up to rounding)
 EXACT = "exact"
 
@@ -347,7 +390,7 @@ def _announce(model: FDIModel, gen: ResidualGenerator) -> ResidualGenerator:
 
 
 def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
-             degrees: list[int] | None = None) -> ResidualGenerator:
+             degrees: list[int] | None = None, place: dict | None = None) -> ResidualGenerator:
     from types import SimpleNamespace
 
     from .sampled import sampled_rows
@@ -356,7 +399,7 @@ def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec
     # a direction whose RMS relative leak is 1/100 of dec_tol passes the post-condition's peak test
     Q, info = sampled_rows(model, choose, fault_columns(model), rdim, freqs=freqs, FDtol=FDtol,
                            FDGainTol=FDGainTol, seed=seed, null_tol=1e-2 * dec_tol)
-    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, [info["degree"]])
+    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, [info["degree"]], place=place)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     _exactness(model, gen, degrees)
@@ -386,7 +429,7 @@ def _exactness(model: FDIModel, gen: ResidualGenerator, degrees: list[int] | Non
 
 
 def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-            minimal: bool = True) -> ResidualGenerator:
+            minimal: bool = True, place: dict | None = None) -> ResidualGenerator:
     """Residual from the proper stable pencil basis (:func:`.pencil.pencil_basis`), least order first.
 
     With several basis rows and ``rdim`` below their number, each row is first taken on its own at
@@ -415,7 +458,7 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
         raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {freqs.tolist()}")
     full = rdim == "all" or rdim >= k
-    rows = [] if full or k == 1 or not minimal else simple_rows(pb, model.dt)
+    rows = [] if full or k == 1 or not minimal else _common_poles(simple_rows(pb, model.dt), model.dt)
     base = {"basis": "pencil", "decoupling_kind": EXACT, "left_minimal_indices": pb.degrees, "pencil": pb.info}
     gains = _pencil_gains(model, N, freqs, FDtol)
     if model.faults and not np.all(gains.max(axis=0) > FDtol):
@@ -426,9 +469,15 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
 
         Ns = [r[0] for r in rows]
         seen = _pencil_gains(model, vstack(Ns), freqs, FDtol) > FDtol
-        top = min(len(rows), k - 1)  # all k rows: the whole basis below, at no higher order
+        # all k rows: the whole basis below, at no higher order — unless rows of one index share their poles
+        shared = any(r[3] for r in rows)
+        top = len(rows) if shared else min(len(rows), k - 1)
+
+        def order(c):  # the McMillan degree of a combination: rows of one index with common poles count once
+            return sum({rows[i][1] for i in c if rows[i][3]}) + sum(rows[i][1] for i in c if not rows[i][3])
+
         sets = sorted((c for size in range(int(rdim), top + 1) for c in combinations(range(len(rows)), size)),
-                      key=lambda c: (sum(rows[i][1] for i in c), len(c)))
+                      key=lambda c: (order(c), len(c)))
         for c in sets:
             if model.faults and not np.all(seen[list(c)].max(axis=0)):
                 continue  # some fault is seen by none of these rows: no combination of them sees it
@@ -438,15 +487,60 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
             try:
                 gen = _pencil_combine(model, sub, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
                                       dict(base, simple_rows=[rows[i][1] for i in c],
-                                           cover_conditioning=max(rows[i][2] for i in c)), pb.degrees)
+                                           cover_conditioning=max(rows[i][2] for i in c)), pb.degrees, place)
             except DesignError as exc:
                 tried.append(f"rows {list(c)} (order {sub.n}): {exc}"[:200])
                 continue
+            nu = max(rows[i][1] for i in c)
+            if len(rows) == k and not tried and gen.info.get("internal_form", {}).get("order_before", gen.Q.n) == nu and (
+                    len(c) == 1 or all(rows[i][1] == nu and rows[i][3] for i in c)):
+                # one simple row of index ν (or rows of index ν with common poles, combined at order ν), every
+                # row covered and no set refused before: least order unless the rows of lower index together
+                # see every fault (a combination of them with one common denominator has their largest index)
+                lower = [j for j in range(len(rows)) if rows[j][1] < nu]
+                gen.info["least_order"] = not (lower and model.faults and np.all(seen[lower].max(axis=0)))
             return gen
-    gen = _pencil_combine(model, N, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, dict(base), pb.degrees)
+    gen = _pencil_combine(model, N, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, dict(base), pb.degrees,
+                          place)
     if tried:
         gen.info["simple_rows_refused"] = tried
     return gen
+
+
+def _common_poles(rows: list, dt: float) -> list:
+    """Simple rows of one index ν ≥ 1 with the same poles: ``[(N_i, ν_i, cond_i, shared_i)]``.
+
+    Each row ``N_i`` (one output, McMillan degree ν, observable) is replaced by ``m_i N_i``, ``m_i`` the
+    scalar stable biproper left factor of the output injection that places all its poles at those of
+    the first row of its index (:func:`.pencil._place` on the dual pair) — again a null-space row
+    seeing the same faults. Rows with one denominator ``p(λ)`` combine as ``(Σ h_i n_i)/p``: McMillan
+    degree ν, not Σ ν (the least order of a constant combination, as the polynomial basis has it). A row
+    whose placement fails or needs a gain above ``COVER_COND`` keeps its poles (``shared_i`` False).
+    """
+    from .pencil import COVER_COND, _place
+
+    out = [(N, nu, cond, False) for N, nu, cond in rows]
+    for nu in sorted({r[1] for r in rows if r[1] >= 1}):
+        group = [i for i, r in enumerate(rows) if r[1] == nu]
+        if len(group) < 2:
+            continue
+        target = rows[group[0]][0].poles()
+        placed = []
+        for i in group:
+            N, _, cond = rows[i]
+            try:
+                F = _place(N.A.T, N.C.T, target)
+            except (DesignError, ValueError, np.linalg.LinAlgError):
+                continue
+            g = float(np.linalg.norm(F, 2))
+            if g > COVER_COND:
+                continue
+            Nm = LTI(N.A + F.T @ N.C, N.B + F.T @ N.D, N.C, N.D, dt)
+            placed.append((i, Nm, max(cond, g)))
+        if len(placed) >= 2:
+            for i, Nm, cond in placed:
+                out[i] = (Nm, nu, cond, True)
+    return out
 
 
 def _pencil_gains(model, N: LTI, freqs, FDtol) -> np.ndarray:
@@ -468,7 +562,7 @@ def _pencil_gains(model, N: LTI, freqs, FDtol) -> np.ndarray:
 
 
 def _pencil_combine(model, N: LTI, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, info: dict,
-                    degrees) -> ResidualGenerator:
+                    degrees, place: dict | None = None) -> ResidualGenerator:
     """The constant combination ``H N`` (``rdim`` rows) with the best fault sensitivity condition among
     those keeping every fault visible, reduced to a minimal realisation and checked."""
     from types import SimpleNamespace
@@ -496,13 +590,14 @@ def _pencil_combine(model, N: LTI, rdim, freqs, FDtol, FDGainTol, seed, smarg, d
                                 k, int(rdim), seed) if model.faults else np.eye(k)[: int(rdim)]
         Q = (H @ N).minreal()
     info.update({"order": int(Q.n), "rdim": int(H.shape[0]), "combination": H.tolist()})
-    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, degrees)
+    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, degrees, place=place)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen
 
 
-def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol, minimal=True):
+def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol, minimal=True,
+            place: dict | None = None):
     basis = minimal_basis(model, tol, atol)
     if not basis.rows:
         raise DesignError(
@@ -514,12 +609,12 @@ def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol,
     if model.faults and not np.all(seen.max(axis=0) > FDtol):
         raise undetectable_error(model, seen > FDtol, gains=seen, FDtol=FDtol, numerical=NumericalDesignError)
     if model.nw and noise == "optimize":
-        gen = _approximate(model, basis, rdim, choose, FDtol, tol, seed, atol)
+        gen = _approximate(model, basis, rdim, choose, FDtol, tol, seed, atol, place)
         exact_w = gen.info.get("noise") == "decoupled exactly"
         check_generator(gen, decouple=("u", "d", "w") if exact_w else ("u", "d"), block=True, FDtol=FDtol,
                         smarg=smarg, dec_tol=dec_tol)
         return gen
-    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed, minimal, FDtol)
+    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed, minimal, FDtol, place)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen
@@ -564,7 +659,7 @@ def _strong_points(model: FDIModel, Ge: LTI, freqs: np.ndarray) -> tuple[np.ndar
 
 
 def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bool = True,
-           FDtol: float = 1e-4) -> ResidualGenerator:
+           FDtol: float = 1e-4, place: dict | None = None) -> ResidualGenerator:
     rows = basis.rows
     order = np.argsort([r.degree for r in rows], kind="stable")
     rows = [rows[i] for i in order]
@@ -579,7 +674,7 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         # McMillan degree of a minimal basis, so no reduction is needed.
         Q = realize_rows([r.coef for r in rows], dens, basis.rho, model.dt)
         return _finish(model, Q, basis, "nullspace", {"order": int(sum(degrees)), "rdim": len(rows)},
-                       [r.degree for r in rows])
+                       [r.degree for r in rows], place=place)
 
     freqs = None if freqs is None else np.atleast_1d(np.asarray(freqs, float))
     if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
@@ -630,7 +725,7 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         Q = realize_rows(coefs, [den_mu] * len(coefs), basis.rho, model.dt)
         info = {"order": int(Q.n), "rdim": len(coefs), "combination": H.tolist(),
                 "fault_sensitivity_estimate": fsc}
-        gen = _finish(model, Q, basis, "nullspace", info, degrees)
+        gen = _finish(model, Q, basis, "nullspace", info, degrees, place=place)
         return gen
     raise DesignError(
         f"rdim = {rdim} residuals requested but the null space of [Gu Gd; I 0] has only "
@@ -639,8 +734,18 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
 
 
 def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degrees,
-            scale_rows: bool = True) -> ResidualGenerator:
-    """Normalise each residual to unit peak fault gain (scale-free designs read better)."""
+            scale_rows: bool = True, place: dict | None = None) -> ResidualGenerator:
+    """Where every null-space design ends: make the whole internal form stable, then normalise
+    each residual to unit peak fault gain (scale-free designs read better).
+
+    ``Q ← M·Q`` with the stable left factor of ``[Q R]`` (:func:`.coprime.stable_internal_form`)
+    when ``R = Q·Ge`` keeps a pole of the plant outside the stability region (``place``: the
+    design's ``poles``, ``sdeg``, ``smarg``, ``keep_stable_poles``); ``info['internal_form']``
+    then names the moved poles.
+    """
+    Q, moved = stable_internal_form(model, Q, **(place or {}))
+    if moved:
+        info = dict(info, internal_form=moved, order=int(Q.n))
     gen = ResidualGenerator(Q, model, method)
     if scale_rows and model.faults:
         Rf = gen.Rf
@@ -648,12 +753,15 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
         try:
             peaks = np.max(np.abs(Rf.freqresp(grid)), axis=(0, 2))
         except np.linalg.LinAlgError:
-            poles = Q.poles()
-            worst = np.max(np.abs(poles)) if model.dt else np.max(poles.real)
-            raise NumericalDesignError(f"{method} design fails its post-conditions (stability): a filter pole lies on the "
-                              f"stability boundary ({'largest |pole|' if model.dt else 'largest Re(pole)'} = "
-                              f"{worst:.6g}); the realisation of the basis rows is ill-conditioned for this model — "
-                              f"pass other poles/sdeg or rank tolerances (tol)") from None
+            # a pole of R_f = Q·Gf on the frequency axis: of Q, or of the plant, which the stable
+            # factorisation above could not move (it raises when it cannot; this is the backstop)
+            poles = Rf.poles()
+            worst = (np.max(np.abs(poles)) if model.dt else np.max(poles.real)) if poles.size else float("nan")
+            raise NumericalDesignError(f"{method} design fails its post-conditions (stability): a pole of the fault "
+                              f"response R_f = Q·Gf lies on the stability boundary "
+                              f"({'largest |pole|' if model.dt else 'largest Re(pole)'} = {worst:.6g}); the "
+                              f"realisation of the basis rows is ill-conditioned for this model — pass other "
+                              f"poles/sdeg or rank tolerances (tol)") from None
         scale = np.where(peaks > 0, peaks, 1.0)
         gen = ResidualGenerator(_normalize_rows(Q, scale), model, method)
     gen.info.update(info)
@@ -662,7 +770,8 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
     return gen
 
 
-def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, tol, seed, atol=0.0):
+def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, tol, seed, atol=0.0,
+                 place: dict | None = None):
     exact_w = model.with_disturbances(noise=True)
     try:
         basis2 = minimal_basis(exact_w, tol, atol)
@@ -670,7 +779,7 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
     except DesignError:
         basis2, seen2 = None, np.zeros((0, len(model.faults)))
     if basis2 is not None and basis2.rows and (not model.faults or np.all(seen2.max(axis=0) > FDtol)):
-        gen = _exact(exact_w, basis2, seen2 > FDtol, rdim, choose, None, 0.01, seed)
+        gen = _exact(exact_w, basis2, seen2 > FDtol, rdim, choose, None, 0.01, seed, place=place)
         gen = ResidualGenerator(gen.Q, model, "nullspace", info=gen.info)
         gen.info["gap_estimate"] = float("inf")
         gen.info["noise"] = "decoupled exactly"
@@ -694,7 +803,9 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
             chosen.append(i)
         if len(chosen) == k - k2:
             break
-    Q1 = Q0[chosen, :]
+    # the rows that see w: their internal form stable first (Procedure AFD, Varga 2017 sec. 5.3: the
+    # co-outer factor of Rw exists only for a stable Rw; an integrator of Gw left in Rw1 breaks it)
+    Q1, moved = stable_internal_form(model, Q0[chosen, :], **(place or {}))
     sl = model.group_slices()
     Ge = model.augmented()
     Rw1 = (Q1 @ Ge)[:, sl["w"]].minreal()
@@ -706,8 +817,9 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
     Qc = vstack([Q1] + ([Q2] if Q2 is not None else []))
     grid = frequency_grid([Qc, model.lti()], num=200)
     lam_g = _points(model, grid)
-    Qv = Qc.freqresp(grid)
-    Gv = np.stack([Ge.evalfr(l) for l in lam_g])
+    Qv, Gv = _values(Qc, lam_g), _values(Ge, lam_g)
+    finite = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))  # plant poles on the axis
+    Qv, Gv = Qv[finite], Gv[finite]
     Rv = np.einsum("kiq,kqc->kic", Qv, Gv)
     Rw = Rv[:, :, sl["w"]].copy()
     Rw[:, Q1.p:, :] = 0.0  # the Q2 rows decouple w exactly
@@ -730,4 +842,6 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
     info = {"order": int(Q.n), "rdim": int(H.shape[0]), "gap_estimate": min(objective(h) for h in H),
             "noise": "co-outer normalised" if normalized else "weighted by the filter poles",
             "combination": H.tolist()}
-    return _finish(model, Q, basis, "nullspace", info, basis.degrees)
+    if moved:
+        info["internal_form"] = moved
+    return _finish(model, Q, basis, "nullspace", info, basis.degrees, place=place)
