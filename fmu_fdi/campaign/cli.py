@@ -60,12 +60,13 @@ def run(args) -> int:
             return 0
         results = run_campaign(spec, args.output, workers=args.workers, scheduler=args.scheduler,
                                resume=args.resume, progress=None if not args.no_progress else False)
+        files = write_report(aggregate(results), args.output)
     except (CoSimulationError, FileNotFoundError) as exc:
-        print(f"fmu-fdi campaign: error: {exc}", file=sys.stderr)
+        print(f"fmu-fdi campaign: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
-    files = write_report(aggregate(results), args.output)
     done = len(results.records)
-    print(f"{done} of {len(spec.runs())} runs in {results.path} ({results.skipped} from before, "
+    planned = results.extra.get("planned", done)
+    print(f"{done} of {planned} planned runs in {results.path} ({results.skipped} from before, "
           f"{len(results.failed)} failed, {results.seconds:.1f} s); report {files['report']}")
     if results.interrupted:
         print("fmu-fdi campaign: stopped before the end; run again with --resume", file=sys.stderr)
