@@ -191,7 +191,64 @@ def _minreal_options(parser) -> None:
                              "model file's 'minreal_tol', else n^2*eps; docs/model-file.md)")
 
 
+def _check_model_options(args) -> None:
+    """The experiment options of ``fmu-fdi model`` checked before the plant runs: every number in
+    its range (a sample time, settle time and counts that fit in memory), every name one the FMU
+    has (--at: any variable; --amplitude: an input)."""
+    def bad(option, value, need):
+        raise ModelError(f"{option} {value!r}: {need}")
+
+    if args.ts is not None and not (math.isfinite(args.ts) and args.ts > 0):
+        bad("--ts", args.ts, "the sample time must be a positive finite number of seconds")
+    if args.settle is not None and not (math.isfinite(args.settle) and args.settle >= 0):
+        bad("--settle", args.settle, "the settle time must be a finite number of seconds >= 0")
+    if args.seed is not None and not 0 <= args.seed < 2 ** 63:
+        bad("--seed", args.seed, "the seed must be a whole number in [0, 2^63)")
+    if args.min_fit is not None and not (math.isfinite(args.min_fit) and args.min_fit <= 100):
+        bad("--min-fit", args.min_fit, "the least validation fit must be a finite percentage <= 100")
+    for option in ("samples", "period", "order"):
+        value = getattr(args, option, None)
+        if value is not None and not 1 <= value <= MAX_MODEL_SAMPLES:
+            bad(f"--{option}", value, f"must be a whole number in [1, {MAX_MODEL_SAMPLES}]")
+    md = _plant_description(args.plant)
+    if md is None:
+        return  # not an FMU: the model builder says so
+    variables = {v.name: v for v in md.modelVariables}
+    inputs = [n for n, v in variables.items() if v.causality == "input"]
+    for option, items, known, what in (("--at", args.at, list(variables), "a variable"),
+                                       ("--amplitude", args.amplitude, args.excite or inputs, "an excited input")):
+        for item in items or []:
+            name = item.partition("=")[0].strip()
+            if name and name not in known:
+                close = difflib.get_close_matches(name, known, n=3)
+                hint = f"; did you mean {', '.join(close)}?" if close else f"; it has {', '.join(known[:12])}"
+                raise ModelError(f"{option} {item}: {name!r} is not {what} of {args.plant}{hint}")
+    ts = args.ts or getattr(md.defaultExperiment, "stepSize", None)
+    try:
+        ts = float(ts) if ts is not None else None
+    except ValueError:
+        ts = None
+    if args.settle is not None and ts and args.settle / ts > MAX_MODEL_SAMPLES:
+        bad("--settle", args.settle, f"{args.settle / ts:.3g} steps of {ts:g} s is more than {MAX_MODEL_SAMPLES}; "
+                                     f"settle for less time")
+
+
+#: most steps of one identification run (settling or recording): 1e7 samples are minutes of a plant FMU
+MAX_MODEL_SAMPLES = 10 ** 7
+
+
+def _plant_description(path):
+    """The modelDescription of a plant FMU, or None if ``path`` is not a readable FMU."""
+    try:
+        from fmpy import read_model_description
+
+        return read_model_description(str(path), validate=False)
+    except Exception:  # not an FMU, not a zip, broken XML: from_fmu reports it in its words
+        return None
+
+
 def _model(args) -> int:
+    _check_model_options(args)
     from .identify import Excitation
     from .identify.fmu_model import parse_values, summary
     from .model import FDIModel, minreal_option
@@ -323,7 +380,7 @@ def _design(args) -> int:
     from . import design as design_pkg
     from .diagnoser import Diagnoser
 
-    check_output_path(args.output, (".json",), "design file")
+    check_output_path(args.output, (".json",), "design file", inputs=(args.model, args.calibrate))
     if args.calibrate:
         check_input_file(args.calibrate, "calibration record")
 
@@ -397,7 +454,7 @@ def _plot(args) -> int:
     from .recorded import diagnoser_prefix, read_result
     from .report import plot_diagnosis
 
-    check_output_path(args.output, (".png", ".svg", ".pdf"), "plot")
+    check_output_path(args.output, (".png", ".svg", ".pdf"), "plot", inputs=(args.result, args.design))
     res = read_result(check_input_file(args.result, "result CSV"))
     design = _design_for_labels(args.design)
     prefix = diagnoser_prefix(res, args.prefix, str(args.result))
@@ -429,7 +486,7 @@ def _diagnose(args) -> int:
     from .diagnoser import Diagnoser
     from .recorded import read_log
 
-    check_output_path(args.output, (".csv",), "diagnosis CSV")
+    check_output_path(args.output, (".csv",), "diagnosis CSV", inputs=(args.log, args.design))
     dg = Diagnoser.load(check_input_file(args.design, "design file"))
     sig = dg.design["signals"]
     log = read_log(check_input_file(args.log, "log CSV"), sig["u"], sig["y"], prefix=args.prefix)
@@ -462,7 +519,7 @@ def _plants_build(args) -> int:
 def _build(args) -> int:
     from .fmu import build_fmu
 
-    check_output_path(args.output, (".fmu",), "FMU", error=BuildError)
+    check_output_path(args.output, (".fmu",), "FMU", error=BuildError, inputs=(args.design,))
     path = build_fmu(check_input_file(args.design, "design file"), args.output, target=args.target,
                      fmi_version=args.fmi, stop_time=args.stop_time)
     print(f"wrote {path}")

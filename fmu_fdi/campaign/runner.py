@@ -263,8 +263,11 @@ def run_campaign(spec, out_dir, *, workers: int = 1, scheduler: str | None = Non
     """
     tic = time.perf_counter()
     spec = spec if isinstance(spec, CampaignSpec) else CampaignSpec.load(spec)
-    if not isinstance(workers, int) or workers < 1:
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise CampaignError(f"workers must be an integer >= 1, got {workers!r}")
+    if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
+        raise CampaignError(f"scheduler must be a Dask scheduler address (tcp://HOST:PORT) or 'local', "
+                            f"got {scheduler!r}")
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise CampaignError(f"output folder {str(out)!r} is a file")

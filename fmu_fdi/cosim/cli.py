@@ -93,7 +93,8 @@ def run(args) -> int:
     from ..outpath import check_output_path
 
     try:
-        check_output_path(args.output, (".csv",), "result CSV")
+        reads = [args.input] + [t.partition("=")[2] or t for t in args.plant + [args.diagnoser or ""] if t]
+        check_output_path(args.output, (".csv",), "result CSV", inputs=reads)
         if args.ssp:
             check_output_path(args.ssp, (".ssp",), "SSP file")
         if args.input:

@@ -368,10 +368,20 @@ def _grid(start, stop, step):
     if not stop > start:
         raise CoSimulationError(f"stop ({stop:g}) must be after start ({start:g})")
     n = (stop - start) / step
+    if not math.isfinite(n) or n > MAX_STEPS:
+        raise CoSimulationError(f"(stop − start) / step = {n:.3g} steps is more than the {MAX_STEPS:.0e} a "
+                                f"co-simulation may take; shorten the run or lengthen the step")
+    if round(n) < 1:
+        raise CoSimulationError(f"step {step:g} s is longer than the run (stop − start = {stop - start:g} s): "
+                                f"there would be no step at all")
     if abs(n - round(n)) > 1e-9 * max(1.0, n):
         raise CoSimulationError(f"stop − start = {stop - start:g} is not a whole number of steps "
                                 f"{step:g} ({n:.6g}); choose stop = start + N·step")
     return start, stop, step
+
+
+#: most communication steps of one co-simulation: 1e8 rows are hours of stepping and gigabytes of CSV
+MAX_STEPS = 10 ** 8
 
 
 def _signals(inputs):
