@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import math
+import re
 import sys
 
 import numpy as np
@@ -168,6 +169,11 @@ def _load_model(path, args=None):
     ``--minimal``/``--minreal-tol`` (if the command has them) reduce it to a minimal realisation."""
     from .model import FDIModel
 
+    inside = _design_inside(path)
+    if inside:
+        raise InputFileError(f"{path} is a diagnostic FMU (built by 'fmu-fdi build'), not a model file; the model it "
+                             f"was designed from is the 'model' of its design (unzip -p {path} {inside}); a model "
+                             f"of a plant FMU comes from 'fmu-fdi model PLANT.fmu -o model.toml'")
     model = FDIModel.from_file(check_input_file(path, "model file"), minimal=getattr(args, "minimal", None),
                                minreal_tol=getattr(args, "minreal_tol", None))
     _report_minreal(model)
@@ -458,17 +464,49 @@ def _plot(args) -> int:
     res = read_result(check_input_file(args.result, "result CSV"))
     design = _design_for_labels(args.design)
     prefix = diagnoser_prefix(res, args.prefix, str(args.result))
+    if design:
+        _check_design_matches_log(res, prefix, design, args.design, args.result)
     faults = [f["name"] for f in design["faults"]] if design else []
     path = plot_diagnosis(res, args.output, prefix=prefix, design=design, title=args.title)
     first, names = _verdict(res["time"], res[f"{prefix}fault_detected"], res[f"{prefix}isolated_fault"], faults)
-    print(f"wrote {path}; first alarm at t = {first} s; isolated as: {names}")
+    print(f"wrote {path}; {first}; isolated as: {names}")
     return 0
 
 
+_DIAGNOSER_OUTPUT = re.compile(r"^(residual|evaluation|threshold|alarm)_\d+$|^(fault_detected|isolated_fault|"
+                               r"input_invalid|numeric_reset|active_model|[a-z_]+_flag)$")
+
+
+def _check_design_matches_log(res, prefix, design, design_path, log_path) -> None:
+    """Refuse a design that is not the one whose diagnosis the log holds: its number of
+    residuals and evaluation groups, the signals its diagnoser read (when the log records them)
+    and the range of its isolation results must all fit."""
+    names = [n[len(prefix):] for n in res.dtype.names if n.startswith(prefix) and n != "time"]
+    gen = design["generator"]
+    want = {"residual": len(gen.get("residual_names", [])), "evaluation": len(gen.get("groups", []))}
+    problems = []
+    for kind, n in want.items():
+        have = sum(1 for x in names if re.fullmatch(rf"{kind}_\d+", x))
+        if have and n and have != n:
+            problems.append(f"{have} {kind} columns where the design has {n}")
+    signals = list(design["signals"]["u"]) + list(design["signals"]["y"])
+    read = [x for x in names if not _DIAGNOSER_OUTPUT.match(x)]
+    missing = [x for x in signals if x not in names]
+    if read and missing:
+        problems.append(f"its diagnoser read {', '.join(read)}; the design reads {', '.join(signals)}")
+    iso = np.asarray(res[f"{prefix}isolated_fault"], float) if f"{prefix}isolated_fault" in res.dtype.names else []
+    top = len(design["faults"])
+    if len(iso) and np.nanmax(iso) > top:
+        problems.append(f"isolated_fault reaches {np.nanmax(iso):g}, the design has {top} faults")
+    if problems:
+        raise DesignError(f"{design_path} is not the design of the diagnosis in {log_path}: {'; '.join(problems)}; "
+                          f"give the design the diagnostic FMU was built from, or leave --design out")
+
+
 def _verdict(t, detected, isolated, faults) -> tuple[str, str]:
-    """('first alarm time' or '-', 'the names of every isolation result' or '-')."""
+    """('first alarm at t = <time> s' or 'no alarm', 'the names of every isolation result' or '-')."""
     det = np.asarray(detected).astype(bool)
-    first = f"{float(np.asarray(t)[det][0])!r}" if det.any() else "-"
+    first = f"first alarm at t = {float(np.asarray(t)[det][0])!r} s" if det.any() else "no alarm"
     label = {-1: "unknown"}
     named = sorted({int(v) for v in isolated if v != 0})
     names = [label.get(v) or (faults[v - 1] if faults and 0 < v <= len(faults) else str(v)) for v in named]
@@ -478,7 +516,47 @@ def _verdict(t, detected, isolated, faults) -> tuple[str, str]:
 def _design_for_labels(path):
     from .designfile import load_design
 
-    return load_design(check_input_file(path, "design file")) if path else None
+    return load_design(_design_file(path)) if path else None
+
+
+def _design_inside(path) -> str | None:
+    """The design.json member of a diagnostic FMU built by fmu-fdi, or None (not such an FMU)."""
+    import zipfile
+
+    from pathlib import Path
+
+    p = Path(path)
+    if not (p.is_file() and zipfile.is_zipfile(p)):
+        return None
+    try:
+        with zipfile.ZipFile(p) as z:
+            inside = [n for n in z.namelist() if n.startswith("resources/") and n.endswith("/design.json")]
+    except (OSError, zipfile.BadZipFile):
+        return None
+    return inside[0] if inside else None
+
+
+def _design_file(path):
+    """``path`` checked as a design file, with the right advice for the files taken for one: a
+    diagnostic FMU (built from a design: the design is inside it), a plant FMU (model it, then
+    design), a model file (design from it)."""
+    import zipfile
+
+    from pathlib import Path
+
+    p = Path(path)
+    inside = _design_inside(p)
+    if inside:
+        raise InputFileError(f"{p} is a diagnostic FMU (built by 'fmu-fdi build'), not a design file; give the "
+                             f"design file it was built from (the FMU carries a copy: unzip -p {p} {inside} "
+                             f"> design.json)")
+    if p.is_file() and not zipfile.is_zipfile(p):
+        head = p.read_bytes()[:4096].lstrip()
+        model = b"fmu-fdi-model/" in head and b"fmu-fdi-design/" not in head  # the design embeds its model
+        if model or (p.suffix.lower() == ".toml" and not head.startswith(b"{")):
+            raise InputFileError(f"{p} is a model file, not a design file; design a diagnoser from it first: "
+                                 f"fmu-fdi design {p} --method nullspace -o design.json (methods: fmu-fdi design -h)")
+    return check_input_file(path, "design file")
 
 
 def _diagnose(args) -> int:
@@ -487,7 +565,7 @@ def _diagnose(args) -> int:
     from .recorded import read_log
 
     check_output_path(args.output, (".csv",), "diagnosis CSV", inputs=(args.log, args.design))
-    dg = Diagnoser.load(check_input_file(args.design, "design file"))
+    dg = Diagnoser.load(_design_file(args.design))
     sig = dg.design["signals"]
     log = read_log(check_input_file(args.log, "log CSV"), sig["u"], sig["y"], prefix=args.prefix)
     print(f"{args.log}: {log.describe()}")
@@ -497,7 +575,7 @@ def _diagnose(args) -> int:
         raise DesignError(f"{args.log}: {exc}") from None
     Result(out).to_csv(args.output)
     first, names = _verdict(out["time"], out["fault_detected"], out["isolated_fault"], dg.fault_names)
-    print(f"wrote {args.output}: {len(out)} samples; first alarm at t = {first} s; isolated as: {names}")
+    print(f"wrote {args.output}: {len(out)} samples; {first}; isolated as: {names}")
     return 0
 
 
@@ -520,7 +598,7 @@ def _build(args) -> int:
     from .fmu import build_fmu
 
     check_output_path(args.output, (".fmu",), "FMU", error=BuildError, inputs=(args.design,))
-    path = build_fmu(check_input_file(args.design, "design file"), args.output, target=args.target,
+    path = build_fmu(_design_file(args.design), args.output, target=args.target,
                      fmi_version=args.fmi, stop_time=args.stop_time)
     print(f"wrote {path}")
     return 0
@@ -682,6 +760,9 @@ def main(argv=None) -> int:
     except (ModelError, DesignError, BuildError, OutputError, InputFileError, CoSimulationError) as exc:
         print(f"fmu-fdi: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("fmu-fdi: interrupted (Ctrl-C)", file=sys.stderr)
+        return 130
     except OSError as exc:  # the file system said no (full disk, permissions, a file where a folder belongs)
         where = f": {exc.filename}" if exc.filename else ""
         print(f"fmu-fdi: error: {_one_line(exc.strerror or exc)}{where}", file=sys.stderr)

@@ -80,6 +80,11 @@ class CoSimulation:
         Also record every input the master sets (``fmu.var``: the plant inputs from external
         signals and faults, what the diagnoser read), so the result is a complete log for
         offline diagnosis. ``fmu-fdi simulate`` does. Default False.
+    allow_unconnected : bool
+        Every input of a diagnostic FMU (one with ``fault_detected`` and ``isolated_fault``
+        outputs) must be connected or fed by an external signal, else it would diagnose its
+        start values: a :class:`CoSimulationError` unless this is True (then each loose input
+        is listed in :attr:`warnings`). Default False, as ``fmu-fdi simulate``.
 
     Attributes
     ----------
@@ -98,7 +103,8 @@ class CoSimulation:
     """
 
     def __init__(self, fmus, connections="auto", inputs=None, *, step, stop, start=0.0,
-                 order="gauss-seidel", faults=(), parameters=None, record_inputs: bool = False):
+                 order="gauss-seidel", faults=(), parameters=None, record_inputs: bool = False,
+                 allow_unconnected: bool = False):
         if order not in ORDERS:
             raise CoSimulationError(f"order {order!r} is not one of {ORDERS}")
         self.start, self.stop, self.step = _grid(start, stop, step)
@@ -128,6 +134,26 @@ class CoSimulation:
                                         f"so it would never act")
         #: warnings (and worse) the FMUs logged in the last run, one line per distinct message
         self.warnings: list[str] = []
+        #: diagnoser inputs neither connected nor fed (allowed by ``allow_unconnected``)
+        self.unconnected = self._diagnoser_inputs_fed(allow_unconnected)
+
+    def _diagnoser_inputs_fed(self, allow: bool) -> list:
+        """Loose diagnoser inputs as ``fmu.var``; an error unless ``allow`` (see the class docstring)."""
+        diagnostic = {"fault_detected", "isolated_fault"}
+        fed = {(fd.fmu, fd.var) for fd in self._wiring.feeds if fd.source[0] in ("output", "signal")}
+        loose = []
+        for name, fmu in self.fmus.items():
+            if diagnostic <= set(fmu.names("output")):
+                loose += [f"{name}.{v}" for v in fmu.names("input") if (name, v) not in fed]
+        if loose and not allow:
+            where = sorted({v.split(".", 1)[0] for v in loose})
+            names = [v.split(".", 1)[1] for v in loose] if len(where) == 1 else loose
+            raise CoSimulationError(
+                f"diagnoser inputs {', '.join(names)} are neither connected nor fed by an input signal (instance "
+                f"{', '.join(where)}), so the diagnoser would read their start values; give them a source "
+                f"(--input CSV with columns {', '.join(names)}, or --connect; inputs=, connections=) or pass "
+                f"--allow-unconnected (allow_unconnected=True)")
+        return loose
 
     @property
     def times(self) -> list:
@@ -234,6 +260,8 @@ class CoSimulation:
                     completed = True
                 finally:
                     self.warnings = [line for fmu in self.fmus.values() for line in fmu.warning_summary()]
+                    self.warnings += [f"{v} is not connected: the diagnoser read its start value"
+                                      for v in self.unconnected]
         except SimulationFailed as exc:
             exc.warnings = self.warnings
             if writer is not None:
@@ -380,8 +408,9 @@ def _grid(start, stop, step):
     return start, stop, step
 
 
-#: most communication steps of one co-simulation: 1e8 rows are hours of stepping and gigabytes of CSV
-MAX_STEPS = 10 ** 8
+#: most communication steps of one co-simulation: 1e10 steps are days of stepping (streamed to a CSV
+#: in bounded memory); beyond it a run would not end in a working lifetime (``--stop 1e308``)
+MAX_STEPS = 10 ** 10
 
 
 def _signals(inputs):
