@@ -569,6 +569,8 @@ def _diagnose(args) -> int:
     sig = dg.design["signals"]
     log = read_log(check_input_file(args.log, "log CSV"), sig["u"], sig["y"], prefix=args.prefix)
     print(f"{args.log}: {log.describe()}")
+    name = dg.design.get("name", "the design")
+    set_stage(f"diagnose: running {name!r} on the {len(log.t)} samples of {args.log}")
     try:
         out = dg.run(log.t, log.u, log.y)
     except ValueError as exc:

@@ -157,7 +157,8 @@ def simulate_cases(ctx, rng):
 
 
 def diagnose_cases(ctx, rng):
-    logs = [b"", b"time\n", b"\x00\x01\x02binary", "time,h1\n0,1\n".encode("utf-16"), b"time,Q1,Q2,h1,h2,h3\n0,1,1,1,1\n",
+    logs = [b"", b"time\n", b"\x00\x01\x02binary", "time,h1\n0,1\n".encode("utf-16"),
+            b"time,Q1,Q2,h1,h2,h3\n0,1,1,1,1\n",
             b"time,Q1,Q2,h1,h2,h3\n0,nan,1,1,1,1\n1,1,1,1,1,1e308\n", b"\xff\xfe\xfa garbage\n"]
     copy = _file(ctx, ".csv", ctx["log"].read_bytes())
     sure = [["diagnose", copy, "--design", ctx["design"], "-o", copy],

@@ -39,6 +39,7 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..progress import note, own_display, set_stage
 from .execute import Worker
 from .spec import CampaignError, CampaignSpec
 
@@ -282,8 +283,8 @@ def _run_locked(spec, out, all_runs, workers, scheduler, resume, progress, tic) 
     if resume:
         _repair_tail(path)
     header, done, notes = _read(path)
-    for note in notes:
-        sys.stderr.write(f"fmu-fdi campaign: warning: {note}\n")
+    for text in notes:
+        sys.stderr.write(f"fmu-fdi campaign: warning: {text}\n")
     if done or header:
         if not resume:
             raise CampaignError(f"{path} already holds {len(done)} finished run(s): resume them (--resume) "
@@ -312,6 +313,11 @@ def _run_locked(spec, out, all_runs, workers, scheduler, resume, progress, tic) 
                 _write(fh, record)
                 records.append(record)
                 report(len(records) - len(done), len(todo), time.perf_counter() - started)
+                note(f"campaign {spec.name}: {len(records) - len(done)} of {len(todo)} runs done"
+                     + (f" ({len(done)} from before)" if done else ""))
+
+            set_stage(f"campaign {spec.name}: 0 of {len(todo)} runs done" + (f" ({len(done)} from before)"
+                                                                             if done else ""))
 
             with _StopOnInterrupt() as stop:
                 try:
@@ -524,9 +530,11 @@ def _progress(progress):
     if not progress:
         return lambda d, n, s: None
     state = {"last": 0.0}
+    own_display(True)  # the bar says it all: no heartbeat line spliced into it
 
     def show(done, total, elapsed):
         if done is None:
+            own_display(False)
             sys.stderr.write("\n")
             return
         if done < total and elapsed - state["last"] < 0.2:

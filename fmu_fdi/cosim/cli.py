@@ -105,7 +105,8 @@ def run(args) -> int:
             if sim.faults:
                 print(f"fmu-fdi simulate: note: {args.ssp} describes the fault-free system "
                       f"(SSP cannot express the fault scenarios)", file=sys.stderr)
-        result = sim.run(csv=args.output)
+        with _stop_between_steps(sim):
+            result = sim.run(csv=args.output)
     except (CoSimulationError, FileNotFoundError, InputFileError, OutputError) as exc:
         print(f"fmu-fdi simulate: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
@@ -121,6 +122,35 @@ def run(args) -> int:
     _warn(result.warnings)
     print(f"{sim.n_steps + 1} rows x {len(result.names)} columns written to {args.output}")
     return 0
+
+
+class _stop_between_steps:
+    """Ctrl-C asks the master to stop between two steps (a second Ctrl-C interrupts at once):
+    an FMU that runs Python (pythonfmu) never sees the interruption inside its step."""
+
+    def __init__(self, sim):
+        self.sim = sim
+        self._old = None
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def _handle(self, signum, frame):
+        if self.sim.interrupt_requested:
+            raise KeyboardInterrupt
+        self.sim.interrupt_requested = True
+
+    def __exit__(self, *exc):
+        import signal
+
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+        return False
 
 
 def _warn(lines):

@@ -136,6 +136,9 @@ class CoSimulation:
         self.warnings: list[str] = []
         #: diagnoser inputs neither connected nor fed (allowed by ``allow_unconnected``)
         self.unconnected = self._diagnoser_inputs_fed(allow_unconnected)
+        #: set (e.g. by a SIGINT handler) to stop :meth:`run` between two steps with KeyboardInterrupt,
+        #: never inside an FMU's step (a Python FMU would turn the interruption into a fatal error)
+        self.interrupt_requested = False
 
     def _diagnoser_inputs_fed(self, allow: bool) -> list:
         """Loose diagnoser inputs as ``fmu.var``; an error unless ``allow`` (see the class docstring)."""
@@ -249,6 +252,8 @@ class CoSimulation:
                 try:
                     run.start(stack)
                     for k in range(rows):
+                        if self.interrupt_requested:
+                            raise KeyboardInterrupt
                         if k:
                             run.advance(self.time(k - 1), self.time(k))
                         if done == len(buf) or not k % 1024:
