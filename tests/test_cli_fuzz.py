@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
 import random
 import signal
 import sys
@@ -31,8 +32,8 @@ from pathlib import Path
 import pytest
 
 SEED = 20261126
-RANDOM_PER_FAMILY = 25
-HANG_S = 30
+RANDOM_PER_FAMILY = 40
+HANG_S = int(os.environ.get("CLI_FUZZ_HANG_S", "30"))  # seconds before a call counts as a hang
 
 
 class _Hang(Exception):
@@ -100,10 +101,13 @@ def make_context(folder: Path) -> dict:
     res = invoke(["simulate", "--plant", fmus["plant"], "--diagnoser", fmus["bank"], "--input", pumps, "--stop", "40",
                   "--step", "1", "--fault", "abrupt:plant.f_sensor_h2:20:2", "-o", log])
     assert res[0] == "accepted", res
+    other = folder / "lateral.json"  # a design of another plant
+    assert invoke(["design", plant_fmus.model_path("lateral_aircraft"), "--method", "nullspace", "--ts", "0.1",
+                   "-o", other])[0] == "accepted"
     camp = write_campaign(folder, "fz", stop=40.0, fault_free=1, targets=("plant.f_sensor_h1",), magnitudes=(1.0,),
                           onset=20.0, rate=0.01, scales=(0.8, 1.6, 3), zone=5.0)
     return {"dir": folder, "plant": fmus["plant"], "bank": fmus["bank"], "model": model, "design": design,
-            "log": log, "pumps": pumps, "campaign": camp, "campaign_text": camp.read_text(), "n": 0}
+            "log": log, "pumps": pumps, "other": other, "campaign": camp, "campaign_text": camp.read_text(), "n": 0}
 
 
 def _file(ctx, suffix, content) -> Path:
@@ -141,13 +145,22 @@ def simulate_cases(ctx, rng):
     sure.append(["simulate", "--plant", ctx["plant"], "--stop", "10", "--step", "1", "--input", inp, "-o", inp])
     out = [("refuse", a) for a in sure]
     for _ in range(RANDOM_PER_FAMILY):
-        a = list(base)
-        a += ["--stop", rng.choice(HOSTILE_NUMBERS + ["10", "20"]), "--step", rng.choice(HOSTILE_NUMBERS + ["1"])]
+        a = list(base)  # OPTION=VALUE, so that '-1' reaches the check rather than argparse's option parser
+        a += [f"--stop={rng.choice(HOSTILE_NUMBERS + ['10', '20'] * 4)}",
+              f"--step={rng.choice(HOSTILE_NUMBERS + ['1'] * 6)}"]
         if rng.random() < 0.4:
-            a += ["--start", rng.choice(HOSTILE_NUMBERS)]
-        if rng.random() < 0.4:
-            a += ["--param", f"plant.{rng.choice(['seed', 'noise_enable', 'std_h1', 'nosuch'])}="
-                             f"{rng.choice(HOSTILE_NUMBERS + ['true', 'off', 'True'])}"]
+            a += [f"--start={rng.choice(HOSTILE_NUMBERS)}"]
+        if rng.random() < 0.6:
+            name = rng.choice(['seed', 'noise_enable', 'std_h1', 'nosuch'])
+            value = rng.choice(HOSTILE_NUMBERS + ['true', 'off', 'True', '3', '0.01'])
+            wrong = ((name == "seed" and value not in ("0", "-1", "3", "4294967303", "9223372036854775808"))
+                     or (name == "seed" and value in ("4294967303", "9223372036854775808"))
+                     or (name == "noise_enable" and value not in ("true", "True"))
+                     or (name == "std_h1" and value in ("x", "", "true", "True", "off", "nan")))
+            a += [f"--param=plant.{name}={value}"]
+            if wrong:  # a value the variable cannot hold exactly: must be refused whatever else is right
+                out.append(("refuse", a + ["--stop=10", "--step=1", "-o", _out(ctx, ".csv")]))
+                continue
         if rng.random() < 0.4:
             a += ["--fault", f"{rng.choice(['abrupt', 'stuck', 'gain', 'bogus'])}:"
                              f"{rng.choice(['plant.f_sensor_h1', 'plant', 'x.y', '.'])}:"
@@ -177,10 +190,7 @@ def diagnose_cases(ctx, rng):
 
 
 def plot_cases(ctx, rng):
-    other = json.loads(ctx["design"].read_text())
-    other["signals"]["y"] = ["phi", "r", "p"]
-    other_path = _file(ctx, ".json", json.dumps(other))
-    sure = [["plot", ctx["log"], "--design", other_path, "-o", _out(ctx, ".png")],
+    sure = [["plot", ctx["log"], "--design", ctx["other"], "-o", _out(ctx, ".png")],
             ["plot", ctx["log"], "-o", ctx["log"]]]
     out = [("refuse", a) for a in sure]
     for data in [b"", b"time\n0\n", b"\x00\x00", b"time,fault_detected,isolated_fault\n0,1,1e308\n",
@@ -210,8 +220,8 @@ CAMPAIGN_EDITS = [
     ("count = 3", "count = 1000000000"),
     ("step = 1.0", "step = 1e308"),
     ("stop = 40.0", "stop = 1e308"),
-    ("[sample]", "[sample]\n[sample.parameters]\n\"plant.std_h1\" = [" + ",".join(["0.1"] * 2000) + "]\n"
-                 "\"plant.std_h2\" = [" + ",".join(["0.1"] * 2000) + "]\n[sample_]"),
+    ("APPEND", "\n[sample.parameters]\n\"plant.std_h1\" = [" + ",".join(["0.1"] * 2000) + "]\n"
+               "\"plant.std_h2\" = [" + ",".join(["0.1"] * 2000) + "]\n"),
     ("[parameters]", "[parameters]\n\"plant.seed\" = 4294967303"),
     ("[parameters]", "[parameters]\n\"plant.noise_enable\" = \"no\""),
     ("[parameters]", "[parameters]\n\"plant.noise_enable\" = 1"),
@@ -224,13 +234,26 @@ MUST_REFUSE_EDIT = {0, 1, 2, 3, 4, 5, 6, 7, 10, 11, 12, 13, 14, 15, 16, 17, 18}
 def campaign_cases(ctx, rng):
     text = ctx["campaign_text"]
     out = []
+    def edit(body, i):
+        """(edited body, whether the edit applied)."""
+        a, b = CAMPAIGN_EDITS[i]
+        if a == "APPEND":
+            return body + b, True
+        return body.replace(a, b, 1), a in body
+
     for i, (a, b) in enumerate(CAMPAIGN_EDITS):
-        if a not in text:
+        if a not in text and a != "APPEND":
             continue
-        src = a if a != "[sample]" else "[sample]\n"
-        body = text.replace(src, b if a != "[sample]" else b + "\n", 1).replace("[sample_]", "")
-        path = _file(ctx, ".toml", body)
+        path = _file(ctx, ".toml", edit(text, i)[0])
         out.append(("refuse" if i in MUST_REFUSE_EDIT else "any", ["campaign", path, "-o", _out(ctx, "")]))
+    for _ in range(RANDOM_PER_FAMILY):  # two edits at once
+        picks = rng.sample(range(len(CAMPAIGN_EDITS)), 2)
+        body, expect = text, "any"
+        for i in picks:
+            body, applied = edit(body, i)
+            if applied and i in MUST_REFUSE_EDIT:
+                expect = "refuse"
+        out.append((expect, ["campaign", _file(ctx, ".toml", body), "-o", _out(ctx, "")]))
     deep = "format = \"fmu-fdi-campaign/1\"\nx = " + "[" * 5000 + "]" * 5000 + "\n"
     for data in [b"\x00\x01binary", text.encode("utf-16"), deep.encode(), b"\xff\xfe\xfd", b"",
                  b"format = 1\n", b"[a]\nb = {c = {d = [1, 2, {e = 3}]}}\n"]:

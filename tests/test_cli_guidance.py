@@ -264,3 +264,16 @@ def test_campaign_example_runs_as_the_readme_says(tmp_path):
     r = subprocess.run([sys.executable, "-m", "fmu_fdi.campaign.example", str(tmp_path / "again")],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0 and (tmp_path / "again" / "dts200.toml").exists(), r.stderr
+
+
+def test_a_warning_that_dates_itself_is_not_dated_twice(files):
+    from fmu_fdi.cosim.instance import FMUInstance
+
+    inst = FMUInstance("diagnoser", files["bank"])
+    inst.now = 0.0
+    inst._record(1, "t=0: step size changed from 1 s to 2 s")
+    inst.now = 3.0
+    inst._record(1, "threshold_scale must be a finite number >= 0")
+    lines = inst.warning_summary()
+    assert lines == ["FMU 'diagnoser': t=0: step size changed from 1 s to 2 s",
+                     "FMU 'diagnoser' at t=3: threshold_scale must be a finite number >= 0"], lines

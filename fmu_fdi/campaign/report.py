@@ -303,6 +303,7 @@ def _sweep_plot(d, figures) -> str:
         a2.set_xlim(left=0.0)
         a2.set_xlabel(f"false-alarm rate per sample (linear below {one:.2g})", fontsize=10)
         a2.set_ylabel("detection probability", fontsize=10)
+        a2.set_ylim(-0.05, 1.05)
         a2.set_title("ROC over threshold_scale", fontsize=10)
     for ax in (a1, a2):
         ax.tick_params(labelsize=9)
