@@ -464,6 +464,7 @@ def _plot(args) -> int:
     res = read_result(check_input_file(args.result, "result CSV"))
     design = _design_for_labels(args.design)
     prefix = diagnoser_prefix(res, args.prefix, str(args.result))
+    _isolation_column(res, prefix, args.result)
     if design:
         _check_design_matches_log(res, prefix, design, args.design, args.result)
     faults = [f["name"] for f in design["faults"]] if design else []
@@ -475,6 +476,20 @@ def _plot(args) -> int:
 
 _DIAGNOSER_OUTPUT = re.compile(r"^(residual|evaluation|threshold|alarm)_\d+$|^(fault_detected|isolated_fault|"
                                r"input_invalid|numeric_reset|active_model|[a-z_]+_flag)$")
+
+
+def _isolation_column(res, prefix, log_path) -> np.ndarray:
+    """The log's isolated_fault column, refused unless it holds fault numbers (whole, >= -1)."""
+    name = f"{prefix}isolated_fault"
+    if name not in res.dtype.names:
+        return np.zeros(0)
+    iso = np.asarray(res[name], float)
+    bad = ~(np.isfinite(iso) & (iso == np.round(iso)) & (iso >= -1) & (iso < 2 ** 31))
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DesignError(f"{log_path}: column {name} holds {iso[k]:g} at row {k + 1}, not a fault number "
+                          f"(-1, 0 or 1 ... the number of faults)")
+    return iso
 
 
 def _check_design_matches_log(res, prefix, design, design_path, log_path) -> None:
@@ -494,7 +509,7 @@ def _check_design_matches_log(res, prefix, design, design_path, log_path) -> Non
     missing = [x for x in signals if x not in names]
     if read and missing:
         problems.append(f"its diagnoser read {', '.join(read)}; the design reads {', '.join(signals)}")
-    iso = np.asarray(res[f"{prefix}isolated_fault"], float) if f"{prefix}isolated_fault" in res.dtype.names else []
+    iso = _isolation_column(res, prefix, log_path)
     top = len(design["faults"])
     if len(iso) and np.nanmax(iso) > top:
         problems.append(f"isolated_fault reaches {np.nanmax(iso):g}, the design has {top} faults")

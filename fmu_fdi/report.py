@@ -105,6 +105,8 @@ def diagnosis_figure(result, *, prefix: str = "", title=None, fault_names=(), t_
                              layout="constrained")
 
     def legend(ax):
+        if not ax.get_legend_handles_labels()[0]:
+            return  # nothing labelled on this panel (e.g. a log without residual columns)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0, fontsize=7, frameon=False)
 
     ax = axes[0]

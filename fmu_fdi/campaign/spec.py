@@ -65,6 +65,13 @@ are relative to the campaign file. A complete file::
 Seeds: the k-th run (0-based, in the order of :meth:`CampaignSpec.runs`) sets the j-th seed
 parameter to ``seed_base + k · len(seeds) + j``: no two runs share a noise sequence, and a
 run's seeds do not depend on how the campaign is executed.
+
+Values are taken as written or refused, before anything runs: numbers are numbers (``true`` is
+not 1), every parameter and seed must fit its FMU variable's type (an Integer seed above
+2^31 − 1 is an error, not a wrapped seed), a name is set in one place only ([parameters] or
+[sample]), targets read ``instance.variable``. A campaign makes at most :data:`MAX_RUNS` runs
+and :data:`MAX_SCALES` sweep factors; a run at most ``MAX_STEPS`` steps
+(:mod:`fmu_fdi.cosim.master`).
 """
 from __future__ import annotations
 
