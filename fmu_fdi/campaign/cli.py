@@ -24,9 +24,10 @@ def add_parser(subparsers):
     p = subparsers.add_parser("campaign", help="run a fault-injection campaign and write its report",
                               description=_DESCRIPTION)
     p.add_argument("campaign", nargs="?", help="campaign file (.toml, format fmu-fdi-campaign/1)")
-    p.add_argument("-o", "--output", metavar="DIR", help="results and report folder (required to run)")
+    p.add_argument("-o", "--output", metavar="DIR", help="results and report folder (no default: required to run)")
     p.add_argument("--example", metavar="DIR", help="write the example campaign DIR/dts200.toml and the FMUs it "
-                                                    "runs (the DTS200 plant and a sensor observer bank), then stop")
+                                                    "runs (the DTS200 plant and a sensor observer bank), then stop "
+                                                    "(default: none)")
     p.add_argument("--dry-run", action="store_true", help="list the runs and stop (default: run them)")
     p.add_argument("--resume", action="store_true", help="keep the finished runs of DIR/runs.jsonl, run the rest (default: start afresh)")
     p.add_argument("--workers", type=int, default=1, help="worker processes (default 1: this process)")
