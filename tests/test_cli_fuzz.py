@@ -227,8 +227,9 @@ CAMPAIGN_EDITS = [
     ("[parameters]", "[parameters]\n\"plant.noise_enable\" = 1"),
     ("confidence = 0.95", "confidence = nan"),
     ("confidence = 0.95", "confidence = true"),
+    ("APPEND", "\n[labels]\n\"plant.f_sensor_h9\" = \"sensor_h9\"\n"),
 ]
-MUST_REFUSE_EDIT = {0, 1, 2, 3, 4, 5, 6, 7, 10, 11, 12, 13, 14, 15, 16, 17, 18}
+MUST_REFUSE_EDIT = {0, 1, 2, 3, 4, 5, 6, 7, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19}
 
 
 def campaign_cases(ctx, rng):

@@ -224,6 +224,10 @@ class CampaignSpec:
                    labels=dict(_table(data, "labels")), sample=_sample(_table(data, "sample")),
                    analysis=_analysis(_table(data, "analysis")),
                    traces=bool(_table(data, "output").get("traces", False)), source=data)
+        unused = sorted(set(spec.labels) - set(spec.sample["fault"]["target"]))
+        if unused:
+            raise CampaignError(f"campaign: [labels] {', '.join(unused)} is not a fault target of [sample.fault] "
+                                f"({', '.join(spec.sample['fault']['target']) or 'none'})")
         drawn = set(spec.sample["seeds"]) | set(spec.sample["parameters"])
         twice = sorted(drawn & set(spec.parameters))
         if twice:
