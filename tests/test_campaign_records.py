@@ -58,6 +58,7 @@ def outcome(recs) -> dict:
     return {r["run"]["key"]: (r["run"]["index"], r["status"], r.get("diagnosers")) for r in recs}
 
 
+@pytest.mark.slow
 def test_torn_last_line_is_cut_and_the_folder_resumes_again_and_again(campaign, tmp_path):
     spec, ref = campaign
     text = (ref / "runs.jsonl").read_text()
@@ -76,6 +77,7 @@ def test_torn_last_line_is_cut_and_the_folder_resumes_again_and_again(campaign, 
     assert outcome(got) == outcome(records(ref / "runs.jsonl"))
 
 
+@pytest.mark.slow
 def test_a_whole_last_record_without_its_newline_is_kept(campaign, tmp_path):
     spec, ref = campaign
     text = (ref / "runs.jsonl").read_text()
@@ -88,6 +90,7 @@ def test_a_whole_last_record_without_its_newline_is_kept(campaign, tmp_path):
     assert outcome(records(out / "runs.jsonl")) == outcome(records(ref / "runs.jsonl"))
 
 
+@pytest.mark.slow
 def test_duplicated_records_are_counted_once_with_a_warning(campaign, tmp_path):
     spec, ref = campaign
     lines = (ref / "runs.jsonl").read_text().splitlines(keepends=True)
@@ -122,6 +125,7 @@ def test_a_second_campaign_on_the_same_folder_is_refused(campaign, tmp_path):
     assert cli("campaign", spec, "-o", out, "--no-progress").returncode == 0
 
 
+@pytest.mark.slow
 def test_two_concurrent_invocations_never_double_count(campaign, tmp_path):
     spec, ref = campaign
     out = tmp_path / "race"

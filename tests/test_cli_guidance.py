@@ -20,8 +20,25 @@ import pytest
 
 
 def cli(*args, timeout=300, cwd=None):
+    """``fmu-fdi ARGS`` in a subprocess, as a user runs it."""
     return subprocess.run([sys.executable, "-m", "fmu_fdi", *map(str, args)], capture_output=True, text=True,
                           timeout=timeout, cwd=cwd)
+
+
+def cli_here(*args):
+    """``fmu-fdi ARGS`` in this process (the same ``main``; no start-up cost): for many calls."""
+    import contextlib
+    import io
+
+    from fmu_fdi.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as exc:
+            code = exc.code
+    return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
 
 
 def one_line_error(r, *fragments):
@@ -46,22 +63,23 @@ def files(tmp_path_factory):
     pumps = tmp / "pumps.csv"
     pumps.write_text(f"time,Q1,Q2\n0,{float(q[0])!r},{float(q[1])!r}\n")
     design = tmp / "dos.json"
-    assert cli("design", plant_fmus.model_path("dts200"), "--method", "dos", "--ts", "1", "--evaluation", "rms:20",
-               "--persistence", "3/5", "-o", design).returncode == 0
+    assert cli_here("design", plant_fmus.model_path("dts200"), "--method", "dos", "--ts", "1", "--evaluation",
+                    "rms:20", "--persistence", "3/5", "-o", design).returncode == 0
     bank = tmp / "dos.fmu"
-    assert cli("build", design, "-o", bank).returncode == 0
+    assert cli_here("build", design, "-o", bank).returncode == 0
     log = tmp / "run.csv"
-    r = cli("simulate", "--plant", fmus["plant"], "--diagnoser", bank, "--input", pumps, "--stop", "60", "--step", "1",
-            "--order", "jacobi", "--fault", "abrupt:plant.f_sensor_h2:30:2", "-o", log)
+    r = cli_here("simulate", "--plant", fmus["plant"], "--diagnoser", bank, "--input", pumps, "--stop", "60",
+                 "--step", "1", "--order", "jacobi", "--fault", "abrupt:plant.f_sensor_h2:30:2", "-o", log)
     assert r.returncode == 0, r.stderr
     other = tmp / "lateral.json"
-    assert cli("design", plant_fmus.model_path("lateral_aircraft"), "--method", "nullspace", "--ts", "0.1",
-               "-o", other).returncode == 0
+    assert cli_here("design", plant_fmus.model_path("lateral_aircraft"), "--method", "nullspace", "--ts", "0.1",
+                    "-o", other).returncode == 0
     return {"dir": tmp, "plant": fmus["plant"], "bank": bank, "design": design, "pumps": pumps, "log": log,
             "other": other, "model": plant_fmus.model_path("dts200")}
 
 
 def test_plot_refuses_the_design_of_another_plant(files, tmp_path):
+    cli = cli_here  # the same main, without a second of start-up per call
     r = cli("plot", files["log"], "--design", files["other"], "-o", tmp_path / "p.png")
     one_line_error(r, "is not the design of the diagnosis in", "h1")
     assert not (tmp_path / "p.png").exists()
@@ -89,6 +107,7 @@ def test_plot_without_design_calls_a_fixed_threshold_fixed_from_row_one(files):
 
 
 def test_no_alarm_is_said_in_words(files, tmp_path):
+    cli = cli_here  # the same main, without a second of start-up per call
     quiet = tmp_path / "quiet.csv"
     r = cli("simulate", "--plant", files["plant"], "--diagnoser", files["bank"], "--input", files["pumps"], "--stop",
             "20", "--step", "1", "--order", "jacobi", "-o", quiet)
@@ -98,6 +117,7 @@ def test_no_alarm_is_said_in_words(files, tmp_path):
 
 
 def test_advice_for_files_taken_for_others(files, tmp_path):
+    cli = cli_here  # the same main, without a second of start-up per call
     one_line_error(cli("diagnose", files["log"], "--design", files["bank"], "-o", tmp_path / "d.csv"),
                    "is a diagnostic FMU", "design.json")
     r = cli("build", files["model"], "-o", tmp_path / "x.fmu")
@@ -108,6 +128,7 @@ def test_advice_for_files_taken_for_others(files, tmp_path):
 
 
 def test_output_over_input_is_refused_and_the_input_kept(files, tmp_path):
+    cli = cli_here  # the same main, without a second of start-up per call
     log = tmp_path / "log.csv"
     log.write_bytes(files["log"].read_bytes())
     one_line_error(cli("diagnose", log, "--design", files["design"], "-o", log), "is the input file")
@@ -120,6 +141,8 @@ def test_output_over_input_is_refused_and_the_input_kept(files, tmp_path):
 
 
 def test_values_are_never_silently_changed(files, tmp_path):
+    """In this process (many calls); test_cli_fuzz covers the same cases among its tries."""
+    cli = cli_here
     base = ["simulate", "--plant", files["plant"], "--diagnoser", files["bank"], "--input", files["pumps"],
             "--stop", "5", "--step", "1", "-o", tmp_path / "s.csv"]
     one_line_error(cli(*base, "--param", "plant.seed=4294967303"), "outside the range of Integer")
@@ -148,6 +171,7 @@ def test_python_cosimulation_refuses_unconnected_diagnoser_inputs_like_the_cli(f
     assert any("diagnoser.Q1" in w and "start value" in w for w in r.warnings), r.warnings
 
 
+@pytest.mark.slow
 def test_ctrl_c_in_simulate_exits_130_with_one_line(files, tmp_path):
     out = tmp_path / "long.csv"
     proc = subprocess.Popen([sys.executable, "-m", "fmu_fdi", "simulate", "--plant", str(files["plant"]),
@@ -176,6 +200,7 @@ def _guids(paths) -> set:
     return out
 
 
+@pytest.mark.slow
 def test_interrupted_campaign_report_says_partial_and_records_its_settings(files, tmp_path):
     from fmu_fdi.campaign.example import write_campaign
 
@@ -254,6 +279,7 @@ def test_heartbeat_names_the_campaign_stage_and_count(files, tmp_path):
     assert not any(ln.endswith(": working") for ln in lines)
 
 
+@pytest.mark.slow
 def test_campaign_example_runs_as_the_readme_says(tmp_path):
     r = cli("campaign", "--example", "campaign", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
