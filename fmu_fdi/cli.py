@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import math
+import re
 import sys
 
 import numpy as np
@@ -168,6 +169,11 @@ def _load_model(path, args=None):
     ``--minimal``/``--minreal-tol`` (if the command has them) reduce it to a minimal realisation."""
     from .model import FDIModel
 
+    inside = _design_inside(path)
+    if inside:
+        raise InputFileError(f"{path} is a diagnostic FMU (built by 'fmu-fdi build'), not a model file; the model it "
+                             f"was designed from is the 'model' of its design (unzip -p {path} {inside}); a model "
+                             f"of a plant FMU comes from 'fmu-fdi model PLANT.fmu -o model.toml'")
     model = FDIModel.from_file(check_input_file(path, "model file"), minimal=getattr(args, "minimal", None),
                                minreal_tol=getattr(args, "minreal_tol", None))
     _report_minreal(model)
@@ -191,7 +197,64 @@ def _minreal_options(parser) -> None:
                              "model file's 'minreal_tol', else n^2*eps; docs/model-file.md)")
 
 
+def _check_model_options(args) -> None:
+    """The experiment options of ``fmu-fdi model`` checked before the plant runs: every number in
+    its range (a sample time, settle time and counts that fit in memory), every name one the FMU
+    has (--at: any variable; --amplitude: an input)."""
+    def bad(option, value, need):
+        raise ModelError(f"{option} {value!r}: {need}")
+
+    if args.ts is not None and not (math.isfinite(args.ts) and args.ts > 0):
+        bad("--ts", args.ts, "the sample time must be a positive finite number of seconds")
+    if args.settle is not None and not (math.isfinite(args.settle) and args.settle >= 0):
+        bad("--settle", args.settle, "the settle time must be a finite number of seconds >= 0")
+    if args.seed is not None and not 0 <= args.seed < 2 ** 63:
+        bad("--seed", args.seed, "the seed must be a whole number in [0, 2^63)")
+    if args.min_fit is not None and not (math.isfinite(args.min_fit) and args.min_fit <= 100):
+        bad("--min-fit", args.min_fit, "the least validation fit must be a finite percentage <= 100")
+    for option in ("samples", "period", "order"):
+        value = getattr(args, option, None)
+        if value is not None and not 1 <= value <= MAX_MODEL_SAMPLES:
+            bad(f"--{option}", value, f"must be a whole number in [1, {MAX_MODEL_SAMPLES}]")
+    md = _plant_description(args.plant)
+    if md is None:
+        return  # not an FMU: the model builder says so
+    variables = {v.name: v for v in md.modelVariables}
+    inputs = [n for n, v in variables.items() if v.causality == "input"]
+    for option, items, known, what in (("--at", args.at, list(variables), "a variable"),
+                                       ("--amplitude", args.amplitude, args.excite or inputs, "an excited input")):
+        for item in items or []:
+            name = item.partition("=")[0].strip()
+            if name and name not in known:
+                close = difflib.get_close_matches(name, known, n=3)
+                hint = f"; did you mean {', '.join(close)}?" if close else f"; it has {', '.join(known[:12])}"
+                raise ModelError(f"{option} {item}: {name!r} is not {what} of {args.plant}{hint}")
+    ts = args.ts or getattr(md.defaultExperiment, "stepSize", None)
+    try:
+        ts = float(ts) if ts is not None else None
+    except ValueError:
+        ts = None
+    if args.settle is not None and ts and args.settle / ts > MAX_MODEL_SAMPLES:
+        bad("--settle", args.settle, f"{args.settle / ts:.3g} steps of {ts:g} s is more than {MAX_MODEL_SAMPLES}; "
+                                     f"settle for less time")
+
+
+#: most steps of one identification run (settling or recording): 1e7 samples are minutes of a plant FMU
+MAX_MODEL_SAMPLES = 10 ** 7
+
+
+def _plant_description(path):
+    """The modelDescription of a plant FMU, or None if ``path`` is not a readable FMU."""
+    try:
+        from fmpy import read_model_description
+
+        return read_model_description(str(path), validate=False)
+    except Exception:  # not an FMU, not a zip, broken XML: from_fmu reports it in its words
+        return None
+
+
 def _model(args) -> int:
+    _check_model_options(args)
     from .identify import Excitation
     from .identify.fmu_model import parse_values, summary
     from .model import FDIModel, minreal_option
@@ -328,7 +391,7 @@ def _design(args) -> int:
     from . import design as design_pkg
     from .diagnoser import Diagnoser
 
-    check_output_path(args.output, (".json",), "design file")
+    check_output_path(args.output, (".json",), "design file", inputs=(args.model, args.calibrate))
     from .modelset import is_model_set_file
 
     if is_model_set_file(args.model):  # one design per member, scheduled (fmu_fdi/schedule.py)
@@ -417,21 +480,68 @@ def _plot(args) -> int:
     from .recorded import diagnoser_prefix, read_result
     from .report import plot_diagnosis
 
-    check_output_path(args.output, (".png", ".svg", ".pdf"), "plot")
+    check_output_path(args.output, (".png", ".svg", ".pdf"), "plot", inputs=(args.result, args.design))
     res = read_result(check_input_file(args.result, "result CSV"))
     design = _design_for_labels(args.design)
     prefix = diagnoser_prefix(res, args.prefix, str(args.result))
+    _isolation_column(res, prefix, args.result)
+    if design:
+        _check_design_matches_log(res, prefix, design, args.design, args.result)
     faults = [f["name"] for f in design["faults"]] if design else []
     path = plot_diagnosis(res, args.output, prefix=prefix, design=design, title=args.title)
     first, names = _verdict(res["time"], res[f"{prefix}fault_detected"], res[f"{prefix}isolated_fault"], faults)
-    print(f"wrote {path}; first alarm at t = {first} s; isolated as: {names}")
+    print(f"wrote {path}; {first}; isolated as: {names}")
     return 0
 
 
+_DIAGNOSER_OUTPUT = re.compile(r"^(residual|evaluation|threshold|alarm)_\d+$|^(fault_detected|isolated_fault|"
+                               r"input_invalid|numeric_reset|active_model|[a-z_]+_flag)$")
+
+
+def _isolation_column(res, prefix, log_path) -> np.ndarray:
+    """The log's isolated_fault column, refused unless it holds fault numbers (whole, >= -1)."""
+    name = f"{prefix}isolated_fault"
+    if name not in res.dtype.names:
+        return np.zeros(0)
+    iso = np.asarray(res[name], float)
+    bad = ~(np.isfinite(iso) & (iso == np.round(iso)) & (iso >= -1) & (iso < 2 ** 31))
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DesignError(f"{log_path}: column {name} holds {iso[k]:g} at row {k + 1}, not a fault number "
+                          f"(-1, 0 or 1 ... the number of faults)")
+    return iso
+
+
+def _check_design_matches_log(res, prefix, design, design_path, log_path) -> None:
+    """Refuse a design that is not the one whose diagnosis the log holds: its number of
+    residuals and evaluation groups, the signals its diagnoser read (when the log records them)
+    and the range of its isolation results must all fit."""
+    names = [n[len(prefix):] for n in res.dtype.names if n.startswith(prefix) and n != "time"]
+    gen = design["generator"]
+    want = {"residual": len(gen.get("residual_names", [])), "evaluation": len(gen.get("groups", []))}
+    problems = []
+    for kind, n in want.items():
+        have = sum(1 for x in names if re.fullmatch(rf"{kind}_\d+", x))
+        if have and n and have != n:
+            problems.append(f"{have} {kind} columns where the design has {n}")
+    signals = list(design["signals"]["u"]) + list(design["signals"]["y"])
+    read = [x for x in names if not _DIAGNOSER_OUTPUT.match(x)]
+    missing = [x for x in signals if x not in names]
+    if read and missing:
+        problems.append(f"its diagnoser read {', '.join(read)}; the design reads {', '.join(signals)}")
+    iso = _isolation_column(res, prefix, log_path)
+    top = len(design["faults"])
+    if len(iso) and np.nanmax(iso) > top:
+        problems.append(f"isolated_fault reaches {np.nanmax(iso):g}, the design has {top} faults")
+    if problems:
+        raise DesignError(f"{design_path} is not the design of the diagnosis in {log_path}: {'; '.join(problems)}; "
+                          f"give the design the diagnostic FMU was built from, or leave --design out")
+
+
 def _verdict(t, detected, isolated, faults) -> tuple[str, str]:
-    """('first alarm time' or '-', 'the names of every isolation result' or '-')."""
+    """('first alarm at t = <time> s' or 'no alarm', 'the names of every isolation result' or '-')."""
     det = np.asarray(detected).astype(bool)
-    first = f"{float(np.asarray(t)[det][0])!r}" if det.any() else "-"
+    first = f"first alarm at t = {float(np.asarray(t)[det][0])!r} s" if det.any() else "no alarm"
     label = {-1: "unknown"}
     named = sorted({int(v) for v in isolated if v != 0})
     names = [label.get(v) or (faults[v - 1] if faults and 0 < v <= len(faults) else str(v)) for v in named]
@@ -442,29 +552,71 @@ def _design_for_labels(path):
     from .designfile import load_design
     from .schedule import design_of
 
-    if path and (scheduled := design_of(check_input_file(path, "design file"))) is not None:
+    if path and (scheduled := design_of(_design_file(path))) is not None:
         return scheduled["members"][0]  # the members share faults, residuals and groups
-    return load_design(check_input_file(path, "design file")) if path else None
+    return load_design(_design_file(path)) if path else None
+
+
+def _design_inside(path) -> str | None:
+    """The design.json member of a diagnostic FMU built by fmu-fdi, or None (not such an FMU)."""
+    import zipfile
+
+    from pathlib import Path
+
+    p = Path(path)
+    if not (p.is_file() and zipfile.is_zipfile(p)):
+        return None
+    try:
+        with zipfile.ZipFile(p) as z:
+            inside = [n for n in z.namelist() if n.startswith("resources/") and n.endswith("/design.json")]
+    except (OSError, zipfile.BadZipFile):
+        return None
+    return inside[0] if inside else None
+
+
+def _design_file(path):
+    """``path`` checked as a design file, with the right advice for the files taken for one: a
+    diagnostic FMU (built from a design: the design is inside it), a plant FMU (model it, then
+    design), a model file (design from it)."""
+    import zipfile
+
+    from pathlib import Path
+
+    p = Path(path)
+    inside = _design_inside(p)
+    if inside:
+        raise InputFileError(f"{p} is a diagnostic FMU (built by 'fmu-fdi build'), not a design file; give the "
+                             f"design file it was built from (the FMU carries a copy: unzip -p {p} {inside} "
+                             f"> design.json)")
+    if p.is_file() and not zipfile.is_zipfile(p):
+        head = p.read_bytes()[:4096].lstrip()
+        model = b"fmu-fdi-model/" in head and b"fmu-fdi-design/" not in head  # the design embeds its model
+        if model or (p.suffix.lower() == ".toml" and not head.startswith(b"{")):
+            raise InputFileError(f"{p} is a model file, not a design file; design a diagnoser from it first: "
+                                 f"fmu-fdi design {p} --method nullspace -o design.json (methods: fmu-fdi design -h)")
+    return check_input_file(path, "design file")
 
 
 def _diagnose(args) -> int:
     from .cosim import Result
     from .recorded import read_log
 
-    check_output_path(args.output, (".csv",), "diagnosis CSV")
+    check_output_path(args.output, (".csv",), "diagnosis CSV", inputs=(args.log, args.design))
     from .schedule import load_diagnoser  # a plain or a scheduled design
 
-    dg = load_diagnoser(check_input_file(args.design, "design file"))
+    dg = load_diagnoser(_design_file(args.design))
     sig = dg.design["signals"]
     log = read_log(check_input_file(args.log, "log CSV"), sig["u"], sig["y"], prefix=args.prefix)
     print(f"{args.log}: {log.describe()}")
+    name = dg.design.get("name", "the design")
+    set_stage(f"diagnose: running {name!r} on the {len(log.t)} samples of {args.log}")
     try:
         out = dg.run(log.t, log.u, log.y)
     except ValueError as exc:
         raise DesignError(f"{args.log}: {exc}") from None
     Result(out).to_csv(args.output)
     first, names = _verdict(out["time"], out["fault_detected"], out["isolated_fault"], dg.fault_names)
-    print(f"wrote {args.output}: {len(out)} samples; first alarm at t = {first} s; isolated as: {names}")
+    print(f"wrote {args.output}: {len(out)} samples; {first}; isolated as: {names}")
     return 0
 
 
@@ -486,8 +638,8 @@ def _plants_build(args) -> int:
 def _build(args) -> int:
     from .fmu import build_fmu
 
-    check_output_path(args.output, (".fmu",), "FMU", error=BuildError)
-    path = build_fmu(check_input_file(args.design, "design file"), args.output, target=args.target,
+    check_output_path(args.output, (".fmu",), "FMU", error=BuildError, inputs=(args.design,))
+    path = build_fmu(_design_file(args.design), args.output, target=args.target,
                      fmi_version=args.fmi, stop_time=args.stop_time)
     print(f"wrote {path}")
     return 0
@@ -666,6 +818,9 @@ def main(argv=None) -> int:
     except (ModelError, DesignError, BuildError, OutputError, InputFileError, CoSimulationError) as exc:
         print(f"fmu-fdi: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("fmu-fdi: interrupted (Ctrl-C)", file=sys.stderr)
+        return 130
     except OSError as exc:  # the file system said no (full disk, permissions, a file where a folder belongs)
         where = f": {exc.filename}" if exc.filename else ""
         print(f"fmu-fdi: error: {_one_line(exc.strerror or exc)}{where}", file=sys.stderr)

@@ -15,7 +15,7 @@ from pathlib import Path
 from .errors import OutputError
 
 
-def check_output_path(path, suffixes=(), what: str = "output file", error=OutputError) -> Path:
+def check_output_path(path, suffixes=(), what: str = "output file", error=OutputError, inputs=()) -> Path:
     """Return ``path`` as a Path once a file can be written there; create missing folders.
 
     Parameters
@@ -27,6 +27,9 @@ def check_output_path(path, suffixes=(), what: str = "output file", error=Output
         What the file is, for the message ("design file").
     error : exception class
         Raised on failure (default :class:`~fmu_fdi.errors.OutputError`).
+    inputs : sequence of path
+        The files the command reads: the output must be none of them (the same file by any
+        name, links included), else the result would overwrite what it is computed from.
 
     Raises
     ------
@@ -35,6 +38,10 @@ def check_output_path(path, suffixes=(), what: str = "output file", error=Output
         a folder that cannot be created or written.
     """
     path = Path(path)
+    for given in inputs:
+        if given is not None and _same_file(path, Path(given)):
+            raise error(f"{what} {str(path)!r} is the input file {str(given)!r}; writing it would destroy what it is "
+                        f"computed from: give another output name")
     if path.is_dir():
         example = path / ("result" + (suffixes[0] if suffixes else ""))
         raise error(f"{what} {str(path)!r} is a folder; give a file name, e.g. {example}")
@@ -72,3 +79,13 @@ def write_atomically(path, fill, mode: int = 0o644) -> Path:
         if os.path.exists(part):
             os.remove(part)
     return path
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """True if ``a`` and ``b`` name one file (an existing one by device and inode)."""
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+        return a.resolve() == b.resolve()
+    except OSError:
+        return False

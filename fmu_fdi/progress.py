@@ -42,6 +42,12 @@ def current_stage() -> str:
     return _current["stage"]
 
 
+def own_display(on: bool) -> None:
+    """A command that draws its own progress line on a terminal (a campaign's bar) turns the
+    heartbeat off while it does, so the two never splice into one line."""
+    _current["own_display"] = bool(on)
+
+
 @contextlib.contextmanager
 def stage(what: str):
     """Run a block as the named stage; the previous stage is current again afterwards."""
@@ -89,6 +95,8 @@ class Heartbeat:
     def _run(self):
         wait = self.first
         while not self._stop.wait(wait):
+            if _current.get("own_display"):
+                continue
             what = _current["stage"] or "working"
             stream = self.stream or sys.stderr
             print(f"fmu-fdi: still working after {time.monotonic() - self._t0:.0f} s: {what}", file=stream,

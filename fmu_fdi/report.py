@@ -105,6 +105,8 @@ def diagnosis_figure(result, *, prefix: str = "", title=None, fault_names=(), t_
                              layout="constrained")
 
     def legend(ax):
+        if not ax.get_legend_handles_labels()[0]:
+            return  # nothing labelled on this panel (e.g. a log without residual columns)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0, fontsize=7, frameon=False)
 
     ax = axes[0]
@@ -117,8 +119,10 @@ def diagnosis_figure(result, *, prefix: str = "", title=None, fault_names=(), t_
     legend(ax)
     for ax, g in zip(axes[1:], groups):
         ev = _field(result, f"evaluation_{g}", prefix)
-        th = _field(result, f"threshold_{g}", prefix)
+        th = np.asarray(_field(result, f"threshold_{g}", prefix), float)
         al = _field(result, f"alarm_{g}", prefix).astype(bool)
+        # row 0 holds no diagnosis yet (its threshold reads 0): the threshold starts at row 1
+        t_th, th = (t[1:], th[1:]) if th.size > 1 and th[0] == 0 and np.any(th[1:] != 0) else (t, th)
         spec = design["evaluation"][g - 1] if design and g <= len(design["evaluation"]) else None
         kind = spec["evaluator"]["kind"] if spec else "evaluation"
         ax.plot(t, ev, lw=0.9, label=f"{kind} of group {g}")
@@ -126,7 +130,7 @@ def diagnosis_figure(result, *, prefix: str = "", title=None, fault_names=(), t_
             th_label = _THRESHOLD_LABEL.get(spec["threshold"]["kind"], f"{spec['threshold']['kind']} threshold")
         else:
             th_label = "threshold (fixed)" if np.ptp(th) == 0 else "threshold (varies with the inputs: adaptive)"
-        ax.plot(t, th, "k--", lw=0.9, label=th_label)
+        ax.plot(t_th, th, "k--", lw=0.9, label=th_label)
         ax.fill_between(t, 0, 1, where=al, transform=ax.get_xaxis_transform(), color="tab:red", alpha=0.15,
                         label=f"alarm_{g}")
         faults = watched[g - 1] if g <= len(watched) else []

@@ -260,9 +260,11 @@ def test_binary_files_and_fmus_where_text_belongs_give_one_line_errors(capsys, t
     fmu = tank_files["fmu"]
     for cmd in (["analyze", fmu], ["design", fmu, "--method", "dos", "--ts", "1", "-o", tmp_path / "d.json"]):
         code, _, err = run_main(capsys, *cmd)
-        assert_one_line_error(code, err, "is an FMU (a zip archive), not a model file", "fmu-fdi model")
+        assert_one_line_error(code, err, "is a diagnostic FMU", "not a model file", "design.json")
     code, _, err = run_main(capsys, "build", fmu, "-o", tmp_path / "x.fmu")
-    assert_one_line_error(code, err, "is an FMU (a zip archive), not a design file")
+    assert_one_line_error(code, err, "is a diagnostic FMU", "not a design file", "design.json")
+    code, _, err = run_main(capsys, "analyze", tank_files["plant"])  # a plant FMU: model it first
+    assert_one_line_error(code, err, "is an FMU (a zip archive), not a model file", "fmu-fdi model")
     utf16 = tmp_path / "m.toml"
     utf16.write_text('format = "fmu-fdi-model/1"\n', encoding="utf-16")
     code, _, err = run_main(capsys, "analyze", utf16)

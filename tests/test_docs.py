@@ -106,3 +106,53 @@ def test_license_matches_pyproject():
     assert meta["license"]["text"] == "MIT"
     assert (ROOT / "LICENSE").read_text(encoding="utf-8").startswith("MIT License")
     assert json.dumps(meta["version"]) and re.fullmatch(r"\d+\.\d+\.\d+", meta["version"])
+
+
+def _readme_commands() -> list:
+    """The README's shell commands, continuation lines joined, in order (the install line of its
+    first block excepted: it is the environment the tests run in)."""
+    blocks, current = [], None
+    for line in (ROOT / "README.md").read_text(encoding="utf-8").splitlines():
+        if line.startswith("```"):
+            if current is None:
+                current = [] if line.strip() == "```" else False  # False: a block in a language
+            else:
+                if current is not False:
+                    blocks.append("\n".join(current))
+                current = None
+        elif isinstance(current, list):
+            current.append(line)
+    out = []
+    for block in blocks:
+        joined = re.sub(r"\\\n\s*", " ", block)
+        for line in joined.splitlines():
+            cmd = line.split("  #", 1)[0].strip()
+            if cmd.startswith("fmu-fdi "):
+                out.append(cmd)
+    return out
+
+
+@pytest.mark.slow
+def test_readme_commands_run_as_written(tmp_path):
+    """Every `fmu-fdi ...` line of the README's command blocks runs, in order, in a fresh folder
+    holding the repository's examples/ and plant_fmus/, and exits 0; the worked example prints
+    what the README says it prints."""
+    import shlex
+    import subprocess
+
+    for name in ("examples", "plant_fmus"):
+        (tmp_path / name).symlink_to(ROOT / name)
+    commands = _readme_commands()
+    assert any(c.startswith("fmu-fdi campaign --example") for c in commands)
+    outputs = {}
+    for cmd in commands:
+        if cmd.startswith("fmu-fdi --") or cmd.startswith("fmu-fdi demo"):
+            continue  # --version/--help; the demo has its own test
+        r = subprocess.run([sys.executable, "-m", "fmu_fdi", *shlex.split(cmd)[1:]], cwd=tmp_path,
+                           capture_output=True, text=True, timeout=900)
+        assert r.returncode == 0, (cmd, r.stderr[-2000:])
+        outputs[cmd] = r.stdout
+    plot = next(o for c, o in outputs.items() if c.startswith("fmu-fdi plot out/run.csv"))
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    claim = re.search(r"The last command prints `([^`]*)`", text).group(1)
+    assert claim in plot, (claim, plot)

@@ -95,6 +95,11 @@ class CampaignFigures:
     confidence: float
     target_rate: float
     diagnosers: dict
+    planned: int | None = None  # runs the campaign file lists (None: as many as ran)
+    interrupted: bool = False  # stopped before every run finished (Ctrl-C)
+    warnings: list = field(default_factory=list)  # what reading the results left out
+    settings: dict = field(default_factory=dict)  # the campaign's set-up, for the report
+    run_rows: list = field(default_factory=list)  # one compact row per run record, for the report
 
 
 def aggregate(results) -> CampaignFigures:
@@ -116,7 +121,46 @@ def aggregate(results) -> CampaignFigures:
     for name in names:
         runs = [(r["run"], r["diagnosers"][name]) for r in ok if name in r["diagnosers"]]
         out[name] = _diagnoser(name, runs, spec.step, conf, target, scales)
-    return CampaignFigures(spec.name, len(results.records), failed, spec.step, conf, target, out)
+    extra = getattr(results, "extra", {}) or {}
+    return CampaignFigures(spec.name, len(results.records), failed, spec.step, conf, target, out,
+                           planned=extra.get("planned"), interrupted=bool(getattr(results, "interrupted", False)),
+                           warnings=list(extra.get("warnings", [])), settings=_settings(spec),
+                           run_rows=[_run_row(r) for r in results.records])
+
+
+def _run_row(record) -> dict:
+    """A run as the report lists it: scenario, status and per diagnoser detected / delay."""
+    run, f = record["run"], record["run"].get("fault")
+    row = {"run": run["index"], "key": run["key"],
+           "fault": "fault-free" if not f else f"{f.get('kind')} {f.get('target')} {f.get('magnitude')} "
+                                                f"from {f.get('onset')} s"
+                                                + ("" if f.get("duration") is None else f" for {f['duration']} s"),
+           "parameters": " ".join(f"{k}={v}" for k, v in run.get("parameters", {}).items()),
+           "status": record["status"] if record["status"] == "ok" else f"failed: {record.get('error', '')}"}
+    for name, d in (record.get("diagnosers") or {}).items():
+        row[f"{name}: false alarms"] = d.get("false_alarms")
+        if f:
+            row[f"{name}: delay (s)"] = d.get("delay")
+            row[f"{name}: isolated as"] = d.get("isolated_as")
+    return row
+
+
+def _settings(spec) -> dict:
+    """What the report records of the set-up: simulation, sample, analysis, FMUs with GUIDs."""
+    from ..cosim.instance import FMUInstance
+
+    fmus = {}
+    for name, path in spec.fmus.items():
+        try:
+            md = FMUInstance(name, path).model_description
+            fmus[name] = {"file": str(path), "guid": md.guid, "fmi": md.fmiVersion, "model": md.modelName}
+        except Exception as exc:  # the FMU was read when the campaign was checked; it may have gone since
+            fmus[name] = {"file": str(path), "guid": f"unreadable now: {exc}", "fmi": "", "model": ""}
+    s = spec.sample
+    return {"simulation": {"start": spec.start, "stop": spec.stop, "step": spec.step, "order": spec.order},
+            "sample": {k: v for k, v in s.items() if k != "fault"}, "fault": s["fault"],
+            "parameters": dict(spec.parameters), "analysis": spec.analysis, "fmus": fmus,
+            "diagnosers": spec.diagnosers}
 
 
 def _diagnoser(name, runs, h, conf, target, scales) -> DiagnoserFigures:

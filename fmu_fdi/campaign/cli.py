@@ -23,8 +23,11 @@ def add_parser(subparsers):
     """Add the ``campaign`` command to an ``argparse`` sub-parser set; returns the parser."""
     p = subparsers.add_parser("campaign", help="run a fault-injection campaign and write its report",
                               description=_DESCRIPTION)
-    p.add_argument("campaign", help="campaign file (.toml, format fmu-fdi-campaign/1)")
-    p.add_argument("-o", "--output", required=True, metavar="DIR", help="results and report folder")
+    p.add_argument("campaign", nargs="?", help="campaign file (.toml, format fmu-fdi-campaign/1)")
+    p.add_argument("-o", "--output", metavar="DIR", help="results and report folder (no default: required to run)")
+    p.add_argument("--example", metavar="DIR", help="write the example campaign DIR/dts200.toml and the FMUs it "
+                                                    "runs (the DTS200 plant and a sensor observer bank), then stop "
+                                                    "(default: none)")
     p.add_argument("--dry-run", action="store_true", help="list the runs and stop (default: run them)")
     p.add_argument("--resume", action="store_true", help="keep the finished runs of DIR/runs.jsonl, run the rest (default: start afresh)")
     p.add_argument("--workers", type=int, default=1, help="worker processes (default 1: this process)")
@@ -44,6 +47,13 @@ def run(args) -> int:
     from .runner import run_campaign
     from .spec import CampaignSpec
 
+    if args.example:
+        return _example(args.example)
+    if not args.campaign or not args.output:
+        missing = [x for x, v in (("CAMPAIGN", args.campaign), ("-o DIR", args.output)) if not v]
+        print(f"fmu-fdi campaign: error: give {' and '.join(missing)} (or --example DIR for a campaign to start "
+              f"from)", file=sys.stderr)
+        return 2
     try:
         spec = CampaignSpec.load(args.campaign)
         spec.traces = spec.traces or args.traces
@@ -60,14 +70,29 @@ def run(args) -> int:
             return 0
         results = run_campaign(spec, args.output, workers=args.workers, scheduler=args.scheduler,
                                resume=args.resume, progress=None if not args.no_progress else False)
+        files = write_report(aggregate(results), args.output)
     except (CoSimulationError, FileNotFoundError) as exc:
-        print(f"fmu-fdi campaign: error: {exc}", file=sys.stderr)
+        print(f"fmu-fdi campaign: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
-    files = write_report(aggregate(results), args.output)
     done = len(results.records)
-    print(f"{done} of {len(spec.runs())} runs in {results.path} ({results.skipped} from before, "
+    planned = results.extra.get("planned", done)
+    print(f"{done} of {planned} planned runs in {results.path} ({results.skipped} from before, "
           f"{len(results.failed)} failed, {results.seconds:.1f} s); report {files['report']}")
     if results.interrupted:
         print("fmu-fdi campaign: stopped before the end; run again with --resume", file=sys.stderr)
         return 130
+    return 0
+
+
+def _example(folder) -> int:
+    """``--example DIR``: the example campaign and its FMUs (:mod:`fmu_fdi.campaign.example`)."""
+    from ..outpath import check_output_path
+    from .example import build_fmus, write_campaign
+
+    check_output_path(__import__("pathlib").Path(folder) / "dts200.toml", (".toml",), "example campaign")
+    fmus = build_fmus(folder)
+    path = write_campaign(folder, "dts200")
+    for p in (*fmus.values(), path):
+        print(f"wrote {p}")
+    print(f"run it: fmu-fdi campaign {path} -o results")
     return 0

@@ -2,7 +2,8 @@
 level sensors (three residuals, rms over 20 s, the analytic threshold of a 1e-4 false-alarm
 probability per sample for the 0.1 cm sensor noise, persistence 3 of 5), the pumps at their
 operating flows, Jacobi order. It serves the tests, the benchmark (benchmarks/campaign_speed.py)
-and as a template for a campaign file.
+and as a template for a campaign file: ``fmu-fdi campaign --example DIR`` (or ``python -m
+fmu_fdi.campaign.example DIR``) writes ``DIR/dts200.toml`` and the FMUs it runs.
 """
 from __future__ import annotations
 
@@ -100,3 +101,11 @@ def write_campaign(folder, name="dts200-dos", *, stop=1000.0, fault_free=2, repl
     path = Path(folder) / f"{name}.toml"
     path.write_text(text, encoding="utf-8")
     return path
+
+
+if __name__ == "__main__":
+    import sys
+
+    from .cli import _example
+
+    sys.exit(_example(sys.argv[1] if len(sys.argv) > 1 else "campaign"))

@@ -2,7 +2,12 @@
 
 Files written to the output folder: ``report.html``; ``false_alarms.csv`` (one row per
 diagnoser), ``detection.csv``, ``delays.csv``, ``sweep.csv`` (rows per diagnoser and target /
-scale), ``confusion_<diagnoser>.csv``.
+scale), ``confusion_<diagnoser>.csv``, ``runs.csv`` (one row per run: scenario, status, per diagnoser
+false alarms, delay and verdict).
+
+The report opens with the campaign's settings (simulation, sample, analysis, every FMU with its
+GUID) and, when fewer runs finished than the campaign file plans (Ctrl-C), a banner saying so:
+the figures then describe only the finished runs.
 """
 from __future__ import annotations
 
@@ -46,7 +51,7 @@ def write_report(figures: CampaignFigures, out_dir) -> dict:
                 w.writerow([label] + counts)
         files[f"confusion_{name}"] = conf_path
     for key, rows in (("false_alarms", fa_rows), ("detection", det_rows), ("delays", delay_rows),
-                      ("sweep", sweep_rows)):
+                      ("sweep", sweep_rows), ("runs", figures.run_rows)):
         files[key] = _csv(out / f"{key}.csv", rows)
     files["report"] = out / "report.html"
     files["report"].write_text(_html(figures), encoding="utf-8")
@@ -66,7 +71,7 @@ def _png(fig) -> str:
     import matplotlib.pyplot as plt
 
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
     plt.close(fig)
     return f'<img alt="plot" src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}">'
 
@@ -89,9 +94,17 @@ def _table(header, rows) -> str:
 
 def _html(fig: CampaignFigures) -> str:
     pct = f"{fig.confidence:.0%}"
-    parts = [f"<h1>Campaign {html.escape(fig.name)}</h1>",
-             f"<p>{fig.runs} runs, {len(fig.failed)} failed; intervals are exact (Clopper–Pearson) at {pct} "
-             f"confidence; step h = {fig.step:g} s; target false-alarm rate {fig.target_rate:g} per sample.</p>"]
+    planned = fig.planned if fig.planned is not None else fig.runs
+    parts = [f"<h1>Campaign {html.escape(fig.name)}</h1>"]
+    if fig.runs < planned or fig.interrupted:
+        parts.append(f"<p class='banner'>Partial campaign: {fig.runs} of {planned} planned runs finished "
+                     f"(stopped before the end; run again with --resume to finish it). Every figure below "
+                     f"describes the finished runs only.</p>")
+    parts.append(f"<p>{fig.runs} of {planned} planned runs, {len(fig.failed)} failed; intervals are exact "
+                 f"(Clopper–Pearson) at {pct} confidence; step h = {fig.step:g} s; target false-alarm rate "
+                 f"{fig.target_rate:g} per sample.</p>")
+    parts += [f"<p class='note'>{html.escape(w)}</p>" for w in fig.warnings]
+    parts.append(_settings_html(fig.settings))
     if fig.failed:
         parts.append("<h2>Failed runs</h2>" + _table(["run", "error"], [[f["run"], f["error"]] for f in fig.failed]))
     for name, d in fig.diagnosers.items():
@@ -106,7 +119,9 @@ def _html(fig: CampaignFigures) -> str:
                   f"[{_fmt(fa['interval'][0])}, {_fmt(fa['interval'][1])}]", fa["onsets"], fa["mtbfa"],
                   f"[{_fmt(fa['mtbfa_interval'][0])}, {_fmt(fa['mtbfa_interval'][1])}]"]]))
         if d.detection:
-            parts.append("<h3>Detection probability against fault size</h3>" + _detection_plot(d) + _table(
+            parts.append("<h3>Detection probability against fault size</h3>"
+                         "<p>Fault magnitude in the units of the faulted variable (its offset, factor or rate as "
+                         "the fault kind says).</p>" + _detection_plot(d) + _table(
                 ["target", "kind", "magnitude", "runs", "detected", "probability", f"{pct} interval"],
                 [[r["target"], r["kind"], r["magnitude"], r["runs"], r["detected"], r["probability"],
                   f"[{_fmt(r['lower'])}, {_fmt(r['upper'])}]"] for r in d.detection]))
@@ -115,38 +130,108 @@ def _html(fig: CampaignFigures) -> str:
                 [[r["target"], r["magnitude"], r["detected"], r.get("min"), r.get("p10"), r.get("median"),
                   r.get("p90"), r.get("max")] for r in d.delays]))
             c = d.confusion
-            parts.append("<h3>Isolation (runs by injected fault and verdict)</h3>" + _confusion_plot(d) + _table(
+            parts.append("<h3>Isolation (runs by injected fault and verdict)</h3>"
+                         "<p>The verdict is the isolation the diagnoser held longest while it alarmed in the faulty "
+                         "part; <b>none</b>: the fault raised no alarm there; <b>unknown</b>: alarms without an "
+                         "isolation (isolated_fault = −1).</p>" + _confusion_plot(d) + _table(
                 ["injected \\ isolated as"] + c["columns"], [[r] + counts for r, counts in zip(c["rows"], c["counts"])]))
         if d.sweep:
             ch = d.choice
             text = (f"threshold_scale {ch['scale']:.4g} meets the target: rate {ch['rate']:.3g} per sample, upper "
                     f"{pct} bound {ch['upper']:.3g} ≤ {fig.target_rate:g}; detection probability "
                     f"{_fmt(ch['detection'])}" if ch["scale"] is not None else html.escape(ch["reason"]))
-            parts.append(f"<h3>Threshold sweep</h3><p>{text} (scales relative to the campaign's thresholds).</p>"
+            parts.append(f"<h3>Threshold sweep</h3><p>{text} (scales relative to the campaign's thresholds). "
+                         f"The shaded band reaches the one-sided upper {pct} bound of the table; a rate of 0 is "
+                         f"drawn at 0 (the axis is linear below one alarm in the fault-free samples).</p>"
                          + _sweep_plot(d, fig) + _table(
                              ["scale", "alarmed samples", "rate", f"upper {pct} bound", "onsets", "detection"],
                              [[r["scale"], r["fa_samples"], r["rate"], r["upper"], r["fa_onsets"], r["detection"]]
                               for r in d.sweep]))
-    style = ("body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse;margin:8px 0}"
-             "td,th{border:1px solid #bbb;padding:2px 6px;text-align:right}.note{color:#a40}")
+    if fig.run_rows:
+        header = list(dict.fromkeys(k for r in fig.run_rows for k in r if k != "key"))
+        shown = fig.run_rows[:_RUNS_SHOWN]
+        more = (f"<p>The first {_RUNS_SHOWN} of {len(fig.run_rows)} runs; all are in runs.csv.</p>"
+                if len(fig.run_rows) > _RUNS_SHOWN else "<p>Also in runs.csv.</p>")
+        parts.append("<h2>Runs</h2>" + more + _table(header, [[r.get(h) for h in header] for r in shown]))
+    style = ("body{font-family:sans-serif;max-width:1400px;margin:auto;padding:0 12px}img{max-width:100%}"
+             "table{border-collapse:collapse;margin:8px 0}td,th{border:1px solid #bbb;padding:2px 6px;"
+             "text-align:right}.note{color:#a40}.banner{background:#fde2c8;border:2px solid #c60;padding:8px;"
+             "font-weight:bold}")
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(fig.name)}</title>"
             f"<style>{style}</style></head><body>{''.join(parts)}</body></html>")
+
+
+_RUNS_SHOWN = 500
+
+
+def _settings_html(settings: dict) -> str:
+    """The campaign's set-up as tables: simulation, sample and faults, analysis, FMUs (GUIDs)."""
+    if not settings:
+        return ""
+    sim, sample, fault = settings["simulation"], settings["sample"], settings["fault"]
+    rows = [["simulation", f"start {sim['start']:g} s, stop {sim['stop']:g} s, step {sim['step']:g} s, "
+                           f"order {sim['order']}"],
+            ["sampling", ", ".join(f"{k} = {v}" for k, v in sample.items())],
+            ["fault kinds", _dim(fault["kind"])], ["fault targets", _dim(fault["target"]) or "none"],
+            ["fault magnitudes", _dim(fault["magnitude"])], ["fault onsets (s)", _dim(fault["onset"])],
+            ["fault durations (s)", _dim(fault["duration"]).replace("inf", "permanent")]]
+    rows += [[f"fault {x}", fault[x]] for x in ("ramp", "period") if x in fault]
+    rows.append(["parameters (every run)", ", ".join(f"{k} = {v}" for k, v in settings["parameters"].items())
+                 or "none (the FMUs' start values)"])
+    a = settings["analysis"]
+    rows.append(["analysis", f"confidence {a['confidence']:g}, target false-alarm rate {a['false_alarm_rate']:g} "
+                             f"per sample, scales {a['scales']['min']:g} … {a['scales']['max']:g} "
+                             f"({a['scales']['count']} + 1), scored from "
+                             + ("the start" if a["zone_start"] is None else f"{a['zone_start']:g} s")])
+    for name, table in settings.get("diagnosers", {}).items():
+        rows.append([f"diagnoser {name}", ", ".join(f"{k} = {v}" for k, v in table.items())])
+    fmus = _table(["instance", "file", "model", "FMI", "GUID"],
+                  [[n, f["file"], f["model"], f["fmi"], f["guid"]] for n, f in settings["fmus"].items()])
+    body = "".join(f"<tr><th>{html.escape(str(k))}</th><td style='text-align:left'>{html.escape(str(v))}</td></tr>"
+                   for k, v in rows)
+    return f"<h2>Settings</h2><table class='settings'>{body}</table>{fmus}"
+
+
+def _dim(value) -> str:
+    if isinstance(value, dict):
+        return f"{value['min']:g} … {value['max']:g} ({value['scale']})"
+    return ", ".join("inf" if v is None else (f"{v:g}" if isinstance(v, float) else str(v)) for v in value)
+
+
+def _magnitude_axis(values):
+    """x positions of fault magnitudes: the values themselves, or their ranks when they do not
+    fit a readable linear axis (|x| > 1e100 or not finite)."""
+    xs = sorted(set(values))
+    if all(math.isfinite(v) and abs(v) <= 1e100 for v in xs):
+        return (lambda v: v), None
+    pos = {v: i for i, v in enumerate(xs)}
+    return (lambda v: pos[v]), ([pos[v] for v in xs], [f"{v:.3g}" for v in xs])
 
 
 def _detection_plot(d) -> str:
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 3.5))
-    for target in dict.fromkeys(r["target"] for r in d.detection):
+    fig, ax = plt.subplots(figsize=(11, 4.5))
+    at, ticks = _magnitude_axis([r["magnitude"] for r in d.detection])
+    targets = list(dict.fromkeys(r["target"] for r in d.detection))
+    span = [at(r["magnitude"]) for r in d.detection]
+    width = (max(span) - min(span)) or 1.0
+    markers = "osD^v<>p*h"
+    for i, target in enumerate(targets):
         rows = [r for r in d.detection if r["target"] == target]
-        x = [r["magnitude"] for r in rows]
+        shift = (i - (len(targets) - 1) / 2) * 0.012 * width  # side by side, so no curve hides another
+        x = [at(r["magnitude"]) + shift for r in rows]
         p = [r["probability"] for r in rows]
         err = [[pi - r["lower"] for pi, r in zip(p, rows)], [r["upper"] - pi for pi, r in zip(p, rows)]]
-        ax.errorbar(x, p, yerr=err, marker="o", capsize=3, label=target)
-    ax.set_xlabel("fault magnitude")
-    ax.set_ylabel("detection probability")
+        ax.errorbar(x, p, yerr=err, marker=markers[i % len(markers)], capsize=3, label=target)
+    if ticks:
+        ax.set_xticks(*ticks)
+    ax.set_xlabel("fault magnitude (units of the faulted variable; curves offset slightly to stay apart)",
+                  fontsize=10)
+    ax.set_ylabel("detection probability", fontsize=10)
     ax.set_ylim(-0.05, 1.05)
-    ax.legend(fontsize=7)
+    ax.tick_params(labelsize=9)
+    ax.legend(fontsize=9)
     ax.grid(alpha=0.3)
     return _png(fig)
 
@@ -157,11 +242,12 @@ def _delay_plot(d) -> str:
     rows = [r for r in d.delays if r["values"]]
     if not rows:
         return ""
-    fig, ax = plt.subplots(figsize=(7, 3.5))
+    fig, ax = plt.subplots(figsize=(11, 4.5))
     ax.boxplot([r["values"] for r in rows], whis=(0, 100))
     ax.set_xticks(range(1, len(rows) + 1), [f"{r['target'].split('.')[-1]}\n{r['magnitude']:.3g}" for r in rows],
-                  fontsize=6)
-    ax.set_ylabel("detection delay (s)")
+                  fontsize=9 if len(rows) <= 16 else 7)
+    ax.set_ylabel("detection delay (s)", fontsize=10)
+    ax.tick_params(axis="y", labelsize=9)
     ax.grid(alpha=0.3)
     return _png(fig)
 
@@ -174,41 +260,52 @@ def _confusion_plot(d) -> str:
     if not c["rows"]:
         return ""
     M = np.array(c["counts"], float)
-    fig, ax = plt.subplots(figsize=(1 + 0.6 * len(c["columns"]), 1 + 0.4 * len(c["rows"])))
-    ax.imshow(M / np.maximum(M.sum(axis=1, keepdims=True), 1), cmap="Blues", vmin=0, vmax=1)
+    share = M / np.maximum(M.sum(axis=1, keepdims=True), 1)
+    fig, ax = plt.subplots(figsize=(2 + 1.0 * len(c["columns"]), 1.5 + 0.6 * len(c["rows"])))
+    ax.imshow(share, cmap="Blues", vmin=0, vmax=1)
     for i in range(M.shape[0]):
         for j in range(M.shape[1]):
-            ax.text(j, i, f"{int(M[i, j])}", ha="center", va="center", fontsize=7)
-    ax.set_xticks(range(len(c["columns"])), c["columns"], rotation=60, fontsize=7)
-    ax.set_yticks(range(len(c["rows"])), c["rows"], fontsize=7)
-    ax.set_xlabel("isolated as")
-    ax.set_ylabel("injected")
+            ax.text(j, i, f"{int(M[i, j])}", ha="center", va="center", fontsize=10,
+                    color="white" if share[i, j] > 0.5 else "black")  # readable on dark and light cells
+    ax.set_xticks(range(len(c["columns"])), c["columns"], rotation=45, ha="right", fontsize=9)
+    ax.set_yticks(range(len(c["rows"])), c["rows"], fontsize=9)
+    ax.set_xlabel("isolated as (none: no alarm; unknown: alarm, no isolation)", fontsize=9)
+    ax.set_ylabel("injected", fontsize=10)
     return _png(fig)
 
 
 def _sweep_plot(d, figures) -> str:
+    """Rate against scale, and the ROC. The y (x) axis is symlog, linear below one alarmed sample
+    in the N fault-free samples, so a rate of 0 sits at 0 and every band reaches the table's
+    one-sided upper bound."""
     import matplotlib.pyplot as plt
 
     rows = [r for r in d.sweep if r["rate"] is not None]
     if not rows:
         return ""
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.5))
+    pct = f"{figures.confidence:.0%}"
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.5))
     s = [r["scale"] for r in rows]
-    floor = 0.5 / rows[0]["samples"]  # zero counts drawn at half a sample (log axis)
-    a1.semilogy(s, [max(r["rate"], floor) for r in rows], "o-", label="rate per sample")
-    a1.fill_between(s, [max(r["interval"][0], floor) for r in rows], [r["interval"][1] for r in rows], alpha=0.3,
-                    label=f"{figures.confidence:.0%} interval")
+    one = 1.0 / rows[0]["samples"]  # one alarmed sample
+    a1.plot(s, [r["rate"] for r in rows], "o-", label="rate per sample (0 drawn at 0)")
+    a1.fill_between(s, 0.0, [r["upper"] for r in rows], alpha=0.25, label=f"0 … one-sided upper {pct} bound")
     a1.axhline(figures.target_rate, color="r", ls="--", label="target")
     if d.choice["scale"] is not None:
         a1.axvline(d.choice["scale"], color="g", ls=":", label="chosen scale")
-    a1.set_xlabel("threshold scale")
-    a1.set_ylabel("false-alarm rate")
-    a1.legend(fontsize=7)
+    a1.set_yscale("symlog", linthresh=one)
+    a1.set_ylim(bottom=0.0)
+    a1.set_xlabel("threshold scale", fontsize=10)
+    a1.set_ylabel(f"false-alarm rate (linear below {one:.2g})", fontsize=10)
+    a1.legend(fontsize=9)
     if any(r["detection"] is not None for r in rows):
-        a2.semilogx([max(r["rate"], floor) for r in rows], [r["detection"] or 0.0 for r in rows], "o-")
-        a2.set_xlabel("false-alarm rate per sample")
-        a2.set_ylabel("detection probability")
-        a2.set_title("ROC over threshold_scale", fontsize=9)
+        a2.plot([r["rate"] for r in rows], [r["detection"] or 0.0 for r in rows], "o-")
+        a2.set_xscale("symlog", linthresh=one)
+        a2.set_xlim(left=0.0)
+        a2.set_xlabel(f"false-alarm rate per sample (linear below {one:.2g})", fontsize=10)
+        a2.set_ylabel("detection probability", fontsize=10)
+        a2.set_ylim(-0.05, 1.05)
+        a2.set_title("ROC over threshold_scale", fontsize=10)
     for ax in (a1, a2):
+        ax.tick_params(labelsize=9)
         ax.grid(alpha=0.3)
     return _png(fig)

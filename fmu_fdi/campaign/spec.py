@@ -65,6 +65,13 @@ are relative to the campaign file. A complete file::
 Seeds: the k-th run (0-based, in the order of :meth:`CampaignSpec.runs`) sets the j-th seed
 parameter to ``seed_base + k · len(seeds) + j``: no two runs share a noise sequence, and a
 run's seeds do not depend on how the campaign is executed.
+
+Values are taken as written or refused, before anything runs: numbers are numbers (``true`` is
+not 1), every parameter and seed must fit its FMU variable's type (an Integer seed above
+2^31 − 1 is an error, not a wrapped seed), a name is set in one place only ([parameters] or
+[sample]), targets read ``instance.variable``. A campaign makes at most :data:`MAX_RUNS` runs
+and :data:`MAX_SCALES` sweep factors; a run at most ``MAX_STEPS`` steps
+(:mod:`fmu_fdi.cosim.master`).
 """
 from __future__ import annotations
 
@@ -88,6 +95,12 @@ _TOP = {"format", "name", "simulation", "fmus", "connections", "inputs", "parame
 _SAMPLE = {"method", "runs", "seed", "replicates", "fault_free", "seeds", "seed_base", "fault", "parameters"}
 _ANALYSIS_DEFAULTS = {"confidence": 0.95, "false_alarm_rate": 1e-3,
                       "scales": {"min": 0.5, "max": 2.0, "count": 16}, "zone_start": None}
+
+
+#: most runs one campaign file may make (each run's record stays in memory for the report)
+MAX_RUNS = 1_000_000
+#: most threshold_scale factors of the sweep (each costs one decision pass per run and diagnoser)
+MAX_SCALES = 10_000
 
 
 class CampaignError(CoSimulationError):
@@ -158,14 +171,22 @@ class CampaignSpec:
             import tomllib
         except ModuleNotFoundError:  # Python 3.10
             import tomli as tomllib
+        from .._schema import read_text
+
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"campaign file: no such file {str(path)!r}")
+        text = read_text(path, "campaign file", CampaignError)  # binary, UTF-16, an FMU: one-line errors
         try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
+            data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise CampaignError(f"campaign file {path}: not valid TOML: {exc}") from None
-        return cls.from_dict(data, path.resolve().parent)
+        except RecursionError:
+            raise CampaignError(f"campaign file {path}: nested too deeply to be a campaign file") from None
+        try:
+            return cls.from_dict(data, path.resolve().parent)
+        except RecursionError:
+            raise CampaignError(f"campaign file {path}: nested too deeply to be a campaign file") from None
 
     @classmethod
     def from_dict(cls, data: dict, folder=".") -> "CampaignSpec":
@@ -203,6 +224,16 @@ class CampaignSpec:
                    labels=dict(_table(data, "labels")), sample=_sample(_table(data, "sample")),
                    analysis=_analysis(_table(data, "analysis")),
                    traces=bool(_table(data, "output").get("traces", False)), source=data)
+        unused = sorted(set(spec.labels) - set(spec.sample["fault"]["target"]))
+        if unused:
+            raise CampaignError(f"campaign: [labels] {', '.join(unused)} is not a fault target of [sample.fault] "
+                                f"({', '.join(spec.sample['fault']['target']) or 'none'})")
+        drawn = set(spec.sample["seeds"]) | set(spec.sample["parameters"])
+        twice = sorted(drawn & set(spec.parameters))
+        if twice:
+            raise CampaignError(f"campaign: {', '.join(twice)} is set in [parameters] and drawn per run by [sample] "
+                                f"(seeds or sample.parameters); the run would ignore the [parameters] value: "
+                                f"give it in one place")
         for name, table in spec.diagnosers.items():
             if name not in paths:
                 raise CampaignError(f"campaign: [diagnosers.{name}] is not an FMU of [fmus] ({', '.join(paths)})")
@@ -221,7 +252,7 @@ class CampaignSpec:
 
         runs = self.runs()
         instances = {name: FMUInstance(name, path) for name, path in self.fmus.items()}
-        seen = {}
+        seen = {"last": runs[-1]}  # the largest seeds: each seed must fit its variable's type
         for r in runs:
             f = r.fault
             key = None if f is None else (f["kind"], f["target"], f["duration"] is None)
@@ -240,6 +271,10 @@ class CampaignSpec:
         s = self.sample
         params = s["parameters"]
         fault_dims = {k: s["fault"][k] for k in FAULT_DIMENSIONS}
+        count = self.run_count()
+        if count > MAX_RUNS:
+            raise CampaignError(f"campaign: [sample] makes {count:.4g} runs, more than the {MAX_RUNS} a campaign may "
+                                f"have; sample fewer (method = \"random\" with runs = N, or shorter lists)")
         scenarios = []  # (fault or None, parameters)
         if s["method"] == "grid":
             names = list(params)
@@ -281,6 +316,15 @@ class CampaignSpec:
             runs.append(run)
         return runs
 
+    def run_count(self) -> int:
+        """How many runs :meth:`runs` makes, counted without making them."""
+        s = self.sample
+        if s["method"] != "grid":
+            return s["fault_free"] + s["runs"]
+        combos = math.prod(len(v) for v in s["parameters"].values())
+        faults = math.prod(len(s["fault"][k]) for k in FAULT_DIMENSIONS) if s["fault"]["target"] else 0
+        return combos * (s["fault_free"] + faults * s["replicates"])
+
     @property
     def scales(self) -> np.ndarray:
         """The threshold_scale factors of the sweep (geometric grid, always containing 1)."""
@@ -309,6 +353,8 @@ def _table(data, key) -> dict:
 
 
 def _float(x, what) -> float:
+    if isinstance(x, bool) or isinstance(x, str):
+        raise CampaignError(f"campaign: {what} must be a number, got {x!r}")
     try:
         v = float(x)
     except (TypeError, ValueError):
@@ -399,6 +445,10 @@ def _sample(s: dict) -> dict:
     for x in ("ramp", "period"):
         if x in f:
             fault[x] = _float(f[x], f"sample.fault.{x}")
+    for target in fault["target"]:
+        if not isinstance(target, str) or "." not in target.strip(".") or target.startswith("."):
+            raise CampaignError(f"campaign: sample.fault.target {target!r} must read 'instance.variable', "
+                                f"e.g. 'plant.f_sensor_h1'")
     out["fault"] = fault
     if method == "random" and out["runs"] and not fault["target"]:
         raise CampaignError("campaign: [sample] runs > 0 needs [sample.fault] target")
@@ -431,8 +481,10 @@ def _analysis(a: dict) -> dict:
         raise CampaignError(f"campaign: analysis.false_alarm_rate must lie in (0, 1), got {rate}")
     sc = dict(_ANALYSIS_DEFAULTS["scales"], **out["scales"])
     lo, hi, n = _float(sc["min"], "analysis.scales.min"), _float(sc["max"], "analysis.scales.max"), sc["count"]
-    if not 0 < lo <= hi or isinstance(n, bool) or not isinstance(n, int) or n < 1:
-        raise CampaignError(f"campaign: analysis.scales needs 0 < min <= max and an integer count >= 1, got {sc}")
+    if not 0 < lo <= hi or isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_SCALES \
+            or not math.isfinite(hi):
+        raise CampaignError(f"campaign: analysis.scales needs 0 < min <= max < inf and an integer count in "
+                            f"[1, {MAX_SCALES}], got {sc}")
     zone = out["zone_start"]
     return {"confidence": c, "false_alarm_rate": rate, "scales": {"min": lo, "max": hi, "count": n},
             "zone_start": None if zone is None else _float(zone, "analysis.zone_start")}

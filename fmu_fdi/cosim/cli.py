@@ -93,23 +93,27 @@ def run(args) -> int:
     from ..outpath import check_output_path
 
     try:
-        check_output_path(args.output, (".csv",), "result CSV")
+        reads = [args.input] + [t.partition("=")[2] or t for t in args.plant + [args.diagnoser or ""] if t]
+        check_output_path(args.output, (".csv",), "result CSV", inputs=reads)
         if args.ssp:
             check_output_path(args.ssp, (".ssp",), "SSP file")
         if args.input:
             check_input_file(args.input, "input CSV")
         sim = _build(args)
-        if not args.allow_unconnected:
-            _check_diagnoser_fed(sim, args)
         if args.ssp:
             sim.export_ssp(args.ssp, drop_faults=True)
             if sim.faults:
                 print(f"fmu-fdi simulate: note: {args.ssp} describes the fault-free system "
                       f"(SSP cannot express the fault scenarios)", file=sys.stderr)
-        result = sim.run(csv=args.output)
+        with _stop_between_steps(sim):
+            result = sim.run(csv=args.output)
     except (CoSimulationError, FileNotFoundError, InputFileError, OutputError) as exc:
         print(f"fmu-fdi simulate: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"fmu-fdi simulate: interrupted (Ctrl-C); the rows so far are in {args.output}, marked incomplete",
+              file=sys.stderr)
+        return 130
     except SimulationFailed as exc:
         _warn([w for w in exc.warnings if w.split(": ", 1)[-1] not in str(exc)])  # not the failure twice
         print(f"fmu-fdi simulate: {exc} ({exc.rows_written} rows written to {args.output}, marked incomplete)",
@@ -118,6 +122,35 @@ def run(args) -> int:
     _warn(result.warnings)
     print(f"{sim.n_steps + 1} rows x {len(result.names)} columns written to {args.output}")
     return 0
+
+
+class _stop_between_steps:
+    """Ctrl-C asks the master to stop between two steps (a second Ctrl-C interrupts at once):
+    an FMU that runs Python (pythonfmu) never sees the interruption inside its step."""
+
+    def __init__(self, sim):
+        self.sim = sim
+        self._old = None
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def _handle(self, signum, frame):
+        if self.sim.interrupt_requested:
+            raise KeyboardInterrupt
+        self.sim.interrupt_requested = True
+
+    def __exit__(self, *exc):
+        import signal
+
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+        return False
 
 
 def _warn(lines):
@@ -139,23 +172,26 @@ def _build(args) -> CoSimulation:
         key, value = _pair(text, "--param", "FMU.VAR=VALUE")
         params[key] = _literal(value)
     inputs = InputSignals.from_csv(args.input, args.interpolation) if args.input else None
+    _check_swapped(fmus)
     return CoSimulation(fmus, connections, inputs, step=args.step, stop=args.stop, start=args.start,
                         order=args.order, faults=[parse_fault(s) for s in args.fault], parameters=params,
-                        record_inputs=True)
+                        record_inputs=True, allow_unconnected=args.allow_unconnected)
 
 
-def _check_diagnoser_fed(sim, args):
-    """Every input of the diagnoser instance is connected or fed by an external signal."""
-    if not args.diagnoser:
+def _check_swapped(fmus: dict) -> None:
+    """A --diagnoser FMU without diagnostic outputs next to a --plant FMU with them: swapped."""
+    from .instance import FMUInstance
+
+    if "diagnoser" not in fmus or len(fmus) < 2:
         return
-    name = next(reversed(sim.fmus))  # the diagnoser is added last
-    fed = {fd.var for fd in sim._wiring.feeds if fd.fmu == name and fd.source[0] in ("output", "signal")}
-    loose = [v for v in sim.fmus[name].names("input") if v not in fed]
-    if loose:
-        raise CoSimulationError(
-            f"diagnoser inputs {', '.join(loose)} are neither connected nor fed by --input, so the diagnoser "
-            f"would read their start values; give them a source (--input CSV with columns "
-            f"{', '.join(loose)}, or --connect) or pass --allow-unconnected")
+    diagnostic = {"fault_detected", "isolated_fault"}
+    insts = {n: FMUInstance(n, p) for n, p in fmus.items()}
+    if diagnostic <= set(insts["diagnoser"].names("output")):
+        return
+    plants = [n for n, f in insts.items() if n != "diagnoser" and diagnostic <= set(f.names("output"))]
+    if plants:
+        raise CoSimulationError(f"--diagnoser {fmus['diagnoser']} has no fault_detected/isolated_fault outputs but "
+                                f"--plant {fmus[plants[0]]} has: are --plant and --diagnoser swapped?")
 
 
 def _named(fmus, text, default):

@@ -34,6 +34,7 @@ _CAST = {"real": float, "integer": int, "boolean": bool, "string": str}
 _INSTANCE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _RESERVED = {"time", "fault"}  # would clash with the Result's own columns
 _LOG_LINES = 20
+_DATED = re.compile(r"^t\s*=\s*\S+:")  # an FMU message that names its own time, 't=12: ...'
 _WARNINGS_KEPT = 20  # distinct warning texts kept per FMU (all are counted)
 
 
@@ -273,8 +274,9 @@ class FMUInstance:
 
     def warning_summary(self) -> list:
         """One line per distinct warning message: ``FMU 'name' at t=...: text (N times)``."""
-        lines = [f"FMU '{self.name}'" + (f" at t={t:g}" if t is not None else "") + f": {text}"
-                 + (f" ({count} times)" if count > 1 else "") for text, (count, t) in self.warnings.items()]
+        lines = [f"FMU '{self.name}'" + (f" at t={t:g}" if t is not None and not _DATED.match(text) else "")
+                 + f": {text}" + (f" ({count} times)" if count > 1 else "")
+                 for text, (count, t) in self.warnings.items()]  # a message that dates itself is not dated twice
         kept = sum(c for c, _ in self.warnings.values())
         if self.n_warnings > kept:
             lines.append(f"FMU '{self.name}': {self.n_warnings - kept} more warnings with other texts")

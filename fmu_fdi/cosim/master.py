@@ -80,6 +80,11 @@ class CoSimulation:
         Also record every input the master sets (``fmu.var``: the plant inputs from external
         signals and faults, what the diagnoser read), so the result is a complete log for
         offline diagnosis. ``fmu-fdi simulate`` does. Default False.
+    allow_unconnected : bool
+        Every input of a diagnostic FMU (one with ``fault_detected`` and ``isolated_fault``
+        outputs) must be connected or fed by an external signal, else it would diagnose its
+        start values: a :class:`CoSimulationError` unless this is True (then each loose input
+        is listed in :attr:`warnings`). Default False, as ``fmu-fdi simulate``.
 
     Attributes
     ----------
@@ -98,7 +103,8 @@ class CoSimulation:
     """
 
     def __init__(self, fmus, connections="auto", inputs=None, *, step, stop, start=0.0,
-                 order="gauss-seidel", faults=(), parameters=None, record_inputs: bool = False):
+                 order="gauss-seidel", faults=(), parameters=None, record_inputs: bool = False,
+                 allow_unconnected: bool = False):
         if order not in ORDERS:
             raise CoSimulationError(f"order {order!r} is not one of {ORDERS}")
         self.start, self.stop, self.step = _grid(start, stop, step)
@@ -128,6 +134,29 @@ class CoSimulation:
                                         f"so it would never act")
         #: warnings (and worse) the FMUs logged in the last run, one line per distinct message
         self.warnings: list[str] = []
+        #: diagnoser inputs neither connected nor fed (allowed by ``allow_unconnected``)
+        self.unconnected = self._diagnoser_inputs_fed(allow_unconnected)
+        #: set (e.g. by a SIGINT handler) to stop :meth:`run` between two steps with KeyboardInterrupt,
+        #: never inside an FMU's step (a Python FMU would turn the interruption into a fatal error)
+        self.interrupt_requested = False
+
+    def _diagnoser_inputs_fed(self, allow: bool) -> list:
+        """Loose diagnoser inputs as ``fmu.var``; an error unless ``allow`` (see the class docstring)."""
+        diagnostic = {"fault_detected", "isolated_fault"}
+        fed = {(fd.fmu, fd.var) for fd in self._wiring.feeds if fd.source[0] in ("output", "signal")}
+        loose = []
+        for name, fmu in self.fmus.items():
+            if diagnostic <= set(fmu.names("output")):
+                loose += [f"{name}.{v}" for v in fmu.names("input") if (name, v) not in fed]
+        if loose and not allow:
+            where = sorted({v.split(".", 1)[0] for v in loose})
+            names = [v.split(".", 1)[1] for v in loose] if len(where) == 1 else loose
+            raise CoSimulationError(
+                f"diagnoser inputs {', '.join(names)} are neither connected nor fed by an input signal (instance "
+                f"{', '.join(where)}), so the diagnoser would read their start values; give them a source "
+                f"(--input CSV with columns {', '.join(names)}, or --connect; inputs=, connections=) or pass "
+                f"--allow-unconnected (allow_unconnected=True)")
+        return loose
 
     @property
     def times(self) -> list:
@@ -223,6 +252,8 @@ class CoSimulation:
                 try:
                     run.start(stack)
                     for k in range(rows):
+                        if self.interrupt_requested:
+                            raise KeyboardInterrupt
                         if k:
                             run.advance(self.time(k - 1), self.time(k))
                         if done == len(buf) or not k % 1024:
@@ -234,6 +265,8 @@ class CoSimulation:
                     completed = True
                 finally:
                     self.warnings = [line for fmu in self.fmus.values() for line in fmu.warning_summary()]
+                    self.warnings += [f"{v} is not connected: the diagnoser read its start value"
+                                      for v in self.unconnected]
         except SimulationFailed as exc:
             exc.warnings = self.warnings
             if writer is not None:
@@ -368,10 +401,21 @@ def _grid(start, stop, step):
     if not stop > start:
         raise CoSimulationError(f"stop ({stop:g}) must be after start ({start:g})")
     n = (stop - start) / step
+    if not math.isfinite(n) or n > MAX_STEPS:
+        raise CoSimulationError(f"(stop − start) / step = {n:.3g} steps is more than the {MAX_STEPS:.0e} a "
+                                f"co-simulation may take; shorten the run or lengthen the step")
+    if round(n) < 1:
+        raise CoSimulationError(f"step {step:g} s is longer than the run (stop − start = {stop - start:g} s): "
+                                f"there would be no step at all")
     if abs(n - round(n)) > 1e-9 * max(1.0, n):
         raise CoSimulationError(f"stop − start = {stop - start:g} is not a whole number of steps "
                                 f"{step:g} ({n:.6g}); choose stop = start + N·step")
     return start, stop, step
+
+
+#: most communication steps of one co-simulation: 1e10 steps are days of stepping (streamed to a CSV
+#: in bounded memory); beyond it a run would not end in a working lifetime (``--stop 1e308``)
+MAX_STEPS = 10 ** 10
 
 
 def _signals(inputs):

@@ -145,12 +145,7 @@ def wire(fmus, connections, signal_names, faults, parameters, start: float) -> W
         kind = fmus[f].kind(v)
         if kind is None:
             raise CoSimulationError(f"parameter {key}: type {var.type} is not supported")
-        if kind in ("real", "integer"):
-            try:
-                float(value)
-            except (TypeError, ValueError):
-                raise CoSimulationError(f"parameter {key}: {value!r} is not a number ({var.type})") from None
-        initial[f][v] = value
+        initial[f][v] = checked_value(key, var.type, kind, value)
 
     feeds = {}
     for (df, dv), (sf, sv) in connected.items():
@@ -207,3 +202,45 @@ def _fixed_parameter_fault(fault, fmu, var, start, initial, feed):
         feed.runtime = False
         initial[var] = float(nominal)
     initial[var] = fault.apply(start, float(initial[var]))
+
+
+# value ranges of the FMI integer types (FMI 2 Integer and Enumeration: 32-bit)
+_INT_RANGE = {"Integer": 32, "Enumeration": 32, "Int8": 8, "Int16": 16, "Int32": 32, "Int64": 64,
+              "UInt8": -8, "UInt16": -16, "UInt32": -32, "UInt64": -64}
+
+
+def checked_value(key: str, fmi_type: str, kind: str, value):
+    """``value`` for a variable of ``fmi_type`` set before initialisation, exactly as given or
+    refused: a Real takes a finite or infinite number (not a Boolean); an integer type takes a
+    whole number inside its range (no wrap-around: 4294967303 is not a 32-bit 7); a Boolean
+    takes ``true``/``false`` only (not 1, ``"no"`` or ``"maybe"``); a String takes text."""
+    import math
+
+    if kind == "boolean":
+        if isinstance(value, bool):
+            return value
+        raise CoSimulationError(f"parameter {key}: {value!r} is not a Boolean; write true or false")
+    if kind == "string":
+        if isinstance(value, str):
+            return value
+        raise CoSimulationError(f"parameter {key}: {value!r} is not text ({fmi_type})")
+    if isinstance(value, bool) or isinstance(value, str):
+        raise CoSimulationError(f"parameter {key}: {value!r} is not a number ({fmi_type})")
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise CoSimulationError(f"parameter {key}: {value!r} is not a number ({fmi_type})") from None
+    if kind == "real":
+        if math.isnan(number):
+            raise CoSimulationError(f"parameter {key}: NaN is not a value ({fmi_type})")
+        return number
+    whole = int(value) if isinstance(value, int) else (int(number) if math.isfinite(number) and
+                                                       number == int(number) else None)
+    if whole is None:
+        raise CoSimulationError(f"parameter {key}: {value!r} is not a whole number ({fmi_type})")
+    bits = _INT_RANGE.get(fmi_type, 32)
+    lo, hi = (0, 2 ** -bits - 1) if bits < 0 else (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1)
+    if not lo <= whole <= hi:
+        raise CoSimulationError(f"parameter {key}: {whole} is outside the range of {fmi_type} "
+                                f"[{lo}, {hi}]; it would be stored as another number")
+    return whole
