@@ -495,7 +495,7 @@ def _plot(args) -> int:
 
 
 _DIAGNOSER_OUTPUT = re.compile(r"^(residual|evaluation|threshold|alarm)_\d+$|^(fault_detected|isolated_fault|"
-                               r"input_invalid|numeric_reset|active_model|[a-z_]+_flag)$")
+                               r"input_invalid|numeric_reset|active_model|active_member|[a-z_]+_flag)$")
 
 
 def _isolation_column(res, prefix, log_path) -> np.ndarray:
