@@ -77,12 +77,27 @@ def structure_matrix(obj, freqs=None, tol: float | None = None, block: bool = Fa
     freqs : float or array_like, optional
         Frequencies Ω (rad/s) for the strong structure matrix.
     tol : float, optional
-        Strong: absolute gain threshold (default 0.01, Varga's ``FDGainTol``). Weak:
-        absolute H∞-norm threshold (default ``1e-9`` times the largest block norm, i.e.
-        only rounding-level blocks count as zero).
+        Strong: absolute gain threshold, ``S_ij = 1`` when ``||Rf_ij(jω)|| ≥ tol`` at every ω
+        (default 0.01, Varga's ``FDGainTol``, inclusive as ``fdisspec``). Weak: for a
+        residual generator, the judge's absolute threshold on the peak ``max_λ ||Rf_ij(λ)||``
+        over its grid (default :data:`~fmu_fdi.design.postconditions.DEC_TOL`; the designs
+        return rows normalised to unit weakest fault gain, so this is the decoupling tolerance
+        of their post-conditions and ``structure_matrix(gen)`` is
+        ``gen.info['postconditions']['structure_matrix']``); for a model or an LTI system, an
+        absolute H∞-norm threshold (default ``1e-9`` times the largest block norm).
     block : bool
         Treat all residual outputs as one group.
     """
+    if isinstance(obj, ResidualGenerator):
+        from .design.postconditions import DEC_TOL, report
+
+        groups = [list(range(obj.Q.p))] if block else None
+        if freqs is None:
+            out = report(obj, dec_tol=DEC_TOL if tol is None else tol, groups=groups)
+            return np.array(out["structure_matrix"], dtype=int).reshape(len(groups or obj.groups), -1)
+        out = report(obj, freqs=np.atleast_1d(np.asarray(freqs, float)),
+                     FDGainTol=DEFAULT_GAIN_TOL if tol is None else tol, groups=groups)
+        return np.array(out["strong_structure_matrix"], dtype=int).reshape(len(groups or obj.groups), -1)
     Rf, groups, blocks, _ = _fault_system(obj)
     if block:
         groups = [list(range(Rf.p))]
@@ -92,7 +107,7 @@ def structure_matrix(obj, freqs=None, tol: float | None = None, block: bool = Fa
         return (norms > thr).astype(int)
     gains = fault_gains(obj, freqs, block)
     thr = DEFAULT_GAIN_TOL if tol is None else tol
-    return np.all(gains > thr, axis=0).astype(int)
+    return np.all(gains >= thr, axis=0).astype(int)
 
 
 def _column_norms(obj, freqs=None, faults=None) -> np.ndarray:
@@ -159,9 +174,15 @@ def _hstack_norm(systems: list[LTI]) -> float:
 
 
 def leakage(gen: ResidualGenerator) -> float:
-    """``max(||Ru||∞, ||Rd||∞)``: how much of the known and unknown inputs leaks into r."""
-    R = gen.internal_form()
-    return float(max(R["u"].hinfnorm()[0] if R["u"].m else 0.0, R["d"].hinfnorm()[0] if R["d"].m else 0.0))
+    """``max(||Ru||∞, ||Rd||∞)``: how much of the known and unknown inputs leaks into r.
+
+    The judge's figure (:func:`fmu_fdi.design.postconditions.report`): peaks of the block
+    2-norms over its frequency grid, per residual group, of ``R = Q Ge`` evaluated point by
+    point; on a design's normalised rows it is relative to the weakest fault gain, and equal
+    to ``gen.info['postconditions']['leakage']``."""
+    from .design.postconditions import report
+
+    return report(gen)["leakage"]
 
 
 def detectability(model: FDIModel, freqs=None) -> dict[str, dict]:

@@ -78,6 +78,18 @@ class ResidualGenerator:
         return (f"ResidualGenerator(method='{self.method}', residuals={self.Q.p}, order={self.Q.n}, "
                 f"{'dt=' + format(self.dt, 'g') if self.dt else 'continuous'})")
 
+    def scale_rows(self, scales) -> None:
+        """Scale residual component k by ``scales[k]`` (``Q ← diag(scales) Q``; a bank's members
+        follow): the normalisation of :func:`~fmu_fdi.design.postconditions.check_generator`."""
+        s = np.asarray(scales, float).reshape(-1)
+        if s.size != self.Q.p or not np.all(np.isfinite(s)) or np.any(s == 0):
+            raise ValueError(f"row scales must be {self.Q.p} finite non-zero numbers, got {s.tolist()}")
+        Q = self.Q
+        self.Q = LTI(Q.A, Q.B, s[:, None] * Q.C, s[:, None] * Q.D, Q.dt)
+        self.__dict__.pop("_R", None)
+        for g, member in zip(self.groups, getattr(self, "members", ())):
+            member.scale_rows(s[g])
+
     # ----------------------------------------------------------- internal form
     @cached_property
     def _R(self) -> LTI:
