@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from .design._basis import normal_rank
+from .errors import DesignError
 from .generator import ResidualGenerator
 from .lti import LTI, frequency_grid
 from .model import FDIModel
@@ -273,6 +274,23 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
         model.fault(nm)
     if len(names) > max_faults:
         raise ValueError(f"{len(names)} faults give 2^{len(names)} candidate rows; pass max_faults to allow it")
+    test = row_test(model, names, freqs=freqs, FDGainTol=FDGainTol, tol=tol, atol=atol)
+    rows = [row for row in itertools.product((0, 1), repeat=len(names)) if any(row) and test(row) is None]
+    return np.array(rows, dtype=int).reshape(-1, len(names))
+
+
+def row_test(model: FDIModel, names, *, freqs=None, FDGainTol: float = DEFAULT_GAIN_TOL, tol: float | None = None,
+             atol: float = 0.0):
+    """The one test of a structure row, shared by :func:`achievable_structure` (which lists the
+    rows it passes) and :func:`~fmu_fdi.design.banks.structured_bank` (which refuses the rows
+    it fails, before designing): a predicate ``row -> None`` (achievable) or the reason it is
+    not (a string naming the fault and the test). Weak: ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]``
+    for every required fault j (normal ranks, cached over the rows); strong (``freqs``): the
+    projection test of :func:`achievable_structure`. ``names`` are the faults of the row's
+    columns; ``tol``/``atol`` the basis rank tolerances of the designs."""
+    names = list(names)
+    for nm in names:
+        model.fault(nm)
     G = model.lti("d", "f")
     nd = model.nd
     cols = {f.name: list(nd + np.arange(model.nf)[f.columns]) for f in model.faults}
@@ -284,16 +302,25 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
         return cache[idx]
 
     strong = None if freqs is None else _strong_test(model, freqs, FDGainTol, tol, atol)
-    rows = []
-    for row in itertools.product((0, 1), repeat=len(names)):
+
+    def test(row) -> str | None:
+        row = tuple(int(x) for x in row)
+        if len(row) != len(names):
+            raise DesignError(f"structure row {list(row)} has {len(row)} entries for the faults {names}")
         if not any(row):
-            continue
+            return "a residual that sees no fault detects nothing"
         base = tuple(range(nd)) + tuple(c for nm, s in zip(names, row) if not s for c in cols[nm])
         r0 = rk(base)
-        if all(rk(base + tuple(cols[nm])) > r0 for nm, s in zip(names, row) if s):
-            if strong is None or strong(names, row):
-                rows.append(row)
-    return np.array(rows, dtype=int).reshape(-1, len(names))
+        for nm, s in zip(names, row):
+            if s and not rk(base + tuple(cols[nm])) > r0:
+                return (f"fault '{nm}' is invisible once d and the faults marked 0 are decoupled (normal rank "
+                        f"{rk(base + tuple(cols[nm]))} of [Gd Gf_0 Gf_{nm}] = rank {r0} of [Gd Gf_0])")
+        if strong is not None and not strong(names, row):
+            return (f"a required fault is not strongly detectable at ω = {np.ravel(freqs).tolist()} rad/s "
+                    f"(FDGainTol = {FDGainTol:g}) once d and the faults marked 0 are decoupled")
+        return None
+
+    return test
 
 
 def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
@@ -303,9 +330,9 @@ def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
 
     omega = np.atleast_1d(np.asarray(freqs, float))
     if omega.ndim != 1 or not omega.size or np.any(omega < 0) or not np.all(np.isfinite(omega)):
-        raise ValueError(f"freqs must be finite non-negative frequencies in rad/s, got {np.ravel(freqs).tolist()}")
+        raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {np.ravel(freqs).tolist()}")
     if not np.isfinite(FDGainTol) or not 0 < FDGainTol < 1:
-        raise ValueError(f"FDGainTol must be in (0, 1), got {FDGainTol!r}")
+        raise DesignError(f"FDGainTol must be in (0, 1), got {FDGainTol!r}")
 
     def points(w):
         return np.exp(1j * w * model.dt) if model.dt else 1j * w
@@ -405,11 +432,11 @@ def _stable_fault_response(mi: FDIModel, basis) -> LTI:
                 P = sla.solve_continuous_are(T.A.T, T.C.T, I_n, I_p)
                 L = P @ T.C.T
         except (np.linalg.LinAlgError, ValueError) as exc:
-            raise ValueError(f"strong detectability at a pole of the fault channels on the stability boundary "
+            raise DesignError(f"strong detectability at a pole of the fault channels on the stability boundary "
                              f"cannot be decided: the left coprime factorisation of the fault response failed "
                              f"({exc}); pass other freqs") from None
         T = LTI(T.A - L @ T.C, T.B - L @ T.D, T.C, T.D, T.dt)
         if not T.is_stable(margin):
-            raise ValueError("strong detectability at a pole of the fault channels on the stability boundary "
+            raise DesignError("strong detectability at a pole of the fault channels on the stability boundary "
                              "cannot be decided: the fault response has an undetectable mode there; pass other freqs")
     return T

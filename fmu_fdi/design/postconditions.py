@@ -32,8 +32,9 @@ i.e. the gain used is the grid estimate of ``||R_fj,i||∞`` (peak over Λ of th
   ``Q·Ge`` outside the margin that are both controllable and observable (:func:`_r_poles`);
 - a required fault is no rounding noise in its row: the cosine
   ``γ_j = max_λ ||R_fj(λ)|| / (||Q_y(λ)|| ||Gf_j(λ)||) ≥ FDtol`` (scale free, over the points
-  where the bound is at least 1e-6 of its peak, away from zeros of ``Gf_j``), and the row
-  is not numerically zero (its fault gain and its peak gain are positive and finite);
+  where the bound is at least 1e-6 of its median, away from zeros of ``Gf_j``), and the row
+  is not numerically zero (``max_λ ||Q_i(λ)|| ||Ge(λ)|| > ZERO_TOL`` = 1e-13 before scaling, a
+  positive finite weakest fault gain, a positive finite peak gain after it);
 - strong visibility at ``freqs``: ``||R_fj,i(jω)|| ≥ FDGainTol`` on the normalised row
   (Varga's ``fdisspec`` with its absolute ``FDGainTol`` applied to the unit-gain row).
 
@@ -75,6 +76,12 @@ DEC_TOL = 1e-7
 R_POLE_TOL = 1e-8
 
 
+#: a row whose every output ``max_λ ||Q_i(λ)|| ||Ge(λ)||`` stays below this is a zero filter
+#: (the 2.9e-16 static "filter" of issue 17): the rounding of a unit-scale basis row
+#: (~500 eps); it is refused, not normalised into a gain-1e13 amplifier of rounding noise.
+ZERO_TOL = 1e-13
+
+
 def default_smarg(dt: float) -> float:
     """Stability margin just inside the boundary: ``-sqrt(eps)`` or ``1 - sqrt(eps)``."""
     return 1.0 - np.sqrt(EPS) if dt else -np.sqrt(EPS)
@@ -91,7 +98,18 @@ def _eval_points(model, Q: LTI, freqs=None) -> tuple[np.ndarray, np.ndarray]:
     extra = () if freqs is None else np.atleast_1d(np.asarray(freqs, float))
     omega = frequency_grid([model.lti(), Q] if Q.n else [model.lti()], num=120, extra=extra)
     omega = omega[np.isfinite(omega)]
+    # no points below 1e-9 of the top (1e-7 of the largest pole scale): a pole at 1e-17 (an
+    # integrator after rounding) would put points at 1e-19, where the realisation's 1e-16 junk
+    # is the response and the product Q·Ge (~1/ω) is rounding noise of size eps/ω
+    top = float(np.max(omega, initial=0.0))
+    omega = omega[(omega == 0) | (omega >= 1e-9 * max(1.0, top))]
     lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
+    # a point within 1e-9 (relative) of a pole is that pole: ω = 0 next to an integrator that
+    # rounding put at -9e-17 would read the realisation's junk as the response there
+    poles = np.concatenate([model.lti().poles(), Q.poles()])
+    if poles.size:
+        near = np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) <= 1e-9 * max(1.0, float(np.max(np.abs(poles))))
+        omega, lam = omega[~near], lam[~near]
     return omega, lam
 
 
@@ -120,12 +138,17 @@ def _nrm(X: np.ndarray) -> np.ndarray:
 
 def _cosine(resp: np.ndarray, bound: np.ndarray, floor: float = 1e-6) -> float:
     """``max_λ ||R_f(λ)|| / (||Q_y(λ)|| ||Gf(λ)||)`` over the points where the bound is at least
-    ``floor`` times its peak: pointwise, so an integrator's huge low-frequency gain does not
-    hide a fault seen elsewhere; transmission zeros of Gf (bound → 0, a 0/0) are left out."""
-    top = float(np.max(bound)) if bound.size else 0.0
+    ``floor`` times its median over the grid: pointwise, so an integrator's huge low-frequency
+    gain does not hide a fault seen elsewhere; transmission zeros of Gf (bound → 0, a 0/0) are
+    left out. (The median, not the peak: a pole of Gf at ~1e-17 from the axis puts grid points
+    at ω ~ 1e-19 where ||Gf|| ~ 1e19, and a peak reference would leave only those.)"""
+    if not bound.size:
+        return 0.0
+    ref = float(np.median(bound))
+    top = float(np.max(bound))
     if top <= 0:
         return 0.0
-    keep = bound >= floor * top
+    keep = bound >= floor * (ref if ref > 0 else top)
     return float(np.max(resp[keep] / bound[keep]))
 
 
@@ -187,7 +210,8 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     Returns a dict with, for the groups ``groups`` (default ``gen.groups``):
     ``peaks``: ``{'u', 'd', 'w': (G,), 'f': (G, faults), 'Q': (G,)}`` — ``max_λ ||R_X,i(λ)||_2``
     (faults: one column block per named fault, in ``model.fault_names`` order; ``Q``: the
-    row group's own peak gain ``max_λ ||Q_i(λ)||``); ``cosine``: (G, faults), the γ_j of the
+    row group's own peak gain ``max_λ ||Q_i(λ)||``; ``bound``: ``max_λ ||Q_i(λ)|| ||Ge(λ)||``,
+    the scale of everything the row can output); ``cosine``: (G, faults), the γ_j of the
     module docstring; ``at_freqs``: (len(freqs), G, faults) gains ``||R_fj,i(jω)||`` or None;
     ``finite``: False when the filter or the model cannot be evaluated on the grid.
     """
@@ -195,7 +219,7 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     groups = gen.groups if groups is None else groups
     nf = len(model.faults)
     G = len(groups)
-    out = {"finite": True, "peaks": {g: np.zeros(G) for g in ("u", "d", "w", "Q")},
+    out = {"finite": True, "peaks": {g: np.zeros(G) for g in ("u", "d", "w", "Q", "bound")},
            "cosine": np.zeros((G, nf)), "at_freqs": None}
     out["peaks"]["f"] = np.zeros((G, nf))
     if not all(np.all(np.isfinite(X)) for X in (Q.A, Q.B, Q.C, Q.D)):
@@ -215,11 +239,14 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
     R = np.einsum("kiq,kqc->kic", Qv, Ge)
     Gf_n = [_nrm(Ge[:, :p, c]) for c in fcols]
+    nGe = _nrm(Ge)
     for i, g in enumerate(groups):
         Ri = R[:, g, :]
         for x in ("u", "d", "w"):
             out["peaks"][x][i] = float(np.max(_nrm(Ri[:, :, sl[x]])))
-        out["peaks"]["Q"][i] = float(np.max(_nrm(Qv[:, g, :])))
+        nQ = _nrm(Qv[:, g, :])
+        out["peaks"]["Q"][i] = float(np.max(nQ))
+        out["peaks"]["bound"][i] = float(np.max(nQ * nGe))
         nQy = _nrm(Qv[:, g, :p])
         for j, c in enumerate(fcols):
             Rn = _nrm(Ri[:, :, c])
@@ -329,11 +356,12 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
         gains = fj["peaks"]["f"][i, req]
         cos = fj["cosine"][i, req]
         vis.append(float(np.min(cos)))
-        qpk = fj["peaks"]["Q"][i]
+        qpk, bound = fj["peaks"]["Q"][i], fj["peaks"]["bound"][i]
         low = float(np.min(gains))
-        if not (np.isfinite(qpk) and qpk > 0 and np.isfinite(low) and low > 0):
-            failures.append(("zero", f"residual {i + 1}: peak filter gain {qpk:.3g}, weakest required fault gain "
-                                     f"{low:.3g}: nothing to normalise"))
+        if not (np.isfinite(bound) and bound > ZERO_TOL and np.isfinite(low) and low > 0):
+            failures.append(("zero", f"residual {i + 1}: the row is numerically zero (peak gain {qpk:.3g}, "
+                                     f"peak ||Q_i|| ||Ge|| = {bound:.3g} ≤ {ZERO_TOL:g}, weakest required fault "
+                                     f"gain {low:.3g}): nothing to normalise"))
             continue
         for j, c in zip(req, cos):
             if not c >= FDtol:
