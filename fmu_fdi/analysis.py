@@ -311,6 +311,10 @@ def row_test(model: FDIModel, names, *, freqs=None, FDGainTol: float = DEFAULT_G
             return "a residual that sees no fault detects nothing"
         base = tuple(range(nd)) + tuple(c for nm, s in zip(names, row) if not s for c in cols[nm])
         r0 = rk(base)
+        if r0 >= model.ny:
+            return (f"no residual generator exists: the unknown inputs d and the faults marked 0 span every output "
+                    f"direction (normal rank of Gd = {r0} = number of outputs {model.ny}, the faults marked 0 "
+                    f"counted as d)")
         for nm, s in zip(names, row):
             if s and not rk(base + tuple(cols[nm])) > r0:
                 return (f"fault '{nm}' is invisible once d and the faults marked 0 are decoupled (normal rank "

@@ -2,6 +2,7 @@
 scalings over eight decades, more actuators than sensors (m > p), optional unknown input d
 and noise w, continuous or discrete. Faults: actuator faults on u1, u2 and a sensor fault on y1."""
 import numpy as np
+import scipy.linalg as sla
 
 from fmu_fdi import FDIModel, actuator_fault, sensor_fault
 
@@ -16,26 +17,15 @@ def ill_scaled_model(seed: int, input_decades: float = 0.0) -> FDIModel:
     nd = int(rng.integers(0, 2))
     nw = int(rng.integers(0, 2))
     dt = 0.1 if seed % 2 else 0.0
-    eig = []
-    while len(eig) < n:  # stable modes over three decades of speed, real and complex pairs
-        if n - len(eig) >= 2 and rng.random() < 0.4:
-            re, im = -10 ** rng.uniform(-1, 1), 10 ** rng.uniform(-1, 1)
-            eig += [complex(re, im), complex(re, -im)]
+    blocks = []  # stable modes over three decades of speed, real and complex pairs
+    while sum(b.shape[0] for b in blocks) < n:
+        if n - sum(b.shape[0] for b in blocks) >= 2 and rng.random() < 0.4:
+            a, b = -10 ** rng.uniform(-1, 1), 10 ** rng.uniform(-1, 1)
+            blocks.append(np.array([[a, b], [-b, a]]))
         else:
-            eig.append(complex(-10 ** rng.uniform(-1.5, 1), 0))
-    J = np.zeros((n, n))
-    i = 0
-    while i < n:
-        if eig[i].imag:
-            a, b = eig[i].real, eig[i].imag
-            J[i:i + 2, i:i + 2] = [[a, b], [-b, a]]
-            i += 2
-        else:
-            J[i, i] = eig[i].real
-            i += 1
+            blocks.append(np.array([[-10 ** rng.uniform(-1.5, 1)]]))
+    J = sla.block_diag(*blocks)
     if dt:
-        import scipy.linalg as sla
-
         J = sla.expm(J * dt)
     U, _ = np.linalg.qr(rng.standard_normal((n, n)))
     A = U @ J @ U.T

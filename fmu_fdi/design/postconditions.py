@@ -171,10 +171,10 @@ def _r_poles(model, Q: LTI, smarg: float) -> np.ndarray:
 
     The series realisation of ``Q Ge`` is balanced (SLICOT TB01ID), its margin-violating part
     separated by an ordered real Schur form and a Sylvester equation (the block-diagonalising
-    similarity ``[I X; 0 I]``), and reduced to a minimal realisation (SLICOT TB01PD, no
-    further balancing) with the tolerance :data:`R_POLE_TOL` relative to the norms of the
-    whole balanced realisation: what is left are the violating modes both controllable from
-    ``[u d w f]`` and observable in r.
+    similarity ``[I X; 0 I]``), and reduced to its reachable-then-observable part (orthogonal
+    block-Arnoldi staircases) with the tolerance :data:`R_POLE_TOL` on the part's data over the
+    norms of the whole balanced realisation: what is left are the violating modes both
+    controllable from ``[u d w f]`` and observable in r.
     """
     Ge = model.augmented()
     if not Ge.n or not np.any(outside_margin(Ge.poles(), model.dt, smarg)):
@@ -196,12 +196,40 @@ def _r_poles(model, Q: LTI, smarg: float) -> np.ndarray:
     if k < S.shape[0]:
         X = sla.solve_sylvester(S[:k, :k], -S[k:, k:], -S[:k, k:])
         B1 = B1 - X @ Bz[k:]
-    # the part's coupling is judged against the whole realisation's data (the part's own norms
-    # would blow a cancelled mode's 1e-16 coupling up to 1)
+    # the part's coupling is judged against the whole realisation's data, with ABSOLUTE rank
+    # decisions on the scaled part: its own norms (TB01PD's relative tolerance) would blow a
+    # cancelled mode's 1e-16 coupling up to full rank when the part is an integrator (A1 ≈ 0)
     sa, sb, sc = (float(np.linalg.norm(X)) or 1.0 for X in (A, B, C))
-    part = LTI(S[:k, :k] / sa, B1 / sb, Cz[:, :k] / sc, np.zeros((C.shape[0], B.shape[1])), model.dt)
-    Ar = part.minreal(R_POLE_TOL, job="M", equil="N").A * sa
-    return np.linalg.eigvals(Ar) if Ar.size else np.zeros(0, complex)
+    A1, B1, C1 = S[:k, :k] / sa, B1 / sb, Cz[:, :k] / sc
+    V = _reachable(A1, B1, R_POLE_TOL)
+    if not V.shape[1]:
+        return np.zeros(0, complex)
+    Ac, Cc = V.T @ A1 @ V, C1 @ V
+    W = _reachable(Ac.T, Cc.T, R_POLE_TOL)
+    if not W.shape[1]:
+        return np.zeros(0, complex)
+    return np.linalg.eigvals(W.T @ Ac @ W) * sa
+
+
+def _reachable(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
+    """Orthonormal basis of the reachable subspace of ``(A, B)``, block Arnoldi with two
+    orthogonalisation passes, new directions kept where their singular values exceed ``tol``
+    (absolute: the data are scaled to unit norm by the caller)."""
+    n = A.shape[0]
+    V = np.zeros((n, 0))
+    Wn = B
+    while V.shape[1] < n:
+        for _ in range(2):
+            Wn = Wn - V @ (V.T @ Wn)
+        if not Wn.size:
+            break
+        U, sv, _ = np.linalg.svd(Wn, full_matrices=False)
+        r = int(np.sum(sv > tol))
+        if r == 0:
+            break
+        V = np.hstack([V, U[:, :r]])
+        Wn = A @ U[:, :r]
+    return V
 
 
 def internal_figures(gen, groups=None, freqs=None) -> dict:
