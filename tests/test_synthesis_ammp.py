@@ -6,6 +6,8 @@ test/test_emmsyn.jl, and the printed results of the FDITools user's guide (fdito
 Examples 12-14 = book Examples 5.12, 5.13, 5.11). Where no γ value is printed, the optimum is
 checked against an independent bound (a point evaluation or a brute-force optimisation).
 """
+import re
+
 import control as ct
 import numpy as np
 import published as pub
@@ -113,7 +115,10 @@ MR17 = ct.ss(pub.tfm([[10 / (s + 10), 0], [0, 10 / (s + 10)]], ["f1", "f2"]))
 def check_contract(gen, Mr, norm, rel=None):
     """Decoupling to 1e-9 and the measured error equal to the reported gamma_sub."""
     info = gen.info
-    assert info["postconditions"]["decoupling"] < 1e-9
+    # absolute u/d leak of the (unnormalised: its scale is Mr's) matching filter, issue 17's judge;
+    # the rounding of Q_y Gu + Q_u is ~1e-13 ||Q|| ||Ge||: 1e-9 times the filter's peak gain
+    pc = info["postconditions"]
+    assert pc["decoupling"] < 1e-9 * max(1.0, pc["filter_peak_gain"])
     err = error_norm(gen, Mr, info["M"], norm)
     # H∞: both are peaks of the same response on refined grids, 1e-5 relative; H2: trapezoid on
     # 1200 log points vs Gauss–Legendre panels, 1e-3 relative
@@ -417,5 +422,11 @@ def test_nearly_exact_ill_conditioned_problem_is_refused_not_returned():
     """Seed 7 (discrete, n = 29, d present): the optimal Y has gain ~2e5 and the realisation of
     Q = Y Φ Q0 cannot reproduce the designed error; the design refuses and says why."""
     model, Mr = _random_case(7)
-    with pytest.raises(DesignError, match="lost accuracy.*gain of Y"):
-        approximate_model_matching(model, Mr)
+    try:
+        gen = approximate_model_matching(model, Mr)
+    except DesignError as exc:
+        assert re.search("lost accuracy.*gain of Y", str(exc))
+        return
+    # issue 17: with nullspace_design's rows normalised (unit fault gain) Q0 is better scaled and
+    # the realisation keeps the designed error; a returned filter must then keep its contract
+    check_contract(gen, Mr, "inf")

@@ -167,48 +167,56 @@ def _freq_values(model, Q: LTI, freqs) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _r_poles(model, Q: LTI, smarg: float) -> np.ndarray:
-    """Poles of ``R = Q Ge`` outside the margin that are plant modes (Q's own are judged on Q).
-
-    The series realisation of ``Q Ge`` is balanced (SLICOT TB01ID), its margin-violating part
-    separated by an ordered real Schur form and a Sylvester equation (the block-diagonalising
-    similarity ``[I X; 0 I]``), and reduced to its reachable-then-observable part (orthogonal
-    block-Arnoldi staircases) with the tolerance :data:`R_POLE_TOL` on the part's data over the
-    norms of the whole balanced realisation: what is left are the violating modes both
-    controllable from ``[u d w f]`` and observable in r.
-    """
+    """Poles of ``R = Q Ge`` outside the margin that are plant modes (Q's own are judged on Q):
+    the eigenvalues of the violating part :func:`margin_reduced` keeps."""
     Ge = model.augmented()
     if not Ge.n or not np.any(outside_margin(Ge.poles(), model.dt, smarg)):
         return np.zeros(0, complex)
-    T = Q @ Ge
-    if T.p == 0 or T.m == 0:
-        return np.zeros(0, complex)
+    _, k = margin_reduced(Q @ Ge, smarg, parts=True)
+    return k
+
+
+def margin_reduced(T: LTI, smarg: float, parts: bool = False):
+    """A realisation of ``T`` without its margin-violating modes that are uncontrollable or
+    unobservable; the other modes are kept as they are.
+
+    The realisation is balanced (SLICOT TB01ID), its margin-violating part separated by an
+    ordered real Schur form and a Sylvester equation (the block-diagonalising similarity
+    ``[I X; 0 I]``), and that part reduced to its reachable-then-observable part (orthogonal
+    block-Arnoldi staircases) with the tolerance :data:`R_POLE_TOL` on the part's data over the
+    norms of the whole balanced realisation. What is left of it are the violating modes both
+    controllable and observable: for ``T = Q Ge``, the poles of R outside the margin. With
+    ``parts=True`` returns ``(system, poles of the kept violating part)``.
+    """
+    none = np.zeros(0, complex)
+    if not T.n or T.p == 0 or T.m == 0:
+        return (T, none) if parts else T
     bal, _ = T.balanced()
     A, B, C = bal.A, bal.B, bal.C
-    if model.dt:
+    if T.dt:
         sel = lambda x, y: bool(np.hypot(x, y) > smarg)  # noqa: E731
     else:
         sel = lambda x, y: bool(x > smarg)  # noqa: E731
     S, Z, k = sla.schur(A, output="real", sort=sel)
     if k == 0:
-        return np.zeros(0, complex)
+        return (bal, none) if parts else bal
     Bz, Cz = Z.T @ B, C @ Z
-    B1 = Bz[:k]
+    B1, C2 = Bz[:k], Cz[:, k:]
     if k < S.shape[0]:
         X = sla.solve_sylvester(S[:k, :k], -S[k:, k:], -S[:k, k:])
-        B1 = B1 - X @ Bz[k:]
+        B1, C2 = B1 - X @ Bz[k:], C2 + Cz[:, :k] @ X
     # the part's coupling is judged against the whole realisation's data, with ABSOLUTE rank
     # decisions on the scaled part: its own norms (TB01PD's relative tolerance) would blow a
     # cancelled mode's 1e-16 coupling up to full rank when the part is an integrator (A1 ≈ 0)
-    sa, sb, sc = (float(np.linalg.norm(X)) or 1.0 for X in (A, B, C))
-    A1, B1, C1 = S[:k, :k] / sa, B1 / sb, Cz[:, :k] / sc
-    V = _reachable(A1, B1, R_POLE_TOL)
-    if not V.shape[1]:
-        return np.zeros(0, complex)
-    Ac, Cc = V.T @ A1 @ V, C1 @ V
-    W = _reachable(Ac.T, Cc.T, R_POLE_TOL)
-    if not W.shape[1]:
-        return np.zeros(0, complex)
-    return np.linalg.eigvals(W.T @ Ac @ W) * sa
+    sa, sb, sc = (float(np.linalg.norm(M)) or 1.0 for M in (A, B, C))
+    V = _reachable(S[:k, :k] / sa, B1 / sb, R_POLE_TOL)
+    Ac, Cc = V.T @ S[:k, :k] @ V, Cz[:, :k] @ V
+    W = _reachable(Ac.T / sa, Cc.T / sc, R_POLE_TOL)
+    P = V @ W  # coordinates of the kept violating modes
+    Ar, Br, Cr = P.T @ S[:k, :k] @ P, P.T @ B1, Cz[:, :k] @ P
+    kept = np.linalg.eigvals(Ar) if Ar.size else none
+    red = LTI(sla.block_diag(Ar, S[k:, k:]), np.vstack([Br, Bz[k:]]), np.hstack([Cr, C2]), T.D, T.dt)
+    return (red, kept) if parts else red
 
 
 def _reachable(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
@@ -293,7 +301,8 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
 
 def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, block: bool = False,
                     freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, smarg: float | None = None,
-                    dec_tol: float = DEC_TOL, hints: dict | None = None, raise_error: bool = True) -> dict:
+                    dec_tol: float = DEC_TOL, hints: dict | None = None, raise_error: bool = True,
+                    normalize: bool = True) -> dict:
     """Normalise a residual generator's rows and judge its contract; return the figures or raise.
 
     The rows of ``gen.Q`` (and of a bank's members) are scaled in place to unit weakest
@@ -322,6 +331,10 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
         ``condition -> advice`` overriding the default advice in the error message.
     raise_error : bool
         With False, return the figures with ``'failures'`` instead of raising.
+    normalize : bool
+        With False (a method whose rows carry a scaling of their own, e.g. the parity
+        space's unit noise variance), the same tests are made on a scaled copy and ``gen``
+        keeps its rows; ``leakage``/``structure_matrix`` are still those of ``gen`` itself.
 
     Returns
     -------
@@ -399,15 +412,20 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
     fig["fault_visibility"] = min(vis, default=float("inf"))
     if failures:
         return _finish(fig, failures, adv, gen, raise_error)
+    own_gen = gen
     if np.any(scales != 1.0):
         row_scale = np.ones(gen.Q.p)
         for i, g in enumerate(judged):
             row_scale[g] = scales[i]
+        if not normalize:
+            from ..generator import ResidualGenerator
+
+            gen = ResidualGenerator(gen.Q, model, gen.method, gen.residual_names, gen.groups)
         gen.scale_rows(row_scale)
         fj = internal_figures(gen, judged)
         if not fj["finite"]:
             failures.append(("finite", f"the normalised filter (scales {scales.tolist()}) cannot be evaluated"))
-            return _finish(fig, failures, adv, gen, raise_error)
+            return _finish(fig, failures, adv, own_gen, raise_error)
     fig["scales"] = scales.tolist()
 
     # 2. stability with margin: Q's realisation, then R's own poles (plant modes it keeps)
@@ -474,12 +492,12 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
         fig["strong_gain_ratio"] = min(strong, default=float("inf"))
 
     # 5. what leakage() and structure_matrix() report for this object (the generator's own groups)
-    own = report(gen, freqs=freqs, FDGainTol=FDGainTol, dec_tol=dec_tol)
+    own = report(own_gen, freqs=freqs, FDGainTol=FDGainTol, dec_tol=dec_tol)
     fig["leakage"] = own["leakage"]
     fig["structure_matrix"] = own["structure_matrix"]
     if freqs is not None:
         fig["strong_structure_matrix"] = own["strong_structure_matrix"]
-    return _finish(fig, failures, adv, gen, raise_error)
+    return _finish(fig, failures, adv, own_gen, raise_error)
 
 
 def report(gen, freqs=None, FDGainTol: float = 0.01, dec_tol: float = DEC_TOL, groups=None) -> dict:
