@@ -152,7 +152,7 @@ def fault_noise_gap(gen: ResidualGenerator, S=None, atol: float = np.sqrt(np.fin
         return float("inf") if noise <= atol else beta / noise
     S = np.asarray(S).astype(bool)
     if S.shape != (len(gen.groups), len(blocks)):
-        raise ValueError(f"S must have shape {(len(gen.groups), len(blocks))}, got {S.shape}")
+        raise DesignError(f"S must have shape {(len(gen.groups), len(blocks))}, got {S.shape}")
     gaps = []
     for i, g in enumerate(gen.groups):
         Rf_i = R["f"][g, :]
@@ -263,7 +263,7 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
 
     Raises
     ------
-    ValueError
+    DesignError
         Too many faults (``max_faults``), a frequency that is negative, not finite or a
         pole of the plant on the stability boundary (strong detectability is not defined there).
     """
@@ -273,7 +273,7 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
     for nm in names:
         model.fault(nm)
     if len(names) > max_faults:
-        raise ValueError(f"{len(names)} faults give 2^{len(names)} candidate rows; pass max_faults to allow it")
+        raise DesignError(f"{len(names)} faults give 2^{len(names)} candidate rows; pass max_faults to allow it")
     test = row_test(model, names, freqs=freqs, FDGainTol=FDGainTol, tol=tol, atol=atol)
     rows = [row for row in itertools.product((0, 1), repeat=len(names)) if any(row) and test(row) is None]
     return np.array(rows, dtype=int).reshape(-1, len(names))

@@ -98,7 +98,12 @@ class ResidualGenerator:
         # cancelled poles 2, 3 in Rf
         from .design.postconditions import default_smarg, margin_reduced
 
-        return margin_reduced(self.Q @ self.model.augmented(), default_smarg(self.dt)).minreal()
+        T = self.Q @ self.model.augmented()
+        try:
+            T = margin_reduced(T, default_smarg(self.dt))
+        except (np.linalg.LinAlgError, ValueError):  # a Sylvester equation with a pole on the margin
+            pass
+        return T.minreal()
 
     def internal_form(self) -> dict[str, LTI]:
         """``{'u': Ru, 'd': Rd, 'w': Rw, 'f': Rf}``, minimal realisations sharing states."""

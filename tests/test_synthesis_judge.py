@@ -7,12 +7,14 @@ Every property is judged here by an independent computation: the state-space mat
 model and of Q, diagonally balanced by scipy (LAPACK gebal) and evaluated at frequency points
 with numpy.linalg.solve, on our own grid — none of fmu_fdi's LTI/analysis code.
 """
+import functools
+
 import numpy as np
+import published as pub
 import pytest
 import scipy.linalg as sla
 from judge_models import ill_scaled_model
 
-import published as pub
 from fmu_fdi import DesignError, FDIModel, component_fault, leakage, nullspace_design, structure_matrix, structured_bank
 from fmu_fdi.analysis import achievable_structure
 from fmu_fdi.design.postconditions import DEC_TOL, check_generator
@@ -139,6 +141,12 @@ def test_ill_scaled_designs_meet_the_judge_or_refuse(seed):
     assert abs(ours - leakage(gen)) <= max(0.1 * ours, DEC_TOL / 10)
 
 
+@functools.lru_cache(maxsize=None)
+def _leaky_base(seed):
+    model = ill_scaled_model(seed, input_decades=4.0)
+    return model, nullspace_design(model, rdim=1)
+
+
 @pytest.mark.parametrize("seed", [0, 2])
 @pytest.mark.parametrize("eps", [1e-5, 3e-3])
 def test_leaky_filter_is_refused_although_old_measure_passed(seed, eps):
@@ -146,8 +154,7 @@ def test_leaky_filter_is_refused_although_old_measure_passed(seed, eps):
     gives ``R_u' = R_u + ε e_1ᵀ`` — a flat leak ε — with R_f unchanged (the u-columns of Ge's
     lower block carry no fault). Input channels scaled over four decades make ||Q|| ||Ge_u||
     large, so the issue-13 relative measure sees only ε/(||Q|| ||Ge_u||)."""
-    model = ill_scaled_model(seed, input_decades=4.0)
-    gen = nullspace_design(model, rdim=1)
+    model, gen = _leaky_base(seed)
     Q = gen.Q
     D = Q.D.copy()
     D[0, model.ny] += eps
@@ -307,3 +314,16 @@ def test_refused_row_is_not_listed_and_listed_rows_are_designed():
         else:
             with pytest.raises(DesignError, match="not achievable"):
                 structured_bank(model, [row], poles=[-3])
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="core's polynomial/sampled/pencil row synthesis returns a filter whose "
+                   "residual moves with u 0.17 times as much as with its weakest fault for Boeing 747 row "
+                   "[0 0 1 1 0]; the judge refuses it, so a listed row is not designed (issue 17 item 2/3)")
+def test_boeing747_every_listed_row_is_designed():
+    from test_synthesis_published import boeing747
+
+    model = boeing747()
+    for row in achievable_structure(model).tolist():
+        bank = structured_bank(model, [row])
+        assert_normalised_contract(bank, [row])
