@@ -6,7 +6,8 @@ A residual generator ``Q`` acting on ``[y; u]`` has the internal form
 
 the transfer from every plant input to the residual the user sees. Every figure below is a
 peak over one frequency grid Λ (:func:`_eval_points`: log-spaced two decades beyond every
-pole scale of the plant and the filter, plus 0 and, discrete, Nyquist) of values computed
+pole scale of the plant and the filter, plus 0 and, discrete, Nyquist; without points below
+1e-9 of its top or within 1e-9, relative, of a pole of either realisation) of values computed
 point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no minimal realisation, no
 rank decision). :func:`internal_figures` computes them once; ``leakage()``,
 ``structure_matrix()`` (:mod:`fmu_fdi.analysis`) and :func:`check_generator` all read them,
