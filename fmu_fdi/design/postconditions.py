@@ -6,7 +6,8 @@ A residual generator ``Q`` acting on ``[y; u]`` has the internal form
 
 the transfer from every plant input to the residual the user sees. Every figure below is a
 peak over one frequency grid Λ (:func:`_eval_points`: log-spaced two decades beyond every
-pole scale of the plant and the filter, plus 0 and, discrete, Nyquist; without points below
+pole scale of the plant and the filter, plus 0, the resonances of lightly damped poles and,
+discrete, Nyquist; without points below
 1e-9 of its top or within 1e-9, relative, of a pole of either realisation) of values computed
 point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no minimal realisation, no
 rank decision). :func:`internal_figures` computes them once; ``leakage()``,
@@ -96,9 +97,24 @@ def outside_margin(poles: np.ndarray, dt: float, smarg: float) -> np.ndarray:
     return (np.abs(poles) > smarg) if dt else (poles.real > smarg)
 
 
+def _resonances(poles: np.ndarray, dt: float) -> np.ndarray:
+    """Frequencies where a lightly damped pole peaks: ``ω = |Im s|`` and ``ω ± |Re s|/2`` for the
+    continuous-time equivalent ``s`` of each complex pole (``s = log(z)/dt``), whose peak a
+    log-spaced grid (10 % steps) misses when ``|Re s| ≪ ω``."""
+    if not poles.size:
+        return np.zeros(0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.log(poles.astype(complex)) / dt if dt else poles.astype(complex)
+    s = s[np.isfinite(s) & (np.abs(s.imag) > 0)]
+    w, sig = np.abs(s.imag), np.abs(s.real)
+    out = np.concatenate([w, w + sig / 2, np.where(w > sig, w - sig / 2, w)])
+    return out[np.isfinite(out) & (out > 0)] if not dt else out[(out > 0) & (out <= np.pi / dt)]
+
+
 def _eval_points(model, Q: LTI, freqs=None) -> tuple[np.ndarray, np.ndarray]:
-    extra = () if freqs is None else np.atleast_1d(np.asarray(freqs, float))
-    omega = frequency_grid([model.lti(), Q] if Q.n else [model.lti()], num=120, extra=extra)
+    extra = [] if freqs is None else [np.atleast_1d(np.asarray(freqs, float))]
+    extra.append(_resonances(np.concatenate([model.lti().poles(), Q.poles()]), model.dt))
+    omega = frequency_grid([model.lti(), Q] if Q.n else [model.lti()], num=120, extra=np.concatenate(extra))
     omega = omega[np.isfinite(omega)]
     # no points below 1e-9 of the top (1e-7 of the largest pole scale): a pole at 1e-17 (an
     # integrator after rounding) would put points at 1e-19, where the realisation's 1e-16 junk
