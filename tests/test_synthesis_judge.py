@@ -327,3 +327,20 @@ def test_boeing747_every_listed_row_is_designed():
     for row in achievable_structure(model).tolist():
         bank = structured_bank(model, [row])
         assert_normalised_contract(bank, [row])
+
+
+def test_fault_pole_outside_margin_discrete():
+    """The same on the sampled plant (Ts = 0.1): z = e^0.1 kept by Q = [1 1], not by Q = [0 1]."""
+    import control as ct
+
+    G = LTI.from_control(ct.minreal(ct.ss(ct.tf([[[1]], [[1]]], [[[1, -1]], [[1, 2]]])), verbose=False))
+    model = FDIModel.from_matrices(G.A, np.zeros((G.n, 0)), G.C, faults=[component_fault("f", G.B, G.D)])
+    model = model.discretize(0.1)
+    z0 = complex(np.exp(0.1))
+    both = ResidualGenerator(LTI.static(np.array([[1.0, 1.0]]), 0.1), model, "nullspace")
+    assert _r_keeps_pole(both, z0)
+    with pytest.raises(DesignError, match=r"R stability.*largest \|pole\| = 1.10517"):
+        check_generator(both)
+    good = ResidualGenerator(LTI.static(np.array([[0.0, 1.0]]), 0.1), model, "nullspace")
+    assert not _r_keeps_pole(good, z0)
+    assert check_generator(good)["R_poles"] == []
