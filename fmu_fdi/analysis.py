@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from .design._basis import normal_rank
+from .errors import DesignError
 from .generator import ResidualGenerator
 from .lti import LTI, frequency_grid
 from .model import FDIModel
@@ -77,12 +78,27 @@ def structure_matrix(obj, freqs=None, tol: float | None = None, block: bool = Fa
     freqs : float or array_like, optional
         Frequencies Ω (rad/s) for the strong structure matrix.
     tol : float, optional
-        Strong: absolute gain threshold (default 0.01, Varga's ``FDGainTol``). Weak:
-        absolute H∞-norm threshold (default ``1e-9`` times the largest block norm, i.e.
-        only rounding-level blocks count as zero).
+        Strong: absolute gain threshold, ``S_ij = 1`` when ``||Rf_ij(jω)|| ≥ tol`` at every ω
+        (default 0.01, Varga's ``FDGainTol``, inclusive as ``fdisspec``). Weak: for a
+        residual generator, the judge's absolute threshold on the peak ``max_λ ||Rf_ij(λ)||``
+        over its grid (default :data:`~fmu_fdi.design.postconditions.DEC_TOL`; the designs
+        return rows normalised to unit weakest fault gain, so this is the decoupling tolerance
+        of their post-conditions and ``structure_matrix(gen)`` is
+        ``gen.info['postconditions']['structure_matrix']``); for a model or an LTI system, an
+        absolute H∞-norm threshold (default ``1e-9`` times the largest block norm).
     block : bool
         Treat all residual outputs as one group.
     """
+    if isinstance(obj, ResidualGenerator):
+        from .design.postconditions import DEC_TOL, report
+
+        groups = [list(range(obj.Q.p))] if block else None
+        if freqs is None:
+            out = report(obj, dec_tol=DEC_TOL if tol is None else tol, groups=groups)
+            return np.array(out["structure_matrix"], dtype=int).reshape(len(groups or obj.groups), -1)
+        out = report(obj, freqs=np.atleast_1d(np.asarray(freqs, float)),
+                     FDGainTol=DEFAULT_GAIN_TOL if tol is None else tol, groups=groups)
+        return np.array(out["strong_structure_matrix"], dtype=int).reshape(len(groups or obj.groups), -1)
     Rf, groups, blocks, _ = _fault_system(obj)
     if block:
         groups = [list(range(Rf.p))]
@@ -92,7 +108,7 @@ def structure_matrix(obj, freqs=None, tol: float | None = None, block: bool = Fa
         return (norms > thr).astype(int)
     gains = fault_gains(obj, freqs, block)
     thr = DEFAULT_GAIN_TOL if tol is None else tol
-    return np.all(gains > thr, axis=0).astype(int)
+    return np.all(gains >= thr, axis=0).astype(int)
 
 
 def _column_norms(obj, freqs=None, faults=None) -> np.ndarray:
@@ -136,7 +152,7 @@ def fault_noise_gap(gen: ResidualGenerator, S=None, atol: float = np.sqrt(np.fin
         return float("inf") if noise <= atol else beta / noise
     S = np.asarray(S).astype(bool)
     if S.shape != (len(gen.groups), len(blocks)):
-        raise ValueError(f"S must have shape {(len(gen.groups), len(blocks))}, got {S.shape}")
+        raise DesignError(f"S must have shape {(len(gen.groups), len(blocks))}, got {S.shape}")
     gaps = []
     for i, g in enumerate(gen.groups):
         Rf_i = R["f"][g, :]
@@ -159,9 +175,15 @@ def _hstack_norm(systems: list[LTI]) -> float:
 
 
 def leakage(gen: ResidualGenerator) -> float:
-    """``max(||Ru||∞, ||Rd||∞)``: how much of the known and unknown inputs leaks into r."""
-    R = gen.internal_form()
-    return float(max(R["u"].hinfnorm()[0] if R["u"].m else 0.0, R["d"].hinfnorm()[0] if R["d"].m else 0.0))
+    """``max(||Ru||∞, ||Rd||∞)``: how much of the known and unknown inputs leaks into r.
+
+    The judge's figure (:func:`fmu_fdi.design.postconditions.report`): peaks of the block
+    2-norms over its frequency grid, per residual group, of ``R = Q Ge`` evaluated point by
+    point; on a design's normalised rows it is relative to the weakest fault gain, and equal
+    to ``gen.info['postconditions']['leakage']``."""
+    from .design.postconditions import report
+
+    return report(gen)["leakage"]
 
 
 def detectability(model: FDIModel, freqs=None) -> dict[str, dict]:
@@ -241,7 +263,7 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
 
     Raises
     ------
-    ValueError
+    DesignError
         Too many faults (``max_faults``), a frequency that is negative, not finite or a
         pole of the plant on the stability boundary (strong detectability is not defined there).
     """
@@ -251,7 +273,24 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
     for nm in names:
         model.fault(nm)
     if len(names) > max_faults:
-        raise ValueError(f"{len(names)} faults give 2^{len(names)} candidate rows; pass max_faults to allow it")
+        raise DesignError(f"{len(names)} faults give 2^{len(names)} candidate rows; pass max_faults to allow it")
+    test = row_test(model, names, freqs=freqs, FDGainTol=FDGainTol, tol=tol, atol=atol)
+    rows = [row for row in itertools.product((0, 1), repeat=len(names)) if any(row) and test(row) is None]
+    return np.array(rows, dtype=int).reshape(-1, len(names))
+
+
+def row_test(model: FDIModel, names, *, freqs=None, FDGainTol: float = DEFAULT_GAIN_TOL, tol: float | None = None,
+             atol: float = 0.0):
+    """The one test of a structure row, shared by :func:`achievable_structure` (which lists the
+    rows it passes) and :func:`~fmu_fdi.design.banks.structured_bank` (which refuses the rows
+    it fails, before designing): a predicate ``row -> None`` (achievable) or the reason it is
+    not (a string naming the fault and the test). Weak: ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]``
+    for every required fault j (normal ranks, cached over the rows); strong (``freqs``): the
+    projection test of :func:`achievable_structure`. ``names`` are the faults of the row's
+    columns; ``tol``/``atol`` the basis rank tolerances of the designs."""
+    names = list(names)
+    for nm in names:
+        model.fault(nm)
     G = model.lti("d", "f")
     nd = model.nd
     cols = {f.name: list(nd + np.arange(model.nf)[f.columns]) for f in model.faults}
@@ -263,16 +302,29 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
         return cache[idx]
 
     strong = None if freqs is None else _strong_test(model, freqs, FDGainTol, tol, atol)
-    rows = []
-    for row in itertools.product((0, 1), repeat=len(names)):
+
+    def test(row) -> str | None:
+        row = tuple(int(x) for x in row)
+        if len(row) != len(names):
+            raise DesignError(f"structure row {list(row)} has {len(row)} entries for the faults {names}")
         if not any(row):
-            continue
+            return "a residual that sees no fault detects nothing"
         base = tuple(range(nd)) + tuple(c for nm, s in zip(names, row) if not s for c in cols[nm])
         r0 = rk(base)
-        if all(rk(base + tuple(cols[nm])) > r0 for nm, s in zip(names, row) if s):
-            if strong is None or strong(names, row):
-                rows.append(row)
-    return np.array(rows, dtype=int).reshape(-1, len(names))
+        if r0 >= model.ny:
+            return (f"no residual generator exists: the unknown inputs d and the faults marked 0 span every output "
+                    f"direction (normal rank of Gd = {r0} = number of outputs {model.ny}, the faults marked 0 "
+                    f"counted as d)")
+        for nm, s in zip(names, row):
+            if s and not rk(base + tuple(cols[nm])) > r0:
+                return (f"fault '{nm}' is invisible once d and the faults marked 0 are decoupled (normal rank "
+                        f"{rk(base + tuple(cols[nm]))} of [Gd Gf_0 Gf_{nm}] = rank {r0} of [Gd Gf_0])")
+        if strong is not None and not strong(names, row):
+            return (f"a required fault is not strongly detectable at ω = {np.ravel(freqs).tolist()} rad/s "
+                    f"(FDGainTol = {FDGainTol:g}) once d and the faults marked 0 are decoupled")
+        return None
+
+    return test
 
 
 def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
@@ -282,9 +334,9 @@ def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
 
     omega = np.atleast_1d(np.asarray(freqs, float))
     if omega.ndim != 1 or not omega.size or np.any(omega < 0) or not np.all(np.isfinite(omega)):
-        raise ValueError(f"freqs must be finite non-negative frequencies in rad/s, got {np.ravel(freqs).tolist()}")
+        raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {np.ravel(freqs).tolist()}")
     if not np.isfinite(FDGainTol) or not 0 < FDGainTol < 1:
-        raise ValueError(f"FDGainTol must be in (0, 1), got {FDGainTol!r}")
+        raise DesignError(f"FDGainTol must be in (0, 1), got {FDGainTol!r}")
 
     def points(w):
         return np.exp(1j * w * model.dt) if model.dt else 1j * w
@@ -384,11 +436,11 @@ def _stable_fault_response(mi: FDIModel, basis) -> LTI:
                 P = sla.solve_continuous_are(T.A.T, T.C.T, I_n, I_p)
                 L = P @ T.C.T
         except (np.linalg.LinAlgError, ValueError) as exc:
-            raise ValueError(f"strong detectability at a pole of the fault channels on the stability boundary "
+            raise DesignError(f"strong detectability at a pole of the fault channels on the stability boundary "
                              f"cannot be decided: the left coprime factorisation of the fault response failed "
                              f"({exc}); pass other freqs") from None
         T = LTI(T.A - L @ T.C, T.B - L @ T.D, T.C, T.D, T.dt)
         if not T.is_stable(margin):
-            raise ValueError("strong detectability at a pole of the fault channels on the stability boundary "
+            raise DesignError("strong detectability at a pole of the fault channels on the stability boundary "
                              "cannot be decided: the fault response has an undetectable mode there; pass other freqs")
     return T

@@ -78,10 +78,32 @@ class ResidualGenerator:
         return (f"ResidualGenerator(method='{self.method}', residuals={self.Q.p}, order={self.Q.n}, "
                 f"{'dt=' + format(self.dt, 'g') if self.dt else 'continuous'})")
 
+    def scale_rows(self, scales) -> None:
+        """Scale residual component k by ``scales[k]`` (``Q ← diag(scales) Q``; a bank's members
+        follow): the normalisation of :func:`~fmu_fdi.design.postconditions.check_generator`."""
+        s = np.asarray(scales, float).reshape(-1)
+        if s.size != self.Q.p or not np.all(np.isfinite(s)) or np.any(s == 0):
+            raise ValueError(f"row scales must be {self.Q.p} finite non-zero numbers, got {s.tolist()}")
+        Q = self.Q
+        self.Q = LTI(Q.A, Q.B, s[:, None] * Q.C, s[:, None] * Q.D, Q.dt)
+        self.__dict__.pop("_R", None)
+        for g, member in zip(self.groups, getattr(self, "members", ())):
+            member.scale_rows(s[g])
+
     # ----------------------------------------------------------- internal form
     @cached_property
     def _R(self) -> LTI:
-        return (self.Q @ self.model.augmented()).minreal()
+        # the plant modes outside the stability margin that Q cancels go first, with the judge's
+        # tolerance (postconditions.margin_reduced): TB01PD's own tolerance kept Ex. 5.4's
+        # cancelled poles 2, 3 in Rf
+        from .design.postconditions import default_smarg, margin_reduced
+
+        T = self.Q @ self.model.augmented()
+        try:
+            T = margin_reduced(T, default_smarg(self.dt))
+        except (np.linalg.LinAlgError, ValueError):  # a Sylvester equation with a pole on the margin
+            pass
+        return T.minreal()
 
     def internal_form(self) -> dict[str, LTI]:
         """``{'u': Ru, 'd': Rd, 'w': Rw, 'f': Rf}``, minimal realisations sharing states."""

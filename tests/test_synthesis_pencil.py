@@ -9,7 +9,7 @@ minimal polynomial basis where that one is accurate (an independent computation)
 import numpy as np
 import pytest
 
-from fmu_fdi import nullspace_design, structured_bank
+from fmu_fdi import DesignError, nullspace_design, structured_bank
 from fmu_fdi.design._basis import minimal_basis, normal_rank
 from fmu_fdi.design.pencil import conjugate_partition, controllable_staircase, pencil_basis
 from fmu_fdi.design.postconditions import DEC_TOL, check_generator
@@ -168,8 +168,10 @@ def test_pencil_basis_alone_decouples_to_rounding(seed, what):
     else:
         mi = model
     gen = nullspace_design(mi, basis="pencil")
-    fig = check_generator(gen, dec_tol=1e-9, block=True)
-    assert fig["decoupling"] <= 1e-9 and gen.info["basis"] == "pencil"
+    # 1e-9 is rounding relative to |Q||Ge| (contract(), the issue-13 measure this docstring means);
+    # the judge of issue 17 (absolute on the unit-gain row) holds at its default tolerance
+    assert contract(gen, mi, leak_tol=1e-9) == [] and gen.info["basis"] == "pencil"
+    assert check_generator(gen, block=True)["decoupling"] <= DEC_TOL
     # not least order, but never above the basis' McMillan degree Σ indices
     assert gen.Q.n <= sum(gen.info["left_minimal_indices"])
     assert gen.Q.is_stable()
@@ -193,12 +195,11 @@ def test_sampled_rows_report_whether_they_can_be_exact():
     assert gen.info["left_minimal_indices"] == [1] and gen.info["decoupling_kind"].startswith("exact")
     # n = 29: without the pencil basis only the sampled fallback meets the post-conditions, at an order
     # below the smallest index; it is returned only with basis='polynomial', labelled and with a warning
+    # (issue 17: the judge is absolute on the normalised form, and that row's residual moves with
+    # u 7.7e-4 times as much as with its weakest fault: refused, no longer returned with a warning)
     model = random_model(29)
-    with pytest.warns(UserWarning, match="decouples u and d approximate"):
-        gen = nullspace_design(model, basis="polynomial")
-    assert gen.info.get("synthesis") == "frequency-sampled"
-    assert gen.Q.n < min(gen.info["left_minimal_indices"]) and gen.info["decoupling_kind"].startswith("approximate")
-    assert max(_pointwise_leak(gen.Q, model)) > 1e-5  # the approximation shows where |G| is small
+    with pytest.raises(DesignError, match=r"decoupling.*leak [0-9.e-]+ × the weakest fault"):
+        nullspace_design(model, basis="polynomial")
     # basis='auto' prefers the exact pencil row, at its higher order: a simple row at the smallest index (the
     # least order of any exact row), so the sampled search is not even run
     auto = nullspace_design(model)

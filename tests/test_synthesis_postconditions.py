@@ -63,7 +63,7 @@ def test_broken_filter_is_refused_with_numbers():
     gen = nullspace_design(pub.ex5_3(), rdim=1, poles=[-3])
     Q = gen.Q
     bad = ResidualGenerator(LTI(Q.A, Q.B, Q.C, Q.D + 1e-3), gen.model, "nullspace")
-    with pytest.raises(DesignError, match=r"decoupling.*relative size .* > dec_tol"):
+    with pytest.raises(DesignError, match=r"decoupling.*leak .* × the weakest fault gain > dec_tol"):
         check_generator(bad)
 
 

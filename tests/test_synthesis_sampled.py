@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import published as pub
+from fmu_fdi import DesignError
 from fmu_fdi.design._basis import pole_chooser
 from fmu_fdi.design.nullspace import _sampled, fault_columns
 from fmu_fdi.design.sampled import cascade, sampled_rows
@@ -41,9 +42,10 @@ def test_cascade_holds_poles_exactly():
 
 
 def test_fallback_on_high_degree_model():
-    """Seed 18 (n = 28, badly scaled): the parity basis leaks 3e-3; the sampled design is exact."""
+    """Seed 18 (n = 28, badly scaled): the parity basis leaks 3e-3; the sampled design is exact
+    only by the issue-13 relative measure (contract(): < 1e-6 of |Q||Ge|). Its residual moves with
+    d 1.3e-6 times as much as with its weakest fault (independent numpy evaluation, issue 17):
+    the judge on the normalised form refuses it, naming the leak."""
     model = random_model(18)
-    gen = _sampled(model, 1, None, None, None, 1e-4, 0.01, 0, None, 1e-7)
-    assert gen.info["synthesis"] == "frequency-sampled"
-    assert contract(gen, model) == []
-    assert gen.info["postconditions"]["decoupling"] < 1e-7
+    with pytest.raises(DesignError, match=r"decoupling\): residual 1: u\+d leak [0-9.e-]+ × the weakest fault"):
+        _sampled(model, 1, None, None, None, 1e-4, 0.01, 0, None, 1e-7)

@@ -141,7 +141,10 @@ def test_noise_covariance_of_a_non_normal_filter():
     from fmu_fdi import dedicated_bank
 
     m = FDIModel.from_file(plant_fmus.model_path("vtol")).discretize(0.01)
-    gen = dedicated_bank(m, "sensor", noise="optimize")
+    # issue 17's judge refuses this bank (its rows keep the plant's unstable pair |z| = 1.0028 in R
+    # and leak u at 1e-4 of the weakest fault gain); the covariance of that very non-normal filter
+    # is what is tested here, so its post-conditions are relaxed to let it through
+    gen = dedicated_bank(m, "sensor", noise="optimize", smarg=1.003, dec_tol=1e-3)
     for i, rows in enumerate(gen.groups):
         R = gen.Q[rows, : m.ny] @ m.Dw  # measurement noise only: the plant adds no dynamics
         total, x = R.D @ R.D.T, R.B.copy()

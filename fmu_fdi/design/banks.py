@@ -86,10 +86,14 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
                              minimal=minimal, basis=how, keep_stable_poles=keep_stable_poles)
         return ResidualGenerator(g.Q, model, "structured", info=g.info)
 
+    from ..analysis import row_test
+
+    achievable = row_test(model, names, freqs=freqs, FDGainTol=FDGainTol, tol=tol)  # as achievable_structure
     members, failures = [], []
     for i, row in enumerate(S.astype(int)):
-        if not row.any():
-            failures.append(f"row {i + 1} {row.tolist()}: a residual that sees no fault detects nothing")
+        why = achievable(row)
+        if why is not None:
+            failures.append(f"row {i + 1} {row.tolist()} is not achievable: {why}")
             continue
         try:
             members.append(design_row(row, basis))

@@ -134,7 +134,7 @@ def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None 
                     gen = _exact(model, basis, seen, k if k < len(rows) else "all",
                                  lambda c: np.zeros(c, complex), None, 0.01, seed)
                     gen.method = "parity"
-                check_generator(gen, decouple=("u", "d"), block=True, FDtol=FDtol)
+                check_generator(gen, decouple=("u", "d"), block=True, FDtol=FDtol, normalize=False)  # parity scaling
                 if "parity_matrix" not in gen.info:  # the full basis, when the generator has none of its own
                     gen.info["parity_matrix"] = np.array([r.coef[:, : model.ny].ravel() for r in rows]).tolist()
                 gen.info.update({"mode": "exact", "parity_order": s})
@@ -212,7 +212,7 @@ def _robust(model: FDIModel, data: ParityData, s: int, rdim: int, tol, atol: flo
     ratio = float(np.sqrt(max(lam[0], 0.0)))
     rows = [data.row(v, s) for v in V]
     gen = _fir_generator(model, data, rows, s)
-    check_generator(gen, decouple=("u",), block=True, FDtol=0.0)  # robust: d minimised, not decoupled
+    check_generator(gen, decouple=("u",), block=True, FDtol=0.0, normalize=False)  # robust: d minimised; unit noise
     gen.info.update({"mode": "robust", "parity_order": s, "robustness_ratio": ratio,
                      "parity_matrix": V.tolist(), "rho": data.rho, "poles": [0.0] * (s * len(rows))})
     return gen

@@ -1,0 +1,346 @@
+"""The one judge (issue 17, items 1-5): rows come back normalised to unit weakest fault gain,
+and u/d leakage is judged ABSOLUTE on that normalised internal form R = Q·[Gu Gd Gw Gf; I 0 0 0];
+``leakage()``, ``structure_matrix()`` and ``info['postconditions']`` are one computation;
+R's own poles (not only Q's) must respect the margin, inclusively.
+
+Every property is judged here by an independent computation: the state-space matrices of the
+model and of Q, diagonally balanced by scipy (LAPACK gebal) and evaluated at frequency points
+with numpy.linalg.solve, on our own grid — none of fmu_fdi's LTI/analysis code.
+"""
+import functools
+
+import numpy as np
+import published as pub
+import pytest
+import scipy.linalg as sla
+from judge_models import ill_scaled_model
+
+from fmu_fdi import DesignError, FDIModel, component_fault, leakage, nullspace_design, structure_matrix, structured_bank
+from fmu_fdi.analysis import achievable_structure
+from fmu_fdi.design.postconditions import DEC_TOL, check_generator
+from fmu_fdi.generator import ResidualGenerator
+from fmu_fdi.lti import LTI
+
+GROUPS = ("u", "d", "w", "f")
+
+
+# ------------------------------------------------------------------ independent numerics
+def _values(A, B, C, D, lam):
+    """C (λI - A)^{-1} B + D at the points lam, on the gebal-balanced realisation."""
+    A, B, C, D = (np.atleast_2d(np.asarray(X, float)) for X in (A, B, C, D))
+    if A.size == 0:
+        return np.repeat(D[None].astype(complex), lam.size, axis=0)
+    _, (s, _) = sla.matrix_balance(A, permute=False, separate=True)
+    A, B, C = A * s[None, :] / s[:, None], B / s[:, None], C * s[None, :]
+    n = A.shape[0]
+    return np.stack([C @ np.linalg.solve(x * np.eye(n) - A, B) + D for x in lam])
+
+
+def _plant(model):
+    """(A, B, C, D) of Ge = [Gu Gd Gw Gf; I 0 0 0] from the model's own matrices."""
+    Bs, Ds = zip(*(model.matrices(g) for g in GROUPS))
+    B, D = np.hstack(Bs), np.hstack(Ds)
+    low = np.zeros((model.nu, B.shape[1]))
+    low[:, :model.nu] = np.eye(model.nu)
+    return model.A, B, np.vstack([model.C, np.zeros((model.nu, model.n))]), np.vstack([D, low])
+
+
+def _grid(model, num=600):
+    if model.dt:  # the unit circle up to Nyquist
+        return np.exp(1j * np.linspace(0.0, np.pi, num))
+    return 1j * np.concatenate([[0.0], np.logspace(-4, 4, num)])
+
+
+def _blocks(model):
+    """Column indices of u, d, w and of every fault in Ge's inputs."""
+    k, out = 0, {}
+    for g, cnt in zip(GROUPS, (model.nu, model.nd, model.nw, model.nf)):
+        out[g] = np.arange(k, k + cnt)
+        k += cnt
+    for f in model.faults:
+        out[f.name] = out["f"][f.columns]
+    return out
+
+
+def _peak(X):
+    return float(np.max(np.linalg.norm(X, 2, axis=(1, 2)))) if X.shape[1] and X.shape[2] else 0.0
+
+
+def independent(gen, lam=None):
+    """Per residual group: peaks over our grid of ||R_X||, X = u, d, w and every fault."""
+    model, Q = gen.model, gen.Q
+    if lam is None:
+        # points within 1e-9 (relative) of a pole of the realisations are that pole (ω = 0 next
+        # to an integrator rounded to -9e-17: the realisation's 1e-16 junk is the value there)
+        lam = _grid(model)
+        poles = np.concatenate([np.linalg.eigvals(X) for X in (model.A, Q.A) if X.size] or [np.zeros(0)])
+        if poles.size:
+            lam = lam[np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) > 1e-9 * max(1, np.abs(poles).max())]
+    Gv = _values(*_plant(model), lam)
+    Qv = _values(Q.A, Q.B, Q.C, Q.D, lam)
+    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))
+    R = Qv[ok] @ Gv[ok]
+    cols = _blocks(model)
+    return [{x: _peak(R[:, g][:, :, c]) for x, c in cols.items()} for g in gen.groups], (Qv[ok], Gv[ok])
+
+
+def old_relative_leak(gen):
+    """The issue-13 measure this judge replaces: max ||R_ud|| / max ||Q|| ||Ge_ud||."""
+    figs, (Qv, Gv) = independent(gen)
+    cols = _blocks(gen.model)
+    ud = np.r_[cols["u"], cols["d"]]
+    R = Qv @ Gv
+    n2 = lambda X: np.linalg.norm(X, 2, axis=(1, 2))  # noqa: E731
+    return float(n2(R[:, :, ud]).max() / (n2(Qv) * n2(Gv[:, :, ud])).max())
+
+
+def assert_normalised_contract(gen, S=None, names=None):
+    """Independent check of a returned design: weakest required fault gain ≈ 1 per row (our grid's
+    peak of a block the judge peaked at 1 on its grid: within [0.9, 1.5] — a lower bound from a
+    coarser grid, raised by what it missed between its points), u/d leakage ≤ 10·dec_tol on our
+    grid (rounding of a decoupled block is flat; a factor 10 covers a narrow peak between the
+    judge's points), the 0-faults alike."""
+    model = gen.model
+    names = list(model.fault_names if names is None else names)
+    S = np.ones((len(gen.groups), len(names)), int) if S is None else np.asarray(S)
+    figs, _ = independent(gen)
+    for i, f in enumerate(figs):
+        req = [f[nm] for nm, s in zip(names, S[i]) if s]
+        assert 0.9 <= min(req) <= 1.5, (i, req)
+        assert max(f["u"], f["d"]) <= 10 * DEC_TOL, (i, f)
+        for nm, s in zip(names, S[i]):
+            if not s:
+                assert f[nm] <= 10 * DEC_TOL, (i, nm, f[nm])
+    return figs
+
+
+def same_report(gen):
+    """info['postconditions'] is what leakage() and structure_matrix() report for the object."""
+    pc = gen.info["postconditions"]
+    assert pc["leakage"] == leakage(gen)
+    assert np.array_equal(np.asarray(pc["structure_matrix"]), structure_matrix(gen))
+
+
+# ------------------------------------------------------------------ the random ill-scaled set
+SEEDS = [0, 1, 2, 5]  # continuous and discrete, n 16-26, with and without d (fast subset)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_ill_scaled_designs_meet_the_judge_or_refuse(seed):
+    model = ill_scaled_model(seed)
+    try:
+        gen = nullspace_design(model)
+    except DesignError as exc:
+        assert "post-conditions" in str(exc) or "no residual" in str(exc)
+        return
+    assert_normalised_contract(gen)
+    same_report(gen)
+    # the judge and leakage() agree with the independent figure: both below dec_tol/10 (both
+    # decide "decoupled", rounding differs), or within 10 % (a flat leak)
+    ours = max(independent(gen)[0][0]["u"], independent(gen)[0][0]["d"])
+    assert abs(ours - leakage(gen)) <= max(0.1 * ours, DEC_TOL / 10)
+
+
+@functools.lru_cache(maxsize=None)
+def _leaky_base(seed):
+    model = ill_scaled_model(seed, input_decades=4.0)
+    return model, nullspace_design(model, rdim=1)
+
+
+@pytest.mark.parametrize("seed", [0, 2])
+@pytest.mark.parametrize("eps", [1e-5, 3e-3])
+def test_leaky_filter_is_refused_although_old_measure_passed(seed, eps):
+    """A good design, perturbed on purpose: ``Q' = Q + ε [0 e_1ᵀ]`` (a static path from u1 to r)
+    gives ``R_u' = R_u + ε e_1ᵀ`` — a flat leak ε — with R_f unchanged (the u-columns of Ge's
+    lower block carry no fault). Input channels scaled over four decades make ||Q|| ||Ge_u||
+    large, so the issue-13 relative measure sees only ε/(||Q|| ||Ge_u||)."""
+    model, gen = _leaky_base(seed)
+    Q = gen.Q
+    D = Q.D.copy()
+    D[0, model.ny] += eps
+    bad = ResidualGenerator(LTI(Q.A, Q.B, Q.C, D, Q.dt), model, "nullspace")
+    leak = independent(bad)[0][0]["u"]
+    assert leak == pytest.approx(eps, rel=1e-3)
+    assert leakage(bad) == pytest.approx(leak, rel=1e-3)  # the judge's figure is the user's
+    with pytest.raises(DesignError, match=r"u\+?d? ?leak|leak"):
+        check_generator(bad)
+    # the failure of issue 17: the old relative figure (here ~1e-14 … 1e-10 of the leak's
+    # 1e-5 … 3e-3) stays below its 1e-6 tolerance, so the old judge passed this filter
+    assert old_relative_leak(bad) < 1e-6
+
+
+def test_normalisation_is_unit_weakest_gain_and_leakage_scales_with_it():
+    """check_generator scales a row by 1/min_j ||R_fj||; an unnormalised exact filter scaled by
+    1e-6 comes back with unit weakest gain, the same leakage figure relative to it."""
+    model = pub.ex5_3()
+    gen = nullspace_design(model, rdim=1, poles=[-3])
+    Q = gen.Q
+    small = ResidualGenerator(LTI(Q.A, Q.B, 1e-6 * Q.C, 1e-6 * Q.D, Q.dt), model, "nullspace")
+    fig = check_generator(small)
+    assert fig["scales"][0] == pytest.approx(1e6, rel=1e-9)
+    figs, _ = independent(small)
+    assert min(figs[0][nm] for nm in model.fault_names) == pytest.approx(1.0, rel=1e-2)
+    same_report(small)
+
+
+# ------------------------------------------------------------------ zero filter, R's poles
+def _siso_model(num_den_f, num_den_w=None):
+    import control as ct
+
+    cols = [num_den_f] + ([num_den_w] if num_den_w else [])
+    G = LTI.from_control(ct.minreal(ct.ss(ct.tf([[c[0] for c in cols]], [[c[1] for c in cols]])), verbose=False))
+    return FDIModel.from_matrices(G.A, np.zeros((G.n, 0)), G.C, Bw=G.B[:, 1:] if num_den_w else None,
+                                  Dw=G.D[:, 1:] if num_den_w else None,
+                                  faults=[component_fault("f", G.B[:, [0]], G.D[:, [0]])])
+
+
+def _r_keeps_pole(gen, p0):
+    """Independently: does R have a pole at p0? ||R(p0 + δ)|| grows like 1/δ there."""
+    near = np.array([p0 + 1e-3, p0 + 1e-6])
+    figs, (Qv, Gv) = independent(gen, near)
+    g = np.linalg.norm(Qv @ Gv, 2, axis=(1, 2))
+    return bool(g[1] > 100 * g[0])
+
+
+def test_zero_filter_is_refused_or_normalised():
+    """One output, Gf = 1/s, Gw = 1/(s²+4): the old design returned Q = 2.9e-16 as a success."""
+    model = _siso_model(([1], [1, 0]), ([1], [1, 0, 4]))
+    for kw in ({}, {"noise": "ignore"}):
+        try:
+            gen = nullspace_design(model, **kw)
+        except DesignError as exc:
+            assert "post-conditions" in str(exc) or "noise" in str(exc)
+            continue
+        figs, _ = independent(gen)
+        assert 0.9 <= figs[0]["f"] <= 1.5 and figs[0]["w"] < 1e6
+        assert not _r_keeps_pole(gen, 0.0) and not _r_keeps_pole(gen, 2j)
+
+
+def test_rounding_noise_filter_is_refused():
+    model = _siso_model(([1], [1, 1]))
+    noise = ResidualGenerator(LTI.static(np.array([[2.9e-16]])), model, "nullspace")
+    with pytest.raises(DesignError, match="numerically zero"):
+        check_generator(noise)
+    fine = ResidualGenerator(LTI.static(np.array([[3.0]])), model, "nullspace")
+    check_generator(fine)
+    assert fine.Q.D[0, 0] == pytest.approx(1.0)  # |Gf| = 1/|s+1| peaks at 1 (ω = 0): scale 1/3
+
+
+@pytest.mark.parametrize("den", [[1, -1], [1, 0], [1, 0, 4]])
+def test_fault_pole_outside_margin_is_not_in_r(den):
+    """Gf = [1/(s−1); 1/(s+2)] (and 1/s, 1/(s²+4)) with no u/d: a static Q seeing y1 keeps the pole
+    in R although Q is stable; the judge refuses it, names R's pole, and passes Q = [0 1]."""
+    import control as ct
+
+    G = LTI.from_control(ct.minreal(ct.ss(ct.tf([[[1]], [[1]]], [[den], [[1, 2]]])), verbose=False))
+    model = FDIModel.from_matrices(G.A, np.zeros((G.n, 0)), G.C, faults=[component_fault("f", G.B, G.D)])
+    p0 = complex(np.roots(den)[0])
+    both = ResidualGenerator(LTI.static(np.array([[1.0, 1.0]])), model, "nullspace")
+    assert _r_keeps_pole(both, p0)
+    with pytest.raises(DesignError, match="R stability.*keeps the plant pole"):
+        check_generator(both)
+    good = ResidualGenerator(LTI.static(np.array([[0.0, 1.0]])), model, "nullspace")
+    assert not _r_keeps_pole(good, p0)
+    fig = check_generator(good)
+    assert fig["R_poles"] == [] and good.Q.D[0, 1] == pytest.approx(2.0)  # 1/(s+2) peaks at 1/2
+    try:  # a design either returns a stable R or refuses
+        gen = nullspace_design(model)
+    except DesignError:
+        return
+    assert not _r_keeps_pole(gen, p0)
+    assert_normalised_contract(gen)
+
+
+def test_unstable_plant_cancelled_mode_is_not_a_pole_of_r():
+    """Varga's Ex. 5.4 (poles 2, 3 in Gu): R_f = -Q_u is stable although the series realisation
+    Q·Ge has the unstable modes (unobservable): the judge must not count them."""
+    gen = nullspace_design(pub.ex5_4(), rdim=1, poles=[-1.0])
+    assert gen.info["postconditions"]["R_poles"] == []
+    assert not _r_keeps_pole(gen, 2.0) and not _r_keeps_pole(gen, 3.0)
+    assert_normalised_contract(gen)
+
+
+# ------------------------------------------------------------------ smarg inclusive
+def test_smarg_is_inclusive():
+    """Re p ≤ smarg passes (FaultDetectionTools.jl's stability domain is closed)."""
+    gen = nullspace_design(pub.ex5_3(), rdim=1, poles=[-3])
+    pole = float(np.max(np.linalg.eigvals(gen.Q.A).real))
+    check_generator(gen, smarg=pole)
+    with pytest.raises(DesignError, match="stability margin"):
+        check_generator(gen, smarg=pole - 1e-9)
+
+
+def test_smarg_is_inclusive_discrete():
+    model = pub.ex5_3().discretize(0.1)
+    gen = nullspace_design(model, rdim=1, poles=[0.5])
+    radius = float(np.max(np.abs(np.linalg.eigvals(gen.Q.A))))
+    check_generator(gen, smarg=radius)
+    with pytest.raises(DesignError, match="stability margin"):
+        check_generator(gen, smarg=radius - 1e-9)
+
+
+# ------------------------------------------------------------------ banks: one report, one row test
+def test_bank_rows_normalised_and_reports_agree():
+    model = pub.ex5_3()
+    S = achievable_structure(model)
+    bank = structured_bank(model, S, poles=[-3])
+    assert_normalised_contract(bank, S)
+    same_report(bank)
+    np.testing.assert_array_equal(structure_matrix(bank), S)
+    for g, member in zip(bank.groups, bank.members):  # the members carry the bank's scaling
+        np.testing.assert_allclose(member.Q.D, bank.Q.D[g], rtol=0, atol=0)
+
+
+def test_strong_report_agrees_with_postconditions():
+    model = pub.ex5_3()
+    bank = structured_bank(model, [[1, 1]], poles=[-3], freqs=[0.0])
+    pc = bank.info["postconditions"]
+    assert np.array_equal(np.asarray(pc["strong_structure_matrix"]), structure_matrix(bank, freqs=[0.0]))
+    # independently: the normalised row's gains at ω = 0 reach FDGainTol
+    figs, (Qv, Gv) = independent(bank, np.array([0j]))
+    cols = _blocks(model)
+    for nm in model.fault_names:
+        assert np.linalg.norm((Qv @ Gv)[0][:, cols[nm]], 2) >= 0.01
+
+
+def test_refused_row_is_not_listed_and_listed_rows_are_designed():
+    """structured_bank refuses, with the reason achievable_structure uses, a row it does not list."""
+    model = pub.ex5_3()
+    listed = {tuple(r) for r in achievable_structure(model).tolist()}
+    for row in ([1, 0], [0, 1], [1, 1]):
+        if tuple(row) in listed:
+            bank = structured_bank(model, [row], poles=[-3])
+            assert_normalised_contract(bank, [row])
+        else:
+            with pytest.raises(DesignError, match="not achievable"):
+                structured_bank(model, [row], poles=[-3])
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="core's polynomial/sampled/pencil row synthesis returns a filter whose "
+                   "residual moves with u 0.17 times as much as with its weakest fault for Boeing 747 row "
+                   "[0 0 1 1 0]; the judge refuses it, so a listed row is not designed (issue 17 item 2/3)")
+def test_boeing747_every_listed_row_is_designed():
+    from test_synthesis_published import boeing747
+
+    model = boeing747()
+    for row in achievable_structure(model).tolist():
+        bank = structured_bank(model, [row])
+        assert_normalised_contract(bank, [row])
+
+
+def test_fault_pole_outside_margin_discrete():
+    """The same on the sampled plant (Ts = 0.1): z = e^0.1 kept by Q = [1 1], not by Q = [0 1]."""
+    import control as ct
+
+    G = LTI.from_control(ct.minreal(ct.ss(ct.tf([[[1]], [[1]]], [[[1, -1]], [[1, 2]]])), verbose=False))
+    model = FDIModel.from_matrices(G.A, np.zeros((G.n, 0)), G.C, faults=[component_fault("f", G.B, G.D)])
+    model = model.discretize(0.1)
+    z0 = complex(np.exp(0.1))
+    both = ResidualGenerator(LTI.static(np.array([[1.0, 1.0]]), 0.1), model, "nullspace")
+    assert _r_keeps_pole(both, z0)
+    with pytest.raises(DesignError, match=r"R stability.*largest \|pole\| = 1.10517"):
+        check_generator(both)
+    good = ResidualGenerator(LTI.static(np.array([[0.0, 1.0]]), 0.1), model, "nullspace")
+    assert not _r_keeps_pole(good, z0)
+    assert check_generator(good)["R_poles"] == []
