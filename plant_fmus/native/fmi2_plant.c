@@ -165,13 +165,15 @@ fmi2Status fmi2Reset(fmi2Component c) {
 /* ---- values --------------------------------------------------------------------------------- */
 static fmi2Status check_vr(instance *in, fmi2ValueReference vr, int kind, const char *fn) {
     static const char *const kinds[3] = {"Real", "Integer", "Boolean"};
-    char buf[64];
+    char buf[160];
     if (vr >= NP_N_VARS) {
         snprintf(buf, sizeof buf, "%u", (unsigned)vr);
         return report(in, fmi2Error, "%s: no variable with value reference %s", fn, buf);
     }
-    if (var_kinds[vr] != kind) return report(in, fmi2Error, "%s: variable %s has another type", fn, var_names[vr]);
-    (void)kinds;
+    if (var_kinds[vr] != kind) {
+        snprintf(buf, sizeof buf, "%s is %s, not %s", var_names[vr], kinds[var_kinds[vr]], kinds[kind]);
+        return report(in, fmi2Error, "%s: variable %s", fn, buf);
+    }
     return fmi2OK;
 }
 
@@ -185,37 +187,31 @@ static fmi2Status check_set(instance *in, fmi2ValueReference vr, const char *fn)
     return fmi2OK;
 }
 
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
-    instance *in = inst(c);
+/* every value reference exists and has the type; for a setter also settable now (all or nothing) */
+static fmi2Status checked(instance *in, const fmi2ValueReference vr[], size_t nvr, int kind, const char *fn, int set) {
     size_t i;
-    if (!in) return fmi2Error;
-    for (i = 0; i < nvr; i++) {
-        if (check_vr(in, vr[i], K_REAL, "fmi2GetReal")) return fmi2Error;
-        value[i] = in->plant.v[vr[i]];
-    }
+    for (i = 0; i < nvr; i++)
+        if (check_vr(in, vr[i], kind, fn) || (set && check_set(in, vr[i], fn))) return fmi2Error;
     return fmi2OK;
+}
+
+#define ACCESS(in, kind, fn, set, body)                                                                    \
+    instance *in = inst(c);                                                                                \
+    size_t i;                                                                                              \
+    if (!in || checked(in, vr, nvr, kind, fn, set)) return fmi2Error;                                      \
+    for (i = 0; i < nvr; i++) body;                                                                        \
+    return fmi2OK
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
+    ACCESS(in, K_REAL, "fmi2GetReal", 0, value[i] = in->plant.v[vr[i]]);
 }
 
 fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
-    instance *in = inst(c);
-    size_t i;
-    if (!in) return fmi2Error;
-    for (i = 0; i < nvr; i++) {
-        if (check_vr(in, vr[i], K_INTEGER, "fmi2GetInteger")) return fmi2Error;
-        value[i] = (fmi2Integer)in->plant.v[vr[i]];
-    }
-    return fmi2OK;
+    ACCESS(in, K_INTEGER, "fmi2GetInteger", 0, value[i] = (fmi2Integer)in->plant.v[vr[i]]);
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
-    instance *in = inst(c);
-    size_t i;
-    if (!in) return fmi2Error;
-    for (i = 0; i < nvr; i++) {
-        if (check_vr(in, vr[i], K_BOOLEAN, "fmi2GetBoolean")) return fmi2Error;
-        value[i] = in->plant.v[vr[i]] != 0.0 ? fmi2True : fmi2False;
-    }
-    return fmi2OK;
+    ACCESS(in, K_BOOLEAN, "fmi2GetBoolean", 0, value[i] = in->plant.v[vr[i]] != 0.0 ? fmi2True : fmi2False);
 }
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
@@ -226,33 +222,15 @@ fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 }
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
-    instance *in = inst(c);
-    size_t i;
-    if (!in) return fmi2Error;
-    for (i = 0; i < nvr; i++)
-        if (check_vr(in, vr[i], K_REAL, "fmi2SetReal") || check_set(in, vr[i], "fmi2SetReal")) return fmi2Error;
-    for (i = 0; i < nvr; i++) in->plant.v[vr[i]] = value[i];
-    return fmi2OK;
+    ACCESS(in, K_REAL, "fmi2SetReal", 1, in->plant.v[vr[i]] = value[i]);
 }
 
 fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
-    instance *in = inst(c);
-    size_t i;
-    if (!in) return fmi2Error;
-    for (i = 0; i < nvr; i++)
-        if (check_vr(in, vr[i], K_INTEGER, "fmi2SetInteger") || check_set(in, vr[i], "fmi2SetInteger")) return fmi2Error;
-    for (i = 0; i < nvr; i++) in->plant.v[vr[i]] = value[i];
-    return fmi2OK;
+    ACCESS(in, K_INTEGER, "fmi2SetInteger", 1, in->plant.v[vr[i]] = value[i]);
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
-    instance *in = inst(c);
-    size_t i;
-    if (!in) return fmi2Error;
-    for (i = 0; i < nvr; i++)
-        if (check_vr(in, vr[i], K_BOOLEAN, "fmi2SetBoolean") || check_set(in, vr[i], "fmi2SetBoolean")) return fmi2Error;
-    for (i = 0; i < nvr; i++) in->plant.v[vr[i]] = value[i] ? 1.0 : 0.0;
-    return fmi2OK;
+    ACCESS(in, K_BOOLEAN, "fmi2SetBoolean", 1, in->plant.v[vr[i]] = value[i] ? 1.0 : 0.0);
 }
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
