@@ -6,8 +6,7 @@ exact linear step) and the FMI glue (``fmi2_plant.c``). The pythonfmu plant is t
 native FMU's variables are read from the pythonfmu FMU's modelDescription.xml (same names, value
 references, types, causality, variability, start values, units, descriptions), so a master that
 drives one drives the other. Noise-free runs agree to rounding (tests/test_native_plants.py); the
-noise stream differs (numpy PCG64 there, xoshiro256** here: see ``native/np_support.c`` and
-docs/plant_fmus.md, "Native plants").
+noise stream differs (numpy PCG64 there, xoshiro256** here: see docs/native-plants.md).
 
 Layout of the FMU::
 

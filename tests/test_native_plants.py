@@ -227,3 +227,53 @@ def test_native_plant_in_a_plain_c_host_under_valgrind(fmus, tmp_path):
                      tmp_path)[0][0])
     for y in ("h1", "h2", "h3"):
         np.testing.assert_array_equal(out[y], res[y])
+
+
+def test_native_glue_refuses_misuse(fmus):
+    """FMI calls out of the rules return fmi2Error and change nothing (native FMU only, so it is
+    safe in this process: no pythonfmu)."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import FMU2Slave
+
+    native = str(fmus["dts200"][1])
+    md = read_model_description(native)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    unzip = extract(native)
+    try:
+        bad = FMU2Slave(guid="{wrong}", unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier)
+        with pytest.raises(Exception):
+            bad.instantiate()
+        s = FMU2Slave(guid=md.guid, unzipDirectory=unzip, modelIdentifier=md.coSimulation.modelIdentifier)
+        s.instantiate()
+        s.setupExperiment(startTime=0.0)
+        s.enterInitializationMode()
+        s.setReal([vr["area"]], [100.0])  # a fixed parameter, before initialisation ends: fine
+        s.exitInitializationMode()
+        for call in (lambda: s.setReal([vr["h1"]], [1.0]),            # an output
+                     lambda: s.setReal([vr["area"]], [154.0]),         # a fixed parameter, too late
+                     lambda: s.setReal([vr["seed"]], [1.0]),           # an Integer, set as Real
+                     lambda: s.getReal([len(md.modelVariables)]),      # no such value reference
+                     lambda: s.setReal([vr["Q1"], vr["h1"]], [5.0, 1.0])):  # all or nothing
+            with pytest.raises(FMICallException):
+                call()
+        assert s.getReal([vr["area"], vr["Q1"]]) == [100.0, float(md.modelVariables[vr["Q1"]].start)]
+        s.doStep(currentCommunicationPoint=0.0, communicationStepSize=1.0)
+        with pytest.raises(FMICallException):
+            s.doStep(currentCommunicationPoint=1.0, communicationStepSize=0.0)
+        s.terminate()
+        s.freeInstance()
+    finally:
+        shutil.rmtree(unzip, ignore_errors=True)
+
+
+def test_plants_cli_builds_native_and_refuses_an_unknown_plant(tmp_path):
+    ok = subprocess.run([sys.executable, "-m", "plant_fmus", "build", "--native", "lateral_aircraft",
+                         "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert ok.returncode == 0, ok.stderr
+    assert ok.stdout.strip() == str(tmp_path / "lateral_aircraft_native.fmu")
+    bad = subprocess.run([sys.executable, "-m", "plant_fmus", "build", "--native", "nope", "--out", str(tmp_path)],
+                         capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    assert bad.stderr.strip().splitlines() == ["error: unknown plant 'nope'; plants are "
+                                               "['dr300', 'dts200', 'lateral_aircraft', 'vtol', 'wind_turbine']"]
