@@ -30,7 +30,7 @@ from xml.etree import ElementTree as ET
 from .plants import PLANTS
 
 NATIVE_DIR = Path(__file__).with_name("native")
-SUPPORT_SOURCES = ("np_plant.h", "np_support.c")
+SUPPORT_SOURCES = ("np_plant.h", "np_support.c", "np_glue.h", "np_glue.c")
 GLUE = {2: "fmi2_plant.c"}
 KINDS = {"Real": 0, "Integer": 1, "Boolean": 2}
 #: causality/variability -> the glue's setting rule (fmi2_plant.c: C_FIXED, C_TUNABLE, C_INPUT, C_OUTPUT)
