@@ -15,6 +15,7 @@ def main(argv=None) -> int:
     b.add_argument("--out", default="out", help="output folder (default: out)")
     b.add_argument("--native", action="store_true",
                    help="build the native C FMUs <name>_native.fmu instead (docs/native-plants.md)")
+    b.add_argument("--fmi", type=int, choices=(2, 3), default=2, help="FMI version of a --native build (default 2)")
     sub.add_parser("models", help="recompute and rewrite the model files from the plant parameters")
     args = parser.parse_args(argv)
     if args.command == "models":
@@ -27,7 +28,7 @@ def main(argv=None) -> int:
         from .native_build import build_native_all
 
         try:
-            paths = build_native_all(args.out, args.names)
+            paths = build_native_all(args.out, args.names, args.fmi)
         except (KeyError, NativeBuildError) as exc:
             print(f"error: {exc.args[0] if isinstance(exc, KeyError) else exc}", file=sys.stderr)
             return 2

@@ -31,7 +31,7 @@ from .plants import PLANTS
 
 NATIVE_DIR = Path(__file__).with_name("native")
 SUPPORT_SOURCES = ("np_plant.h", "np_support.c", "np_glue.h", "np_glue.c")
-GLUE = {2: "fmi2_plant.c"}
+GLUE = {2: "fmi2_plant.c", 3: "fmi3_plant.c"}
 KINDS = {"Real": 0, "Integer": 1, "Boolean": 2}
 #: causality/variability -> the glue's setting rule (fmi2_plant.c: C_FIXED, C_TUNABLE, C_INPUT, C_OUTPUT)
 FIXED, TUNABLE, INPUT, OUTPUT = range(4)
@@ -89,9 +89,12 @@ def vars_header(vs: list[dict], guid: str) -> str:
         "", "#endif", ""])
 
 
-def model_description(description: bytes, identifier: str, guid: str, sources: list[str]) -> bytes:
+def model_description(description: bytes, identifier: str, guid: str, sources: list[str], fmi_version: int = 2) -> bytes:
     """The pythonfmu plant's modelDescription.xml with this FMU's identifier, GUID, capabilities
-    and source files; the variables are untouched."""
+    and source files; the variables are untouched. FMI 3.0: the same translated
+    (:func:`fmi3_description`)."""
+    if fmi_version == 3:
+        return fmi3_description(description, identifier, guid)
     root = ET.fromstring(description)
     root.set("guid", guid)
     root.set("generationTool", f"fmu-fdi plant_fmus.native_build (native C; variables of {root.get('generationTool')})")
@@ -113,16 +116,60 @@ def model_description(description: bytes, identifier: str, guid: str, sources: l
     return buf.getvalue()
 
 
+def fmi3_description(description: bytes, identifier: str, token: str) -> bytes:
+    """The FMI 2.0 plant description as FMI 3.0: the same variables with the same value references,
+    names, causality, variability, start values, units and descriptions (Real -> Float64,
+    Integer -> Int32), plus the independent variable ``time`` (value reference n); every output
+    is an Output and an InitialUnknown (calculated at initialisation, as in FMI 2.0)."""
+    src = ET.fromstring(description)
+    root = ET.Element("fmiModelDescription", {
+        "fmiVersion": "3.0", "modelName": src.get("modelName"), "instantiationToken": token,
+        "description": src.get("description", "") + " [native C build]",
+        "generationTool": f"fmu-fdi plant_fmus.native_build (native C; variables of {src.get('generationTool')})",
+        "variableNamingConvention": src.get("variableNamingConvention", "flat")})
+    ET.SubElement(root, "CoSimulation", {
+        "modelIdentifier": identifier, "needsExecutionTool": "false", "canHandleVariableCommunicationStepSize": "true",
+        "canBeInstantiatedOnlyOncePerProcess": "false", "canGetAndSetFMUState": "false",
+        "canSerializeFMUState": "false", "hasEventMode": "false"})
+    for tag in ("UnitDefinitions", "LogCategories", "DefaultExperiment"):
+        if src.find(tag) is not None:
+            root.append(src.find(tag))
+    mv = ET.SubElement(root, "ModelVariables")
+    svs = list(src.find("ModelVariables"))
+    ET.SubElement(mv, "Float64", name="time", valueReference=str(len(svs)), causality="independent",
+                  variability="continuous", description="simulation time")
+    outputs = []
+    for sv in svs:
+        typ = next(iter(sv))
+        attrs = {k: sv.get(k) for k in ("name", "valueReference", "description", "causality", "variability")
+                 if sv.get(k) is not None}
+        for k in ("start", "unit"):
+            if typ.get(k) is not None:
+                attrs[k] = typ.get(k)
+        ET.SubElement(mv, {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}[typ.tag], attrs)
+        if attrs.get("causality") == "output":
+            outputs.append(attrs["valueReference"])
+    ms = ET.SubElement(root, "ModelStructure")
+    for tag in ("Output", "InitialUnknown"):
+        for vr in outputs:
+            ET.SubElement(ms, tag, valueReference=vr)
+    ET.indent(root, space="  ")
+    buf = io.BytesIO()
+    ET.ElementTree(root).write(buf, encoding="UTF-8", xml_declaration=True)
+    return buf.getvalue()
+
+
 def build_native(name: str, out_dir, reference=None, fmi_version: int = 2) -> Path:
-    """Build the native plant FMU ``name`` into ``out_dir/<name>_native.fmu``.
+    """Build the native plant FMU ``name`` into ``out_dir/<name>_native.fmu`` (FMI 2.0) or
+    ``out_dir/<name>_native_fmi3.fmu`` (FMI 3.0).
 
     ``reference`` is the pythonfmu plant FMU whose variables the native one takes (built into a
     temporary folder when None). Raises KeyError for an unknown plant, ``NativeBuildError`` (from
     :mod:`fmu_fdi.native.build`) when no compiler is found or it refuses the sources; nothing is
     written then.
     """
-    from fmu_fdi.native.build import (NativeBuildError, _fmi_headers, binary_folder, compile_binary,
-                                      find_compiler, identifier_of)
+    from fmu_fdi.native.build import (NativeBuildError, _fmi_headers, binary_folder, build_description,
+                                      compile_binary, find_compiler, identifier_of)
     from fmu_fdi.outpath import write_atomically
 
     if name not in PLANTS:
@@ -149,9 +196,11 @@ def build_native(name: str, out_dir, reference=None, fmi_version: int = 2) -> Pa
         for fname, content in sources.items():
             (src / fname).write_bytes(content)
         lib = compile_binary(src, Path(tmp, f"{ident}.so"), cc)
-        members = {"modelDescription.xml": model_description(description, ident, guid, names),
+        members = {"modelDescription.xml": model_description(description, ident, guid, names, fmi_version),
                    f"binaries/{folder}/{ident}.so": lib.read_bytes()}
         members.update({f"sources/{fname}": sources[fname] for fname in names})
+        if fmi_version == 3:
+            members["sources/buildDescription.xml"] = build_description(ident, names)
 
         def fill(part):
             with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:
@@ -159,10 +208,10 @@ def build_native(name: str, out_dir, reference=None, fmi_version: int = 2) -> Pa
                     zf.writestr(member, content)
 
         out_dir.mkdir(parents=True, exist_ok=True)
-        return write_atomically(out_dir / f"{name}_native.fmu", fill)
+        return write_atomically(out_dir / f"{name}_native{'_fmi3' if fmi_version == 3 else ''}.fmu", fill)
 
 
-def build_native_all(out_dir, names=None) -> list[Path]:
+def build_native_all(out_dir, names=None, fmi_version: int = 2) -> list[Path]:
     """:func:`build_native` for the given plants (default: every plant that has a C source)."""
     names = names or [n for n in PLANTS if (NATIVE_DIR / f"{n}.c").is_file()]
-    return [build_native(n, out_dir) for n in names]
+    return [build_native(n, out_dir, fmi_version=fmi_version) for n in names]
