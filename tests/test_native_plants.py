@@ -142,6 +142,25 @@ def test_native_plants_conform_to_the_python_plants_noise_free(fmus, tmp_path):
     print("max |native - python| per output:", {k: f"{v:.2g}" for k, v in worst.items()})
 
 
+def test_native_dts200_conforms_at_its_limits_with_many_integrator_steps(fmus, tmp_path):
+    """Tight tolerances (several accepted and rejected Dormand-Prince steps per communication step,
+    the step proposal carried over), tank 1 overflowing (state clipped at h_max) and tank 2
+    draining to empty (clipped at 0, through the regularised root below D_LAM): the native plant
+    takes the very same integrator steps and agrees to 1e-10."""
+    n = 200
+    spec = {"dt": 1.0, "steps": n, "params": {**NOISE_OFF, "rtol": 1e-10, "atol": 1e-12},
+            "inputs": {"Q1": 100.0, "Q2": switch(n, 10, 0.0, 53.79755), "f_clog_32": switch(n, 10, 1.0),
+                       "f_leak_T2": switch(n, 10, 0.3), "f_clog_13": switch(n, 5, 0.5)},
+            "outputs": outputs(fmus["dts200"][0])}
+    py, c = (arrays(r[0]) for r in run([(fmus["dts200"][0], [spec]), (fmus["dts200"][1], [spec])], tmp_path))
+    assert py["overflow"].any() and py["empty"].any()  # the scenario reaches both limits
+    assert py["ode_steps"][-1] > 1.5 * n  # more than one integrator step per communication step
+    np.testing.assert_array_equal(c["ode_steps"], py["ode_steps"])
+    for out in py:
+        err = float(np.max(np.abs(c[out] - py[out])))
+        assert err <= TOL, f"output {out} differs by {err:.3g} > {TOL} from the Python plant"
+
+
 def test_native_noise_is_seeded_standard_normal_with_the_configured_std(fmus, tmp_path):
     """DTS200 at its equilibrium (the levels do not move): the measurement noise is what moves
     the outputs. Same seed -> the same run; another seed -> another run; mean 0 and std
