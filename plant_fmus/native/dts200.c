@@ -27,7 +27,7 @@ static double root(double d) { /* sgn(d) sqrt(|d|), regularised below D_LAM (dts
     double z;
     if (fabs(d) >= D_LAM) return copysign(sqrt(fabs(d)), d);
     z = d / D_LAM;
-    return sqrt(D_LAM) * (1.25 * z - 0.25 * pow(z, 3.0));
+    return sqrt(D_LAM) * (1.25 * z - 0.25 * np_pow(z, 3.0));
 }
 
 static double pmax(double a, double b) { return b > a ? b : a; }

@@ -61,6 +61,9 @@ int np_plant_advance(np_plant *p, double h);
 
 /* ---- shared support (np_support.c) ---- */
 int np_fail(np_plant *p, const char *fmt, ...);
+/* Python's x ** y: the C library's pow, never folded by the compiler into x * x (glibc's pow(x, 2)
+ * differs from x * x in about one case in a thousand, and the Python plants use pow). */
+double np_pow(double x, double y);
 /* Checks of exit_initialization_mode (rtol, atol > 0, seed >= 0, std_* >= 0), seeds the stream. */
 int np_start(np_plant *p);
 /* Every Real input finite (_check_inputs). */

@@ -31,6 +31,11 @@ int np_fail(np_plant *p, const char *fmt, ...) {
     return -1;
 }
 
+double np_pow(double x, double y) {
+    volatile double e = y; /* opaque to the optimiser: no pow(x, 2) -> x * x */
+    return pow(x, e);
+}
+
 int np_check_inputs(np_plant *p) {
     size_t i;
     for (i = 0; i < sizeof real_inputs / sizeof real_inputs[0]; i++) {
@@ -170,12 +175,13 @@ int np_dopri5(np_plant *p, np_rhs f, const void *ctx, double *x0, int n, double 
         f(ctx, xn, k7);
         for (i = 0; i < n; i++) {
             double e = step * (e1 * k1[i] + e3 * k3[i] + e4 * k4[i] + e5 * k5[i] + e6 * k6[i] + e7 * k7[i]);
-            double q = e / (atol + rtol * py_max(fabs(x[i]), fabs(xn[i])));
-            acc += q * q;
+            /* (...) ** 2 in Python: pow of the C library, which may differ from q * q by an ulp, and
+             * an ulp in the error norm can flip an accept/reject decision */
+            acc += np_pow(e / (atol + rtol * py_max(fabs(x[i]), fabs(xn[i]))), 2.0);
         }
         err = sqrt(acc / n);
         if (!isfinite(err)) return np_fail(p, "non-finite derivative while integrating at state (%g, ...)", x[0]);
-        factor = err == 0.0 ? 5.0 : py_min(5.0, py_max(0.2, 0.9 * pow(err, -0.2)));
+        factor = err == 0.0 ? 5.0 : py_min(5.0, py_max(0.2, 0.9 * np_pow(err, -0.2)));
         if (err <= 1.0) {
             t += step;
             if (lo && hi) {

@@ -48,12 +48,12 @@ static void build_system(np_plant *p, const double *key) {
     np_linear_init(L, 10, 6, 11);
     output_matrix(L);
     for (i = 0; i < 3; i++) {
-        double w2 = pow(wn, 2.0), c = 2 * zeta * wn, wf;
+        double w2 = np_pow(wn, 2.0), c = 2 * zeta * wn, wf;
         wf = v[V_omega_n_pressure_drop];
-        w2 += key[i] * (pow(wf, 2.0) - pow(wn, 2.0));
+        w2 += key[i] * (np_pow(wf, 2.0) - np_pow(wn, 2.0));
         c += key[i] * (2 * v[V_zeta_pressure_drop] * wf - 2 * zeta * wn);
         wf = v[V_omega_n_air_in_oil];
-        w2 += key[3 + i] * (pow(wf, 2.0) - pow(wn, 2.0));
+        w2 += key[3 + i] * (np_pow(wf, 2.0) - np_pow(wn, 2.0));
         c += key[3 + i] * (2 * v[V_zeta_air_in_oil] * wf - 2 * zeta * wn);
         A[(2 * i) * 10 + 2 * i + 1] = 1.0;
         A[(2 * i + 1) * 10 + 2 * i] = -w2;
@@ -64,7 +64,7 @@ static void build_system(np_plant *p, const double *key) {
     A[6 * 10 + 7] = Bdt / (Ng * Jr);
     A[6 * 10 + 8] = -K / Jr;
     A[7 * 10 + 6] = eta * Bdt / (Ng * Jg);
-    A[7 * 10 + 7] = -(eta * Bdt / pow(Ng, 2.0) + Bg) / Jg;
+    A[7 * 10 + 7] = -(eta * Bdt / np_pow(Ng, 2.0) + Bg) / Jg;
     A[7 * 10 + 8] = eta * K / (Ng * Jg);
     A[7 * 10 + 9] = -1.0 / Jg;
     A[8 * 10 + 6] = 1.0;
