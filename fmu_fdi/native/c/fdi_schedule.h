@@ -40,6 +40,8 @@ fdi_status fdi_sched_init(fdi_sched *rt, const fdi_schedule *s, size_t nbytes);
 void fdi_sched_reset(fdi_sched *rt);
 fdi_status fdi_sched_advance(fdi_sched *rt, const double *u, const double *y, double h, char *why, size_t whylen);
 const double *fdi_sched_outputs(const fdi_sched *rt);
+double fdi_sched_step(const fdi_sched *rt);
+double fdi_sched_sample_ratio(const fdi_sched *rt);
 fdi_status fdi_sched_set_threshold_scale(fdi_sched *rt, double scale, char *why, size_t whylen);
 double fdi_sched_threshold_scale(const fdi_sched *rt);
 size_t fdi_sched_state_size(const fdi_sched *rt);
@@ -59,6 +61,8 @@ fdi_status fdi_sched_set_state(fdi_sched *rt, const unsigned char *buf, size_t l
 #define fdi_runtime_reset fdi_sched_reset
 #define fdi_runtime_advance fdi_sched_advance
 #define fdi_runtime_outputs fdi_sched_outputs
+#define fdi_runtime_step fdi_sched_step
+#define fdi_runtime_sample_ratio fdi_sched_sample_ratio
 #define fdi_runtime_set_threshold_scale fdi_sched_set_threshold_scale
 #define fdi_runtime_threshold_scale fdi_sched_threshold_scale
 #define fdi_runtime_state_size fdi_sched_state_size
