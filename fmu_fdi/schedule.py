@@ -6,7 +6,7 @@ Chen & Patton 1999, ch. 1: "several models" as the remedy for a plant that moves
 points, with measured scheduling signals — :meth:`ScheduledDiagnoser.design` designs each
 member with the same method and options (same residual structure: residual i means the same
 everywhere), each with its own operating point and thresholds, and schedules them by the
-nearest-member rule with hysteresis of :mod:`fmu_fdi.runtime.schedule` (docs/semantics.md §11).
+nearest-member rule with hysteresis of :mod:`fmu_fdi.runtime.schedule` (docs/semantics.md §12).
 Every member filters every sample, so a switch is bumpless.
 
 The design file (format ``fmu-fdi-scheduled-design/1``, docs/design-file.md) embeds the K

@@ -16,7 +16,7 @@ operating point (u0_k, y0_k), evaluators and thresholds, plus the schedule:
   member whose operating point is far from where the plant starts would otherwise carry
   a start-up transient of the size of that distance for the life of its slowest pole.
 
-Per call (docs/semantics.md §11, the one written rule): every member runs the whole step of
+Per call (docs/semantics.md §12, the one written rule): every member runs the whole step of
 docs/semantics.md on the same sample (each subtracts its own operating point), so a switch
 is bumpless — the member switched to has been filtering, evaluating and deciding all along.
 On a valid sample with scheduling values s, with

@@ -6,7 +6,8 @@
  * fdi_glue.h). Then this header renames, for the FMI glue only, the runtime API the glue calls
  * (fdi_runtime.h) to the scheduled one below, whose instance holds the K member runtimes in its
  * own block; the member runtimes themselves are the unchanged fdi_runtime. In a plain build it
- * declares nothing.
+ * declares nothing. Every function of fdi_runtime.h has its scheduled counterpart here, with the
+ * same contract (refusals with a reason, nothing changed; state images validated, §10 and §12).
  */
 #ifndef FDI_SCHEDULE_H
 #define FDI_SCHEDULE_H
