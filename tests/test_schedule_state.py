@@ -300,3 +300,35 @@ def test_native_scheduled_state_bit_flips(tmp_path):
     raw = fuzz(d, tmp_path, 3, stride=61)
     sealed = fuzz(d, tmp_path, 3, stride=61, reseal=True)
     _judge("scheduled", raw, sealed)
+
+
+def test_both_scheduled_fmus_log_and_refuse_as_plain_ones(tmp_path):
+    """The rules of tests/test_fmu_rules.py for a scheduled design, native and pythonfmu through the
+    same fmpy contract: the same warnings in the same categories (step size changed, invalid
+    sample, overflow under logFdiNumeric) and a bad threshold_scale refused for every member."""
+    from test_diagnostic_fmu import _errors, contract
+
+    mset = ModelSet([_member(1.0 + 0.5 * k, float(k + 1)) for k in range(2)], ["u0"])
+    d = json.loads(json.dumps(_design(mset, hysteresis=0.3).design))
+    fmus = {"native": build_fmu(d, tmp_path / "n.fmu", target="native"), "python": build_fmu(d, tmp_path / "p.fmu")}
+    row = {"u0": 1.0, "y0": 1.0, "y1": 1.0}
+    actions = [["instantiate", "a", "f"], ["setup", "a"], ["enter", "a"], ["exit", "a"],
+               ["step", "a", TS, row], ["step", "a", TS / 2, row], ["step", "a", TS / 2, dict(row, y0=float("nan"))],
+               ["step", "a", TS / 2, dict(row, y1=1e300)], ["step", "a", TS / 2, dict(row, u0=2.0)],
+               ["scale", "a", -1.0], ["step", "a", TS / 2, row], ["scale", "a", 2.0], ["step", "a", TS / 2, row]]
+    logs = {}
+    for kind, fmu in fmus.items():
+        done, names = contract(tmp_path, {"f": fmu}, actions)
+        assert [a["status"] for a in done[4:9]] == [0] * 5, kind
+        logs[kind] = [[(s, c, m) for s, c, m in a["log"] if s == 1] for a in done[4:9]]
+        overflow, switched = done[7]["values"], done[8]["values"]
+        assert overflow[names.index("numeric_reset")] == overflow[names.index("input_invalid")] == 1.0, kind
+        assert switched[names.index("active_member")] == 2.0, kind
+        bad, after, ok = done[9:12]
+        assert "threshold_scale" in _errors(bad), kind
+        assert (bad["status"], after["status"]) == ((3, 0) if kind == "native" else (0, 2)), kind
+        assert done[12]["status"] == 0 and done[12]["values"][names.index("threshold_1")] == 2 * 0.05, kind
+    assert logs["native"] == logs["python"], logs
+    changed, invalid, overflow = logs["native"][1:4]
+    assert [c for _, c, _ in changed] == ["logStatusWarning"] and "step size changed" in changed[0][2]
+    assert [c for _, c, _ in invalid] == ["logFdiInput"] and [c for _, c, _ in overflow] == ["logFdiNumeric"]
