@@ -258,4 +258,10 @@ def scheduled_outputs(design: dict, names: list, descriptions: dict) -> tuple[li
     descriptions = dict(descriptions, active_member=f"member whose outputs are shown (0 before the first valid "
                                                     f"sample; nearest on {', '.join(sch['signals'])}, hysteresis "
                                                     f"{sch['hysteresis']:g}): {where}")
+    # docs/semantics.md §12: the flags of an overflow are any member's
+    descriptions["numeric_reset"] = ("the last sample overflowed the evaluation of a member (a value became "
+                                     "NaN/Inf): fault evidence for that member's groups it reached, its sample "
+                                     "discarded, its generator and evaluation restarted (docs/semantics.md §8, §12)")
+    descriptions["input_invalid"] = ("the last input sample had NaN/Inf or was outside its valid range (diagnosis and "
+                                     "schedule held), or overflowed a member's evaluation (numeric_reset)")
     return output_names(names), descriptions
