@@ -6,7 +6,8 @@ both runtimes:
   untouched (judged against each member run alone), and the schedule still moves on the sample
   (its scheduling values are valid, §3); the native FMUs equal the Python schedule on it;
 - a scheduled FMU state is accepted only if a run can produce it: every member's state valid for
-  that member, the active member -1..K-1, the members at one step, one threshold_scale and one
+  that member, the active member -1..K-1 (>= 0 only after a valid sample), the members at one
+  step, one threshold_scale and one
   sample count (they run on the same calls), the outputs the composed ones. Python: edits of a
   real run's state; native: images whose members come from different moments of one run,
   resealed (the checksum recomputed) so that the runtime's own validation decides;
@@ -159,6 +160,9 @@ def test_states_no_run_produces_are_refused_and_change_nothing(design, run):
                     _edit(late, ["outputs", rt.names.index("active_member")], late["active"] + 2.0),
                     _edit(late, ["outputs"], late["outputs"][:-1])],
     }
+    fresh = ScheduledRuntime(design).get_state()  # after a reset: no valid sample, no member active
+    am = rt.names.index("active_member")
+    cases["before any valid sample"] = [_edit(_edit(fresh, ["active"], 0), ["outputs", am], 1.0)]
     target = ScheduledRuntime(design)
     target.set_state(copy.deepcopy(early))
     before = copy.deepcopy(target.get_state())
@@ -203,6 +207,8 @@ fmu.exitInitializationMode()
 ins = [v.valueReference for v in md.modelVariables if v.causality == "input"]
 active = [v.valueReference for v in md.modelVariables if v.name == "active_member"]
 out, t = {"saved": {}, "tried": []}, 0.0
+if -1 in spec["save_at"]:  # the state before the first step
+    out["saved"]["-1"] = fmu.serializeFMUstate(fmu.getFMUstate()).hex()
 for k, op in enumerate(spec["ops"]):
     fmu.setReal(ins, op[1] + op[2])
     fmu.doStep(currentCommunicationPoint=t, communicationStepSize=op[3])
@@ -260,7 +266,7 @@ def test_native_refuses_scheduled_states_no_run_produces(design, tmp_path):
     fmu = build_fmu(design, tmp_path / "s.fmu", target="native")
     ops = [op for op in _ops(120) if op[0] == "step"]
     early, late = 40, 150
-    saved = _probe(tmp_path, fmu, ops[:late + 1], [early, late], [])["saved"]
+    saved = _probe(tmp_path, fmu, ops[:late + 1], [-1, early, late], [])["saved"]
     a, b = bytes.fromhex(saved[str(early)]), bytes.fromhex(saved[str(late)])
     base, spans = _members(b, 3)
     assert len(a) == len(b) and len(spans) == len(design["members"]) and _members(a, 3)[1] == spans
@@ -277,14 +283,17 @@ def test_native_refuses_scheduled_states_no_run_produces(design, tmp_path):
         return _reseal(img)
 
     late_active = struct.unpack("<q", b[base + 24:base + 32])[0]
+    start = bytearray(bytes.fromhex(saved["-1"]))  # no valid sample yet: active -1
+    assert struct.unpack("<q", start[base + 24:base + 32])[0] == -1
+    start[base + 24:base + 32] = struct.pack("<q", 0)
     blobs = [b, with_active(late_active), with_active(3), with_active(-2), with_member(1, a), with_member(2, a),
-             with_active(0 if late_active != 0 else 1)]
+             _reseal(start), with_active(0 if late_active != 0 else 1)]
     tried = _probe(tmp_path, fmu, ops[:1], [], [x.hex() for x in blobs])["tried"]
     # b itself and b resealed unchanged are accepted; another valid active index is a state a run can
     # hold (the schedule's choice depends on the path); the rest are refused with fmi2Error (3)
     assert tried[:2] == [late_active + 1] * 2, tried
-    assert tried[2:6] == ["refused 3"] * 4, tried
-    assert tried[6] == (0 if late_active != 0 else 1) + 1, tried
+    assert tried[2:7] == ["refused 3"] * 5, tried
+    assert tried[7] == (0 if late_active != 0 else 1) + 1, tried
 
 
 def test_native_scheduled_state_bit_flips(tmp_path):

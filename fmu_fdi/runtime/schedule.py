@@ -250,7 +250,8 @@ class ScheduledRuntime:
     def set_state(self, s: dict) -> None:
         """Restore :meth:`get_state`. Accepted only if a run of this design can produce it
         (docs/semantics.md §10, §12): every member's state valid for that member (§10), the
-        active member -1..K-1 (-1: none yet, the warm start armed), the members at one step h,
+        active member -1..K-1 (-1: none yet, the warm start armed; >= 0 only after a valid
+        sample), the members at one step h,
         one ``threshold_scale`` and one count of valid samples (they run on the same calls), and
         the outputs those the members and the active index compose. Else ValueError and
         nothing changed."""
@@ -277,6 +278,8 @@ class ScheduledRuntime:
                     raise ValueError(f"member {k} is at step {m.h!r}, threshold_scale {m.threshold_scale!r} after "
                                      f"{m.n_samples} samples, member 1 at {first.h!r}, {first.threshold_scale!r}, "
                                      f"{first.n_samples} (members run on the same calls)")
+            if active >= 0 and first.n_samples == 0:
+                raise ValueError(f"active member {active + 1} before any valid sample (a member becomes active on one)")
             composed = self._compose([m.outputs for m in self.members], active)
             if outputs != composed:
                 raise ValueError("the outputs are not those of the active member and the members' flags")

@@ -338,6 +338,12 @@ fdi_status fdi_sched_set_state(fdi_sched *rt, const unsigned char *buf, size_t l
             restore_members(rt, s->K);
             return FDI_ERROR;
         }
+    if (active >= 0 && *rt->m[0]->n_samples == 0) {   /* a member becomes active on a valid sample */
+        snprintf(msg, sizeof msg, "active member %lld before any valid sample", (long long)active + 1);
+        say(why, whylen, msg);
+        restore_members(rt, s->K);
+        return FDI_ERROR;
+    }
     rt->active = (long)active;
     compose(rt);
     return FDI_OK;
