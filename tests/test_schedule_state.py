@@ -7,10 +7,11 @@ both runtimes:
   (its scheduling values are valid, §3); the native FMUs equal the Python schedule on it;
 - a scheduled FMU state is accepted only if a run can produce it: every member's state valid for
   that member, the active member -1..K-1 (>= 0 only after a valid sample), the members at one
-  step, one threshold_scale and one
-  sample count (they run on the same calls), the outputs the composed ones. Python: edits of a
-  real run's state; native: images whose members come from different moments of one run,
-  resealed (the checksum recomputed) so that the runtime's own validation decides;
+  step, one threshold_scale and one sample count (they run on the same calls), the outputs the
+  composed ones. Python: edits of a real run's state; native: images whose members come from
+  different moments of one run, resealed (the checksum recomputed) so that the runtime's own
+  validation decides; a bit-flip fuzz of the scheduled image;
+- both scheduled FMUs log the same warnings as plain ones and refuse a bad threshold_scale;
 - ``active_member`` is reserved: no plain design may name a signal so.
 """
 import copy
