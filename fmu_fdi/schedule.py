@@ -6,7 +6,7 @@ Chen & Patton 1999, ch. 1: "several models" as the remedy for a plant that moves
 points, with measured scheduling signals — :meth:`ScheduledDiagnoser.design` designs each
 member with the same method and options (same residual structure: residual i means the same
 everywhere), each with its own operating point and thresholds, and schedules them by the
-nearest-member rule with hysteresis of :mod:`fmu_fdi.runtime.schedule` (docs/semantics.md §11).
+nearest-member rule with hysteresis of :mod:`fmu_fdi.runtime.schedule` (docs/semantics.md §12).
 Every member filters every sample, so a switch is bumpless.
 
 The design file (format ``fmu-fdi-scheduled-design/1``, docs/design-file.md) embeds the K
@@ -258,4 +258,10 @@ def scheduled_outputs(design: dict, names: list, descriptions: dict) -> tuple[li
     descriptions = dict(descriptions, active_member=f"member whose outputs are shown (0 before the first valid "
                                                     f"sample; nearest on {', '.join(sch['signals'])}, hysteresis "
                                                     f"{sch['hysteresis']:g}): {where}")
+    # docs/semantics.md §12: the flags of an overflow are any member's
+    descriptions["numeric_reset"] = ("the last sample overflowed the evaluation of a member (a value became "
+                                     "NaN/Inf): fault evidence for that member's groups it reached, its sample "
+                                     "discarded, its generator and evaluation restarted (docs/semantics.md §8, §12)")
+    descriptions["input_invalid"] = ("the last input sample had NaN/Inf or was outside its valid range (diagnosis and "
+                                     "schedule held), or overflowed a member's evaluation (numeric_reset)")
     return output_names(names), descriptions

@@ -80,11 +80,12 @@ def fuzz(design, folder, version=2, stride=1, reseal=False, env_python=None):
     if not unzip.exists():
         with zipfile.ZipFile(fmu) as zf:
             zf.extractall(unzip)
+    plain = design["members"][0] if "members" in design else design  # a scheduled design: member 1's signals
     csv = folder / f"{design['name']}.csv"
-    _rows_csv(design, csv)
+    _rows_csv(plain, csv)
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "LD_PRELOAD"))}
     proc = subprocess.run([str(_host(folder)), str(version), str(unzip), str(csv),
-                           repr(float(design["generator"]["dt"])), str(len(design.get("faults", []))),
+                           repr(float(plain["generator"]["dt"])), str(len(design.get("faults", []))),
                            str(stride), "1" if reseal else "0"], capture_output=True, text=True, timeout=900, env=env)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     return {k: int(v) for k, v in re.findall(r"(\w+)=(\d+)", proc.stdout.splitlines()[-1])}

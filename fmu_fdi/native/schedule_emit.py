@@ -72,6 +72,8 @@ def scheduled_variables(design: dict, variables) -> list[dict]:
     vs = variables(design["members"][0])
     names = [v["name"] for v in vs if v["causality"] == "output"]
     _, desc = scheduled_outputs(design, names, {})
+    for v in vs:  # the flags' scheduled wording (the pythonfmu target's)
+        v["description"] = desc.get(v["name"], v["description"])
     at = next(i for i, v in enumerate(vs) if v["name"] == "fault_detected")
     vs.insert(at, dict(name="active_member", causality="output", variability="discrete", kind="Integer",
                        start=0.0, unit=None, description=desc["active_member"]))

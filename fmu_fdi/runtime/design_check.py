@@ -40,9 +40,10 @@ FORMAT = "fmu-fdi-design/1"
 MAX_SAMPLES = 100_000
 #: counters without memory cost (RLS skip/warmup/reset period): a C ``int``
 MAX_COUNT = 2**31 - 1
-#: names the FMU uses for its own variables; a signal may not take them
+#: names the FMU uses for its own variables (active_member: a scheduled design's, docs/semantics.md
+#: §12, whose members are plain designs); a signal may not take them
 RESERVED = re.compile(r"^(residual|evaluation|threshold|alarm)_\d+$|^(fault_detected|isolated_fault|input_invalid|"
-                      r"numeric_reset|threshold_scale)$")
+                      r"numeric_reset|threshold_scale|active_member)$")
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 _TOP_REQUIRED = ("format", "name", "signals", "generator", "evaluation", "decision", "faults")

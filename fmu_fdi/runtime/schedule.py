@@ -16,7 +16,7 @@ operating point (u0_k, y0_k), evaluators and thresholds, plus the schedule:
   member whose operating point is far from where the plant starts would otherwise carry
   a start-up transient of the size of that distance for the life of its slowest pole.
 
-Per call (docs/semantics.md §11, the one written rule): every member runs the whole step of
+Per call (docs/semantics.md §12, the one written rule): every member runs the whole step of
 docs/semantics.md on the same sample (each subtracts its own operating point), so a switch
 is bumpless — the member switched to has been filtering, evaluating and deciding all along.
 On a valid sample with scheduling values s, with
@@ -27,8 +27,8 @@ and b the smallest k with the least d_k (at the first valid sample after a reset
 ``warm``, every member's filter state is first set to ``M_k v_k``, v_k = [y − y0_k; u − u0_k]): if no member is active yet, b becomes active;
 otherwise b replaces the active member a only if ``d_b + η < d_a``. The outputs are the
 active member's (member 1's while none is active), with ``active_member`` (1-based, 0 before
-the first valid sample) inserted before ``fault_detected``, and ``numeric_reset`` set when
-any member discarded a sub-sample.
+the first valid sample) inserted before ``fault_detected``, and ``numeric_reset`` and
+``input_invalid`` set when any member's sample overflowed (docs/semantics.md §8, §12).
 """
 from __future__ import annotations
 
@@ -100,9 +100,7 @@ def check_scheduled_design(d, source: str = "scheduled design") -> dict:
     sig = S.table(d["signals"], f"{source}: signals", err)
     if sig != first["signals"]:
         raise err(f"{source}: signals {sig!r} differ from the members' {first['signals']!r}")
-    u, y = list(sig["u"]), list(sig["y"])
-    if ACTIVE_MEMBER in u + y:
-        raise err(f"{source}: a signal may not be named {ACTIVE_MEMBER!r} (an output of the scheduled diagnoser)")
+    u, y = list(sig["u"]), list(sig["y"])  # none named active_member: design_check.RESERVED
     faults = S.array(d["faults"], f"{source}: faults", err)
     if [f.get("name") if isinstance(f, dict) else f for f in faults] != first["faults"]:
         raise err(f"{source}: faults differ from the members' {first['faults']}")
@@ -222,11 +220,17 @@ class ScheduledRuntime:
         for m in self.members:
             m.threshold_scale = value
 
+    def set_threshold_scale(self, value) -> None:
+        """Every member's ``threshold_scale`` (docs/semantics.md §6): a finite number >= 0, else
+        ValueError (member 1's reason) and every scale kept."""
+        self.members[0].set_threshold_scale(value)
+        self.threshold_scale = self.members[0].threshold_scale
+
     def reset(self) -> None:
         for m in self.members:
             m.reset()
         self.active = -1
-        self.outputs = [0.0] * len(self.names)
+        self.outputs = self._compose([m.outputs for m in self.members])
 
     def set_step(self, h: float) -> None:
         """Every member to step h, or none (StepSizeError, all as before)."""
@@ -244,25 +248,58 @@ class ScheduledRuntime:
                 "members": [m.get_state() for m in self.members]}
 
     def set_state(self, s: dict) -> None:
-        """Restore :meth:`get_state`; a state that does not fit raises ValueError, nothing changed."""
+        """Restore :meth:`get_state`. Accepted only if a run of this design can produce it
+        (docs/semantics.md §10, §12): every member's state valid for that member (§10), the
+        active member -1..K-1 (-1: none yet, the warm start armed; >= 0 only after a valid
+        sample), the members at one step h,
+        one ``threshold_scale`` and one count of valid samples (they run on the same calls), and
+        the outputs those the members and the active index compose. Else ValueError and
+        nothing changed."""
         before = self.get_state()
         try:
             active = s["active"]
-            if isinstance(active, bool) or not isinstance(active, int) or not -1 <= active < len(self.members):
-                raise ValueError(f"active member {active!r} is not -1..{len(self.members) - 1}")
-            states = list(s["members"])
-            if len(states) != len(self.members):
-                raise ValueError(f"{len(states)} member states for {len(self.members)} members")
-            outputs = [float(x) for x in s["outputs"]]
-            if len(outputs) != len(self.names) or not all(map(math.isfinite, outputs)):
-                raise ValueError(f"outputs must be {len(self.names)} finite numbers")
-            for m, ms in zip(self.members, states):
-                m.set_state(ms)
+            if type(active) is not int or not -1 <= active < len(self.members):
+                raise ValueError(f"active member {active!r} is not an integer -1..{len(self.members) - 1}")
+            states = s["members"]
+            if type(states) is not list or len(states) != len(self.members):
+                raise ValueError(f"member states must be a list of {len(self.members)}")
+            outputs = s["outputs"]
+            if type(outputs) is not list or len(outputs) != len(self.names):
+                raise ValueError(f"outputs must be {len(self.names)} numbers")
+            outputs = [float(x) for x in outputs]
+            for k, (m, ms) in enumerate(zip(self.members, states), 1):
+                try:
+                    m.set_state(ms)
+                except ValueError as exc:
+                    raise ValueError(f"member {k}: {exc}") from None
+            first = self.members[0]
+            for k, m in enumerate(self.members[1:], 2):
+                if (m.h, m.threshold_scale, m.n_samples) != (first.h, first.threshold_scale, first.n_samples):
+                    raise ValueError(f"member {k} is at step {m.h!r}, threshold_scale {m.threshold_scale!r} after "
+                                     f"{m.n_samples} samples, member 1 at {first.h!r}, {first.threshold_scale!r}, "
+                                     f"{first.n_samples} (members run on the same calls)")
+            if active >= 0 and first.n_samples == 0:
+                raise ValueError(f"active member {active + 1} before any valid sample (a member becomes active on one)")
+            composed = self._compose([m.outputs for m in self.members], active)
+            if outputs != composed:
+                raise ValueError("the outputs are not those of the active member and the members' flags")
         except (ValueError, TypeError, KeyError, IndexError, AttributeError) as exc:
             for m, ms in zip(self.members, before["members"]):
                 m.set_state(ms)
             raise ValueError(f"scheduled runtime state does not fit this design: {exc}") from None
         self.active, self.outputs = active, outputs
+
+    def _compose(self, outs: list, active: int | None = None) -> list:
+        """The scheduled outputs (docs/semantics.md §12 step 5): the active member's (member 1's
+        while none is active) with ``numeric_reset`` = any member's, ``input_invalid`` = the
+        active member's or ``numeric_reset`` (an overflow in any member, §8), and
+        ``active_member`` inserted before ``fault_detected``."""
+        active = self.active if active is None else active
+        out = list(outs[max(active, 0)])
+        if any(o[NUMERIC_RESET] for o in outs):
+            out[NUMERIC_RESET] = out[INPUT_INVALID] = 1.0
+        out.insert(len(out) + FAULT_DETECTED, float(active + 1))
+        return out
 
     def advance(self, u, y, h: float | None = None) -> list:
         """Diagnose the sample (u, y) with every member; outputs in the order of :attr:`names`."""
@@ -272,17 +309,15 @@ class ScheduledRuntime:
             raise ValueError(f"expected {self.nu} inputs and {self.ny} outputs, got {len(u)} and {len(y)}")
         if h is not None and h != self.h:
             self.set_step(h)
-        if self.active < 0 and self.warm is not None and self.members[0]._valid(u, y):  # §3, shared by all members
+        valid = self.members[0]._valid(u, y)  # §3: members share signals and valid ranges, one verdict
+        if self.active < 0 and self.warm is not None and valid:
             self._warm_start(u, y)
         outs = [m.advance(u, y, None) for m in self.members]
-        if not outs[0][INPUT_INVALID]:  # members share signals and valid ranges: one verdict
+        if valid:  # an overflow inside a member (§8) does not hold the schedule: s is a valid sample
             s = [(u, y)[side][i] for side, i in self._where]
             self.active = nearest(self.points, self.scale, s, self.active, self.hysteresis)
-        out = list(outs[max(self.active, 0)])
-        out[NUMERIC_RESET] = 1.0 if any(o[NUMERIC_RESET] for o in outs) else 0.0
-        out.insert(len(out) + FAULT_DETECTED, float(self.active + 1))
-        self.outputs = out
-        return list(out)
+        self.outputs = self._compose(outs)
+        return list(self.outputs)
 
     def step(self, u, y) -> list:
         return self.advance(u, y, None)

@@ -73,8 +73,9 @@ size_t fdi_sched_size(const fdi_schedule *s)
     return n;
 }
 
-/* outputs: the active member's (member 1's while none is active), active_member inserted before
- * fault_detected, numeric_reset = any member's */
+/* outputs (docs/semantics.md §12 step 5): the active member's (member 1's while none is active),
+ * active_member inserted before fault_detected, numeric_reset = any member's, input_invalid = the
+ * active member's or numeric_reset (an overflow in any member is an unusable sample, §8) */
 static void compose(fdi_sched *rt)
 {
     const long n = rt->n_member_out, K = rt->s->K;
@@ -87,6 +88,7 @@ static void compose(fdi_sched *rt)
     rt->out[n - 4] = (double)(rt->active + 1);
     for (i = n - 4; i < n; i++) rt->out[i + 1] = src[i];
     rt->out[n] = reset ? 1.0 : 0.0;
+    if (reset) rt->out[n - 1] = 1.0;
 }
 
 fdi_status fdi_sched_init(fdi_sched *rt, const fdi_schedule *s, size_t nbytes)
@@ -132,6 +134,9 @@ void fdi_sched_reset(fdi_sched *rt)
 }
 
 const double *fdi_sched_outputs(const fdi_sched *rt) { return rt->out; }
+/* the members run on the same calls: member 1's step and plan are every member's */
+double fdi_sched_step(const fdi_sched *rt) { return fdi_runtime_step(rt->m[0]); }
+double fdi_sched_sample_ratio(const fdi_sched *rt) { return fdi_runtime_sample_ratio(rt->m[0]); }
 
 /* docs/semantics.md §3 with member 1's ranges (the members share signals and ranges) */
 static int valid_sample(const fdi_design *d, const double *u, const double *y)
@@ -203,15 +208,25 @@ static long nearest(const fdi_schedule *s, const double *u, const double *y, lon
     return active;
 }
 
+/* members 1..n back to the images saved in rt->image (which they produced: cannot fail) */
+static void restore_members(fdi_sched *rt, long n)
+{
+    char ignored[8];
+    long j;
+    for (j = 0; j < n; j++)
+        fdi_runtime_set_state(rt->m[j], rt->image[j], fdi_runtime_state_size(rt->m[j]), ignored, sizeof ignored);
+}
+
 fdi_status fdi_sched_advance(fdi_sched *rt, const double *u, const double *y, double h, char *why, size_t whylen)
 {
     const fdi_schedule *s = rt->s;
     const int new_step = h != *rt->m[0]->h;
+    const int valid = valid_sample(s->members[0], u, y);   /* §3: the members' common verdict */
     int warm = 0;
-    long k, j;
+    long k;
     if (new_step)  /* a step some member may refuse: keep every member's state to roll back */
         for (k = 0; k < s->K; k++) fdi_runtime_get_state(rt->m[k], rt->image[k]);
-    if (rt->active < 0 && s->warm && valid_sample(s->members[0], u, y)) {
+    if (rt->active < 0 && s->warm && valid) {
         warm_start(rt, u, y);
         warm = 1;
     }
@@ -222,15 +237,11 @@ fdi_status fdi_sched_advance(fdi_sched *rt, const double *u, const double *y, do
             if (warm) undo_warm_start(rt);
             return st;
         }
-        for (j = 0; j < k + 1 && new_step; j++) {
-            char ignored[8];
-            fdi_runtime_set_state(rt->m[j], rt->image[j], fdi_runtime_state_size(rt->m[j]), ignored,
-                                  sizeof ignored);
-        }
         if (!new_step) return FDI_ERROR;
+        restore_members(rt, s->K);   /* the images predate the warm start too */
         return st;
     }
-    if (fdi_runtime_outputs(rt->m[0])[rt->n_member_out - 2] == 0.0)  /* a valid sample */
+    if (valid)   /* an overflow inside a member (§8) does not hold the schedule: s is a valid sample */
         rt->active = nearest(s, u, y, rt->active);
     compose(rt);
     return FDI_OK;
@@ -280,8 +291,8 @@ fdi_status fdi_sched_set_state(fdi_sched *rt, const unsigned char *buf, size_t l
     uint64_t hdr[2];
     int64_t active;
     const unsigned char *p;
-    char msg[160];
-    long k, j;
+    char msg[256];
+    long k;
     if (!buf || len < IMAGE_HEADER || memcmp(buf, IMAGE_MAGIC, 8) != 0) {
         say(why, whylen, "not a state image of a scheduled diagnoser (bad magic)");
         return FDI_ERROR;
@@ -310,15 +321,28 @@ fdi_status fdi_sched_set_state(fdi_sched *rt, const unsigned char *buf, size_t l
     for (k = 0, p = buf + IMAGE_HEADER; k < s->K; k++) {
         const size_t n = fdi_runtime_state_size(rt->m[k]);
         if (fdi_runtime_set_state(rt->m[k], p + 8, n, why, whylen) != FDI_OK) {
-            char ignored[8];
-            for (j = 0; j < k; j++)
-                fdi_runtime_set_state(rt->m[j], rt->image[j], fdi_runtime_state_size(rt->m[j]), ignored,
-                                      sizeof ignored);
+            restore_members(rt, k);
             snprintf(msg, sizeof msg, "member %ld: %s", k + 1, why ? why : "state refused");
             say(why, whylen, msg);
             return FDI_ERROR;
         }
         p += 8 + n;
+    }
+    for (k = 1; k < s->K; k++)   /* members run on the same calls (§12): one step, scale, sample count */
+        if (*rt->m[k]->h != *rt->m[0]->h || *rt->m[k]->scale != *rt->m[0]->scale ||
+            *rt->m[k]->n_samples != *rt->m[0]->n_samples) {
+            snprintf(msg, sizeof msg, "member %ld is at step %g, threshold_scale %g after %lld samples, member 1 at "
+                     "%g, %g, %lld (members run on the same calls)", k + 1, *rt->m[k]->h, *rt->m[k]->scale,
+                     (long long)*rt->m[k]->n_samples, *rt->m[0]->h, *rt->m[0]->scale, (long long)*rt->m[0]->n_samples);
+            say(why, whylen, msg);
+            restore_members(rt, s->K);
+            return FDI_ERROR;
+        }
+    if (active >= 0 && *rt->m[0]->n_samples == 0) {   /* a member becomes active on a valid sample */
+        snprintf(msg, sizeof msg, "active member %lld before any valid sample", (long long)active + 1);
+        say(why, whylen, msg);
+        restore_members(rt, s->K);
+        return FDI_ERROR;
     }
     rt->active = (long)active;
     compose(rt);

@@ -6,7 +6,8 @@
  * fdi_glue.h). Then this header renames, for the FMI glue only, the runtime API the glue calls
  * (fdi_runtime.h) to the scheduled one below, whose instance holds the K member runtimes in its
  * own block; the member runtimes themselves are the unchanged fdi_runtime. In a plain build it
- * declares nothing.
+ * declares nothing. Every function of fdi_runtime.h has its scheduled counterpart here, with the
+ * same contract (refusals with a reason, nothing changed; state images validated, §10 and §12).
  */
 #ifndef FDI_SCHEDULE_H
 #define FDI_SCHEDULE_H
@@ -40,6 +41,8 @@ fdi_status fdi_sched_init(fdi_sched *rt, const fdi_schedule *s, size_t nbytes);
 void fdi_sched_reset(fdi_sched *rt);
 fdi_status fdi_sched_advance(fdi_sched *rt, const double *u, const double *y, double h, char *why, size_t whylen);
 const double *fdi_sched_outputs(const fdi_sched *rt);
+double fdi_sched_step(const fdi_sched *rt);
+double fdi_sched_sample_ratio(const fdi_sched *rt);
 fdi_status fdi_sched_set_threshold_scale(fdi_sched *rt, double scale, char *why, size_t whylen);
 double fdi_sched_threshold_scale(const fdi_sched *rt);
 size_t fdi_sched_state_size(const fdi_sched *rt);
@@ -59,6 +62,8 @@ fdi_status fdi_sched_set_state(fdi_sched *rt, const unsigned char *buf, size_t l
 #define fdi_runtime_reset fdi_sched_reset
 #define fdi_runtime_advance fdi_sched_advance
 #define fdi_runtime_outputs fdi_sched_outputs
+#define fdi_runtime_step fdi_sched_step
+#define fdi_runtime_sample_ratio fdi_sched_sample_ratio
 #define fdi_runtime_set_threshold_scale fdi_sched_set_threshold_scale
 #define fdi_runtime_threshold_scale fdi_sched_threshold_scale
 #define fdi_runtime_state_size fdi_sched_state_size
