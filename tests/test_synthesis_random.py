@@ -433,6 +433,43 @@ def test_random_models_cover_the_requested_classes():
     assert np.any(np.isclose(ev, 1.0)) and np.any(np.isclose(ev, 0.0)) and np.any(np.isclose(ev, 2j))
 
 
+def _siso_cases():
+    """The small cases issue 17 names, as (label, model): one or two outputs, no u/d."""
+    def model(A, B, C, Bw=None, name="case"):
+        A, B, C = np.atleast_2d(A).astype(float), np.atleast_2d(B).astype(float), np.atleast_2d(C).astype(float)
+        return FDIModel.from_matrices(A, np.zeros((A.shape[0], 0)), C, Bw=Bw,
+                                      faults=[component_fault("f", B, np.zeros((C.shape[0], 1)))], name=name)
+    osc = np.array([[0.0, 2.0], [-2.0, 0.0]])  # poles ±2j
+    return [
+        # y = f/s + w/(s²+4): a zero filter 2.9e-16 was returned
+        ("Gf=1/s, Gw=1/(s^2+4)", model(sla.block_diag([[0.0]], osc), [[1.0], [0], [0]], [[1.0, 1.0, 0.0]],
+                                       Bw=np.array([[0.0], [0.0], [1.0]]))),
+        # y = f/s + w/(s+2): LinAlgError
+        ("Gf=1/s, Gw=1/(s+2)", model(np.diag([0.0, -2.0]), [[1.0], [0.0]], [[1.0, 1.0]],
+                                     Bw=np.array([[0.0], [1.0]]))),
+        # Gf = [1/(s-1); 1/(s+2)], [1/s; 1/(s+2)], [1/(s²+4); 1/(s+2)]: R kept the pole
+        ("Gf=[1/(s-1); 1/(s+2)]", model(np.diag([1.0, -2.0]), [[1.0], [1.0]], np.eye(2))),
+        ("Gf=[1/s; 1/(s+2)]", model(np.diag([0.0, -2.0]), [[1.0], [1.0]], np.eye(2))),
+        ("Gf=[1/(s^2+4); 1/(s+2)]", model(sla.block_diag(osc, [[-2.0]]), [[0.0], [1.0], [1.0]],
+                                          [[0.5, 0.0, 0.0], [0.0, 0.0, 1.0]])),
+        # Gf = [1/s; 1/(s²+4)]: ValueError in nullspace.py
+        ("Gf=[1/s; 1/(s^2+4)]", model(sla.block_diag([[0.0]], osc), [[1.0], [0.0], [1.0]],
+                                      [[1.0, 0.0, 0.0], [0.0, 0.5, 0.0]])),
+    ]
+
+
+@pytest.mark.parametrize("label", [c[0] for c in _siso_cases()])
+def test_issue17_small_cases(label):
+    """The issue's own small cases: each is designable (a stable R exists: Q cancels the marginal or
+    unstable fault poles; w is a noise input, not decoupled), so nullspace_design must return a
+    design that meets the judge — R stable, Q not zero — and never raise anything but DesignError."""
+    model = dict(_siso_cases())[label]
+    status, res = _call(nullspace_design, model)
+    assert status != "crash", f"{type(res).__name__} instead of DesignError: {res}"
+    assert status == "ok", f"refused a designable case: {res}"
+    assert judge(res, model, [[1]], ["f"]) == []
+
+
 @pytest.mark.parametrize("seed", range(N_FAST))
 def test_random_design_meets_the_judge(seed):
     _assert_case(seed)
