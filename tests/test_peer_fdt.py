@@ -336,3 +336,84 @@ def test_emdsyn_ex6_1c_lateral_aircraft_loe():
     off = dist[~np.eye(9, dtype=bool)]
     assert off.min() > 1e-3, off.min()
     assert _pbh_poles(bank.Q.A, bank.Q.B, bank.Q.C, 0.0).size == 0
+
+
+# ----------------------------------------------------------- Examples/Ex5_6c, Ex5_11c, Ex6_2c (noise)
+EX56 = dict(u=[[(s + 1) / (s + 2), (s + 2) / (s + 3)]], f=[[(s + 1) / (s + 2), 0], [0, 1]], w=[[1 / (s + 2), 0]])
+GRID = 1j * np.r_[0.0, np.logspace(-4, 4, 2000)]
+
+
+def _responses(gen, model, lam=GRID):
+    """R = Q·[Gu Gd Gw Gf; I 0 0 0] at ``lam`` (numpy), with the column slices of u, w and each fault."""
+    from test_synthesis_random import _extended
+    A, B, Ce, De = _extended(model)
+    R = _freqresp(gen.Q.A, gen.Q.B, gen.Q.C, gen.Q.D, lam) @ _freqresp(A, B, Ce, De, lam)
+    nu, nd, nw = model.nu, model.nd, model.nw
+    f0 = nu + nd + nw
+    return R, slice(0, nu + nd), slice(nu + nd, f0), [f0 + np.arange(model.nf)[f.columns] for f in model.faults]
+
+
+def _peak(X):
+    return float(np.linalg.norm(X, 2, axis=(1, 2)).max()) if X.shape[2] else 0.0
+
+
+def test_afdsyn_ex5_6c_gap_and_poles():
+    """Example 5.6c: Gu = [(s+1)/(s+2); (s+2)/(s+3)], Gf = [(s+1)/(s+2) 0; 0 1], Gw = [1/(s+2); 0];
+    afdsyn(smarg = -3, sdeg = -3): R_u = 0, both faults seen (fdisspec block = [1 1]), the poles of Q
+    at -3 (smarg = -3 met inclusively) and the fault-to-noise gap min_j ‖Rf_j‖∞ / ‖Rw‖∞ = 3."""
+    model = tf_model(EX56)
+    gen = nullspace_design(model, noise="optimize", smarg=-3, sdeg=-3)
+    R, ud, w, fc = _responses(gen, model)
+    pf = [_peak(R[:, :, c]) for c in fc]
+    assert _peak(R[:, :, ud]) / min(pf) <= 1e-7
+    gap = min(pf) / _peak(R[:, :, w])
+    assert gap >= 3 * (1 - 1e-3), gap  # grid peaks: ≤ 1e-3 below the H∞ norms on this fine grid
+    poles = np.linalg.eigvals(gen.Q.A) if gen.Q.n else np.zeros(0)
+    assert np.all(poles.real <= -3 + 1e-9), poles
+
+
+def test_afdisyn_ex5_11c_gaps_3_and_inf():
+    """Example 5.11c: the same plant, SFDI = I2, afdisyn(smarg = -3, sdeg = -3): gaps [3, Inf] —
+    row 2 (fault 2, fault 1 decoupled) decouples w exactly; row 1 keeps the gap 3."""
+    from fmu_fdi.design import afdi_bank
+
+    model = tf_model(EX56)
+    bank = afdi_bank(model, np.eye(2, dtype=int), smarg=-3, sdeg=-3)
+    R, ud, w, fc = _responses(bank, model)
+    g1, g2 = bank.groups
+    pf1 = _peak(R[:, g1][:, :, fc[0]])
+    assert _peak(R[:, g1][:, :, fc[1]]) / pf1 <= 1e-7 and _peak(R[:, g1][:, :, ud]) / pf1 <= 1e-7
+    assert pf1 / _peak(R[:, g1][:, :, w]) >= 3 * (1 - 1e-3)
+    pf2 = _peak(R[:, g2][:, :, fc[1]])
+    assert _peak(R[:, g2][:, :, fc[0]]) / pf2 <= 1e-7 and _peak(R[:, g2][:, :, ud]) / pf2 <= 1e-7
+    assert _peak(R[:, g2][:, :, w]) / pf2 <= 1e-7  # gap ∞
+    assert np.all(np.linalg.eigvals(bank.Q.A).real <= -3 + 1e-9)
+
+
+@pytest.mark.slow
+def test_amdsyn_ex6_2c_distances():
+    """Example 6.2c: the lateral aircraft LOE models with noise (Bw = I4, Dw = [0 I2], C = 180/π [I2 0]);
+    amdsyn(sdeg = -1, poles = [-1], minimal = false): all(diag(MDperf) < 1e-7) and every off-diagonal
+    distance ≥ 1 (filters scaled to β_i = min_j≠i ‖R_ij‖∞ = 1)."""
+    from fmu_fdi.design import approximate_model_detection_bank
+
+    A = np.array([[-.4492, 0.046, .0053, -.9926], [0, 0, 1, 0.0067], [-50.8436, 0, -5.2184, .722],
+                  [16.4148, 0, .0026, -.6627]])
+    Bu = np.array([[0.0004, 0.0011], [0, 0], [-1.4161, .2621], [-0.0633, -0.1205]])
+    C = 180 / np.pi * np.eye(2, 4)
+    Dw = np.hstack([np.zeros((2, 4)), np.eye(2)])
+    G = 1 - np.array([[0, 0, 0, .5, .5, .5, 1, 1, 1], [0, .5, 1, 0, .5, 1, 0, .5, 1]]).T
+    models = [FDIModel.from_matrices(A, Bu @ np.diag(g), C, Bw=np.eye(4, 6), Dw=Dw, name=f"m{i + 1}")
+              for i, g in enumerate(G)]
+    bank = approximate_model_detection_bank(models, rdim="all", sdeg=-1, poles=[-1])
+    lam = 1j * np.r_[0.0, np.logspace(-3, 3, 600)]
+    Qv = _freqresp(bank.Q.A, bank.Q.B, bank.Q.C, bank.Q.D, lam)
+    dist = np.zeros((9, 9))
+    for j, m in enumerate(models):
+        Ge = _freqresp(m.A, m.Bu, np.vstack([m.C, np.zeros((2, 4))]), np.vstack([m.Du, np.eye(2)]), lam)
+        R = Qv @ Ge
+        for i, g in enumerate(bank.groups):
+            dist[i, j] = _peak(R[:, g, :])
+    assert np.all(np.diag(dist) < 1e-7), np.diag(dist)
+    # ≥ 1 up to the grid's underestimate of an H∞ peak (1e-2 on this grid for poles at -1 and slower)
+    assert dist[~np.eye(9, dtype=bool)].min() >= 1 - 1e-2, dist
