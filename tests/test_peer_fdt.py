@@ -417,3 +417,115 @@ def test_amdsyn_ex6_2c_distances():
     assert np.all(np.diag(dist) < 1e-7), np.diag(dist)
     # ≥ 1 up to the grid's underestimate of an H∞ peak (1e-2 on this grid for poles at -1 and slower)
     assert dist[~np.eye(9, dtype=bool)].min() >= 1 - 1e-2, dist
+
+
+# ------------------------------------------------------------------------------ test_fdigenspec.jl
+BOEING_A = np.array([[-0.4861, 0.000317, -0.5588, 0, -2.04e-6], [0, -0.0199, 3.0796, -9.8048, 8.98e-5],
+                     [1.0053, -0.0021, -0.5211, 0, 9.30e-6], [1, 0, 0, 0, 0], [0, 0, -92.6, 92.6, 0]])
+BOEING_BU = np.array([
+    [-0.1455, -0.1455, -0.1494, -0.1494, -1.2860, 0.0013, 0.0035, 0.0035, 0.0013],
+    [0, 0, 0, 0, -0.3122, 0.1999, 0.1999, 0.1999, 0.1999],
+    [-0.0071, -0.0071, -0.0074, -0.0074, -0.0676, -0.0004, -0.0004, -0.0004, -0.0004],
+    [0] * 9, [0] * 9])
+BOEING_C = np.array([[0, 0, 1, 0, 0], [0, -0.0199, 3.0796, -9.8048, 8.98e-5], [0, 0, 0, 1, 0], [1, 0, 0, 0, 0],
+                     [0, 0, -92.6, 92.6, 0], [0, 0, 0, 0, 1.0]])
+BOEING_DU = np.zeros((6, 9))
+BOEING_DU[1, 4:] = [-0.3122, 0.1999, 0.1999, 0.1999, 0.1999]
+BOEING_WEAK = np.array([[0, 0, 0, 0, 1], [0, 0, 1, 1, 0], [0, 0, 1, 1, 1], [1, 1, 0, 0, 0], [1, 1, 0, 0, 1],
+                        [1, 1, 1, 1, 0], [1, 1, 1, 1, 1]])
+BOEING_WEAK_LEAST = [1, 2, 1, 2, 1, 1, 1]
+BOEING_STRONG = np.array([[0, 0, 1, 1, 1], [1, 1, 0, 0, 1], [1, 1, 1, 1, 0], [1, 1, 1, 1, 1]])
+
+
+def boeing747():
+    """Linearised Boeing 747 (Varga 2007): 9 inputs, 6 outputs, faults of the first 5 actuators."""
+    return ss_model(BOEING_A, BOEING_BU, np.zeros((5, 0)), BOEING_BU[:, :5], BOEING_C, Du=BOEING_DU,
+                    Df=BOEING_DU[:, :5])
+
+
+def test_boeing747_achievable_structures():
+    """fdigenspec: 7 weak specifications; 4 strong ones at FDfreq = [0, 1] (FDGainTol = 1e-5)."""
+    model = boeing747()
+    np.testing.assert_array_equal(achievable_structure(model), BOEING_WEAK)
+    np.testing.assert_array_equal(achievable_structure(model, freqs=[0.0, 1.0], FDGainTol=1e-5), BOEING_STRONG)
+
+
+def test_boeing747_every_weak_row_designed_at_least_order():
+    """fdichkspec(minimal = true): every weak row is designable with least orders [1, 2, 1, 2, 1, 1, 1];
+    issue 17: structured_bank refused 6 of the 7 rows."""
+    model = boeing747()
+    bank = structured_bank(model, BOEING_WEAK, FDtol=1e-5)
+    assert judge(bank, model, BOEING_WEAK, model.fault_names) == []
+    assert _orders(bank) == BOEING_WEAK_LEAST
+
+
+def test_boeing747_every_strong_row_designed_at_least_order():
+    """fdichkspec(FDfreq = [0, 1], FDGainTol = 1e-5, minimal = true): least orders [1, 1, 1, 1]."""
+    model = boeing747()
+    bank = structured_bank(model, BOEING_STRONG, freqs=[0.0, 1.0], FDGainTol=1e-5, FDtol=1e-5)
+    assert judge(bank, model, BOEING_STRONG, model.fault_names) == []
+    np.testing.assert_array_equal(strong_structure(bank, model, [0.0, 1.0], 1e-5), BOEING_STRONG)
+    assert _orders(bank) == [1, 1, 1, 1]
+
+
+@pytest.mark.parametrize("name, build, least", [("Niemann 1998", niemann, [1, 1, 1]),
+                                                ("Xiong & Saif 2000 ex. 1", xiong_saif_1, [1, 2, 1]),
+                                                ("Xiong & Saif 2000 ex. 2", xiong_saif_2, [1, 1, 1])])
+def test_fdichkspec_least_orders(name, build, least):
+    """fdigenspec: weak = strong (FDfreq = [0, 1], FDGainTol = 1e-3) = all three rows; fdichkspec
+    least orders for the rows [0 1; 1 0; 1 1] as the peer's."""
+    model = build()
+    rows = np.array([[0, 1], [1, 0], [1, 1]])
+    np.testing.assert_array_equal(achievable_structure(model), rows)
+    np.testing.assert_array_equal(achievable_structure(model, freqs=[0.0, 1.0], FDGainTol=1e-3), rows)
+    bank = structured_bank(model, rows, FDtol=1e-5)
+    assert judge(bank, model, rows, model.fault_names) == []
+    assert _orders(bank) == least, f"{name}: {_orders(bank)} vs the peer's least orders {least}"
+
+
+def test_fdigenspec_ex5_4_only_the_full_row():
+    """Example 5.4m: S_weak = S_strong (FDfreq = [0, 1]) = [1 1]; fdichkspec: rows [0 1], [1 0] not
+    designable (structured_bank must refuse them with DesignError), [1 1] of least order 1."""
+    Gu = [(s + 1) / (s - 2), (s + 2) / (s - 3)]
+    model = tf_model({"u": [Gu], "d": [[(s - 1) / (s + 2), 0]], "f": [Gu, [0, 1]]})
+    assert achievable_structure(model).tolist() == [[1, 1]]
+    assert achievable_structure(model, freqs=[0.0, 1.0], FDGainTol=1e-3).tolist() == [[1, 1]]
+    for row in ([0, 1], [1, 0]):
+        with pytest.raises(DesignError):
+            structured_bank(model, [row])
+    bank = structured_bank(model, [[1, 1]])
+    assert judge(bank, model, [[1, 1]], model.fault_names) == [] and _orders(bank) == [1]
+
+
+def test_fdigenspec_lecture6_not_strongly_detectable_at_0():
+    """Gu = [1/s; 1/s], Gd = [0; s/(s+3)], Gf = [(s+1)/(s+2); 1/(s+2)]: weakly detectable, but not
+    strongly at [0, 1] (S_strong empty; fdichkspec(FDfreq = 0) → rdims 0): a design at ω = 0 is a
+    DesignError, the weak one is returned."""
+    model = tf_model({"u": [[1 / s, 1 / s]], "d": [[0, s / (s + 3)]], "f": [[(s + 1) / (s + 2), 1 / (s + 2)]]})
+    assert achievable_structure(model).tolist() == [[1]]
+    assert achievable_structure(model, freqs=[0.0, 1.0], FDGainTol=1e-5).shape[0] == 0
+    with pytest.raises(DesignError):
+        nullspace_design(model, freqs=[0.0], FDGainTol=1e-5)
+    gen = nullspace_design(model)
+    assert judge(gen, model, [[1]], model.fault_names) == []
+
+
+def test_fdigenspec_marginal_poles_strong_at_0_and_1():
+    """Gf = [1/(s(s²+1)) 1/(s(s²+1)(s+2))] (one output, two faults): S_weak = S_strong (FDfreq = [0, 1])
+    = [1 1] and fdichkspec(FDfreq = [0, 1]) designs it: R stable (Q cancels 0 and ±j) and both faults
+    strongly visible at 0 and 1."""
+    model = tf_model({"f": [[1 / s / (s**2 + 1)], [1 / s / (s**2 + 1) / (s + 2)]]})
+    assert achievable_structure(model).tolist() == [[1, 1]]
+    assert achievable_structure(model, freqs=[0.0, 1.0], FDGainTol=1e-5).tolist() == [[1, 1]]
+    gen = nullspace_design(model, freqs=[0.0, 1.0], FDGainTol=1e-5)
+    assert judge(gen, model, [[1, 1]], model.fault_names) == []
+    assert strong_structure(gen, model, [0.0, 1.0], 1e-5).tolist() == [[1, 1]]
+
+
+def test_fdigenspec_marginal_poles_not_strong_at_1():
+    """Gf = [1/(s²+1) 1/s]: S_weak = [1 1], S_strong at [0, 1] empty — a design strong at ω = 1 must
+    be refused with DesignError (never another exception)."""
+    model = tf_model({"f": [[1 / (s**2 + 1)], [1 / s]]})
+    assert achievable_structure(model).tolist() == [[1, 1]]
+    with pytest.raises(DesignError):
+        nullspace_design(model, freqs=[1.0], FDGainTol=1e-5)
