@@ -208,6 +208,7 @@ def test_cs1_2_all_specifications_strongly_achievable(cs1):
     assert S.shape == (255, 8)
 
 
+@pytest.mark.slow
 def test_cs1_2_efdisyn_identity(cs1):
     """CS1_2 Part 3–4: SFDI = I8 with FDGainTol = 0.01 at ω = 0, sdeg = −5, smarg = −1: exact,
     structure I8 strongly at ω = 0, poles Re ≤ −1, and Table 8.3's nominal row below 1e-6."""

@@ -243,6 +243,7 @@ def test_yuan_achievable_structures():
     np.testing.assert_array_equal(achievable_structure(model, freqs=[0.0], FDGainTol=0.01), YUAN_STRONG)
 
 
+@pytest.mark.slow
 def test_yuan_strong_synthesis_orders():
     """efdsyn per row of S_strong, FDfreq = 0, FDGainTol = 1e-4, sdeg = -5, smarg = -0.05:
     orders [1, 2, 2, 2, 1, 1, 1, 2, 2, 2, 2, 2] and the strong structure at 0 equals S_strong."""
@@ -253,6 +254,7 @@ def test_yuan_strong_synthesis_orders():
     assert _orders(bank) == YUAN_STRONG_ORDERS
 
 
+@pytest.mark.slow
 def test_yuan_weak_synthesis_orders():
     """efdsyn per row of S_weak (18 rows), FDtol = 1e-4, sdeg = -5, smarg = -0.05: the peer's orders."""
     model = yuan()
@@ -273,6 +275,7 @@ def _mcmillan_degree_stable(Q, rtol=1e-7) -> int:
     return int(np.sum(hsv > rtol))
 
 
+@pytest.mark.slow
 def test_yuan_weak_synthesis_with_pole_assignment_global_order_6():
     """efdsyn per row of S_weak with poles = [-5, -6], sdeg = -5, smarg = -5: orders as above and,
     the rows sharing their poles, the whole bank has McMillan degree 6 (count(ghanorm(Qtot) > 1e-7))."""
@@ -312,6 +315,7 @@ def test_emmsyn_ex5_13c_updating_factor():
 
 
 # --------------------------------------------------------------------------------- test_emdsyn.jl
+@pytest.mark.slow
 def test_emdsyn_ex6_1c_lateral_aircraft_loe():
     """Example 6.1c: lateral aircraft with loss-of-effectiveness models Gu·Γ_i, Γ_i = diag of
     1 − [0 0; 0 .5; 0 1; .5 0; .5 .5; .5 1; 1 0; 1 .5; 1 1] (9 models); emdsyn(sdeg=-1, poles=[-1]):
@@ -450,6 +454,7 @@ def test_boeing747_achievable_structures():
     np.testing.assert_array_equal(achievable_structure(model, freqs=[0.0, 1.0], FDGainTol=1e-5), BOEING_STRONG)
 
 
+@pytest.mark.slow
 def test_boeing747_every_weak_row_designed_at_least_order():
     """fdichkspec(minimal = true): every weak row is designable with least orders [1, 2, 1, 2, 1, 1, 1];
     issue 17: structured_bank refused 6 of the 7 rows."""
@@ -459,6 +464,7 @@ def test_boeing747_every_weak_row_designed_at_least_order():
     assert _orders(bank) == BOEING_WEAK_LEAST
 
 
+@pytest.mark.slow
 def test_boeing747_every_strong_row_designed_at_least_order():
     """fdichkspec(FDfreq = [0, 1], FDGainTol = 1e-5, minimal = true): least orders [1, 1, 1, 1]."""
     model = boeing747()
