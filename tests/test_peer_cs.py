@@ -178,6 +178,7 @@ def test_cs1_1_structure_is_achievable(cs1):
     assert not missing, f"SFDI rows not listed as achievable: {missing}"
 
 
+@pytest.mark.slow
 def test_cs1_1_efdisyn_and_table_8_2(cs1, capsys):
     """CS1_1 Part 3–4: the 6×8 bank is designed, exact, strongly structured at ω = 0 as SFDI, with
     poles Re ≤ smarg = −0.2, and Table 8.2's nominal row is below 1e-6."""
