@@ -20,6 +20,12 @@ CS2_1  11 models (mass variations), 3 inputs, 2 wind disturbances, 8 outputs, fa
        VCAS sensors: 3 = 2^2 − 1 strong specifications; SFDI = I2 designed per model with order 0 and
        ‖R_i − [0 0 I]‖∞ < 1e-7 (rows normalised to R_f = I); the nominal filter on all models:
        max_i ‖R_i − [0 0 I]‖∞ > 643 (Table 8.4, Nnom); the mean gain D0 of the 11 filters: > 504 (N0).
+
+The book's Table 8.2 values for the ten off-nominal models are not in the peer's scripts (they only
+assert the nominal row < 1e-6), so only that row is asserted; test_cs1_1_efdisyn_and_table_8_2 prints
+ours. Tally (~11:45 UTC): 7 tests · passing on main 4 (data, CS1_1 achievability, CS2_1 strong
+specifications, CS2_1 Table 8.4: Nref 9.8e-10, Nnom 643.5, N0 545.3) · xfail 3 (the CS1 designs and
+CS1_2's 255 strong specifications fail on main and with the issue-17 branches).
 """
 from __future__ import annotations
 

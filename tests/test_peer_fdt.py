@@ -15,8 +15,11 @@ our own seeded random set covers them), HDesign round trips and ``nullspace = fa
 ``simple = true`` variants (options we do not have), improper fault channels (Gf = [s; s²+4]: our
 models are proper state space).
 
-Tally (ported / passing on main / xfail): see the report of branch peertests; each test names the
-peer file and case it comes from.
+Tally (27 tests ported from 11 peer cases files/examples; state of 2026-11-26 ~11:45 UTC):
+  ported 27 · passing on main 20 · xfail (strict; fail on main and on main+core+judge+matching) 5 ·
+  failing on main but passing with the issue-17 branches 2 (test_afdsyn_ex5_6c_gap_and_poles: core+judge;
+  test_fdigenspec_marginal_poles_strong_at_0_and_1: core).
+Each test names the peer file and case it comes from.
 """
 from __future__ import annotations
 
