@@ -1,0 +1,540 @@
+"""Seeded property test of the exact synthesis over ill-scaled random models (issue 17, "Show").
+
+Every model of :func:`random_case` is handed to ``nullspace_design``, to ``structured_bank`` with
+the rows ``achievable_structure`` lists, and to the dedicated/generalized banks where the model has
+two faults of a kind. Each returned design is judged by :func:`judge`, an independent computation
+with numpy/scipy only (no fmu_fdi analysis, post-condition or LTI code):
+
+* frequency responses ``Q(λ)`` and ``Ge(λ) = [Gu Gd Gw Gf; I 0 0 0](λ)`` from the state-space data,
+  ``D + C (λI − A)⁻¹ B`` by ``numpy.linalg.solve`` after a diagonal balancing of A (which undoes the
+  eight-decade state scaling without changing the transfer function), on a dense grid;
+* ``R = Q·Ge`` point by point; each residual group is scaled so that its smallest required fault
+  peak gain is 1 (Varga's normalisation) and then ``‖R_u‖, ‖R_d‖`` (and ``‖R_w‖`` when the design
+  says w is decoupled exactly, and every fault the row excludes) must be ≤ ``DEC_TOL = 1e-7``
+  absolute on the grid;
+* R and Q stable: the unstable or marginal eigenvalues of the series realisation of ``Q·Ge`` (and
+  of Q) must be uncontrollable or unobservable (PBH rank tests written here), i.e. not poles of a
+  minimal realisation;
+* Q not numerically zero; every required fault visible above the rounding level of ``|Q|·|Gf|``.
+
+Every refusal must be a :class:`fmu_fdi.errors.DesignError` (not a ValueError, LinAlgError, ...),
+and a request the rank test says is achievable (a row ``achievable_structure`` lists, or the
+all-ones row for ``nullspace_design``) must be designed.
+
+The models (seeded, :func:`random_case`): continuous and discrete; n = 0 (static plants) to 30;
+1–4 outputs with m > p in half the cases (many actuators, few sensors); 0–2 unknown inputs d; 0–1
+noise input w; sensor, actuator and component faults, the component fault with an unstable or
+marginal pole (+1, 0, ±2j, or their discrete images) that u and d do not excite; half of the
+models with a diagonal state scaling spread over eight decades.
+
+The default suite runs ``N_FAST`` models with n ≤ 10 (up to 4 listed rows per bank); ``N_SLOW``
+more, n up to 30 and up to 6 rows, run under ``-m slow``.
+``benchmarks/synthesis_random_judged.py`` prints the counts ok / refused / broken.
+"""
+from __future__ import annotations
+
+import sys
+import time
+import warnings
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+from fmu_fdi import FDIModel, actuator_fault, sensor_fault
+from fmu_fdi.analysis import achievable_structure
+from fmu_fdi.design import dedicated_bank, generalized_bank, nullspace_design, structured_bank
+from fmu_fdi.errors import DesignError
+from fmu_fdi.faults import component_fault
+
+# Decoupling tolerance of issue 17 on the normalised internal form (smallest required fault peak = 1).
+DEC_TOL = 1e-7
+# Visibility: a required fault's peak gain must exceed the rounding level of the product Q·Gf at the
+# points where it is evaluated. The evaluation error of one entry of R is about
+# k·eps·cond(λI − A_balanced)·|Q||Gf| with k ≲ 60 terms and cond ≲ 1e5 after balancing on this grid
+# (grid points stay ≥ 1e-3 relative away from poles) — 60·2.2e-16·1e5 ≈ 1.3e-9. (A Boeing 747 row
+# whose fault peak 2e-2 is 3.6e-9 of |Q||Gf| = 5.7e6 is visible: its rounding is ~1e-9 absolute.)
+VIS_TOL = 1e-9
+# Q is numerically zero when its peak gain is below 1e-10: the models' transfer functions have
+# gains between ~1e-4 and 1e4 (the state scaling cancels in them), so such a filter maps every signal
+# the plant can produce to below 1e-6 of the fault effect of a unit fault — rounding residue.
+ZERO_Q = 1e-10
+# PBH: a mode is uncontrollable (unobservable) when sigma_min[λI − A, B] (resp. [λI − A; C]) is below
+# PBH_TOL relative to max(1, ‖A‖) with B and C scaled to unit norm. The computed λ of a simple,
+# well-separated eigenvalue of the balanced matrix is accurate to ~eps·‖A‖·cond ≲ 1e-10, so a true
+# cancellation gives sigma_min ≲ 1e-10; a mode weighted above 1e-8 of the signal is a pole of R.
+PBH_TOL = 1e-8
+# A pole counts as unstable/marginal when Re λ ≥ −STAB_TOL·max(1, |λ|) (continuous) or
+# |λ| ≥ 1 − STAB_TOL (discrete): the marginal poles we plant (0, ±2j, 1, e^{±0.5j}) are computed to
+# ~1e-12 from the balanced data; a genuine stable pole of a design is far inside.
+STAB_TOL = 1e-9
+
+N_FAST = 20
+N_SLOW = 24  # benchmarks/synthesis_random_judged.py runs any number (e.g. 200)
+
+
+# ------------------------------------------------------------------------------------------ models
+def random_case(seed: int) -> FDIModel:
+    """A seeded, possibly ill-scaled random FDI model (see the module docstring)."""
+    rng = np.random.default_rng(10_000 + seed)
+    discrete = bool(seed % 2)
+    static = seed % 10 in (4, 5)
+    p = int(rng.integers(1, 5))
+    m = p + int(rng.integers(1, 4)) if (seed // 2) % 2 else int(rng.integers(1, p + 1))
+    nd = int(rng.integers(0, min(2, p - 1) + 1)) if p > 1 else 0
+    nw = int(rng.integers(0, 2))
+    dt = 0.1 if discrete else 0.0
+    # fault-only mode: 0 none, 1 unstable real, 2 marginal real (integrator), 3 marginal pair
+    special = 0 if static else int(rng.integers(0, 4))
+    n_extra = {0: 0, 1: 1, 2: 1, 3: 2}[special]
+    # the default suite keeps n ≤ 10 (speed: a 30-state model costs ~30 s of design calls); the slow
+    # set goes to n = 30, every 8th model with n ≥ 20
+    big = seed >= N_FAST
+    n_max = 30 if big else 10
+    n_min = 20 if big and seed % 8 == 0 else (max(1, 4 - n_extra) if seed % 3 else 1)
+    n_stable = 0 if static else int(rng.integers(n_min, n_max + 1 - n_extra))
+    n = n_stable + n_extra
+
+    eig = []
+    while len(eig) < n_stable:
+        if n_stable - len(eig) >= 2 and rng.random() < 0.4:
+            re, im = -10 ** rng.uniform(-1, 1), 10 ** rng.uniform(-1, 1)
+            eig += [complex(re, im), complex(re, -im)]
+        else:
+            eig.append(complex(-10 ** rng.uniform(-1.5, 1), 0))
+    J = np.zeros((n, n))
+    i = 0
+    while i < n_stable:
+        lam = np.exp(eig[i] * dt) if discrete else eig[i]
+        if abs(eig[i].imag) > 0:
+            J[i:i + 2, i:i + 2] = [[lam.real, lam.imag], [-lam.imag, lam.real]]
+            i += 2
+        else:
+            J[i, i] = lam.real
+            i += 1
+    if special == 1:
+        J[n - 1, n - 1] = np.exp(1.0 * dt) if discrete else 1.0
+    elif special == 2:
+        J[n - 1, n - 1] = 1.0 if discrete else 0.0
+    elif special == 3:
+        w0 = 2.0
+        c, s_ = (np.cos(w0 * dt), np.sin(w0 * dt)) if discrete else (0.0, w0)
+        J[n - 2:, n - 2:] = [[c, s_], [-s_, c]]
+    # u, d and w do not excite the fault-only modes; the component fault does
+    Bu = rng.standard_normal((n, m))
+    Bd = rng.standard_normal((n, nd))
+    Bw = rng.standard_normal((n, nw))
+    Bc = rng.standard_normal((n, 1))
+    for B in (Bu, Bd, Bw):
+        B[n_stable:, :] = 0.0
+    C = rng.standard_normal((p, n))
+    Du = rng.standard_normal((p, m)) * (rng.random() < 0.5)
+    Dd = rng.standard_normal((p, nd)) * (static or rng.random() < 0.3)
+    Dw = rng.standard_normal((p, nw)) * (static or rng.random() < 0.5)
+    Dc = rng.standard_normal((p, 1)) * (static or rng.random() < 0.3)
+    if static and not np.any(Du):
+        Du = rng.standard_normal((p, m))
+    if n:
+        U, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        A = U @ J @ U.T
+        Bu, Bd, Bw, Bc, C = U @ Bu, U @ Bd, U @ Bw, U @ Bc, C @ U.T
+        if seed % 4 in (2, 3):  # eight decades of state scaling x -> T x
+            t = 10 ** rng.uniform(-4, 4, n)
+            A = (t[:, None] * A) / t[None, :]
+            Bu, Bd, Bw, Bc, C = t[:, None] * Bu, t[:, None] * Bd, t[:, None] * Bw, t[:, None] * Bc, C / t[None, :]
+    else:
+        A = np.zeros((0, 0))
+    y = [f"y{k + 1}" for k in range(p)]
+    u = [f"u{k + 1}" for k in range(m)]
+    faults = [sensor_fault(f"fs{k + 1}", y[k]) for k in range(min(2, p))]
+    faults += [actuator_fault(f"fa{k + 1}", u[k]) for k in range(min(2, m))]
+    if n_extra or rng.random() < 0.3:
+        faults.append(component_fault("fc", Bc, Dc))
+    return FDIModel.from_matrices(A, Bu, C, Du, Bd=Bd if nd else None, Dd=Dd if nd else None,
+                                  Bw=Bw if nw else None, Dw=Dw if nw else None, faults=faults, dt=dt,
+                                  u_names=u, y_names=y, name=f"rand{seed}")
+
+
+# ------------------------------------------------------------------------------------------- judge
+def _balanced(A, B, C):
+    """Diagonal similarity (LAPACK gebal scaling, no permutation) of (A, B, C): same transfer function."""
+    if A.shape[0] == 0:
+        return A, B, C
+    _, (scale, _) = sla.matrix_balance(A, permute=False, separate=True)
+    return (A * scale[None, :]) / scale[:, None], B / scale[:, None], C * scale[None, :]
+
+
+def _freqresp(A, B, C, D, lam: np.ndarray) -> np.ndarray:
+    """``D + C (λI − A)⁻¹ B`` at every point of ``lam``; shape (len(lam), p, m)."""
+    A, B, C = _balanced(np.asarray(A, float), np.asarray(B, float), np.asarray(C, float))
+    n = A.shape[0]
+    out = np.empty((lam.size,) + D.shape, complex)
+    for k, x in enumerate(lam):
+        out[k] = D if n == 0 else D + C @ np.linalg.solve(x * np.eye(n) - A, B)
+    return out
+
+
+def _extended(model: FDIModel):
+    """State-space data of ``Ge = [Gu Gd Gw Gf; I 0 0 0]`` (inputs u, d, w, f; outputs y, u)."""
+    p, m = model.ny, model.nu
+    B = np.hstack([model.Bu, model.Bd, model.Bw, model.Bf])
+    D = np.hstack([model.Du, model.Dd, model.Dw, model.Df])
+    Ce = np.vstack([model.C, np.zeros((m, model.n))])
+    De = np.vstack([D, np.hstack([np.eye(m), np.zeros((m, D.shape[1] - m))])])
+    return model.A, B, Ce, De
+
+
+def _grid(model: FDIModel, extra_poles=()) -> np.ndarray:
+    """Dense evaluation points on the stability boundary, ≥ 1e-3 (relative) away from every pole
+    of the model and of the filter (a marginal pole of Gf is cancelled by a correct Q, but the
+    product evaluated at the pole itself is 0·∞)."""
+    if model.dt:
+        lam = np.exp(1j * np.linspace(0.0, np.pi, 600))
+    else:
+        lam = 1j * np.r_[0.0, np.logspace(-4, 4, 600)]
+    poles = np.r_[np.linalg.eigvals(model.A) if model.n else np.zeros(0), np.asarray(extra_poles, complex)]
+    if poles.size:
+        dist = np.min(np.abs(lam[:, None] - poles[None, :]), axis=1)
+        lam = lam[dist > 1e-3 * np.maximum(1.0, np.abs(lam))]
+    return lam
+
+
+def _pbh_poles(A, B, C, dt: float) -> np.ndarray:
+    """Unstable or marginal poles of a minimal realisation of (A, B, C): the eigenvalues outside
+    the open stability region that pass both PBH rank tests (controllable and observable)."""
+    n = A.shape[0]
+    if n == 0:
+        return np.zeros(0, complex)
+    A, B, C = _balanced(A, B, C)
+    B = B / max(np.linalg.norm(B, 2), 1e-300)
+    C = C / max(np.linalg.norm(C, 2), 1e-300)
+    ev = np.linalg.eigvals(A)
+    bad = np.abs(ev) >= 1 - STAB_TOL if dt else ev.real >= -STAB_TOL * np.maximum(1.0, np.abs(ev))
+    scale = max(1.0, np.linalg.norm(A, 2))
+    kept = []
+    for lam in ev[bad]:
+        M = lam * np.eye(n) - A
+        ctrb = np.linalg.svd(np.hstack([M, B]), compute_uv=False)[-1] if B.size else 0.0
+        obsv = np.linalg.svd(np.vstack([M, C]), compute_uv=False)[-1] if C.size else 0.0
+        if ctrb > PBH_TOL * scale and obsv > PBH_TOL * scale:
+            kept.append(lam)
+    return np.array(kept, complex)
+
+
+def _series(Q, model: FDIModel):
+    """State-space data of ``R = Q·Ge`` (series connection, states [x_Q; x_G])."""
+    A, B, Ce, De = _extended(model)
+    nq, n = Q.A.shape[0], A.shape[0]
+    AR = np.block([[Q.A, Q.B @ Ce], [np.zeros((n, nq)), A]])
+    BR = np.vstack([Q.B @ De, B])
+    CR = np.hstack([Q.C, Q.D @ Ce])
+    return AR, BR, CR
+
+
+def judge(gen, model: FDIModel, S, names, w_decoupled: bool = False) -> list[str]:
+    """Violations of issue 17's judge for a returned generator or bank (empty list: a correct design).
+
+    ``S[i]`` is the structure row over ``names`` of residual group i (``gen.groups[i]``).
+    """
+    out = []
+    S = np.atleast_2d(np.asarray(S, int))
+    if len(gen.groups) != S.shape[0]:
+        return [f"{len(gen.groups)} residual groups for {S.shape[0]} structure rows"]
+    A, B, Ce, De = _extended(model)
+    nu, nd, nw = model.nu, model.nd, model.nw
+    sl_u, sl_d, sl_w = slice(0, nu), slice(nu, nu + nd), slice(nu + nd, nu + nd + nw)
+    f0 = nu + nd + nw
+    fcols = {f.name: f0 + np.arange(model.nf)[f.columns] for f in model.faults}
+    Qall = gen.Q
+    for lam in _pbh_poles(Qall.A, Qall.B, Qall.C, model.dt):
+        out.append(f"Q has the unstable/marginal pole {lam:.4g}")
+    qpoles = np.linalg.eigvals(Qall.A) if Qall.A.shape[0] else np.zeros(0)
+    lam = _grid(model, qpoles)
+    Gv = _freqresp(A, B, Ce, De, lam)                          # (N, p+m, m+nd+nw+nf)
+    Qv = _freqresp(Qall.A, Qall.B, Qall.C, Qall.D, lam)        # (N, rows, p+m)
+    Rv = Qv @ Gv
+
+    def peak(X):
+        return float(np.linalg.norm(X, 2, axis=(1, 2)).max()) if X.shape[1] and X.shape[2] else 0.0
+
+    for i, g in enumerate(gen.groups):
+        Rg, Qg = Rv[:, g, :], Qv[:, g, :]
+        qpk = peak(Qg)
+        if qpk < ZERO_Q:
+            out.append(f"group {i}: Q is numerically zero (peak gain {qpk:.2e})")
+            continue
+        req = [nm for nm, s in zip(names, S[i]) if s]
+        gains = {nm: peak(Rg[:, :, fcols[nm]]) for nm in req}
+        for nm in req:
+            bound = float(np.max(np.linalg.norm(Qg, 2, axis=(1, 2))
+                                 * np.linalg.norm(Gv[:, :, fcols[nm]], 2, axis=(1, 2))))
+            if gains[nm] <= VIS_TOL * bound:
+                out.append(f"group {i}: required fault {nm} invisible (peak {gains[nm]:.2e} vs |Q||Gf| {bound:.2e})")
+        gmin = min(gains.values()) if gains else 0.0
+        if gmin <= 0:
+            continue
+        scale = 1.0 / gmin
+        checks = [("u", Rg[:, :, sl_u]), ("d", Rg[:, :, sl_d])]
+        if w_decoupled:
+            checks.append(("w", Rg[:, :, sl_w]))
+        checks += [(f"excluded fault {nm}", Rg[:, :, fcols[nm]]) for nm, s in zip(names, S[i]) if not s]
+        for what, X in checks:
+            leak = scale * peak(X)
+            if leak > DEC_TOL:
+                out.append(f"group {i}: ‖R_{what}‖ = {leak:.2e} on the normalised form (> {DEC_TOL:g})")
+        Qsub = type("Qsub", (), {"A": Qall.A, "B": Qall.B, "C": Qall.C[g], "D": Qall.D[g]})
+        for p_ in _pbh_poles(*_series(Qsub, model), model.dt):
+            out.append(f"group {i}: R = Q·Ge has the unstable/marginal pole {p_:.4g}")
+    return out
+
+
+# ------------------------------------------------------------------------------------------ driver
+def _call(fn, *args, **kw):
+    """('ok', gen) | ('refused', DesignError) | ('crash', other exception)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return "ok", fn(*args, **kw)
+    except DesignError as exc:
+        return "refused", exc
+    except Exception as exc:  # noqa: BLE001 - any other exception type is the failure under test
+        return "crash", exc
+
+
+def _rows_in(S, listed) -> bool:
+    have = {tuple(r) for r in np.asarray(listed, int)}
+    return all(tuple(r) in have for r in np.asarray(S, int))
+
+
+def check_case(seed: int, max_rows: int | None = 6) -> list[tuple[str, str, str]]:
+    """Run every design call on model ``seed``; returns (call, 'ok'|'refused'|'broken', detail)."""
+    results = []
+    try:
+        model = random_case(seed)
+    except Exception as exc:  # noqa: BLE001
+        return [("model", "broken", f"the model cannot be built: {type(exc).__name__}: {exc}")]
+    names = model.fault_names
+    st, listed = _call(achievable_structure, model)
+    if st != "ok":
+        return [("achievable_structure", "broken", f"{type(listed).__name__}: {listed}")]
+    listed = np.asarray(listed, int).reshape(-1, len(names))
+    rng = np.random.default_rng(seed)
+    rows = listed if max_rows is None or len(listed) <= max_rows else listed[np.sort(rng.choice(len(listed),
+                                                                                               max_rows, False))]
+    calls = [("nullspace_design", lambda: nullspace_design(model), np.ones((1, len(names)), int), names)]
+    if len(rows):
+        calls.append(("structured_bank", lambda: structured_bank(model, rows), rows, names))
+    for kind, fn in (("sensor", dedicated_bank), ("actuator", dedicated_bank), ("sensor", generalized_bank),
+                     ("actuator", generalized_bank)):
+        kn = [f.name for f in model.faults if f.kind == kind]
+        if len(kn) >= 2:
+            k = len(kn)
+            Sk = np.eye(k, dtype=int) if fn is dedicated_bank else 1 - np.eye(k, dtype=int)
+            # the bank's rows over all faults: faults of other kinds are don't-care, so the row is
+            # achievable when some listed row agrees on the kind's faults
+            calls.append((f"{fn.__name__}({kind})", lambda fn=fn, kind=kind: fn(model, kind), Sk, kn))
+    for what, fn, S, nm in calls:
+        status, res = _call(fn)
+        if nm is names:
+            achievable = _rows_in(S, listed)
+        else:
+            idx = [names.index(x) for x in nm]
+            achievable = all(any(np.array_equal(r[idx], s) for r in listed) for s in S)
+        if status == "crash":
+            results.append((what, "broken", f"{type(res).__name__} instead of DesignError: {res}"))
+        elif status == "refused":
+            results.append((what, "broken" if achievable else "refused",
+                            ("achievable request refused: " if achievable else "") + str(res)[:300]))
+        else:
+            wdec = bool(model.nw) and all(g.info.get("noise") == "decoupled exactly"
+                                          for g in getattr(res, "members", [res]))
+            bad = judge(res, model, S, nm, w_decoupled=wdec)
+            results.append((what, "broken" if bad else "ok", "; ".join(bad[:4])))
+    return results
+
+
+def _describe(seed: int) -> str:
+    try:
+        m = random_case(seed)
+        return f"n={m.n} p={m.ny} m={m.nu} nd={m.nd} nw={m.nw} faults={m.fault_names} {'disc' if m.dt else 'cont'}"
+    except Exception as exc:  # noqa: BLE001
+        return f"(model not built: {exc})"
+
+
+def _assert_case(seed: int, max_rows: int = 4):
+    res = check_case(seed, max_rows)
+    broken = [f"{what}: {detail}" for what, st, detail in res if st == "broken"]
+    assert not broken, f"seed {seed} ({_describe(seed)}):\n" + "\n".join(broken)
+
+
+# -------------------------------------------------------------------------------------------- tests
+def test_judge_rejects_leaking_unstable_and_zero_filters():
+    """The judge can fail: a filter that passes y straight through leaks u; a static filter on a
+    plant with an unstable fault-only mode keeps the pole in R; a zero filter is zero."""
+    from fmu_fdi.lti import LTI
+
+    class Gen:
+        def __init__(self, Q):
+            self.Q, self.groups = Q, [list(range(Q.D.shape[0]))]
+
+    # y = 1/(s+1) u + f (sensor); Q = [1 0] (r = y) sees u
+    m1 = FDIModel.from_matrices([[-1.0]], [[1.0]], [[1.0]], faults=[sensor_fault("f", "y1")], u_names=["u1"],
+                                y_names=["y1"])
+    bad = judge(Gen(LTI(np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((1, 0)), np.array([[1.0, 0.0]]))), m1,
+                [[1]], ["f"])
+    assert any("R_u" in b for b in bad)
+    # the exact filter r = y − 1/(s+1) u passes
+    good = LTI(np.array([[-1.0]]), np.array([[0.0, 1.0]]), np.array([[-1.0]]), np.array([[1.0, 0.0]]))
+    assert judge(Gen(good), m1, [[1]], ["f"]) == []
+    # Gf = [1/(s-1); 1/(s+2)], no u: r = y1 keeps the pole +1
+    m2 = FDIModel.from_matrices(np.diag([1.0, -2.0]), np.zeros((2, 0)), np.eye(2),
+                                faults=[component_fault("f", [[1.0], [1.0]])])
+    bad = judge(Gen(LTI(np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((1, 0)), np.array([[1.0, 0.0]]))), m2,
+                [[1]], ["f"])
+    assert any("pole" in b for b in bad), bad
+    # r = y2 has a stable fault response
+    assert judge(Gen(LTI(np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((1, 0)), np.array([[0.0, 1.0]]))), m2,
+                 [[1]], ["f"]) == []
+    # a zero filter
+    bad = judge(Gen(LTI(np.zeros((0, 0)), np.zeros((0, 2)), np.zeros((1, 0)), np.array([[3e-16, 0.0]]))), m2,
+                [[1]], ["f"])
+    assert any("zero" in b for b in bad)
+
+
+@pytest.mark.parametrize("seed", [2, 3, 6, 7, 10, 11, 18, 19, 22, 23])
+def test_judge_is_accurate_on_ill_scaled_models(seed, monkeypatch):
+    """The judge's own rounding stays far below DEC_TOL on the ill-scaled models: the exact filter
+    r = y − Gu u realised with the model's own (ill-scaled, partly unstable) A,
+    Q = (A, [0 −Bu], C, [I −Du]), has R_u = 0; the judge must see ≤ 1e-9 of the fault gain, and the
+    unstable fault-only modes of A, not excited through Q's inputs, are not poles of Q."""
+    from fmu_fdi.lti import LTI
+
+    model = random_case(seed)
+    p, m = model.ny, model.nu
+    Q = LTI(model.A, np.hstack([np.zeros((model.n, p)), -model.Bu]), model.C, np.hstack([np.eye(p), -model.Du]),
+            model.dt)
+
+    class Gen:
+        groups = [list(range(p))]
+
+    Gen.Q = Q
+    sens = [f.name for f in model.faults if f.kind == "sensor"]
+    names = sens[:1]
+    monkeypatch.setattr(sys.modules[__name__], "DEC_TOL", 1e-9)
+    msgs = judge(Gen, model, [[1]], names)
+    # d is not decoupled by this filter (only u is): ignore R_d, everything else must pass
+    msgs = [x for x in msgs if "R_d" not in x]
+    assert msgs == [], msgs
+
+
+def test_random_models_cover_the_requested_classes():
+    """The seeded set holds what issue 17 asks for (so the property test cannot quietly shrink)."""
+    ms = [random_case(s) for s in range(N_FAST + N_SLOW) if s % 10 not in (4, 5)]
+    assert any(m.dt for m in ms) and any(not m.dt for m in ms)
+    assert any(m.nu > m.ny for m in ms) and any(m.nd for m in ms) and any(m.nw for m in ms)
+    assert max(m.n for m in ms) >= 25
+    ev = np.concatenate([np.linalg.eigvals(m.A) for m in ms if not m.dt and m.n])
+    assert np.any(np.isclose(ev, 1.0)) and np.any(np.isclose(ev, 0.0)) and np.any(np.isclose(ev, 2j))
+
+
+def _siso_cases():
+    """The small cases issue 17 names, as (label, model): one or two outputs, no u/d."""
+    def model(A, B, C, Bw=None, name="case"):
+        A, B, C = np.atleast_2d(A).astype(float), np.atleast_2d(B).astype(float), np.atleast_2d(C).astype(float)
+        return FDIModel.from_matrices(A, np.zeros((A.shape[0], 0)), C, Bw=Bw,
+                                      faults=[component_fault("f", B, np.zeros((C.shape[0], 1)))], name=name)
+    osc = np.array([[0.0, 2.0], [-2.0, 0.0]])  # poles ±2j
+    return [
+        # y = f/s + w/(s²+4): a zero filter 2.9e-16 was returned
+        ("Gf=1/s, Gw=1/(s^2+4)", model(sla.block_diag([[0.0]], osc), [[1.0], [0], [0]], [[1.0, 1.0, 0.0]],
+                                       Bw=np.array([[0.0], [0.0], [1.0]]))),
+        # y = f/s + w/(s+2): LinAlgError
+        ("Gf=1/s, Gw=1/(s+2)", model(np.diag([0.0, -2.0]), [[1.0], [0.0]], [[1.0, 1.0]],
+                                     Bw=np.array([[0.0], [1.0]]))),
+        # Gf = [1/(s-1); 1/(s+2)], [1/s; 1/(s+2)], [1/(s²+4); 1/(s+2)]: R kept the pole
+        ("Gf=[1/(s-1); 1/(s+2)]", model(np.diag([1.0, -2.0]), [[1.0], [1.0]], np.eye(2))),
+        ("Gf=[1/s; 1/(s+2)]", model(np.diag([0.0, -2.0]), [[1.0], [1.0]], np.eye(2))),
+        ("Gf=[1/(s^2+4); 1/(s+2)]", model(sla.block_diag(osc, [[-2.0]]), [[0.0], [1.0], [1.0]],
+                                          [[0.5, 0.0, 0.0], [0.0, 0.0, 1.0]])),
+        # Gf = [1/s; 1/(s²+4)]: ValueError in nullspace.py
+        ("Gf=[1/s; 1/(s^2+4)]", model(sla.block_diag([[0.0]], osc), [[1.0], [0.0], [1.0]],
+                                      [[1.0, 0.0, 0.0], [0.0, 0.5, 0.0]])),
+    ]
+
+
+@pytest.mark.parametrize("label", [c[0] for c in _siso_cases()])
+def test_issue17_small_cases(label):
+    """The issue's own small cases: each is designable (a stable R exists: Q cancels the marginal or
+    unstable fault poles; w is a noise input, not decoupled), so nullspace_design must return a
+    design that meets the judge — R stable, Q not zero — and never raise anything but DesignError."""
+    model = dict(_siso_cases())[label]
+    status, res = _call(nullspace_design, model)
+    assert status != "crash", f"{type(res).__name__} instead of DesignError: {res}"
+    assert status == "ok", f"refused a designable case: {res}"
+    assert judge(res, model, [[1]], ["f"]) == []
+
+
+# Seeds whose designs break the judge on main AND on main + core + judge + matching (merged 11:25 UTC,
+# issue 17): the first breakage of the merged state. strict: a fix makes the test XPASS, so remove the entry.
+KNOWN_BROKEN = {
+    1: ("structured_bank: achievable request refused: row 2 [1, 1, 0, 1, 1] (decoupling ['fa1']): (R "
+         'stability): R = Q·Ge keeps the plant pole(s) [0.9801+0.1987j, 0.9801-0.1987j] '),
+    2: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
+         '[1] (largest Re(pole) = 1 > smarg = -1.49012e-08). [R stability] the r'),
+    3: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+w leak 32.5 × the weakest '
+         'fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisio'),
+    10: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
+         '[-8.288e-15] (largest Re(pole) = -8.28837e-15 > smarg = -1.49012e-08).'),
+    12: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
+         '[1] (largest Re(pole) = 1 > smarg = -1.49012e-08). [R stability] the r'),
+    13: ('nullspace_design: achievable request refused: the internal form R = Q·Ge keeps the poles [(1+0j), '
+         '(0.596952+0.846249j), (0.596952-0.846249j), (0.00736+127.564524j), (0.00'),
+    17: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
+         '[0.9801+0.1987j, 0.9801-0.1987j] (largest |pole| = 1 > smarg = 1). [R '),
+    19: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
+         '[1.105] (largest |pole| = 1.10517 > smarg = 1). [R stability] the resi'),
+    21: ('nullspace_design: achievable request refused: (R stability, decoupling): R = Q·Ge keeps the plant '
+         'pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: u leak 2.68 × '),
+    22: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+d+w leak 127 × the weakest'
+         ' fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisi'),
+    23: ('nullspace_design: achievable request refused: (stability, R stability, decoupling): filter: largest '
+         '|pole| = 1.0163 > the stability margin smarg = 1; R = Q·Ge keeps the p'),
+    26: ("structured_bank: achievable request refused: row 5 [1, 1, 1, 1, 0] (decoupling ['fc']): (R "
+         'stability, decoupling): R = Q·Ge keeps the plant pole(s) [2.153e-05] (largest R'),
+    28: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
+         '[1.969e-14+2j, 1.969e-14-2j] (largest Re(pole) = 1.96884e-14 > smarg ='),
+    30: 'nullspace_design: LinAlgError instead of DesignError: Leading eigenvalues do not satisfy sort condition.',
+    33: ('nullspace_design: achievable request refused: (R stability, decoupling): R = Q·Ge keeps the plant '
+         'pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: u+w leak 215 ×'),
+    37: ('nullspace_design: achievable request refused: (decoupling): residual 1: u leak 1.34e-05 × the '
+         'weakest fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decis'),
+    38: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+w leak 5.17 × the weakest '
+         'fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisio'),
+    43: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+d leak 7.42e-07 × the '
+         'weakest fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank dec'),
+}
+
+
+def _seeds(seeds):
+    return [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason="issue 17: " + KNOWN_BROKEN[s]))
+            if s in KNOWN_BROKEN else s for s in seeds]
+
+
+@pytest.mark.parametrize("seed", _seeds(range(N_FAST)))
+def test_random_design_meets_the_judge(seed):
+    _assert_case(seed)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", _seeds(range(N_FAST, N_FAST + N_SLOW)))
+def test_random_design_meets_the_judge_slow(seed):
+    _assert_case(seed, max_rows=6)
+
+
+if __name__ == "__main__":  # quick manual run: python tests/test_synthesis_random.py [N]
+    t0 = time.perf_counter()
+    for s in range(int(sys.argv[1]) if len(sys.argv) > 1 else 10):
+        t = time.perf_counter()
+        for r in check_case(s):
+            print(s, f"{time.perf_counter() - t:5.1f}s", *r)
+    print(f"{time.perf_counter() - t0:.1f} s")
