@@ -258,6 +258,17 @@ def test_native_errors_match_the_python_plant(fmus, tmp_path):
 
 
 def run_fmi3(fmu, run_spec):
+    """One run of an FMI 3.0 native FMU in a fresh process (see test_native_glue_refuses_misuse)."""
+    code = ("import json, sys; sys.path.insert(0, sys.argv[1]); import test_native_plants as t; "
+            "r = t.run_fmi3_here(sys.argv[2], json.loads(sys.argv[3])); "
+            "print(json.dumps({k: v.tolist() for k, v in r.items()}))")
+    proc = subprocess.run([sys.executable, "-c", code, str(HERE), str(fmu), json.dumps(run_spec)], capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    return {n: np.array(v) for n, v in json.loads(proc.stdout.strip().splitlines()[-1]).items()}
+
+
+def run_fmi3_here(fmu, run_spec):
     """One run of an FMI 3.0 native FMU in this process (no pythonfmu here), as fmu_runner.py
     runs an FMI 2.0 one: inputs of step k set before doStep k, outputs recorded after it."""
     from fmpy import extract, read_model_description
