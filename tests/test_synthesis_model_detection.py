@@ -107,6 +107,29 @@ def _published_properties(bank, models):
     assert all(m.Q.is_stable() for m in bank.members)
     # decoupling of u (and d) of its own model: relative leakage of every filter
     assert bank.info["postconditions"]["decoupling"] <= 1e-9
+    _figures_are_the_members(bank, models)
+
+
+def _figures_are_the_members(bank, models):
+    """The stored post-conditions are what analysis reports for the returned members (issue 17:
+    one judge), and they describe the returned Q: independently, Q_i [Gu_i; I] evaluated with
+    numpy at points off the judge's grid is rounding noise (≤ 1e-9 on β-scaled rows, the
+    decoupling bound above) and every other model is seen (S row of ones)."""
+    from fmu_fdi.analysis import leakage, structure_matrix
+
+    for i, m in enumerate(bank.members):
+        fig = m.info["postconditions"]
+        assert fig["leakage"] == leakage(m)
+        assert fig["structure_matrix"] == np.asarray(structure_matrix(m)).tolist()
+        assert np.all(np.asarray(fig["structure_matrix"]) == 1)
+        mi, Q = models[i], m.Q
+        for z in ((1j * np.array([0.37, 2.9])) if not mi.dt else np.exp(1j * np.array([0.37, 2.9]))):
+            Gu = mi.C @ np.linalg.solve(z * np.eye(mi.n) - mi.A, mi.Bu) + mi.Du
+            Qz = Q.C @ np.linalg.solve(z * np.eye(Q.n) - Q.A, Q.B) + Q.D if Q.n else Q.D
+            assert np.linalg.norm(Qz @ np.vstack([Gu, np.eye(mi.nu)]), 2) <= 1e-9
+    assert bank.info["postconditions"]["leakage"] == max(leakage(m) for m in bank.members)
+    assert bank.info["postconditions"]["structure_matrix"] == [m.info["postconditions"]["structure_matrix"]
+                                                               for m in bank.members]
 
 
 def test_example_6_2_full_order_gap_is_the_pointwise_optimum(ex62):

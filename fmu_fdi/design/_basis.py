@@ -295,11 +295,19 @@ def basis_rank(rows: list[PolyRow], rho: float, dt: float, points: int = 3, seed
     return best, worst_ratio
 
 
+MOVED_SDEG = 0.05  # Varga's default stability degree (sdeg = -0.05) for the poles a design moves
+
+
 def plant_pole_pool(A: np.ndarray, dt: float) -> list[complex]:
     """The plant's eigenvalues made stable, sorted from slow to fast.
 
     Unstable ones are mirrored into the stability region (``-|Re λ| + j Im λ``, or
     ``1/λ̄`` in discrete time); poles on the boundary (integrators) move just inside it.
+    In continuous time a pole that has to move goes at least to Varga's default stability
+    degree ``sdeg = -0.05`` (``glcf``/``efdsyn``; or ``-1e-3·max|λ|`` when that is faster):
+    the mirror image of a slow unstable mode (the Boeing 747's altitude mode, +3.1e-5 rad/s)
+    would make a near-integrator filter whose huge low-frequency gain lifts the rounding of
+    the decoupling above ``dec_tol`` of a weak fault's gain (leak 2e-5 at -3.1e-5, 1.3e-8 at -0.05).
     """
     eig = np.linalg.eigvals(A) if A.size else np.zeros(0, complex)
     scale = max(1.0, float(np.max(np.abs(eig), initial=0.0)))
@@ -310,10 +318,8 @@ def plant_pole_pool(A: np.ndarray, dt: float) -> list[complex]:
             if r >= 1.0:
                 lam = lam / r * min(1.0 / r, 0.999) if r > 0 else lam
         else:
-            re = -abs(lam.real)
-            if re > -1e-6 * scale:
-                re = -1e-3 * scale
-            lam = complex(re, lam.imag)
+            if lam.real > -1e-6 * scale:  # unstable or on the boundary: moved
+                lam = complex(-max(abs(lam.real), MOVED_SDEG, 1e-3 * scale), lam.imag)
         out.append(complex(lam))
     speed = (lambda z: -np.log(max(abs(z), 1e-300))) if dt else abs
     return sorted(out, key=lambda z: (speed(z), z.imag))

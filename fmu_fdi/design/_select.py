@@ -74,7 +74,7 @@ def visibility_gated(P: list[np.ndarray], Y: np.ndarray, G: np.ndarray, fcols: l
     noise over noise ≈ 1) from a good one. The post-condition's cosine
     ``γ_j(h) = max_λ ||h P_j(λ)|| / (||h Y(λ)|| ||Gf_j(λ)||)`` (``Y``: the rows' y-part,
     (points, rows, p); ``Gf_j = G[:, :p, fcols[j]]``: the plant's values on the same points,
-    :func:`.postconditions._cosine`) must exceed ``gate`` (FDtol); below it the value is
+    :func:`.postconditions._cosine`) must reach ``gate`` (FDtol, inclusive as the judge); below it the value is
     ``min_j γ_j - 1 < 0``, under every admissible one. Without ``strong`` the objective's value is
     computed here from the same products.
     With ``strong`` (gains at given frequencies in the objective, whose ratio to the peak a
@@ -97,7 +97,7 @@ def visibility_gated(P: list[np.ndarray], Y: np.ndarray, G: np.ndarray, fcols: l
         keep = bound >= 1e-6 * top  # as postconditions._cosine: zeros of Gf_j are left out
         ratio = np.where(keep, resp / np.where(keep, bound, 1.0), 0.0).max(axis=0)
         g = float(np.min(np.where(top > 0, ratio, 0.0)))
-        if g <= gate:
+        if g < gate:  # inclusive, as the judge: γ_j = FDtol is visible
             return g - 1.0
         if strong is not None:
             return min(objective(h), g)

@@ -419,12 +419,17 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
     Returns
     -------
     ResidualBank
-        Member i (residual group i) is filter i, attached to ``models[i]`` (its internal form
-        is ``R_ii``: ``Ru = Rd = 0``, ``Rw`` the noise response), scaled so that ``β_i = 1``.
+        Member i (residual group i) is filter i, scaled so that ``β_i = 1``, attached to
+        ``models[i]`` with the other models' differences ``Gu_j − Gu_i`` as its faults
+        ``model_<name>`` (its internal form: ``Ru = Rd = 0``, ``Rw`` the noise response, ``Rf``
+        the distances): ``member.info['postconditions']`` is judged on that object, so its
+        ``leakage``/``structure_matrix`` are what :func:`~fmu_fdi.analysis.leakage` and
+        :func:`~fmu_fdi.analysis.structure_matrix` report for the member.
         ``info``: ``MDperf`` (distance mapping of the returned filters, H∞ or at ``freqs``),
         ``MDperf_h2``, ``MDgap``, ``beta``, ``gamma``, ``models``, ``noise`` (how each filter
-        treats w), ``postconditions`` (figures of every filter: decoupling of u and d of its
-        model, visibility of every other model, pole margin).
+        treats w), ``postconditions`` (figures of every filter, ``per_filter``: decoupling of u and
+        d of its model, visibility of every other model, pole margin; ``leakage`` the largest
+        ``leakage(member)``, ``structure_matrix`` each member's).
 
     Raises
     ------
@@ -471,7 +476,13 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
                 raise DesignError(f"every other model has zero distance to filter {i + 1} (β = {beta:.3g})")
             Q = Q * (1.0 / beta)
             exact_w = info.get("noise") in ("decoupled exactly", "no noise inputs")
-            fig = check_generator(ResidualGenerator(Q, md, "approximate_model_detection"),
+            info.pop("postconditions", None)
+            info["scale"] = 1.0 / beta
+            # the member itself is judged, attached to the model it is read against (model i with the other
+            # models as faults); its rows keep the β scaling (normalize=False), so the figures stored are
+            # what leakage(member) and structure_matrix(member) report
+            member = ResidualGenerator(Q, md, "approximate_model_detection", info=info)
+            fig = check_generator(member, normalize=False,
                                   decouple=("u", "d", "w") if exact_w and mi.nw else ("u", "d"), block=True,
                                   freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol,
                                   hints={"visibility": "another model is (nearly) indistinguishable from this one "
@@ -480,11 +491,10 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
         except DesignError as exc:
             msg = str(exc).replace("fault 'model_", "model '")  # the fault channels stand for the other models
             raise type(exc)(f"filter {i + 1} (model '{mi.name}'): {msg}") from None
-        info.pop("postconditions", None)
-        info["scale"] = 1.0 / beta
+        member.info["postconditions"] = fig
         rows.append(row / beta)
         gammas.append(_noise_gain(Q, mi))
-        members.append(ResidualGenerator(Q, mi, "approximate_model_detection", info=dict(info, postconditions=fig)))
+        members.append(member)
         figures.append(fig)
     bank = ResidualBank(members, "approximate_model_detection", info={"models": [mj.name for mj in models]})
     # the rows measured for the scaling, divided by their off-diagonal minimum β_i: that minimum
@@ -499,6 +509,8 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
         "freqs": None if freqs is None else freqs.tolist(),
         "postconditions": {
             "decoupling": max(f["decoupling"] for f in figures),
+            "leakage": max(f["leakage"] for f in figures),
+            "structure_matrix": [f["structure_matrix"] for f in figures],
             "model_visibility": min(f["fault_visibility"] for f in figures),
             "pole_extreme": max((f.get("pole_extreme", -np.inf) for f in figures)),
             "dec_tol": dec_tol, "FDtol": FDtol, "per_filter": figures}})

@@ -461,14 +461,14 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     rows = [] if full or k == 1 or not minimal else _common_poles(simple_rows(pb, model.dt), model.dt)
     base = {"basis": "pencil", "decoupling_kind": EXACT, "left_minimal_indices": pb.degrees, "pencil": pb.info}
     gains = _pencil_gains(model, N, freqs, FDtol)
-    if model.faults and not np.all(gains.max(axis=0) > FDtol):
-        raise undetectable_error(model, gains > FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
+    if model.faults and not np.all(gains.max(axis=0) >= FDtol):
+        raise undetectable_error(model, gains >= FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
     tried = []
     if rows:
         from itertools import combinations
 
         Ns = [r[0] for r in rows]
-        seen = _pencil_gains(model, vstack(Ns), freqs, FDtol) > FDtol
+        seen = _pencil_gains(model, vstack(Ns), freqs, FDtol) >= FDtol
         # all k rows: the whole basis below, at no higher order — unless rows of one index share their poles
         shared = any(r[3] for r in rows)
         top = len(rows) if shared else min(len(rows), k - 1)
@@ -606,15 +606,15 @@ def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol,
         )
     choose = pole_chooser(model, poles, sdeg, freqs)
     seen = detectability_by_rows(model, basis, FDtol)
-    if model.faults and not np.all(seen.max(axis=0) > FDtol):
-        raise undetectable_error(model, seen > FDtol, gains=seen, FDtol=FDtol, numerical=NumericalDesignError)
+    if model.faults and not np.all(seen.max(axis=0) >= FDtol):
+        raise undetectable_error(model, seen >= FDtol, gains=seen, FDtol=FDtol, numerical=NumericalDesignError)
     if model.nw and noise == "optimize":
         gen = _approximate(model, basis, rdim, choose, FDtol, tol, seed, atol, place)
         exact_w = gen.info.get("noise") == "decoupled exactly"
         check_generator(gen, decouple=("u", "d", "w") if exact_w else ("u", "d"), block=True, FDtol=FDtol,
                         smarg=smarg, dec_tol=dec_tol)
         return gen
-    gen = _exact(model, basis, seen > FDtol, rdim, choose, freqs, FDGainTol, seed, minimal, FDtol, place)
+    gen = _exact(model, basis, seen >= FDtol, rdim, choose, freqs, FDGainTol, seed, minimal, FDtol, place)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen
@@ -748,14 +748,21 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
         info = dict(info, internal_form=moved, order=int(Q.n))
     gen = ResidualGenerator(Q, model, method)
     if scale_rows and model.faults:
-        Rf = gen.Rf
-        grid = frequency_grid([Rf], num=200) if Rf.n else np.array([0.0])
-        try:
-            peaks = np.max(np.abs(Rf.freqresp(grid)), axis=(0, 2))
-        except np.linalg.LinAlgError:
-            # a pole of R_f = Q·Gf on the frequency axis: of Q, or of the plant, which the stable
-            # factorisation above could not move (it raises when it cannot; this is the backstop)
-            poles = Rf.poles()
+        # peaks of R_f = Q·Gf as the judge reads them: the product of the two values point by point
+        # (:func:`.postconditions.internal_figures`), never the series realisation of order n_Q + n,
+        # which is non-minimal (the modes Q cancels) and singular on the axis where the plant has poles
+        dyn = [S for S in (model.lti(), Q) if S.n]
+        grid = frequency_grid(dyn, num=200) if dyn else np.array([0.0])
+        lam = _points(model, grid)
+        fsl = model.group_slices()["f"]
+        Rv = np.einsum("kiq,kqc->kic", _values(Q, lam), _values(model.augmented(), lam)[:, :, fsl])
+        ok = np.all(np.isfinite(Rv), axis=(1, 2))
+        if np.any(ok):
+            peaks = np.max(np.abs(Rv[ok]), axis=(0, 2))
+        else:
+            # no point where Q and the plant can both be evaluated: a pole of R_f = Q·Gf on the frequency axis
+            # that the stable factorisation above could not move (it raises when it cannot; this is the backstop)
+            poles = gen.Rf.poles()
             worst = (np.max(np.abs(poles)) if model.dt else np.max(poles.real)) if poles.size else float("nan")
             raise NumericalDesignError(f"{method} design fails its post-conditions (stability): a pole of the fault "
                               f"response R_f = Q·Gf lies on the stability boundary "
@@ -778,8 +785,8 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
         seen2 = detectability_by_rows(exact_w, basis2, FDtol) if basis2.rows else np.zeros((0, len(model.faults)))
     except DesignError:
         basis2, seen2 = None, np.zeros((0, len(model.faults)))
-    if basis2 is not None and basis2.rows and (not model.faults or np.all(seen2.max(axis=0) > FDtol)):
-        gen = _exact(exact_w, basis2, seen2 > FDtol, rdim, choose, None, 0.01, seed, place=place)
+    if basis2 is not None and basis2.rows and (not model.faults or np.all(seen2.max(axis=0) >= FDtol)):
+        gen = _exact(exact_w, basis2, seen2 >= FDtol, rdim, choose, None, 0.01, seed, place=place)
         gen = ResidualGenerator(gen.Q, model, "nullspace", info=gen.info)
         gen.info["gap_estimate"] = float("inf")
         gen.info["noise"] = "decoupled exactly"

@@ -123,7 +123,7 @@ def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None 
         rows = [data.row(v, s) for v in N]
         if rows:
             basis = NullspaceBasis(rows, data.rho, model.dt, model.ny, model.nu, 0)
-            seen = detectability_by_rows(model, basis, FDtol) > FDtol
+            seen = detectability_by_rows(model, basis, FDtol) >= FDtol
             if not model.faults or np.all(seen.max(axis=0)):
                 k = len(rows) if rdim is None else int(rdim)
                 if k > len(rows):
@@ -166,7 +166,7 @@ def _fault_to_noise(model: FDIModel, data: ParityData, N: np.ndarray, s: int, rd
     X = X[:, ::-1][:, :rdim]
     rows = [data.row(v, s) for v in X.T @ N]
     basis = NullspaceBasis(rows, data.rho, model.dt, model.ny, model.nu, 0)
-    if not np.all(detectability_by_rows(model, basis, FDtol).max(axis=0) > FDtol):
+    if not np.all(detectability_by_rows(model, basis, FDtol).max(axis=0) >= FDtol):
         return None
     gen = _fir_generator(model, data, rows, s)
     Q = gen.Q

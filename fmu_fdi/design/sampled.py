@@ -148,7 +148,7 @@ def sampled_rows(model, choose, fault_cols: list[np.ndarray], rdim: int, *, freq
         for Pj, c in zip(P, fault_cols):
             gfk = np.linalg.norm(G[:, :model.ny, c], 2, axis=(1, 2))  # (K,)
             resp = np.linalg.norm(Pj, axis=2)  # (K, k)
-            seen.append(max(_cosine(resp[:, i], nqy[:, i] * gfk) for i in range(Z.shape[0])) > FDtol)
+            seen.append(max(_cosine(resp[:, i], nqy[:, i] * gfk) for i in range(Z.shape[0])) >= FDtol)
         if fault_cols and not all(seen):
             last = (f"at degree {nu} the exact rows miss faults {[j for j, sj in enumerate(seen) if not sj]}")
             continue
