@@ -1,4 +1,4 @@
-"""Wall time of ``FDIModel.from_fmu`` (what ``fmu-fdi model`` runs) per benchmark plant FMU (issue 9).
+"""Wall time of ``fmu_fdi.model_from_fmu`` (what ``fmu-fdi model`` runs) per benchmark plant FMU (issue 9).
 
 Each identification runs two experiments (identification and validation) of 200 settling +
 2000 recorded steps through fmu_fdi.cosim, PO-MOESP and the validation. It is printed next to
@@ -15,7 +15,8 @@ import tempfile
 import time
 
 import plant_fmus
-from fmu_fdi import FDIModel
+
+from fmu_fdi.identify import model_from_fmu
 from fmu_fdi.cosim import CoSimulation
 from fmu_fdi.identify import Excitation
 
@@ -43,7 +44,7 @@ def main(names):
                      parameters={"plant.noise_enable": False}).run()
         base = time.perf_counter() - t0
         t0 = time.perf_counter()
-        m = FDIModel.from_fmu(fmu, u, y, d, at={"noise_enable": False}, excite=excite,
+        m = model_from_fmu(fmu, u, y, d, at={"noise_enable": False}, excite=excite,
                               excitation=Excitation(amplitude=amp))
         ident = time.perf_counter() - t0
         fit = " ".join(f"{f:.2f}" for f in m.provenance["fit_percent"])

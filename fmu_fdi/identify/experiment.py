@@ -35,7 +35,7 @@ class Excitation:
     """How the plant is excited (configuration only; see the module docstring).
 
     A field left at None is chosen by the automatic experiment design
-    (:mod:`fmu_fdi.identify.design`) when the model is made with ``FDIModel.from_fmu``; a bare
+    (:mod:`fmu_fdi.identify.design`) when the model is made with ``fmu_fdi.model_from_fmu``; a bare
     :func:`run_experiment` uses the fixed fallbacks :data:`FALLBACK` instead.
 
     Parameters

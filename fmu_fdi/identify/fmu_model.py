@@ -1,6 +1,6 @@
 """The door from a plant FMU to an FDIModel: linearise (model exchange) or identify (co-simulation).
 
-Used by :meth:`fmu_fdi.FDIModel.from_fmu` and ``fmu-fdi model``. The model describes
+Used by :func:`fmu_fdi.identify.model_from_fmu` and ``fmu-fdi model``. The model describes
 deviations from the operating point ``(u0, y0)`` it carries; the disturbances' operating
 values are absorbed in it (d is a deviation too). Its ``provenance`` records where it came
 from: FMU name, GUID, method, and for identification the order, sample time, excitation and
