@@ -15,10 +15,8 @@ import tempfile
 import time
 
 import plant_fmus
-
-from fmu_fdi.identify import model_from_fmu
 from fmu_fdi.cosim import CoSimulation
-from fmu_fdi.identify import Excitation
+from fmu_fdi.identify import Excitation, model_from_fmu
 
 CASES = {  # plant: (u, y, d, excite, amplitudes), noise off (a simulation model lets you)
     "dts200": (["Q1", "Q2"], ["h1", "h2", "h3"], [], None, None),
@@ -45,7 +43,7 @@ def main(names):
         base = time.perf_counter() - t0
         t0 = time.perf_counter()
         m = model_from_fmu(fmu, u, y, d, at={"noise_enable": False}, excite=excite,
-                              excitation=Excitation(amplitude=amp))
+                           excitation=Excitation(amplitude=amp))
         ident = time.perf_counter() - t0
         fit = " ".join(f"{f:.2f}" for f in m.provenance["fit_percent"])
         print(f"{name:<18}{ident:>13.2f}{base:>14.2f}{ident / base:>7.2f}  {fit}  (order {m.n})")

@@ -184,4 +184,4 @@ def test_closed_loop_dc_motor_with_noise_is_refused_not_wrong(plants, tmp_path):
 
     with pytest.raises(IdentificationError, match="own loop|poorly"):
         model_from_fmu(plants["dr300"], ["voltage"], ["speed"], ["load_torque"],
-                          excite=["speed_ref", "load_torque"])
+                       excite=["speed_ref", "load_torque"])

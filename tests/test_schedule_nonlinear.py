@@ -48,7 +48,7 @@ def _simulate(u, bias=None, sub=20):
 def setup(tmp_path_factory):
     fmu = build_me_fmu(tmp_path_factory.mktemp("me"), "nonlinear", 2, True)
     mset = model_from_fmu(fmu, ["u1", "u2"], ["y1", "y2"], at=[{"u1": float(v)} for v in np.linspace(0.5, 2, 9)],
-                             sensor_faults="all")  # u2 at its start value 0.5
+                          sensor_faults="all")  # u2 at its start value 0.5
 
     def thresholds(gen, evaluation):  # each residual sized for its own sensor's bias
         return [fault_size_thresholds(gen, evaluation, size)[i] for i, size in enumerate(BIAS)]

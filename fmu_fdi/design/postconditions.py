@@ -236,6 +236,23 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     return out
 
 
+#: what to try when a post-condition fails, by condition (check_generator's ``hints`` add to it)
+_ADVICE = {
+    "finite": "the design produced NaN/Inf: the model data is singular for this method",
+    "decoupling": "the null-space/rank decisions are ill-conditioned for this model: pass atol/rtol (rank "
+                  "tolerances), balance or rescale the model's states, or ask for a smaller structure",
+    "structure": "a fault marked 0 leaks into its residual: loosen/tighten atol/rtol, or check the structure "
+                 "against fmu_fdi.isolability(model)",
+    "visibility": "a required fault is rounding noise in its residual: it is not detectable once the 0-faults "
+                  "and d are decoupled (lower FDtol only if the fault really is this weak)",
+    "zero": "the filter is numerically zero: no residual sees the required faults",
+    "strong": "pass other freqs, or lower FDGainTol",
+    "stability": "pass stable poles / a smaller sdeg, or relax smarg",
+    "R stability": "the residual keeps a plant mode outside the margin (no stable R exists with this filter): "
+                   "the design must cancel it (a coprime factorisation of [Q R]), or relax smarg",
+}
+
+
 def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, block: bool = False,
                     freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, smarg: float | None = None,
                     dec_tol: float = DEC_TOL, hints: dict | None = None, raise_error: bool = True,
@@ -295,20 +312,7 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
     for g in decouple:
         if g not in ("u", "d", "w"):
             raise DesignError(f"decouple names input groups 'u', 'd', 'w'; got {g!r}")
-    adv = {
-        "finite": "the design produced NaN/Inf: the model data is singular for this method",
-        "decoupling": "the null-space/rank decisions are ill-conditioned for this model: pass atol/rtol (rank "
-                      "tolerances), balance or rescale the model's states, or ask for a smaller structure",
-        "structure": "a fault marked 0 leaks into its residual: loosen/tighten atol/rtol, or check the structure "
-                     "against fmu_fdi.isolability(model)",
-        "visibility": "a required fault is rounding noise in its residual: it is not detectable once the 0-faults "
-                      "and d are decoupled (lower FDtol only if the fault really is this weak)",
-        "zero": "the filter is numerically zero: no residual sees the required faults",
-        "strong": "pass other freqs, or lower FDGainTol",
-        "stability": "pass stable poles / a smaller sdeg, or relax smarg",
-        "R stability": "the residual keeps a plant mode outside the margin (no stable R exists with this filter): "
-                       "the design must cancel it (a coprime factorisation of [Q R]), or relax smarg",
-    }
+    adv = dict(_ADVICE)
     adv.update(hints or {})
     fig: dict = {"dec_tol": dec_tol, "FDtol": FDtol}
     failures: list[tuple[str, str]] = []
@@ -324,6 +328,42 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
                                    "(NaN/Inf in the filter's matrices or at every grid point)"))
         return _finish(fig, failures, adv, gen, raise_error)
 
+    scales = _visibility(fj, judged, names, all_names, col, S, FDtol, fig, failures)
+    if failures:
+        return _finish(fig, failures, adv, gen, raise_error)
+    own_gen = gen
+    if np.any(scales != 1.0):
+        row_scale = np.ones(gen.Q.p)
+        for i, g in enumerate(judged):
+            row_scale[g] = scales[i]
+        if not normalize:
+            from ..generator import ResidualGenerator
+
+            gen = ResidualGenerator(gen.Q, model, gen.method, gen.residual_names, gen.groups)
+        gen.scale_rows(row_scale)
+        fj = internal_figures(gen, judged)
+        if not fj["finite"]:
+            failures.append(("finite", f"the normalised filter (scales {scales.tolist()}) cannot be evaluated"))
+            return _finish(fig, failures, adv, own_gen, raise_error)
+    fig["scales"] = scales.tolist()
+
+    _stability(model, gen.Q, smarg, fig, failures)
+    _decoupling(model, fj, judged, names, col, S, decouple, dec_tol, fig, failures)
+    _strong_visibility(gen, judged, names, col, S, freqs, FDGainTol, fig, failures)
+
+    # 5. what leakage() and structure_matrix() report for this object (the generator's own groups)
+    own = report(own_gen, freqs=freqs, FDGainTol=FDGainTol, dec_tol=dec_tol)
+    fig["leakage"] = own["leakage"]
+    fig["structure_matrix"] = own["structure_matrix"]
+    if freqs is not None:
+        fig["strong_structure_matrix"] = own["strong_structure_matrix"]
+    return _finish(fig, failures, adv, own_gen, raise_error)
+
+
+def _visibility(fj, judged, names, all_names, col, S, FDtol, fig, failures) -> np.ndarray:
+    """Stage 1 of :func:`check_generator`: no required fault is rounding noise in its row and no
+    row is numerically zero; returns each judged group's normalising scale (1 / its weakest
+    required fault gain) and adds to ``fig`` and ``failures``."""
     # 1. no rounding noise, then the normalisation (Varga: unit minimum fault gain per row)
     scales = np.ones(len(judged))
     vis = []
@@ -347,26 +387,13 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
                                                f"{c:.3g} < FDtol = {FDtol:.3g}"))
         scales[i] = 1.0 / low
     fig["fault_visibility"] = min(vis, default=float("inf"))
-    if failures:
-        return _finish(fig, failures, adv, gen, raise_error)
-    own_gen = gen
-    if np.any(scales != 1.0):
-        row_scale = np.ones(gen.Q.p)
-        for i, g in enumerate(judged):
-            row_scale[g] = scales[i]
-        if not normalize:
-            from ..generator import ResidualGenerator
+    return scales
 
-            gen = ResidualGenerator(gen.Q, model, gen.method, gen.residual_names, gen.groups)
-        gen.scale_rows(row_scale)
-        fj = internal_figures(gen, judged)
-        if not fj["finite"]:
-            failures.append(("finite", f"the normalised filter (scales {scales.tolist()}) cannot be evaluated"))
-            return _finish(fig, failures, adv, own_gen, raise_error)
-    fig["scales"] = scales.tolist()
 
+def _stability(model, Q, smarg, fig, failures) -> None:
+    """Stage 2 of :func:`check_generator`: stability with margin of Q's realisation, then R's own
+    poles (the plant modes it keeps); adds to ``fig`` and ``failures``."""
     # 2. stability with margin: Q's realisation, then R's own poles (plant modes it keeps)
-    Q = gen.Q
     worst_of = (lambda p: float(np.max(np.abs(p)))) if model.dt else (lambda p: float(np.max(p.real)))
     what = "largest |pole|" if model.dt else "largest Re(pole)"
     if Q.n:
@@ -385,6 +412,10 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
         failures.append(("R stability", f"R = Q·Ge keeps the plant pole(s) {_fmt(rp)} ({what} = {worst_of(rp):.6g} "
                                         f"> smarg = {smarg:.6g})"))
 
+
+def _decoupling(model, fj, judged, names, col, S, decouple, dec_tol, fig, failures) -> None:
+    """Stage 3 of :func:`check_generator`: decoupling and structure, absolute on the normalised
+    form; adds to ``fig`` and ``failures``."""
     # 3. decoupling and structure, absolute on the normalised form
     labels = [g for g in decouple if model.group_slices()[g].stop > model.group_slices()[g].start]
     decs, zero_leaks, low_gain = [], [], []
@@ -412,6 +443,10 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
     if not (np.isfinite(fig["filter_peak_gain"]) and fig["filter_peak_gain"] > 0):
         failures.append(("zero", f"the returned filter's peak gain is {fig['filter_peak_gain']:.3g}"))
 
+
+def _strong_visibility(gen, judged, names, col, S, freqs, FDGainTol, fig, failures) -> None:
+    """Stage 4 of :func:`check_generator`: strong visibility at ``freqs`` on the normalised rows;
+    adds to ``fig`` and ``failures``."""
     # 4. strong visibility at freqs on the normalised rows
     if freqs is not None:
         fs = internal_figures(gen, judged, freqs)["at_freqs"]
@@ -427,14 +462,6 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
                         failures.append(("strong", f"residual {i + 1}: fault '{nm}' has gain {v:.3g} (unit-gain "
                                                    f"row) at ω = {w:g} rad/s < FDGainTol = {FDGainTol:.3g}"))
         fig["strong_gain_ratio"] = min(strong, default=float("inf"))
-
-    # 5. what leakage() and structure_matrix() report for this object (the generator's own groups)
-    own = report(own_gen, freqs=freqs, FDGainTol=FDGainTol, dec_tol=dec_tol)
-    fig["leakage"] = own["leakage"]
-    fig["structure_matrix"] = own["structure_matrix"]
-    if freqs is not None:
-        fig["strong_structure_matrix"] = own["strong_structure_matrix"]
-    return _finish(fig, failures, adv, own_gen, raise_error)
 
 
 def report(gen, freqs=None, FDGainTol: float = 0.01, dec_tol: float = DEC_TOL, groups=None) -> dict:
