@@ -1,4 +1,4 @@
-"""Wall time of ``FDIModel.from_fmu`` (what ``fmu-fdi model`` runs) per benchmark plant FMU (issue 9).
+"""Wall time of ``fmu_fdi.model_from_fmu`` (what ``fmu-fdi model`` runs) per benchmark plant FMU (issue 9).
 
 Each identification runs two experiments (identification and validation) of 200 settling +
 2000 recorded steps through fmu_fdi.cosim, PO-MOESP and the validation. It is printed next to
@@ -15,9 +15,8 @@ import tempfile
 import time
 
 import plant_fmus
-from fmu_fdi import FDIModel
 from fmu_fdi.cosim import CoSimulation
-from fmu_fdi.identify import Excitation
+from fmu_fdi.identify import Excitation, model_from_fmu
 
 CASES = {  # plant: (u, y, d, excite, amplitudes), noise off (a simulation model lets you)
     "dts200": (["Q1", "Q2"], ["h1", "h2", "h3"], [], None, None),
@@ -43,8 +42,8 @@ def main(names):
                      parameters={"plant.noise_enable": False}).run()
         base = time.perf_counter() - t0
         t0 = time.perf_counter()
-        m = FDIModel.from_fmu(fmu, u, y, d, at={"noise_enable": False}, excite=excite,
-                              excitation=Excitation(amplitude=amp))
+        m = model_from_fmu(fmu, u, y, d, at={"noise_enable": False}, excite=excite,
+                           excitation=Excitation(amplitude=amp))
         ident = time.perf_counter() - t0
         fit = " ".join(f"{f:.2f}" for f in m.provenance["fit_percent"])
         print(f"{name:<18}{ident:>13.2f}{base:>14.2f}{ident / base:>7.2f}  {fit}  (order {m.n})")

@@ -13,6 +13,7 @@ from .errors import DesignError, ModelError
 from .fmu import build_fmu
 from .faults import FaultSpec, actuator_fault, component_fault, parametric_fault, sensor_fault
 from .generator import ResidualBank, ResidualGenerator
+from .identify import model_from_fmu
 from .lti import LTI
 from .model import FDIModel
 from .modelset import ModelSet
@@ -32,4 +33,4 @@ __all__ = [
     "leakage", "detectability", "isolability",
     "CoSimulation", "Result", "Fault", "parse_fault", "InputSignals", "export_ssp", "SimulationFailed",
 ]
-__all__ += ["ModelSet", "ScheduledDiagnoser", "load_diagnoser"]  # the operating envelope (docs/envelope.md)
+__all__ += ["ModelSet", "ScheduledDiagnoser", "load_diagnoser", "model_from_fmu"]  # the operating envelope (docs/envelope.md)

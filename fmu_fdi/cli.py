@@ -249,31 +249,31 @@ def _plant_description(path):
         from fmpy import read_model_description
 
         return read_model_description(str(path), validate=False)
-    except Exception:  # not an FMU, not a zip, broken XML: from_fmu reports it in its words
+    except Exception:  # not an FMU, not a zip, broken XML: model_from_fmu reports it in its words
         return None
 
 
 def _model(args) -> int:
     _check_model_options(args)
-    from .identify import Excitation
+    from .identify import Excitation, model_from_fmu
     from .identify.fmu_model import parse_values, summary
-    from .model import FDIModel, minreal_option
+    from .model import minreal_option
 
-    # only checked here, before the excitation options (FDIModel.from_fmu applies them)
+    # only checked here, before the excitation options (model_from_fmu applies them)
     minreal_option(args.minimal, args.minreal_tol)
     exc = Excitation(signal=args.signal, amplitude=parse_values(args.amplitude, "--amplitude") or None,
                      samples=args.samples, settle=args.settle, period=args.period, seed=args.seed)
-    if args.at_grid:  # several operating points: a model set (fmu_fdi/modelset.py)
-        from .modelset import envelope_cli
+    if args.at_grid:  # several operating points: a model set (fmu_fdi/identify/envelope.py)
+        from .identify.envelope import envelope_cli
 
         return envelope_cli(args, exc, parse_values(args.at, "--at"))
-    model = FDIModel.from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
-                              at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
-                              sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
-                              excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
-                              validation_png=args.plot, record=args.record,
-                              noise=None if args.noise == "none" else args.noise,
-                              minimal=args.minimal, minreal_tol=args.minreal_tol, log=print)
+    model = model_from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
+                           at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
+                           sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
+                           excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
+                           validation_png=args.plot, record=args.record,
+                           noise=None if args.noise == "none" else args.noise,
+                           minimal=args.minimal, minreal_tol=args.minreal_tol, log=print)
     _report_minreal(model)
     print(f"wrote {model.to_file(args.output)}: {summary(model)}")
     return 0

@@ -10,14 +10,11 @@ missing key or a matrix of the wrong shape is an error that names the item.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
-
-import numpy as np
 
 from ._schema import parse, read_text
 from .errors import ModelError
-from .outpath import check_output_path, write_atomically
+from .outpath import _clean, check_output_path, write_atomically
 from .runtime.design_check import FORMAT, DesignCheckError, check_design  # noqa: F401
 
 
@@ -69,26 +66,6 @@ def _check_model_agrees(d: dict, model, source: str) -> None:
     if model.is_discrete and abs(model.dt - dt) > 1e-12 * dt:
         raise DesignFileError(f"{source}: the embedded model is discrete with dt = {model.dt!r} but the generator "
                               f"runs at dt = {dt!r}")
-
-
-def _clean(x):
-    """JSON-ready copy: numpy → lists and floats, non-finite floats → None."""
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _clean(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        x = float(x)
-        return x if math.isfinite(x) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (np.bool_,)):
-        return bool(x)
-    if isinstance(x, complex):
-        return [x.real, x.imag]
-    return x
 
 
 def save_design(d: dict, path) -> Path:

@@ -11,6 +11,8 @@
   directional isolation every fault with a nonzero direction can be named.
 - :func:`residual_unit`: the residuals' unit when the outputs share one (see
   :mod:`fmu_fdi.fmu.builder`).
+- :func:`variable_units`, :func:`variable_descriptions`: the one description of the FMU's
+  variables that both builders (:mod:`fmu_fdi.fmu.builder`, :mod:`fmu_fdi.native.build`) write.
 """
 from __future__ import annotations
 
@@ -91,3 +93,60 @@ def indistinguishable(design: dict, fault: str) -> list[str]:
         return []
     col = [row[names.index(fault)] for row in S]
     return [n for j, n in enumerate(names) if n != fault and [row[j] for row in S] == col]
+
+
+def variable_units(design: dict) -> dict[str, str]:
+    """Variable name -> unit: the plant signals' units from the design and the residuals',
+    evaluations' and thresholds' where they share one (both targets)."""
+    signals = set(design["signals"]["u"]) | set(design["signals"]["y"])
+    units = {k: v for k, v in (design.get("units") or {}).items() if k in signals}
+    units.update(_output_units(design))
+    return units
+
+
+def variable_descriptions(design: dict) -> dict[str, str]:
+    """Variable name -> description of every FMU variable of the design (both targets): the
+    plant signals, ``threshold_scale``, and per residual group what its alarm responds to
+    (:func:`group_faults`)."""
+    sig, g = design["signals"], design["generator"]
+    faults = [f["name"] for f in design["faults"]]
+    seen = group_faults(design)
+    out = {n: f"plant input {n}" for n in sig["u"]}
+    out.update({n: f"plant output (measurement) {n}" for n in sig["y"]})
+    out["threshold_scale"] = "tunable factor on every threshold (>= 0; default 1)"
+    group_of = {k: i for i, grp in enumerate(g["groups"]) for k in grp}
+
+    def sees(i):
+        if seen is None:
+            return "fault sensitivity not recorded in the design"
+        return f"sensitive to {', '.join(seen[i])}" if seen[i] else "sensitive to no modelled fault"
+
+    for k, name in enumerate(g["residual_names"]):
+        out[f"residual_{k + 1}"] = f"residual {name} (group {group_of[k] + 1}: {sees(group_of[k])})"
+    for i, grp in enumerate(g["groups"]):
+        ev = design["evaluation"][i]
+        members = ", ".join(g["residual_names"][j] for j in grp)
+        out[f"evaluation_{i + 1}"] = f"{ev['evaluator']['kind']} evaluation of residual group {i + 1} ({members}); {sees(i)}"
+        out[f"threshold_{i + 1}"] = f"{ev['threshold']['kind']} threshold of group {i + 1} (times threshold_scale)"
+        out[f"alarm_{i + 1}"] = f"evaluation_{i + 1} >= threshold_{i + 1} (with persistence/latching); {sees(i)}"
+    out["fault_detected"] = "any alarm"
+    legend = ", ".join(f"{j + 1} = {nm}" for j, nm in enumerate(faults)) or "no faults modelled"
+    out["isolated_fault"] = f"0 none, -1 unknown or several, else the fault: {legend}"
+    out["input_invalid"] = ("the last input sample had NaN/Inf or was outside its valid range (diagnosis held), "
+                            "or overflowed the evaluation (numeric_reset)")
+    out["numeric_reset"] = ("the last sample overflowed the evaluation (a value became NaN/Inf): counted as fault "
+                            "evidence for the groups it reached, sample discarded, generator and evaluation "
+                            "restarted (docs/semantics.md)")
+    return out
+
+
+def _output_units(design: dict) -> dict[str, str]:
+    unit = residual_unit(design)
+    if unit is None:
+        return {}
+    g = design["generator"]
+    out = {f"residual_{k + 1}": unit for k in range(len(g["residual_names"]))}
+    for i in range(len(design["evaluation"])):
+        if evaluation_unit(design, i):
+            out[f"evaluation_{i + 1}"] = out[f"threshold_{i + 1}"] = unit
+    return out

@@ -15,6 +15,7 @@ from functools import cached_property
 import numpy as np
 
 from .lti import LTI, vstack
+from .margin import default_smarg, margin_reduced
 from .model import FDIModel
 
 
@@ -94,10 +95,8 @@ class ResidualGenerator:
     @cached_property
     def _R(self) -> LTI:
         # the plant modes outside the stability margin that Q cancels go first, with the judge's
-        # tolerance (postconditions.margin_reduced): TB01PD's own tolerance kept Ex. 5.4's
+        # tolerance (margin.margin_reduced): TB01PD's own tolerance kept Ex. 5.4's
         # cancelled poles 2, 3 in Rf
-        from .design.postconditions import default_smarg, margin_reduced
-
         T = self.Q @ self.model.augmented()
         try:
             T = margin_reduced(T, default_smarg(self.dt))

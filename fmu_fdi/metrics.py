@@ -192,6 +192,83 @@ def _schedule_from_indicator(result, fields, n, indicator):
 
 
 # --------------------------------------------------------------------- public
+def _record(result, alarm, isolation, fault):
+    """Stage of :func:`metrics`: the time column checked, the alarm flags and the isolation
+    indices read; returns ``(fields, t, n, alarm flags, isolation indices)``."""
+    fields = _fields(result)
+    if "time" not in fields:
+        raise KeyError(f"result has no 'time' field; fields are {fields}")
+    t = np.asarray(result["time"], dtype=float).ravel()
+    n = t.size
+    if n == 0:
+        raise ValueError("result has no samples")
+    if not np.all(np.isfinite(t)):
+        raise ValueError("time contains NaN or Inf")
+    if n > 1 and not np.all(np.diff(t) > 0):
+        k = int(np.flatnonzero(np.diff(t) <= 0)[0])
+        raise ValueError(f"time must be strictly increasing; t[{k + 1}] = {t[k + 1]} follows t[{k}] = {t[k]}")
+    alarm, isolation = _resolve(fields, alarm, "alarm"), _resolve(fields, isolation, "isolation")
+    a = _column(result, alarm, n, fields) != 0
+    iso_raw = _column(result, isolation, n, fields)
+    iso = np.rint(iso_raw).astype(int)
+    if np.any(iso != iso_raw) or np.any(iso < -1):
+        raise ValueError(f"field {isolation!r} must hold integers >= -1 (0 none, j fault, -1 unknown)")
+    if fault is not None and (isinstance(fault, bool) or not isinstance(fault, (int, np.integer)) or fault < 1):
+        raise ValueError(f"fault must be a 1-based fault index (int >= 1), got {fault!r}")
+    return fields, t, n, a, iso
+
+
+def _zone(t, zone):
+    """Stage of :func:`metrics`: the evaluation zone ``[t_from, t_hor)`` inside the record
+    ``[t0, t_end)``; returns ``(t_from, t_hor, t_end)``."""
+    # zone -------------------------------------------------------------------
+    n = t.size
+    if n > 1:
+        t_end = float(t[-1] + (t[-1] - t[-2]))
+    elif zone is not None:
+        t_end = float(zone[1])
+    else:
+        raise ValueError("a one-sample record has no duration: give zone=(t_from, t_hor)")
+    if zone is not None and np.shape(zone) != (2,):
+        raise ValueError(f"zone must be a pair (t_from, t_hor), got {zone!r}")
+    t_from, t_hor = (float(t[0]), t_end) if zone is None else (float(zone[0]), float(zone[1]))
+    slack = 1e-9 * max(abs(t_end), abs(float(t[0])), t_end - float(t[0]), 1e-300)
+    if not (math.isfinite(t_from) and math.isfinite(t_hor) and t_from < t_hor):
+        raise ValueError(f"zone must be finite with t_from < t_hor, got ({t_from}, {t_hor})")
+    if t_from < t[0] - slack or t_hor > t_end + slack:
+        raise ValueError(f"zone [{t_from}, {t_hor}) is not inside the record [{t[0]}, {t_end})")
+    t_hor = min(t_hor, t_end)
+    return t_from, t_hor, t_end
+
+
+def _fault_windows(result, fields, n, indicator, t_on, t_off, t_from, t_hor):
+    """Stage of :func:`metrics`: the fault's schedule (given, or read from the indicator) and the
+    zone split into its faulty and healthy windows; returns ``(t_on, t_off, faulty, healthy)``."""
+    # fault schedule ---------------------------------------------------------
+    if t_on is None:
+        if t_off is not None:
+            raise ValueError("t_off given without t_on")
+        t_on_v, t_off_v = _schedule_from_indicator(result, fields, n, indicator)
+    else:
+        t_on_v, t_off_v = float(t_on), _INF if t_off is None else float(t_off)
+        if not math.isfinite(t_on_v):
+            raise ValueError(f"t_on must be finite, got {t_on}")
+        if not t_off_v > t_on_v:
+            raise ValueError(f"t_off = {t_off_v} must come after t_on = {t_on_v}")
+    if t_on_v is not None and t_on_v < t_from and t_off_v > t_from:
+        raise ValueError(f"the fault is on at the zone start (t_on = {t_on_v} < t_from = {t_from}): detection "
+                         "time is undefined; start the zone at or before t_on")
+    if t_on_v is None or t_on_v >= t_hor or t_off_v <= t_from:
+        faulty: list[tuple[float, float]] = []
+    else:
+        faulty = [(t_on_v, min(t_off_v, t_hor))]
+    if faulty:
+        healthy = [(lo, hi) for lo, hi in ((t_from, t_on_v), (faulty[0][1], t_hor)) if hi > lo]
+    else:
+        healthy = [(t_from, t_hor)]
+    return t_on_v, t_off_v, faulty, healthy
+
+
 def metrics(result, *, t_on: float | None = None, t_off: float | None = None, fault: int | None = None,
             zone: tuple[float, float] | None = None, indicator: str | None = None,
             alarm: str = "fault_detected", isolation: str = "isolated_fault") -> DiagnosisMetrics:
@@ -256,66 +333,9 @@ def metrics(result, *, t_on: float | None = None, t_off: float | None = None, fa
     >>> m.t_dt, m.r_td, m.t_it, m.r_ti
     (2.0, 0.6666666666666666, 3.0, 0.5)
     """
-    fields = _fields(result)
-    if "time" not in fields:
-        raise KeyError(f"result has no 'time' field; fields are {fields}")
-    t = np.asarray(result["time"], dtype=float).ravel()
-    n = t.size
-    if n == 0:
-        raise ValueError("result has no samples")
-    if not np.all(np.isfinite(t)):
-        raise ValueError("time contains NaN or Inf")
-    if n > 1 and not np.all(np.diff(t) > 0):
-        k = int(np.flatnonzero(np.diff(t) <= 0)[0])
-        raise ValueError(f"time must be strictly increasing; t[{k + 1}] = {t[k + 1]} follows t[{k}] = {t[k]}")
-    alarm, isolation = _resolve(fields, alarm, "alarm"), _resolve(fields, isolation, "isolation")
-    a = _column(result, alarm, n, fields) != 0
-    iso_raw = _column(result, isolation, n, fields)
-    iso = np.rint(iso_raw).astype(int)
-    if np.any(iso != iso_raw) or np.any(iso < -1):
-        raise ValueError(f"field {isolation!r} must hold integers >= -1 (0 none, j fault, -1 unknown)")
-    if fault is not None and (isinstance(fault, bool) or not isinstance(fault, (int, np.integer)) or fault < 1):
-        raise ValueError(f"fault must be a 1-based fault index (int >= 1), got {fault!r}")
-
-    # zone -------------------------------------------------------------------
-    if n > 1:
-        t_end = float(t[-1] + (t[-1] - t[-2]))
-    elif zone is not None:
-        t_end = float(zone[1])
-    else:
-        raise ValueError("a one-sample record has no duration: give zone=(t_from, t_hor)")
-    if zone is not None and np.shape(zone) != (2,):
-        raise ValueError(f"zone must be a pair (t_from, t_hor), got {zone!r}")
-    t_from, t_hor = (float(t[0]), t_end) if zone is None else (float(zone[0]), float(zone[1]))
-    slack = 1e-9 * max(abs(t_end), abs(float(t[0])), t_end - float(t[0]), 1e-300)
-    if not (math.isfinite(t_from) and math.isfinite(t_hor) and t_from < t_hor):
-        raise ValueError(f"zone must be finite with t_from < t_hor, got ({t_from}, {t_hor})")
-    if t_from < t[0] - slack or t_hor > t_end + slack:
-        raise ValueError(f"zone [{t_from}, {t_hor}) is not inside the record [{t[0]}, {t_end})")
-    t_hor = min(t_hor, t_end)
-
-    # fault schedule ---------------------------------------------------------
-    if t_on is None:
-        if t_off is not None:
-            raise ValueError("t_off given without t_on")
-        t_on_v, t_off_v = _schedule_from_indicator(result, fields, n, indicator)
-    else:
-        t_on_v, t_off_v = float(t_on), _INF if t_off is None else float(t_off)
-        if not math.isfinite(t_on_v):
-            raise ValueError(f"t_on must be finite, got {t_on}")
-        if not t_off_v > t_on_v:
-            raise ValueError(f"t_off = {t_off_v} must come after t_on = {t_on_v}")
-    if t_on_v is not None and t_on_v < t_from and t_off_v > t_from:
-        raise ValueError(f"the fault is on at the zone start (t_on = {t_on_v} < t_from = {t_from}): detection "
-                         "time is undefined; start the zone at or before t_on")
-    if t_on_v is None or t_on_v >= t_hor or t_off_v <= t_from:
-        faulty: list[tuple[float, float]] = []
-    else:
-        faulty = [(t_on_v, min(t_off_v, t_hor))]
-    if faulty:
-        healthy = [(lo, hi) for lo, hi in ((t_from, t_on_v), (faulty[0][1], t_hor)) if hi > lo]
-    else:
-        healthy = [(t_from, t_hor)]
+    fields, t, n, a, iso = _record(result, alarm, isolation, fault)
+    t_from, t_hor, t_end = _zone(t, zone)
+    t_on_v, t_off_v, faulty, healthy = _fault_windows(result, fields, n, indicator, t_on, t_off, t_from, t_hor)
 
     g = _Grid(t, t_end)
     H = sum(hi - lo for lo, hi in healthy)

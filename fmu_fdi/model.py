@@ -21,7 +21,7 @@ import numpy as np
 
 from . import _schema as S
 from ._schema import check_format, check_keys, parse, read_text
-from .faults import FaultSpec, ModelError, _matrix, check_name
+from .faults import FaultSpec, ModelError, _matrix, check_name, component_fault
 from .lti import LTI
 from .progress import log, set_stage
 
@@ -263,34 +263,6 @@ class FDIModel:
             units=units, name=name, minimal=minimal, minreal_tol=minreal_tol,
         )
 
-    @classmethod
-    def from_fmu(cls, path, inputs=None, outputs=None, disturbances=(), *, at=None, method: str = "auto",
-                 **options) -> "FDIModel":
-        """A linear model of a plant FMU: linearised (model exchange) or identified (co-simulation).
-
-        Delegates to :func:`fmu_fdi.identify.model_from_fmu`, which documents ``at``,
-        ``method`` and the further options (``trim``, ``sensor_faults``, ``actuator_faults``,
-        ``ts``, ``excite``, ``excitation``, ``parameters``, ``order``, ``noise`` —
-        ``"innovation"`` or ``"measurement"`` adds unit white noise inputs ``w_<output>``
-        learned from the data, docs/plant-fmu.md —, ...). The model carries the operating point
-        and a ``provenance`` table (FMU, GUID, method, fit, noise model).
-        ``minimal``/``minreal_tol`` reduce the linear model as in :meth:`from_matrices`
-        (checked before the FMU is touched). ``at`` a list of operating points gives a
-        :class:`~fmu_fdi.modelset.ModelSet`, one member per point (``schedule=[...]`` names
-        its scheduling signals; :func:`fmu_fdi.modelset.model_set_from_fmu`).
-        """
-        from .identify import model_from_fmu
-
-        tol = minreal_option(options.pop("minimal", None), options.pop("minreal_tol", None))
-        if isinstance(at, (list, tuple)):  # several operating points: a ModelSet (fmu_fdi.modelset)
-            from .modelset import model_set_from_fmu
-
-            mset = model_set_from_fmu(path, inputs, outputs, disturbances, at=at, method=method, **options)
-            mset.members = [m if tol is None else m.minreal(tol) for m in mset.members]
-            return mset
-        model = model_from_fmu(path, inputs, outputs, disturbances, at=at, method=method, **options)
-        return model if tol is None else model.minreal(tol)
-
     # ------------------------------------------------------------------ sizes
     @property
     def n(self) -> int:
@@ -437,15 +409,11 @@ class FDIModel:
         return self._replace(minimal=True, minreal_tol=tol)
 
     def series(self, pre, **kw) -> "FDIModel":
-        """This model driven through ``pre`` (e.g. actuators): see :func:`fmu_fdi.modelset.series`."""
-        from .modelset import series
-
+        """This model driven through ``pre`` (e.g. actuators): see :func:`series`."""
         return series(self, pre, **kw)
 
     def feedback(self, K, **kw) -> "FDIModel":
-        """The loop ``u = r - K y`` closed: see :func:`fmu_fdi.modelset.feedback`."""
-        from .modelset import feedback
-
+        """The loop ``u = r - K y`` closed: see :func:`feedback`."""
         return feedback(self, K, **kw)
 
     # ------------------------------------------------------------------ files
@@ -546,6 +514,121 @@ class FDIModel:
             raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
         path.write_text(text, encoding="utf-8")
         return path
+
+
+# ---------------------------------------------------------------- the model's own algebra
+# Interconnections (state-space, no inverses beyond the algebraic loop ``I + D_K D_u``):
+# :func:`series` (a pre-system between command and plant input), :func:`feedback` (the loop
+# ``u = r - K y`` closed) and :func:`parallel` (two models, same inputs, outputs stacked).
+# Faults are carried over as component faults with their columns in the new model.
+
+
+def _as_lti(K, dt: float, shape: tuple[int, int], what: str) -> LTI:
+    if isinstance(K, LTI):
+        sys = K
+    elif hasattr(K, "A") and hasattr(K, "B"):
+        sys = LTI.from_control(K)
+    else:
+        sys = LTI.static(np.atleast_2d(np.asarray(K, float)), dt)
+    if sys.n and abs(sys.dt - dt) > 1e-12 * max(1.0, dt):
+        raise ModelError(f"{what} has sample time {sys.dt} but the model has {dt}")
+    if (sys.p, sys.m) != shape:
+        raise ModelError(f"{what} must be {shape[0]}x{shape[1]} (outputs x inputs), got {sys.p}x{sys.m}")
+    return LTI(sys.A, sys.B, sys.C, sys.D, dt)
+
+
+def _carried_faults(model: FDIModel, Bf: np.ndarray, Df: np.ndarray) -> list[FaultSpec]:
+    out = []
+    for f in model.faults:
+        desc = f"{f.kind} fault carried over from model '{model.name}'" + (f": {f.description}" if f.description else "")
+        out.append(component_fault(f.name, Bf[:, f.columns], Df[:, f.columns], description=desc))
+    return out
+
+
+def series(model: FDIModel, pre, *, name: str | None = None, minimal: bool | None = None,
+           minreal_tol: float | None = None) -> FDIModel:
+    """The model driven through ``pre``: ``u_plant = P(λ) u`` (P square, m×m).
+
+    States ``[x_P; x]``: ``A = [A_P 0; Bu C_P  A]``, ``Bu' = [B_P; Bu D_P]``,
+    ``C' = [Du C_P  C]``, ``Du' = Du D_P``; d, w and faults enter ``[0; B]``.
+    """
+    m = model.nu
+    P = _as_lti(pre, model.dt, (m, m), "pre-system")
+    nP, n = P.n, model.n
+    A = np.block([[P.A, np.zeros((nP, n))], [model.Bu @ P.C, model.A]])
+    Bu = np.vstack([P.B, model.Bu @ P.D])
+    C = np.hstack([model.Du @ P.C, model.C])
+    Du = model.Du @ P.D
+    z = lambda B: np.vstack([np.zeros((nP, B.shape[1])), B])  # noqa: E731
+    return FDIModel(A, Bu, C, Du, Bd=z(model.Bd), Dd=model.Dd, Bw=z(model.Bw), Dw=model.Dw,
+                    faults=_carried_faults(model, z(model.Bf), model.Df), dt=model.dt, u_names=model.u_names,
+                    y_names=model.y_names, d_names=model.d_names, w_names=model.w_names, units=model.units,
+                    name=name or f"{model.name}_series", description=f"{model.name} with a {nP}-state pre-system "
+                    f"in series", minimal=minimal, minreal_tol=minreal_tol)
+
+
+def feedback(model: FDIModel, K, *, name: str | None = None, r_names: Sequence[str] | None = None,
+             minimal: bool | None = None, minreal_tol: float | None = None) -> FDIModel:
+    """The closed loop ``u = r − K(λ) y`` (K static m×p gain or LTI controller).
+
+    With ``E = (I + D_K Du)^{-1}`` (the algebraic loop must be well posed) and the other
+    inputs ``v = [d; w; f]``: ``u = E (r − C_K x_K − D_K C x − D_K D_v v)``, then the plant
+    and controller state equations. New known inputs: r (default names ``r_<u>``).
+    """
+    m, p = model.nu, model.ny
+    Kc = _as_lti(K, model.dt, (m, p), "controller")
+    M = np.eye(m) + Kc.D @ model.Du
+    if np.linalg.cond(M) > 1e12:
+        raise ModelError(f"the feedback loop is not well posed: I + D_K Du is singular (condition "
+                         f"{np.linalg.cond(M):.3g})")
+    E = np.linalg.solve(M, np.eye(m))
+    nk = Kc.n
+    Bv = np.hstack([model.Bd, model.Bw, model.Bf])
+    Dv = np.hstack([model.Dd, model.Dw, model.Df])
+    # u = Ur r + Ux x + Uk xk + Uv v
+    Ur, Ux, Uk, Uv = E, -E @ Kc.D @ model.C, -E @ Kc.C, -E @ Kc.D @ Dv
+    # y = C x + Du u + Dv v
+    Yr, Yx, Yk, Yv = model.Du @ Ur, model.C + model.Du @ Ux, model.Du @ Uk, Dv + model.Du @ Uv
+    A = np.block([[model.A + model.Bu @ Ux, model.Bu @ Uk], [Kc.B @ Yx, Kc.A + Kc.B @ Yk]])
+    Br = np.vstack([model.Bu @ Ur, Kc.B @ Yr])
+    Bvc = np.vstack([Bv + model.Bu @ Uv, Kc.B @ Yv])
+    C = np.hstack([Yx, Yk])
+    nd, nw = model.nd, model.nw
+    sl_d, sl_w, sl_f = slice(0, nd), slice(nd, nd + nw), slice(nd + nw, None)
+    r_names = list(r_names or [f"r_{u}" for u in model.u_names])
+    return FDIModel(A, Br, C, Yr, Bd=Bvc[:, sl_d], Dd=Yv[:, sl_d], Bw=Bvc[:, sl_w], Dw=Yv[:, sl_w],
+                    faults=_carried_faults(model, Bvc[:, sl_f], Yv[:, sl_f]), dt=model.dt, u_names=r_names,
+                    y_names=model.y_names, d_names=model.d_names, w_names=model.w_names,
+                    units={k: v for k, v in model.units.items() if k in set(model.y_names) | set(model.d_names)
+                           | set(model.w_names)},
+                    name=name or f"{model.name}_loop", description=f"{model.name} in closed loop with a "
+                    f"{nk}-state controller (u = r - K y)", minimal=minimal, minreal_tol=minreal_tol)
+
+
+def parallel(first: FDIModel, second: FDIModel, *, name: str | None = None, minimal: bool | None = None,
+             minreal_tol: float | None = None) -> FDIModel:
+    """Two models driven by the same known inputs, outputs stacked ``[y1; y2]``;
+    their d, w and faults are kept apart (names must differ)."""
+    if first.nu != second.nu or abs(first.dt - second.dt) > 1e-12:
+        raise ModelError("parallel models need the same known inputs and sample time")
+    n1, n2 = first.n, second.n
+    A = np.block([[first.A, np.zeros((n1, n2))], [np.zeros((n2, n1)), second.A]])
+    Bu = np.vstack([first.Bu, second.Bu])
+    C = np.block([[first.C, np.zeros((first.ny, n2))], [np.zeros((second.ny, n1)), second.C]])
+    Du = np.vstack([first.Du, second.Du])
+
+    def diag(B1, B2):
+        return np.block([[B1, np.zeros((B1.shape[0], B2.shape[1]))], [np.zeros((B2.shape[0], B1.shape[1])), B2]])
+
+    Bf, Df = diag(first.Bf, second.Bf), diag(first.Df, second.Df)
+    faults = (_carried_faults(first, Bf[:, :first.nf], Df[:, :first.nf])
+              + _carried_faults(second, Bf[:, first.nf:], Df[:, first.nf:]))
+    return FDIModel(A, Bu, C, Du, Bd=diag(first.Bd, second.Bd), Dd=diag(first.Dd, second.Dd),
+                    Bw=diag(first.Bw, second.Bw), Dw=diag(first.Dw, second.Dw), faults=faults, dt=first.dt,
+                    u_names=first.u_names, y_names=list(first.y_names) + list(second.y_names),
+                    d_names=list(first.d_names) + list(second.d_names),
+                    w_names=list(first.w_names) + list(second.w_names),
+                    name=name or f"{first.name}_{second.name}", minimal=minimal, minreal_tol=minreal_tol)
 
 
 def _toml_value(v) -> str:

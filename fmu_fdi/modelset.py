@@ -1,4 +1,5 @@
-"""Model-set tools: interconnections of FDI models and robustness of one filter over many.
+"""Model sets: the interconnections of FDI models (re-exported from :mod:`fmu_fdi.model`, the
+model's own algebra) and model sets over the operating envelope.
 
 Interconnections (state-space, no inverses beyond the algebraic loop ``I + D_K D_u``):
 
@@ -15,11 +16,12 @@ An interconnection is often not minimal (e.g. the same actuator dynamics twice, 
 controller state the outputs do not see): ``minimal=True`` or ``minreal_tol=TOL`` reduce
 the result to a minimal realisation (:func:`fmu_fdi.model.minimal_realisation`).
 
-:func:`robustness` applies one residual filter to a list of models (e.g. the plant at
-several operating points) and reports the worst decoupling and fault-sensitivity figures
-(Varga 2017, sec. 5.4, the robustness of a design against model variations).
+:func:`fmu_fdi.robustness.robustness` applies one residual filter to a list of models (e.g.
+the plant at several operating points) and reports the worst decoupling and fault-sensitivity
+figures (Varga 2017, sec. 5.4, the robustness of a design against model variations).
 
-Model sets over the operating envelope (:class:`ModelSet`, :func:`model_set_from_fmu`):
+Model sets over the operating envelope (:class:`ModelSet`;
+:func:`fmu_fdi.identify.model_set_from_fmu` makes one from a plant FMU):
 one linear model per operating point of a nonlinear plant FMU (linearised or identified by
 :func:`fmu_fdi.identify.model_from_fmu` at each point), with the *scheduling signals* named
 — measured inputs or outputs whose operating values place each member in the envelope. A
@@ -44,148 +46,7 @@ from typing import Sequence
 import numpy as np
 
 from .errors import ModelError
-from .faults import FaultSpec, component_fault
-from .lti import LTI
-from .model import FDIModel
-
-
-def _as_lti(K, dt: float, shape: tuple[int, int], what: str) -> LTI:
-    if isinstance(K, LTI):
-        sys = K
-    elif hasattr(K, "A") and hasattr(K, "B"):
-        sys = LTI.from_control(K)
-    else:
-        sys = LTI.static(np.atleast_2d(np.asarray(K, float)), dt)
-    if sys.n and abs(sys.dt - dt) > 1e-12 * max(1.0, dt):
-        raise ModelError(f"{what} has sample time {sys.dt} but the model has {dt}")
-    if (sys.p, sys.m) != shape:
-        raise ModelError(f"{what} must be {shape[0]}x{shape[1]} (outputs x inputs), got {sys.p}x{sys.m}")
-    return LTI(sys.A, sys.B, sys.C, sys.D, dt)
-
-
-def _carried_faults(model: FDIModel, Bf: np.ndarray, Df: np.ndarray) -> list[FaultSpec]:
-    out = []
-    for f in model.faults:
-        desc = f"{f.kind} fault carried over from model '{model.name}'" + (f": {f.description}" if f.description else "")
-        out.append(component_fault(f.name, Bf[:, f.columns], Df[:, f.columns], description=desc))
-    return out
-
-
-def series(model: FDIModel, pre, *, name: str | None = None, minimal: bool | None = None,
-           minreal_tol: float | None = None) -> FDIModel:
-    """The model driven through ``pre``: ``u_plant = P(λ) u`` (P square, m×m).
-
-    States ``[x_P; x]``: ``A = [A_P 0; Bu C_P  A]``, ``Bu' = [B_P; Bu D_P]``,
-    ``C' = [Du C_P  C]``, ``Du' = Du D_P``; d, w and faults enter ``[0; B]``.
-    """
-    m = model.nu
-    P = _as_lti(pre, model.dt, (m, m), "pre-system")
-    nP, n = P.n, model.n
-    A = np.block([[P.A, np.zeros((nP, n))], [model.Bu @ P.C, model.A]])
-    Bu = np.vstack([P.B, model.Bu @ P.D])
-    C = np.hstack([model.Du @ P.C, model.C])
-    Du = model.Du @ P.D
-    z = lambda B: np.vstack([np.zeros((nP, B.shape[1])), B])  # noqa: E731
-    return FDIModel(A, Bu, C, Du, Bd=z(model.Bd), Dd=model.Dd, Bw=z(model.Bw), Dw=model.Dw,
-                    faults=_carried_faults(model, z(model.Bf), model.Df), dt=model.dt, u_names=model.u_names,
-                    y_names=model.y_names, d_names=model.d_names, w_names=model.w_names, units=model.units,
-                    name=name or f"{model.name}_series", description=f"{model.name} with a {nP}-state pre-system "
-                    f"in series", minimal=minimal, minreal_tol=minreal_tol)
-
-
-def feedback(model: FDIModel, K, *, name: str | None = None, r_names: Sequence[str] | None = None,
-             minimal: bool | None = None, minreal_tol: float | None = None) -> FDIModel:
-    """The closed loop ``u = r − K(λ) y`` (K static m×p gain or LTI controller).
-
-    With ``E = (I + D_K Du)^{-1}`` (the algebraic loop must be well posed) and the other
-    inputs ``v = [d; w; f]``: ``u = E (r − C_K x_K − D_K C x − D_K D_v v)``, then the plant
-    and controller state equations. New known inputs: r (default names ``r_<u>``).
-    """
-    m, p = model.nu, model.ny
-    Kc = _as_lti(K, model.dt, (m, p), "controller")
-    M = np.eye(m) + Kc.D @ model.Du
-    if np.linalg.cond(M) > 1e12:
-        raise ModelError(f"the feedback loop is not well posed: I + D_K Du is singular (condition "
-                         f"{np.linalg.cond(M):.3g})")
-    E = np.linalg.solve(M, np.eye(m))
-    nk = Kc.n
-    Bv = np.hstack([model.Bd, model.Bw, model.Bf])
-    Dv = np.hstack([model.Dd, model.Dw, model.Df])
-    # u = Ur r + Ux x + Uk xk + Uv v
-    Ur, Ux, Uk, Uv = E, -E @ Kc.D @ model.C, -E @ Kc.C, -E @ Kc.D @ Dv
-    # y = C x + Du u + Dv v
-    Yr, Yx, Yk, Yv = model.Du @ Ur, model.C + model.Du @ Ux, model.Du @ Uk, Dv + model.Du @ Uv
-    A = np.block([[model.A + model.Bu @ Ux, model.Bu @ Uk], [Kc.B @ Yx, Kc.A + Kc.B @ Yk]])
-    Br = np.vstack([model.Bu @ Ur, Kc.B @ Yr])
-    Bvc = np.vstack([Bv + model.Bu @ Uv, Kc.B @ Yv])
-    C = np.hstack([Yx, Yk])
-    nd, nw = model.nd, model.nw
-    sl_d, sl_w, sl_f = slice(0, nd), slice(nd, nd + nw), slice(nd + nw, None)
-    r_names = list(r_names or [f"r_{u}" for u in model.u_names])
-    return FDIModel(A, Br, C, Yr, Bd=Bvc[:, sl_d], Dd=Yv[:, sl_d], Bw=Bvc[:, sl_w], Dw=Yv[:, sl_w],
-                    faults=_carried_faults(model, Bvc[:, sl_f], Yv[:, sl_f]), dt=model.dt, u_names=r_names,
-                    y_names=model.y_names, d_names=model.d_names, w_names=model.w_names,
-                    units={k: v for k, v in model.units.items() if k in set(model.y_names) | set(model.d_names)
-                           | set(model.w_names)},
-                    name=name or f"{model.name}_loop", description=f"{model.name} in closed loop with a "
-                    f"{nk}-state controller (u = r - K y)", minimal=minimal, minreal_tol=minreal_tol)
-
-
-def parallel(first: FDIModel, second: FDIModel, *, name: str | None = None, minimal: bool | None = None,
-             minreal_tol: float | None = None) -> FDIModel:
-    """Two models driven by the same known inputs, outputs stacked ``[y1; y2]``;
-    their d, w and faults are kept apart (names must differ)."""
-    if first.nu != second.nu or abs(first.dt - second.dt) > 1e-12:
-        raise ModelError("parallel models need the same known inputs and sample time")
-    n1, n2 = first.n, second.n
-    A = np.block([[first.A, np.zeros((n1, n2))], [np.zeros((n2, n1)), second.A]])
-    Bu = np.vstack([first.Bu, second.Bu])
-    C = np.block([[first.C, np.zeros((first.ny, n2))], [np.zeros((second.ny, n1)), second.C]])
-    Du = np.vstack([first.Du, second.Du])
-
-    def diag(B1, B2):
-        return np.block([[B1, np.zeros((B1.shape[0], B2.shape[1]))], [np.zeros((B2.shape[0], B1.shape[1])), B2]])
-
-    Bf, Df = diag(first.Bf, second.Bf), diag(first.Df, second.Df)
-    faults = (_carried_faults(first, Bf[:, :first.nf], Df[:, :first.nf])
-              + _carried_faults(second, Bf[:, first.nf:], Df[:, first.nf:]))
-    return FDIModel(A, Bu, C, Du, Bd=diag(first.Bd, second.Bd), Dd=diag(first.Dd, second.Dd),
-                    Bw=diag(first.Bw, second.Bw), Dw=diag(first.Dw, second.Dw), faults=faults, dt=first.dt,
-                    u_names=first.u_names, y_names=list(first.y_names) + list(second.y_names),
-                    d_names=list(first.d_names) + list(second.d_names),
-                    w_names=list(first.w_names) + list(second.w_names),
-                    name=name or f"{first.name}_{second.name}", minimal=minimal, minreal_tol=minreal_tol)
-
-
-def robustness(gen, models: Sequence[FDIModel], *, structure=None, faults=None) -> dict:
-    """Apply one filter to every model of a set; report per-model and worst figures.
-
-    For each model (same signals as the design model): the relative decoupling of u and d
-    and of the faults with ``S = 0``, and the smallest relative fault gain of the required
-    faults (:func:`~fmu_fdi.design.postconditions.check_generator` with ``raise_error=False``),
-    plus the H∞− index ``min_j ||Rf_j||∞``.
-    """
-    from .analysis import hinf_minus
-    from .design.postconditions import check_generator
-    from .generator import ResidualGenerator
-
-    S = structure if structure is not None else gen.info.get("structure")
-    names = faults if faults is not None else gen.info.get("faults")
-    rows = []
-    for mdl in models:
-        if (mdl.ny, mdl.nu, mdl.fault_names) != (gen.model.ny, gen.model.nu, gen.model.fault_names):
-            raise ModelError(f"model '{mdl.name}' has other signals than the design model '{gen.model.name}'")
-        g = ResidualGenerator(gen.Q, mdl, gen.method, gen.residual_names, gen.groups)
-        fig = check_generator(g, structure=S, faults=names, raise_error=False)
-        rows.append({"model": mdl.name, "decoupling": fig.get("decoupling", 0.0),
-                     "structure_leak": fig.get("structure_leak", 0.0),
-                     "fault_visibility": fig.get("fault_visibility", float("inf")),
-                     "hinf_minus": hinf_minus(g) if mdl.faults else 0.0})
-    return {"models": rows,
-            "worst_decoupling": max(r["decoupling"] for r in rows),
-            "worst_structure_leak": max(r["structure_leak"] for r in rows),
-            "worst_fault_visibility": min(r["fault_visibility"] for r in rows),
-            "worst_hinf_minus": min(r["hinf_minus"] for r in rows)}
+from .model import FDIModel, feedback, parallel, series  # noqa: F401  (the model's algebra, model.py)
 
 
 # ---------------------------------------------------------------- model sets over the envelope
@@ -286,7 +147,7 @@ class ModelSet:
         return np.array([[value(m, s) for s in self.schedule] for m in self.members], float).reshape(len(self), -1)
 
     def to_dict(self) -> dict:
-        from .designfile import _clean
+        from .outpath import _clean
 
         return _clean({"format": MODEL_SET_FORMAT, "name": self.name, "schedule": list(self.schedule),
                        "provenance": dict(self.provenance),
@@ -340,82 +201,3 @@ def is_model_set_file(path) -> bool:
         return json.loads(p.read_text(encoding="utf-8")).get("format") == MODEL_SET_FORMAT
     except (OSError, ValueError, AttributeError):
         return False
-
-
-def model_set_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at: Sequence[dict],
-                       schedule: Sequence[str] | None = None, name: str | None = None, progress=None,
-                       **options) -> ModelSet:
-    """Linearise or identify a plant FMU at each operating point of ``at`` (a list of dicts).
-
-    Each point is passed as ``at`` to :func:`fmu_fdi.identify.model_from_fmu` with the other
-    options (``method``, ``sensor_faults``, excitation, ...). Values common to every point
-    (e.g. ``{"noise_enable": False}``) go in ``options["fixed"]``. ``schedule`` defaults to
-    the variables the points vary that are model inputs or outputs. ``progress(k, K, point,
-    model)`` is called after each member. Each member's provenance adds ``member`` (1-based),
-    ``set_size`` and ``requested_point``.
-    """
-    from .identify import model_from_fmu
-
-    points = [dict(p) for p in at]
-    if not points:
-        raise ModelError("at=[...] holds no operating point")
-    fixed = dict(options.pop("fixed", None) or {})
-    keys = list(dict.fromkeys(k for p in points for k in p))  # every name any point sets, in order
-    missing = [(i + 1, [k for k in keys if k not in p]) for i, p in enumerate(points) if set(p) != set(keys)]
-    if missing:
-        raise ModelError(f"every operating point must set the same variables {keys}; point {missing[0][0]} lacks "
-                         f"{missing[0][1]}")
-    varied = [k for k in keys if any(p[k] != points[0][k] for p in points)] or keys
-    members = []
-    for k, pt in enumerate(points, 1):
-        model = model_from_fmu(path, inputs, outputs, disturbances, at={**fixed, **pt}, **options)
-        model.name = f"{model.name}_{k}"
-        model.provenance.update({"member": k, "set_size": len(points),
-                                 "requested_point": [f"{n}={v!r}" for n, v in pt.items()]})
-        members.append(model)
-        if progress is not None:
-            progress(k, len(points), pt, model)
-    if schedule is None:
-        m0 = members[0]
-        schedule = [v for v in varied if v in m0.u_names or v in m0.y_names]
-        if not schedule:
-            raise ModelError(f"the grid varies {varied}, none of which is a model input {m0.u_names} or output "
-                             f"{m0.y_names}: name the measured scheduling signal(s) (schedule=[...] / --schedule-on)")
-    prov = {"fmu": Path(path).name, "points": len(points), "varied": varied,
-            "fixed": [f"{n}={v!r}" for n, v in fixed.items()], "method": members[0].provenance.get("method", "")}
-    return ModelSet(members, schedule, points=points, name=name or members[0].name.rsplit("_", 1)[0],
-                    provenance=prov)
-
-
-def envelope_cli(args, excitation, fixed: dict) -> int:
-    """``fmu-fdi model PLANT.fmu --at-grid ...``: write the model set, one line per member."""
-    from .identify.fmu_model import summary
-    from .model import minreal_option
-
-    tol = minreal_option(args.minimal, args.minreal_tol)
-    grids = [parse_grid(item) for item in args.at_grid]
-    points = grid_points(grids, args.grid_mode)
-    clash = sorted(set(fixed) & {g[0] for g in grids})
-    if clash:
-        raise ModelError(f"{clash} are given both in --at and --at-grid")
-    single = [opt for opt, val in (("--record", args.record), ("--plot", args.plot)) if val]
-    if single:
-        raise ModelError(f"{' and '.join(single)} write one file for one operating point; with --at-grid run "
-                         f"'fmu-fdi model' at that point (--at) for it")
-
-    def progress(k, K, point, model):
-        where = ", ".join(f"{n}={v:g}" for n, v in point.items())
-        print(f"member {k}/{K} at {where}: {summary(model)}", flush=True)
-
-    from .outpath import check_output_path
-
-    check_output_path(args.output, (".json",), "model-set file", error=ModelError)
-    mset = model_set_from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (), at=points,
-                              schedule=args.schedule_on, fixed=fixed, progress=progress, method=args.method,
-                              trim=args.trim, sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults,
-                              ts=args.ts, excite=args.excite, excitation=excitation, order=args.order,
-                              min_fit=args.min_fit, noise=args.noise)
-    if tol is not None:
-        mset.members = [m.minreal(tol) for m in mset.members]
-    print(f"wrote {mset.to_file(args.output)}: {len(mset)} members scheduled on {mset.schedule}")
-    return 0

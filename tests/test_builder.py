@@ -155,7 +155,7 @@ def test_descriptions_of_a_design_without_isolation_use_its_computed_structure()
 
     from fmu_fdi import Diagnoser, nullspace_design, structure_matrix
     from fmu_fdi.designinfo import group_faults
-    from fmu_fdi.fmu.builder import _descriptions
+    from fmu_fdi.designinfo import variable_descriptions as _descriptions
 
     gen = nullspace_design(pub.ex5_3(), poles=[-3])
     design = Diagnoser(gen, Ts=0.01, thresholds=1.0).design

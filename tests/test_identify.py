@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fmu_fdi import FDIModel
-from fmu_fdi.identify import Excitation, IdentificationError, linearise
+from fmu_fdi.identify import Excitation, IdentificationError, linearise, model_from_fmu
 
 from me_fmus import analytic, build_me_fmu, equilibrium
 
@@ -36,8 +36,8 @@ def test_linearise_matches_analytic_jacobian(tmp_path, plant, fmi, directional):
 
 def test_from_fmu_linearised_model_file_round_trip(tmp_path):
     fmu = build_me_fmu(tmp_path, "nonlinear", 2, False)
-    m = FDIModel.from_fmu(fmu, ["u1"], ["y1", "y2"], ["u2"], at={"u1": 1.0, "u2": 0.5}, sensor_faults="all",
-                          actuator_faults=["u1"])
+    m = model_from_fmu(fmu, ["u1"], ["y1", "y2"], ["u2"], at={"u1": 1.0, "u2": 0.5}, sensor_faults="all",
+                       actuator_faults=["u1"])
     assert m.u_names == ["u1"] and m.d_names == ["u2"] and m.fault_names == ["sensor_y1", "sensor_y2", "actuator_u1"]
     _, g, J = analytic("nonlinear", equilibrium("nonlinear", [1.0, 0.5]), [1.0, 0.5])
     assert np.allclose(m.Bd, J[:2, 3:], rtol=1e-6) and np.allclose(m.y0, g)
@@ -76,7 +76,7 @@ def test_missing_variables_are_named(tmp_path):
     with pytest.raises(IdentificationError, match="output 'h9' is not a Real output.*y1"):
         linearise(fmu, outputs=["h9"])
     with pytest.raises(IdentificationError, match="input 'u7'"):
-        FDIModel.from_fmu(fmu, inputs=["u7"])
+        model_from_fmu(fmu, inputs=["u7"])
 
 
 # ---- co-simulation FMUs: identification ---------------------------------------------------------
@@ -102,21 +102,21 @@ def plant_dir(tmp_path_factory):
 def test_excitation_beyond_the_plants_limits(plant_dir):
     # +60 cm3/s on Q1 held 200 s raises h1 by ~0.0065·60·200 = 78 cm: tank 1 overflows (62 cm)
     with pytest.raises(IdentificationError, match="out of its limits: Boolean output 'overflow'.*lower the amplitude"):
-        FDIModel.from_fmu(plant_dir["dts200"], ["Q1", "Q2"], ["h1", "h2", "h3"], at={"noise_enable": False},
-                          excitation=Excitation("prbs", amplitude={"Q1": 60.0, "Q2": 1.0}, period=200, samples=400,
-                                                settle=10))
+        model_from_fmu(plant_dir["dts200"], ["Q1", "Q2"], ["h1", "h2", "h3"], at={"noise_enable": False},
+                       excitation=Excitation("prbs", amplitude={"Q1": 60.0, "Q2": 1.0}, period=200, samples=400,
+                                             settle=10))
 
 
 def test_identification_names_missing_variables(plant_dir):
     with pytest.raises(IdentificationError, match="model input 'Q9' is neither.*'Q1'"):
-        FDIModel.from_fmu(plant_dir["dts200"], ["Q9"], ["h1"])
+        model_from_fmu(plant_dir["dts200"], ["Q9"], ["h1"])
     with pytest.raises(IdentificationError, match="output 'level' is not a Real output"):
-        FDIModel.from_fmu(plant_dir["dts200"], ["Q1"], ["level"])
+        model_from_fmu(plant_dir["dts200"], ["Q1"], ["level"])
 
 
 def test_closed_loop_plant_needs_excitation_named(plant_dir):
     with pytest.raises(IdentificationError, match="FMU outputs.*excite="):
-        FDIModel.from_fmu(plant_dir["dr300"], ["voltage"], ["speed"], method="identify")
+        model_from_fmu(plant_dir["dr300"], ["voltage"], ["speed"], method="identify")
 
 
 CASES = {  # plant, model file index, u, y, d, excite, amplitudes
@@ -143,10 +143,10 @@ def test_plant_fmu_identified_as_black_box(plant_dir, case, tmp_path):
     fmu, index, u, y, d, excite, amp = CASES[case]
     ref = FDIModel.from_file(plant_fmus.model_path(fmu, index))
     png = tmp_path / "validation.png"
-    m = FDIModel.from_fmu(plant_dir[fmu], u, y, d, at={"noise_enable": False}, excite=excite, max_order=8,
-                          validation_png=png,
-                          excitation=Excitation("multisine", amplitude=amp, samples=500,
-                                                settle=40 * plant_fmus.PLANTS[fmu].step))
+    m = model_from_fmu(plant_dir[fmu], u, y, d, at={"noise_enable": False}, excite=excite, max_order=8,
+                       validation_png=png,
+                       excitation=Excitation("multisine", amplitude=amp, samples=500,
+                                             settle=40 * plant_fmus.PLANTS[fmu].step))
     assert m.n == ref.n
     ts = m.provenance["sample_time"]
     # the plant's bandwidth: from the lowest frequency the record resolves to half the Nyquist frequency
@@ -258,8 +258,8 @@ def test_cli_model_and_fmu_given_to_analyze(tmp_path, capsys):
 def test_poor_fit_is_refused(plant_dir):
     # 0.1 cm sensor noise against a ±0.2 % pump excitation: the levels move less than the noise
     with pytest.raises(IdentificationError, match="fits the validation run poorly.*excite more strongly"):
-        FDIModel.from_fmu(plant_dir["dts200"], ["Q1", "Q2"], ["h1", "h2", "h3"],
-                          excitation=Excitation(amplitude={"Q1": 0.05, "Q2": 0.1}, samples=400, settle=20))
+        model_from_fmu(plant_dir["dts200"], ["Q1", "Q2"], ["h1", "h2", "h3"],
+                       excitation=Excitation(amplitude={"Q1": 0.05, "Q2": 0.1}, samples=400, settle=20))
 
 
 @pytest.mark.parametrize("form", ["parity", "kernel"])

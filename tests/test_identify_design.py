@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from fmu_fdi import FDIModel
+from fmu_fdi.identify import model_from_fmu
 from fmu_fdi.cli import main
 from fmu_fdi.identify.validation import noise_floor, residual_tests
 
@@ -182,5 +183,5 @@ def test_closed_loop_dc_motor_with_noise_is_refused_not_wrong(plants, tmp_path):
     from fmu_fdi.identify import IdentificationError
 
     with pytest.raises(IdentificationError, match="own loop|poorly"):
-        FDIModel.from_fmu(plants["dr300"], ["voltage"], ["speed"], ["load_torque"],
-                          excite=["speed_ref", "load_torque"])
+        model_from_fmu(plants["dr300"], ["voltage"], ["speed"], ["load_torque"],
+                       excite=["speed_ref", "load_torque"])

@@ -6,6 +6,7 @@ import pytest
 import scipy.linalg as sla
 
 from fmu_fdi import FDIModel
+from fmu_fdi.identify import model_from_fmu
 from fmu_fdi.identify import IdentificationError, moesp
 from fmu_fdi.identify.noise import innovation_noise, measurement_noise, predictor_innovations
 
@@ -198,7 +199,7 @@ def test_bad_noise_option_is_refused(dts200, tmp_path, capsys):
     from fmu_fdi.cli import main
 
     with pytest.raises(IdentificationError, match="noise must be one of \\('innovation', 'measurement'\\)"):
-        FDIModel.from_fmu(dts200, ["Q1"], ["h1"], noise="kalman")
+        model_from_fmu(dts200, ["Q1"], ["h1"], noise="kalman")
     with pytest.raises(SystemExit):
         main(["model", str(dts200), "--inputs", "Q1", "--outputs", "h1", "--noise", "white", "-o",
               str(tmp_path / "m.toml")])
@@ -226,4 +227,4 @@ def test_noise_needs_identification(tmp_path):
 
     fmu = build_me_fmu(tmp_path, "linear", 2, True)
     with pytest.raises(IdentificationError, match="noise='innovation' needs identification"):
-        FDIModel.from_fmu(fmu, ["u1"], ["y1"], at={"u1": 1.0, "u2": -1.0}, noise="innovation")
+        model_from_fmu(fmu, ["u1"], ["y1"], at={"u1": 1.0, "u2": -1.0}, noise="innovation")

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from fmu_fdi import FDIModel, ModelError, actuator_fault, component_fault, parametric_fault, sensor_fault
+from fmu_fdi.identify import model_from_fmu
 from fmu_fdi.lti import LTI
 from fmu_fdi.modelset import series
 
@@ -131,4 +132,4 @@ def test_cli_minreal_options(tmp_path, capsys):
 
 def test_from_fmu_checks_the_option_before_the_fmu(tmp_path):
     with pytest.raises(ModelError, match="minreal_tol must be a number, got the string"):
-        FDIModel.from_fmu(tmp_path / "absent.fmu", minreal_tol="1e-8")
+        model_from_fmu(tmp_path / "absent.fmu", minreal_tol="1e-8")

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from fmu_fdi import FDIModel
+from fmu_fdi.identify import model_from_fmu, model_set_from_fmu
 from fmu_fdi.cli import main
 from fmu_fdi.errors import ModelError
-from fmu_fdi.modelset import MODEL_SET_FORMAT, ModelSet, grid_points, model_set_from_fmu, parse_grid
+from fmu_fdi.modelset import MODEL_SET_FORMAT, ModelSet, grid_points, parse_grid
 from me_fmus import analytic, build_me_fmu, equilibrium
 
 
@@ -22,7 +23,7 @@ def me_fmu(tmp_path_factory):
 
 def test_members_are_the_linearisations_at_their_points(me_fmu, tmp_path):
     pts = [{"u1": 0.5}, {"u1": 1.0}, {"u1": 2.0}]
-    ms = FDIModel.from_fmu(me_fmu, ["u1", "u2"], ["y1", "y2"], at=pts, sensor_faults="all")
+    ms = model_from_fmu(me_fmu, ["u1", "u2"], ["y1", "y2"], at=pts, sensor_faults="all")
     assert isinstance(ms, ModelSet) and ms.schedule == ["u1"] and len(ms) == 3
     assert ms.points[:, 0].tolist() == [0.5, 1.0, 2.0]
     for m, p in zip(ms.members, pts):

@@ -10,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from fmu_fdi import Diagnoser, FDIModel, dedicated_bank
+from fmu_fdi import Diagnoser, dedicated_bank
+from fmu_fdi.identify import model_from_fmu
 from fmu_fdi.evaluation import fault_size_thresholds
 from fmu_fdi.schedule import ScheduledDiagnoser
 from me_fmus import build_me_fmu, equilibrium
@@ -46,8 +47,8 @@ def _simulate(u, bias=None, sub=20):
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     fmu = build_me_fmu(tmp_path_factory.mktemp("me"), "nonlinear", 2, True)
-    mset = FDIModel.from_fmu(fmu, ["u1", "u2"], ["y1", "y2"], at=[{"u1": float(v)} for v in np.linspace(0.5, 2, 9)],
-                             sensor_faults="all")  # u2 at its start value 0.5
+    mset = model_from_fmu(fmu, ["u1", "u2"], ["y1", "y2"], at=[{"u1": float(v)} for v in np.linspace(0.5, 2, 9)],
+                          sensor_faults="all")  # u2 at its start value 0.5
 
     def thresholds(gen, evaluation):  # each residual sized for its own sensor's bias
         return [fault_size_thresholds(gen, evaluation, size)[i] for i, size in enumerate(BIAS)]

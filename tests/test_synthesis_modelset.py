@@ -8,7 +8,8 @@ import numpy as np
 
 from fmu_fdi import FDIModel, actuator_fault, sensor_fault
 from fmu_fdi.lti import LTI
-from fmu_fdi.modelset import feedback, parallel, robustness, series
+from fmu_fdi.modelset import feedback, parallel, series
+from fmu_fdi.robustness import robustness
 
 LAM = 0.3 + 1.7j
 

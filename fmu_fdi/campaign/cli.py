@@ -48,7 +48,9 @@ def run(args) -> int:
     from .spec import CampaignSpec
 
     if args.example:
-        return _example(args.example)
+        from .example import write_example
+
+        return write_example(args.example)
     if not args.campaign or not args.output:
         missing = [x for x, v in (("CAMPAIGN", args.campaign), ("-o DIR", args.output)) if not v]
         print(f"fmu-fdi campaign: error: give {' and '.join(missing)} (or --example DIR for a campaign to start "
@@ -81,18 +83,4 @@ def run(args) -> int:
     if results.interrupted:
         print("fmu-fdi campaign: stopped before the end; run again with --resume", file=sys.stderr)
         return 130
-    return 0
-
-
-def _example(folder) -> int:
-    """``--example DIR``: the example campaign and its FMUs (:mod:`fmu_fdi.campaign.example`)."""
-    from ..outpath import check_output_path
-    from .example import build_fmus, write_campaign
-
-    check_output_path(__import__("pathlib").Path(folder) / "dts200.toml", (".toml",), "example campaign")
-    fmus = build_fmus(folder)
-    path = write_campaign(folder, "dts200")
-    for p in (*fmus.values(), path):
-        print(f"wrote {p}")
-    print(f"run it: fmu-fdi campaign {path} -o results")
     return 0

@@ -103,9 +103,21 @@ def write_campaign(folder, name="dts200-dos", *, stop=1000.0, fault_free=2, repl
     return path
 
 
+def write_example(folder) -> int:
+    """``fmu-fdi campaign --example DIR``: the example campaign and its FMUs, with one line per
+    file written."""
+    from ..outpath import check_output_path
+
+    check_output_path(Path(folder) / "dts200.toml", (".toml",), "example campaign")
+    fmus = build_fmus(folder)
+    path = write_campaign(folder, "dts200")
+    for p in (*fmus.values(), path):
+        print(f"wrote {p}")
+    print(f"run it: fmu-fdi campaign {path} -o results")
+    return 0
+
+
 if __name__ == "__main__":
     import sys
 
-    from .cli import _example
-
-    sys.exit(_example(sys.argv[1] if len(sys.argv) > 1 else "campaign"))
+    sys.exit(write_example(sys.argv[1] if len(sys.argv) > 1 else "campaign"))

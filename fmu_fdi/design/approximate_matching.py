@@ -135,14 +135,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         response is not the designed one (realisation accuracy) or that fails its
         post-conditions.
     """
-    if norm not in ("inf", "2"):
-        raise DesignError(f"norm must be 'inf' or '2', got {norm!r}")
-    if normalize not in ("dcgain", "gain"):
-        raise DesignError(f"normalize must be 'dcgain' or 'gain', got {normalize!r}")
-    if not (0 < reltol < 1):
-        raise DesignError(f"reltol must lie in (0, 1), got {reltol!r}")
-    if not (np.isfinite(atol) and atol >= 0):
-        raise DesignError(f"atol must be a finite non-negative number, got {atol!r}")
+    _check_options(norm, normalize, reltol, atol)
     Mr = reference(model, Mr, atol=atol)
     dt = model.dt
     sdeg = -1.0 if sdeg is None else float(sdeg)
@@ -165,18 +158,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     # rank-deficient rows: fictitious noise ε on them makes the problem standard; its optimum
     # exceeds the infimum by O(ε ||Y||) (the returned error is measured without it). The
     # smallest ε of 1e-6, 1e-5, 1e-4, 1e-3 times ||Ĝ||∞ whose Riccati equations SLICOT solves
-    ladder = [1e-6, 1e-5, 1e-4, 1e-3] if left else [0.0]
-    gsize = float(Gh.hinfnorm()[0]) if left else 0.0
-    for k_eps, factor in enumerate(ladder):
-        eps = factor * gsize
-        G2, F2 = _regularised(Gh, F, left, eps)
-        _check_boundary_zeros(G2)
-        try:
-            Y, info = solve_standard(G2, F2, norm, reltol)
-            break
-        except DesignError:
-            if k_eps == len(ladder) - 1:
-                raise
+    Y, info, eps = _solve_regularised(Gh, F, left, norm, reltol)
     if left:  # the error without the fictitious noise
         E0 = Y @ Gh - F
         gamma_opt0 = _h2_quad(lambda L: _values(E0, L), [Gh, Y, F], dt) if norm == "2" else \
@@ -193,23 +175,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     # factor from a balanced realisation): the minimal realisation of Q is kept only if it
     # passes (with a large gain of Y, near-cancelling modes that SLICOT's staircase removes
     # can matter), else the non-minimal Y Φ Q0 is returned
-    lam = _points([model.lti(), Y, Mr], dt)
-    designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) \
-        * (scale * _mk(lam, a, K, dt))[:, None, None]
-    fv, mfv = _values(fnm, lam), _values(MF, lam)
-    size = max(float(np.nanmax(_nrm(mfv))), float(np.nanmax(_nrm(designed))), 1e-300)
-    for Q in (Qfull.minreal(atol if atol > 0 else None), Qfull):
-        shipped = np.einsum("kij,kjl->kil", _values(Q, lam), fv) - mfv
-        ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
-        gap = float(np.max(_nrm(shipped[ok] - designed[ok])))
-        # rounding of the factors' values (~1e-13 relative) times the gain of Y: 1e-6 is ample
-        if gap <= 1e-6 * size:
-            break
-    else:
-        raise DesignError(f"approximate_model_matching: the returned filter's error response differs from the "
-                          f"designed one by {gap:.3g} (relative {gap / size:.3g} > 1e-6): the realisation of "
-                          f"Q = Y Φ Q0 lost accuracy (peak gain of Y {float(np.nanmax(_nrm(_values(Y, lam)))):.3g}; "
-                          f"an ill-conditioned, nearly exactly matchable problem: try model_matching, or another sdeg)")
+    Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol)
     gen = ResidualGenerator(Q, model, "approximate_model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
     if norm == "inf":
@@ -234,6 +200,62 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     if "bracket" in info:
         gen.info["gamma_bracket"] = [float(x) for x in info["bracket"]]
     return gen
+
+
+def _check_options(norm, normalize, reltol, atol) -> None:
+    """Stage of :func:`approximate_model_matching`: the options' values."""
+    if norm not in ("inf", "2"):
+        raise DesignError(f"norm must be 'inf' or '2', got {norm!r}")
+    if normalize not in ("dcgain", "gain"):
+        raise DesignError(f"normalize must be 'dcgain' or 'gain', got {normalize!r}")
+    if not (0 < reltol < 1):
+        raise DesignError(f"reltol must lie in (0, 1), got {reltol!r}")
+    if not (np.isfinite(atol) and atol >= 0):
+        raise DesignError(f"atol must be a finite non-negative number, got {atol!r}")
+
+
+def _solve_regularised(Gh, F, left, norm, reltol):
+    """Stage of :func:`approximate_model_matching`: the standard problem solved, with the
+    smallest fictitious noise ε of the ladder (times ||Ĝ||∞) on the ``left`` rank-deficient rows
+    whose Riccati equations SLICOT solves; returns ``(Y, solver info, ε)``."""
+    ladder = [1e-6, 1e-5, 1e-4, 1e-3] if left else [0.0]
+    gsize = float(Gh.hinfnorm()[0]) if left else 0.0
+    for k_eps, factor in enumerate(ladder):
+        eps = factor * gsize
+        G2, F2 = _regularised(Gh, F, left, eps)
+        _check_boundary_zeros(G2)
+        try:
+            Y, info = solve_standard(G2, F2, norm, reltol)
+            break
+        except DesignError:
+            if k_eps == len(ladder) - 1:
+                raise
+    return Y, info, eps
+
+
+def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol):
+    """Stage of :func:`approximate_model_matching`: the realisation of ``Q = Y Φ Q0`` whose error
+    response is the designed one (the minimal one if it passes, else the non-minimal one);
+    returns ``(Q, the comparison points)``."""
+    dt = model.dt
+    lam = _points([model.lti(), Y, Mr], dt)
+    designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) \
+        * (scale * _mk(lam, a, K, dt))[:, None, None]
+    fv, mfv = _values(fnm, lam), _values(MF, lam)
+    size = max(float(np.nanmax(_nrm(mfv))), float(np.nanmax(_nrm(designed))), 1e-300)
+    for Q in (Qfull.minreal(atol if atol > 0 else None), Qfull):
+        shipped = np.einsum("kij,kjl->kil", _values(Q, lam), fv) - mfv
+        ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
+        gap = float(np.max(_nrm(shipped[ok] - designed[ok])))
+        # rounding of the factors' values (~1e-13 relative) times the gain of Y: 1e-6 is ample
+        if gap <= 1e-6 * size:
+            break
+    else:
+        raise DesignError(f"approximate_model_matching: the returned filter's error response differs from the "
+                          f"designed one by {gap:.3g} (relative {gap / size:.3g} > 1e-6): the realisation of "
+                          f"Q = Y Φ Q0 lost accuracy (peak gain of Y {float(np.nanmax(_nrm(_values(Y, lam)))):.3g}; "
+                          f"an ill-conditioned, nearly exactly matchable problem: try model_matching, or another sdeg)")
+    return Q, lam
 
 
 # ----------------------------------------------------------------------------- inputs

@@ -103,14 +103,7 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
     fvec = [_direction(model, nm) for nm in names]
     q = len(names)
 
-    orders, fstar = [], []
-    for nm, f in zip(names, fvec):
-        k, v = _detectability_index(A, C, f)
-        if k is None:
-            raise DesignError(f"fault '{nm}' is undetectable: C A^k f = 0 for every k (its direction lies in the "
-                              f"unobservable subspace of (A, C)), so no observer residual can see it")
-        orders.append(k)
-        fstar.append(v)
+    orders, fstar = _detection_orders(A, C, names, fvec)
     Fs = np.column_stack(fstar)
     G = C @ Fs  # output directions C f_i*
     _check_mutual(G, names, p)
@@ -119,17 +112,7 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
     # distinct over the whole filter (no accidental Jordan blocks) and real: a detection space of
     # order 1 cannot hold a conjugate pair of the plant-speed defaults
     defaults = _real_speeds(default_poles(n, model.dt, A), model.dt)
-    if poles is None:
-        given = None
-        blocks = np.split(defaults[:nk], np.cumsum(orders)[:-1])
-    else:
-        given = check_pole_set(poles, model.dt)
-        if given.size < nk:
-            raise DesignError(f"{given.size} poles given, but the detection spaces alone need {nk}: "
-                              f"k = {dict(zip(names, orders))} (one pole per dimension, fault by fault)")
-        blocks = np.split(given[:nk], np.cumsum(orders)[:-1])
-        for nm, blk in zip(names, blocks):
-            check_pole_set(blk, model.dt, what=f"poles of the detection space of fault '{nm}'")
+    given, blocks = _pole_blocks(poles, defaults, orders, names, model.dt)
 
     Pcols = [_poly_times(A, f, blk) for f, blk in zip(fvec, blocks)]
     U, _, _ = sla.svd(G, full_matrices=True)
@@ -181,6 +164,38 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
         "eigenvector_condition": float(np.linalg.cond(np.linalg.eig(Q.A)[1])) if n else 1.0,
     }
     return observer_generator(model, Q, "fault_detection_filter", info, residual_names(model))
+
+
+def _detection_orders(A, C, names, fvec):
+    """Stage of :func:`fault_detection_filter`: each fault's detectability index k_i and detector
+    direction ``f_i* = A^(k_i - 1) f_i`` (an undetectable fault is refused)."""
+    orders, fstar = [], []
+    for nm, f in zip(names, fvec):
+        k, v = _detectability_index(A, C, f)
+        if k is None:
+            raise DesignError(f"fault '{nm}' is undetectable: C A^k f = 0 for every k (its direction lies in the "
+                              f"unobservable subspace of (A, C)), so no observer residual can see it")
+        orders.append(k)
+        fstar.append(v)
+    return orders, fstar
+
+
+def _pole_blocks(poles, defaults, orders, names, dt):
+    """Stage of :func:`fault_detection_filter`: the poles of each fault's detection space (k_i
+    each, from ``poles`` or the defaults); returns ``(poles given or None, blocks)``."""
+    nk = int(sum(orders))
+    if poles is None:
+        given = None
+        blocks = np.split(defaults[:nk], np.cumsum(orders)[:-1])
+    else:
+        given = check_pole_set(poles, dt)
+        if given.size < nk:
+            raise DesignError(f"{given.size} poles given, but the detection spaces alone need {nk}: "
+                              f"k = {dict(zip(names, orders))} (one pole per dimension, fault by fault)")
+        blocks = np.split(given[:nk], np.cumsum(orders)[:-1])
+        for nm, blk in zip(names, blocks):
+            check_pole_set(blk, dt, what=f"poles of the detection space of fault '{nm}'")
+    return given, blocks
 
 
 def _fault_names(model: FDIModel, faults) -> list[str]:

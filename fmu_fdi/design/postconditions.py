@@ -50,11 +50,11 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..errors import DesignError
 from ..linalg import EPS
 from ..lti import LTI, frequency_grid
+from ..margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, outside_margin  # noqa: F401
 
 class NumericalDesignError(DesignError):
     """A design broke a numerical post-condition (decoupling, basis rank, stability of the
@@ -72,29 +72,12 @@ class NumericalDesignError(DesignError):
 #: exact side (Boeing's order-3 row has a factor 1.2 of headroom).
 DEC_TOL = 1e-7
 
-#: relative tolerance of the controllability/observability decisions on the margin-violating
-#: part of Q·Ge (its data over the norms of the whole balanced realisation): a plant
-#: mode that the filter cancels to the accuracy of its zeros (~1e-12 … 1e-9 of the data) is no
-#: pole of R; one coupled at 1e-6 of the data is.
-R_POLE_TOL = 1e-8
 
 
 #: a row whose every output ``max_λ ||Q_i(λ)|| ||Ge(λ)||`` stays below this is a zero filter
 #: (the 2.9e-16 static "filter" of issue 17): the rounding of a unit-scale basis row
 #: (~500 eps); it is refused, not normalised into a gain-1e13 amplifier of rounding noise.
 ZERO_TOL = 1e-13
-
-
-def default_smarg(dt: float) -> float:
-    """Stability margin just inside the boundary: ``-sqrt(eps)`` or ``1 - sqrt(eps)``."""
-    return 1.0 - np.sqrt(EPS) if dt else -np.sqrt(EPS)
-
-
-def outside_margin(poles: np.ndarray, dt: float, smarg: float) -> np.ndarray:
-    """Mask of the poles violating the margin: ``Re p > smarg`` (continuous) or ``|p| > smarg``
-    (discrete); a pole *on* the margin is stable (inclusive, as FaultDetectionTools.jl)."""
-    poles = np.asarray(poles)
-    return (np.abs(poles) > smarg) if dt else (poles.real > smarg)
 
 
 def _resonances(poles: np.ndarray, dt: float) -> np.ndarray:
@@ -194,70 +177,6 @@ def _r_poles(model, Q: LTI, smarg: float) -> np.ndarray:
     return k
 
 
-def margin_reduced(T: LTI, smarg: float, parts: bool = False):
-    """A realisation of ``T`` without its margin-violating modes that are uncontrollable or
-    unobservable; the other modes are kept as they are.
-
-    The realisation is balanced (SLICOT TB01ID), its margin-violating part separated by an
-    ordered real Schur form and a Sylvester equation (the block-diagonalising similarity
-    ``[I X; 0 I]``), and that part reduced to its reachable-then-observable part (orthogonal
-    block-Arnoldi staircases) with the tolerance :data:`R_POLE_TOL` on the part's data over the
-    norms of the whole balanced realisation. What is left of it are the violating modes both
-    controllable and observable: for ``T = Q Ge``, the poles of R outside the margin. With
-    ``parts=True`` returns ``(system, poles of the kept violating part)``.
-    """
-    none = np.zeros(0, complex)
-    if not T.n or T.p == 0 or T.m == 0:
-        return (T, none) if parts else T
-    bal, _ = T.balanced()
-    A, B, C = bal.A, bal.B, bal.C
-    if T.dt:
-        sel = lambda x, y: bool(np.hypot(x, y) > smarg)  # noqa: E731
-    else:
-        sel = lambda x, y: bool(x > smarg)  # noqa: E731
-    S, Z, k = sla.schur(A, output="real", sort=sel)
-    if k == 0:
-        return (bal, none) if parts else bal
-    Bz, Cz = Z.T @ B, C @ Z
-    B1, C2 = Bz[:k], Cz[:, k:]
-    if k < S.shape[0]:
-        X = sla.solve_sylvester(S[:k, :k], -S[k:, k:], -S[:k, k:])
-        B1, C2 = B1 - X @ Bz[k:], C2 + Cz[:, :k] @ X
-    # the part's coupling is judged against the whole realisation's data, with ABSOLUTE rank
-    # decisions on the scaled part: its own norms (TB01PD's relative tolerance) would blow a
-    # cancelled mode's 1e-16 coupling up to full rank when the part is an integrator (A1 ≈ 0)
-    sa, sb, sc = (float(np.linalg.norm(M)) or 1.0 for M in (A, B, C))
-    V = _reachable(S[:k, :k] / sa, B1 / sb, R_POLE_TOL)
-    Ac, Cc = V.T @ S[:k, :k] @ V, Cz[:, :k] @ V
-    W = _reachable(Ac.T / sa, Cc.T / sc, R_POLE_TOL)
-    P = V @ W  # coordinates of the kept violating modes
-    Ar, Br, Cr = P.T @ S[:k, :k] @ P, P.T @ B1, Cz[:, :k] @ P
-    kept = np.linalg.eigvals(Ar) if Ar.size else none
-    red = LTI(sla.block_diag(Ar, S[k:, k:]), np.vstack([Br, Bz[k:]]), np.hstack([Cr, C2]), T.D, T.dt)
-    return (red, kept) if parts else red
-
-
-def _reachable(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
-    """Orthonormal basis of the reachable subspace of ``(A, B)``, block Arnoldi with two
-    orthogonalisation passes, new directions kept where their singular values exceed ``tol``
-    (absolute: the data are scaled to unit norm by the caller)."""
-    n = A.shape[0]
-    V = np.zeros((n, 0))
-    Wn = B
-    while V.shape[1] < n:
-        for _ in range(2):
-            Wn = Wn - V @ (V.T @ Wn)
-        if not Wn.size:
-            break
-        U, sv, _ = np.linalg.svd(Wn, full_matrices=False)
-        r = int(np.sum(sv > tol))
-        if r == 0:
-            break
-        V = np.hstack([V, U[:, :r]])
-        Wn = A @ U[:, :r]
-    return V
-
-
 def internal_figures(gen, groups=None, freqs=None) -> dict:
     """The peaks of the internal form of ``gen`` per residual group, on the judge's grid.
 
@@ -315,6 +234,23 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
                 at[:, i, j] = _nrm(Rs[:, g][:, :, c])
         out["at_freqs"] = at
     return out
+
+
+#: what to try when a post-condition fails, by condition (check_generator's ``hints`` add to it)
+_ADVICE = {
+    "finite": "the design produced NaN/Inf: the model data is singular for this method",
+    "decoupling": "the null-space/rank decisions are ill-conditioned for this model: pass atol/rtol (rank "
+                  "tolerances), balance or rescale the model's states, or ask for a smaller structure",
+    "structure": "a fault marked 0 leaks into its residual: loosen/tighten atol/rtol, or check the structure "
+                 "against fmu_fdi.isolability(model)",
+    "visibility": "a required fault is rounding noise in its residual: it is not detectable once the 0-faults "
+                  "and d are decoupled (lower FDtol only if the fault really is this weak)",
+    "zero": "the filter is numerically zero: no residual sees the required faults",
+    "strong": "pass other freqs, or lower FDGainTol",
+    "stability": "pass stable poles / a smaller sdeg, or relax smarg",
+    "R stability": "the residual keeps a plant mode outside the margin (no stable R exists with this filter): "
+                   "the design must cancel it (a coprime factorisation of [Q R]), or relax smarg",
+}
 
 
 def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, block: bool = False,
@@ -376,20 +312,7 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
     for g in decouple:
         if g not in ("u", "d", "w"):
             raise DesignError(f"decouple names input groups 'u', 'd', 'w'; got {g!r}")
-    adv = {
-        "finite": "the design produced NaN/Inf: the model data is singular for this method",
-        "decoupling": "the null-space/rank decisions are ill-conditioned for this model: pass atol/rtol (rank "
-                      "tolerances), balance or rescale the model's states, or ask for a smaller structure",
-        "structure": "a fault marked 0 leaks into its residual: loosen/tighten atol/rtol, or check the structure "
-                     "against fmu_fdi.isolability(model)",
-        "visibility": "a required fault is rounding noise in its residual: it is not detectable once the 0-faults "
-                      "and d are decoupled (lower FDtol only if the fault really is this weak)",
-        "zero": "the filter is numerically zero: no residual sees the required faults",
-        "strong": "pass other freqs, or lower FDGainTol",
-        "stability": "pass stable poles / a smaller sdeg, or relax smarg",
-        "R stability": "the residual keeps a plant mode outside the margin (no stable R exists with this filter): "
-                       "the design must cancel it (a coprime factorisation of [Q R]), or relax smarg",
-    }
+    adv = dict(_ADVICE)
     adv.update(hints or {})
     fig: dict = {"dec_tol": dec_tol, "FDtol": FDtol}
     failures: list[tuple[str, str]] = []
@@ -405,6 +328,42 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
                                    "(NaN/Inf in the filter's matrices or at every grid point)"))
         return _finish(fig, failures, adv, gen, raise_error)
 
+    scales = _visibility(fj, judged, names, all_names, col, S, FDtol, fig, failures)
+    if failures:
+        return _finish(fig, failures, adv, gen, raise_error)
+    own_gen = gen
+    if np.any(scales != 1.0):
+        row_scale = np.ones(gen.Q.p)
+        for i, g in enumerate(judged):
+            row_scale[g] = scales[i]
+        if not normalize:
+            from ..generator import ResidualGenerator
+
+            gen = ResidualGenerator(gen.Q, model, gen.method, gen.residual_names, gen.groups)
+        gen.scale_rows(row_scale)
+        fj = internal_figures(gen, judged)
+        if not fj["finite"]:
+            failures.append(("finite", f"the normalised filter (scales {scales.tolist()}) cannot be evaluated"))
+            return _finish(fig, failures, adv, own_gen, raise_error)
+    fig["scales"] = scales.tolist()
+
+    _stability(model, gen.Q, smarg, fig, failures)
+    _decoupling(model, fj, judged, names, col, S, decouple, dec_tol, fig, failures)
+    _strong_visibility(gen, judged, names, col, S, freqs, FDGainTol, fig, failures)
+
+    # 5. what leakage() and structure_matrix() report for this object (the generator's own groups)
+    own = report(own_gen, freqs=freqs, FDGainTol=FDGainTol, dec_tol=dec_tol)
+    fig["leakage"] = own["leakage"]
+    fig["structure_matrix"] = own["structure_matrix"]
+    if freqs is not None:
+        fig["strong_structure_matrix"] = own["strong_structure_matrix"]
+    return _finish(fig, failures, adv, own_gen, raise_error)
+
+
+def _visibility(fj, judged, names, all_names, col, S, FDtol, fig, failures) -> np.ndarray:
+    """Stage 1 of :func:`check_generator`: no required fault is rounding noise in its row and no
+    row is numerically zero; returns each judged group's normalising scale (1 / its weakest
+    required fault gain) and adds to ``fig`` and ``failures``."""
     # 1. no rounding noise, then the normalisation (Varga: unit minimum fault gain per row)
     scales = np.ones(len(judged))
     vis = []
@@ -428,26 +387,13 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
                                                f"{c:.3g} < FDtol = {FDtol:.3g}"))
         scales[i] = 1.0 / low
     fig["fault_visibility"] = min(vis, default=float("inf"))
-    if failures:
-        return _finish(fig, failures, adv, gen, raise_error)
-    own_gen = gen
-    if np.any(scales != 1.0):
-        row_scale = np.ones(gen.Q.p)
-        for i, g in enumerate(judged):
-            row_scale[g] = scales[i]
-        if not normalize:
-            from ..generator import ResidualGenerator
+    return scales
 
-            gen = ResidualGenerator(gen.Q, model, gen.method, gen.residual_names, gen.groups)
-        gen.scale_rows(row_scale)
-        fj = internal_figures(gen, judged)
-        if not fj["finite"]:
-            failures.append(("finite", f"the normalised filter (scales {scales.tolist()}) cannot be evaluated"))
-            return _finish(fig, failures, adv, own_gen, raise_error)
-    fig["scales"] = scales.tolist()
 
+def _stability(model, Q, smarg, fig, failures) -> None:
+    """Stage 2 of :func:`check_generator`: stability with margin of Q's realisation, then R's own
+    poles (the plant modes it keeps); adds to ``fig`` and ``failures``."""
     # 2. stability with margin: Q's realisation, then R's own poles (plant modes it keeps)
-    Q = gen.Q
     worst_of = (lambda p: float(np.max(np.abs(p)))) if model.dt else (lambda p: float(np.max(p.real)))
     what = "largest |pole|" if model.dt else "largest Re(pole)"
     if Q.n:
@@ -466,6 +412,10 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
         failures.append(("R stability", f"R = Q·Ge keeps the plant pole(s) {_fmt(rp)} ({what} = {worst_of(rp):.6g} "
                                         f"> smarg = {smarg:.6g})"))
 
+
+def _decoupling(model, fj, judged, names, col, S, decouple, dec_tol, fig, failures) -> None:
+    """Stage 3 of :func:`check_generator`: decoupling and structure, absolute on the normalised
+    form; adds to ``fig`` and ``failures``."""
     # 3. decoupling and structure, absolute on the normalised form
     labels = [g for g in decouple if model.group_slices()[g].stop > model.group_slices()[g].start]
     decs, zero_leaks, low_gain = [], [], []
@@ -493,6 +443,10 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
     if not (np.isfinite(fig["filter_peak_gain"]) and fig["filter_peak_gain"] > 0):
         failures.append(("zero", f"the returned filter's peak gain is {fig['filter_peak_gain']:.3g}"))
 
+
+def _strong_visibility(gen, judged, names, col, S, freqs, FDGainTol, fig, failures) -> None:
+    """Stage 4 of :func:`check_generator`: strong visibility at ``freqs`` on the normalised rows;
+    adds to ``fig`` and ``failures``."""
     # 4. strong visibility at freqs on the normalised rows
     if freqs is not None:
         fs = internal_figures(gen, judged, freqs)["at_freqs"]
@@ -508,14 +462,6 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
                         failures.append(("strong", f"residual {i + 1}: fault '{nm}' has gain {v:.3g} (unit-gain "
                                                    f"row) at ω = {w:g} rad/s < FDGainTol = {FDGainTol:.3g}"))
         fig["strong_gain_ratio"] = min(strong, default=float("inf"))
-
-    # 5. what leakage() and structure_matrix() report for this object (the generator's own groups)
-    own = report(own_gen, freqs=freqs, FDGainTol=FDGainTol, dec_tol=dec_tol)
-    fig["leakage"] = own["leakage"]
-    fig["structure_matrix"] = own["structure_matrix"]
-    if freqs is not None:
-        fig["strong_structure_matrix"] = own["strong_structure_matrix"]
-    return _finish(fig, failures, adv, own_gen, raise_error)
 
 
 def report(gen, freqs=None, FDGainTol: float = 0.01, dec_tol: float = DEC_TOL, groups=None) -> dict:

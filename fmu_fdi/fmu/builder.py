@@ -29,7 +29,7 @@ import re
 from pathlib import Path
 
 from ..designfile import DesignFileError, load_design, validate_design
-from ..designinfo import evaluation_unit, group_faults, residual_unit
+from ..designinfo import variable_descriptions, variable_units
 from ..runtime.engine import output_names
 from .packaging import build_slave_fmu, checked_destination, unique_bundle_name
 from .slave_template import TEMPLATE
@@ -51,60 +51,6 @@ def _design_of(diagnoser_or_path) -> dict:
     if isinstance(diagnoser_or_path, dict):
         return validate_design(diagnoser_or_path, "design")
     return load_design(diagnoser_or_path)
-
-
-def _units(design: dict) -> dict[str, str]:
-    """Variable name -> unit: the plant signals' units from the design and the residuals',
-    evaluations' and thresholds' where they share one (both targets)."""
-    signals = set(design["signals"]["u"]) | set(design["signals"]["y"])
-    units = {k: v for k, v in (design.get("units") or {}).items() if k in signals}
-    units.update(_output_units(design))
-    return units
-
-
-def _descriptions(design: dict) -> dict[str, str]:
-    sig, g = design["signals"], design["generator"]
-    faults = [f["name"] for f in design["faults"]]
-    seen = group_faults(design)
-    out = {n: f"plant input {n}" for n in sig["u"]}
-    out.update({n: f"plant output (measurement) {n}" for n in sig["y"]})
-    out["threshold_scale"] = "tunable factor on every threshold (>= 0; default 1)"
-    group_of = {k: i for i, grp in enumerate(g["groups"]) for k in grp}
-
-    def sees(i):
-        if seen is None:
-            return "fault sensitivity not recorded in the design"
-        return f"sensitive to {', '.join(seen[i])}" if seen[i] else "sensitive to no modelled fault"
-
-    for k, name in enumerate(g["residual_names"]):
-        out[f"residual_{k + 1}"] = f"residual {name} (group {group_of[k] + 1}: {sees(group_of[k])})"
-    for i, grp in enumerate(g["groups"]):
-        ev = design["evaluation"][i]
-        members = ", ".join(g["residual_names"][j] for j in grp)
-        out[f"evaluation_{i + 1}"] = f"{ev['evaluator']['kind']} evaluation of residual group {i + 1} ({members}); {sees(i)}"
-        out[f"threshold_{i + 1}"] = f"{ev['threshold']['kind']} threshold of group {i + 1} (times threshold_scale)"
-        out[f"alarm_{i + 1}"] = f"evaluation_{i + 1} >= threshold_{i + 1} (with persistence/latching); {sees(i)}"
-    out["fault_detected"] = "any alarm"
-    legend = ", ".join(f"{j + 1} = {nm}" for j, nm in enumerate(faults)) or "no faults modelled"
-    out["isolated_fault"] = f"0 none, -1 unknown or several, else the fault: {legend}"
-    out["input_invalid"] = ("the last input sample had NaN/Inf or was outside its valid range (diagnosis held), "
-                            "or overflowed the evaluation (numeric_reset)")
-    out["numeric_reset"] = ("the last sample overflowed the evaluation (a value became NaN/Inf): counted as fault "
-                            "evidence for the groups it reached, sample discarded, generator and evaluation "
-                            "restarted (docs/semantics.md)")
-    return out
-
-
-def _output_units(design: dict) -> dict[str, str]:
-    unit = residual_unit(design)
-    if unit is None:
-        return {}
-    g = design["generator"]
-    out = {f"residual_{k + 1}": unit for k in range(len(g["residual_names"]))}
-    for i in range(len(design["evaluation"])):
-        if evaluation_unit(design, i):
-            out[f"evaluation_{i + 1}"] = out[f"threshold_{i + 1}"] = unit
-    return out
 
 
 def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_version: int = 2, *,
@@ -170,12 +116,12 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     modules["diagnoser_slave.py"] = TEMPLATE.replace("__CLASS__", ident).replace(
         "__DESCRIPTION__", repr(f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {g['dt']:g} s)"))
     names = output_names(len(g["residual_names"]), len(g["groups"]))
-    descriptions = _descriptions(view)
+    descriptions = variable_descriptions(view)
     if view is not design:
         from ..schedule import scheduled_outputs
 
         names, descriptions = scheduled_outputs(design, names, descriptions)
-    units = _units(view)
+    units = variable_units(view)
     dt = float(g["dt"])
     return build_slave_fmu(
         modules, f"diagnoser_slave:{ident}", fmu_path, bundle_name=f"{ident}_fmu",

@@ -11,16 +11,18 @@ This package only *produces* models (nothing else in fmu_fdi imports it):
 - :func:`validate` — fit (NRMSE %) per output on an independent run, poles, PNG (:mod:`.validation`).
 - :func:`innovation_noise`, :func:`measurement_noise` — opt-in noise models (w unit white) of an
   identified model: Kalman innovation form or output-error covariance (:mod:`.noise`).
-- :func:`model_from_fmu` — the door used by ``FDIModel.from_fmu`` and ``fmu-fdi model`` (:mod:`.fmu_model`).
+- :func:`model_from_fmu` — the door (``fmu_fdi.model_from_fmu``, ``fmu-fdi model``): a model at one
+  operating point (:mod:`.fmu_model`) or a model set over several (:func:`model_set_from_fmu`,
+  :mod:`.envelope`).
 """
 from .errors import IdentificationError
 from .experiment import Excitation, run_experiment
-from .fmu_model import model_from_fmu
+from .envelope import model_from_fmu, model_set_from_fmu
 from .linearise import Linearisation, linearise
 from .noise import NoiseModel, innovation_noise, measurement_noise
 from .subspace import SubspaceModel, moesp
 from .validation import ValidationReport, validate
 
-__all__ = ["IdentificationError", "Excitation", "run_experiment", "model_from_fmu", "Linearisation", "linearise",
+__all__ = ["IdentificationError", "Excitation", "run_experiment", "model_from_fmu", "model_set_from_fmu", "Linearisation", "linearise",
            "NoiseModel", "innovation_noise", "measurement_noise",
            "SubspaceModel", "moesp", "ValidationReport", "validate"]

@@ -179,49 +179,13 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     user = excitation
     ts0 = float(ts if ts is not None else step)
     given_amp = user.amplitude
-    v0, seed_amp, room, limit = {}, {}, {}, {}
-    for nm in excite or []:
-        var = by_name.get(nm)
-        if var is None:
-            continue
-        start = _limit(var.start)
-        v0[nm] = float(at[nm]) if nm in at else (start or 0.0)
-        a = given_amp.get(nm) if isinstance(given_amp, dict) else given_amp
-        seed_amp[nm] = float(a) if a is not None else seed_amplitude(var, v0[nm])
-        room[nm] = headroom(var, v0[nm])
-        if a is None and seed_amp[nm] > room[nm]:
-            seed_amp[nm] = 0.5 * room[nm]
-        # the amplitude may grow MAX_GROWTH-fold from a seed that has a scale (operating value, range or
-        # declared nominal); from the bare FMI default nominal 1 the scale is unknown: 100-fold
-        scaled = v0[nm] != 0.0 or _limit(getattr(var, "nominal", None)) or headroom(var, 0.0) < np.inf
-        limit[nm] = min(seed_amp[nm] * (MAX_GROWTH if scaled else 100.0), 0.9 * room[nm])
+    seed_amp, limit = _seed_amplitudes(excite, by_name, at, given_amp)
     settle = user.settle if user.settle is not None else 200 * ts0
     settle_given = user.settle is not None
-    notes = []
-    sigma = None
-    for attempt in range(4):
-        pre_exc = Excitation("multisine", dict(seed_amp), PRETEST_SAMPLES, settle, 0.5, 1, user.seed + 1000)
-        pre = run_experiment(path, sig, y_names, excite=excite, at=at, parameters=parameters, step=ts0,
-                             excitation=pre_exc, check_settle=False)
-        half = pre.settle_y[len(pre.settle_y) // 2:]
-        sigma = half.std(axis=0) if len(half) > 1 else np.zeros(len(y_names))
-        dy = pre.y - pre.y0
-        resp = np.sqrt(np.maximum(dy.var(axis=0) - sigma ** 2, 0.0))
-        if np.any(resp > sigma) or given_amp is not None:
-            break
-        factor = float(np.clip(2.0 / max(float(np.max(resp / np.maximum(sigma, 1e-300))), 1e-3), 2.0, 10.0))
-        grown = {k: min(factor * a, limit[k]) for k, a in seed_amp.items()}
-        if all(grown[k] <= seed_amp[k] for k in grown):
-            break
-        notes.append(f"pre-test {attempt + 1}: no output above its noise; amplitude raised to "
-                     + ", ".join(f"{k} ±{v:.3g}" for k, v in grown.items()))
-        seed_amp = grown
-    if not np.any(resp > sigma):
-        raise IdentificationError(
-            f"{path}: no output responds above its noise in the pre-test (response std "
-            f"{', '.join(f'{n} {r:.3g}' for n, r in zip(y_names, resp))}, noise std "
-            f"{', '.join(f'{n} {s:.3g}' for n, s in zip(y_names, sigma))}, amplitudes {seed_amp}): give larger "
-            f"amplitudes (--amplitude NAME=A) or check that the inputs act on the outputs")
+    pre, pre_exc, sigma, dy, seed_amp, notes = _pretest(path, sig, y_names, excite=excite, at=at,
+                                                        parameters=parameters, ts0=ts0, settle=settle,
+                                                        seed=user.seed, seed_amp=seed_amp, limit=limit,
+                                                        given_amp=given_amp)
     # round-off is no noise: a std below 1e-9 of the output's level and response counts as zero
     level = np.maximum(np.abs(pre.y0), dy.std(axis=0))
     sigma = np.where(sigma > 1e-9 * level, sigma, 0.0)
@@ -239,12 +203,7 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
         res = dy - rough.simulate(dev)
         res = res[len(res) // 5:]
         sigma = np.where(sigma > 0, np.maximum(sigma, res.std(axis=0)), 0.0)
-    T_pre = PRETEST_SAMPLES * ts0
-    lam = np.log(np.where(np.abs(z) > 1e-12, z, 1e-12).astype(complex)) / ts0
-    tau_min = max(1.0 / np.max(np.abs(lam)), ts0) if lam.size else ts0
-    slow = np.abs(lam.real)
-    tau_max = min(1.0 / max(float(slow.min()), 1e-300), 10 * T_pre) if lam.size else T_pre
-    tau_max = max(tau_max, tau_min)
+    tau_min, tau_max = _time_scales(z, ts0)
     chosen = []
     # sample time and duration within the budget
     runs_steps = budget * rate / 3.0
@@ -313,6 +272,72 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     exc = replace(exc, settle=settle)
     return ExperimentPlan(ts_new, exc, dict(zip(y_names, sigma.tolist())), dict(zip(y_names, r.tolist())),
                           (tau_min, tau_max), chosen, rate, notes, auto_limits)
+
+
+def _seed_amplitudes(excite, by_name, at, given_amp):
+    """Stage of :func:`plan_experiment`: each excited input's seed amplitude (given, or from its
+    range or nominal, inside its headroom) and the largest amplitude the plan may grow it to."""
+    v0, seed_amp, room, limit = {}, {}, {}, {}
+    for nm in excite or []:
+        var = by_name.get(nm)
+        if var is None:
+            continue
+        start = _limit(var.start)
+        v0[nm] = float(at[nm]) if nm in at else (start or 0.0)
+        a = given_amp.get(nm) if isinstance(given_amp, dict) else given_amp
+        seed_amp[nm] = float(a) if a is not None else seed_amplitude(var, v0[nm])
+        room[nm] = headroom(var, v0[nm])
+        if a is None and seed_amp[nm] > room[nm]:
+            seed_amp[nm] = 0.5 * room[nm]
+        # the amplitude may grow MAX_GROWTH-fold from a seed that has a scale (operating value, range or
+        # declared nominal); from the bare FMI default nominal 1 the scale is unknown: 100-fold
+        scaled = v0[nm] != 0.0 or _limit(getattr(var, "nominal", None)) or headroom(var, 0.0) < np.inf
+        limit[nm] = min(seed_amp[nm] * (MAX_GROWTH if scaled else 100.0), 0.9 * room[nm])
+    return seed_amp, limit
+
+
+def _pretest(path, sig, y_names, *, excite, at, parameters, ts0, settle, seed, seed_amp, limit, given_amp):
+    """Stage of :func:`plan_experiment`: the short multisine pre-test, its amplitude raised up to
+    three times until an output responds above its noise. Returns ``(record, excitation, noise
+    std, output deviations, seed amplitudes, notes)``."""
+    notes = []
+    sigma = None
+    for attempt in range(4):
+        pre_exc = Excitation("multisine", dict(seed_amp), PRETEST_SAMPLES, settle, 0.5, 1, seed + 1000)
+        pre = run_experiment(path, sig, y_names, excite=excite, at=at, parameters=parameters, step=ts0,
+                             excitation=pre_exc, check_settle=False)
+        half = pre.settle_y[len(pre.settle_y) // 2:]
+        sigma = half.std(axis=0) if len(half) > 1 else np.zeros(len(y_names))
+        dy = pre.y - pre.y0
+        resp = np.sqrt(np.maximum(dy.var(axis=0) - sigma ** 2, 0.0))
+        if np.any(resp > sigma) or given_amp is not None:
+            break
+        factor = float(np.clip(2.0 / max(float(np.max(resp / np.maximum(sigma, 1e-300))), 1e-3), 2.0, 10.0))
+        grown = {k: min(factor * a, limit[k]) for k, a in seed_amp.items()}
+        if all(grown[k] <= seed_amp[k] for k in grown):
+            break
+        notes.append(f"pre-test {attempt + 1}: no output above its noise; amplitude raised to "
+                     + ", ".join(f"{k} ±{v:.3g}" for k, v in grown.items()))
+        seed_amp = grown
+    if not np.any(resp > sigma):
+        raise IdentificationError(
+            f"{path}: no output responds above its noise in the pre-test (response std "
+            f"{', '.join(f'{n} {r:.3g}' for n, r in zip(y_names, resp))}, noise std "
+            f"{', '.join(f'{n} {s:.3g}' for n, s in zip(y_names, sigma))}, amplitudes {seed_amp}): give larger "
+            f"amplitudes (--amplitude NAME=A) or check that the inputs act on the outputs")
+    return pre, pre_exc, sigma, dy, seed_amp, notes
+
+
+def _time_scales(z, ts0):
+    """Stage of :func:`plan_experiment`: the fastest and slowest time scales ``(tau_min, tau_max)``
+    of the pre-test model's discrete poles ``z`` (the pre-test's length when there are none)."""
+    T_pre = PRETEST_SAMPLES * ts0
+    lam = np.log(np.where(np.abs(z) > 1e-12, z, 1e-12).astype(complex)) / ts0
+    tau_min = max(1.0 / np.max(np.abs(lam)), ts0) if lam.size else ts0
+    slow = np.abs(lam.real)
+    tau_max = min(1.0 / max(float(slow.min()), 1e-300), 10 * T_pre) if lam.size else T_pre
+    tau_max = max(tau_max, tau_min)
+    return tau_min, tau_max
 
 
 def _predicted_response(rough, exc, names, seed_amp, pre, ts, ts0) -> np.ndarray:

@@ -35,7 +35,7 @@ class Excitation:
     """How the plant is excited (configuration only; see the module docstring).
 
     A field left at None is chosen by the automatic experiment design
-    (:mod:`fmu_fdi.identify.design`) when the model is made with ``FDIModel.from_fmu``; a bare
+    (:mod:`fmu_fdi.identify.design`) when the model is made with ``fmu_fdi.model_from_fmu``; a bare
     :func:`run_experiment` uses the fixed fallbacks :data:`FALLBACK` instead.
 
     Parameters
@@ -176,49 +176,14 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
         fmu = FMUInstance("plant", path)
     except (CoSimulationError, FileNotFoundError) as err:
         raise IdentificationError(str(err)) from None
-    fmu_inputs = [n for n in fmu.names("input") if fmu.kind(n) == "real"]
-    fmu_outputs = [n for n in fmu.names("output") if fmu.kind(n) == "real"]
-    for nm in inputs:
-        if nm not in fmu_inputs and nm not in fmu_outputs:
-            raise IdentificationError(f"{path}: model input {nm!r} is neither a Real input nor a Real output of "
-                                      f"the FMU; inputs {fmu_inputs}, outputs {fmu_outputs}")
-    for nm in outputs:
-        if nm not in fmu_outputs:
-            raise IdentificationError(f"{path}: output {nm!r} is not a Real output of the FMU; it has {fmu_outputs}")
-    if excite is None:
-        excite = [n for n in inputs if n in fmu_inputs]
-        closed = [n for n in inputs if n not in fmu_inputs]
-        if closed:
-            raise IdentificationError(f"{path}: model inputs {closed} are FMU outputs (the plant closes its own "
-                                      f"loop): name the FMU inputs to excite (e.g. its references) with excite=")
-    for nm in excite:
-        if nm not in fmu_inputs:
-            raise IdentificationError(f"{path}: cannot excite {nm!r}: not a Real input of the FMU; it has {fmu_inputs}")
-    if not excite:
-        raise IdentificationError(f"{path}: nothing to excite: give the FMU inputs to excite")
+    fmu_inputs, excite = _checked_signals(path, fmu, inputs, outputs, excite)
     at = dict(at or {})
     params = dict(parameters or {})
     v0 = {}
     for nm in fmu_inputs:
         start = fmu.start_value(nm)
         v0[nm] = float(at[nm]) if nm in at else float(start if start is not None else 0.0)
-    amps = []
-    for nm in excite:
-        a = exc.amplitude.get(nm) if isinstance(exc.amplitude, dict) else exc.amplitude
-        if a is None:
-            if v0[nm] == 0.0:
-                raise IdentificationError(f"{path}: input {nm!r} operates at 0, so 5 % of it excites nothing: give "
-                                          f"its amplitude (amplitude={{'{nm}': ...}} / --amplitude {nm}=A)")
-            a = 0.05 * abs(v0[nm])
-        a = float(a)
-        if not np.isfinite(a) or a <= 0:
-            raise IdentificationError(f"amplitude of {nm!r} must be a positive number, got {a!r}")
-        var = fmu.variable(nm)
-        lo, hi = _limit(var.min), _limit(var.max)
-        if (lo is not None and v0[nm] - a < lo) or (hi is not None and v0[nm] + a > hi):
-            raise IdentificationError(f"{path}: excitation of {nm!r} spans [{v0[nm] - a:g}, {v0[nm] + a:g}], outside "
-                                      f"its declared range [{lo}, {hi}]: lower the amplitude")
-        amps.append(a)
+    amps = _amplitudes(path, fmu, exc, excite, v0)
     settle = float(exc.settle) if exc.settle is not None else 200 * step
     n_settle = int(round(settle / step))
     N = int(exc.samples)
@@ -271,6 +236,56 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
     settle_y = np.column_stack([col(nm)[1:n_settle + 1] for nm in outputs])
     return Record(t[rows] - t[n_settle], u, y, u0, y0, list(inputs), list(outputs), dict(zip(excite, amps)),
                   settle_y, clock, int(t.size - 1))
+
+
+def _checked_signals(path, fmu, inputs, outputs, excite):
+    """Stage of :func:`run_experiment`: the model inputs and outputs found among the FMU's Real
+    variables, and the FMU inputs to excite (default: the model inputs that are FMU inputs).
+    Returns ``(the FMU's Real inputs, excited inputs)``."""
+    fmu_inputs = [n for n in fmu.names("input") if fmu.kind(n) == "real"]
+    fmu_outputs = [n for n in fmu.names("output") if fmu.kind(n) == "real"]
+    for nm in inputs:
+        if nm not in fmu_inputs and nm not in fmu_outputs:
+            raise IdentificationError(f"{path}: model input {nm!r} is neither a Real input nor a Real output of "
+                                      f"the FMU; inputs {fmu_inputs}, outputs {fmu_outputs}")
+    for nm in outputs:
+        if nm not in fmu_outputs:
+            raise IdentificationError(f"{path}: output {nm!r} is not a Real output of the FMU; it has {fmu_outputs}")
+    if excite is None:
+        excite = [n for n in inputs if n in fmu_inputs]
+        closed = [n for n in inputs if n not in fmu_inputs]
+        if closed:
+            raise IdentificationError(f"{path}: model inputs {closed} are FMU outputs (the plant closes its own "
+                                      f"loop): name the FMU inputs to excite (e.g. its references) with excite=")
+    for nm in excite:
+        if nm not in fmu_inputs:
+            raise IdentificationError(f"{path}: cannot excite {nm!r}: not a Real input of the FMU; it has {fmu_inputs}")
+    if not excite:
+        raise IdentificationError(f"{path}: nothing to excite: give the FMU inputs to excite")
+    return fmu_inputs, excite
+
+
+def _amplitudes(path, fmu, exc, excite, v0):
+    """Stage of :func:`run_experiment`: each excited input's amplitude (given, or 5 % of its
+    operating value), positive and inside the input's declared range."""
+    amps = []
+    for nm in excite:
+        a = exc.amplitude.get(nm) if isinstance(exc.amplitude, dict) else exc.amplitude
+        if a is None:
+            if v0[nm] == 0.0:
+                raise IdentificationError(f"{path}: input {nm!r} operates at 0, so 5 % of it excites nothing: give "
+                                          f"its amplitude (amplitude={{'{nm}': ...}} / --amplitude {nm}=A)")
+            a = 0.05 * abs(v0[nm])
+        a = float(a)
+        if not np.isfinite(a) or a <= 0:
+            raise IdentificationError(f"amplitude of {nm!r} must be a positive number, got {a!r}")
+        var = fmu.variable(nm)
+        lo, hi = _limit(var.min), _limit(var.max)
+        if (lo is not None and v0[nm] - a < lo) or (hi is not None and v0[nm] + a > hi):
+            raise IdentificationError(f"{path}: excitation of {nm!r} spans [{v0[nm] - a:g}, {v0[nm] + a:g}], outside "
+                                      f"its declared range [{lo}, {hi}]: lower the amplitude")
+        amps.append(a)
+    return amps
 
 
 def _check_settled(path, res, outputs, n_settle, y, settle, noise_std=None):

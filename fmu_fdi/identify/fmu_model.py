@@ -1,6 +1,6 @@
 """The door from a plant FMU to an FDIModel: linearise (model exchange) or identify (co-simulation).
 
-Used by :meth:`fmu_fdi.FDIModel.from_fmu` and ``fmu-fdi model``. The model describes
+Used by :func:`fmu_fdi.identify.model_from_fmu` and ``fmu-fdi model``. The model describes
 deviations from the operating point ``(u0, y0)`` it carries; the disturbances' operating
 values are absorbed in it (d is a deviation too). Its ``provenance`` records where it came
 from: FMU name, GUID, method, and for identification the order, sample time, excitation and
@@ -130,158 +130,14 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
     if params:
         prov["parameters"] = [f"{k}={v}" for k, v in params.items()]
     if method == "linearise":
-        from .linearise import linearise
-
-        lin = linearise(path, inputs, outputs, disturbances, at=at, trim=trim, parameters=params)
-        nu = len(lin.input_names) - len(list(disturbances))
-        u_names, d_names, y_names = lin.input_names[:nu], lin.input_names[nu:], lin.output_names
-        A, B, C, D = lin.A, lin.B, lin.C, lin.D
-        u0, y0 = lin.v0[:nu], lin.y0
-        if lin.warning:
-            prov["warning"] = lin.warning
-            if log is not None:
-                log(f"warning: {lin.warning}")
-        prov.update({"method": f"linearisation ({lin.method})", "trimmed": lin.trimmed,
-                     "states": list(lin.state_names), "state_values": lin.x0.tolist(),
-                     "derivative_residual": lin.derivative_residual})
-        if len(d_names):
-            prov["disturbance_values"] = lin.v0[nu:].tolist()
+        u_names, d_names, y_names, A, B, C, D, u0, y0 = _linearised(path, inputs, outputs, disturbances, at, trim,
+                                                                    params, prov, log)
     else:
-        from dataclasses import replace
-
-        from .experiment import Excitation, run_experiment
-        from .noise import innovation_noise, measurement_noise, predictor_innovations
-        from .subspace import moesp
-        from .validation import noise_floor, residual_tests, validate
-
-        if md.coSimulation is None:
-            raise IdentificationError(f"{path} has no co-simulation interface to run an experiment on")
-        if not inputs or not outputs:
-            raise IdentificationError(f"{path}: identification needs the model's inputs and outputs named "
-                                      f"(inputs=..., outputs=... / --inputs, --outputs)")
-        u_names, d_names, y_names = list(inputs), list(disturbances), list(outputs)
-        user_ts = ts
-        if ts is None:
-            ts = md.defaultExperiment.stepSize if md.defaultExperiment and md.defaultExperiment.stepSize else None
-            if ts is None:
-                raise IdentificationError(f"{path} declares no default step: give the sample time ts")
-            ts = float(ts)
-        exc = excitation or Excitation()
-        exc.check()
-        sig = u_names + d_names
-        if design and not _fully_given(exc, excite, sig, user_ts, md):
-            from .design import plan_experiment
-
-            plan = plan_experiment(path, sig, y_names, excite=excite, at=at, parameters=params, ts=user_ts,
-                                   step=ts, excitation=exc, max_order=max_order)
-            exc, ts = plan.excitation, plan.ts
-            if log is not None:
-                log(plan.describe())
-        else:
-            exc, plan = exc.resolved(), None
-        seed_param = _noise_seed_parameter(md, params)
-        base = int(params.get(seed_param, 0) or 0) if seed_param else 0
-        runs = []
-        # estimation (excitation seed s), validation (s + 1) and the validation input repeated with
-        # another noise realisation (the plant's noise seed + 2, when it has one) for the noise floor
-        # (the estimation run of a designed experiment is checked for signal/noise instead of settling:
-        # too weak a response, it is repeated stronger; the two later runs check the settling)
-        for k, (es, ns) in enumerate(((0, 0), (1, 1), (1, 2))):
-            p_k = dict(params, **({seed_param: base + ns} if seed_param else {}))
-            adapt = k == 0 and plan is not None and bool(plan.limits)
-            for _ in range(2 if adapt else 1):
-                e = Excitation(**{**exc.__dict__, "seed": exc.seed + es})
-                rec = run_experiment(path, sig, y_names, excite=excite, at=at, parameters=p_k, step=ts,
-                                     excitation=e, noise_std=None if plan is None else
-                                     [plan.noise_std[n] for n in y_names], check_settle=not adapt)
-                stronger = plan.adapted(rec) if adapt else None
-                if stronger is None:
-                    break
-                exc = stronger
-                if log is not None:
-                    log(f"  note: {plan.notes[-1]}")
-            runs.append(rec)
-        ident, check, repeat = runs
-        du, dy = ident.u - ident.u0, ident.y - ident.y0      # deviations from the operating point
-        du_val, dy_val = check.u - check.u0, check.y - check.y0
-        if order is None:
-            sub, rep, A, B, C, D = _order_by_cross_validation(
-                moesp(du, dy, ts, None, max_order=max_order, feedthrough=False, candidates=True),
-                du_val, dy_val, check.t, y_names)
-        else:
-            sub = moesp(du, dy, ts, order, max_order=max_order, feedthrough=False)
-            A, B, C, D = sub.to_continuous()
-            rep = validate(sub, du_val, dy_val, check.t, np.linalg.eigvals(A), y_names)
-        sigma = check.settle_y[len(check.settle_y) // 2:].std(axis=0) if len(check.settle_y) > 1 else None
-        floor = noise_floor(dy_val, rep.y_hat, repeat.y - check.y0, sigma)
-        # the innovation form is estimated whatever noise model is asked for: its innovations are what
-        # the whiteness test judges
-        nm, inn, why_none = None, None, None
-        try:
-            inn = innovation_noise(sub, du, dy, du_val, dy_val)
-        except (IdentificationError, np.linalg.LinAlgError) as exc_:
-            why_none = f"the innovation form cannot be estimated ({exc_}): is the run noise-free?"
-            if noise == "innovation":
-                raise IdentificationError(f"{path}: {why_none}") from None
-        # noise: above round-off (1e-9 of the outputs' level)
-        noisy = np.any(floor.noise_rms > 1e-9 * np.sqrt(np.mean(check.y ** 2, axis=0)))
-        if noise == "measurement":
-            nm = measurement_noise(sub, rep.y, rep.y_hat, rep.kind)
-        elif noise == "innovation" or (noise == "auto" and noisy):
-            nm = inn
-        elif noise == "auto":  # what the innovation form would hold is model error (e.g. a nonlinearity), no noise
-            why_none = ("the runs are noise-free (the validation run repeated with another noise seed came out "
-                        "identical, and the outputs are constant at the operating point)")
-        eps = None
-        if inn is not None:
-            eps = predictor_innovations(sub, inn.K, du_val, dy_val, drop=2 * sub.block_rows * max(sub.order, 1))
-        tests = residual_tests(eps, dy_val - rep.y_hat, du_val)
-        if nm is not None:  # Bw: the inverse zero-order hold of the discrete K Lₑ, as for B
-            Bw = replace(sub, B=np.hstack([sub.B, nm.Bw])).to_continuous()[1][:, sub.B.shape[1]:]
-        if validation_png is not None:
-            rep.plot(validation_png)
-        verdict = _verdict(y_names, rep, floor, tests, sub.order, exc, plan)
-        if log is not None:
-            log(verdict)
-        if rep.kind != "simulation" and not tests.independent and np.max(tests.whiteness) > 10:
-            raise IdentificationError(
-                f"{path}: the identified model (order {sub.order}) is unstable, so it is validated by its one-step "
-                f"predictor, whose fit flatters it; its output error is correlated with past inputs and its own "
-                f"innovations are far from white (over 10× the bound), so it is wrong: {verdict}; next: "
-                + ("a plant in its own loop identified with noise is biased (its inputs follow the noise): excite "
-                   "more strongly (--amplitude) so the noise matters less, give --order, or switch the noise off "
-                   "if the FMU allows" if set(ident.excited) != set(sig) else
-                   _next_step(floor, tests, exc, plan, int(np.argmin(floor.floor)), y_names)))
-        clean = np.nan_to_num(floor.fit_noise_free, nan=-np.inf)
-        if np.min(clean) < min_fit:
-            worst = int(np.argmin(clean))
-            raise IdentificationError(
-                f"{path}: the identified model (order {sub.order}) fits the validation run poorly: {verdict} "
-                f"(worst {y_names[worst]}, minimum {min_fit:g} % of the noise-free response); next: "
-                f"{_next_step(floor, tests, exc, plan, worst, y_names)}")
-        if noise == "auto" and nm is None and log is not None:
-            log(f"no noise model: {why_none}")
+        u_names, d_names, y_names, A, B, C, D, u0, y0, nm, Bw = _identified(
+            path, md, inputs, outputs, disturbances, at=at, params=params, prov=prov, ts=ts, excite=excite,
+            excitation=excitation, order=order, max_order=max_order, min_fit=min_fit,
+            validation_png=validation_png, record=record, noise=noise, design=design, log=log)
         noise = nm.kind if nm is not None else None
-        if record is not None:
-            _write_record(record, ident, sig, y_names)
-        nu = len(u_names)
-        u0, y0 = ident.u0[:nu], ident.y0
-        prov.update({"method": "subspace identification (PO-MOESP)", "order": sub.order, "sample_time": ts,
-                     "block_rows": sub.block_rows, "samples": int(exc.samples),
-                     "singular_values": sub.singular_values.tolist(),
-                     "excitation": f"{exc.signal}" + (f" clock {exc.period}" if exc.signal == "prbs" else "")
-                                   + f", seed {exc.seed}, settle {exc.settle if exc.settle is not None else 200 * ts:g} s, amplitudes "
-                                   + ", ".join(f"{k}={v:g}" for k, v in ident.excited.items()),
-                     "fit_percent": rep.fit.tolist(), "fit_kind": rep.kind,
-                     "floor_percent": floor.floor.tolist(), "fit_corrected_percent": floor.fit_noise_free.tolist(),
-                     "floor_source": floor.source, "floor_rms": floor.noise_rms.tolist(),
-                     "whiteness": tests.whiteness.tolist(), "independence": tests.independence.tolist(),
-                     "residual_lags": tests.lags,
-                     "poles": [f"{p.real:.6g}{p.imag:+.6g}j" for p in rep.poles_continuous]})
-        if nm is not None:
-            prov.update(nm.provenance(y_names))
-        if d_names:
-            prov["disturbance_values"] = ident.u0[nu:].tolist()
     from ..model import FDIModel
 
     noise_kw = {} if noise is None else {"Bw": Bw, "Dw": nm.Dw, "w_names": list(prov["noise_inputs"])}
@@ -292,6 +148,181 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
                     name=_model_name(name or md.modelName), operating_point={"u": u0, "y": y0},
                     description=f"{prov['method']} of {path.name} at its operating point",
                     provenance=prov, **noise_kw)
+
+
+def _linearised(path, inputs, outputs, disturbances, at, trim, params, prov, log):
+    """Stage of :func:`model_from_fmu`: the model-exchange FMU linearised at ``at`` (``prov`` gets
+    the method, trim and state values)."""
+    from .linearise import linearise
+
+    lin = linearise(path, inputs, outputs, disturbances, at=at, trim=trim, parameters=params)
+    nu = len(lin.input_names) - len(list(disturbances))
+    u_names, d_names, y_names = lin.input_names[:nu], lin.input_names[nu:], lin.output_names
+    A, B, C, D = lin.A, lin.B, lin.C, lin.D
+    u0, y0 = lin.v0[:nu], lin.y0
+    if lin.warning:
+        prov["warning"] = lin.warning
+        if log is not None:
+            log(f"warning: {lin.warning}")
+    prov.update({"method": f"linearisation ({lin.method})", "trimmed": lin.trimmed,
+                 "states": list(lin.state_names), "state_values": lin.x0.tolist(),
+                 "derivative_residual": lin.derivative_residual})
+    if len(d_names):
+        prov["disturbance_values"] = lin.v0[nu:].tolist()
+    return u_names, d_names, y_names, A, B, C, D, u0, y0
+
+
+def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts, excite, excitation, order,
+                max_order, min_fit, validation_png, record, noise, design, log):
+    """Stage of :func:`model_from_fmu`: the co-simulation FMU identified from experiments (PO-MOESP,
+    validated on an independent run, with its noise model ``nm`` and continuous ``Bw`` when one
+    is learned; ``prov`` gets the experiment and the validation figures)."""
+    from dataclasses import replace
+
+    from .noise import innovation_noise, measurement_noise, predictor_innovations
+    from .subspace import moesp
+    from .validation import noise_floor, residual_tests, validate
+
+    if md.coSimulation is None:
+        raise IdentificationError(f"{path} has no co-simulation interface to run an experiment on")
+    if not inputs or not outputs:
+        raise IdentificationError(f"{path}: identification needs the model's inputs and outputs named "
+                                  f"(inputs=..., outputs=... / --inputs, --outputs)")
+    u_names, d_names, y_names = list(inputs), list(disturbances), list(outputs)
+    sig = u_names + d_names
+    ident, check, repeat, exc, plan, ts = _experiments(path, md, sig, y_names, at=at, params=params, ts=ts,
+                                                       excite=excite, excitation=excitation, max_order=max_order,
+                                                       design=design, log=log)
+    du, dy = ident.u - ident.u0, ident.y - ident.y0      # deviations from the operating point
+    du_val, dy_val = check.u - check.u0, check.y - check.y0
+    if order is None:
+        sub, rep, A, B, C, D = _order_by_cross_validation(
+            moesp(du, dy, ts, None, max_order=max_order, feedthrough=False, candidates=True),
+            du_val, dy_val, check.t, y_names)
+    else:
+        sub = moesp(du, dy, ts, order, max_order=max_order, feedthrough=False)
+        A, B, C, D = sub.to_continuous()
+        rep = validate(sub, du_val, dy_val, check.t, np.linalg.eigvals(A), y_names)
+    sigma = check.settle_y[len(check.settle_y) // 2:].std(axis=0) if len(check.settle_y) > 1 else None
+    floor = noise_floor(dy_val, rep.y_hat, repeat.y - check.y0, sigma)
+    # the innovation form is estimated whatever noise model is asked for: its innovations are what
+    # the whiteness test judges
+    nm, inn, why_none = None, None, None
+    try:
+        inn = innovation_noise(sub, du, dy, du_val, dy_val)
+    except (IdentificationError, np.linalg.LinAlgError) as exc_:
+        why_none = f"the innovation form cannot be estimated ({exc_}): is the run noise-free?"
+        if noise == "innovation":
+            raise IdentificationError(f"{path}: {why_none}") from None
+    # noise: above round-off (1e-9 of the outputs' level)
+    noisy = np.any(floor.noise_rms > 1e-9 * np.sqrt(np.mean(check.y ** 2, axis=0)))
+    if noise == "measurement":
+        nm = measurement_noise(sub, rep.y, rep.y_hat, rep.kind)
+    elif noise == "innovation" or (noise == "auto" and noisy):
+        nm = inn
+    elif noise == "auto":  # what the innovation form would hold is model error (e.g. a nonlinearity), no noise
+        why_none = ("the runs are noise-free (the validation run repeated with another noise seed came out "
+                    "identical, and the outputs are constant at the operating point)")
+    eps = None
+    if inn is not None:
+        eps = predictor_innovations(sub, inn.K, du_val, dy_val, drop=2 * sub.block_rows * max(sub.order, 1))
+    tests = residual_tests(eps, dy_val - rep.y_hat, du_val)
+    Bw = None
+    if nm is not None:  # Bw: the inverse zero-order hold of the discrete K Lₑ, as for B
+        Bw = replace(sub, B=np.hstack([sub.B, nm.Bw])).to_continuous()[1][:, sub.B.shape[1]:]
+    if validation_png is not None:
+        rep.plot(validation_png)
+    verdict = _verdict(y_names, rep, floor, tests, sub.order, exc, plan)
+    if log is not None:
+        log(verdict)
+    if rep.kind != "simulation" and not tests.independent and np.max(tests.whiteness) > 10:
+        raise IdentificationError(
+            f"{path}: the identified model (order {sub.order}) is unstable, so it is validated by its one-step "
+            f"predictor, whose fit flatters it; its output error is correlated with past inputs and its own "
+            f"innovations are far from white (over 10× the bound), so it is wrong: {verdict}; next: "
+            + ("a plant in its own loop identified with noise is biased (its inputs follow the noise): excite "
+               "more strongly (--amplitude) so the noise matters less, give --order, or switch the noise off "
+               "if the FMU allows" if set(ident.excited) != set(sig) else
+               _next_step(floor, tests, exc, plan, int(np.argmin(floor.floor)), y_names)))
+    clean = np.nan_to_num(floor.fit_noise_free, nan=-np.inf)
+    if np.min(clean) < min_fit:
+        worst = int(np.argmin(clean))
+        raise IdentificationError(
+            f"{path}: the identified model (order {sub.order}) fits the validation run poorly: {verdict} "
+            f"(worst {y_names[worst]}, minimum {min_fit:g} % of the noise-free response); next: "
+            f"{_next_step(floor, tests, exc, plan, worst, y_names)}")
+    if noise == "auto" and nm is None and log is not None:
+        log(f"no noise model: {why_none}")
+    if record is not None:
+        _write_record(record, ident, sig, y_names)
+    nu = len(u_names)
+    u0, y0 = ident.u0[:nu], ident.y0
+    prov.update({"method": "subspace identification (PO-MOESP)", "order": sub.order, "sample_time": ts,
+                 "block_rows": sub.block_rows, "samples": int(exc.samples),
+                 "singular_values": sub.singular_values.tolist(),
+                 "excitation": f"{exc.signal}" + (f" clock {exc.period}" if exc.signal == "prbs" else "")
+                               + f", seed {exc.seed}, settle {exc.settle if exc.settle is not None else 200 * ts:g} s, amplitudes "
+                               + ", ".join(f"{k}={v:g}" for k, v in ident.excited.items()),
+                 "fit_percent": rep.fit.tolist(), "fit_kind": rep.kind,
+                 "floor_percent": floor.floor.tolist(), "fit_corrected_percent": floor.fit_noise_free.tolist(),
+                 "floor_source": floor.source, "floor_rms": floor.noise_rms.tolist(),
+                 "whiteness": tests.whiteness.tolist(), "independence": tests.independence.tolist(),
+                 "residual_lags": tests.lags,
+                 "poles": [f"{p.real:.6g}{p.imag:+.6g}j" for p in rep.poles_continuous]})
+    if nm is not None:
+        prov.update(nm.provenance(y_names))
+    if d_names:
+        prov["disturbance_values"] = ident.u0[nu:].tolist()
+    return u_names, d_names, y_names, A, B, C, D, u0, y0, nm, Bw
+
+
+def _experiments(path, md, sig, y_names, *, at, params, ts, excite, excitation, max_order, design, log):
+    """Stage of :func:`_identified`: the experiment (designed by a pre-test unless fully given) run
+    three times: estimation, validation and the validation input with another noise realisation.
+    Returns ``(estimation, validation, repeat, excitation, plan or None, ts)``."""
+    from .experiment import Excitation, run_experiment
+
+    user_ts = ts
+    if ts is None:
+        ts = md.defaultExperiment.stepSize if md.defaultExperiment and md.defaultExperiment.stepSize else None
+        if ts is None:
+            raise IdentificationError(f"{path} declares no default step: give the sample time ts")
+        ts = float(ts)
+    exc = excitation or Excitation()
+    exc.check()
+    if design and not _fully_given(exc, excite, sig, user_ts, md):
+        from .design import plan_experiment
+
+        plan = plan_experiment(path, sig, y_names, excite=excite, at=at, parameters=params, ts=user_ts,
+                               step=ts, excitation=exc, max_order=max_order)
+        exc, ts = plan.excitation, plan.ts
+        if log is not None:
+            log(plan.describe())
+    else:
+        exc, plan = exc.resolved(), None
+    seed_param = _noise_seed_parameter(md, params)
+    base = int(params.get(seed_param, 0) or 0) if seed_param else 0
+    runs = []
+    # estimation (excitation seed s), validation (s + 1) and the validation input repeated with
+    # another noise realisation (the plant's noise seed + 2, when it has one) for the noise floor
+    # (the estimation run of a designed experiment is checked for signal/noise instead of settling:
+    # too weak a response, it is repeated stronger; the two later runs check the settling)
+    for k, (es, ns) in enumerate(((0, 0), (1, 1), (1, 2))):
+        p_k = dict(params, **({seed_param: base + ns} if seed_param else {}))
+        adapt = k == 0 and plan is not None and bool(plan.limits)
+        for _ in range(2 if adapt else 1):
+            e = Excitation(**{**exc.__dict__, "seed": exc.seed + es})
+            rec = run_experiment(path, sig, y_names, excite=excite, at=at, parameters=p_k, step=ts,
+                                 excitation=e, noise_std=None if plan is None else
+                                 [plan.noise_std[n] for n in y_names], check_settle=not adapt)
+            stronger = plan.adapted(rec) if adapt else None
+            if stronger is None:
+                break
+            exc = stronger
+            if log is not None:
+                log(f"  note: {plan.notes[-1]}")
+        runs.append(rec)
+    return (*runs, exc, plan, ts)
 
 
 def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):

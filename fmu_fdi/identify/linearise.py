@@ -201,6 +201,74 @@ def check_names(md, path, names, what, causalities) -> list:
     return out
 
 
+def _signals(path, md, inputs, outputs, disturbances, at, parameters):
+    """Stage of :func:`linearise`: the inputs, disturbances and outputs named (or the FMU's Real
+    ones), and ``at`` split into parameters, held (event-only) inputs and the operating point.
+    Returns ``(u_names, d_names, y_names, v_names, by_name, at, parameters, held)``."""
+    # continuous Real inputs can be perturbed; discrete-variability, Integer and Boolean inputs change only
+    # at events (FMI 2.0.4 sec. 3.2.3, FMI 3.0 sec. 3.2.3): they are held at their values (``at`` or start)
+    real_in = [v.name for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")
+               and v.variability in (None, "continuous")]
+    real_out = [v.name for v in md.modelVariables if v.causality == "output" and v.type in ("Real", "Float64")]
+    d_names = check_names(md, path, list(disturbances), "disturbance", ("input",))
+    u_names = (check_names(md, path, list(inputs), "input", ("input",)) if inputs is not None
+               else [n for n in real_in if n not in d_names])
+    y_names = check_names(md, path, list(outputs), "output", ("output",)) if outputs is not None else real_out
+    if not y_names:
+        raise IdentificationError(f"{path}: no outputs to linearise (the FMU has no Real outputs)")
+    at = dict(at or {})
+    by_name = {v.name: v for v in md.modelVariables}
+    unknown = [k for k in at if k not in by_name]
+    if unknown:
+        raise IdentificationError(f"{path}: operating-point values for unknown variables {unknown}")
+    parameters = dict(parameters or {})
+    for k in [k for k in at if by_name[k].causality in ("parameter", "calculatedParameter", "structuralParameter")]:
+        parameters[k] = at.pop(k)
+    v_names = u_names + d_names
+    held_only = [n for n in v_names if n not in real_in]
+    if held_only:
+        kinds = ", ".join(f"{n} ({by_name[n].type}, {by_name[n].variability or 'continuous'})" for n in held_only)
+        raise IdentificationError(f"{path}: inputs {kinds} change only at events, so a linearisation cannot "
+                                  f"perturb them; they are held at their values: give them with at=... "
+                                  f"(--at NAME=VALUE) and leave them out of the inputs")
+    held = {k: at.pop(k) for k in [k for k in at if by_name[k].causality == "input" and k not in v_names]}
+    return u_names, d_names, y_names, v_names, by_name, at, parameters, held
+
+
+def _equations(inst, state_vars, in_vrs, out_vrs, nominal_x, nominal_v, use_dd):
+    """Stage of :func:`linearise`: ``F(x, v) = [ẋ; y]`` of the instance and its Jacobian
+    ``[∂F/∂x ∂F/∂v]`` (directional derivatives, or central differences scaled by the nominals)."""
+    def F(x, v):
+        f, g = inst.evaluate(x, v, in_vrs, out_vrs)
+        return np.concatenate([f, g])
+
+    def jac(x, v):
+        if use_dd:
+            knowns = [sv.valueReference for sv in state_vars] + in_vrs
+            unknowns = inst.der_vrs + out_vrs
+            inst.evaluate(x, v, in_vrs, out_vrs)  # the point the derivatives are taken at
+            cols = []
+            for j in range(len(knowns)):
+                seed = np.zeros(len(knowns))
+                seed[j] = 1.0
+                cols.append(inst.directional(unknowns, knowns, seed))
+            return np.column_stack(cols) if cols else np.zeros((len(unknowns), 0))
+        z = np.concatenate([x, v])
+        scale = np.concatenate([nominal_x, nominal_v])
+        cols = []
+        for j in range(z.size):
+            h = _EPS_STEP * max(abs(z[j]), scale[j] if scale[j] > 0 else 1.0)
+            zp, zm = z.copy(), z.copy()
+            zp[j] += h
+            zm[j] -= h
+            h2 = zp[j] - zm[j]  # the step actually taken, exactly representable
+            nx = x.size
+            cols.append((F(zp[:nx], zp[nx:]) - F(zm[:nx], zm[nx:])) / h2)
+        return np.column_stack(cols) if cols else np.zeros((inst.nx + len(out_vrs), 0))
+
+    return F, jac
+
+
 def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim: bool = True,
               parameters=None, directional: str | bool = "auto", trim_tol: float = 1e-9) -> Linearisation:
     """Linearise a model-exchange FMU at an operating point (see the module docstring).
@@ -242,37 +310,12 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
     if md.modelExchange is None:
         raise IdentificationError(f"{path} has no model-exchange interface: identify it from an experiment "
                                   f"instead (method='identify')")
-    # continuous Real inputs can be perturbed; discrete-variability, Integer and Boolean inputs change only
-    # at events (FMI 2.0.4 sec. 3.2.3, FMI 3.0 sec. 3.2.3): they are held at their values (``at`` or start)
-    real_in = [v.name for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")
-               and v.variability in (None, "continuous")]
-    real_out = [v.name for v in md.modelVariables if v.causality == "output" and v.type in ("Real", "Float64")]
-    d_names = check_names(md, path, list(disturbances), "disturbance", ("input",))
-    u_names = (check_names(md, path, list(inputs), "input", ("input",)) if inputs is not None
-               else [n for n in real_in if n not in d_names])
-    y_names = check_names(md, path, list(outputs), "output", ("output",)) if outputs is not None else real_out
-    if not y_names:
-        raise IdentificationError(f"{path}: no outputs to linearise (the FMU has no Real outputs)")
+    u_names, d_names, y_names, v_names, by_name, at, parameters, held = _signals(path, md, inputs, outputs,
+                                                                                 disturbances, at, parameters)
     provides = _provides_directional(path, md)
     if directional is True and not provides:
         raise IdentificationError(f"{path} does not provide directional derivatives; use directional='auto'")
     use_dd = provides and directional is not False
-    at = dict(at or {})
-    by_name = {v.name: v for v in md.modelVariables}
-    unknown = [k for k in at if k not in by_name]
-    if unknown:
-        raise IdentificationError(f"{path}: operating-point values for unknown variables {unknown}")
-    parameters = dict(parameters or {})
-    for k in [k for k in at if by_name[k].causality in ("parameter", "calculatedParameter", "structuralParameter")]:
-        parameters[k] = at.pop(k)
-    v_names = u_names + d_names
-    held_only = [n for n in v_names if n not in real_in]
-    if held_only:
-        kinds = ", ".join(f"{n} ({by_name[n].type}, {by_name[n].variability or 'continuous'})" for n in held_only)
-        raise IdentificationError(f"{path}: inputs {kinds} change only at events, so a linearisation cannot "
-                                  f"perturb them; they are held at their values: give them with at=... "
-                                  f"(--at NAME=VALUE) and leave them out of the inputs")
-    held = {k: at.pop(k) for k in [k for k in at if by_name[k].causality == "input" and k not in v_names]}
     unzipdir = extract(str(path), tempfile.mkdtemp(prefix="fmu_fdi_lin_"))
     inst = None
     try:
@@ -292,34 +335,7 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
         nominal_x = np.maximum(inst.nominals(), 1e-300) if inst.nx else np.zeros(0)
         nominal_v = np.array([abs(float(getattr(by_name[n], "nominal", None) or 1.0)) for n in v_names])
 
-        def F(x, v):
-            f, g = inst.evaluate(x, v, in_vrs, out_vrs)
-            return np.concatenate([f, g])
-
-        def jac(x, v):
-            if use_dd:
-                knowns = [sv.valueReference for sv in state_vars] + in_vrs
-                unknowns = inst.der_vrs + out_vrs
-                inst.evaluate(x, v, in_vrs, out_vrs)  # the point the derivatives are taken at
-                cols = []
-                for j in range(len(knowns)):
-                    seed = np.zeros(len(knowns))
-                    seed[j] = 1.0
-                    cols.append(inst.directional(unknowns, knowns, seed))
-                return np.column_stack(cols) if cols else np.zeros((len(unknowns), 0))
-            z = np.concatenate([x, v])
-            scale = np.concatenate([nominal_x, nominal_v])
-            cols = []
-            for j in range(z.size):
-                h = _EPS_STEP * max(abs(z[j]), scale[j] if scale[j] > 0 else 1.0)
-                zp, zm = z.copy(), z.copy()
-                zp[j] += h
-                zm[j] -= h
-                h2 = zp[j] - zm[j]  # the step actually taken, exactly representable
-                nx = x.size
-                cols.append((F(zp[:nx], zp[nx:]) - F(zm[:nx], zm[nx:])) / h2)
-            return np.column_stack(cols) if cols else np.zeros((inst.nx + len(out_vrs), 0))
-
+        F, jac = _equations(inst, state_vars, in_vrs, out_vrs, nominal_x, nominal_v, use_dd)
         if use_dd and any(sv is None for sv in state_vars):
             raise IdentificationError(f"{path}: a state derivative does not name its state (derivative "
                                       f"attribute); cannot seed directional derivatives")

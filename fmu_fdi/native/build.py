@@ -12,7 +12,7 @@ The FMU holds no Python: the per-sample runtime (``c/fdi_runtime*.c``), the FMI 
     sources/buildDescription.xml      (FMI 3.0; FMI 2.0 lists the files in <SourceFiles>)
 
 The variables are those of the pythonfmu target, with the same names, descriptions and units
-(:func:`fmu_fdi.fmu.builder._descriptions`, :func:`fmu_fdi.runtime.engine.output_names`):
+(:func:`fmu_fdi.designinfo.variable_descriptions`, :func:`fmu_fdi.runtime.engine.output_names`):
 the plant inputs u then outputs y (Real inputs, start = operating point), the tunable
 parameter ``threshold_scale``, and the outputs (Real residuals, evaluations, thresholds;
 Boolean alarms and flags; Integer ``isolated_fault``), all discrete with no direct
@@ -82,15 +82,15 @@ def variables(design: dict) -> list[dict]:
     Each: ``name, causality, variability, kind (Real/Boolean/Integer), start, unit, description``.
     Names, descriptions and units are the pythonfmu target's.
     """
-    from ..fmu.builder import _descriptions, _units
+    from ..designinfo import variable_descriptions, variable_units
 
     if "members" in design:  # a scheduled design: member 1's variables and active_member
         from .schedule_emit import scheduled_variables
 
         return scheduled_variables(design, variables)
     sig, g = design["signals"], design["generator"]
-    desc = _descriptions(design)
-    units = _units(design)
+    desc = variable_descriptions(design)
+    units = variable_units(design)
     op = design.get("operating_point") or {}
     starts = list(op.get("u", [0.0] * len(sig["u"]))) + list(op.get("y", [0.0] * len(sig["y"])))
     out = []

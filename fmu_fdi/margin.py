@@ -1,0 +1,98 @@
+"""The stability margin of a system and the realisation of it without its cancelled
+margin-violating modes: what the judge (:mod:`fmu_fdi.design.postconditions`) calls the poles
+of R, and what :class:`~fmu_fdi.generator.ResidualGenerator` removes from its internal form.
+
+A pole p violates the margin ``smarg`` when ``Re p > smarg`` (continuous) or ``|p| > smarg``
+(discrete); the default margin lies ``sqrt(eps)`` inside the stability boundary. Reference:
+A. Varga, *Solving Fault Diagnosis Problems*, Springer 2017, sec. 5.1 (the stability
+condition of the internal form) and FaultDetectionTools.jl ``smarg``.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+from .linalg import EPS
+from .lti import LTI
+
+#: relative tolerance of the controllability/observability decisions on the margin-violating
+#: part of Q·Ge (its data over the norms of the whole balanced realisation): a plant
+#: mode that the filter cancels to the accuracy of its zeros (~1e-12 … 1e-9 of the data) is no
+#: pole of R; one coupled at 1e-6 of the data is.
+R_POLE_TOL = 1e-8
+
+
+def default_smarg(dt: float) -> float:
+    """Stability margin just inside the boundary: ``-sqrt(eps)`` or ``1 - sqrt(eps)``."""
+    return 1.0 - np.sqrt(EPS) if dt else -np.sqrt(EPS)
+
+
+def outside_margin(poles: np.ndarray, dt: float, smarg: float) -> np.ndarray:
+    """Mask of the poles violating the margin: ``Re p > smarg`` (continuous) or ``|p| > smarg``
+    (discrete); a pole *on* the margin is stable (inclusive, as FaultDetectionTools.jl)."""
+    poles = np.asarray(poles)
+    return (np.abs(poles) > smarg) if dt else (poles.real > smarg)
+
+
+def margin_reduced(T: LTI, smarg: float, parts: bool = False):
+    """A realisation of ``T`` without its margin-violating modes that are uncontrollable or
+    unobservable; the other modes are kept as they are.
+
+    The realisation is balanced (SLICOT TB01ID), its margin-violating part separated by an
+    ordered real Schur form and a Sylvester equation (the block-diagonalising similarity
+    ``[I X; 0 I]``), and that part reduced to its reachable-then-observable part (orthogonal
+    block-Arnoldi staircases) with the tolerance :data:`R_POLE_TOL` on the part's data over the
+    norms of the whole balanced realisation. What is left of it are the violating modes both
+    controllable and observable: for ``T = Q Ge``, the poles of R outside the margin. With
+    ``parts=True`` returns ``(system, poles of the kept violating part)``.
+    """
+    none = np.zeros(0, complex)
+    if not T.n or T.p == 0 or T.m == 0:
+        return (T, none) if parts else T
+    bal, _ = T.balanced()
+    A, B, C = bal.A, bal.B, bal.C
+    if T.dt:
+        sel = lambda x, y: bool(np.hypot(x, y) > smarg)  # noqa: E731
+    else:
+        sel = lambda x, y: bool(x > smarg)  # noqa: E731
+    S, Z, k = sla.schur(A, output="real", sort=sel)
+    if k == 0:
+        return (bal, none) if parts else bal
+    Bz, Cz = Z.T @ B, C @ Z
+    B1, C2 = Bz[:k], Cz[:, k:]
+    if k < S.shape[0]:
+        X = sla.solve_sylvester(S[:k, :k], -S[k:, k:], -S[:k, k:])
+        B1, C2 = B1 - X @ Bz[k:], C2 + Cz[:, :k] @ X
+    # the part's coupling is judged against the whole realisation's data, with ABSOLUTE rank
+    # decisions on the scaled part: its own norms (TB01PD's relative tolerance) would blow a
+    # cancelled mode's 1e-16 coupling up to full rank when the part is an integrator (A1 ≈ 0)
+    sa, sb, sc = (float(np.linalg.norm(M)) or 1.0 for M in (A, B, C))
+    V = _reachable(S[:k, :k] / sa, B1 / sb, R_POLE_TOL)
+    Ac, Cc = V.T @ S[:k, :k] @ V, Cz[:, :k] @ V
+    W = _reachable(Ac.T / sa, Cc.T / sc, R_POLE_TOL)
+    P = V @ W  # coordinates of the kept violating modes
+    Ar, Br, Cr = P.T @ S[:k, :k] @ P, P.T @ B1, Cz[:, :k] @ P
+    kept = np.linalg.eigvals(Ar) if Ar.size else none
+    red = LTI(sla.block_diag(Ar, S[k:, k:]), np.vstack([Br, Bz[k:]]), np.hstack([Cr, C2]), T.D, T.dt)
+    return (red, kept) if parts else red
+
+
+def _reachable(A: np.ndarray, B: np.ndarray, tol: float) -> np.ndarray:
+    """Orthonormal basis of the reachable subspace of ``(A, B)``, block Arnoldi with two
+    orthogonalisation passes, new directions kept where their singular values exceed ``tol``
+    (absolute: the data are scaled to unit norm by the caller)."""
+    n = A.shape[0]
+    V = np.zeros((n, 0))
+    Wn = B
+    while V.shape[1] < n:
+        for _ in range(2):
+            Wn = Wn - V @ (V.T @ Wn)
+        if not Wn.size:
+            break
+        U, sv, _ = np.linalg.svd(Wn, full_matrices=False)
+        r = int(np.sum(sv > tol))
+        if r == 0:
+            break
+        V = np.hstack([V, U[:, :r]])
+        Wn = A @ U[:, :r]
+    return V
