@@ -53,7 +53,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import DesignError
-from ..linalg import EPS
+from ..linalg import EPS, ordered_schur
 from ..lti import LTI, frequency_grid
 
 class NumericalDesignError(DesignError):
@@ -215,7 +215,7 @@ def margin_reduced(T: LTI, smarg: float, parts: bool = False):
         sel = lambda x, y: bool(np.hypot(x, y) > smarg)  # noqa: E731
     else:
         sel = lambda x, y: bool(x > smarg)  # noqa: E731
-    S, Z, k = sla.schur(A, output="real", sort=sel)
+    S, Z, k = ordered_schur(A, sel)
     if k == 0:
         return (bal, none) if parts else bal
     Bz, Cz = Z.T @ B, C @ Z
