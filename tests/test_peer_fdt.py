@@ -389,10 +389,6 @@ def test_afdsyn_ex5_6c_gap_and_poles():
     assert np.all(poles.real <= -3 + 1e-9), poles
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 17 item 4: smarg not inclusive in the R-stability check (main+core+judge: 'R keeps the plant "
-    "pole -3 > smarg = -3'; main: 'largest Re(pole) = -3 is not below smarg = -3')"
-))
 def test_afdisyn_ex5_11c_gaps_3_and_inf():
     """Example 5.11c: the same plant, SFDI = I2, afdisyn(smarg = -3, sdeg = -3): gaps [3, Inf] —
     row 2 (fault 2, fault 1 decoupled) decouples w exactly; row 1 keeps the gap 3."""
