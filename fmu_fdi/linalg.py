@@ -120,3 +120,43 @@ def inv_sqrtm_pd(M: np.ndarray) -> np.ndarray:
     if w[0] <= EPS * max(1.0, w[-1]) * M.shape[0]:
         raise np.linalg.LinAlgError("matrix is not positive definite")
     return (V / np.sqrt(w)) @ V.T
+
+
+def ordered_schur(A: np.ndarray, select) -> tuple[np.ndarray, np.ndarray, int]:
+    """Real Schur form ``A = Z T Zᵀ`` with the eigenvalues ``select(re, im)`` accepts leading: ``(T, Z, k)``.
+
+    As ``scipy.linalg.schur(A, output='real', sort=select)``, but membership is decided ONCE, on
+    the eigenvalues of the unordered form's diagonal blocks (both members of a complex pair by
+    the one with ``im > 0``), and the blocks are then reordered by LAPACK ``dtrsen`` (Bai &
+    Demmel 1993), which takes that decision as given. The ``gees`` sort re-evaluates ``select``
+    on the reordered form, whose eigenvalues move by rounding (``‖A‖·eps`` relative, far more for
+    a defective cluster): one on the boundary of the region can change side, and ``gees`` then
+    fails with "Leading eigenvalues do not satisfy sort condition". Here ``k`` is the number of
+    selected eigenvalues, counted on the decision made.
+    """
+    A = np.asarray(A, dtype=float)
+    n = A.shape[0]
+    if n == 0:
+        return A.copy(), np.eye(0), 0
+    T, Z = sla.schur(A, output="real")
+    mask = np.zeros(n, dtype=np.int32)
+    i = 0
+    while i < n:
+        if i + 1 < n and T[i + 1, i] != 0.0:
+            ev = np.linalg.eigvals(T[i:i + 2, i:i + 2])
+            z = ev[np.argmax(ev.imag)]
+            mask[i:i + 2] = bool(select(float(z.real), float(abs(z.imag))))
+            i += 2
+        else:
+            mask[i] = bool(select(float(T[i, i]), 0.0))
+            i += 1
+    k = int(mask.sum())
+    if k in (0, n) or np.all(mask[:k]):
+        return T, Z, k
+    Ts, Zs, _, _, m, _, _, info = sla.lapack.dtrsen(mask, T, Z, job="N")
+    if info != 0:  # dtrsen's only failure (info = 1): two blocks too close to be swapped stably
+        from .errors import DesignError
+
+        raise DesignError(f"the real Schur form cannot be reordered (LAPACK dtrsen info = {info}): eigenvalues on "
+                          f"both sides of the region's boundary are too close to separate (order {n}, {k} selected)")
+    return Ts, Zs, int(m)

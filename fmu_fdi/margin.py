@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from .linalg import EPS
+from .linalg import EPS, ordered_schur
 from .lti import LTI
 
 #: relative tolerance of the controllability/observability decisions on the margin-violating
@@ -55,7 +55,7 @@ def margin_reduced(T: LTI, smarg: float, parts: bool = False):
         sel = lambda x, y: bool(np.hypot(x, y) > smarg)  # noqa: E731
     else:
         sel = lambda x, y: bool(x > smarg)  # noqa: E731
-    S, Z, k = sla.schur(A, output="real", sort=sel)
+    S, Z, k = ordered_schur(A, sel)
     if k == 0:
         return (bal, none) if parts else bal
     Bz, Cz = Z.T @ B, C @ Z

@@ -18,7 +18,8 @@ models are proper state space).
 Tally (27 tests ported from 11 peer cases files/examples; state of 2026-11-26 ~11:45 UTC):
   ported 27 · passing on main 20 · xfail (strict; fail on main and on main+core+judge+matching) 5 ·
   failing on main but passing with the issue-17 branches 2 (test_afdsyn_ex5_6c_gap_and_poles: core+judge;
-  test_fdigenspec_marginal_poles_strong_at_0_and_1: core).
+  test_fdigenspec_marginal_poles_strong_at_0_and_1: core). bankfix (12:30 UTC): test_afdisyn_ex5_11c_gaps_3_and_inf
+  passes (R_u/R_d poles judged against the stability boundary, R_w/R_f against smarg): xfail 4.
 Each test names the peer file and case it comes from.
 """
 from __future__ import annotations
@@ -389,10 +390,6 @@ def test_afdsyn_ex5_6c_gap_and_poles():
     assert np.all(poles.real <= -3 + 1e-9), poles
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 17 item 4: smarg not inclusive in the R-stability check (main+core+judge: 'R keeps the plant "
-    "pole -3 > smarg = -3'; main: 'largest Re(pole) = -3 is not below smarg = -3')"
-))
 def test_afdisyn_ex5_11c_gaps_3_and_inf():
     """Example 5.11c: the same plant, SFDI = I2, afdisyn(smarg = -3, sdeg = -3): gaps [3, Inf] —
     row 2 (fault 2, fault 1 decoupled) decouples w exactly; row 1 keeps the gap 3."""

@@ -479,20 +479,10 @@ def test_issue17_small_cases(label):
 KNOWN_BROKEN = {
     1: ("structured_bank: achievable request refused: row 2 [1, 1, 0, 1, 1] (decoupling ['fa1']): (R "
          'stability): R = Q·Ge keeps the plant pole(s) [0.9801+0.1987j, 0.9801-0.1987j] '),
-    2: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
-         '[1] (largest Re(pole) = 1 > smarg = -1.49012e-08). [R stability] the r'),
     3: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+w leak 32.5 × the weakest '
          'fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisio'),
-    10: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
-         '[-8.288e-15] (largest Re(pole) = -8.28837e-15 > smarg = -1.49012e-08).'),
-    12: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
-         '[1] (largest Re(pole) = 1 > smarg = -1.49012e-08). [R stability] the r'),
     13: ('nullspace_design: achievable request refused: the internal form R = Q·Ge keeps the poles [(1+0j), '
          '(0.596952+0.846249j), (0.596952-0.846249j), (0.00736+127.564524j), (0.00'),
-    17: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
-         '[0.9801+0.1987j, 0.9801-0.1987j] (largest |pole| = 1 > smarg = 1). [R '),
-    19: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
-         '[1.105] (largest |pole| = 1.10517 > smarg = 1). [R stability] the resi'),
     21: ('nullspace_design: achievable request refused: (R stability, decoupling): R = Q·Ge keeps the plant '
          'pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: u leak 2.68 × '),
     22: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+d+w leak 127 × the weakest'
@@ -501,15 +491,20 @@ KNOWN_BROKEN = {
          '|pole| = 1.0163 > the stability margin smarg = 1; R = Q·Ge keeps the p'),
     26: ("structured_bank: achievable request refused: row 5 [1, 1, 1, 1, 0] (decoupling ['fc']): (R "
          'stability, decoupling): R = Q·Ge keeps the plant pole(s) [2.153e-05] (largest R'),
-    28: ('dedicated_bank(sensor): achievable request refused: (R stability): R = Q·Ge keeps the plant pole(s) '
-         '[1.969e-14+2j, 1.969e-14-2j] (largest Re(pole) = 1.96884e-14 > smarg ='),
-    30: 'nullspace_design: LinAlgError instead of DesignError: Leading eigenvalues do not satisfy sort condition.',
+    30: ('nullspace_design: achievable request refused: the real Schur form cannot be reordered (LAPACK dtrsen '
+         'info = 1)'),  # integ: LinAlgError (sort condition); now a DesignError, the row still not designed
+    31: ('nullspace_design: achievable request refused: nullspace design fails its post-conditions (stability, '
+         'R stability, decoupling): filter: largest |pole| = 1.00439 > the stability margin smarg = 1; R = Q·Ge '
+         'keeps the plant pole(s) [1.105]'),  # integ: LinAlgError (sort condition), fixed by bankfix
     33: ('nullspace_design: achievable request refused: (R stability, decoupling): R = Q·Ge keeps the plant '
          'pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: u+w leak 215 ×'),
     37: ('nullspace_design: achievable request refused: (decoupling): residual 1: u leak 1.34e-05 × the '
          'weakest fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decis'),
     38: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+w leak 5.17 × the weakest '
          'fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisio'),
+    39: ('nullspace_design: achievable request refused: nullspace design fails its post-conditions (R '
+         'stability, decoupling): R = Q·Ge keeps the plant pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: '
+         'u+d leak 4.61 × the weakest fault gain'),
     43: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+d leak 7.42e-07 × the '
          'weakest fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank dec'),
 }

@@ -33,7 +33,7 @@ import scipy.linalg as sla
 
 from ..errors import DesignError
 from ..generator import ResidualGenerator
-from ..linalg import EPS, default_rtol
+from ..linalg import EPS, default_rtol, ordered_schur
 from ..lti import LTI
 from ..model import FDIModel
 from .pencil import controllable_staircase
@@ -414,7 +414,7 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
             out = (lambda re, im: abs(complex(re, im)) >= 1.0 - margin)
         else:
             out = (lambda re, im: re >= -margin)
-        Tu, U, n_u = sla.schur(Au, output="real", sort=out)
+        Tu, U, n_u = ordered_schur(Au, out)
         modes = np.linalg.eigvals(Tu[:n_u, :n_u]) if n_u else np.zeros(0)
         edge = modes[np.abs(np.abs(modes) - 1.0) <= margin] if dt else modes[np.abs(modes.real) <= margin]
         if edge.size:

@@ -26,6 +26,7 @@ from ..linalg import single_blas_thread
 from ..generator import ResidualBank, ResidualGenerator
 from ..model import FDIModel
 from .nullspace import nullspace_design
+from .coprime import stable_internal_form
 from .postconditions import DEC_TOL, check_generator
 
 
@@ -84,6 +85,10 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         g = nullspace_design(mi_design, rdim=1, poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol,
                              FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol,
                              minimal=minimal, basis=how, keep_stable_poles=keep_stable_poles)
+        if extra:
+            g = _cover_faults(mi, g, keep, place={"poles": poles, "sdeg": sdeg, "smarg": smarg,
+                                                  "keep_stable_poles": bool(keep_stable_poles)},
+                              freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol)
         return ResidualGenerator(g.Q, model, "structured", info=g.info)
 
     from ..analysis import row_test
@@ -128,6 +133,31 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         check(bank.members, raise_error=True)  # raises the DesignError naming every failed condition
     bank.info["decoupling_kinds"] = [g.info.get("decoupling_kind", "exact") for g in bank.members]
     return bank
+
+
+def _cover_faults(model: FDIModel, gen: ResidualGenerator, required: list[str], *, place: dict, freqs, FDtol,
+                  FDGainTol, smarg, dec_tol) -> ResidualGenerator:
+    """Make a row designed without the faults outside the structure stable on every fault channel.
+
+    A row is designed on the model reduced to the faults it requires (the others are don't-care),
+    so the stable factorisation of its internal form (:func:`.coprime.stable_internal_form`)
+    covered only those; the bank is judged on ``R = Q·Ge`` over all faults, where a don't-care
+    fault's unstable or marginal pole stays in ``Q·Gf_j``. Factorising the whole ``[Q R]`` of
+    ``model`` (all its faults) moves it: ``Q ← M·Q`` keeps the decoupled blocks zero and every
+    visible fault visible (Varga 2017, Procedure EFDI with ``glcf`` on the full internal form).
+    The row is then normalised and judged again over its ``required`` faults.
+    """
+    Q, moved = stable_internal_form(model, gen.Q, **place)
+    if not moved:
+        return gen
+    info = dict(gen.info)
+    info["internal_form"] = {**dict(info.get("internal_form") or {}), **moved, "covers": "all faults of the model"}
+    info["order"] = int(Q.n)
+    out = ResidualGenerator(Q, model, gen.method, info=info)
+    check_generator(out, decouple=("u", "d"), block=True, faults=required, freqs=freqs, FDtol=FDtol,
+                    FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol)
+    out.info["poles"] = np.asarray(out.Q.poles()).tolist()
+    return out
 
 
 def _faults_of_kind(model: FDIModel, kind: str) -> list[str]:

@@ -61,7 +61,7 @@ import scipy.linalg as sla
 
 from ..errors import DesignError
 from ..generator import ResidualGenerator
-from ..linalg import single_blas_thread
+from ..linalg import ordered_schur, single_blas_thread
 from ..lti import LTI, blockdiag, frequency_grid, vstack
 from ..model import FDIModel
 from ._basis import check_poles, pole_chooser
@@ -215,7 +215,7 @@ def _drop_cancelled(sys: LTI, margin: float, tol: float) -> LTI:
     if not n or _stable(sys, margin, sys.dt):
         return sys
     good = (lambda re, im: np.hypot(re, im) < margin) if sys.dt else (lambda re, im: re < margin)
-    T, Z, k = sla.schur(sys.A, output="real", sort=good)
+    T, Z, k = ordered_schur(sys.A, good)
     if k == n:
         return sys
     A11, A12, A22 = T[:k, :k], T[:k, k:], T[k:, k:]
@@ -248,7 +248,7 @@ def _cancel_plant_modes(model: FDIModel, Q: LTI, margin: float, tol: float = 1e-
     if not n or not p:
         return Q
     good = (lambda re, im: np.hypot(re, im) < margin) if model.dt else (lambda re, im: re < margin)
-    T, Z, k = sla.schur(model.A, output="real", sort=lambda re, im: not good(re, im))
+    T, Z, k = ordered_schur(model.A, lambda re, im: not good(re, im))
     if k == 0:
         return Q
     CV, Au = model.C @ Z[:, :k], T[:k, :k]

@@ -40,7 +40,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import DesignError
-from ..linalg import EPS
+from ..linalg import EPS, ordered_schur
 from ..lti import LTI
 from ..model import FDIModel
 
@@ -215,7 +215,7 @@ def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good) -> tuple
     spare = abs(last) if dt else last.real  # a 2×2 block may need one target more than counted
     moved = 0
     for _ in range(n):
-        T, Z, kgood = sla.schur(a + b @ F, output="real", sort=good)
+        T, Z, kgood = ordered_schur(a + b @ F, good)
         if kgood == n:
             break
         size = 2 if n - kgood >= 2 and abs(T[n - 1, n - 2]) > 0 else 1

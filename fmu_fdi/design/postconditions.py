@@ -169,12 +169,27 @@ def _freq_values(model, Q: LTI, freqs) -> tuple[np.ndarray, np.ndarray]:
 
 def _r_poles(model, Q: LTI, smarg: float) -> np.ndarray:
     """Poles of ``R = Q Ge`` outside the margin that are plant modes (Q's own are judged on Q):
-    the eigenvalues of the violating part :func:`margin_reduced` keeps."""
+    the eigenvalues of the violating part :func:`margin_reduced` keeps.
+
+    The blocks ``R_w``, ``R_f`` are judged against ``smarg`` (they are the internal form the design
+    factorises, :func:`.coprime.internal_form_realisation`). The decoupled blocks ``R_u``, ``R_d``
+    are judged by their leakage (≤ ``dec_tol``) and, for their poles, only against the stability
+    boundary itself (:func:`default_smarg`, or ``smarg`` if looser): a stable plant mode slower
+    than ``smarg`` that only u or d excite decays with a coupling below ``dec_tol`` (CS2: a static
+    row decoupling u and d exactly was refused for the plant's pair at -0.0023 ± 0.052j with
+    smarg = -0.05, and a higher-order row returned), while an unstable or marginal one would make
+    even a rounding-size coupling diverge or drift.
+    """
     Ge = model.augmented()
     if not Ge.n or not np.any(outside_margin(Ge.poles(), model.dt, smarg)):
         return np.zeros(0, complex)
-    _, k = margin_reduced(Q @ Ge, smarg, parts=True)
-    return k
+    sl = model.group_slices()
+    found = []
+    for cols, margin in ((np.arange(sl["w"].start, sl["f"].stop), smarg),
+                         (np.arange(sl["u"].start, sl["d"].stop), max(smarg, default_smarg(model.dt)))):
+        if cols.size and np.any(outside_margin(Ge.poles(), model.dt, margin)):
+            found.append(margin_reduced(Q @ Ge[:, cols], margin, parts=True)[1])
+    return np.concatenate(found) if found else np.zeros(0, complex)
 
 
 def internal_figures(gen, groups=None, freqs=None) -> dict:
