@@ -258,8 +258,8 @@ def test_a_tampered_fmu_refuses_its_design_as_shipped(tmp_path, design):
                 data = json.dumps(d).encode()
             zo.writestr(item, data)
     res = subprocess.run([sys.executable, "-m", "fmu_fdi", "simulate", "--plant", str(bad), "--stop", "0.5",
-                          "--step", str(TS), "-o", str(tmp_path / "out.csv")], capture_output=True, text=True,
-                         timeout=300)
+                          "--step", str(TS), "--allow-unconnected", "-o", str(tmp_path / "out.csv")],
+                         capture_output=True, text=True, timeout=300)
     assert res.returncode == 1, res.stderr
     assert "failed to initialise" in res.stderr
     assert "evaluation[0].evaluator.window must be an integer in [1, 100000]" in res.stderr
