@@ -104,12 +104,16 @@ def resolve(d: dict, base, source: str, error: type[Exception]) -> dict:
     out["matrices"] = dict(d.get("matrices") or {})
     out["faults"] = [dict(f) if isinstance(f, dict) else f for f in d.get("faults", [])]
     try:
-        with np.load(path, allow_pickle=False) as npz:
-            for where, (container, key) in refs:
-                target = out["matrices"] if container is None else out["faults"][container]
-                target[key] = _entry(npz, target[key], path, f"{source}: {where}", error)
-    except (zipfile.BadZipFile, OSError, EOFError) as exc:  # a digest collision aside: a sidecar never valid
-        raise error(f"{source}: its sidecar {path} is not a valid .npz: {exc}") from None
+        npz = np.load(path, allow_pickle=False)
+    except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:  # not a zip: np.load would try a pickle
+        raise error(f"{source}: its sidecar {path} is not a valid .npz (a zip of .npy arrays): "
+                    f"{str(exc).splitlines()[0][:120]}") from None
+    if not isinstance(npz, np.lib.npyio.NpzFile):  # a single .npy array
+        raise error(f"{source}: its sidecar {path} is not a valid .npz (a zip of .npy arrays): it is one .npy array")
+    with npz:
+        for where, (container, key) in refs:
+            target = out["matrices"] if container is None else out["faults"][container]
+            target[key] = _entry(npz, target[key], path, f"{source}: {where}", error)
     return out
 
 
@@ -141,6 +145,8 @@ def _entry(npz, ref: dict, path: Path, where: str, error: type[Exception]) -> np
     except ValueError as exc:  # an object array: loading it would unpickle
         raise error(f"{where}: array {key!r} of the sidecar {path} cannot be read without pickle ({exc}); "
                     f"sidecar arrays are float64 data") from None
+    except (OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise error(f"{where}: array {key!r} of the sidecar {path} is damaged: {exc}") from None
     if value.dtype != np.dtype("<f8") and value.dtype != np.dtype(">f8"):
         raise error(f"{where}: array {key!r} of the sidecar {path} is {value.dtype}, expected float64")
     if value.shape != tuple(shape):
