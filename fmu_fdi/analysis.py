@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .design._basis import normal_rank
+from .design._basis import normal_rank, sample_values, sampled_rank
 from .errors import DesignError
 from .generator import ResidualGenerator
 from .lti import LTI, frequency_grid
@@ -193,11 +193,12 @@ def detectability(model: FDIModel, freqs=None) -> dict[str, dict]:
     rank condition on the frequency responses).
     """
     G = model.lti("d", "f")
-    rd = normal_rank(model.lti("d")) if model.nd else 0
+    values = sample_values(G)  # the ranks below are of columns of these values
+    rd = sampled_rank(values, range(model.nd)) if model.nd else 0
     out = {}
     for spec in model.faults:
         cols = list(range(model.nd)) + list(model.nd + np.arange(model.nf)[spec.columns])
-        rdf = normal_rank(G[:, cols])
+        rdf = sampled_rank(values, cols)
         entry = {"detectable": rdf > rd, "rank_Gd": rd, "rank_Gd_Gf": rdf}
         if freqs is not None:
             strong = {}
@@ -218,6 +219,7 @@ def isolability(model: FDIModel) -> dict:
     see i but not j. ``fully_isolable`` is True when the structure matrix I is
     achievable: ``rank [Gd Gf] = rank Gd + Σ_j rank Gf_j``."""
     G = model.lti("d", "f")
+    values = sample_values(G)  # every rank below is of columns of these values
     nd = model.nd
     cols = [list(nd + np.arange(model.nf)[f.columns]) for f in model.faults]
     k = len(model.faults)
@@ -227,9 +229,9 @@ def isolability(model: FDIModel) -> dict:
             if i == j:
                 continue
             base = list(range(nd)) + cols[j]
-            M[i, j] = normal_rank(G[:, base + cols[i]]) > normal_rank(G[:, base])
-    rd = normal_rank(model.lti("d")) if nd else 0
-    full = normal_rank(G) == rd + sum(normal_rank(G[:, c]) for c in cols) if k else True
+            M[i, j] = sampled_rank(values, base + cols[i]) > sampled_rank(values, base)
+    rd = sampled_rank(values, range(nd)) if nd else 0
+    full = sampled_rank(values) == rd + sum(sampled_rank(values, c) for c in cols) if k else True
     return {"faults": model.fault_names, "matrix": M, "fully_isolable": bool(full)}
 
 

@@ -15,7 +15,7 @@ from typing import Iterable, Sequence
 import numpy as np
 import scipy.linalg as sla
 
-from .linalg import EPS, is_finite
+from .linalg import EPS, is_finite, shifted_hessenberg_solve
 
 
 def _as2d(X, shape_if_empty: tuple[int, int], name: str) -> np.ndarray:
@@ -137,9 +137,43 @@ class LTI:
         """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         out = np.empty((omega.size, self.p, self.m), dtype=complex)
-        if self.n == 0:
+        finite = np.ones(omega.size, bool) if self.is_discrete else np.isfinite(omega)
+        out[~finite] = self.D
+        if np.any(finite):
+            out[finite] = self.values(self.freq_points(omega[finite]), where="frequencies")
+        return out
+
+    def values(self, lams, where: str = "points") -> np.ndarray:
+        """Transfer matrix ``C (lam I - A)^{-1} B + D`` at complex points: shape (len, p, m).
+
+        One Hessenberg reduction ``A = Z H Zᵀ`` serves every point, each then an O(n²)
+        structured solve (:func:`fmu_fdi.linalg.shifted_hessenberg_solve`; Laub 1981) instead
+        of a dense O(n³) one. Points where ``lam I - A`` is singular to working precision
+        (reciprocal condition below eps, as LAPACK's dense solvers warn) are reported in one
+        :class:`scipy.linalg.LinAlgWarning` with their count; an exactly singular point raises
+        :class:`numpy.linalg.LinAlgError`.
+        """
+        lams = np.atleast_1d(np.asarray(lams, dtype=complex))
+        out = np.empty((lams.size, self.p, self.m), dtype=complex)
+        if self.n == 0 or lams.size == 0:
             out[:] = self.D
             return out
+        H, Z = sla.hessenberg(self.A, calc_q=True)
+        Bh = Z.T @ self.B
+        Ch = self.C @ Z
+        near = []
+        for k, lam in enumerate(lams):
+            X, rcond = shifted_hessenberg_solve(H, lam, Bh)
+            out[k] = Ch @ X + self.D
+            if rcond < EPS:
+                near.append((lam, rcond))
+        if near:
+            warnings.warn(f"frequency response of an order-{self.n} realisation: at {len(near)} of {lams.size} "
+                          f"{where} lam I - A is singular to working precision (a pole on or next to the "
+                          f"frequency axis, e.g. one a non-minimal realisation cancels); the values there are "
+                          f"unreliable (first: lam = {near[0][0]:.6g}, reciprocal condition {near[0][1]:.3g})",
+                          sla.LinAlgWarning, stacklevel=3)
+        return out
         # One Hessenberg reduction makes every frequency an O(n^2) solve.
         H, Z = sla.hessenberg(self.A, calc_q=True)
         Bh = (Z.T @ self.B).astype(complex)

@@ -20,15 +20,19 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from . import _schema as S
+from . import sidecar
 from ._schema import check_format, check_keys, parse, read_text
 from .faults import FaultSpec, ModelError, _matrix, check_name, component_fault
 from .lti import LTI
 from .progress import log, set_stage
 
 FORMAT = "fmu-fdi-model/1"
+#: the format of a model file whose matrices are in a binary sidecar (:mod:`fmu_fdi.sidecar`);
+#: files without one are still written as ``FORMAT`` and both are read
+FORMAT_SIDECAR = "fmu-fdi-model/2"
 GROUPS = ("u", "d", "w", "f")
 _TOP_KEYS = {"format", "name", "dt", "signals", "units", "matrices", "faults", "description", "operating_point",
-             "provenance", "minimal", "minreal_tol"}
+             "provenance", "minimal", "minreal_tol", "arrays"}
 _MATRIX_KEYS = {"A", "Bu", "C", "Du", "Bd", "Dd", "Bw", "Dw"}
 
 
@@ -417,7 +421,10 @@ class FDIModel:
         return feedback(self, K, **kw)
 
     # ------------------------------------------------------------------ files
-    def to_dict(self) -> dict:
+    def to_dict(self, arrays: dict | None = None) -> dict:
+        """The model as the dict of a model file. With a dict ``arrays``, every matrix goes
+        into it (to be written to a sidecar, :mod:`fmu_fdi.sidecar`) and the returned dict
+        holds references ``{array, shape}`` in its place."""
         mats = {"A": self.A, "Bu": self.Bu, "C": self.C}
         for key in ("Du", "Bd", "Dd", "Bw", "Dw"):
             val = getattr(self, key)
@@ -429,9 +436,14 @@ class FDIModel:
             "dt": self.dt,
             "signals": {"u": list(self.u_names), "y": list(self.y_names), "d": list(self.d_names),
                         "w": list(self.w_names)},
-            "matrices": {k: np.asarray(v, float).tolist() for k, v in mats.items()},
+            "matrices": {k: _stored(v, k, arrays) for k, v in mats.items()},
             "faults": [f.to_dict() for f in self.faults],
         }
+        if arrays is not None:
+            for spec, fd in zip(self.faults, d["faults"]):
+                for key in ("Bf", "Df", "dA", "dB", "dC"):
+                    if key in fd:
+                        fd[key] = _stored(getattr(spec, key), f"faults.{spec.name}.{key}", arrays)
         if self.description:
             d["description"] = self.description
         if self.units:
@@ -444,11 +456,14 @@ class FDIModel:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "model", *, minimal: bool | None = None,
-                  minreal_tol: float | None = None) -> "FDIModel":
+                  minreal_tol: float | None = None, base=None) -> "FDIModel":
         """Build a model from the dict of a model file, checking every value's type first.
 
         ``minimal``/``minreal_tol`` given here override the file's keys of the same names.
+        ``base`` is the folder of the model file, where its sidecar (if any) lies.
         """
+        _check_format(d, source)
+        d = sidecar.resolve(d, base, source, ModelError)
         _check_model_dict(d, source)
         if minimal is None and minreal_tol is None:
             minimal, minreal_tol = d.get("minimal"), d.get("minreal_tol")
@@ -486,7 +501,8 @@ class FDIModel:
 
     @classmethod
     def from_file(cls, path, *, minimal: bool | None = None, minreal_tol: float | None = None) -> "FDIModel":
-        """Read a model file (``.json`` or ``.toml``, UTF-8; format ``fmu-fdi-model/1``).
+        """Read a model file (``.json`` or ``.toml``, UTF-8; format ``fmu-fdi-model/1``, or
+        ``fmu-fdi-model/2`` with its matrices in a binary sidecar checked by shape and SHA-256).
 
         An FMU, a binary or UTF-16 file, a syntax error, too deep nesting or a value of the
         wrong type is a one-line :class:`ModelError` naming the file and the key.
@@ -499,13 +515,29 @@ class FDIModel:
         if suffix not in (".json", ".toml"):
             raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
         return cls.from_dict(parse(text, suffix[1:], str(path), ModelError), source=str(path), minimal=minimal,
-                             minreal_tol=minreal_tol)
+                             minreal_tol=minreal_tol, base=path.parent)
 
-    def to_file(self, path) -> Path:
-        """Write the model as JSON or TOML (by extension); floats round-trip exactly."""
+    def to_file(self, path, sidecar: bool | None = None) -> Path:
+        """Write the model as JSON or TOML (by extension); floats round-trip exactly.
+
+        ``sidecar=True`` writes the matrices to ``<name>.npz`` (``plant.toml.npz``) beside the file (format
+        ``fmu-fdi-model/2``, :mod:`fmu_fdi.sidecar`), ``False`` keeps them in the text;
+        None (default) uses the sidecar when the matrices hold more than
+        :data:`fmu_fdi.sidecar.SIDECAR_MIN_ENTRIES` numbers in all.
+        """
         path = Path(path)
-        d = self.to_dict()
         suffix = path.suffix.lower()
+        if suffix not in (".json", ".toml"):
+            raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
+        if sidecar is None:
+            entries = sum(X.size for X in (self.A, self.Bu, self.C, self.Du, self.Bd, self.Dd, self.Bw, self.Dw,
+                                           self.Bf, self.Df))
+            sidecar = entries > _sidecar.SIDECAR_MIN_ENTRIES
+        arrays: dict | None = {} if sidecar else None
+        d = self.to_dict(arrays)
+        if arrays is not None:
+            d["format"] = FORMAT_SIDECAR
+            d["arrays"] = _sidecar.write(_sidecar.sidecar_path(path), arrays)
         if suffix == ".json":
             text = json.dumps(d, indent=2)
         elif suffix == ".toml":
@@ -514,6 +546,19 @@ class FDIModel:
             raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
         path.write_text(text, encoding="utf-8")
         return path
+
+
+_sidecar = sidecar  # to_file's argument of the same name hides the module
+
+
+def _stored(value, name: str, arrays: dict | None):
+    """A matrix as written to a model file: a list of rows, or with ``arrays`` (sidecar
+    mode) the reference to the entry ``name`` added to ``arrays``."""
+    value = np.asarray(value, float)
+    if arrays is None:
+        return value.tolist()
+    arrays[name] = value
+    return sidecar.reference(name, value)
 
 
 # ---------------------------------------------------------------- the model's own algebra
@@ -638,6 +683,8 @@ def _toml_value(v) -> str:
         return repr(float(v)) if isinstance(v, float) else str(v)
     if isinstance(v, str):
         return json.dumps(v)  # a JSON string is a valid TOML basic string
+    if isinstance(v, dict):  # a sidecar reference {array, shape}: an inline table
+        return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
     if isinstance(v, list) and v and isinstance(v[0], list):
         # A matrix: one row per line, so the file reads like the matrix it holds.
         return "[\n    " + ",\n    ".join(_toml_value(row) for row in v) + ",\n]"
@@ -652,7 +699,7 @@ def _toml_dumps(d: dict) -> str:
     for key, val in d.items():
         if not isinstance(val, (dict, list)):
             lines.append(f"{key} = {_toml_value(val)}")
-    for key in ("signals", "units", "operating_point", "provenance", "matrices"):
+    for key in ("arrays", "signals", "units", "operating_point", "provenance", "matrices"):
         if key in d:
             lines.append(f"\n[{key}]")
             lines.extend(f"{k} = {_toml_value(v)}" for k, v in d[key].items())
@@ -747,10 +794,23 @@ def _sanitize(label: str) -> str:
 _FAULT_KEYS = {"name", "kind", "description", "input", "output", "Bf", "Df", "dA", "dB", "dC"}
 
 
+def _check_format(d, source: str) -> None:
+    """``format`` is one this version reads; ``arrays`` (a sidecar) only with ``fmu-fdi-model/2``."""
+    if isinstance(d, dict) and d.get("format") == FORMAT_SIDECAR:
+        return
+    if isinstance(d, dict) and d.get("format") not in (None, FORMAT):
+        raise ModelError(f"{source}: unsupported format {d['format']!r}; this version reads {FORMAT!r} and "
+                         f"{FORMAT_SIDECAR!r} (matrices in a sidecar)")
+    check_format(d, FORMAT, source, ModelError)
+    if "arrays" in d:
+        raise ModelError(f"{source}: a sidecar ([arrays]) needs format = {FORMAT_SIDECAR!r}, got {FORMAT!r}")
+
+
 def _check_model_dict(d, source: str) -> None:
     """Types of every value of a model file, before anything is converted (nothing is
-    coerced: ``dt = "0.5"``, ``dt = true`` or ``"1e-3"`` in a matrix are errors)."""
-    check_format(d, FORMAT, source, ModelError)
+    coerced: ``dt = "0.5"``, ``dt = true`` or ``"1e-3"`` in a matrix are errors). Matrices
+    read from a sidecar arrive as float64 arrays already checked entry by entry."""
+    _check_format(d, source)
     S.check_depth(d, source, ModelError)
     check_keys(d, (), _TOP_KEYS, source, ModelError)
     minreal_option(d.get("minimal"), d.get("minreal_tol"), f"{source}: ")
@@ -788,13 +848,18 @@ def _check_model_dict(d, source: str) -> None:
             raise ModelError(f"{source}: matrix {key} is required")
     if sig.get("u") and "Bu" not in mats:
         raise ModelError(f"{source}: matrix Bu is required when there are inputs u")
-    n = len(S.array(mats["A"], f"{source}: matrix A", ModelError))
+    A = mats["A"]
+    n = len(A) if isinstance(A, np.ndarray) else len(S.array(A, f"{source}: matrix A", ModelError))
     p, m = len(sig["y"]), len(sig.get("u", []))
     nd, nw = len(sig.get("d", [])), len(sig.get("w", []))
     shapes = {"A": (n, n), "Bu": (n, m), "C": (p, n), "Du": (p, m), "Bd": (n, nd), "Dd": (p, nd),
               "Bw": (n, nw), "Dw": (p, nw)}
     for key, value in mats.items():
         rows, cols = shapes[key]
+        if isinstance(value, np.ndarray):
+            if value.shape != (rows, cols):
+                raise ModelError(f"{source}: matrix {key} must be {rows}x{cols}, got shape {value.shape}")
+            continue
         S.matrix(value, f"{source}: matrix {key}", ModelError, cols=cols)
         if len(value) != rows and not (not value and cols == 0):
             raise ModelError(f"{source}: matrix {key} must be {rows}x{cols}, got {len(value)} rows")
@@ -814,6 +879,8 @@ def _check_model_dict(d, source: str) -> None:
         for key in ("Bf", "Df", "dA", "dB", "dC"):
             if key in f:
                 value = f[key]
+                if isinstance(value, np.ndarray):
+                    continue  # from the sidecar: float64, finite; the fault checks its shape
                 if isinstance(value, list) and value and not isinstance(value[0], list):
                     S.vector(value, f"{where}: {key}", ModelError)  # one column written as a list
                 else:

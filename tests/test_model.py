@@ -69,7 +69,7 @@ def test_validation_names_the_offending_item(kwargs, message):
 
 
 @pytest.mark.parametrize("edit, message", [
-    (lambda d: d.update(format="fmu-fdi-model/2"), "unsupported format"),
+    (lambda d: d.update(format="fmu-fdi-model/3"), "unsupported format"),
     (lambda d: d.pop("format"), "missing key 'format'"),
     (lambda d: d.update(colour="red"), "unknown keys"),
     (lambda d: d["matrices"].update(Bx=[[1]]), "unknown matrices"),

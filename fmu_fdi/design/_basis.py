@@ -93,17 +93,35 @@ def _block_toeplitz(markov: list[np.ndarray], s: int) -> np.ndarray:
 def normal_rank(G: LTI, rtol: float | None = None, points: int = 3, seed: int = 0, atol: float = 0.0) -> int:
     """Normal rank of a transfer matrix from its values at random complex points
     (singular values above ``max(rtol·σ_max, atol)`` count)."""
+    return sampled_rank(sample_values(G, points, seed), rtol=rtol, atol=atol)
+
+
+def sample_values(G: LTI, points: int = 3, seed: int = 0) -> np.ndarray:
+    """``G(λ_k)`` at the ``points`` random complex points of :func:`normal_rank`: shape
+    (points, p, m). The points depend only on A (its spectral radius scales them), so the
+    values of all columns at once serve the normal rank of every column subset
+    (:func:`sampled_rank`): one eigenvalue problem and one Hessenberg form for them all."""
     if G.m == 0 or G.p == 0:
-        return 0
+        return np.zeros((0, G.p, G.m), complex)
     rng = np.random.default_rng(seed)
-    scale = max(1.0, float(np.max(np.abs(G.poles()), initial=0.0)))
-    best = 0
+    scale = 1.0 if G.is_discrete else max(1.0, float(np.max(np.abs(G.poles()), initial=0.0)))
+    lams = []
     for _ in range(points):
         lam = scale * (rng.uniform(0.5, 2.0) + 1j * rng.uniform(0.5, 2.0))
         if G.is_discrete:
             lam = np.exp(1j * rng.uniform(0.3, 2.8)) * rng.uniform(1.1, 1.5)
-        best = max(best, rank(G.evalfr(lam), rtol, atol))
-    return best
+        lams.append(lam)
+    return G.values(lams)
+
+
+def sampled_rank(values: np.ndarray, cols=None, rtol: float | None = None, atol: float = 0.0) -> int:
+    """Normal rank of the columns ``cols`` (default all) of a transfer matrix from its
+    values (:func:`sample_values`): the largest rank over the points."""
+    if cols is not None:
+        values = values[:, :, list(cols)]
+    if values.size == 0:
+        return 0
+    return max(rank(H, rtol, atol) for H in values)
 
 
 class ParityData:

@@ -63,7 +63,7 @@ def row_responses(rows, basis: NullspaceBasis, Ge_vals: np.ndarray, lam: np.ndar
 
 
 def _eval_points(G: LTI, lam: np.ndarray) -> np.ndarray:
-    return np.stack([G.evalfr(l) for l in lam])
+    return G.values(lam)  # one Hessenberg form of A for all points
 
 
 def detectability_by_rows(model: FDIModel, basis: NullspaceBasis, FDtol: float) -> np.ndarray:

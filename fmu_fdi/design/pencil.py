@@ -64,6 +64,18 @@ def _rank(s: np.ndarray, tol: float) -> int:
     return int(np.sum(s > tol))
 
 
+def _rotate(U: np.ndarray, sl: slice, a: np.ndarray, rows=(), cols=()) -> None:
+    """In place, with ``Z`` the identity whose block ``(sl, sl)`` is ``U``: ``a ← Zᵀ a Z``,
+    each of ``rows`` ``← Zᵀ X``, each of ``cols`` ``← X Z`` — only the rows/columns in ``sl``
+    change, so a staircase step costs O(n²·|sl|) instead of two dense n × n products."""
+    a[sl, :] = U.T @ a[sl, :]
+    a[:, sl] = a[:, sl] @ U
+    for X in rows:
+        X[sl, :] = U.T @ X[sl, :]
+    for X in cols:
+        X[:, sl] = X[:, sl] @ U
+
+
 def controllable_staircase(a: np.ndarray, b: np.ndarray, tol: float):
     """Orthogonal controllability staircase of ``(a, b)``: ``(T, taus)``.
 
@@ -83,10 +95,8 @@ def controllable_staircase(a: np.ndarray, b: np.ndarray, tol: float):
         if tau == 0:
             break
         # rotate the remaining coordinates so that the first tau rows carry the block
-        Z = np.eye(n)
-        Z[start:, start:] = U
-        a = Z.T @ a @ Z
-        T = T @ Z
+        # (Z = diag(I, U): only the trailing rows/columns change, O(n²·(n - start)))
+        _rotate(U, slice(start, n), a, rows=(), cols=(T,))
         taus.append(tau)
         blk = a[start + tau:, start:start + tau]
         start += tau
@@ -368,9 +378,7 @@ def chain_ordered(a: np.ndarray, b: np.ndarray, tol: float) -> tuple[np.ndarray,
     for j in range(len(taus) - 2, -1, -1):  # RQ of A_{j+1,j} = [0 R] Qᵀ, block j rotated by Q, backwards
         rows, cols = slice(starts[j + 1], starts[j + 2]), slice(starts[j], starts[j + 1])
         _, Q = sla.rq(at[rows, cols], mode="full")
-        Z = np.eye(n)
-        Z[cols, cols] = Q.T
-        at, bt, T = Z.T @ at @ Z, Z.T @ bt, T @ Z
+        _rotate(Q.T, cols, at, rows=(bt,), cols=(T,))
     V = np.eye(k)
     if taus:
         _, Q = sla.rq(bt[: taus[0]], mode="full")  # b_1 = [0 R] Q: inputs Qᵀ, the k - τ_1 static ones first
@@ -406,9 +414,7 @@ def row_cover(a, b, c, d, i: int, tol: float):
                 U, s, _ = sla.svd(part, full_matrices=True)
                 rho = _rank(s, tol)
                 if rho:  # rotate rows/cols ≥ r0 only: the source columns (< r0 for a) are not touched
-                    Z = np.eye(n)
-                    Z[r0:, r0:] = U
-                    a, bb, c = Z.T @ a @ Z, Z.T @ bb, c @ Z
+                    _rotate(U, slice(r0, n), a, rows=(bb,), cols=(c,))
             step.append((r0, rho, is_b1))
             r0 += rho
         if step[0][1] + step[1][1] == 0:

@@ -39,8 +39,12 @@ def check_depth(value, where: str, error: type[Exception], limit: int = MAX_DEPT
             raise error(f"{where}: values nest deeper than {limit} levels")
         if isinstance(node, dict):
             stack.extend((v, depth + 1) for v in node.values())
-        elif isinstance(node, (list, tuple)):
+        elif isinstance(node, (list, tuple)) and not _LEAF_TYPES.issuperset(map(type, node)):
+            # (a row of numbers, the bulk of a large file, is passed over at C speed)
             stack.extend((v, depth + 1) for v in node if isinstance(v, (list, tuple, dict)))
+
+
+_LEAF_TYPES = frozenset({int, float, str, bool, type(None)})
 
 
 def type_name(value) -> str:
