@@ -20,6 +20,7 @@ import json
 import multiprocessing
 import signal
 import sys
+import time
 
 import numpy as np
 
@@ -73,25 +74,21 @@ def run_model_child(args: argparse.Namespace, timeout: float = DEFAULT_TIMEOUT) 
     proc = ctx.Process(target=_child_main, args=(request, send), daemon=True, name="fmu-fdi-model-plant")
     proc.start()
     send.close()  # the child holds the only write end: its death is an end of file here
+    deadline = time.monotonic() + timeout
     try:
-        if not receive.poll(timeout):
-            raise ModelError(f"{args.plant}: the plant did not finish within {timeout:g} s (--timeout); it was "
-                             f"stopped: a step that never returns, or an experiment longer than the limit "
-                             f"(raise --timeout)")
-        try:
-            reply = json.loads(receive.recv_bytes().decode())
-        except EOFError:
-            proc.join(5.0)
-            code = proc.exitcode
-            if code is not None and code < 0:
-                try:
-                    name = signal.Signals(-code).name
-                except ValueError:
-                    name = f"signal {-code}"
-                raise ModelError(f"{args.plant}: the plant FMU crashed ({name}) while it was modelled; no model "
-                                 f"was written") from None
-            raise ModelError(f"{args.plant}: the plant FMU ended the process (exit code {code}) before a model "
-                             f"was made; no model was written") from None
+        while True:  # lines the child prints, then its reply
+            if not receive.poll(max(deadline - time.monotonic(), 0.0)):
+                raise ModelError(f"{args.plant}: the plant did not finish within {timeout:g} s (--timeout); it was "
+                                 f"stopped: a step that never returns, or an experiment longer than the limit "
+                                 f"(raise --timeout)")
+            try:
+                reply = json.loads(receive.recv_bytes().decode())
+            except EOFError:
+                raise ModelError(_ended(args.plant, proc)) from None
+            if "out" not in reply:
+                break
+            sys.stdout.write(reply["out"])
+            sys.stdout.flush()
     finally:
         if proc.is_alive():
             proc.kill()
@@ -100,6 +97,34 @@ def run_model_child(args: argparse.Namespace, timeout: float = DEFAULT_TIMEOUT) 
     if "error" in reply:
         raise ModelError(reply["error"])
     return reply["model"]
+
+
+def _ended(plant, proc) -> str:
+    """The one line for a child that ended without a reply: killed by a signal, or exited."""
+    proc.join(5.0)
+    code = proc.exitcode
+    if code is not None and code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        return f"{plant}: the plant FMU crashed ({name}) while it was modelled; no model was written"
+    return f"{plant}: the plant FMU ended the process (exit code {code}) before a model was made; no model was written"
+
+
+class _PipeOut:
+    """The child's stdout: each write goes to the parent, which prints it (in order, live)."""
+
+    def __init__(self, send):
+        self.send = send
+
+    def write(self, text: str) -> int:
+        if text:
+            self.send.send_bytes(json.dumps({"out": text}).encode())
+        return len(text)
+
+    def flush(self) -> None:
+        pass
 
 
 def model_work(args: argparse.Namespace) -> dict | None:
@@ -135,6 +160,7 @@ def _child_main(request: str, send) -> None:
     from ..cosim.errors import CoSimulationError
     from ..errors import BuildError, DesignError, InputFileError, OutputError
 
+    sys.stdout = _PipeOut(send)
     try:
         reply = {"model": model_work(argparse.Namespace(**json.loads(request)))}
     except KeyboardInterrupt:
@@ -145,6 +171,5 @@ def _child_main(request: str, send) -> None:
         reply = {"error": _one_line(exc.strerror or exc) + (f": {exc.filename}" if exc.filename else "")}
     except Exception as exc:  # the plant or a library under it failed in a way no check named
         reply = {"error": f"the plant could not be modelled: {type(exc).__name__}: {_one_line(exc)}"}
-    sys.stdout.flush()
     send.send_bytes(json.dumps(reply).encode())
     send.close()
