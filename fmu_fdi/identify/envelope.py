@@ -111,9 +111,8 @@ def envelope_cli(args, excitation, fixed: dict) -> int:
                               min_fit=args.min_fit, noise=args.noise)
     if tol is not None:
         mset.members = [m.minreal(tol) for m in mset.members]
-    from .plant_child import check_stable
+    from .plant_child import check_plant_models
 
-    for member in mset.members:
-        check_stable(member, getattr(args, "allow_unstable", False))
+    check_plant_models(args.plant, mset.members, getattr(args, "allow_unstable", False))
     print(f"wrote {mset.to_file(args.output)}: {len(mset)} members scheduled on {mset.schedule}")
     return 0

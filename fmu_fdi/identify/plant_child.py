@@ -36,10 +36,12 @@ DEFAULT_TIMEOUT = 600.0
 UNSTABLE_MARGIN = 1e-6
 
 
-def check_stable(model, allow_unstable: bool = False) -> None:
+def check_stable(model, allow_unstable: bool = False, closed_loop: bool = False) -> None:
     """Refuse ``model`` if a pole lies outside the stability region, unless the operating point
-    is an equilibrium (provenance ``trimmed``) or ``allow_unstable``. The error names the pole."""
-    if allow_unstable or model.provenance.get("trimmed") is True or model.A.size == 0:
+    is an equilibrium (provenance ``trimmed``), the plant closes its own loop (``closed_loop``:
+    model inputs that are FMU outputs; the loop settles though the open-loop model is unstable,
+    docs/plant-fmu.md) or ``allow_unstable``. The error names the pole."""
+    if allow_unstable or closed_loop or model.provenance.get("trimmed") is True or model.A.size == 0:
         return
     lam = np.linalg.eigvals(model.A)
     scale = max(1.0, float(np.max(np.abs(lam))))
@@ -60,6 +62,17 @@ def check_stable(model, allow_unstable: bool = False) -> None:
                      f"{region}, {how}; a drifting operating point is refused (docs/plant-fmu.md): choose an "
                      f"equilibrium, trim it (--trim), or give --allow-unstable if the plant is unstable and the "
                      f"point is an equilibrium")
+
+
+def check_plant_models(plant, models, allow_unstable: bool = False) -> None:
+    """:func:`check_stable` on each model of the plant FMU ``plant``, closed loop when a model
+    input is an FMU output."""
+    from fmpy import read_model_description
+
+    md = read_model_description(str(plant), validate=False)
+    fmu_outputs = {v.name for v in md.modelVariables if v.causality == "output"}
+    for model in models:
+        check_stable(model, allow_unstable, closed_loop=bool(set(model.u_names) & fmu_outputs))
 
 
 def run_model_child(args: argparse.Namespace, timeout: float = DEFAULT_TIMEOUT) -> dict | None:
@@ -148,7 +161,7 @@ def model_work(args: argparse.Namespace) -> dict | None:
                            validation_png=args.plot, record=args.record,
                            noise=None if args.noise == "none" else args.noise,
                            minimal=args.minimal, minreal_tol=args.minreal_tol, log=print)
-    check_stable(model, args.allow_unstable)
+    check_plant_models(args.plant, [model], args.allow_unstable)
     _report_minreal(model)
     return model.to_dict()
 
