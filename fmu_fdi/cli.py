@@ -255,26 +255,20 @@ def _plant_description(path):
 
 def _model(args) -> int:
     _check_model_options(args)
-    from .identify import Excitation, model_from_fmu
     from .identify.fmu_model import parse_values, summary
-    from .model import minreal_option
+    from .identify.plant_child import run_model_child
+    from .model import FDIModel, minreal_option
 
     # only checked here, before the excitation options (model_from_fmu applies them)
     minreal_option(args.minimal, args.minreal_tol)
-    exc = Excitation(signal=args.signal, amplitude=parse_values(args.amplitude, "--amplitude") or None,
-                     samples=args.samples, settle=args.settle, period=args.period, seed=args.seed)
-    if args.at_grid:  # several operating points: a model set (fmu_fdi/identify/envelope.py)
-        from .identify.envelope import envelope_cli
-
-        return envelope_cli(args, exc, parse_values(args.at, "--at"))
-    model = model_from_fmu(args.plant, args.inputs, args.outputs, args.disturbances or (),
-                           at=parse_values(args.at, "--at"), method=args.method, trim=args.trim,
-                           sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults, ts=args.ts,
-                           excite=args.excite, excitation=exc, order=args.order, min_fit=args.min_fit,
-                           validation_png=args.plot, record=args.record,
-                           noise=None if args.noise == "none" else args.noise,
-                           minimal=args.minimal, minreal_tol=args.minreal_tol, log=print)
-    _report_minreal(model)
+    parse_values(args.amplitude, "--amplitude"), parse_values(args.at, "--at")
+    if not args.at_grid:
+        check_output_path(args.output, (".toml", ".json"), "model file", error=ModelError)
+    # the plant runs in a child under the wall-clock limit: its crash, exit or hang is one line here
+    d = run_model_child(args, args.timeout)
+    if d is None:  # --at-grid: the child wrote the model set
+        return 0
+    model = FDIModel.from_dict(d, str(args.plant))
     print(f"wrote {model.to_file(args.output)}: {summary(model)}")
     return 0
 
@@ -794,6 +788,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="--at-grid points: every combination (product, default) or the axes walked together (path)")
     mo.add_argument("--schedule-on", nargs="+", metavar="NAME",
                     help="measured scheduling signal(s), model inputs or outputs (default: the grid's variables)")
+    mo.add_argument("--timeout", type=_positive_time, default=600.0, metavar="SECONDS",
+                    help="wall-clock limit of the plant work, which runs in a child process: a plant that "
+                         "hangs is stopped, one that crashes or exits is reported (default 600)")
+    mo.add_argument("--allow-unstable", action="store_true",
+                    help="accept a model with unstable poles: the plant is unstable and the operating point is an "
+                         "equilibrium (default: refused unless trimmed; docs/plant-fmu.md)")
     _minreal_options(mo)
     mo.set_defaults(func=_model)
 

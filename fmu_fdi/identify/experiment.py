@@ -216,6 +216,13 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
                 f"or move the operating point")
     def col(nm):
         return np.asarray(res[f"plant.{nm}"], float)
+    for nm in [*outputs, *(n for n in inputs if n not in fmu_inputs)]:  # every signal the model reads
+        bad = ~np.isfinite(col(nm))
+        if np.any(bad):
+            k = int(np.flatnonzero(bad)[0])
+            raise IdentificationError(f"{path}: the plant's output {nm!r} is {col(nm)[k]} at t = {t[k]:g} s "
+                                      f"(excitation {dict(zip(excite, amps))}): the plant FMU computes no number "
+                                      f"there; check the operating point and the amplitude")
     # sample k of the record: inputs held over [t_k, t_k+1), outputs at t_k
     rows = slice(n_settle, n_settle + N)
     u = np.column_stack([values[nm][rows] if nm in fmu_inputs and nm in values else
