@@ -491,6 +491,9 @@ KNOWN_BROKEN = {
          '|pole| = 1.0163 > the stability margin smarg = 1; R = Q·Ge keeps the p'),
     26: ("structured_bank: achievable request refused: row 5 [1, 1, 1, 1, 0] (decoupling ['fc']): (R "
          'stability, decoupling): R = Q·Ge keeps the plant pole(s) [2.153e-05] (largest R'),
+    28: ("dedicated_bank(sensor): achievable request refused: row 2 [0, 1] (decoupling ['fs1']): filter: largest "
+         'Re(pole) = -1.69362e-09 > the stability margin smarg = -1.49012e-08'),  # passed on bankfix; the merge
+    # with boeing/bigmodel leaves the row's filter a pole at ~0 that the margin refuses (found at integration)
     30: ('nullspace_design: achievable request refused: the real Schur form cannot be reordered (LAPACK dtrsen '
          'info = 1)'),  # integ: LinAlgError (sort condition); now a DesignError, the row still not designed
     31: ('nullspace_design: achievable request refused: nullspace design fails its post-conditions (stability, '
