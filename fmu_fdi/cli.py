@@ -26,9 +26,11 @@ import numpy as np
 
 from .cosim.errors import CoSimulationError
 from .errors import BuildError, DesignError, InputFileError, ModelError, OutputError
+from .errors import one_line as _one_line
 from .inputfiles import check_input_file
 from .outpath import check_output_path
 from .progress import Heartbeat, set_stage
+from .progress import report_minreal as _report_minreal
 
 METHODS = {
     # name: (design function, options it takes from the command line, one-line guide)
@@ -178,13 +180,6 @@ def _load_model(path, args=None):
                                minreal_tol=getattr(args, "minreal_tol", None))
     _report_minreal(model)
     return model
-
-
-def _report_minreal(model) -> None:
-    if model.reduction is not None:
-        n, nr, tol = model.reduction
-        print(f"model '{model.name}': minimal realisation removed {n - nr} of {n} states (relative tolerance "
-              f"{tol:.3g})")
 
 
 def _minreal_options(parser) -> None:
@@ -825,10 +820,6 @@ def main(argv=None) -> int:
         where = f": {exc.filename}" if exc.filename else ""
         print(f"fmu-fdi: error: {_one_line(exc.strerror or exc)}{where}", file=sys.stderr)
         return 2
-
-
-def _one_line(exc) -> str:
-    return " ".join(str(exc).split())
 
 
 if __name__ == "__main__":

@@ -19,3 +19,8 @@ class OutputError(ValueError):
 
 class InputFileError(ValueError):
     """A file given to read is missing, unreadable, binary, or not the kind of file expected."""
+
+
+def one_line(exc) -> str:
+    """An error's message on one line (the CLI's and the model child's replies)."""
+    return " ".join(str(exc).split())

@@ -103,3 +103,11 @@ class Heartbeat:
                   flush=True)
             self.reports += 1
             wait = self.every
+
+
+def report_minreal(model) -> None:
+    """Say what a minimal realisation removed from ``model`` (nothing when it was not reduced)."""
+    if model.reduction is not None:
+        n, nr, tol = model.reduction
+        print(f"model '{model.name}': minimal realisation removed {n - nr} of {n} states (relative tolerance "
+              f"{tol:.3g})")

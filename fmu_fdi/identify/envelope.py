@@ -111,7 +111,7 @@ def envelope_cli(args, excitation, fixed: dict) -> int:
                               min_fit=args.min_fit, noise=args.noise)
     if tol is not None:
         mset.members = [m.minreal(tol) for m in mset.members]
-    from .plant_child import check_plant_models
+    from .plant_stability import check_plant_models
 
     check_plant_models(args.plant, mset.members, getattr(args, "allow_unstable", False))
     print(f"wrote {mset.to_file(args.output)}: {len(mset)} members scheduled on {mset.schedule}")

@@ -8,7 +8,7 @@ identification (:func:`fmu_fdi.identify.envelope.model_from_fmu`) in a process s
 text (the model file's dict, :meth:`FDIModel.to_dict <fmu_fdi.model.FDIModel.to_dict>`): nothing
 the user sees is pickled.
 
-:func:`check_stable` refuses a model with a pole outside the stability region (Re λ > 0, or
+:func:`~fmu_fdi.identify.plant_stability.check_stable` refuses a model with a pole outside the stability region (Re λ > 0, or
 |λ| > 1 for a discrete model) unless its operating point is an equilibrium: a trimmed
 linearisation, or the user's word (``--allow-unstable``). An identified model of an unstable
 plant (one that does not close its own loop) describes a plant that never settled at the point.
@@ -22,70 +22,12 @@ import signal
 import sys
 import time
 
-import numpy as np
 
 from ..errors import ModelError
+from .plant_stability import check_plant_models
 
 #: default wall-clock limit of ``fmu-fdi model`` (--timeout), in seconds
 DEFAULT_TIMEOUT = 600.0
-
-#: relative margin beyond the stability boundary that counts as unstable: eigenvalues of a
-#: backward-stable eigensolver are exact for A + E with ||E|| ~ n eps ||A||; a pole
-#: on the boundary (an integrator) may land up to that far outside it (1e-6 leaves room for
-#: identification noise on an integrator well above eps)
-UNSTABLE_MARGIN = 1e-6
-
-#: an identified pole counts as unstable when its mode grows by more than e^0.0953 = 1.1 over the
-#: recorded run: a slower growth is within what the data tells from an integrator (Re λ = 0)
-GROWTH_OVER_RECORD = float(np.log(1.1))
-
-
-def check_stable(model, allow_unstable: bool = False, closed_loop: bool = False) -> None:
-    """Refuse ``model`` if a pole lies outside the stability region, unless the operating point
-    is an equilibrium (provenance ``trimmed``), the plant closes its own loop (``closed_loop``:
-    model inputs that are FMU outputs; the loop settles though the open-loop model is unstable,
-    docs/plant-fmu.md) or ``allow_unstable``. The error names the pole."""
-    if allow_unstable or closed_loop or model.provenance.get("trimmed") is True or model.A.size == 0:
-        return
-    lam = np.linalg.eigvals(model.A)
-    scale = max(1.0, float(np.max(np.abs(lam))))
-    if model.dt:  # discrete: |λ| > 1
-        excess = np.abs(lam) - 1.0
-        region = "outside the unit circle (|λ| > 1)"
-    else:
-        excess = lam.real
-        region = "in the right half-plane (Re λ > 0)"
-    k = int(np.argmax(excess))
-    margin = UNSTABLE_MARGIN * scale
-    prov = model.provenance
-    if "identification" in str(prov.get("method", "")) and prov.get("samples") and prov.get("sample_time"):
-        # identified: a growth rate the record cannot tell from an integrator's is no evidence of
-        # drift; a mode growing by e^(Re λ T) < 1.1 over the record length T (10 %) is within it
-        margin = max(margin, GROWTH_OVER_RECORD / (float(prov["samples"]) * float(prov["sample_time"])))
-        if model.dt:
-            margin = max(margin, GROWTH_OVER_RECORD / float(prov["samples"]))
-    if excess[k] <= margin:
-        return
-    p = lam[k]
-    how = ("identified from an experiment: the plant drifts away from the operating point, which is not an "
-           "equilibrium it settles at" if "identification" in str(model.provenance.get("method", ""))
-           else "linearised at a point that is not trimmed to an equilibrium")
-    raise ModelError(f"the model of {model.provenance.get('fmu', model.name)} has the pole {p.real:.6g}{p.imag:+.6g}j "
-                     f"{region}, {how}; a drifting operating point is refused (docs/plant-fmu.md): choose an "
-                     f"equilibrium, trim it (--trim), or give --allow-unstable if the plant is unstable and the "
-                     f"point is an equilibrium")
-
-
-def check_plant_models(plant, models, allow_unstable: bool = False) -> None:
-    """:func:`check_stable` on each model of the plant FMU ``plant``, closed loop when a model
-    input is an FMU output."""
-    from fmpy import read_model_description
-
-    md = read_model_description(str(plant), validate=False)
-    fmu_outputs = {v.name for v in md.modelVariables if v.causality == "output"}
-    for model in models:
-        check_stable(model, allow_unstable, closed_loop=bool(set(model.u_names) & fmu_outputs))
-
 
 def run_model_child(args: argparse.Namespace, timeout: float = DEFAULT_TIMEOUT) -> dict | None:
     """Run :func:`model_work` on ``args`` in a spawned child within ``timeout`` seconds.
@@ -155,7 +97,7 @@ class _PipeOut:
 def model_work(args: argparse.Namespace) -> dict | None:
     """The plant work of ``fmu-fdi model`` (in the child): the model's dict, or None after
     writing a model set (--at-grid)."""
-    from ..cli import _report_minreal
+    from ..progress import report_minreal
     from . import Excitation, model_from_fmu
     from .fmu_model import parse_values
 
@@ -174,16 +116,15 @@ def model_work(args: argparse.Namespace) -> dict | None:
                            noise=None if args.noise == "none" else args.noise,
                            minimal=args.minimal, minreal_tol=args.minreal_tol, log=print)
     check_plant_models(args.plant, [model], args.allow_unstable)
-    _report_minreal(model)
+    report_minreal(model)
     return model.to_dict()
 
 
 def _child_main(request: str, send) -> None:
     """Entry of the child: every error becomes a one-line reply; a plant that kills the process
     leaves no reply (the parent reads the exit status)."""
-    from ..cli import _one_line
     from ..cosim.errors import CoSimulationError
-    from ..errors import BuildError, DesignError, InputFileError, OutputError
+    from ..errors import BuildError, DesignError, InputFileError, OutputError, one_line
 
     sys.stdout = _PipeOut(send)
     try:
@@ -191,10 +132,10 @@ def _child_main(request: str, send) -> None:
     except KeyboardInterrupt:
         return
     except (ModelError, DesignError, BuildError, OutputError, InputFileError, CoSimulationError) as exc:
-        reply = {"error": _one_line(exc)}  # what the CLI reports of each in one line
+        reply = {"error": one_line(exc)}  # what the CLI reports of each in one line
     except OSError as exc:  # the file system said no (writing --record, --plot)
-        reply = {"error": _one_line(exc.strerror or exc) + (f": {exc.filename}" if exc.filename else "")}
+        reply = {"error": one_line(exc.strerror or exc) + (f": {exc.filename}" if exc.filename else "")}
     except Exception as exc:  # the plant or a library under it failed in a way no check named
-        reply = {"error": f"the plant could not be modelled: {type(exc).__name__}: {_one_line(exc)}"}
+        reply = {"error": f"the plant could not be modelled: {type(exc).__name__}: {one_line(exc)}"}
     send.send_bytes(json.dumps(reply).encode())
     send.close()
