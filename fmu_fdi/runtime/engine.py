@@ -47,6 +47,16 @@ class StepSizeError(ValueError):
     """The requested communication step cannot be served exactly; nothing was changed."""
 
 
+def sample_signals(u, y, nu: int, ny: int) -> tuple[list[float], list[float]]:
+    """One sample's inputs and outputs as float lists, or ValueError for vectors of the wrong
+    length (nothing has changed then); the one check of every runtime's ``advance``."""
+    u = list(map(float, u))
+    y = list(map(float, y))
+    if len(u) != nu or len(y) != ny:
+        raise ValueError(f"expected {nu} inputs and {ny} outputs, got {len(u)} and {len(y)}")
+    return u, y
+
+
 def output_names(n_residuals: int, n_groups: int) -> list[str]:
     return ([f"residual_{k + 1}" for k in range(n_residuals)] + [f"evaluation_{k + 1}" for k in range(n_groups)]
             + [f"threshold_{k + 1}" for k in range(n_groups)] + [f"alarm_{k + 1}" for k in range(n_groups)]
@@ -401,10 +411,7 @@ class DiagnoserRuntime:
         Raises StepSizeError for a step it cannot serve and ValueError for signal vectors of
         the wrong length; in both cases nothing has changed.
         """
-        u = list(map(float, u))
-        y = list(map(float, y))
-        if len(u) != self.nu or len(y) != self.ny:
-            raise ValueError(f"expected {self.nu} inputs and {self.ny} outputs, got {len(u)} and {len(y)}")
+        u, y = sample_signals(u, y, self.nu, self.ny)
         if h is not None and h != self.h:
             self.set_step(h)
         out = self.outputs

@@ -37,7 +37,7 @@ import math
 from . import schema as S
 from .design_check import FORMAT as MEMBER_FORMAT
 from .design_check import DesignCheckError, check_design
-from .engine import FAULT_DETECTED, INPUT_INVALID, NUMERIC_RESET, DiagnoserRuntime, StepSizeError
+from .engine import FAULT_DETECTED, INPUT_INVALID, NUMERIC_RESET, DiagnoserRuntime, StepSizeError, sample_signals
 
 SCHEDULED_FORMAT = "fmu-fdi-scheduled-design/1"
 #: most members a scheduled design may hold (each runs every sample)
@@ -303,10 +303,7 @@ class ScheduledRuntime:
 
     def advance(self, u, y, h: float | None = None) -> list:
         """Diagnose the sample (u, y) with every member; outputs in the order of :attr:`names`."""
-        u = list(map(float, u))
-        y = list(map(float, y))
-        if len(u) != self.nu or len(y) != self.ny:
-            raise ValueError(f"expected {self.nu} inputs and {self.ny} outputs, got {len(u)} and {len(y)}")
+        u, y = sample_signals(u, y, self.nu, self.ny)
         if h is not None and h != self.h:
             self.set_step(h)
         valid = self.members[0]._valid(u, y)  # §3: members share signals and valid ranges, one verdict
