@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import copy
 import json
-import re
 from pathlib import Path
 from typing import Iterable, Sequence
 
@@ -693,11 +692,6 @@ def parallel(first: FDIModel, second: FDIModel, *, name: str | None = None, mini
                     name=name or f"{first.name}_{second.name}", minimal=minimal, minreal_tol=minreal_tol)
 
 
-def _toml_key(k: str) -> str:
-    """A TOML key: bare when it can be (letters, digits, ``_``, ``-``), else quoted (``"x[1]"``)."""
-    return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else json.dumps(k)
-
-
 def _per_signal(table, seen: dict, what: str, one: str) -> dict:
     """A per-signal table of text (``units``, ``declared_types``): keys are signals of the model."""
     out = dict(table or {})
@@ -735,7 +729,7 @@ def _toml_dumps(d: dict) -> str:
     for key in ("arrays", "signals", "units", "declared_types", "operating_point", "provenance", "matrices"):
         if key in d:
             lines.append(f"\n[{key}]")
-            lines.extend(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in d[key].items())
+            lines.extend(f"{k} = {_toml_value(v)}" for k, v in d[key].items())
     for fault in d.get("faults", []):
         lines.append("\n[[faults]]")
         lines.extend(f"{k} = {_toml_value(v)}" for k, v in fault.items())

@@ -64,4 +64,4 @@ def refusal(var) -> str | None:
         return None
     return (f"has causality {causality}, variability {variability} and initial=\"{initial}\": the FMU "
             f"computes it during initialisation; FMI lets a master set before initialisation only "
-            f"parameters, inputs and variables declared initial=\"exact\" or \"approx\" (start values)")
+            f"parameters and inputs, and variables declared initial=\"exact\" or \"approx\" (start values)")
