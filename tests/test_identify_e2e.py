@@ -97,16 +97,18 @@ def _read_csv(path):
     return {name: np.array([float(r[j]) for r in rows[1:]]) for j, name in enumerate(rows[0])}
 
 
-def _from_fmu_alone(tmp_path, plant, inputs, outputs, *, inputs_csv, stop, t_fault, biases, evaluation="rms:20"):
+def _from_fmu_alone(tmp_path, plant, inputs, outputs, *, inputs_csv, stop, t_fault, biases, evaluation="rms:20",
+                    experiment=(), start=None):
     """model → design (defaults) → build native → simulate fault-free and each bias; returns the figures and
     asserts: no alarm in the fault-free run nor before any fault; every bias detected and isolated as its
-    sensor (the most frequent named verdict after onset)."""
+    sensor (the most frequent named verdict after onset). ``start(model)``: the plant's start values
+    (``--param``) from the identified model, so the plant starts at the diagnoser's operating point."""
     import re
 
     figures = {}
     model = tmp_path / "model.toml"
     out, figures["model_s"] = _cli("model", plant, "--inputs", *inputs, "--outputs", *outputs,
-                                   "--sensor-faults", "all", "-o", model)
+                                   "--sensor-faults", "all", *experiment, "-o", model)
     m = FDIModel.from_file(model)
     assert m.nw == len(outputs), "the identified model carries its noise model by default"
     # units of the plant FMU's variables carried into the model file (independent: the FMU's modelDescription)
@@ -125,6 +127,7 @@ def _from_fmu_alone(tmp_path, plant, inputs, outputs, *, inputs_csv, stop, t_fau
     fdi = tmp_path / "fdi.fmu"
     _, figures["build_s"] = _cli("build", design, "--target", "native", "-o", fdi)
     faults = m.fault_names
+    starts = [f"--param=plant.{k}={v!r}" for k, v in (start(m) if start else {}).items()]
     runs = [(None, 0.0)] + list(biases.items())
     figures["simulate_s"], figures["detect_s"], figures["isolate_s"], figures["false_alarms"] = [], {}, {}, 0
     for k, (y, size) in enumerate(runs):
@@ -132,7 +135,7 @@ def _from_fmu_alone(tmp_path, plant, inputs, outputs, *, inputs_csv, stop, t_fau
         extra = ["--fault", f"abrupt:plant.{y}:{t_fault}::{size}"] if y else []
         _, wall = _cli("simulate", "--plant", f"plant={plant}", "--diagnoser", f"fdi={fdi}", "--stop", stop,
                        "--step", ts, "--input", inputs_csv, "--order", "jacobi", "--param", f"plant.seed={100 + k}",
-                       *[a for n in outputs for a in ("--connect", f"plant.{n}=fdi.{n}")], *extra, "-o", res)
+                       *[a for n in outputs for a in ("--connect", f"plant.{n}=fdi.{n}")], *starts, *extra, "-o", res)
         figures["simulate_s"].append(wall)
         r = _read_csv(res)
         t, alarm, iso = r["time"], r["fdi.fault_detected"] > 0.5, r["fdi.isolated_fault"].astype(int)
@@ -181,5 +184,35 @@ def test_lateral_aircraft_from_plant_fmu_alone_noise_on_default_thresholds(tmp_p
     plant = plant_fmus.build("lateral_aircraft", tmp_path)
     doublets = tmp_path / "doublets.csv"
     doublets.write_text("time,u1,u2\n0,0,0\n5,0.1,0\n6,-0.1,0\n7,0,0\n10,0,0.1\n11,0,-0.1\n12,0,0\n")
+    # the sample time and length the automatic design chooses on an idle machine, given (the rest is still
+    # designed: pre-test, noise level, signal, amplitude): its wall-time budget (fmu_fdi/identify/design.py
+    # BUDGET, scaled by the pre-test's measured speed) makes the default length and sample time depend on the
+    # machine's load (a loaded run chose ts 0.06 s and was refused: r still moving after settling)
+    experiment = ["--ts", "0.04", "--samples", "14134"]
+    # the aircraft at trim is neutrally stable in roll (phi integrates p): its operating point is where the
+    # identification found it (phi -0.006 rad after the settle phase's noise), so the plant starts there, through
+    # its start-value parameters <y>_start (C = I: the states are the outputs); started at 0 instead, the bank
+    # sees a 0.006 rad step in phi at its first sample and alarms for the 20 samples of its RMS window
+    def start(m):
+        return {f"{y}_start": float(v) for y, v in zip(m.y_names, m.y0)}
+
     _from_fmu_alone(tmp_path, plant, ["u1", "u2"], ["beta", "phi", "p", "r"], inputs_csv=doublets, stop=30.0,
-                    t_fault=15.0, biases={"beta": 0.05, "phi": 0.05, "p": 0.05, "r": -0.05})
+                    t_fault=15.0, biases={"beta": 0.05, "phi": 0.05, "p": 0.05, "r": -0.05}, experiment=experiment,
+                    start=start)
+
+
+def test_docs_print_the_worked_example_these_tests_run():
+    """docs/plant-fmu.md's worked example is the pipeline the slow tests above run (same options, no --threshold,
+    native target, the diagnoser's step = the identification's ts of 4 s the DTS200 experiment chooses)."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "plant-fmu.md").read_text(encoding="utf-8")
+    assert "fmu-fdi model PLANT.fmu --inputs Q1 Q2 --outputs h1 h2 h3 --sensor-faults all -o plant.toml" in text
+    assert ("fmu-fdi design plant.toml --method dos --ts 4 --evaluation rms:20 --persistence 3/5 -o dos.json"
+            in text)
+    assert "fmu-fdi build dos.json --target native -o dos.fmu" in text
+    sim = text[text.index("fmu-fdi simulate --plant plant=PLANT.fmu"):]
+    sim = sim[:sim.index("```")]
+    for option in ("--diagnoser fdi=dos.fmu", "--stop 1500", "--step 4", "--input pumps.csv", "--order jacobi",
+                   "--fault abrupt:plant.h2:900::1.5"):
+        assert option in sim, option
