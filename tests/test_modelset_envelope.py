@@ -93,3 +93,39 @@ def test_grid_helpers_and_set_consistency():
     m3 = FDIModel.from_matrices([[-2.0]], [[1.0]], [[1.0], [1.0]])
     with pytest.raises(ModelError, match="same signals"):
         ModelSet([m1, m3], ["u0"])
+
+
+def test_settle_noise_is_measured_about_a_settling_transient():
+    """A member identified away from where the FMU starts settles from there: a noise-free run's
+    settle phase still holds the tail of that transient, which is no noise (issue 19: members 2-5
+    of the DTS200 envelope gained an innovation noise model from it, and their designs, thresholds
+    1/30 of member 1's, alarmed at the first switch)."""
+    from fmu_fdi.identify.validation import settle_noise_std
+
+    k = np.arange(1250.0)
+    rng = np.random.default_rng(19)
+    # two modes (z = 0.996 ~ tau 500 s at ts 2 s, z = 0.9), no noise: the plain std is the transient's
+    transient = 40.0 + 0.03 * 0.996 ** k + 0.01 * 0.9 ** k
+    z = np.column_stack([transient, 40.0 + 0.0 * k])
+    assert transient.std() > 1e-3
+    # an order-10 recursion predicts a 2-mode transient exactly: round-off, far below the 1e-9 of the
+    # output level that counts as noise (fmu_model: noise above round-off)
+    assert np.all(settle_noise_std(z) < 1e-9 * 40.0)
+    # white noise dominating: its plain std (computed here by numpy), whatever the recursion finds
+    # (to the round-off of the offset 40: 40 eps / 0.1 ~ 1e-13 relative)
+    white = rng.standard_normal((1250, 2)) * 0.1
+    assert np.allclose(settle_noise_std(40.0 + white), white.std(axis=0), rtol=1e-12, atol=0)
+    # coloured noise (AR(1), pole 0.95): its one-step error is sqrt(1 - 0.95²) = 31 % of its std, so
+    # the noise dominates and its size is the plain std (the innovation would understate it 3-fold)
+    from scipy.signal import lfilter
+
+    coloured = lfilter([1.0], [1.0, -0.95], rng.standard_normal(1250)) * 0.01
+    assert np.isclose(settle_noise_std(coloured[:, None])[0], coloured.std(), rtol=1e-12, atol=0)
+    # a transient with white noise 1e-5 about it: the noise, not the transient's spread. The least
+    # squares recursion's error is at least the innovation σ (less the (p+1)/N in-sample fit, which
+    # the N - 2p - 1 degrees of freedom restore; ± 2 % sampling) and at most that of the exact 2-mode
+    # recursion a = (λ1 + λ2, -λ1 λ2) = (1.896, -0.8964), σ sqrt(1 + 1.896² + 0.8964²) = 2.33 σ
+    sigma = 1e-5
+    noisy = transient + sigma * rng.standard_normal(1250)
+    est = settle_noise_std(noisy[:, None])[0]
+    assert 0.9 * sigma < est < 2.5 * sigma, est

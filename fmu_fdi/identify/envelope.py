@@ -108,7 +108,8 @@ def envelope_cli(args, excitation, fixed: dict) -> int:
                               schedule=args.schedule_on, fixed=fixed, progress=progress, method=args.method,
                               trim=args.trim, sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults,
                               ts=args.ts, excite=args.excite, excitation=excitation, order=args.order,
-                              min_fit=args.min_fit, noise=args.noise)
+                              min_fit=args.min_fit,
+                              noise=None if args.noise == "none" else args.noise)
     if tol is not None:
         mset.members = [m.minreal(tol) for m in mset.members]
     from .plant_stability import check_plant_models
