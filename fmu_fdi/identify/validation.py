@@ -152,9 +152,10 @@ def settle_noise_std(z, order: int = 10) -> np.ndarray:
     """Std per output of the noise in a settle record ``z`` (samples × outputs, constant inputs).
 
     A settling transient of at most ``order`` modes under a constant input is predicted exactly
-    by the linear recursion ``z_k = c + Σ_{i=1..p} a_i z_{k−i}`` (Prony; Ljung 1999, sec. 7.3),
-    noise is not. With ``e`` the RMS one-step error of the least-squares recursion (p = order,
-    fewer on a short record; N − p − 1 degrees of freedom): a record whose ``e`` is below 1 % of
+    by the linear recursion ``z_k = c + Σ_{i=1..p} a_i z_{k−i}`` (Prony's method: p damped modes
+    obey a recursion of order p; Kay & Marple 1981), noise is not. With ``e`` the RMS one-step
+    error of the least-squares recursion (p = order, fewer on a short record; N − p equations, p + 1
+    coefficients: N − 2p − 1 degrees of freedom): a record whose ``e`` is below 1 % of
     its std is a deterministic transient, and its noise is ``e`` (round-off on a noise-free
     plant, the measurement noise around a transient otherwise); else the noise dominates and
     its size is the plain std (coloured noise included, whose one-step error would understate
