@@ -18,7 +18,7 @@ from fmu_fdi.modelset import ModelSet
 from fmu_fdi.schedule import load_diagnoser
 
 pytestmark = [
-    pytest.mark.slow,  # ~60 s: five designed identification experiments and four plant runs
+    pytest.mark.slow,  # ~30 s of CPU: five designed identification experiments and four plant runs
 ]
 T = 3000.0
 DESIGN = ["--method", "dos", "--ts", "1", "--evaluation", "rms:20", "--threshold", "fault-size:1",
