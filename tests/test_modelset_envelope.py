@@ -151,3 +151,26 @@ def test_members_with_and_without_a_noise_model_are_refused(monkeypatch):
     monkeypatch.setattr(envelope.fmu_model, "model_from_fmu",
                         lambda *a, at, **k: fake(*a, at={"u1": at["u1"] + 5.0}, **k))
     assert len(model_set_from_fmu("plant.fmu", at=[{"u1": 1.0}, {"u1": 2.0}])) == 2  # all with one: accepted
+
+
+@pytest.mark.slow  # one designed identification of the native DTS200 (~10 s of CPU)
+@pytest.mark.xfail(strict=True, reason="identify/design.py (plantid): the designed settle is 200 samples whatever the "
+                                       "plant's slowest time scale, and its settle check is loosened by a pre-test "
+                                       "'noise' that is the settling transient, so a member away from the FMU's start "
+                                       "is identified before it settles (DTS200 at +20 %: y0 off by ~1.3 cm); "
+                                       "workaround --settle")
+def test_a_member_away_from_the_start_is_identified_at_its_steady_state(tmp_path):
+    from scipy.optimize import fsolve
+
+    import plant_fmus
+    from plant_fmus.dts200 import dts200_physics as phys
+    from plant_fmus.native_build import build_native
+
+    nominal = FDIModel.from_file(plant_fmus.model_path("dts200"))
+    q = nominal.u0 * np.array([1.2, 0.8])
+    # the steady state by Powell's method on the plant's own equations (the FMU integrates them)
+    h = fsolve(lambda x: phys.derivative(x, q), nominal.y0, xtol=1e-13)
+    m = model_from_fmu(build_native("dts200", tmp_path), ["Q1", "Q2"], ["h1", "h2", "h3"],
+                       at={"Q1": float(q[0]), "Q2": float(q[1]), "noise_enable": False}, method="identify")
+    # settled within 1 % of the way from the start (|y0_start - h| ~ 2-5 cm): 0.05 cm
+    assert np.max(np.abs(m.y0 - h)) < 0.05, (m.y0, h)
