@@ -1,0 +1,357 @@
+"""The master's step loop: every value on two buses, every FMI call prepared before the first step.
+
+:class:`~fmu_fdi.cosim.master.CoSimulation` describes *what* is exchanged (its module docstring
+states the semantics); this module does it at the cost of the FMI calls and little more. After
+the FMUs are initialised everything a step needs is laid out once:
+
+- the **float bus** ``bf`` (float64) holds every Real/Float output of every FMU, then the
+  external signals that feed real inputs (their values at the current point ``t_k``), then the
+  fixed sources (the values a faulted input or tunable parameter holds after initialisation);
+  the **integer bus** ``bi`` (int64) the Integer/Enumeration/Boolean outputs and the signals
+  that feed such inputs (converted as the FMU receives them: truncated, or ``!= 0``);
+- each FMU's output port writes its float64 outputs straight into its slice of ``bf`` (the FMI
+  ``get`` call's value array *is* that slice); other types are copied in with one numpy call;
+- each FMU's inputs are gathered from a bus with one ``numpy.take`` into the value array of its
+  ``set`` call; faults are then applied in place at their positions, each evaluated at the
+  time of the value it corrupts (``lag``: 1 for an output of an FMU already stepped in a
+  Gauss–Seidel step, else 0);
+- each row recorded is a copy of the buses into a chunk of rows; the :class:`Result` columns
+  (outputs, recorded inputs with their faults, fault signals) are computed from the chunk with
+  array operations when it is full, with the same formulas as the step
+  (:meth:`~fmu_fdi.cosim.faults.FaultChannel.values`).
+
+String connections (rare) keep a per-step path through the instance's :class:`Accessor`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .faults import FaultChannel
+from .port import Port, Step, fmi_call
+
+_REAL = np.float64
+
+
+class Lane:
+    """What one FMU's part of a step needs, prepared: gathers, faults, set/get calls, copies."""
+
+    def __init__(self, name, fmu):
+        self.name, self.fmu = name, fmu
+        self.gather = []      # (bus, indices, value array) -- one numpy.take each
+        self.faulted = []     # (position in the float value array, lag, [FaultChannel], bus slot)
+        self.fbuf = None      # the float value array the faults act on
+        self.copies_in = []   # (set call's own array, slice of the gathered values)
+        self.sets = []        # Group
+        self.step = None      # Step
+        self.gets = []        # Group
+        self.copies_out = []  # (bus slice, get call's own array)
+        self.string_out = None   # Accessor of the String outputs (only if a String connection reads them)
+        self.string_in = []      # (Accessor of one String input, (source fmu, var))
+
+
+class Loop:
+    """One run of a :class:`CoSimulation`: :meth:`start`, then :meth:`advance` ``N`` times,
+    recording rows into :attr:`rec_f`/:attr:`rec_i` (``chunk`` rows, :meth:`record`) and turning
+    them into :class:`Result` rows with :meth:`convert`."""
+
+    def __init__(self, sim, chunk: int):
+        self.sim = sim
+        self.chunk = chunk
+        self.channels = {f.name: FaultChannel(f, sim.start, sim.step, sim.n_steps) for f in sim.faults}
+        self.lanes = []
+        self.string_values = {}
+        self._sig_base, self._sig_rows_f, self._sig_rows_i = 0, np.zeros((0, 0)), np.zeros((0, 0), np.int64)
+
+    # -- set-up ------------------------------------------------------------------------------------
+
+    def start(self, stack):
+        """Initialise every FMU (parameters, start values, signals at ``t_0``) and lay out the loop."""
+        sim, w = self.sim, self.sim._wiring
+        t0 = sim.start
+        for name, fmu in sim.fmus.items():
+            initial = dict(w.initial[name])
+            # external signals are known before initialisation: let the FMU initialise with them
+            for feed in w.feeds:
+                if feed.fmu == name and feed.source[0] == "signal":
+                    value = sim.inputs.value(feed.source[1], t0)
+                    for fault in feed.faults:
+                        value = self.channels[fault.name].at(0, t0, value)
+                    initial[feed.var] = value
+            stack.callback(fmu.close)
+            fmu.start(t0, sim.stop, initial)
+        self._layout()
+        for lane in self.lanes:
+            self._get(lane, t0)
+        self._signals_at(0)
+        # every faulted value at t_0, as the first row records it: fixes what a stuck fault freezes
+        for lane in self.lanes:
+            for _, _, chain, slot in lane.faulted:
+                v = float(self.bf[slot])
+                for ch in chain:
+                    v = ch.at(0, t0, v)
+
+    def _layout(self):
+        sim, w = self.sim, self.sim._wiring
+        fmus = sim.fmus
+        kind = {n: {v: f.kind(v) for v in f.variables} for n, f in fmus.items()}
+
+        def by_call(name, names):  # one block per FMI call, so each call's values are contiguous
+            order = {}
+            for v in names:
+                order.setdefault(fmi_call(fmus[name], v), []).append(v)
+            return [v for vs in order.values() for v in vs]
+
+        # the buses' slots
+        f_slot, i_slot = {}, {}
+        out_f, out_i = {}, {}
+        for name, fmu in fmus.items():
+            outs = fmu.names("output")
+            out_f[name] = by_call(name, [v for v in outs if kind[name][v] == "real"])
+            out_i[name] = by_call(name, [v for v in outs if kind[name][v] in ("integer", "boolean")])
+            for v in out_f[name]:
+                f_slot[("output", name, v)] = len(f_slot)
+            for v in out_i[name]:
+                i_slot[("output", name, v)] = len(i_slot)
+        runtime = {n: {fd.var: fd for fd in w.feeds if fd.fmu == n and fd.runtime} for n in fmus}
+        self.sig_f, self.sig_i = [], []  # (slot, signal) / (slot, signal, kind)
+        for name in fmus:
+            for fd in runtime[name].values():
+                k = kind[name][fd.var]
+                key = self._source_key(fd, k)
+                if k == "string":
+                    continue
+                if fd.source[0] == "signal" and k == "real" and key not in f_slot:
+                    f_slot[key] = len(f_slot)
+                    self.sig_f.append((f_slot[key], fd.source[1]))
+                elif fd.source[0] == "signal" and key not in i_slot:
+                    i_slot[key] = len(i_slot)
+                    self.sig_i.append((i_slot[key], fd.source[1], k))
+                elif fd.source[0] == "fixed":
+                    f_slot[key] = len(f_slot)
+        self.bf = np.zeros(len(f_slot), _REAL)
+        self.bi = np.zeros(len(i_slot), np.int64)
+        self.f_slot, self.i_slot = f_slot, i_slot
+        self._sf = np.array([s for s, _ in self.sig_f], np.intp)
+        self._si = np.array([s for s, _, _ in self.sig_i], np.intp)
+
+        order = list(fmus)
+        string_sources = {fd.source[1:] for n in fmus for fd in runtime[n].values()
+                          if kind[n][fd.var] == "string" and fd.source[0] == "output"}
+        for name, fmu in fmus.items():
+            lane = Lane(name, fmu)
+            # outputs: float64 ones land in the float bus itself, the others are copied in
+            if out_f[name]:
+                lo = f_slot[("output", name, out_f[name][0])]
+                for g in Port(fmu, out_f[name], "get", self.bf[lo:lo + len(out_f[name])]).groups:
+                    lane.gets.append(g)
+                    if not g.direct:
+                        lane.copies_out.append((self.bf[lo + g.positions[0]:lo + g.positions[-1] + 1], g.view))
+            if out_i[name]:
+                lo = i_slot[("output", name, out_i[name][0])]
+                for g in Port(fmu, out_i[name], "get").groups:
+                    lane.gets.append(g)
+                    lane.copies_out.append((self.bi[lo + g.positions[0]:lo + g.positions[-1] + 1], g.view))
+            strings = [v for v in fmu.names("output") if (name, v) in string_sources]
+            if strings:
+                lane.string_out = fmu.accessor(strings)
+            # inputs: gathered from a bus, faults in place, set
+            feeds = runtime[name]
+            real = by_call(name, [v for v in feeds if kind[name][v] == "real"])
+            ints = by_call(name, [v for v in feeds if kind[name][v] in ("integer", "boolean")])
+            if real:
+                buf = lane.fbuf = np.zeros(len(real), _REAL)
+                idx = np.array([f_slot[self._source_key(feeds[v], "real")] for v in real], np.intp)
+                lane.gather.append((self.bf, idx, buf))
+                for g in Port(fmu, real, "set", buf).groups:
+                    lane.sets.append(g)
+                    if not g.direct:
+                        lane.copies_in.append((g.view, buf[g.positions[0]:g.positions[-1] + 1]))
+                for pos, v in enumerate(real):
+                    fd = feeds[v]
+                    if fd.faults:
+                        # evaluated at the time of the value it corrupts: an output of an FMU stepped
+                        # before this one in a Gauss-Seidel step is already at t_{k+1}
+                        lag = int(fd.source[0] == "output" and sim.order == "gauss-seidel"
+                                  and order.index(fd.source[1]) < order.index(name))
+                        lane.faulted.append((pos, lag, [self.channels[f.name] for f in fd.faults], int(idx[pos])))
+            if ints:
+                buf = np.zeros(len(ints), np.int64)
+                idx = np.array([i_slot[self._source_key(feeds[v], kind[name][v])] for v in ints], np.intp)
+                lane.gather.append((self.bi, idx, buf))
+                for g in Port(fmu, ints, "set").groups:
+                    lane.sets.append(g)
+                    lane.copies_in.append((g.view, buf[g.positions[0]:g.positions[-1] + 1]))
+            lane.string_in = [(fmu.accessor([v]), feeds[v].source[1:]) for v in feeds if kind[name][v] == "string"]
+            lane.step = Step(fmu)
+            self.lanes.append(lane)
+        for feed in w.feeds:  # a fixed source is the value the variable has after initialisation
+            if feed.runtime and feed.source == ("fixed", None):
+                value = fmus[feed.fmu].accessor([feed.var]).read(sim.start)[0]
+                self.bf[f_slot[("fixed", feed.fmu, feed.var)]] = value
+        self.rec_f = np.zeros((self.chunk, len(self.bf)), _REAL)
+        self.rec_i = np.zeros((self.chunk, len(self.bi)), np.int64)
+        self._columns()
+
+    @staticmethod
+    def _source_key(feed, kind):
+        src = feed.source
+        if src[0] == "output":
+            return ("output", src[1], src[2])
+        if src[0] == "signal":
+            return ("signal", src[1], kind)
+        return ("fixed", feed.fmu, feed.var)
+
+    # -- the step ----------------------------------------------------------------------------------
+
+    def _set(self, lane, k, t, t_next):
+        for bus, idx, buf in lane.gather:
+            np.take(bus, idx, out=buf)
+        if lane.faulted:
+            buf = lane.fbuf
+            for pos, lag, chain, _ in lane.faulted:
+                v = buf.item(pos)
+                j, tj = (k + 1, t_next) if lag else (k, t)
+                for ch in chain:
+                    v = ch.at(j, tj, v)
+                buf[pos] = v
+        for dst, src in lane.copies_in:
+            dst[...] = src
+        for g in lane.sets:
+            st = g.bound()
+            if st > 1:
+                self._call_failed(lane, g, st, t)
+        for acc, source in lane.string_in:
+            acc.write([self.string_values[source]], t)
+
+    def _step(self, lane, t, h):
+        lane.fmu.now = t
+        s = lane.step
+        st = s.call(t, h)
+        if st > 1:
+            self._call_failed(lane, s, st, t, step=h)
+        if s.flags:
+            if s.terminate.value:
+                raise lane.fmu._failure(f"asked to terminate the simulation in doStep from t={t:g}", t)
+            if s.early.value:
+                raise lane.fmu._failure(f"returned early from doStep at t={s.last.value:g} (step from t={t:g})", t)
+
+    def _get(self, lane, t):
+        for g in lane.gets:
+            st = g.bound()
+            if st > 1:
+                self._call_failed(lane, g, st, t)
+        for dst, src in lane.copies_out:
+            dst[...] = src
+        if lane.string_out is not None:
+            for v, value in zip(lane.string_out.names, lane.string_out.read(t)):
+                self.string_values[(lane.name, v)] = value
+
+    def advance(self, k: int):
+        """One communication step from ``t_k`` to ``t_{k+1}`` (see the master's module docstring)."""
+        sim = self.sim
+        h = sim.step
+        t, t_next = sim.start + k * h, sim.start + (k + 1) * h
+        if sim.order == "jacobi":
+            for lane in self.lanes:
+                self._set(lane, k, t, t_next)
+            for lane in self.lanes:
+                self._step(lane, t, h)
+            for lane in self.lanes:
+                self._get(lane, t_next)
+        else:
+            for lane in self.lanes:
+                self._set(lane, k, t, t_next)
+                self._step(lane, t, h)
+                self._get(lane, t_next)
+
+    def _call_failed(self, lane, call, status, t, step=None):
+        from fmpy.fmi1 import FMICallException
+
+        fmu = lane.fmu
+        fmu._status = max(fmu._status, status)
+        exc = FMICallException(function=call.name, status=status)
+        if step is not None:
+            raise fmu._failure(f"doStep from t={t:g} (step {step:g}) failed: {exc}", t) from exc
+        raise fmu._failure(f"{call.direction}{call.call}({', '.join(call.names)}) at t={t:g} failed: {exc}",
+                           t) from exc
+
+    # -- signals -----------------------------------------------------------------------------------
+
+    def _signals_at(self, k: int):
+        """Put the signals' values at ``t_k`` on the buses (sampled a chunk at a time)."""
+        if len(self._sf) or len(self._si):
+            i = k - self._sig_base
+            if not 0 <= i < len(self._sig_rows_f):
+                self._sample(k)
+                i = 0
+            self.bf[self._sf] = self._sig_rows_f[i]
+            self.bi[self._si] = self._sig_rows_i[i]
+
+    def _sample(self, k0: int):
+        sim = self.sim
+        rows = np.arange(k0, min(k0 + self.chunk, sim.n_steps + 1))
+        t = sim.start + rows * sim.step
+        self._sig_base = k0
+        self._sig_rows_f = np.column_stack([sim.inputs.sample(s, t) for _, s in self.sig_f] or
+                                           [np.zeros((len(rows), 0))])
+        cols = []
+        for _, s, k in self.sig_i:
+            v = sim.inputs.sample(s, t)
+            cols.append((v != 0).astype(np.int64) if k == "boolean" else np.trunc(v).astype(np.int64))
+        self._sig_rows_i = np.column_stack(cols or [np.zeros((len(rows), 0), np.int64)])
+
+    # -- recording ---------------------------------------------------------------------------------
+
+    def record(self, i: int, k: int):
+        """Row ``i`` of the chunk: the buses at ``t_k`` (signals set to ``t_k`` first)."""
+        self._signals_at(k)
+        self.rec_f[i] = self.bf
+        self.rec_i[i] = self.bi
+
+    def _columns(self):
+        """How each Result column comes from the recorded chunk (see :meth:`convert`)."""
+        sim, w = self.sim, self.sim._wiring
+        self.col_src = []
+        for name, fmu in sim.fmus.items():
+            for v in fmu.names("output"):
+                k = fmu.kind(v)
+                if k == "real":
+                    self.col_src.append((f"{name}.{v}", ("f", self.f_slot[("output", name, v)])))
+                elif k != "string":
+                    self.col_src.append((f"{name}.{v}", ("i", self.i_slot[("output", name, v)])))
+            for var in sim._fed_inputs(name):
+                fd = next(fd for fd in w.feeds if fd.fmu == name and fd.var == var)
+                self.col_src.append((f"{name}.{var}", ("chain", fd)))
+        self.fault_cols = [(f, w.fault_feed[f.name]) for f in sim.faults]
+
+    def _source(self, fd, m):
+        """The nominal source values of feed ``fd`` at the chunk's first ``m`` rows."""
+        k = self.sim.fmus[fd.fmu].kind(fd.var)
+        if fd.source[0] == "fixed" and fd.source[1] is not None:
+            return np.full(m, float(fd.source[1]))
+        key = self._source_key(fd, k)
+        return self.rec_f[:m, self.f_slot[key]] if k == "real" else self.rec_i[:m, self.i_slot[key]]
+
+    def _chain(self, fd, upto, rows) -> list:
+        """Values along a feed's chain at ``rows``: the nominal source value, then after each fault."""
+        vals = [self._source(fd, len(rows))]
+        for fault in fd.faults[:upto]:
+            vals.append(self.channels[fault.name].values(rows, vals[-1]))
+        return vals
+
+    def convert(self, out, m: int, k0: int):
+        """Fill ``out`` (``m`` Result rows) from the chunk's first ``m`` rows, grid points ``k0 …``."""
+        sim = self.sim
+        rows = np.arange(k0, k0 + m)
+        out["time"] = sim.start + rows * sim.step
+        for col, how in self.col_src:
+            if how[0] == "f":
+                out[col] = self.rec_f[:m, how[1]]
+            elif how[0] == "i":
+                out[col] = self.rec_i[:m, how[1]]
+            else:
+                out[col] = self._chain(how[1], len(how[1].faults), rows)[-1]
+        for fault, (fd, pos) in self.fault_cols:
+            vals = self._chain(fd, pos + 1, rows)
+            out[f"fault.{fault.name}"] = vals[pos + 1] - vals[pos]
+            out[f"fault.{fault.name}.active"] = self.channels[fault.name].active_rows(rows)
