@@ -200,18 +200,10 @@ class Fault:
         """
         if not self.active(t):
             return value
-        m = self.magnitude
-        if self.kind in ("abrupt", "intermittent"):
-            return value + m
-        if self.kind == "incipient":
-            return value + m * min(1.0, max(0.0, t - self.onset) / self.ramp)
-        if self.kind == "stuck":
-            return (value if at_onset is None else at_onset) if m is None else m
-        if self.kind == "gain":
-            return m * value
-        if self.kind == "drift":
-            return value + m * max(0.0, t - self.onset)
-        return m  # parameter
+        faulty = _faulty_value(self)
+        if faulty is None:  # stuck at the value at onset
+            return value if at_onset is None else at_onset
+        return faulty(t, value)
 
     def constant_from(self, t: float) -> bool:
         """True if the faulty value is the same function of ``v`` at every time from ``t`` on
@@ -242,6 +234,7 @@ class FaultChannel:
         self.off = n_steps + 1 if f.end is None else _first(lambda j: start + j * step >= f.end - _slack(f.end),
                                                             n_steps)
         self.pattern = f.kind == "intermittent"
+        self._faulty = _faulty_value(f)
 
     def active_at(self, j: int, t: float) -> bool:
         """:meth:`Fault.active` at grid point ``j`` (time ``t``)."""
@@ -253,7 +246,7 @@ class FaultChannel:
             return value
         if self.at_onset is None:
             self.at_onset = value
-        return self.fault.apply(t, value, self.at_onset)
+        return self._faulty(t, value) if self._faulty is not None else self.at_onset
 
     def apply(self, t: float, value: float) -> float:
         """Faulty value at time ``t`` (any time: :meth:`Fault.active` decides)."""
@@ -296,6 +289,25 @@ class FaultChannel:
         else:
             faulty = np.full_like(value, m)
         return np.where(act, faulty, value)
+
+
+def _faulty_value(f: Fault):
+    """``(t, v) -> faulty value`` of an active fault, :meth:`Fault.apply`'s formula without its
+    activity test; None for ``stuck`` without a magnitude (the value at onset)."""
+    m = f.magnitude
+    if f.kind in ("abrupt", "intermittent"):
+        return lambda t, v: v + m
+    if f.kind == "incipient":
+        onset, ramp = f.onset, f.ramp
+        return lambda t, v: v + m * min(1.0, max(0.0, t - onset) / ramp)
+    if f.kind == "stuck":
+        return None if m is None else (lambda t, v: m)
+    if f.kind == "gain":
+        return lambda t, v: m * v
+    if f.kind == "drift":
+        onset = f.onset
+        return lambda t, v: v + m * max(0.0, t - onset)
+    return lambda t, v: m  # parameter
 
 
 def _first(pred, n: int) -> int:

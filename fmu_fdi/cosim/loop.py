@@ -33,19 +33,19 @@ _REAL = np.float64
 
 
 class Lane:
-    """What one FMU's part of a step needs, prepared: gathers, faults, set/get calls, copies."""
+    """What one FMU's part of a step needs, prepared: input copies, faults, set/get calls."""
 
     def __init__(self, name, fmu):
         self.name, self.fmu = name, fmu
-        self.gather = []      # (bus, indices, value array) -- one numpy.take each
-        self.faulted = []     # (position in the float value array, lag, [FaultChannel], bus slot)
-        self.fbuf = None      # the float value array the faults act on
-        self.copies_in = []   # (set call's own array, slice of the gathered values)
+        self.moves_in = []    # (destination slice, source slice): bus -> the set calls' values
+        self.moves_set = []   # (a set call's own values, slice of them) for calls of another type than the bus
+        self.faulted = []     # (position in fbuf, lag, [FaultChannel], bus slot of the nominal value)
+        self.fbuf = None      # the float values the faults act on (the Real set calls read them)
         self.sets = []        # Group
         self.step = None      # Step
         self.gets = []        # Group
-        self.copies_out = []  # (bus slice, get call's own array)
-        self.string_out = None   # Accessor of the String outputs (only if a String connection reads them)
+        self.moves_out = []   # (bus slice, a get call's own values) for calls of another type than the bus
+        self.string_out = None   # Accessor of the String outputs a String connection reads
         self.string_in = []      # (Accessor of one String input, (source fmu, var))
 
 
@@ -61,6 +61,7 @@ class Loop:
         self.lanes = []
         self.string_values = {}
         self._sig_base, self._sig_rows_f, self._sig_rows_i = 0, np.zeros((0, 0)), np.zeros((0, 0), np.int64)
+        self._sig_const, self._sig_len = False, 0
 
     # -- set-up ------------------------------------------------------------------------------------
 
@@ -94,12 +95,22 @@ class Loop:
         sim, w = self.sim, self.sim._wiring
         fmus = sim.fmus
         kind = {n: {v: f.kind(v) for v in f.variables} for n, f in fmus.items()}
+        runtime = {n: {fd.var: fd for fd in w.feeds if fd.fmu == n and fd.runtime} for n in fmus}
 
-        def by_call(name, names):  # one block per FMI call, so each call's values are contiguous
+        def by_call(name, names, slot=None):
+            """One block per FMI call (so each call's values are contiguous), within a block in
+            the order of the sources' bus slots (so runs of sources copy as one slice)."""
             order = {}
             for v in names:
                 order.setdefault(fmi_call(fmus[name], v), []).append(v)
-            return [v for vs in order.values() for v in vs]
+            return [v for vs in order.values() for v in (sorted(vs, key=slot) if slot else vs)]
+
+        # the integer bus is int32 (FMI 2 Integer and Boolean, FMI 3 Int32 land in it directly)
+        # unless a 64-bit or unsigned 32-bit integer passes
+        wide = any(fmi_call(f, v) in ("Int64", "UInt64", "UInt32") for n, f in fmus.items()
+                   for v in f.variables if kind[n][v] in ("integer", "boolean")
+                   and (f.variable(v).causality == "output" or v in runtime[n]))
+        int_type = np.int64 if wide else np.int32
 
         # the buses' slots
         f_slot, i_slot = {}, {}
@@ -112,84 +123,82 @@ class Loop:
                 f_slot[("output", name, v)] = len(f_slot)
             for v in out_i[name]:
                 i_slot[("output", name, v)] = len(i_slot)
-        runtime = {n: {fd.var: fd for fd in w.feeds if fd.fmu == n and fd.runtime} for n in fmus}
-        self.sig_f, self.sig_i = [], []  # (slot, signal) / (slot, signal, kind)
+        self.sig_f, self.sig_i = [], []  # (slot, signal) / (slot, signal, kind): contiguous runs of slots
         for name in fmus:
             for fd in runtime[name].values():
                 k = kind[name][fd.var]
                 key = self._source_key(fd, k)
-                if k == "string":
+                if fd.source[0] != "signal" or k == "string":
                     continue
-                if fd.source[0] == "signal" and k == "real" and key not in f_slot:
+                if k == "real" and key not in f_slot:
                     f_slot[key] = len(f_slot)
                     self.sig_f.append((f_slot[key], fd.source[1]))
-                elif fd.source[0] == "signal" and key not in i_slot:
+                elif k != "real" and key not in i_slot:
                     i_slot[key] = len(i_slot)
                     self.sig_i.append((i_slot[key], fd.source[1], k))
-                elif fd.source[0] == "fixed":
-                    f_slot[key] = len(f_slot)
-        self.bf = np.zeros(len(f_slot), _REAL)
-        self.bi = np.zeros(len(i_slot), np.int64)
+        for name in fmus:
+            for fd in runtime[name].values():
+                if fd.source[0] == "fixed":
+                    f_slot[self._source_key(fd, "real")] = len(f_slot)
+        self.bf = np.zeros(len(f_slot), np.float64)
+        self.bi = np.zeros(len(i_slot), int_type)
         self.f_slot, self.i_slot = f_slot, i_slot
-        self._sf = np.array([s for s, _ in self.sig_f], np.intp)
-        self._si = np.array([s for s, _, _ in self.sig_i], np.intp)
+        self._sf = slice(self.sig_f[0][0], self.sig_f[-1][0] + 1) if self.sig_f else slice(0, 0)
+        self._si = slice(self.sig_i[0][0], self.sig_i[-1][0] + 1) if self.sig_i else slice(0, 0)
 
         order = list(fmus)
         string_sources = {fd.source[1:] for n in fmus for fd in runtime[n].values()
                           if kind[n][fd.var] == "string" and fd.source[0] == "output"}
         for name, fmu in fmus.items():
             lane = Lane(name, fmu)
-            # outputs: float64 ones land in the float bus itself, the others are copied in
-            if out_f[name]:
-                lo = f_slot[("output", name, out_f[name][0])]
-                for g in Port(fmu, out_f[name], "get", self.bf[lo:lo + len(out_f[name])]).groups:
-                    lane.gets.append(g)
-                    if not g.direct:
-                        lane.copies_out.append((self.bf[lo + g.positions[0]:lo + g.positions[-1] + 1], g.view))
-            if out_i[name]:
-                lo = i_slot[("output", name, out_i[name][0])]
-                for g in Port(fmu, out_i[name], "get").groups:
-                    lane.gets.append(g)
-                    lane.copies_out.append((self.bi[lo + g.positions[0]:lo + g.positions[-1] + 1], g.view))
+            # outputs: those of the buses' types land in the bus itself, the others are copied in
+            for names, bus, slots in ((out_f[name], self.bf, f_slot), (out_i[name], self.bi, i_slot)):
+                if names:
+                    lo = slots[("output", name, names[0])]
+                    for g in Port(fmu, names, "get", bus[lo:lo + len(names)]).groups:
+                        lane.gets.append(g)
+                        if not g.direct:
+                            lane.moves_out.append((bus[lo + g.positions[0]:lo + g.positions[-1] + 1], g.view))
             strings = [v for v in fmu.names("output") if (name, v) in string_sources]
             if strings:
                 lane.string_out = fmu.accessor(strings)
-            # inputs: gathered from a bus, faults in place, set
+            # inputs: copied from a bus in runs of slots, faults in place, set
             feeds = runtime[name]
-            real = by_call(name, [v for v in feeds if kind[name][v] == "real"])
-            ints = by_call(name, [v for v in feeds if kind[name][v] in ("integer", "boolean")])
-            if real:
-                buf = lane.fbuf = np.zeros(len(real), _REAL)
-                idx = np.array([f_slot[self._source_key(feeds[v], "real")] for v in real], np.intp)
-                lane.gather.append((self.bf, idx, buf))
-                for g in Port(fmu, real, "set", buf).groups:
+            for which, bus, slots, dtype in (("real", self.bf, f_slot, np.float64), ("int", self.bi, i_slot, int_type)):
+                vs = [v for v in feeds if (kind[name][v] == "real") == (which == "real") and kind[name][v] != "string"]
+                if not vs:
+                    continue
+
+                def slot(v, slots=slots):
+                    return slots[self._source_key(feeds[v], kind[name][v])]
+
+                vs = by_call(name, vs, slot)
+                buf = np.zeros(len(vs), dtype)
+                src = [slot(v) for v in vs]
+                lane.moves_in += _runs(buf, bus, src)
+                for g in Port(fmu, vs, "set", buf).groups:
                     lane.sets.append(g)
                     if not g.direct:
-                        lane.copies_in.append((g.view, buf[g.positions[0]:g.positions[-1] + 1]))
-                for pos, v in enumerate(real):
-                    fd = feeds[v]
-                    if fd.faults:
-                        # evaluated at the time of the value it corrupts: an output of an FMU stepped
-                        # before this one in a Gauss-Seidel step is already at t_{k+1}
-                        lag = int(fd.source[0] == "output" and sim.order == "gauss-seidel"
-                                  and order.index(fd.source[1]) < order.index(name))
-                        lane.faulted.append((pos, lag, [self.channels[f.name] for f in fd.faults], int(idx[pos])))
-            if ints:
-                buf = np.zeros(len(ints), np.int64)
-                idx = np.array([i_slot[self._source_key(feeds[v], kind[name][v])] for v in ints], np.intp)
-                lane.gather.append((self.bi, idx, buf))
-                for g in Port(fmu, ints, "set").groups:
-                    lane.sets.append(g)
-                    lane.copies_in.append((g.view, buf[g.positions[0]:g.positions[-1] + 1]))
+                        lane.moves_set.append((g.view, buf[g.positions[0]:g.positions[-1] + 1]))
+                if which == "real":
+                    lane.fbuf = buf
+                    for pos, v in enumerate(vs):
+                        fd = feeds[v]
+                        if fd.faults:
+                            # evaluated at the time of the value it corrupts: an output of an FMU
+                            # stepped before this one in a Gauss-Seidel step is already at t_{k+1}
+                            lag = int(fd.source[0] == "output" and sim.order == "gauss-seidel"
+                                      and order.index(fd.source[1]) < order.index(name))
+                            lane.faulted.append((pos, lag, [self.channels[f.name] for f in fd.faults], src[pos]))
             lane.string_in = [(fmu.accessor([v]), feeds[v].source[1:]) for v in feeds if kind[name][v] == "string"]
-            lane.step = Step(fmu)
+            lane.step = Step(fmu, sim.step)
             self.lanes.append(lane)
         for feed in w.feeds:  # a fixed source is the value the variable has after initialisation
             if feed.runtime and feed.source == ("fixed", None):
                 value = fmus[feed.fmu].accessor([feed.var]).read(sim.start)[0]
                 self.bf[f_slot[("fixed", feed.fmu, feed.var)]] = value
-        self.rec_f = np.zeros((self.chunk, len(self.bf)), _REAL)
-        self.rec_i = np.zeros((self.chunk, len(self.bi)), np.int64)
+        self.rec_f = np.zeros((self.chunk, len(self.bf)), np.float64)
+        self.rec_i = np.zeros((self.chunk, len(self.bi)), int_type)
         self._columns()
 
     @staticmethod
@@ -204,8 +213,8 @@ class Loop:
     # -- the step ----------------------------------------------------------------------------------
 
     def _set(self, lane, k, t, t_next):
-        for bus, idx, buf in lane.gather:
-            np.take(bus, idx, out=buf)
+        for dst, src in lane.moves_in:
+            dst[...] = src
         if lane.faulted:
             buf = lane.fbuf
             for pos, lag, chain, _ in lane.faulted:
@@ -214,7 +223,7 @@ class Loop:
                 for ch in chain:
                     v = ch.at(j, tj, v)
                 buf[pos] = v
-        for dst, src in lane.copies_in:
+        for dst, src in lane.moves_set:
             dst[...] = src
         for g in lane.sets:
             st = g.bound()
@@ -223,12 +232,13 @@ class Loop:
         for acc, source in lane.string_in:
             acc.write([self.string_values[source]], t)
 
-    def _step(self, lane, t, h):
+    def _step(self, lane, t):
         lane.fmu.now = t
         s = lane.step
-        st = s.call(t, h)
+        s.time.value = t
+        st = s.call()
         if st > 1:
-            self._call_failed(lane, s, st, t, step=h)
+            self._call_failed(lane, s, st, t, step=s.size.value)
         if s.flags:
             if s.terminate.value:
                 raise lane.fmu._failure(f"asked to terminate the simulation in doStep from t={t:g}", t)
@@ -240,7 +250,7 @@ class Loop:
             st = g.bound()
             if st > 1:
                 self._call_failed(lane, g, st, t)
-        for dst, src in lane.copies_out:
+        for dst, src in lane.moves_out:
             dst[...] = src
         if lane.string_out is not None:
             for v, value in zip(lane.string_out.names, lane.string_out.read(t)):
@@ -255,13 +265,13 @@ class Loop:
             for lane in self.lanes:
                 self._set(lane, k, t, t_next)
             for lane in self.lanes:
-                self._step(lane, t, h)
+                self._step(lane, t)
             for lane in self.lanes:
                 self._get(lane, t_next)
         else:
             for lane in self.lanes:
                 self._set(lane, k, t, t_next)
-                self._step(lane, t, h)
+                self._step(lane, t)
                 self._get(lane, t_next)
 
     def _call_failed(self, lane, call, status, t, step=None):
@@ -278,27 +288,35 @@ class Loop:
     # -- signals -----------------------------------------------------------------------------------
 
     def _signals_at(self, k: int):
-        """Put the signals' values at ``t_k`` on the buses (sampled a chunk at a time)."""
-        if len(self._sf) or len(self._si):
-            i = k - self._sig_base
-            if not 0 <= i < len(self._sig_rows_f):
-                self._sample(k)
-                i = 0
-            self.bf[self._sf] = self._sig_rows_f[i]
-            self.bi[self._si] = self._sig_rows_i[i]
+        """Put the signals' values at ``t_k`` on the buses (sampled a chunk at a time; a chunk
+        over which no signal changes is put once)."""
+        i = k - self._sig_base
+        if 0 <= i < self._sig_len:
+            if not self._sig_const:
+                self.bf[self._sf] = self._sig_rows_f[i]
+                self.bi[self._si] = self._sig_rows_i[i]
+            return
+        if not (self.sig_f or self.sig_i):
+            self._sig_base, self._sig_len, self._sig_const = 0, self.sim.n_steps + 1, True
+            return
+        self._sample(k)
+        self.bf[self._sf] = self._sig_rows_f[0]
+        self.bi[self._si] = self._sig_rows_i[0]
 
     def _sample(self, k0: int):
         sim = self.sim
         rows = np.arange(k0, min(k0 + self.chunk, sim.n_steps + 1))
         t = sim.start + rows * sim.step
-        self._sig_base = k0
+        self._sig_base, self._sig_len = k0, len(rows)
         self._sig_rows_f = np.column_stack([sim.inputs.sample(s, t) for _, s in self.sig_f] or
                                            [np.zeros((len(rows), 0))])
         cols = []
         for _, s, k in self.sig_i:
             v = sim.inputs.sample(s, t)
-            cols.append((v != 0).astype(np.int64) if k == "boolean" else np.trunc(v).astype(np.int64))
-        self._sig_rows_i = np.column_stack(cols or [np.zeros((len(rows), 0), np.int64)])
+            cols.append((v != 0) if k == "boolean" else np.trunc(v))
+        self._sig_rows_i = np.column_stack(cols or [np.zeros((len(rows), 0))]).astype(self.bi.dtype)
+        self._sig_const = bool((self._sig_rows_f == self._sig_rows_f[0]).all()
+                               and (self._sig_rows_i == self._sig_rows_i[0]).all())
 
     # -- recording ---------------------------------------------------------------------------------
 
@@ -355,3 +373,16 @@ class Loop:
             vals = self._chain(fd, pos + 1, rows)
             out[f"fault.{fault.name}"] = vals[pos + 1] - vals[pos]
             out[f"fault.{fault.name}.active"] = self.channels[fault.name].active_rows(rows)
+
+
+def _runs(dst, bus, slots) -> list:
+    """``(dst[a:b], bus[c:d])`` pairs that copy ``bus[slots[i]]`` to ``dst[i]``, one per run of
+    consecutive slots."""
+    out, i = [], 0
+    while i < len(slots):
+        j = i + 1
+        while j < len(slots) and slots[j] == slots[j - 1] + 1:
+            j += 1
+        out.append((dst[i:j], bus[slots[i]:slots[i] + j - i]))
+        i = j
+    return out

@@ -39,11 +39,12 @@ def fmi_call(fmu, var: str) -> str:
     return "Int64" if v.type == "Enumeration" else v.type
 
 
-def c_function(fmu, name: str, argtypes):
-    """The C function ``name`` of ``fmu``'s loaded library with our own argument types (a fresh
-    function object: fmpy's, with its pointer types, is left as it is)."""
+def c_function(fmu, name: str):
+    """The C function ``name`` of ``fmu``'s loaded library, called without argument conversion
+    (a fresh function object, fmpy's is left as it is): every argument is passed as a ctypes
+    object prepared once, which halves the cost of a call against declared argument types."""
     f = fmu._slave.dll[name]
-    f.argtypes = argtypes
+    f.argtypes = None
     f.restype = c_int
     return f
 
@@ -67,9 +68,9 @@ class Group:
         vrs = [fmu.variable(v).valueReference for v in self.names]
         self.ctype, self.n = ctype, len(vrs)
         self.vrs = (c_uint * self.n)(*vrs)
-        if memory is not None:  # a float64 slice of the caller's array: values land there directly
-            assert ctype is c_double and memory.dtype == np.float64 and memory.size == self.n
-            self.values = (c_double * self.n).from_buffer(memory)
+        if memory is not None:  # a slice of the caller's array: values land there directly
+            assert memory.dtype == np.dtype(ctype) and memory.size == self.n
+            self.values = (ctype * self.n).from_buffer(memory)
             self.view = memory
             self._memory = True
         else:
@@ -79,12 +80,12 @@ class Group:
                 np.frombuffer(self.values, dtype=np.bool_)
         name = f"fmi{fmu.fmi_version}{direction.capitalize()}{call}"
         self.name = name
+        f = c_function(fmu, name)
+        n = c_size_t(self.n)
         if fmu.fmi_version == 2:
-            f = c_function(fmu, name, (c_void_p, c_void_p, c_size_t, c_void_p))
-            self.bound = _bind(f, component(fmu), self.vrs, self.n, self.values)
+            self.bound = _bind(f, c_void_p(component(fmu)), self.vrs, n, self.values)
         else:
-            f = c_function(fmu, name, (c_void_p, c_void_p, c_size_t, c_void_p, c_size_t))
-            self.bound = _bind(f, component(fmu), self.vrs, self.n, self.values, self.n)
+            self.bound = _bind(f, c_void_p(component(fmu)), self.vrs, n, self.values, n)
 
     @property
     def direct(self) -> bool:
@@ -99,32 +100,33 @@ def _bind(f, *args):
 
 
 class Step:
-    """``doStep`` of one instance from ``t`` by ``h``; FMI 3's flags are read after each call."""
+    """``doStep`` of one instance: set :attr:`time` (a ``c_double``) and call :attr:`call`; FMI 3's
+    flags are read after each call (:attr:`flags` True)."""
 
-    def __init__(self, fmu):
+    def __init__(self, fmu, step: float):
         self.fmu = fmu
-        comp = component(fmu)
+        self.time, self.size = c_double(), c_double(step)
+        comp = c_void_p(component(fmu))
+        self.name = f"fmi{fmu.fmi_version}DoStep"
+        f = c_function(fmu, self.name)
         if fmu.fmi_version == 2:
-            f = c_function(fmu, "fmi2DoStep", (c_void_p, c_double, c_double, c_int))
-            self.call = lambda t, h: f(comp, t, h, 1)
-            self.flags = None
+            self.call = _bind(f, comp, self.time, self.size, c_int(1))
+            self.flags = False
         else:
-            f = c_function(fmu, "fmi3DoStep", (c_void_p, c_double, c_double, c_bool, c_void_p, c_void_p,
-                                              c_void_p, c_void_p))
             self.event, self.terminate, self.early = c_bool(), c_bool(), c_bool()
             self.last = c_double()
             refs = tuple(ctypes.byref(x) for x in (self.event, self.terminate, self.early, self.last))
-            self.call = lambda t, h: f(comp, t, h, True, *refs)
+            self.call = _bind(f, comp, self.time, self.size, c_bool(True), *refs)
             self.flags = True
-        self.name = f"fmi{fmu.fmi_version}DoStep"
 
 
 class Port:
     """Prepared get (``direction="get"``) or set calls for ``names`` of one running FMU.
 
-    ``memory``: optional float64 array of ``len(names)`` entries; the variables whose call
-    passes float64 values (FMI 2 Real, FMI 3 Float64) then use their entries of it as their
-    value array, so a get writes there and a set reads from there without a copy.
+    ``memory``: optional array of ``len(names)`` entries; the variables whose call passes values
+    of its dtype (float64: FMI 2 Real, FMI 3 Float64; int32: FMI 2 Integer and Boolean, FMI 3
+    Int32) then use their entries of it as their value array, so a get writes there and a set
+    reads from there without a copy.
     """
 
     def __init__(self, fmu, names, direction: str, memory=None):
@@ -136,7 +138,7 @@ class Port:
         for call, positions in by_call.items():
             mem = None
             ctype = (CTYPE2 if fmu.fmi_version == 2 else CTYPE3).get(call)
-            if memory is not None and ctype is c_double:
+            if memory is not None and memory.dtype == np.dtype(ctype):
                 lo = positions[0]
                 if positions == list(range(lo, lo + len(positions))):
                     mem = memory[lo:lo + len(positions)]
