@@ -127,13 +127,17 @@ def _cpu() -> float:
     return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
 
 
-def campaign_rates(runs: int, tmp: Path) -> dict:
+def campaign_rates(runs: int, tmp: Path, native: bool = False, modes=("serial", "pool-2")) -> dict:
+    """Runs per second of ``runs`` 1000-step runs of the example campaign, plant and diagnoser
+    native (C) or pythonfmu, per execution mode: overall, steady (from the first quarter of the
+    runs on) and the start-up (wall time outside the steady span: workers spawned, FMUs
+    written, extracted and instantiated, the first runs)."""
     from fmu_fdi.campaign import CampaignSpec, run_campaign
     from fmu_fdi.campaign.example import build_fmus, write_campaign
     from fmu_fdi.campaign.execute import Worker
     from fmu_fdi.campaign.runner import payload
 
-    build_fmus(tmp)
+    build_fmus(tmp, native=native)
     per = max(1, runs // 6)
     path = write_campaign(tmp, "bench", stop=1000.0, fault_free=runs - 6 * per, replicates=per)
     spec = CampaignSpec.load(path)
@@ -153,8 +157,9 @@ def campaign_rates(runs: int, tmp: Path) -> dict:
     out["overhead_ms"] = sorted(cpu)[len(cpu) // 2] * 1e3
     print(f"  per-run fixed overhead (1-step run on a warm worker, median of 20): CPU {out['overhead_ms']:.1f} ms, "
           f"wall {sorted(times)[len(times) // 2] * 1e3:.1f} ms (target < 10)", flush=True)
-    for label, kwargs in (("serial", {"workers": 1}), ("pool-2", {"workers": 2}),
-                          ("dask-2", {"workers": 2, "scheduler": "local"})):
+    options = {"serial": {"workers": 1}, "pool-2": {"workers": 2}, "dask-2": {"workers": 2, "scheduler": "local"}}
+    for label in modes:
+        kwargs = options[label]
         folder = tmp / f"out_{label}"
         marks = []  # elapsed time at each finished run: the steady rate leaves out the workers' start-up
         tic, tic_cpu = time.perf_counter(), _cpu()
@@ -164,50 +169,54 @@ def campaign_rates(runs: int, tmp: Path) -> dict:
         out[label] = runs / wall
         half = len(marks) // 4  # from the first quarter on
         out[label + "_steady"] = (len(marks) - 1 - half) / (marks[-1] - marks[half])
-        out[label + "_startup"] = wall - marks[-1] + marks[0]
+        out[label + "_startup"] = wall - (len(marks) - 1) / out[label + "_steady"]
         out[label + "_cpu"] = cpu / runs
-        extra = f", CPU {cpu / runs * 1e3:.0f} ms/run (all processes, start-up included)"
-        print(f"  {label:7s} {runs} runs in {wall:6.1f} s: {out[label]:5.2f} runs/s overall, "
-              f"{out[label + '_steady']:5.2f} runs/s steady{extra}", flush=True)
+        print(f"  {label:7s} {runs} runs in {wall:6.1f} s: {out[label]:6.1f} runs/s overall, "
+              f"{out[label + '_steady']:6.1f} runs/s steady, start-up {out[label + '_startup']:4.1f} s, "
+              f"CPU {cpu / runs * 1e3:.1f} ms/run (all processes, start-up included)", flush=True)
     return out
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--runs", type=int, default=40, help="runs per execution mode (default 40)")
+    ap.add_argument("--runs", type=int, default=200, help="runs per execution mode (default 200)")
     ap.add_argument("--steps", type=int, default=2000, help="plant steps per timing (default 2000)")
-    ap.add_argument("--skip-plants", action="store_true", help="campaign figures only")
-    ap.add_argument("--skip-campaign", action="store_true", help="plant step costs only")
+    ap.add_argument("--plants", choices=("native", "pythonfmu"), nargs="+", default=["native", "pythonfmu"],
+                    help="FMU flavours of the campaign (plant and diagnoser; default both)")
+    ap.add_argument("--dask", action="store_true", help="also on a 2-worker Dask LocalCluster")
+    ap.add_argument("--plant-costs", action="store_true",
+                    help="also the pythonfmu plants' step cost against --baseline (slow: builds both)")
     ap.add_argument("--baseline", default=BASELINE, help=f"git revision of the 'before' plants (default {BASELINE})")
     args = ap.parse_args(argv)
     print(f"cpus: {os.cpu_count()}, load average: {os.getloadavg()[0]:.1f}")
+    modes = ("serial", "pool-2") + (("dask-2",) if args.dask else ())
+    rates = {}
     with tempfile.TemporaryDirectory(prefix="campaign_speed_") as tmp:
         tmp = Path(tmp)
         rows = []
-        if not args.skip_plants:
+        if args.plant_costs:
             print("plant FMU step cost (fmpy doStep + getReal, noise on, operating point):")
             rows = plant_costs(args.steps, args.baseline, tmp)
-        rates = None
-        if not args.skip_campaign:
-            print("campaign (1000-step DTS200 + DOS-bank runs):")
-            rates = campaign_rates(args.runs, tmp / "campaign")
+        for flavour in args.plants:
+            print(f"campaign (1000-step DTS200 + DOS-bank runs, plant and diagnoser {flavour}):")
+            rates[flavour] = campaign_rates(args.runs, tmp / f"campaign_{flavour}", flavour == "native", modes)
     print("\nsummary")
     for excite in ("rest", "excited") if rows else ():
         ratios = {n.split("/")[0]: b / a for n, b, a in rows if n.endswith(excite)}
         print(f"  plant step cost, {excite}: " + ", ".join(f"{n} {r:.1f}x" for n, r in ratios.items())
               + " (target 5x)")
-    if rates is None:
-        return
-    print(f"  per-run overhead: {rates['overhead_ms']:.1f} ms (target < 10 ms)")
-    print(f"  pool-2 / serial (steady): {rates['pool-2_steady'] / rates['serial_steady']:.2f} "
-          f"(target >= 1.8 on 2 free cores)")
-    print(f"  dask-2 / pool-2 (steady): {rates['dask-2_steady'] / rates['pool-2_steady']:.2f} (target >= 0.83)")
-    print(f"  CPU per run: serial {rates['serial_cpu'] * 1e3:.0f} ms, pool-2 {rates['pool-2_cpu'] * 1e3:.0f} ms, "
-          f"dask-2 {rates['dask-2_cpu'] * 1e3:.0f} ms (start-up of {args.runs} runs included): on 2 free cores "
-          f"the pool would run {2 * rates['serial_cpu'] / rates['pool-2_cpu']:.2f}x and Dask "
-          f"{2 * rates['serial_cpu'] / rates['dask-2_cpu']:.2f}x as fast as serial")
-    print(f"  1000 runs on the pool: {1000 / rates['pool-2_steady'] + rates['pool-2_startup']:.0f} s wall here; "
-          f"{1000 * rates['serial_cpu'] / 2:.0f} s on 2 free cores from the serial CPU time (target < 100 s)")
+    for flavour, r in rates.items():
+        print(f"  {flavour}: per-run overhead {r['overhead_ms']:.1f} ms; serial {r['serial_steady']:.1f} runs/s steady "
+              f"({r['serial_cpu'] * 1e3:.1f} ms CPU per run); pool-2 {r['pool-2_steady']:.1f} runs/s steady, "
+              f"start-up {r['pool-2_startup']:.1f} s, pool-2 / serial {r['pool-2_steady'] / r['serial_steady']:.2f}")
+        if "dask-2_steady" in r:
+            print(f"    dask-2 / pool-2 (steady): {r['dask-2_steady'] / r['pool-2_steady']:.2f}")
+        print(f"    1000 runs x 1000 steps on the pool: {r['pool-2_startup'] + 1000 / r['pool-2_steady']:.1f} s wall "
+              f"here; {r['pool-2_startup'] + 1000 * r['serial_cpu'] / 2:.1f} s on 2 free cores from the serial CPU "
+              f"time (target < 20 s with native FMUs)")
+    if set(rates) == {"native", "pythonfmu"}:
+        print(f"  native / pythonfmu (serial CPU per run): "
+              f"{rates['pythonfmu']['serial_cpu'] / rates['native']['serial_cpu']:.1f}x faster")
 
 
 if __name__ == "__main__":

@@ -3,8 +3,10 @@ to ``DIR/runs.jsonl`` as each run finishes.
 
 The results file is JSON lines: a header line ``{"format": "fmu-fdi-campaign-results/1",
 "campaign": ..., "runs": N}`` and one record per finished run (:meth:`Worker.run`), in the order
-they finished. A record is written, flushed and synced the moment its run is back, so a killed
-campaign loses only the runs in flight; ``resume=True`` reads the file, skips every run whose
+they finished. A record is written and flushed to the operating system the moment its run is
+back, so a killed campaign loses only the runs in flight; the file is synced to the disk at most
+every :data:`SYNC_EVERY` seconds and at the end (a sync costs milliseconds, as much as a run), so
+a crash of the machine itself loses at most that much more; ``resume=True`` reads the file, skips every run whose
 scenario key is there, and appends the rest. A torn last line (a writer killed mid-line, a full
 disk) is cut off the file before anything is appended, so the file stays readable however often
 it is resumed. A record whose run key came before is left out with a warning (each run counts
@@ -308,9 +310,10 @@ def _run_locked(spec, out, all_runs, workers, scheduler, resume, progress, tic) 
         if todo:
             work = payload(spec, traces)
             started = time.perf_counter()
+            synced = [time.monotonic()]
 
             def take(record):
-                _write(fh, record)
+                _write(fh, record, synced)
                 records.append(record)
                 report(len(records) - len(done), len(todo), time.perf_counter() - started)
                 note(f"campaign {spec.name}: {len(records) - len(done)} of {len(todo)} runs done"
@@ -330,6 +333,8 @@ def _run_locked(spec, out, all_runs, workers, scheduler, resume, progress, tic) 
                 except KeyboardInterrupt:
                     stop.requested = True
                 interrupted = stop.requested and len(records) < len(done) + len(todo)
+                fh.flush()
+                os.fsync(fh.fileno())  # every record on the disk before the campaign returns
             report(None, None, None)
     records.sort(key=lambda r: r["run"]["index"])
     return CampaignResults(spec, records, path, interrupted, time.perf_counter() - tic, len(done),
@@ -337,10 +342,21 @@ def _run_locked(spec, out, all_runs, workers, scheduler, resume, progress, tic) 
 
 
 # ------------------------------------------------------------------------ backends
-def _write(fh, item):
+#: seconds between two syncs of the results file to the disk (see the module docstring)
+SYNC_EVERY = 0.5
+
+
+def _write(fh, item, synced=None):
+    """Append ``item`` as a line and flush it to the operating system (a killed process loses
+    nothing written); sync the file to the disk when ``synced`` (the time of the last sync, a
+    one-item list) is None or older than :data:`SYNC_EVERY` seconds."""
     fh.write(json.dumps(item, allow_nan=False) + "\n")
     fh.flush()
-    os.fsync(fh.fileno())  # on disk before the run counts as done
+    now = time.monotonic()
+    if synced is None or now - synced[0] >= SYNC_EVERY:
+        os.fsync(fh.fileno())
+        if synced is not None:
+            synced[0] = now
 
 
 class _StopOnInterrupt:

@@ -263,12 +263,14 @@ class CoSimulation:
                             raise KeyboardInterrupt
                         if k:
                             advance(k - 1)
-                        if state["done"] == chunk or not k & 1023:
+                        i = state["done"]
+                        if i == chunk or not k & 1023:
                             note(f"co-simulation at t = {self.time(k):g} s of {self.stop:g} s (row {k} of {rows})")
-                            if state["done"] == chunk:
+                            if i == chunk:
                                 flush()
-                        record(state["done"], k)
-                        state["done"] += 1
+                                i = 0
+                        record(i, k)
+                        state["done"] = i + 1
                     completed = True
                 finally:
                     self.warnings = [line for fmu in self.fmus.values() for line in fmu.warning_summary()]
