@@ -81,6 +81,7 @@ class Loop:
             stack.callback(fmu.close)
             fmu.start(t0, sim.stop, initial)
         self._layout()
+        self.advance = self._compile()
         for lane in self.lanes:
             self._get(lane, t0)
         self._signals_at(0)
@@ -236,7 +237,11 @@ class Loop:
         lane.fmu.now = t
         s = lane.step
         s.time.value = t
-        st = s.call()
+        self._stepped(lane, s.call(), t)
+
+    def _stepped(self, lane, st, t):
+        """Check a doStep's status (and FMI 3's flags)."""
+        s = lane.step
         if st > 1:
             self._call_failed(lane, s, st, t, step=s.size.value)
         if s.flags:
@@ -257,22 +262,67 @@ class Loop:
                 self.string_values[(lane.name, v)] = value
 
     def advance(self, k: int):
-        """One communication step from ``t_k`` to ``t_{k+1}`` (see the master's module docstring)."""
-        sim = self.sim
-        h = sim.step
-        t, t_next = sim.start + k * h, sim.start + (k + 1) * h
-        if sim.order == "jacobi":
-            for lane in self.lanes:
-                self._set(lane, k, t, t_next)
-            for lane in self.lanes:
-                self._step(lane, t)
-            for lane in self.lanes:
-                self._get(lane, t_next)
-        else:
-            for lane in self.lanes:
-                self._set(lane, k, t, t_next)
-                self._step(lane, t)
-                self._get(lane, t_next)
+        """One communication step from ``t_k`` to ``t_{k+1}`` (see the master's module docstring);
+        :meth:`start` replaces it by its compiled form (:meth:`_compile`)."""
+        self._compile()(k)
+
+    def _compile(self):
+        """:meth:`advance` with everything it touches bound to locals: a lane without faults or
+        String connections sets, steps and gets in a few lines, the others go through
+        :meth:`_set` / :meth:`_get`."""
+        start, h, jacobi = self.sim.start, self.sim.step, self.sim.order == "jacobi"
+        fail, stepped, set_, get_ = self._call_failed, self._stepped, self._set, self._get
+        lanes = tuple((lane, bool(lane.faulted or lane.moves_set or lane.string_in), tuple(lane.moves_in),
+                       tuple((g.bound, g) for g in lane.sets), lane.fmu, lane.step.time, lane.step.call,
+                       lane.step.flags, lane.string_out is not None, tuple((g.bound, g) for g in lane.gets),
+                       tuple(lane.moves_out)) for lane in self.lanes)
+
+        def put(lane, special, moves, sets, k, t, t_next):
+            if special:
+                set_(lane, k, t, t_next)
+                return
+            for dst, src in moves:
+                dst[...] = src
+            for call, g in sets:
+                st = call()
+                if st > 1:
+                    fail(lane, g, st, t)
+
+        def take(lane, strings, gets, moves, t):
+            if strings:
+                get_(lane, t)
+                return
+            for call, g in gets:
+                st = call()
+                if st > 1:
+                    fail(lane, g, st, t)
+            for dst, src in moves:
+                dst[...] = src
+
+        def advance(k):
+            t, t_next = start + k * h, start + (k + 1) * h
+            if jacobi:
+                for lane, special, moves, sets, fmu, tc, do, flags, strings, gets, moves_out in lanes:
+                    put(lane, special, moves, sets, k, t, t_next)
+                for lane, special, moves, sets, fmu, tc, do, flags, strings, gets, moves_out in lanes:
+                    fmu.now = t
+                    tc.value = t
+                    st = do()
+                    if st > 1 or flags:
+                        stepped(lane, st, t)
+                for lane, special, moves, sets, fmu, tc, do, flags, strings, gets, moves_out in lanes:
+                    take(lane, strings, gets, moves_out, t_next)
+            else:
+                for lane, special, moves, sets, fmu, tc, do, flags, strings, gets, moves_out in lanes:
+                    put(lane, special, moves, sets, k, t, t_next)
+                    fmu.now = t
+                    tc.value = t
+                    st = do()
+                    if st > 1 or flags:
+                        stepped(lane, st, t)
+                    take(lane, strings, gets, moves_out, t_next)
+
+        return advance
 
     def _call_failed(self, lane, call, status, t, step=None):
         from fmpy.fmi1 import FMICallException
@@ -322,9 +372,11 @@ class Loop:
 
     def record(self, i: int, k: int):
         """Row ``i`` of the chunk: the buses at ``t_k`` (signals set to ``t_k`` first)."""
-        self._signals_at(k)
+        if not (self._sig_const and 0 <= k - self._sig_base < self._sig_len):
+            self._signals_at(k)
         self.rec_f[i] = self.bf
-        self.rec_i[i] = self.bi
+        if self.bi.size:
+            self.rec_i[i] = self.bi
 
     def _columns(self):
         """How each Result column comes from the recorded chunk (see :meth:`convert`)."""
