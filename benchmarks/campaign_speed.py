@@ -1,23 +1,29 @@
-"""Campaign throughput (issue 10): plant step cost before/after, per-run overhead, runs per second.
+"""Campaign throughput (issues 10 and 20): runs per second, start-up and steady, native and pythonfmu FMUs.
 
-1. Plant step cost: every shipped plant FMU, built from this tree and from a baseline commit
-   (``--baseline``, default the commit before the fast plants; ``git archive`` into a temp
-   folder), stepped ``--steps`` times by fmpy in a fresh process with noise on from its default
-   operating point, at rest and with its first command input stepping by 10 % every 10 steps
-   (transients, as in a campaign); CPU microseconds per ``doStep + getReal`` (best of 5; CPU time, not wall
-   time, so that other processes on the machine do not count) and the before/after ratio
-   (target >= 5).
-2. Per-run fixed overhead: a campaign worker's run of 1 step (target < 10 ms): reset and
+For each FMU flavour (``--plants``: the example campaign's DTS200 plant and level-sensor bank,
+both native C or both pythonfmu; :mod:`fmu_fdi.campaign.example`), 1000-step runs (rms over
+20 s, persistence 3/5):
+
+1. Per-run fixed overhead: a campaign worker's run of 1 step (target < 10 ms): reset and
    initialisation of the FMUs, wiring, summary; CPU and wall time.
-3. Runs per second of 1000-step DTS200 + DOS-bank runs (level-sensor bank, rms over 20 s,
-   persistence 3/5; :mod:`fmu_fdi.campaign.example`): serially, on a 2-process pool and on
-   a 2-worker Dask LocalCluster (targets: pool >= 1.8 x serial on 2 cores, Dask within 1.2 x of
-   the pool), and the wall time extrapolated to 1000 runs (target < 100 s).
+2. A worker's start-up: CPU of a fresh process up to the end of its first run (interpreter,
+   imports, FMUs written, extracted and instantiated); a pool starts its workers once.
+3. ``--runs`` runs serially and on a 2-process pool (``--dask``: also a 2-worker Dask
+   LocalCluster): runs/s overall, steady (from the first quarter of the runs on) and the
+   start-up (the wall time the steady rate does not explain), CPU per run; and 1000 runs x
+   1000 steps extrapolated, from the wall times here and from the CPU times for 2 free cores
+   (issue 20 target with native FMUs: < 20 s including start-up).
+4. ``--plant-costs``: every shipped pythonfmu plant FMU, built from this tree and from a baseline
+   commit (``--baseline``; ``git archive`` into a temp folder), stepped ``--steps`` times by
+   fmpy in a fresh process with noise on from its default operating point, at rest and with
+   its first command input stepping by 10 % every 10 steps; CPU microseconds per ``doStep +
+   getReal`` (best of 5) and the before/after ratio (issue 10 target >= 5).
 
-    python benchmarks/campaign_speed.py [--runs 40] [--steps 2000] [--baseline REV] [--skip-plants | --skip-campaign]
+    python benchmarks/campaign_speed.py [--runs 200] [--plants native pythonfmu] [--dask]
+                                        [--plant-costs [--steps 2000] [--baseline REV]]
 
-Everything is measured in the same invocation; on a shared machine the figures are noisy:
-the ratios are what to read.
+Everything is measured in the same invocation; on a shared machine the wall figures are noisy:
+the CPU times and the ratios are what to read.
 
 Measured 2026-11-23 on the 2-vCPU development machine shared with other jobs (load 1.6-1.9),
 ``--runs 60 --steps 1000``, after the second pass over the plants' per-step bookkeeping:
@@ -192,7 +198,7 @@ def campaign_rates(runs: int, tmp: Path, native: bool = False, modes=("serial", 
         out[label] = runs / wall
         half = len(marks) // 4  # from the first quarter on
         out[label + "_steady"] = (len(marks) - 1 - half) / (marks[-1] - marks[half])
-        out[label + "_startup"] = wall - (len(marks) - 1) / out[label + "_steady"]
+        out[label + "_startup"] = max(0.0, wall - (len(marks) - 1) / out[label + "_steady"])
         out[label + "_cpu"] = cpu / runs
         print(f"  {label:7s} {runs} runs in {wall:6.1f} s: {out[label]:6.1f} runs/s overall, "
               f"{out[label + '_steady']:6.1f} runs/s steady, start-up {out[label + '_startup']:4.1f} s, "

@@ -421,6 +421,9 @@ def _pool_run(work_id, run):
     return _WORKERS[work_id].run(run)
 
 
+#: runs submitted to the pool at a time, per worker process
+POOL_WINDOW = 4
+
 #: a run in flight when its worker process died this many times is recorded as failed
 WORKER_DEATHS_PER_RUN = 2
 
@@ -468,9 +471,31 @@ def _pool_pass(work, todo, take, workers, stop):
     def ok(f):
         return f.done() and not f.cancelled() and f.exception() is None
 
+    queued = iter(todo)
+    window = max(2, POOL_WINDOW * workers)
+
+    queued_back = []  # a run taken from the queue when the pool was found broken
+
+    def submit(pending) -> bool:
+        """Keep ``window`` runs submitted: the waits below then look at a few futures, not at
+        every run of the campaign (which would cost the parent O(runs) per finished run).
+        False if the pool is broken (a worker died)."""
+        while len(pending) < window:
+            r = next(queued, None)
+            if r is None:
+                return True
+            try:
+                fut = pool.submit(_pool_run, work["id"], r.to_dict())
+            except BrokenProcessPool:
+                queued_back.append(r)
+                return False
+            futures[fut] = r
+            pending.add(fut)
+        return True
+
     try:
-        futures = {pool.submit(_pool_run, work["id"], r.to_dict()): r for r in todo}
-        pending = set(futures)
+        pending = set()
+        broken = not submit(pending)
         running = set()
         while pending and not stop.requested and not broken:
             running = {f for f in pending if f.running()}
@@ -483,12 +508,14 @@ def _pool_pass(work, todo, take, workers, stop):
                     broken = True
                 else:
                     fut.result()  # a bug of ours in the worker: raise it
+            if not broken:
+                broken = not submit(pending)
         if broken:
             for fut in pending:  # finished before the pool broke
                 if ok(fut):
                     take(fut.result())
                     taken.add(fut)
-            unfinished = [r for f, r in futures.items() if f not in taken]
+            unfinished = [r for f, r in futures.items() if f not in taken] + queued_back + list(queued)
             in_flight = [futures[f] for f in running if f not in taken]
             return in_flight or unfinished[:1], unfinished
         return None
