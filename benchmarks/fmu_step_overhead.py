@@ -4,8 +4,9 @@ A DTS200 plant FMU and its sensor-bank diagnoser FMU (the example campaign's pai
 :mod:`fmu_fdi.campaign.example`) are stepped together, Jacobi order, the pumps fed from
 external signals, for ``--steps`` communication steps, three ways in one process:
 
-* ``fmpy``: a bare loop on fmpy's ``FMU2Slave`` calls — per step and FMU ``setReal`` of the
-  inputs, ``doStep``, then ``getReal``/``getInteger``/``getBoolean`` of every output (what
+* ``fmpy``: a bare loop on fmpy's ``FMU2Slave`` (``FMU3Slave``) calls — per step and FMU
+  ``setReal`` of the inputs (the pumps at their operating flows, the bank's levels from the
+  plant), ``doStep``, then ``getReal``/``getInteger``/``getBoolean`` of every output (what
   :class:`~fmu_fdi.cosim.CoSimulation` exchanges), the values kept in Python lists;
 * ``ctypes``: the same calls on ctypes objects prepared once, the C functions called without
   argument conversion (no Python object per call): the floor of a Python master on these FMUs;
@@ -96,9 +97,19 @@ class Bare:
             for v in md.modelVariables:
                 if v.causality == "output":
                     outs.setdefault(_call(v, md), []).append(v.valueReference)
-            ins = [v.valueReference for v in md.modelVariables if v.causality == "input"
-                   and v.name in ("Q1", "Q2", "h1", "h2", "h3")]
-            self.units.append({"slave": s, "md": md, "outs": outs, "ins": ins, "fmi": int(md.fmiVersion[0])})
+            ins = [v for v in md.modelVariables if v.causality == "input" and v.name in ("Q1", "Q2", "h1", "h2", "h3")]
+            real = [v.name for v in md.modelVariables if v.causality == "output" and _call(v, md) in ("Real", "Float64")]
+            self.units.append({"slave": s, "md": md, "outs": outs, "ins": [v.valueReference for v in ins],
+                               "in_names": [v.name for v in ins], "real_outs": real, "fmi": int(md.fmiVersion[0])})
+        # the inputs the master gives: the pumps at their operating flows, the bank's levels from
+        # the plant's outputs (index of the level in the plant's Real outputs, or None)
+        from plant_fmus.dts200 import dts200_physics as phys
+
+        _, q = phys.operating_point()
+        plant_real = self.units[0]["real_outs"]
+        for u in self.units:
+            u["in_values"] = [float(q[0]) if n == "Q1" else float(q[1]) if n == "Q2" else 0.0 for n in u["in_names"]]
+            u["in_from"] = [(i, plant_real.index(n)) for i, n in enumerate(u["in_names"]) if n in plant_real]
 
     def start(self):
         for u in self.units:
@@ -136,11 +147,13 @@ class Bare:
                 n = c_size_t(len(vrs))
                 arr = (c_uint * len(vrs))(*vrs)
                 if call == "in":
-                    val = (c_double * len(vrs))(*([1.0] * len(vrs)))
+                    val = u["in_buf"] = (c_double * len(vrs))(*u["in_values"])
                     f = fn(f"fmi{v}Set{'Real' if v == 2 else 'Float64'}")
                 else:
                     val = (ct[call] * len(vrs))()
                     f = fn(f"fmi{v}Get{call}")
+                    if ct[call] is c_double:
+                        u["real_buf"] = val
                 args = (comp, arr, n, val) + ((n,) if v == 3 else ())
                 calls.append(functools.partial(f, *args))
             u["get"], u["set"] = calls[:-1], calls[-1]
@@ -153,20 +166,34 @@ class Bare:
         tic = time.process_time()
         t = 0.0
         units = self.units
+        plant = units[0]
         if not self.prepared:
+            real_call = "Real" if plant["fmi"] == 2 else "Float64"
+            levels = getattr(plant["slave"], "get" + real_call)(plant["outs"][real_call])
             for _ in range(steps):
                 for u in units:
-                    u["slave"].setReal(u["ins"], [1.0] * len(u["ins"])) if u["fmi"] == 2 else \
-                        u["slave"].setFloat64(u["ins"], [1.0] * len(u["ins"]))
+                    values = list(u["in_values"])
+                    for i, j in u["in_from"]:
+                        values[i] = levels[j]
+                    u["slave"].setReal(u["ins"], values) if u["fmi"] == 2 else u["slave"].setFloat64(u["ins"], values)
                 for u in units:
                     u["slave"].doStep(t, 1.0)
                 for u in units:
                     s = u["slave"]
-                    u["values"] = [getattr(s, "get" + call)(vrs) for call, vrs in u["outs"].items()]
+                    u["values"] = {call: getattr(s, "get" + call)(vrs) for call, vrs in u["outs"].items()}
+                levels = plant["values"][real_call]
                 t += 1.0
         else:
+            for u in units:
+                u["copies"] = [(i, j) for i, j in u["in_from"]]
+            levels = plant["real_buf"]
+            for g in plant["get"]:
+                g()
             for _ in range(steps):
                 for u in units:
+                    buf = u["in_buf"]
+                    for i, j in u["copies"]:
+                        buf[i] = levels[j]
                     u["set"]()
                 for u in units:
                     u["t"].value = t
