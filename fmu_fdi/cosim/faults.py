@@ -31,6 +31,8 @@ import math
 import re
 from dataclasses import dataclass
 
+import numpy as np
+
 from .errors import CoSimulationError
 
 KINDS = ("abrupt", "incipient", "intermittent", "stuck", "gain", "drift", "parameter")
@@ -254,21 +256,17 @@ class FaultChannel:
             self.at_onset = value
         return self.fault.apply(t, value, self.at_onset)
 
-    def active_rows(self, rows: "np.ndarray") -> "np.ndarray":
+    def active_rows(self, rows: np.ndarray) -> np.ndarray:
         """:meth:`Fault.active` at the grid points ``rows`` (an integer array)."""
-        import numpy as np
-
         act = (rows >= self.on) & (rows < self.off)
         if self.pattern:
             times = self.start + rows * self.step
             act &= np.fromiter((self.fault.active(float(t)) for t in times), bool, len(rows))
         return act
 
-    def values(self, rows: "np.ndarray", value: "np.ndarray") -> "np.ndarray":
+    def values(self, rows: np.ndarray, value: np.ndarray) -> np.ndarray:
         """Faulty values at the grid points ``rows`` of the nominal values ``value`` (arrays):
         :meth:`at` on each point in order, with :meth:`Fault.apply`'s formulas on arrays."""
-        import numpy as np
-
         f, m = self.fault, self.fault.magnitude
         act = self.active_rows(rows)
         if not act.any():
