@@ -654,3 +654,52 @@ def test_signal_samples_on_arrays_are_the_pointwise_values(interpolation):
     s = InputSignals([0.0, 1.0, 1.0, 2.5, 4.0], {"u": [1.0, 2.0, -1.0, 3.5, 0.25]}, interpolation)
     t = np.linspace(-1.0, 5.0, 241)
     assert s.sample("u", t).tolist() == [s.value("u", float(x)) for x in t]
+
+
+INT_ECHO = '''
+from pythonfmu import Fmi2Slave, Fmi2Causality, Integer, Boolean
+
+
+class {cls}(Fmi2Slave):
+    """Samples its integer and Boolean inputs in do_step: twice = 2 steps, neg = not positive, kk = k."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.steps = 0
+        self.positive = False
+        self.k = 0
+        self.twice = 0
+        self.neg = False
+        self.kk = 0
+        self.register_variable(Integer("steps", causality=Fmi2Causality.input))
+        self.register_variable(Boolean("positive", causality=Fmi2Causality.input))
+        self.register_variable(Integer("k", causality=Fmi2Causality.input))
+        self.register_variable(Integer("twice", causality=Fmi2Causality.output))
+        self.register_variable(Boolean("neg", causality=Fmi2Causality.output))
+        self.register_variable(Integer("kk", causality=Fmi2Causality.output))
+
+    def do_step(self, t, h):
+        self.twice = 2 * self.steps
+        self.neg = not self.positive
+        self.kk = self.k
+        return True
+'''
+
+
+def test_integer_and_boolean_values_cross_fmi_versions_and_come_from_signals(fmi3_plant, tmp_path):
+    """FMI 3 Int32/Boolean outputs into FMI 2 Integer/Boolean inputs, and a Real signal into an
+    Integer input (truncated, as int() does): the loop's integer bus and its conversions."""
+    from cosim_fmus import _pythonfmu
+
+    echo = _pythonfmu(tmp_path, INT_ECHO, "intecho")
+    sig = InputSignals([0.0, 0.5], {"k": [2.7, -3.9]})
+    r = CoSimulation({"plant": fmi3_plant, "echo": echo}, inputs=sig, step=H, stop=N * H,
+                     parameters={"plant.u": -1.0}, record_inputs=True).run()
+    # Gauss-Seidel: in the step from t_k the echo reads the plant's outputs at t_{k+1}
+    assert r["plant.steps"].tolist() == list(range(N + 1))
+    assert r["echo.twice"][1:].tolist() == [2 * s for s in r["plant.steps"][1:]]
+    assert r["echo.neg"][1:].tolist() == [not p for p in r["plant.positive"][1:]]
+    assert r["echo.kk"][1:].tolist() == [2 if t < 0.5 - 1e-12 else -3 for t in T[:-1]]
+    assert r["echo.steps"].tolist() == r["plant.steps"].tolist()
+    assert r["echo.k"].tolist() == [2 if t < 0.5 - 1e-12 else -3 for t in T]
+    assert r.dtype["echo.twice"] == np.int64 and r.dtype["echo.neg"] == np.bool_
