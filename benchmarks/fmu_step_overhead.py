@@ -23,8 +23,15 @@ pythonfmu ones are measured with ``--plant pythonfmu --diagnoser pythonfmu``.
 
 Everything is measured in the same invocation; on a shared machine the ratios are what to read.
 
-Measured 2026-11-26 on the shared 2-vCPU machine (8 jobs), native plant + native diagnoser,
-FMI 2, 5000 steps: see the closing note of issue 20 (the figures printed by this script).
+Measured 2026-11-26 on the shared 2-vCPU machine (load average 12-17), CPU microseconds per step:
+
+- native plant + native bank, FMI 2 (3000 steps, best of 5, two invocations): bare fmpy loop
+  13.7 / 15.0, prepared ctypes 5.1 / 2.2, CoSimulation 8.7 / 9.0, i.e. the master 5-6 us *below*
+  the bare fmpy loop (ratio 0.60-0.63; before this loop it was ~65 us above it);
+- native, FMI 3: fmpy 33.2, ctypes 5.4, CoSimulation 7.3 (ratio 0.22: fmpy's FMI 3 calls are slow);
+- pythonfmu plant + pythonfmu bank (2000 steps, best of 3): fmpy 124, CoSimulation 48 (0.38).
+  (The prepared-ctypes loop measured 89 there, above the master: the pythonfmu FMUs' own cost
+  varies between instances more than the loop costs.)
 """
 from __future__ import annotations
 
