@@ -25,13 +25,13 @@ both native C or both pythonfmu; :mod:`fmu_fdi.campaign.example`), 1000-step run
 Everything is measured in the same invocation; on a shared machine the wall figures are noisy:
 the CPU times and the ratios are what to read.
 
-Measured 2026-11-26 (issue 20) on the 2-vCPU machine shared with 8 jobs (load average 12-17),
-native plant + native bank, ``--runs 1000 --plants native``: 13.5 ms CPU per 1000-step run
-serially (per-run fixed overhead 1.5 ms), a worker's start-up 1.24 s CPU (most of it importing the
-fmu_fdi package); 1000 runs x 1000 steps took 49.8 s wall on the 2-process pool here (20.1 runs/s,
-24.5 steady, 18.0 ms CPU per run in all processes, start-up included), i.e. 1.2 s + 1000 x 13.5 ms
-/ 2 = 8.0 s on two free cores (target < 20 s). With ``--runs 120``: pythonfmu plant and bank 153 ms
-CPU per run, native 11.4x less.
+Measured 2026-11-26 (issue 20) on the 2-vCPU machine shared with 8 jobs, native plant + native
+bank, ``--runs 1000 --plants native`` at load average 5: 11.5 ms CPU per 1000-step run serially
+(per-run fixed overhead 1.3 ms), a worker's start-up 1.24 s CPU (most of it importing the fmu_fdi
+package); **1000 runs x 1000 steps in 14.9 s wall on the 2-process pool, start-up included**
+(67 runs/s overall, 82 steady, start-up 2.6 s; 15.0 ms CPU per run in all processes), 7.0 s
+estimated on two free cores (target < 20 s). At load 15-17 the same took 49.8 s. pythonfmu plant
+and bank (``--runs 100``): 102 ms CPU per run serially, 8.9x the native runs.
 
 Measured 2026-11-23 on the 2-vCPU development machine shared with other jobs (load 1.6-1.9),
 ``--runs 60 --steps 1000``, after the second pass over the plants' per-step bookkeeping:
