@@ -616,3 +616,90 @@ def test_master_guards_the_pythonfmu_fmus_it_loads(fmus, tmp_path):
         env = dict(os.environ, FMU_FDI_TEST_HEAP_PAD="x" * pad)
         proc = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=120)
         assert proc.returncode == 0, (pad, proc.stderr[-2000:])
+
+
+# ---- the loop's fault evaluation and signal sampling against their definitions -------------------
+
+@pytest.mark.parametrize("fault", [
+    Fault.abrupt("p.x", onset=3.05, magnitude=0.5, end=12.0),
+    Fault.incipient("p.x", onset=2.0, magnitude=1.5, ramp=4.3),
+    Fault.intermittent("p.x", onset=1.0, magnitude=-2.0, period=0.7, duty=0.3, end=15.0),
+    Fault.stuck("p.x", onset=4.0), Fault.stuck("p.x", onset=4.0, value=7.5),
+    Fault.gain("p.x", onset=0.3, factor=1.25), Fault.drift("p.x", onset=5.5, rate=0.2),
+    Fault.parameter("p.x", onset=9.9, value=3.0),
+])
+def test_fault_channel_on_the_grid_is_the_fault_definition(fault):
+    """FaultChannel (what the loop runs: a step at a time, and a chunk of rows at once) against
+    Fault.active and Fault.apply at every grid point; the values must agree exactly."""
+    from fmu_fdi.cosim.faults import FaultChannel
+
+    start, step, n = 0.3, 0.1, 180
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=n + 1)
+    times = [start + j * step for j in range(n + 1)]
+    active = [fault.active(t) for t in times]
+    first = active.index(True)
+    want = [fault.apply(t, x, v[first]) for t, x in zip(times, v)]  # stuck freezes the first active value
+    stepwise = FaultChannel(fault, start, step, n)
+    assert [stepwise.at(j, t, x) for j, (t, x) in enumerate(zip(times, v))] == want
+    rows = np.arange(n + 1)
+    chunked = FaultChannel(fault, start, step, n)
+    assert chunked.active_rows(rows).tolist() == active
+    got = np.concatenate([chunked.values(rows[a:a + 50], v[a:a + 50]) for a in range(0, n + 1, 50)])
+    assert got.tolist() == want
+
+
+@pytest.mark.parametrize("interpolation", ["zoh", "linear"])
+def test_signal_samples_on_arrays_are_the_pointwise_values(interpolation):
+    s = InputSignals([0.0, 1.0, 1.0, 2.5, 4.0], {"u": [1.0, 2.0, -1.0, 3.5, 0.25]}, interpolation)
+    t = np.linspace(-1.0, 5.0, 241)
+    assert s.sample("u", t).tolist() == [s.value("u", float(x)) for x in t]
+
+
+INT_ECHO = '''
+from pythonfmu import Fmi2Slave, Fmi2Causality, Integer, Boolean
+
+
+class {cls}(Fmi2Slave):
+    """Samples its integer and Boolean inputs in do_step: twice = 2 steps, neg = not positive, kk = k."""
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.steps = 0
+        self.positive = False
+        self.k = 0
+        self.twice = 0
+        self.neg = False
+        self.kk = 0
+        self.register_variable(Integer("steps", causality=Fmi2Causality.input))
+        self.register_variable(Boolean("positive", causality=Fmi2Causality.input))
+        self.register_variable(Integer("k", causality=Fmi2Causality.input))
+        self.register_variable(Integer("twice", causality=Fmi2Causality.output))
+        self.register_variable(Boolean("neg", causality=Fmi2Causality.output))
+        self.register_variable(Integer("kk", causality=Fmi2Causality.output))
+
+    def do_step(self, t, h):
+        self.twice = 2 * self.steps
+        self.neg = not self.positive
+        self.kk = self.k
+        return True
+'''
+
+
+def test_integer_and_boolean_values_cross_fmi_versions_and_come_from_signals(fmi3_plant, tmp_path):
+    """FMI 3 Int32/Boolean outputs into FMI 2 Integer/Boolean inputs, and a Real signal into an
+    Integer input (truncated, as int() does): the loop's integer bus and its conversions."""
+    from cosim_fmus import _pythonfmu
+
+    echo = _pythonfmu(tmp_path, INT_ECHO, "intecho")
+    sig = InputSignals([0.0, 0.5], {"k": [2.7, -3.9]})
+    r = CoSimulation({"plant": fmi3_plant, "echo": echo}, inputs=sig, step=H, stop=N * H,
+                     parameters={"plant.u": -1.0}, record_inputs=True).run()
+    # Gauss-Seidel: in the step from t_k the echo reads the plant's outputs at t_{k+1}
+    assert r["plant.steps"].tolist() == list(range(N + 1))
+    assert r["echo.twice"][1:].tolist() == [2 * s for s in r["plant.steps"][1:]]
+    assert r["echo.neg"][1:].tolist() == [not p for p in r["plant.positive"][1:]]
+    assert r["echo.kk"][1:].tolist() == [2 if t < 0.5 - 1e-12 else -3 for t in T[:-1]]
+    assert r["echo.steps"].tolist() == r["plant.steps"].tolist()
+    assert r["echo.k"].tolist() == [2 if t < 0.5 - 1e-12 else -3 for t in T]
+    assert r.dtype["echo.twice"] == np.int64 and r.dtype["echo.neg"] == np.bool_

@@ -7,6 +7,7 @@ fmu_fdi.campaign.example DIR``) writes ``DIR/dts200.toml`` and the FMUs it runs.
 """
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 TEMPLATE = """\
@@ -54,8 +55,11 @@ zone_start = {zone}
 """
 
 
-def build_fmus(folder) -> dict:
-    """Build the plant FMU and the bank's diagnostic FMU into ``folder``; ``{instance: path}``."""
+def build_fmus(folder, native: bool = False) -> dict:
+    """Build the plant FMU and the bank's diagnostic FMU into ``folder``; ``{instance: path}``.
+
+    ``native``: both as C FMUs (the native plant, docs/native-plants.md, and the native
+    diagnoser), under the same file names, so a campaign runs without Python in the FMUs."""
     import numpy as np
     import plant_fmus
 
@@ -76,7 +80,14 @@ def build_fmus(folder) -> dict:
           for i in range(len(bank.groups))]
     dg = Diagnoser(bank, evaluation=evaluation, thresholds=th, decision={"persistence": [3, 5]},
                    name="dts200_sensor_dos")
-    return {"plant": plant, "bank": build_fmu(dg, folder / "dts200_sensor_dos.fmu")}
+    if native:
+        from plant_fmus.native_build import build_native
+
+        native_plant = build_native("dts200", folder / "native", reference=plant)
+        plant = Path(native_plant.replace(plant))
+        shutil.rmtree(folder / "native", ignore_errors=True)
+    return {"plant": plant, "bank": build_fmu(dg, folder / "dts200_sensor_dos.fmu",
+                                              target="native" if native else "pythonfmu")}
 
 
 def write_campaign(folder, name="dts200-dos", *, stop=1000.0, fault_free=2, replicates=1, seed_base=1,

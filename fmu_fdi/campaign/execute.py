@@ -161,15 +161,32 @@ def decide(J: np.ndarray, th: np.ndarray, persistence=(1, 1), latch=False) -> np
     """``fault_detected`` from evaluations ``J`` and thresholds ``th`` (samples × groups), row 0
     excluded (no diagnosis yet): raw ``J ≥ th``, alarm when k of the last n raw tests fired,
     latched if asked (:mod:`fmu_fdi.runtime.decision`)."""
-    raw = J >= th
-    raw[0] = False
-    k, n = persistence
-    if n > 1:
-        c = np.vstack([np.zeros((n, raw.shape[1]), np.int64), np.cumsum(raw, axis=0, dtype=np.int64)])
-        raw = c[n:] - c[:-n] >= k  # raw tests fired among the last n samples (fewer at the start)
-    if latch:
-        raw = np.maximum.accumulate(raw, axis=0)
-    return raw.any(axis=1)
+    return decide_scaled(J, th, [1.0], persistence, latch)[0]
+
+
+#: most booleans :func:`decide_scaled` holds at once (scales × samples × groups); more go in batches
+_DECIDE_BATCH = 1 << 21
+
+
+def decide_scaled(J: np.ndarray, th: np.ndarray, scales, persistence=(1, 1), latch=False) -> np.ndarray:
+    """:func:`decide` with the thresholds ``s · th`` for every ``s`` in ``scales`` at once:
+    ``(scales × samples)``, row ``i`` the alarms had every threshold been ``scales[i]`` times larger."""
+    scales = np.asarray(scales, float)
+    n, g = J.shape
+    out = np.empty((len(scales), n), bool)
+    per = max(1, _DECIDE_BATCH // max(1, n * g))
+    k, m = persistence
+    for lo in range(0, len(scales), per):
+        s = scales[lo:lo + per, None, None]
+        raw = J[None] >= s * th[None]
+        raw[:, 0] = False
+        if m > 1:
+            c = np.concatenate([np.zeros((len(s), m, g), np.int64), np.cumsum(raw, axis=1, dtype=np.int64)], axis=1)
+            raw = c[:, m:] - c[:, :-m] >= k  # raw tests fired among the last m samples (fewer at the start)
+        if latch:
+            raw = np.maximum.accumulate(raw, axis=1)
+        out[lo:lo + per] = raw.any(axis=2)
+    return out
 
 
 def summarise(result, run, info: dict, p: dict, scales) -> dict:
@@ -212,17 +229,18 @@ def summarise(result, run, info: dict, p: dict, scales) -> dict:
             ratio = np.max(np.where(th > 0, J / th, np.where(J > 0, np.inf, 0.0)), axis=1)
         out["max_ratio"] = {"fault_free": _num(ratio[H].max()) if H.any() else None,
                             "faulty": _num(ratio[F].max()) if F.any() else None}
-        sweep = {"fa_samples": [], "fa_onsets": [], "delay": []}
         prev_scored = np.roll(scored, 1)  # row 0 is never scored, so the wrap-around is harmless
-        for s in scales:
-            a = decide(J, s * th, info["persistence"], info["latch"])
-            if s == 1.0:
-                out["sweep_exact"] = bool(np.array_equal(a[1:], alarm[1:]))
-            onsets = a & ~(np.roll(a, 1) & prev_scored) & H
-            sweep["fa_samples"].append(int((a & H).sum()))
-            sweep["fa_onsets"].append(int(onsets.sum()))
-            hit = np.flatnonzero(a & F)
-            sweep["delay"].append(float(t[hit[0]] - t_on) if f is not None and hit.size else None)
+        a = decide_scaled(J, th, scales, info["persistence"], info["latch"])
+        one = np.flatnonzero(np.asarray(scales) == 1.0)
+        if one.size:
+            out["sweep_exact"] = bool(np.array_equal(a[one[0], 1:], alarm[1:]))
+        onsets = a & ~(np.roll(a, 1, axis=1) & prev_scored) & H
+        hits = a & F
+        first = np.argmax(hits, axis=1)
+        sweep = {"fa_samples": [int(x) for x in (a & H).sum(axis=1)],
+                 "fa_onsets": [int(x) for x in onsets.sum(axis=1)],
+                 "delay": [float(t[i] - t_on) if f is not None and hit else None
+                           for i, hit in zip(first, hits.any(axis=1))]}
         out["sweep"] = sweep
     return out
 

@@ -3,8 +3,10 @@ to ``DIR/runs.jsonl`` as each run finishes.
 
 The results file is JSON lines: a header line ``{"format": "fmu-fdi-campaign-results/1",
 "campaign": ..., "runs": N}`` and one record per finished run (:meth:`Worker.run`), in the order
-they finished. A record is written, flushed and synced the moment its run is back, so a killed
-campaign loses only the runs in flight; ``resume=True`` reads the file, skips every run whose
+they finished. A record is written and flushed to the operating system the moment its run is
+back, so a killed campaign loses only the runs in flight; the file is synced to the disk at most
+every :data:`SYNC_EVERY` seconds and at the end (a sync costs milliseconds, as much as a run), so
+a crash of the machine itself loses at most that much more; ``resume=True`` reads the file, skips every run whose
 scenario key is there, and appends the rest. A torn last line (a writer killed mid-line, a full
 disk) is cut off the file before anything is appended, so the file stays readable however often
 it is resumed. A record whose run key came before is left out with a warning (each run counts
@@ -308,9 +310,10 @@ def _run_locked(spec, out, all_runs, workers, scheduler, resume, progress, tic) 
         if todo:
             work = payload(spec, traces)
             started = time.perf_counter()
+            synced = [time.monotonic()]
 
             def take(record):
-                _write(fh, record)
+                _write(fh, record, synced)
                 records.append(record)
                 report(len(records) - len(done), len(todo), time.perf_counter() - started)
                 note(f"campaign {spec.name}: {len(records) - len(done)} of {len(todo)} runs done"
@@ -330,6 +333,8 @@ def _run_locked(spec, out, all_runs, workers, scheduler, resume, progress, tic) 
                 except KeyboardInterrupt:
                     stop.requested = True
                 interrupted = stop.requested and len(records) < len(done) + len(todo)
+                fh.flush()
+                os.fsync(fh.fileno())  # every record on the disk before the campaign returns
             report(None, None, None)
     records.sort(key=lambda r: r["run"]["index"])
     return CampaignResults(spec, records, path, interrupted, time.perf_counter() - tic, len(done),
@@ -337,10 +342,21 @@ def _run_locked(spec, out, all_runs, workers, scheduler, resume, progress, tic) 
 
 
 # ------------------------------------------------------------------------ backends
-def _write(fh, item):
+#: seconds between two syncs of the results file to the disk (see the module docstring)
+SYNC_EVERY = 0.5
+
+
+def _write(fh, item, synced=None):
+    """Append ``item`` as a line and flush it to the operating system (a killed process loses
+    nothing written); sync the file to the disk when ``synced`` (the time of the last sync, a
+    one-item list) is None or older than :data:`SYNC_EVERY` seconds."""
     fh.write(json.dumps(item, allow_nan=False) + "\n")
     fh.flush()
-    os.fsync(fh.fileno())  # on disk before the run counts as done
+    now = time.monotonic()
+    if synced is None or now - synced[0] >= SYNC_EVERY:
+        os.fsync(fh.fileno())
+        if synced is not None:
+            synced[0] = now
 
 
 class _StopOnInterrupt:
@@ -405,6 +421,9 @@ def _pool_run(work_id, run):
     return _WORKERS[work_id].run(run)
 
 
+#: runs submitted to the pool at a time, per worker process
+POOL_WINDOW = 4
+
 #: a run in flight when its worker process died this many times is recorded as failed
 WORKER_DEATHS_PER_RUN = 2
 
@@ -452,9 +471,31 @@ def _pool_pass(work, todo, take, workers, stop):
     def ok(f):
         return f.done() and not f.cancelled() and f.exception() is None
 
+    queued = iter(todo)
+    window = max(2, POOL_WINDOW * workers)
+
+    queued_back = []  # a run taken from the queue when the pool was found broken
+
+    def submit(pending) -> bool:
+        """Keep ``window`` runs submitted: the waits below then look at a few futures, not at
+        every run of the campaign (which would cost the parent O(runs) per finished run).
+        False if the pool is broken (a worker died)."""
+        while len(pending) < window:
+            r = next(queued, None)
+            if r is None:
+                return True
+            try:
+                fut = pool.submit(_pool_run, work["id"], r.to_dict())
+            except BrokenProcessPool:
+                queued_back.append(r)
+                return False
+            futures[fut] = r
+            pending.add(fut)
+        return True
+
     try:
-        futures = {pool.submit(_pool_run, work["id"], r.to_dict()): r for r in todo}
-        pending = set(futures)
+        pending = set()
+        broken = not submit(pending)
         running = set()
         while pending and not stop.requested and not broken:
             running = {f for f in pending if f.running()}
@@ -467,12 +508,14 @@ def _pool_pass(work, todo, take, workers, stop):
                     broken = True
                 else:
                     fut.result()  # a bug of ours in the worker: raise it
+            if not broken:
+                broken = not submit(pending)
         if broken:
             for fut in pending:  # finished before the pool broke
                 if ok(fut):
                     take(fut.result())
                     taken.add(fut)
-            unfinished = [r for f, r in futures.items() if f not in taken]
+            unfinished = [r for f, r in futures.items() if f not in taken] + queued_back + list(queued)
             in_flight = [futures[f] for f in running if f not in taken]
             return in_flight or unfinished[:1], unfinished
         return None

@@ -31,6 +31,8 @@ import math
 import re
 from dataclasses import dataclass
 
+import numpy as np
+
 from .errors import CoSimulationError
 
 KINDS = ("abrupt", "incipient", "intermittent", "stuck", "gain", "drift", "parameter")
@@ -200,18 +202,10 @@ class Fault:
         """
         if not self.active(t):
             return value
-        m = self.magnitude
-        if self.kind in ("abrupt", "intermittent"):
-            return value + m
-        if self.kind == "incipient":
-            return value + m * min(1.0, max(0.0, t - self.onset) / self.ramp)
-        if self.kind == "stuck":
-            return (value if at_onset is None else at_onset) if m is None else m
-        if self.kind == "gain":
-            return m * value
-        if self.kind == "drift":
-            return value + m * max(0.0, t - self.onset)
-        return m  # parameter
+        faulty = _faulty_value(self)
+        if faulty is None:  # stuck at the value at onset
+            return value if at_onset is None else at_onset
+        return faulty(t, value)
 
     def constant_from(self, t: float) -> bool:
         """True if the faulty value is the same function of ``v`` at every time from ``t`` on
@@ -221,17 +215,109 @@ class Fault:
 
 
 class FaultChannel:
-    """A :class:`Fault` during one run: remembers the nominal value at onset for ``stuck``."""
+    """A :class:`Fault` during one run on the grid ``t_j = start + j·h``, ``j = 0 … N``.
 
-    def __init__(self, fault: Fault):
+    Evaluates the fault where :meth:`Fault.active` and :meth:`Fault.apply` say, at grid points
+    only, with two things the run needs and the fault alone cannot know: the nominal value at
+    the first active point (what ``stuck`` without a magnitude freezes; the first evaluation
+    at an active point fixes it, and every evaluation at a point sees the same value there), and
+    the grid indices where the fault is active. Outside the intermittent pattern the active
+    points are one range ``on <= j < off`` (``t_j`` grows with ``j``), found once by bisection
+    with :meth:`Fault.active` itself, so a step asks two integer comparisons; :meth:`values`
+    evaluates the fault on many points at once (the recorded columns) with the same formulas.
+    """
+
+    def __init__(self, fault: Fault, start: float = 0.0, step: float = 1.0, n_steps: int = 0):
         self.fault = fault
         self.at_onset = None
+        self.start, self.step = start, step
+        f = fault
+        self.on = _first(lambda j: f.onset - _slack(f.onset) <= start + j * step, n_steps)
+        self.off = n_steps + 1 if f.end is None else _first(lambda j: start + j * step >= f.end - _slack(f.end),
+                                                            n_steps)
+        self.pattern = f.kind == "intermittent"
+        self._faulty = _faulty_value(f)
+
+    def active_at(self, j: int, t: float) -> bool:
+        """:meth:`Fault.active` at grid point ``j`` (time ``t``)."""
+        return self.on <= j < self.off and (not self.pattern or self.fault.active(t))
+
+    def at(self, j: int, t: float, value: float) -> float:
+        """Faulty value at grid point ``j`` (time ``t``) of nominal ``value``."""
+        if j < self.on or j >= self.off or (self.pattern and not self.fault.active(t)):
+            return value
+        if self.at_onset is None:
+            self.at_onset = value
+        return self._faulty(t, value) if self._faulty is not None else self.at_onset
 
     def apply(self, t: float, value: float) -> float:
-        """Faulty value at ``t``; the first active call fixes the value frozen by ``stuck``."""
+        """Faulty value at time ``t`` (any time: :meth:`Fault.active` decides)."""
         if self.at_onset is None and self.fault.active(t):
             self.at_onset = value
         return self.fault.apply(t, value, self.at_onset)
+
+    def active_rows(self, rows: np.ndarray) -> np.ndarray:
+        """:meth:`Fault.active` at the grid points ``rows`` (an integer array)."""
+        act = (rows >= self.on) & (rows < self.off)
+        if self.pattern:
+            times = self.start + rows * self.step
+            act &= np.fromiter((self.fault.active(float(t)) for t in times), bool, len(rows))
+        return act
+
+    def values(self, rows: np.ndarray, value: np.ndarray) -> np.ndarray:
+        """Faulty values at the grid points ``rows`` of the nominal values ``value`` (arrays):
+        :meth:`at` on each point in order, with :meth:`Fault.apply`'s formulas on arrays."""
+        f, m = self.fault, self.fault.magnitude
+        act = self.active_rows(rows)
+        if not act.any():
+            return value
+        if self.at_onset is None:
+            self.at_onset = float(value[np.argmax(act)])
+        t = self.start + rows * self.step
+        if f.kind in ("abrupt", "intermittent"):
+            faulty = value + m
+        elif f.kind == "incipient":
+            faulty = value + m * np.minimum(1.0, np.maximum(0.0, t - f.onset) / f.ramp)
+        elif f.kind == "stuck":
+            faulty = np.full_like(value, self.at_onset if m is None else m)
+        elif f.kind == "gain":
+            faulty = m * value
+        elif f.kind == "drift":
+            faulty = value + m * np.maximum(0.0, t - f.onset)
+        else:
+            faulty = np.full_like(value, m)
+        return np.where(act, faulty, value)
+
+
+def _faulty_value(f: Fault):
+    """``(t, v) -> faulty value`` of an active fault, :meth:`Fault.apply`'s formula without its
+    activity test; None for ``stuck`` without a magnitude (the value at onset)."""
+    m = f.magnitude
+    if f.kind in ("abrupt", "intermittent"):
+        return lambda t, v: v + m
+    if f.kind == "incipient":
+        onset, ramp = f.onset, f.ramp
+        return lambda t, v: v + m * min(1.0, max(0.0, t - onset) / ramp)
+    if f.kind == "stuck":
+        return None if m is None else (lambda t, v: m)
+    if f.kind == "gain":
+        return lambda t, v: m * v
+    if f.kind == "drift":
+        onset = f.onset
+        return lambda t, v: v + m * max(0.0, t - onset)
+    return lambda t, v: m  # parameter
+
+
+def _first(pred, n: int) -> int:
+    """The least ``j`` in ``0 … n`` with ``pred(j)`` for a predicate false then true; ``n + 1`` if none."""
+    lo, hi = 0, n + 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if pred(mid):
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
 
 
 def _number(x, what: str, target: str) -> float:

@@ -83,6 +83,8 @@ class FMUInstance:
         self.model_description = md
         self.fmi_version = int(md.fmiVersion[0])
         self.variables = {v.name: v for v in md.modelVariables}
+        self._kinds = {}   # var -> kind, and causality -> names: the description never changes
+        self._names = {}
         self.log = collections.deque(maxlen=_LOG_LINES)
         #: warning (and worse) messages of the running instance: text -> [count, first time]
         self.warnings: dict = {}
@@ -105,15 +107,20 @@ class FMUInstance:
 
     def kind(self, var: str):
         """Value kind of ``var`` (``"real"``, ...), or None for arrays, binaries and clocks."""
-        v = self.variable(var)
-        if v.dimensions:
-            return None
-        return _KIND.get(v.type)
+        try:
+            return self._kinds[var]
+        except KeyError:
+            v = self.variable(var)
+            kind = self._kinds[var] = None if v.dimensions else _KIND.get(v.type)
+            return kind
 
     def names(self, causality: str) -> list:
         """Scalar variables of a causality (``"output"``, ``"input"``, ``"parameter"``) in file order."""
-        return [v.name for v in self.variables.values()
-                if v.causality == causality and self.kind(v.name) is not None]
+        names = self._names.get(causality)
+        if names is None:
+            names = self._names[causality] = [v.name for v in self.variables.values()
+                                              if v.causality == causality and self.kind(v.name) is not None]
+        return list(names)
 
     def start_value(self, var: str):
         """The ``start`` attribute of ``var`` converted to its kind, or None if it has none."""

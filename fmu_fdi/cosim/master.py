@@ -27,8 +27,9 @@ import math
 
 from ..progress import note
 from .errors import CoSimulationError, SimulationFailed
-from .faults import Fault, FaultChannel
+from .faults import Fault
 from .instance import FMUInstance
+from .loop import Loop
 from .result import CsvWriter, Result
 from .signals import InputSignals
 from .wiring import wire
@@ -220,13 +221,14 @@ class CoSimulation:
         cols = self.columns()
         names, kinds = [c for c, _ in cols], [k for _, k in cols]
         rows = self.n_steps + 1
+        chunk = min(rows, max(1, int(chunk_rows)))
         writer = None
         if csv is not None:
             try:
                 writer = CsvWriter(csv, names)
             except OSError as exc:
                 raise CoSimulationError(f"cannot write the result to {csv}: {exc.strerror or exc}") from None
-            buf = Result.empty(names, kinds, min(rows, max(1, int(chunk_rows))))
+            buf = Result.empty(names, kinds, chunk)
         else:
             need = rows * Result.empty(names, kinds, 0).itemsize
             if need > max_memory:
@@ -234,58 +236,64 @@ class CoSimulation:
                                         f"{need / 2**30:.3g} GiB in memory; stream it to a file instead "
                                         f"(run(csv=...), or fmu-fdi simulate -o OUT.csv)")
             buf = Result.empty(names, kinds, rows)
-        run = _Run(self)
-        done = 0     # rows recorded (in buf since the last flush, or in total without csv)
-        flushed = 0  # rows written to the CSV
+        loop = Loop(self, chunk)
+        state = {"done": 0, "base": 0, "flushed": 0}  # rows in the chunk, grid point of its row 0, rows in the CSV
         self.warnings = []
 
         def flush():
-            nonlocal done, flushed
-            if writer is not None and done:
-                writer.write(buf[:done])
-                flushed += done
-                done = 0
+            """Turn the chunk's rows into Result rows (and write them to the CSV)."""
+            m, k0 = state["done"], state["base"]
+            if m:
+                if writer is not None:
+                    loop.convert(buf[:m], m, k0)
+                    writer.write(buf[:m])
+                    state["flushed"] += m
+                else:
+                    loop.convert(buf[k0:k0 + m], m, k0)
+            state["done"], state["base"] = 0, k0 + m
 
         completed = False
         try:
             with contextlib.ExitStack() as stack:
                 try:
-                    run.start(stack)
+                    loop.start(stack)
+                    advance, record = loop.advance, loop.record
                     for k in range(rows):
                         if self.interrupt_requested:
                             raise KeyboardInterrupt
                         if k:
-                            run.advance(self.time(k - 1), self.time(k))
-                        if done == len(buf) or not k % 1024:
+                            advance(k - 1)
+                        i = state["done"]
+                        if i == chunk or not k & 1023:
                             note(f"co-simulation at t = {self.time(k):g} s of {self.stop:g} s (row {k} of {rows})")
-                        if writer is not None and done == len(buf):
-                            flush()
-                        run.record(buf, done, self.time(k))
-                        done += 1
+                            if i == chunk:
+                                flush()
+                                i = 0
+                        record(i, k)
+                        state["done"] = i + 1
                     completed = True
                 finally:
                     self.warnings = [line for fmu in self.fmus.values() for line in fmu.warning_summary()]
                     self.warnings += [f"{v} is not connected: the diagnoser read its start value"
                                       for v in self.unconnected]
+                    if hasattr(loop, "rec_f"):  # the rows recorded so far, also when a step failed
+                        tail = state["done"]
+                        flush()
         except SimulationFailed as exc:
             exc.warnings = self.warnings
             if writer is not None:
-                flush()
-                writer.close(f"the run stopped after {flushed} of {rows} rows: {exc}")
+                writer.close(f"the run stopped after {state['flushed']} of {rows} rows: {exc}")
                 exc.result = None
-                exc.rows_written = flushed
+                exc.rows_written = state["flushed"]
             else:
-                exc.result = buf[:done]
+                exc.result = buf[:state["base"]]
             raise
         finally:
             if writer is not None:
                 if completed:
-                    tail = done  # the last rows stay in buf: they are what run() returns
-                    flush()
                     writer.close()
                 else:  # an interruption other than SimulationFailed (already closed above)
-                    flush()
-                    writer.close(f"the run stopped after {flushed} of {rows} rows (interrupted)")
+                    writer.close(f"the run stopped after {state['flushed']} of {rows} rows (interrupted)")
         result = buf[:tail] if writer is not None else buf
         result.warnings = self.warnings
         return result
@@ -295,98 +303,6 @@ class CoSimulation:
         from .ssp import export_ssp
 
         return export_ssp(self, path, drop_faults=drop_faults)
-
-
-class _Run:
-    """The state of one :meth:`CoSimulation.run`: values, value times, fault channels."""
-
-    def __init__(self, sim: CoSimulation):
-        self.sim = sim
-        self.channels = {f.name: FaultChannel(f) for f in sim.faults}
-        self.values = {}     # (fmu, var) -> latest output value
-        self.when = {}       # fmu -> time of its latest outputs
-        self.fixed = {}      # (fmu, var) -> value after initialisation, for ("fixed", None) sources
-
-    def start(self, stack):
-        sim, w = self.sim, self.sim._wiring
-        t0 = sim.start
-        for name, fmu in sim.fmus.items():
-            initial = dict(w.initial[name])
-            # external signals are known before initialisation: let the FMU initialise with them
-            for feed in w.feeds:
-                if feed.fmu == name and feed.source[0] == "signal":
-                    initial[feed.var] = self.chain(feed, t0)[-1]
-            stack.callback(fmu.close)
-            fmu.start(t0, sim.stop, initial)
-        self.outputs = {n: f.accessor([v for v in f.names("output") if f.kind(v) != "string"])
-                        for n, f in sim.fmus.items()}
-        self.feeds = {n: [fd for fd in w.feeds if fd.fmu == n and fd.runtime] for n in sim.fmus}
-        self.setters = {n: sim.fmus[n].accessor([fd.var for fd in fds]) for n, fds in self.feeds.items()}
-        for feed in w.feeds:  # a fixed source is the value the variable has after initialisation
-            if feed.source == ("fixed", None):
-                self.fixed[(feed.fmu, feed.var)] = sim.fmus[feed.fmu].accessor([feed.var]).read(t0)[0]
-        self.recorded = [fd for name in sim.fmus for fd in self.feeds[name]
-                         if fd.var in sim._fed_inputs(name)]
-        self.columns = {key: f"{key[0]}.{key[1]}" for name in sim.fmus
-                        for key in ((name, v) for v in self.outputs[name].names)}
-        for name in sim.fmus:
-            self.read(name, t0)
-
-    def read(self, name, t):
-        acc = self.outputs[name]
-        for var, value in zip(acc.names, acc.read(t)):
-            self.values[(name, var)] = value
-        self.when[name] = t
-
-    def chain(self, feed, t) -> list:
-        """Values along a feed's chain: the nominal source value, then after each fault."""
-        kind = feed.source[0]
-        if kind == "output":
-            t = self.when[feed.source[1]]
-            value = self.values[feed.source[1:]]
-        elif kind == "signal":
-            value = self.sim.inputs.value(feed.source[1], t)
-        else:
-            value = feed.source[1] if feed.source[1] is not None else self.fixed[(feed.fmu, feed.var)]
-        out = [value]
-        for fault in feed.faults:
-            out.append(self.channels[fault.name].apply(t, out[-1]))
-        return out
-
-    def set_inputs(self, name, t):
-        feeds = self.feeds[name]
-        if feeds:
-            self.setters[name].write([self.chain(fd, t)[-1] for fd in feeds], t)
-
-    def advance(self, t, t_next):
-        """One communication step from ``t`` to ``t_next`` (the FMUs get the exact step ``h``)."""
-        sim, h = self.sim, self.sim.step
-        names = list(sim.fmus)
-        if sim.order == "jacobi":
-            for name in names:
-                self.set_inputs(name, t)
-            for name in names:
-                sim.fmus[name].do_step(t, h)
-            for name in names:
-                self.read(name, t_next)
-        else:
-            for name in names:
-                self.set_inputs(name, t)
-                sim.fmus[name].do_step(t, h)
-                self.read(name, t_next)
-
-    def record(self, result, row, t):
-        data = result[row]
-        data["time"] = t
-        for key, value in self.values.items():
-            data[self.columns[key]] = value
-        for feed in self.recorded:  # the value of the input's source at t, faults applied
-            data[f"{feed.fmu}.{feed.var}"] = self.chain(feed, t)[-1]
-        for fault in self.sim.faults:
-            feed, pos = self.sim._wiring.fault_feed[fault.name]
-            vals = self.chain(feed, t)
-            data[f"fault.{fault.name}"] = vals[pos + 1] - vals[pos]
-            data[f"fault.{fault.name}.active"] = fault.active(t)
 
 
 def _grid(start, stop, step):

@@ -97,6 +97,23 @@ class InputSignals:
         t0, t1 = self.time[i], self.time[i + 1]
         return float(v[i] + (v[i + 1] - v[i]) * (t - t0) / (t1 - t0))
 
+    def sample(self, name: str, times) -> np.ndarray:
+        """Values of signal ``name`` at the times ``times`` (an array): :meth:`value` on each,
+        with the same arithmetic."""
+        v = self.values[name]
+        t = np.asarray(times, dtype=float)
+        i = np.searchsorted(self.time, t, side="right") - 1
+        before = i < 0
+        i = np.maximum(i, 0)
+        out = v[i]
+        if self.interpolation == "linear":
+            inner = ~before & (i < len(v) - 1)
+            j = i[inner]
+            t0, t1 = self.time[j], self.time[j + 1]
+            out = out.copy()
+            out[inner] = v[j] + (v[j + 1] - v[j]) * (t[inner] - t0) / (t1 - t0)
+        return out
+
     def function(self, name: str):
         """``t -> value`` of one signal (e.g. for ``fmpy.ssp.simulation.simulate_ssp(input=...)``)."""
         if name not in self.values:

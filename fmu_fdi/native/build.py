@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import json
 import os
 import shutil
 import subprocess
@@ -384,6 +385,9 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2, stop_time: fl
             members[f"sources/{name}"] = sources[name]
         if fmi_version == 3:
             members["sources/buildDescription.xml"] = build_description(ident, names)
+        # the design it was built from, where the pythonfmu target keeps it too (campaigns read the
+        # fault names and the decision rule from it; the C code does not read it)
+        members["resources/fmu_fdi/design.json"] = json.dumps(design, sort_keys=True).encode("utf-8")
 
         def fill(part):
             with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:
