@@ -654,20 +654,40 @@ def _version() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``fmu-fdi`` argument parser: one sub-parser per command, each built by its own
+    ``_<command>_parser(sub)`` below (cosim and campaign add theirs), in the order ``--help``
+    lists them."""
+    from .campaign import cli as campaign_cli
+    from .cosim import cli as cosim_cli
+
     p = argparse.ArgumentParser(prog="fmu-fdi", description="Model-based fault detection and isolation as FMUs.")
     p.add_argument("--version", action="version", version=f"fmu-fdi {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
+    for add_parser in (_analyze_parser, _plants_parser, _plot_parser, _demo_parser, cosim_cli.add_parser,
+                       _diagnose_parser, campaign_cli.add_parser, _design_parser, _model_parser, _build_parser):
+        add_parser(sub)
+    return p
+
+
+def _analyze_parser(sub) -> None:
+    """``fmu-fdi analyze MODEL``."""
     a = sub.add_parser("analyze", help="detectability / isolability table of a model file")
     a.add_argument("model", help="model file (.toml or .json, docs/model-file.md)")
     _minreal_options(a)
     a.set_defaults(func=_analyze)
 
+
+def _plants_parser(sub) -> None:
+    """``fmu-fdi plants build [--out DIR]``."""
     pl = sub.add_parser("plants", help="benchmark plant FMUs (plant_fmus)")
     pl_sub = pl.add_subparsers(dest="plants_command", required=True)
     pb = pl_sub.add_parser("build", help="build every benchmark plant FMU")
     pb.add_argument("--out", default="out", help="output folder (default: out)")
     pb.set_defaults(func=_plants_build)
 
+
+def _plot_parser(sub) -> None:
+    """``fmu-fdi plot OUT.csv -o PLOT.png``."""
     pp = sub.add_parser("plot", help="PNG of residuals, thresholds, alarms and isolation from a result CSV")
     pp.add_argument("result", help="CSV from 'fmu-fdi simulate', 'fmu-fdi diagnose', fmpy or Result.to_csv")
     pp.add_argument("-o", "--output", required=True, help="image to write (.png, .svg or .pdf)")
@@ -678,6 +698,9 @@ def build_parser() -> argparse.ArgumentParser:
     pp.add_argument("--title", help="plot title (default: the diagnoser and what happened)")
     pp.set_defaults(func=_plot)
 
+
+def _demo_parser(sub) -> None:
+    """``fmu-fdi demo [--out DIR]``."""
     dm = sub.add_parser("demo", help="the three-tank demo: plant FMU, diagnoser design, diagnostic FMU, "
                                      "co-simulations, table and plot")
     dm.add_argument("--out", default="fmu-fdi-demo", help="output folder (default: fmu-fdi-demo)")
@@ -685,10 +708,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="diagnostic FMU target (default: pythonfmu; native: C, FMI 2.0, compiled with the system C compiler)")
     dm.set_defaults(func=_demo)
 
-    from .cosim import cli as cosim_cli
 
-    cosim_cli.add_parser(sub)
-
+def _diagnose_parser(sub) -> None:
+    """``fmu-fdi diagnose LOG.csv --design DESIGN.json -o OUT.csv``."""
     dg = sub.add_parser("diagnose", help="run a design file on a recorded log (no FMU) and write the diagnosis",
                         description="Run the diagnoser of a design file on a recorded CSV log: a 'time' column "
                                     "and one column per signal the design reads (the model's u and y names), "
@@ -702,10 +724,9 @@ def build_parser() -> argparse.ArgumentParser:
                                      "the diagnoser's recorded inputs)")
     dg.set_defaults(func=_diagnose)
 
-    from .campaign import cli as campaign_cli
 
-    campaign_cli.add_parser(sub)
-
+def _design_parser(sub) -> None:
+    """``fmu-fdi design MODEL --method M ... -o DESIGN.json``."""
     d = sub.add_parser("design", help="design a diagnoser and write its design file",
                        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=DESIGN_HELP)
     d.add_argument("model", help="model file (.toml or .json, docs/model-file.md)")
@@ -749,6 +770,9 @@ def build_parser() -> argparse.ArgumentParser:
     _minreal_options(d)
     d.set_defaults(func=_design)
 
+
+def _model_parser(sub) -> None:
+    """``fmu-fdi model PLANT.fmu ... -o MODEL.toml``."""
     mo = sub.add_parser("model", help="linear model file of a plant FMU: linearised (model exchange) or "
                                       "identified from an experiment (co-simulation)")
     mo.add_argument("plant", help="plant FMU (FMI 2.0 or 3.0)")
@@ -800,6 +824,9 @@ def build_parser() -> argparse.ArgumentParser:
     _minreal_options(mo)
     mo.set_defaults(func=_model)
 
+
+def _build_parser(sub) -> None:
+    """``fmu-fdi build DESIGN.json -o FDI.fmu``."""
     b = sub.add_parser("build", help="build the diagnostic FMU (co-simulation) from a design file")
     b.add_argument("design", help="design file (.json) written by 'fmu-fdi design' or Diagnoser.save")
     b.add_argument("-o", "--output", required=True, help="FMU to write (.fmu)")
@@ -810,8 +837,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="DefaultExperiment stop time in s, what 'fmpy simulate' runs for without --stop-time "
                         "(default: 1000 samples of the design's Ts)")
     b.set_defaults(func=_build)
-    return p
-
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)

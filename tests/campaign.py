@@ -57,6 +57,7 @@ import plant_fmus
 from fmu_fdi import (Diagnoser, FDIModel, ResidualGenerator, analytic_threshold, build_fmu,
                      data_driven_threshold, metrics)
 from fmu_fdi.cosim import CoSimulation, Fault, InputSignals
+from plant_builds import native_plant
 
 P_CAMPAIGN = 1e-3  # probability that any claim of a subsystem's campaign fails (see module docstring):
 P_SAMPLES = P_CAMPAIGN / 2  # ... half for the per-sample claims (no alarm / alarm pattern), α = P_SAMPLES / (S·G)
@@ -240,10 +241,10 @@ def probes(c: Campaign, sub: Subsystem) -> dict:
     return out
 
 
-def design(c: Campaign, sub: Subsystem, fmu_plant: dict, calib, noise_free: dict, t_free) -> dict:
-    """Thresholds and derived targets of every method of the subsystem: {name: MethodResult}."""
+def design(c: Campaign, sub: Subsystem, found: dict, fmu_plant: dict, calib, noise_free: dict, t_free) -> dict:
+    """Thresholds and derived targets of every method of the subsystem (``found``: its
+    :func:`probes`): {name: MethodResult}."""
     cases = [f for f in c.faults if f.subsystem == sub.name]
-    found = probes(c, sub)
     n_samples = len(t_free) + sum(len(grid(c, c.t_on + f.horizon)) for f in cases)
     alpha = P_SAMPLES / (n_samples * sum(len(p.generator.groups) for p in found.values()))
     beta = P_DETECT / (2 * len(found) * len(cases))  # a detection and a final-isolation claim each
@@ -305,12 +306,18 @@ def run_campaign(c: Campaign, tmp: Path) -> dict:
     diagnoser, each fault with its subsystem's.
     """
     tic = time.perf_counter()
-    fmu_plant = {"plant": plant_fmus.build(c.plant, tmp)}
+    found = {sub.name: probes(c, sub) for sub in c.subsystems}  # a design the judge refuses fails before any run
+    # The native C plant: the plant's language does not matter here. Noise-free it equals the
+    # pythonfmu plant to 1e-10 (tests/test_native_plants.py), far below J_α, so J_mis and every
+    # derived target are the same; with noise on it draws another sequence of the same seeded
+    # white noise (docs/native-plants.md), and every claim holds with probability ≥ 1 − P_CAMPAIGN
+    # over the noise, whichever sequence is drawn (docs/native-plants.md: 3-7 times faster a step).
+    fmu_plant = {"plant": native_plant(c.plant)}
     t_free = grid(c, max(c.t_on + f.horizon for f in c.faults))
     calib = co_simulate(c, fmu_plant, t_free, None, 0, noise=False)
     noise_free = {f.key: co_simulate(c, fmu_plant, grid(c, c.t_on + f.horizon), f, 0, noise=False)
                   for f in c.faults}
-    results = {sub.name: design(c, sub, fmu_plant, calib, noise_free, t_free) for sub in c.subsystems}
+    results = {sub.name: design(c, sub, found[sub.name], fmu_plant, calib, noise_free, t_free) for sub in c.subsystems}
     fdi = {(s, m): build_fmu(r.diagnoser, tmp / f"{r.diagnoser.design['name']}.fmu")
            for s, sub in results.items() for m, r in sub.items()}
     design_s = time.perf_counter() - tic

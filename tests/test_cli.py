@@ -206,15 +206,15 @@ def assert_one_line_error(code, err, *fragments):
 @pytest.fixture(scope="module")
 def tank_files(tmp_path_factory):
     """The README's three-tank design and diagnostic FMU (built once), plus a plant FMU."""
-    import plant_fmus
     from fmu_fdi import Diagnoser, FDIModel, build_fmu, dedicated_bank
+    from plant_builds import python_plant
 
     tmp = tmp_path_factory.mktemp("tanks")
     model = FDIModel.from_file(PLANT_MODEL)
     dg = Diagnoser(dedicated_bank(model, "sensor", noise="ignore"), Ts=1.0,
                    evaluation={"kind": "rms", "window": 20}, thresholds=0.4, decision={"persistence": [3, 5]})
     return {"design": dg.save(tmp / "dos.json"), "fmu": build_fmu(dg, tmp / "dos.fmu"),
-            "plant": plant_fmus.build("dts200", tmp), "dg": dg}
+            "plant": python_plant("dts200"), "dg": dg}
 
 
 def test_version(capsys):

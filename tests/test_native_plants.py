@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 import plant_fmus
+from plant_builds import native_plant, python_plant
 from plant_fmus.native_build import build_native
 
 HERE = Path(__file__).parent
@@ -64,11 +65,10 @@ SCENARIOS = {
 
 
 @pytest.fixture(scope="module")
-def fmus(tmp_path_factory):
-    """{plant: (pythonfmu FMU, native FMU)}; the native one takes the reference's variables."""
-    out = tmp_path_factory.mktemp("native_plants")
-    refs = {p.stem: p for p in plant_fmus.build_all(out / "ref")}
-    return {name: (ref, build_native(name, out / "native", reference=ref)) for name, ref in refs.items()}
+def fmus():
+    """{plant: (pythonfmu FMU, native FMU)}; the native one takes the reference's variables
+    (built once per process, tests/plant_builds.py)."""
+    return {name: (python_plant(name), native_plant(name)) for name in plant_fmus.PLANTS}
 
 
 def outputs(fmu):
@@ -327,7 +327,7 @@ def test_fmi3_native_plant_validates_and_equals_its_fmi2_build(fmus, tmp_path, n
     from fmpy.validation import validate_fmu
 
     ref, native = fmus[name]
-    fmi3 = build_native(name, tmp_path, reference=ref, fmi_version=3)
+    fmi3 = native_plant(name, 3)  # build_native(name, ..., reference=ref, fmi_version=3)
     assert validate_fmu(str(fmi3)) == []
     m2, m3 = read_model_description(native), read_model_description(fmi3)
     types = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
@@ -477,7 +477,7 @@ def test_fmi3_native_plant_in_a_plain_c_host_under_valgrind(fmus, tmp_path):
                     f"-I{Path(fmpy.__file__).parent / 'c-code'}", str(HERE / "hosts" / "plant_fmi3_host.c"),
                     "-o", str(exe), "-ldl"], check=True, capture_output=True, timeout=120)
     ref, native = fmus["wind_turbine"]
-    fmi3 = build_native("wind_turbine", tmp_path, reference=ref, fmi_version=3)
+    fmi3 = native_plant("wind_turbine", 3)  # the FMI 3.0 build test_fmi3_native_plant_validates... checks
     md = read_model_description(str(fmi3))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     outs = ["omega_r_m1", "omega_g_m1", "tau_g_m", "beta_1_m1"]

@@ -266,6 +266,39 @@ def rls_estimator(model: FDIModel, *, output=None, order=None, Ts: float | None 
     >>> est.residual_names, {k: round(v, 12) for k, v in est.info["theta0"].items()}
     (['a1', 'b1_1'], {'a1': -0.9, 'b1_1': 0.5})
     """
+    mu, P0, Ts, outputs, orders, noises, mu_sigma, sigma_clip = _arguments(
+        model, forgetting, P0, Ts, output, order, noise_std, svf_bandwidth, reset, noise_forgetting, sigma_clip)
+
+    rows = [_minimal_row(model, i, n) for i, n in zip(outputs, orders)]
+    lam = _svf_bandwidth(model, rows, Ts, svf_bandwidth)
+    estimators, names, groups, metas = [], [], [], []
+    multi = len(outputs) > 1
+    for i, G, sigma_y in zip(outputs, rows, noises):
+        est, meta = _estimator(model, i, G, Ts, lam)
+        prefix = f"{model.y_names[i]}." if multi else ""
+        start = len(names)
+        names += [prefix + nm for nm in meta["names"]]
+        groups.append(list(range(start, len(names))))
+        est.update(_estimator_tuning(G.n, len(meta["names"]), meta["noise_gain"], sigma_y, P0, reset,
+                                     reset_trace, trace_max, warmup))
+        estimators.append(est)
+        metas.append(meta)
+
+    reset_spec = _reset_spec(reset, reset_period)
+    spec = {
+        "kind": "rls", "version": 1, "dt": Ts, "n_inputs": model.ny + model.nu, "forgetting": mu, "P0": P0,
+        "reset": reset_spec, "noise_forgetting": mu_sigma, "sigma_clip": sigma_clip,
+        "sigma_rel": math.sqrt(np.finfo(float).eps), "estimators": estimators,
+    }
+    info = _info(model, outputs, rows, metas, Ts, lam, mu, mu_sigma, P0, reset_spec)
+    return RLSEstimator(model, spec, names, groups, info)
+
+
+# ---------------------------------------------------------------------- design stages
+def _arguments(model, forgetting, P0, Ts, output, order, noise_std, svf_bandwidth, reset, noise_forgetting,
+               sigma_clip) -> tuple:
+    """The checked arguments of :func:`rls_estimator`: ``(μ, P0, Ts, outputs, orders,
+    noise_stds, μ_σ, sigma_clip)``, or a DesignError naming the first that fails."""
     if not isinstance(model, FDIModel):
         raise DesignError(f"rls_estimator needs an FDIModel, got {type(model).__name__}")
     if model.nu == 0:
@@ -288,63 +321,69 @@ def rls_estimator(model: FDIModel, *, output=None, order=None, Ts: float | None 
     if not 0.0 < mu_sigma <= 1.0:
         raise DesignError(f"noise_forgetting must be in (0, 1], got {noise_forgetting!r}")
     sigma_clip = _number(sigma_clip, "sigma_clip")
+    return mu, P0, Ts, outputs, orders, noises, mu_sigma, sigma_clip
 
-    rows = []
-    for i, n in zip(outputs, orders):
-        G = LTI(model.A, model.Bu, model.C[[i]], model.Du[[i]], model.dt).minreal()
-        if G.n == 0 and not np.any(G.D):
-            raise DesignError(f"output '{model.y_names[i]}' does not depend on the known inputs: nothing to estimate")
-        if n is not None:
-            n = _integer(n, f"order of '{model.y_names[i]}'")
-            if n != G.n:
-                raise DesignError(
-                    f"order {n} of output '{model.y_names[i]}' {'exceeds' if n > G.n else 'is below'} its minimal "
-                    f"order {G.n} (McMillan degree of Gu[{model.y_names[i]}, :]): "
-                    + ("the parameters are not unique (pole-zero cancellation)" if n > G.n
-                       else "the equation cannot represent the plant")
-                )
-        rows.append(G)
+
+def _minimal_row(model: FDIModel, i: int, n) -> LTI:
+    """The minimal realisation of row ``Gu[i, :]``, checked against the requested order n."""
+    G = LTI(model.A, model.Bu, model.C[[i]], model.Du[[i]], model.dt).minreal()
+    if G.n == 0 and not np.any(G.D):
+        raise DesignError(f"output '{model.y_names[i]}' does not depend on the known inputs: nothing to estimate")
+    if n is not None:
+        n = _integer(n, f"order of '{model.y_names[i]}'")
+        if n != G.n:
+            raise DesignError(
+                f"order {n} of output '{model.y_names[i]}' {'exceeds' if n > G.n else 'is below'} its minimal "
+                f"order {G.n} (McMillan degree of Gu[{model.y_names[i]}, :]): "
+                + ("the parameters are not unique (pole-zero cancellation)" if n > G.n
+                   else "the equation cannot represent the plant")
+            )
+    return G
+
+
+def _svf_bandwidth(model: FDIModel, rows: list[LTI], Ts: float, svf_bandwidth) -> float | None:
+    """λ of the SVF: None for a discrete model; else the given one, or the largest pole
+    magnitude of the estimated rows (``0.2/Ts`` if all poles are at 0)."""
     if model.is_discrete:
-        lam = None
-    elif svf_bandwidth is None:
-        mags = np.concatenate([np.abs(G.poles()) for G in rows])
-        lam = float(mags.max()) if mags.size and mags.max() > 0 else 0.2 / Ts
-    else:
-        lam = _number(svf_bandwidth, "svf_bandwidth", positive=True)
+        return None
+    if svf_bandwidth is not None:
+        return _number(svf_bandwidth, "svf_bandwidth", positive=True)
+    mags = np.concatenate([np.abs(G.poles()) for G in rows])
+    return float(mags.max()) if mags.size and mags.max() > 0 else 0.2 / Ts
 
-    estimators, names, groups, info_out = [], [], [], []
-    multi = len(outputs) > 1
-    for i, G, sigma_y in zip(outputs, rows, noises):
-        est, meta = _estimator(model, i, G, Ts, lam)
-        prefix = f"{model.y_names[i]}." if multi else ""
-        start = len(names)
-        names += [prefix + nm for nm in meta["names"]]
-        groups.append(list(range(start, len(names))))
-        npar = len(meta["names"])
-        est["skip"] = G.n
-        est["warmup"] = G.n + 2 * npar if warmup is None else _integer(warmup, "warmup", low=G.n)
-        if sigma_y is not None:
-            est["sigma_floor"] = _number(sigma_y, "noise_std", positive=False) * meta["noise_gain"]
-        est["trace_max"] = npar * P0 if trace_max is None else _number(trace_max, "trace_max", positive=True)
-        if reset == "floor":
-            est["trace_min"] = (1e-6 * npar * P0 if reset_trace is None
-                                else _number(reset_trace, "reset_trace", positive=True))
-            if est["trace_min"] >= est["trace_max"]:
-                raise DesignError(f"reset_trace {est['trace_min']:g} must be below trace_max {est['trace_max']:g}")
-        estimators.append(est)
-        info_out.append(meta)
 
+def _estimator_tuning(n: int, npar: int, noise_gain: float, sigma_y, P0: float, reset, reset_trace,
+                      trace_max, warmup) -> dict:
+    """The per-estimator runtime entries ``skip``, ``warmup``, ``sigma_floor``, ``trace_max``
+    and ``trace_min`` of an output of order n with npar parameters (defaults: see
+    :func:`rls_estimator`)."""
+    out = {"skip": n, "warmup": n + 2 * npar if warmup is None else _integer(warmup, "warmup", low=n)}
+    if sigma_y is not None:
+        out["sigma_floor"] = _number(sigma_y, "noise_std", positive=False) * noise_gain
+    out["trace_max"] = npar * P0 if trace_max is None else _number(trace_max, "trace_max", positive=True)
+    if reset == "floor":
+        out["trace_min"] = (1e-6 * npar * P0 if reset_trace is None
+                            else _number(reset_trace, "reset_trace", positive=True))
+        if out["trace_min"] >= out["trace_max"]:
+            raise DesignError(f"reset_trace {out['trace_min']:g} must be below trace_max {out['trace_max']:g}")
+    return out
+
+
+def _reset_spec(reset, reset_period) -> dict:
+    """The runtime's ``reset`` entry: ``{"policy"}``, plus ``"period"`` for ``"periodic"``."""
     policy = reset or "none"
     reset_spec: dict = {"policy": policy}
     if policy == "periodic":
         if reset_period is None:
             raise DesignError("reset='periodic' needs reset_period (updates between resets)")
         reset_spec["period"] = _integer(reset_period, "reset_period", low=1)
-    spec = {
-        "kind": "rls", "version": 1, "dt": Ts, "n_inputs": model.ny + model.nu, "forgetting": mu, "P0": P0,
-        "reset": reset_spec, "noise_forgetting": mu_sigma, "sigma_clip": sigma_clip,
-        "sigma_rel": math.sqrt(np.finfo(float).eps), "estimators": estimators,
-    }
+    return reset_spec
+
+
+def _info(model: FDIModel, outputs, rows, metas, Ts, lam, mu, mu_sigma, P0, reset_spec) -> dict:
+    """The estimator's ``info``: the tuning, θ0 and the regressors (θ_c and the SVF bias for a
+    continuous model)."""
+    multi = len(outputs) > 1
     info = {
         "form": "ARX" if model.is_discrete else "SVF",
         "outputs": [model.y_names[i] for i in outputs],
@@ -355,14 +394,14 @@ def rls_estimator(model: FDIModel, *, output=None, order=None, Ts: float | None 
         "noise_forgetting": mu_sigma,
         "P0": P0,
         "reset": reset_spec,
-        "theta0": _merge(info_out, "theta0", multi, outputs, model),
-        "regressor": {model.y_names[i]: m["regressor"] for i, m in zip(outputs, info_out)},
+        "theta0": _merge(metas, "theta0", multi, outputs, model),
+        "regressor": {model.y_names[i]: m["regressor"] for i, m in zip(outputs, metas)},
         "unmodelled_inputs": list(model.d_names) + list(model.w_names),
     }
     if not model.is_discrete:
-        info["theta_continuous"] = _merge(info_out, "theta_continuous", multi, outputs, model)
+        info["theta_continuous"] = _merge(metas, "theta_continuous", multi, outputs, model)
         info["svf_bias"] = {k: info["theta0"][k] - info["theta_continuous"][k] for k in info["theta0"]}
-    return RLSEstimator(model, spec, names, groups, info)
+    return info
 
 
 # ------------------------------------------------------------------------- prefilters
