@@ -477,39 +477,13 @@ def test_issue17_small_cases(label):
 # Seeds whose designs break the judge on main AND on main + core + judge + matching (merged 11:25 UTC,
 # issue 17): the first breakage of the merged state. strict: a fix makes the test XPASS, so remove the entry.
 KNOWN_BROKEN = {
-    1: ("structured_bank: achievable request refused: row 2 [1, 1, 0, 1, 1] (decoupling ['fa1']): (R "
-         'stability): R = Q·Ge keeps the plant pole(s) [0.9801+0.1987j, 0.9801-0.1987j] '),
-    3: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+w leak 32.5 × the weakest '
-         'fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisio'),
-    13: ('nullspace_design: achievable request refused: the internal form R = Q·Ge keeps the poles [(1+0j), '
-         '(0.596952+0.846249j), (0.596952-0.846249j), (0.00736+127.564524j), (0.00'),
-    21: ('nullspace_design: achievable request refused: (R stability, decoupling): R = Q·Ge keeps the plant '
-         'pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: u leak 2.68 × '),
     22: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+d+w leak 127 × the weakest'
          ' fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisi'),
-    23: ('nullspace_design: achievable request refused: (stability, R stability, decoupling): filter: largest '
-         '|pole| = 1.0163 > the stability margin smarg = 1; R = Q·Ge keeps the p'),
-    26: ("structured_bank: achievable request refused: row 5 [1, 1, 1, 1, 0] (decoupling ['fc']): (R "
-         'stability, decoupling): R = Q·Ge keeps the plant pole(s) [2.153e-05] (largest R'),
     28: ("dedicated_bank(sensor): achievable request refused: row 2 [0, 1] (decoupling ['fs1']): filter: largest "
          'Re(pole) = -1.69362e-09 > the stability margin smarg = -1.49012e-08'),  # passed on bankfix; the merge
     # with boeing/bigmodel leaves the row's filter a pole at ~0 that the margin refuses (found at integration)
-    30: ('nullspace_design: achievable request refused: the real Schur form cannot be reordered (LAPACK dtrsen '
-         'info = 1)'),  # integ: LinAlgError (sort condition); now a DesignError, the row still not designed
-    31: ('nullspace_design: achievable request refused: nullspace design fails its post-conditions (stability, '
-         'R stability, decoupling): filter: largest |pole| = 1.00439 > the stability margin smarg = 1; R = Q·Ge '
-         'keeps the plant pole(s) [1.105]'),  # integ: LinAlgError (sort condition), fixed by bankfix
     33: ('nullspace_design: achievable request refused: (R stability, decoupling): R = Q·Ge keeps the plant '
          'pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: u+w leak 215 ×'),
-    37: ('nullspace_design: achievable request refused: (decoupling): residual 1: u leak 1.34e-05 × the '
-         'weakest fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decis'),
-    38: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+w leak 5.17 × the weakest '
-         'fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisio'),
-    39: ('nullspace_design: achievable request refused: nullspace design fails its post-conditions (R '
-         'stability, decoupling): R = Q·Ge keeps the plant pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: '
-         'u+d leak 4.61 × the weakest fault gain'),
-    43: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+d leak 7.42e-07 × the '
-         'weakest fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank dec'),
 }
 
 

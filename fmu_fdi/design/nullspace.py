@@ -267,12 +267,25 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         raise DesignError(f"basis must be 'auto', 'polynomial' or 'pencil', got {basis!r}")
     # where every path ends (_finish): the poles of the internal form [Q R] to move, and where to
     place = {"poles": poles, "sdeg": sdeg, "smarg": smarg, "keep_stable_poles": bool(keep_stable_poles)}
+    exact_only = not (model.nw and noise == "optimize")
+    if not exact_only and basis in ("auto", "pencil"):
+        # the approximate problem on the state-space core first: the polynomial basis of an ill-scaled or
+        # clustered plant leaks far above dec_tol (random seeds 3, 22, 30, 33, 37)
+        try:
+            gen = _approximate_pencil(model, rdim, poles, sdeg, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
+                                      minimal, place)
+            exact_w = gen.info.get("noise") == "decoupled exactly"
+            check_generator(gen, decouple=("u", "d", "w") if exact_w else ("u", "d"), block=True, FDtol=FDtol,
+                            smarg=smarg, dec_tol=dec_tol)
+        except DesignError:
+            if basis == "pencil":
+                raise
+        else:
+            gen.info.update({"basis": "pencil", "decoupling_kind": EXACT})
+            return gen
     if basis == "pencil":
-        if model.nw and noise == "optimize":
-            raise DesignError("basis='pencil' decouples u and d only: pass noise='ignore' for a model with noise w")
         return _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
                        minimal, place)
-    exact_only = not (model.nw and noise == "optimize")
     auto = basis == "auto" and exact_only
     pencil_failed = pencil_gen = None
     if auto and rdim != "all" and poles is None and sdeg is None and tol is None and not atol:
@@ -798,6 +811,15 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
 
     Q0 = realize_all(basis)
     Q2 = realize_all(basis2) if basis2 is not None and basis2.rows else None
+    return _noise_combination(model, Q0, Q2, basis, basis.degrees, rdim, seed, place)
+
+
+def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees, rdim, seed,
+                       place: dict | None) -> ResidualGenerator:
+    """Procedure AFD's combination (Varga 2017, sec. 5.3) of a (u, d)-null-space basis ``Q0`` and a
+    (u, d, w)-null-space basis ``Q2`` (None: w reaches every residual): the rows of Q0 completing Q2,
+    their internal form made stable and ``Rw`` co-outer normalised, then the constant combination of
+    all rows with the largest fault-to-noise gap (on its plateau, the most even fault sensitivity)."""
     k2 = Q2.p if Q2 is not None else 0
     # rows of Q0 that complete Q2 to a basis of the whole (u, d)-null space
     k = Q0.p
@@ -851,4 +873,43 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
             "combination": H.tolist()}
     if moved:
         info["internal_form"] = moved
-    return _finish(model, Q, basis, "nullspace", info, basis.degrees, place=place)
+    return _finish(model, Q, basis, "nullspace", info, degrees, place=place)
+
+
+def _approximate_pencil(model: FDIModel, rdim, poles, sdeg, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
+                        minimal: bool, place: dict | None) -> ResidualGenerator:
+    """Procedure AFD on the state-space core (FaultDetectionTools.jl ``afdsyn``): w decoupled
+    exactly when a least-order pencil row of ``[Gu Gd Gw; I 0 0]`` sees every fault
+    (:func:`_pencil` on the model with w as unknown inputs); otherwise the proper stable pencil
+    bases of ``[Gu Gd; I 0]`` and ``[Gu Gd Gw; I 0 0]`` (:func:`.pencil.pencil_basis`, no powers of
+    A) combined by :func:`_noise_combination`."""
+    from types import SimpleNamespace
+
+    from .pencil import pencil_basis
+
+    exact_w = model.with_disturbances(noise=True)
+    try:
+        gen = _pencil(exact_w, rdim, poles, sdeg, None, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol, minimal,
+                      place)
+    except DesignError:
+        gen = None
+    if gen is not None:
+        gen = ResidualGenerator(gen.Q, model, "nullspace", info=gen.info)
+        gen.info.update({"gap_estimate": float("inf"), "noise": "decoupled exactly"})
+        return gen
+    pb = pencil_basis(model, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
+    if pb.N.p == 0:
+        raise DesignError(
+            f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
+            f"output direction (normal rank of Gd = {pb.rank_d} = number of outputs {model.ny})")
+    try:
+        pb2 = pencil_basis(exact_w, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
+        Q2 = pb2.N if pb2.N.p else None
+    except DesignError:
+        Q2 = None
+    gains = _pencil_gains(model, pb.N, None, FDtol)
+    if model.faults and not np.all(gains.max(axis=0) >= FDtol):
+        raise undetectable_error(model, gains >= FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
+    gen = _noise_combination(model, pb.N, Q2, SimpleNamespace(rho=1.0, dt=model.dt), pb.degrees, rdim, seed, place)
+    gen.info.update({"left_minimal_indices": pb.degrees, "pencil": pb.info})
+    return gen
