@@ -477,11 +477,6 @@ def test_issue17_small_cases(label):
 # Seeds whose designs break the judge on main AND on main + core + judge + matching (merged 11:25 UTC,
 # issue 17): the first breakage of the merged state. strict: a fix makes the test XPASS, so remove the entry.
 KNOWN_BROKEN = {
-    22: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+d+w leak 127 × the weakest'
-         ' fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisi'),
-    28: ("dedicated_bank(sensor): achievable request refused: row 2 [0, 1] (decoupling ['fs1']): filter: largest "
-         'Re(pole) = -1.69362e-09 > the stability margin smarg = -1.49012e-08'),  # passed on bankfix; the merge
-    # with boeing/bigmodel leaves the row's filter a pole at ~0 that the margin refuses (found at integration)
     33: ('nullspace_design: achievable request refused: (R stability, decoupling): R = Q·Ge keeps the plant '
          'pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: u+w leak 215 ×'),
 }

@@ -305,7 +305,7 @@ def stable_internal_form(model: FDIModel, Q: LTI, *, poles=None, sdeg: float | N
     eig = np.concatenate([Q.poles(), np.linalg.eigvals(model.A) if model.n else np.zeros(0)])
     if all(good(z.real, z.imag) for z in eig):
         return Q, {}
-    if all(good(z.real, z.imag) for z in Q.poles()):
+    if np.isinf(limit) and all(good(z.real, z.imag) for z in Q.poles()):
         # only plant poles violate the region: factorise the part of [Q R] that carries them alone
         return _move_plant_poles(model, Q, moved_pole_targets(model, poles, sdeg, smarg), good, margin)
     J, q = internal_form_realisation(model, Q)
@@ -334,52 +334,28 @@ def stable_internal_form(model: FDIModel, Q: LTI, *, poles=None, sdeg: float | N
 
 
 def _move_plant_poles(model: FDIModel, Q: LTI, choose, good, margin: float) -> tuple[LTI, dict]:
-    """:func:`stable_internal_form` when Q is stable and only plant poles violate the region.
+    """:func:`stable_internal_form` when Q is stable and only plant poles violate the margin.
 
     The series realisation of ``[Q R]`` (order ``n_Q + n``) is far from minimal — every plant mode Q
     cancels stays as a near-unobservable mode — and with clustered poles (a discrete plant whose
-    eigenvalues lie within 1e-2 of 1; Q's poles at the plant's own) a staircase cannot tell those
-    modes from the weakly observable ones: the factorisation of the whole then moved modes it
-    should not and failed. Here the rank decisions are taken on the violating modes alone:
-
-    * the plant's balanced ``A`` is put in an ordered real Schur form (good eigenvalues first), so
-      that in the states ``[x_Q; x_good; x_bad]`` the series matrix is block upper triangular with
-      the violating block ``A_b`` last; a Sylvester equation ``A_g X − X A_b = −A_gb`` splits it off:
-      ``[Q R] = G_good + G_bad`` with ``G_bad = C_b (λI − A_b)⁻¹ B_b`` (a spectral separation; the
-      violating poles of ``[Q R]`` are exactly those of ``G_bad`` that remain in its minimal
-      realisation — a mode Q cancels is unobservable there, decided with :data:`CANCEL_RTOL` on a
-      system of the size of the violating block);
-    * :func:`glcf` of the minimal ``G_bad`` gives ``M = (A_m, L, C_b, I)``, ``A_m = A_b + L C_b``,
-      and ``M·G_bad = (A_m, B_b, C_b, 0)``; ``M·G_good`` shares M's states, so
-      ``Q ← M·Q`` is realised on ``[x_Q; x_m]`` with order ``n_Q`` + the number of moved poles.
+    eigenvalues lie within 1e-2 of 1, Q's poles at the plant's own) a staircase over the whole
+    cannot tell those modes from the weakly observable ones: its factorisation moved modes it
+    should not and failed. Here the decision is the judge's own (:func:`fmu_fdi.margin.margin_reduced`,
+    as :func:`.postconditions._r_poles` calls it): the violating part of the balanced series
+    realisation is split off by an ordered Schur form and a Sylvester equation and reduced to its
+    controllable and observable modes ``G_bad = (A_b, B_b, C_b)`` — exactly the poles of R the judge
+    would refuse. :func:`glcf` of ``G_bad`` gives ``M = (A_b + L C_b, L, C_b, I)``; ``M·[Q R]`` is
+    ``M·G_good + (A_b + L C_b, B_b, C_b, 0)``, stable, and ``Q ← M·Q`` is the series realisation,
+    order ``n_Q`` + the number of moved poles.
     """
-    import scipy.linalg as sla
+    from ..margin import margin_reduced
 
-    from ..linalg import ordered_schur
-
-    sl = model.group_slices()
-    Ge = model.augmented()[:, np.arange(sl["w"].start, sl["f"].stop)]
-    if Ge.n and Ge.m and Ge.p:
-        Ge, _ = Ge.balanced()
-    T, Z, kg = ordered_schur(Ge.A, good)
-    n, nq, q = Ge.n, Q.n, Q.m
-    if kg == n:
+    J, q = internal_form_realisation(model, Q)
+    red, kept = margin_reduced(J, margin, parts=True)
+    if kept.size == 0:
         return Q, {}
-    # plant in Schur coordinates, split into good (kg) and bad (n - kg) states
-    Bp, Cp = Z.T @ Ge.B, Ge.C @ Z
-    X = sla.solve_sylvester(T[:kg, :kg], -T[kg:, kg:], -T[:kg, kg:]) if kg else np.zeros((0, n - kg))
-    Ab, Bb, Cpb = T[kg:, kg:], Bp[kg:], Cp[:, :kg] @ X + Cp[:, kg:]
-    # the series [x_Q; x_b]: x_Q' = Aq x_Q + Bq (Cg x + Dg v); with Q stable a second Sylvester equation
-    # Aq Y − Y A_b = −Bq Cpb moves the coupling into the output: C_bad = Cq Y + Dq Cpb
-    Y = sla.solve_sylvester(Q.A, -Ab, -Q.B @ Cpb) if nq else np.zeros((0, n - kg))
-    Cb = (Q.C @ Y if nq else 0.0) + Q.D @ Cpb
-    # inputs of [Q R]: Q's own (they do not reach the plant's states), then w and f
-    bad = LTI(Ab, np.hstack([np.zeros((n - kg, q)), Bb]), Cb, np.zeros((Q.p, q + Bb.shape[1])), Q.dt)
-    bal, _ = bad.balanced()
-    nrm = float(np.linalg.norm(np.block([[bal.A, bal.B], [bal.C, bal.D]]), 2))
-    badm = bal.minreal(tol=CANCEL_RTOL * nrm)
-    if badm.n == 0:
-        return Q, {}
+    k = kept.size
+    badm = LTI(red.A[:k, :k], red.B[:k], red.C[:, :k], np.zeros_like(red.D), Q.dt)
     _, M, moved = glcf(badm, choose, good)
     Am, L, Cm = M.A, M.B, M.C
     left = [z for z in np.linalg.eigvals(Am) if not good(z.real, z.imag)]
@@ -391,9 +367,8 @@ def _move_plant_poles(model: FDIModel, Q: LTI, choose, good, margin: float) -> t
             f"stability region (stability margin smarg = {margin:.6g}) after its stable left coprime "
             f"factorisation: the poles of [Q R] are too ill-conditioned to be moved — pass other poles/sdeg or "
             f"rank tolerances")
-    # M·Q = M·Q_good + (M·G_bad)[:, :q] with Q_good = Q − G_bad[:, :q] = Q (G_bad has no path from Q's inputs):
-    # x_m' = A_m x_m + L (Cq x_Q + Dq v) + 0·v,  r = C_m x_m + Cq x_Q + Dq v
-    A = np.block([[Q.A, np.zeros((nq, badm.n))], [L @ Q.C, Am]])
-    B = np.vstack([Q.B, L @ Q.D])
-    Qn = LTI(A, B, np.hstack([Q.C, Cm]), Q.D, Q.dt)
-    return Qn, {"moved_poles": np.linalg.eigvals(badm.A).tolist(), "moved": int(moved), "order_before": int(Q.n)}
+    # M·Q in series: x_m' = A_m x_m + L (C_Q x_Q + D_Q v),  r = C_m x_m + C_Q x_Q + D_Q v
+    nq = Q.n
+    A = np.block([[Q.A, np.zeros((nq, k))], [L @ Q.C, Am]])
+    Qn = LTI(A, np.vstack([Q.B, L @ Q.D]), np.hstack([Q.C, Cm]), Q.D, Q.dt)
+    return Qn, {"moved_poles": np.asarray(kept).tolist(), "moved": int(moved), "order_before": int(Q.n)}
