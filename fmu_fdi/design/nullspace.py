@@ -19,6 +19,8 @@ fault-to-noise gap after a co-outer normalisation (:mod:`.approximate`).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import DesignError
@@ -234,8 +236,10 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         ``info['replaces']`` the approximate row a pencil row replaced).
         ``info['decoupling_kind']`` is 'exact' or, for a sampled row below the smallest index
         returned because no exact row was found (or with ``basis='polynomial'``), starts with
-        'approximate' — and a ``UserWarning`` says so. The pencil basis decouples u and d
-        only: with noise and ``noise='optimize'`` it is not used.
+        'approximate' — and a ``UserWarning`` says so. With noise and ``noise='optimize'``,
+        'pencil' solves the approximate problem on the pencil bases of ``[Gu Gd; I 0]`` and
+        ``[Gu Gd Gw; I 0 0]`` (:func:`_approximate_pencil`); 'auto' does so when every rank
+        tolerance of the polynomial ladder breaks a post-condition (``info['fallback_from']``).
 
     Returns
     -------
@@ -256,71 +260,148 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     A. Varga, On computing least order fault detectors using rational nullspace bases,
     IFAC SAFEPROCESS 2003.
     """
-    if noise not in ("optimize", "ignore"):
-        raise DesignError(f"noise must be 'optimize' or 'ignore', got {noise!r}")
-    if not (rdim == "all" or (isinstance(rdim, (int, np.integer)) and rdim >= 1)):
-        raise DesignError(f"rdim must be a positive integer or 'all', got {rdim!r}")
-    check_poles(poles, model.dt, smarg)
-    if sdeg is not None:
-        check_poles([sdeg], model.dt)
-    if basis not in ("auto", "polynomial", "pencil"):
-        raise DesignError(f"basis must be 'auto', 'polynomial' or 'pencil', got {basis!r}")
-    # where every path ends (_finish): the poles of the internal form [Q R] to move, and where to
-    place = {"poles": poles, "sdeg": sdeg, "smarg": smarg, "keep_stable_poles": bool(keep_stable_poles)}
-    exact_only = not (model.nw and noise == "optimize")
-    if not exact_only and basis == "pencil":
-        return _noise_pencil(model, rdim, poles, sdeg, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol, minimal,
-                             place)
+    req = _Request.validated(model, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
+                             FDGainTol=FDGainTol, noise=noise, tol=tol, atol=atol, seed=seed, smarg=smarg,
+                             dec_tol=dec_tol, minimal=minimal, basis=basis, keep_stable_poles=keep_stable_poles)
     if basis == "pencil":
-        return _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-                       minimal, place)
-    auto = basis == "auto" and exact_only
-    pencil_failed = pencil_gen = None
-    if auto and rdim != "all" and poles is None and sdeg is None and tol is None and not atol:
-        # the state-space core first: a pencil row at the smallest left minimal index is least order and
-        # exact (orthogonal reductions, no powers of A); the polynomial ladder and the sampled rows remain
-        # for what it does not settle — given poles/sdeg (a polynomial row's denominator is exactly them,
-        # the pencil moves only its basis' unstable eigenvalues), rank tolerances, several rows
-        try:
-            pencil_gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol,
-                                 atol, minimal, place)
-        except DesignError as exc:
-            pencil_failed = exc
-        else:
-            if _least_order(pencil_gen, rdim):
-                return pencil_gen
-    ladder = [tol] if (tol is not None or atol) else [None, 1e-15, 1e-9]
+        return req.pencil() if req.exact_only else req.noise_pencil()
+    auto = basis == "auto" and req.exact_only
+    pencil_gen, pencil_failed = _pencil_first(req) if auto else (None, None)
+    if pencil_gen is not None and _least_order(pencil_gen, rdim):
+        return pencil_gen
+    gen, first = _polynomial_ladder(req)
+    if gen is not None:
+        return gen
+    if not req.exact_only:
+        if basis != "auto":
+            raise first
+        return _noise_fallback(req, first)
+    return _exact_fallbacks(req, auto, first, pencil_gen, pencil_failed)
+
+
+@dataclass
+class _Request:
+    """The options of one :func:`nullspace_design` call, validated, as its stages pass them on;
+    ``place``: where every path ends (:func:`_finish`), the poles of the internal form [Q R] to move
+    and where to."""
+
+    model: FDIModel
+    rdim: int | str
+    poles: object
+    sdeg: float | None
+    freqs: object
+    FDtol: float
+    FDGainTol: float
+    noise: str
+    tol: float | None
+    atol: float
+    seed: int
+    smarg: float | None
+    dec_tol: float
+    minimal: bool
+    place: dict
+
+    @classmethod
+    def validated(cls, model, *, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol,
+                  minimal, basis, keep_stable_poles) -> "_Request":
+        if noise not in ("optimize", "ignore"):
+            raise DesignError(f"noise must be 'optimize' or 'ignore', got {noise!r}")
+        if not (rdim == "all" or (isinstance(rdim, (int, np.integer)) and rdim >= 1)):
+            raise DesignError(f"rdim must be a positive integer or 'all', got {rdim!r}")
+        check_poles(poles, model.dt, smarg)
+        if sdeg is not None:
+            check_poles([sdeg], model.dt)
+        if basis not in ("auto", "polynomial", "pencil"):
+            raise DesignError(f"basis must be 'auto', 'polynomial' or 'pencil', got {basis!r}")
+        place = {"poles": poles, "sdeg": sdeg, "smarg": smarg, "keep_stable_poles": bool(keep_stable_poles)}
+        return cls(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol,
+                   minimal, place)
+
+    @property
+    def exact_only(self) -> bool:
+        """No noise to optimise: u and d are decoupled, w (if any) is ignored."""
+        return not (self.model.nw and self.noise == "optimize")
+
+    @property
+    def default_rank_tolerances(self) -> bool:
+        return self.tol is None and not self.atol
+
+    def pencil(self) -> ResidualGenerator:
+        return _pencil(self.model, self.rdim, self.poles, self.sdeg, self.freqs, self.FDtol, self.FDGainTol, self.seed,
+                       self.smarg, self.dec_tol, self.tol, self.atol, self.minimal, self.place)
+
+    def noise_pencil(self) -> ResidualGenerator:
+        return _noise_pencil(self.model, self.rdim, self.poles, self.sdeg, self.FDtol, self.FDGainTol, self.seed,
+                             self.smarg, self.dec_tol, self.tol, self.atol, self.minimal, self.place)
+
+    def polynomial(self, rtol: float | None, target: float) -> ResidualGenerator:
+        return _design(self.model, self.rdim, self.poles, self.sdeg, self.freqs, self.FDtol, self.FDGainTol,
+                       self.noise, rtol, self.atol, self.seed, self.smarg, target, self.minimal, self.place)
+
+    def sampled(self, degrees) -> ResidualGenerator:
+        return _sampled(self.model, int(self.rdim), self.poles, self.sdeg, self.freqs, self.FDtol, self.FDGainTol,
+                        self.seed, self.smarg, self.dec_tol, degrees, self.place)
+
+
+def _pencil_first(req: _Request):
+    """Stage 1 of 'auto' (exact problem): the state-space core first, ``(gen, None)`` or ``(None, error)``.
+
+    A pencil row at the smallest left minimal index is least order and exact (orthogonal reductions,
+    no powers of A); the polynomial ladder and the sampled rows remain for what it does not settle —
+    given poles/sdeg (a polynomial row's denominator is exactly them, the pencil moves only its
+    basis' unstable eigenvalues), rank tolerances, several rows."""
+    if req.rdim == "all" or req.poles is not None or req.sdeg is not None or not req.default_rank_tolerances:
+        return None, None
+    try:
+        return req.pencil(), None
+    except DesignError as exc:
+        return None, exc
+
+
+def _polynomial_ladder(req: _Request):
+    """Stage 2: the polynomial basis over a ladder of rank tolerances, ``(gen, None)`` or ``(None, first error)``.
+
+    It aims at a tenth of dec_tol over the whole ladder first, so that a rank tolerance that gives a
+    clean basis wins over one that only just passes; then accepts dec_tol itself (the failures are
+    reported against dec_tol itself)."""
+    ladder = [req.tol] if not req.default_rank_tolerances else [None, 1e-15, 1e-9]
     first = None
-    # aim at a tenth of dec_tol over the whole ladder first, so that a rank tolerance that
-    # gives a clean basis wins over one that only just passes; then accept dec_tol itself
-    for target in (dec_tol / 10, dec_tol):
-        first = None  # report the failures against dec_tol itself
+    for target in (req.dec_tol / 10, req.dec_tol):
+        first = None
         for rtol in ladder:
             try:
-                gen = _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, rtol, atol, seed, smarg,
-                              target, minimal, place)
+                gen = req.polynomial(rtol, target)
             except NumericalDesignError as exc:
                 first = first or exc
                 continue
             gen.info["rank_rtol"] = rtol
             gen.info["basis"] = "polynomial"
             gen.info["decoupling_kind"] = EXACT
-            gen.info["postconditions"]["dec_tol"] = dec_tol
-            return gen
-    if not exact_only and basis == "auto":
-        # the approximate problem on the state-space core: the polynomial basis of an ill-scaled or
-        # clustered plant leaks far above dec_tol (random seeds 3, 22, 30, 33, 37)
-        try:
-            gen = _noise_pencil(model, rdim, poles, sdeg, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-                                minimal, place)
-        except DesignError as exc:
-            raise type(first)(f"{first} | the pencil (state-space) basis failed too: {exc}") from None
-        gen.info["fallback_from"] = str(first)[:300]
-        return gen
+            gen.info["postconditions"]["dec_tol"] = req.dec_tol
+            return gen, None
+    return None, first
+
+
+def _noise_fallback(req: _Request, first: Exception) -> ResidualGenerator:
+    """Stage 3 of 'auto' with noise to optimise: the approximate problem on the state-space core, where
+    the polynomial basis of an ill-scaled or clustered plant leaks far above dec_tol (random seeds 3, 22,
+    30, 37)."""
+    try:
+        gen = req.noise_pencil()
+    except DesignError as exc:
+        raise type(first)(f"{first} | the pencil (state-space) basis failed too: {exc}") from None
+    gen.info["fallback_from"] = str(first)[:300]
+    return gen
+
+
+def _exact_fallbacks(req: _Request, auto: bool, first: Exception, pencil_gen, pencil_failed) -> ResidualGenerator:
+    """Stage 3 of the exact problem, when the polynomial ladder failed: the pencil row (if stage 1 did
+    not run), the frequency-sampled row, and the pencil basis at a higher order (see
+    :func:`nullspace_design`, ``basis``)."""
+    model, rdim = req.model, req.rdim
 
     def pencil():
-        gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-                       minimal, place)
+        gen = req.pencil()
         gen.info["fallback_from"] = str(first)[:300]
         return gen
 
@@ -338,17 +419,16 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     elif pencil_gen is not None:
         pencil_gen.info["fallback_from"] = str(first)[:300]
     approximate = None  # a sampled row below the smallest left minimal index: returned only without an exact one
-    if rdim != "all" and exact_only:
+    if rdim != "all":
         # the polynomial basis is too ill-conditioned here: design from frequency samples
         # with a fixed stable denominator (exact poles, rank decision = post-condition)
         try:
             # the pencil row's left minimal indices are those _exactness would compute again when that
             # pencil_basis call had exactly its own arguments (all defaults)
-            same_call = pencil_gen is not None and tol is None and not atol and poles is None and sdeg is None \
-                and smarg is None
+            same_call = pencil_gen is not None and req.default_rank_tolerances and req.poles is None \
+                and req.sdeg is None and req.smarg is None
             degrees = list(pencil_gen.info["left_minimal_indices"]) if same_call else None
-            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, degrees,
-                           place)
+            gen = req.sampled(degrees)
             gen.info["fallback_from"] = str(first)[:300]
             if not auto or not gen.info["decoupling_kind"].startswith("approximate"):
                 return _announce(model, gen)
