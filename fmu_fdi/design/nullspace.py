@@ -738,6 +738,10 @@ def _strong_points(model: FDIModel, Ge: LTI, freqs: np.ndarray) -> tuple[np.ndar
     lam = _points(model, freqs)
     G = _values(Ge, lam)
     bad = ~np.all(np.isfinite(G), axis=(1, 2))
+    # a pole that rounding put 1e-16 off the boundary leaves G finite (~1e16) at it: the limit there too
+    poles = Ge.poles()
+    if poles.size:
+        bad |= np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) <= 1e-9 * max(1.0, float(np.max(np.abs(poles))))
     if np.any(bad):
         delta = 1e-7
         lam = lam.copy()
