@@ -174,12 +174,7 @@ from fmu_fdi import (DesignError, dedicated_bank, factorized, fault_detection_fi
 from fmu_fdi.testing import assert_detected, assert_no_false_alarm
 
 PLANTS = list(cp.CAMPAIGNS)
-# issue 17's judge refuses the VTOL's sensor banks (their rows keep the plant's unstable pair
-# |z| = 1.0028 in R and leak u at 1e-4 of the weakest fault gain, checked independently): the
-# campaign cannot be designed until the synthesis core cancels them (coprime factorisation)
-RUN_PLANTS = [pytest.param(p, marks=pytest.mark.xfail(strict=True, reason="VTOL dos/gos_sensor refused: R keeps "
-                                                      "the unstable plant pair, u leak 1e-4 (issue 17 core)"))
-              if p == "vtol" else p for p in PLANTS]
+RUN_PLANTS = PLANTS
 METHODS = ("parity", "luenberger", "kalman", "uio", "fdf", "factorized", "nullspace", "dos", "gos", "rls")
 
 # (plant, subsystem, method) not hosted -> reason (the table above)

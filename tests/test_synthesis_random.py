@@ -477,39 +477,20 @@ def test_issue17_small_cases(label):
 # Seeds whose designs break the judge on main AND on main + core + judge + matching (merged 11:25 UTC,
 # issue 17): the first breakage of the merged state. strict: a fix makes the test XPASS, so remove the entry.
 KNOWN_BROKEN = {
-    1: ("structured_bank: achievable request refused: row 2 [1, 1, 0, 1, 1] (decoupling ['fa1']): (R "
-         'stability): R = Q·Ge keeps the plant pole(s) [0.9801+0.1987j, 0.9801-0.1987j] '),
-    3: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+w leak 32.5 × the weakest '
-         'fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisio'),
-    13: ('nullspace_design: achievable request refused: the internal form R = Q·Ge keeps the poles [(1+0j), '
-         '(0.596952+0.846249j), (0.596952-0.846249j), (0.00736+127.564524j), (0.00'),
-    21: ('nullspace_design: achievable request refused: (R stability, decoupling): R = Q·Ge keeps the plant '
-         'pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: u leak 2.68 × '),
-    22: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+d+w leak 127 × the weakest'
-         ' fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisi'),
-    23: ('nullspace_design: achievable request refused: (stability, R stability, decoupling): filter: largest '
-         '|pole| = 1.0163 > the stability margin smarg = 1; R = Q·Ge keeps the p'),
-    26: ("structured_bank: achievable request refused: row 5 [1, 1, 1, 1, 0] (decoupling ['fc']): (R "
-         'stability, decoupling): R = Q·Ge keeps the plant pole(s) [2.153e-05] (largest R'),
-    28: ("dedicated_bank(sensor): achievable request refused: row 2 [0, 1] (decoupling ['fs1']): filter: largest "
-         'Re(pole) = -1.69362e-09 > the stability margin smarg = -1.49012e-08'),  # passed on bankfix; the merge
-    # with boeing/bigmodel leaves the row's filter a pole at ~0 that the margin refuses (found at integration)
-    30: ('nullspace_design: achievable request refused: the real Schur form cannot be reordered (LAPACK dtrsen '
-         'info = 1)'),  # integ: LinAlgError (sort condition); now a DesignError, the row still not designed
-    31: ('nullspace_design: achievable request refused: nullspace design fails its post-conditions (stability, '
-         'R stability, decoupling): filter: largest |pole| = 1.00439 > the stability margin smarg = 1; R = Q·Ge '
-         'keeps the plant pole(s) [1.105]'),  # integ: LinAlgError (sort condition), fixed by bankfix
-    33: ('nullspace_design: achievable request refused: (R stability, decoupling): R = Q·Ge keeps the plant '
-         'pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: u+w leak 215 ×'),
-    37: ('nullspace_design: achievable request refused: (decoupling): residual 1: u leak 1.34e-05 × the '
-         'weakest fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decis'),
-    38: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+w leak 5.17 × the weakest '
-         'fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank decisio'),
-    39: ('nullspace_design: achievable request refused: nullspace design fails its post-conditions (R '
-         'stability, decoupling): R = Q·Ge keeps the plant pole(s) [1] (largest |pole| = 1 > smarg = 1); residual 1: '
-         'u+d leak 4.61 × the weakest fault gain'),
-    43: ('nullspace_design: achievable request refused: (decoupling): residual 1: u+d leak 7.42e-07 × the '
-         'weakest fault gain > dec_tol = 1e-07. [decoupling] the null-space/rank dec'),
+    26: ("structured_bank: achievable request refused: row 5 [1, 1, 1, 1, 0] (decoupling ['fc']): (R stability, "
+         'decoupling): R = Q·Ge keeps the plant pole(s) [4.503e-06, 8.042e-06]'),
+    # cause (synth, 14:55): same class as 33 — the decoupled fault fc has an integrator (now a mode of d) in a
+    # model scaled over eight decades; the row's pencil basis cancels it only to 5.7e-6 of the fault gain near
+    # ω = 0 (below R_POLE_TOL, so the factorisation does not move it) and the polynomial/sampled fallbacks are
+    # worse. Passed at 14:00 with a factorisation that moved the integrator by accident (its balanced rank
+    # decision counted it observable); that one moved the Boeing 747's cancelled altitude mode too.
+    33: ("structured_bank: achievable request refused: row 2 [1, 0, 0, 0] (decoupling ['fs2', 'fa1', 'fc']): (R "
+         'stability, decoupling): R = Q·Ge keeps the plant pole(s) [1]; residual 1: u+d leak 1.9e-4'),
+    # cause (synth, 14:40): the row's pencil basis (index 17, n = 18) keeps a free pole at |z| = 1 - 3.5e-5 beside
+    # the mode at z = 1 of the decoupled fault fc (now an unknown input d); the basis annihilates Gd to 1e-8 of
+    # the fault gain, but that near-integrator lifts the rounding of the cancellation of z = 1 into R_d (a pole at
+    # 1 with coupling above R_POLE_TOL). The same row with sdeg=0.95 meets the judge; moving every basis pole
+    # within 1e-4 of the boundary to the plant's (clustered) stabilised poles made the other rows worse.
 }
 
 
@@ -521,6 +502,17 @@ def _seeds(seeds):
 @pytest.mark.parametrize("seed", _seeds(range(N_FAST)))
 def test_random_design_meets_the_judge(seed):
     _assert_case(seed)
+
+
+@pytest.mark.parametrize("seed, what", [
+    (21, "discrete plant with eigenvalues within 5e-3 of z = 1 and a fault-only mode at z = 1: the stable "
+         "factorisation of the internal form must move that mode alone"),
+    (37, "discrete clustered plant with noise w: the approximate design on the pencil bases"),
+])
+def test_cheap_slow_seeds_in_the_default_run(seed, what):
+    """Two of the slow set's seeds that cost about a second each, run by default: each was broken
+    (refused as "too ill-conditioned") until the fix its label names."""
+    _assert_case(seed, max_rows=6)
 
 
 @pytest.mark.slow

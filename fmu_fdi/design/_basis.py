@@ -320,7 +320,9 @@ def plant_pole_pool(A: np.ndarray, dt: float) -> list[complex]:
     """The plant's eigenvalues made stable, sorted from slow to fast.
 
     Unstable ones are mirrored into the stability region (``-|Re λ| + j Im λ``, or
-    ``1/λ̄`` in discrete time); poles on the boundary (integrators) move just inside it.
+    ``1/λ̄`` in discrete time); poles on the boundary (integrators) move just inside it —
+    also when rounding computed them a hair inside (``|λ| ≥ 1 − 1e-6``, ``Re λ > -1e-6·max|λ|``):
+    such a target would break the stability margin (``1 − sqrt(eps)``) it is meant to meet.
     In continuous time a pole that has to move goes at least to Varga's default stability
     degree ``sdeg = -0.05`` (``glcf``/``efdsyn``; or ``-1e-3·max|λ|`` when that is faster):
     the mirror image of a slow unstable mode (the Boeing 747's altitude mode, +3.1e-5 rad/s)
@@ -333,8 +335,8 @@ def plant_pole_pool(A: np.ndarray, dt: float) -> list[complex]:
     for lam in eig:
         if dt:
             r = abs(lam)
-            if r >= 1.0:
-                lam = lam / r * min(1.0 / r, 0.999) if r > 0 else lam
+            if r >= 1.0 - 1e-6:  # unstable or on the boundary (a computed 1 - 1e-15 too): moved
+                lam = lam / r * min(1.0 / r, 0.999)
         else:
             if lam.real > -1e-6 * scale:  # unstable or on the boundary: moved
                 lam = complex(-max(abs(lam.real), MOVED_SDEG, 1e-3 * scale), lam.imag)

@@ -19,6 +19,8 @@ fault-to-noise gap after a co-outer normalisation (:mod:`.approximate`).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import DesignError
@@ -234,8 +236,10 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         ``info['replaces']`` the approximate row a pencil row replaced).
         ``info['decoupling_kind']`` is 'exact' or, for a sampled row below the smallest index
         returned because no exact row was found (or with ``basis='polynomial'``), starts with
-        'approximate' — and a ``UserWarning`` says so. The pencil basis decouples u and d
-        only: with noise and ``noise='optimize'`` it is not used.
+        'approximate' — and a ``UserWarning`` says so. With noise and ``noise='optimize'``,
+        'pencil' solves the approximate problem on the pencil bases of ``[Gu Gd; I 0]`` and
+        ``[Gu Gd Gw; I 0 0]`` (:func:`_approximate_pencil`); 'auto' does so when every rank
+        tolerance of the polynomial ladder breaks a post-condition (``info['fallback_from']``).
 
     Returns
     -------
@@ -256,60 +260,148 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     A. Varga, On computing least order fault detectors using rational nullspace bases,
     IFAC SAFEPROCESS 2003.
     """
-    if noise not in ("optimize", "ignore"):
-        raise DesignError(f"noise must be 'optimize' or 'ignore', got {noise!r}")
-    if not (rdim == "all" or (isinstance(rdim, (int, np.integer)) and rdim >= 1)):
-        raise DesignError(f"rdim must be a positive integer or 'all', got {rdim!r}")
-    check_poles(poles, model.dt, smarg)
-    if sdeg is not None:
-        check_poles([sdeg], model.dt)
-    if basis not in ("auto", "polynomial", "pencil"):
-        raise DesignError(f"basis must be 'auto', 'polynomial' or 'pencil', got {basis!r}")
-    # where every path ends (_finish): the poles of the internal form [Q R] to move, and where to
-    place = {"poles": poles, "sdeg": sdeg, "smarg": smarg, "keep_stable_poles": bool(keep_stable_poles)}
+    req = _Request.validated(model, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
+                             FDGainTol=FDGainTol, noise=noise, tol=tol, atol=atol, seed=seed, smarg=smarg,
+                             dec_tol=dec_tol, minimal=minimal, basis=basis, keep_stable_poles=keep_stable_poles)
     if basis == "pencil":
-        if model.nw and noise == "optimize":
-            raise DesignError("basis='pencil' decouples u and d only: pass noise='ignore' for a model with noise w")
-        return _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-                       minimal, place)
-    exact_only = not (model.nw and noise == "optimize")
-    auto = basis == "auto" and exact_only
-    pencil_failed = pencil_gen = None
-    if auto and rdim != "all" and poles is None and sdeg is None and tol is None and not atol:
-        # the state-space core first: a pencil row at the smallest left minimal index is least order and
-        # exact (orthogonal reductions, no powers of A); the polynomial ladder and the sampled rows remain
-        # for what it does not settle — given poles/sdeg (a polynomial row's denominator is exactly them,
-        # the pencil moves only its basis' unstable eigenvalues), rank tolerances, several rows
-        try:
-            pencil_gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol,
-                                 atol, minimal, place)
-        except DesignError as exc:
-            pencil_failed = exc
-        else:
-            if _least_order(pencil_gen, rdim):
-                return pencil_gen
-    ladder = [tol] if (tol is not None or atol) else [None, 1e-15, 1e-9]
+        return req.pencil() if req.exact_only else req.noise_pencil()
+    auto = basis == "auto" and req.exact_only
+    pencil_gen, pencil_failed = _pencil_first(req) if auto else (None, None)
+    if pencil_gen is not None and _least_order(pencil_gen, rdim):
+        return pencil_gen
+    gen, first = _polynomial_ladder(req)
+    if gen is not None:
+        return gen
+    if not req.exact_only:
+        if basis != "auto":
+            raise first
+        return _noise_fallback(req, first)
+    return _exact_fallbacks(req, auto, first, pencil_gen, pencil_failed)
+
+
+@dataclass
+class _Request:
+    """The options of one :func:`nullspace_design` call, validated, as its stages pass them on;
+    ``place``: where every path ends (:func:`_finish`), the poles of the internal form [Q R] to move
+    and where to."""
+
+    model: FDIModel
+    rdim: int | str
+    poles: object
+    sdeg: float | None
+    freqs: object
+    FDtol: float
+    FDGainTol: float
+    noise: str
+    tol: float | None
+    atol: float
+    seed: int
+    smarg: float | None
+    dec_tol: float
+    minimal: bool
+    place: dict
+
+    @classmethod
+    def validated(cls, model, *, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol,
+                  minimal, basis, keep_stable_poles) -> "_Request":
+        if noise not in ("optimize", "ignore"):
+            raise DesignError(f"noise must be 'optimize' or 'ignore', got {noise!r}")
+        if not (rdim == "all" or (isinstance(rdim, (int, np.integer)) and rdim >= 1)):
+            raise DesignError(f"rdim must be a positive integer or 'all', got {rdim!r}")
+        check_poles(poles, model.dt, smarg)
+        if sdeg is not None:
+            check_poles([sdeg], model.dt)
+        if basis not in ("auto", "polynomial", "pencil"):
+            raise DesignError(f"basis must be 'auto', 'polynomial' or 'pencil', got {basis!r}")
+        place = {"poles": poles, "sdeg": sdeg, "smarg": smarg, "keep_stable_poles": bool(keep_stable_poles)}
+        return cls(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol,
+                   minimal, place)
+
+    @property
+    def exact_only(self) -> bool:
+        """No noise to optimise: u and d are decoupled, w (if any) is ignored."""
+        return not (self.model.nw and self.noise == "optimize")
+
+    @property
+    def default_rank_tolerances(self) -> bool:
+        return self.tol is None and not self.atol
+
+    def pencil(self) -> ResidualGenerator:
+        return _pencil(self.model, self.rdim, self.poles, self.sdeg, self.freqs, self.FDtol, self.FDGainTol, self.seed,
+                       self.smarg, self.dec_tol, self.tol, self.atol, self.minimal, self.place)
+
+    def noise_pencil(self) -> ResidualGenerator:
+        return _noise_pencil(self.model, self.rdim, self.poles, self.sdeg, self.FDtol, self.FDGainTol, self.seed,
+                             self.smarg, self.dec_tol, self.tol, self.atol, self.minimal, self.place)
+
+    def polynomial(self, rtol: float | None, target: float) -> ResidualGenerator:
+        return _design(self.model, self.rdim, self.poles, self.sdeg, self.freqs, self.FDtol, self.FDGainTol,
+                       self.noise, rtol, self.atol, self.seed, self.smarg, target, self.minimal, self.place)
+
+    def sampled(self, degrees) -> ResidualGenerator:
+        return _sampled(self.model, int(self.rdim), self.poles, self.sdeg, self.freqs, self.FDtol, self.FDGainTol,
+                        self.seed, self.smarg, self.dec_tol, degrees, self.place)
+
+
+def _pencil_first(req: _Request):
+    """Stage 1 of 'auto' (exact problem): the state-space core first, ``(gen, None)`` or ``(None, error)``.
+
+    A pencil row at the smallest left minimal index is least order and exact (orthogonal reductions,
+    no powers of A); the polynomial ladder and the sampled rows remain for what it does not settle —
+    given poles/sdeg (a polynomial row's denominator is exactly them, the pencil moves only its
+    basis' unstable eigenvalues), rank tolerances, several rows."""
+    if req.rdim == "all" or req.poles is not None or req.sdeg is not None or not req.default_rank_tolerances:
+        return None, None
+    try:
+        return req.pencil(), None
+    except DesignError as exc:
+        return None, exc
+
+
+def _polynomial_ladder(req: _Request):
+    """Stage 2: the polynomial basis over a ladder of rank tolerances, ``(gen, None)`` or ``(None, first error)``.
+
+    It aims at a tenth of dec_tol over the whole ladder first, so that a rank tolerance that gives a
+    clean basis wins over one that only just passes; then accepts dec_tol itself (the failures are
+    reported against dec_tol itself)."""
+    ladder = [req.tol] if not req.default_rank_tolerances else [None, 1e-15, 1e-9]
     first = None
-    # aim at a tenth of dec_tol over the whole ladder first, so that a rank tolerance that
-    # gives a clean basis wins over one that only just passes; then accept dec_tol itself
-    for target in (dec_tol / 10, dec_tol):
-        first = None  # report the failures against dec_tol itself
+    for target in (req.dec_tol / 10, req.dec_tol):
+        first = None
         for rtol in ladder:
             try:
-                gen = _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, rtol, atol, seed, smarg,
-                              target, minimal, place)
+                gen = req.polynomial(rtol, target)
             except NumericalDesignError as exc:
                 first = first or exc
                 continue
             gen.info["rank_rtol"] = rtol
             gen.info["basis"] = "polynomial"
             gen.info["decoupling_kind"] = EXACT
-            gen.info["postconditions"]["dec_tol"] = dec_tol
-            return gen
+            gen.info["postconditions"]["dec_tol"] = req.dec_tol
+            return gen, None
+    return None, first
+
+
+def _noise_fallback(req: _Request, first: Exception) -> ResidualGenerator:
+    """Stage 3 of 'auto' with noise to optimise: the approximate problem on the state-space core, where
+    the polynomial basis of an ill-scaled or clustered plant leaks far above dec_tol (random seeds 3, 22,
+    30, 37)."""
+    try:
+        gen = req.noise_pencil()
+    except DesignError as exc:
+        raise type(first)(f"{first} | the pencil (state-space) basis failed too: {exc}") from None
+    gen.info["fallback_from"] = str(first)[:300]
+    return gen
+
+
+def _exact_fallbacks(req: _Request, auto: bool, first: Exception, pencil_gen, pencil_failed) -> ResidualGenerator:
+    """Stage 3 of the exact problem, when the polynomial ladder failed: the pencil row (if stage 1 did
+    not run), the frequency-sampled row, and the pencil basis at a higher order (see
+    :func:`nullspace_design`, ``basis``)."""
+    model, rdim = req.model, req.rdim
 
     def pencil():
-        gen = _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
-                       minimal, place)
+        gen = req.pencil()
         gen.info["fallback_from"] = str(first)[:300]
         return gen
 
@@ -327,17 +419,16 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     elif pencil_gen is not None:
         pencil_gen.info["fallback_from"] = str(first)[:300]
     approximate = None  # a sampled row below the smallest left minimal index: returned only without an exact one
-    if rdim != "all" and exact_only:
+    if rdim != "all":
         # the polynomial basis is too ill-conditioned here: design from frequency samples
         # with a fixed stable denominator (exact poles, rank decision = post-condition)
         try:
             # the pencil row's left minimal indices are those _exactness would compute again when that
             # pencil_basis call had exactly its own arguments (all defaults)
-            same_call = pencil_gen is not None and tol is None and not atol and poles is None and sdeg is None \
-                and smarg is None
+            same_call = pencil_gen is not None and req.default_rank_tolerances and req.poles is None \
+                and req.sdeg is None and req.smarg is None
             degrees = list(pencil_gen.info["left_minimal_indices"]) if same_call else None
-            gen = _sampled(model, int(rdim), poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, degrees,
-                           place)
+            gen = req.sampled(degrees)
             gen.info["fallback_from"] = str(first)[:300]
             if not auto or not gen.info["decoupling_kind"].startswith("approximate"):
                 return _announce(model, gen)
@@ -647,6 +738,10 @@ def _strong_points(model: FDIModel, Ge: LTI, freqs: np.ndarray) -> tuple[np.ndar
     lam = _points(model, freqs)
     G = _values(Ge, lam)
     bad = ~np.all(np.isfinite(G), axis=(1, 2))
+    # a pole that rounding put 1e-16 off the boundary leaves G finite (~1e16) at it: the limit there too
+    poles = Ge.poles()
+    if poles.size:
+        bad |= np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) <= 1e-9 * max(1.0, float(np.max(np.abs(poles))))
     if np.any(bad):
         delta = 1e-7
         lam = lam.copy()
@@ -798,6 +893,15 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
 
     Q0 = realize_all(basis)
     Q2 = realize_all(basis2) if basis2 is not None and basis2.rows else None
+    return _noise_combination(model, Q0, Q2, basis, basis.degrees, rdim, seed, place)
+
+
+def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees, rdim, seed,
+                       place: dict | None) -> ResidualGenerator:
+    """Procedure AFD's combination (Varga 2017, sec. 5.3) of a (u, d)-null-space basis ``Q0`` and a
+    (u, d, w)-null-space basis ``Q2`` (None: w reaches every residual): the rows of Q0 completing Q2,
+    their internal form made stable and ``Rw`` co-outer normalised, then the constant combination of
+    all rows with the largest fault-to-noise gap (on its plateau, the most even fault sensitivity)."""
     k2 = Q2.p if Q2 is not None else 0
     # rows of Q0 that complete Q2 to a basis of the whole (u, d)-null space
     k = Q0.p
@@ -818,6 +922,11 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
     Rw1 = (Q1 @ Ge)[:, sl["w"]].minreal()
     normalized = False
     fac = coouter_inverse(Rw1) if Rw1.n else None
+    if fac is not None and not _clear_of_boundary(fac[0].poles(), model.dt, (place or {}).get("smarg")):
+        # Rw1 has a zero on or next to the stability boundary (Varga's non-standard case): its inverse
+        # would put a near-integrator into the filter (a pole at -5e-9, random seeds 22, 28); the
+        # filter poles set the frequency weighting instead
+        fac = None
     if fac is not None:
         Q1 = (fac[0] @ Q1).minreal()
         normalized = True
@@ -851,4 +960,71 @@ def _approximate(model: FDIModel, basis: NullspaceBasis, rdim, choose, FDtol, to
             "combination": H.tolist()}
     if moved:
         info["internal_form"] = moved
-    return _finish(model, Q, basis, "nullspace", info, basis.degrees, place=place)
+    return _finish(model, Q, basis, "nullspace", info, degrees, place=place)
+
+
+#: a co-outer inverse pole within this relative distance of the stability boundary counts as on it
+BOUNDARY_RTOL = 1e-6
+
+
+def _clear_of_boundary(poles: np.ndarray, dt: float, smarg: float | None) -> bool:
+    """Every pole inside the margin (``smarg``, default just inside the boundary) and at least
+    :data:`BOUNDARY_RTOL` (relative to its modulus, at least 1) away from the boundary itself."""
+    from ..margin import default_smarg
+
+    poles = np.asarray(poles, complex)
+    margin = default_smarg(dt) if smarg is None else float(smarg)
+    if dt:
+        return bool(np.all(np.abs(poles) <= min(margin, 1.0 - BOUNDARY_RTOL)))
+    return bool(np.all(poles.real <= np.minimum(margin, -BOUNDARY_RTOL * np.maximum(1.0, np.abs(poles)))))
+
+
+def _noise_pencil(model, rdim, poles, sdeg, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol, minimal,
+                  place) -> ResidualGenerator:
+    """:func:`_approximate_pencil` judged as :func:`_design` judges the polynomial one."""
+    gen = _approximate_pencil(model, rdim, poles, sdeg, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol, minimal,
+                              place)
+    exact_w = gen.info.get("noise") == "decoupled exactly"
+    check_generator(gen, decouple=("u", "d", "w") if exact_w else ("u", "d"), block=True, FDtol=FDtol,
+                    smarg=smarg, dec_tol=dec_tol)
+    gen.info.update({"basis": "pencil", "decoupling_kind": EXACT})
+    return gen
+
+
+def _approximate_pencil(model: FDIModel, rdim, poles, sdeg, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
+                        minimal: bool, place: dict | None) -> ResidualGenerator:
+    """Procedure AFD on the state-space core (FaultDetectionTools.jl ``afdsyn``): w decoupled
+    exactly when a least-order pencil row of ``[Gu Gd Gw; I 0 0]`` sees every fault
+    (:func:`_pencil` on the model with w as unknown inputs); otherwise the proper stable pencil
+    bases of ``[Gu Gd; I 0]`` and ``[Gu Gd Gw; I 0 0]`` (:func:`.pencil.pencil_basis`, no powers of
+    A) combined by :func:`_noise_combination`."""
+    from types import SimpleNamespace
+
+    from .pencil import pencil_basis
+
+    exact_w = model.with_disturbances(noise=True)
+    try:
+        gen = _pencil(exact_w, rdim, poles, sdeg, None, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol, minimal,
+                      place)
+    except DesignError:
+        gen = None
+    if gen is not None:
+        gen = ResidualGenerator(gen.Q, model, "nullspace", info=gen.info)
+        gen.info.update({"gap_estimate": float("inf"), "noise": "decoupled exactly"})
+        return gen
+    pb = pencil_basis(model, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
+    if pb.N.p == 0:
+        raise DesignError(
+            f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
+            f"output direction (normal rank of Gd = {pb.rank_d} = number of outputs {model.ny})")
+    try:
+        pb2 = pencil_basis(exact_w, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
+        Q2 = pb2.N if pb2.N.p else None
+    except DesignError:
+        Q2 = None
+    gains = _pencil_gains(model, pb.N, None, FDtol)
+    if model.faults and not np.all(gains.max(axis=0) >= FDtol):
+        raise undetectable_error(model, gains >= FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
+    gen = _noise_combination(model, pb.N, Q2, SimpleNamespace(rho=1.0, dt=model.dt), pb.degrees, rdim, seed, place)
+    gen.info.update({"left_minimal_indices": pb.degrees, "pencil": pb.info})
+    return gen
