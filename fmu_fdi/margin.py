@@ -22,6 +22,18 @@ from .lti import LTI
 R_POLE_TOL = 1e-8
 
 
+#: a pole counts as on the margin (stable, inclusive) up to this distance relative to
+#: ``max(1, |smarg|)``: a pole placed exactly on the margin (poles = [-5] with smarg = -5, the peer's
+#: Yuan example) comes back from the eigenvalue solver ~1e-14 off its target; 1e-9 as the sdeg
+#: limit of the pencil basis (:func:`~fmu_fdi.design.pencil.pencil_basis`)
+MARGIN_RTOL = 1e-9
+
+
+def margin_limit(smarg: float) -> float:
+    """The largest ``Re p`` (``|p|`` in discrete time) that still counts as within ``smarg``."""
+    return float(smarg) + MARGIN_RTOL * max(1.0, abs(float(smarg)))
+
+
 def default_smarg(dt: float) -> float:
     """Stability margin just inside the boundary: ``-sqrt(eps)`` or ``1 - sqrt(eps)``."""
     return 1.0 - np.sqrt(EPS) if dt else -np.sqrt(EPS)
@@ -29,9 +41,11 @@ def default_smarg(dt: float) -> float:
 
 def outside_margin(poles: np.ndarray, dt: float, smarg: float) -> np.ndarray:
     """Mask of the poles violating the margin: ``Re p > smarg`` (continuous) or ``|p| > smarg``
-    (discrete); a pole *on* the margin is stable (inclusive, as FaultDetectionTools.jl)."""
+    (discrete); a pole *on* the margin is stable (inclusive, as FaultDetectionTools.jl; to
+    :data:`MARGIN_RTOL`)."""
     poles = np.asarray(poles)
-    return (np.abs(poles) > smarg) if dt else (poles.real > smarg)
+    lim = margin_limit(smarg)
+    return (np.abs(poles) > lim) if dt else (poles.real > lim)
 
 
 def margin_reduced(T: LTI, smarg: float, parts: bool = False):
@@ -51,10 +65,11 @@ def margin_reduced(T: LTI, smarg: float, parts: bool = False):
         return (T, none) if parts else T
     bal, _ = T.balanced()
     A, B, C = bal.A, bal.B, bal.C
+    lim = margin_limit(smarg)
     if T.dt:
-        sel = lambda x, y: bool(np.hypot(x, y) > smarg)  # noqa: E731
+        sel = lambda x, y: bool(np.hypot(x, y) > lim)  # noqa: E731
     else:
-        sel = lambda x, y: bool(x > smarg)  # noqa: E731
+        sel = lambda x, y: bool(x > lim)  # noqa: E731
     S, Z, k = ordered_schur(A, sel)
     if k == 0:
         return (bal, none) if parts else bal

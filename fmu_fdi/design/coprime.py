@@ -31,6 +31,7 @@ from ..errors import DesignError
 from ..generator import ResidualGenerator
 from ..linalg import inv_sqrtm_pd
 from ..lti import LTI
+from ..margin import margin_limit
 from ..model import FDIModel
 from ._observer import (as_matrix, filter_riccati, fmt_modes, observer_gain, observer_generator, output_observer,
                         residual_names, unstable)
@@ -228,7 +229,7 @@ def moved_pole_targets(model: FDIModel, poles=None, sdeg: float | None = None, s
         return complex(np.exp(st * dt))
 
     def inside(z: complex) -> bool:
-        return abs(z) < margin if dt else z.real < margin
+        return abs(z) <= margin_limit(margin) if dt else z.real <= margin_limit(margin)
 
     def choose(bad: np.ndarray) -> np.ndarray:
         bad = np.asarray(bad, complex)
@@ -295,10 +296,11 @@ def stable_internal_form(model: FDIModel, Q: LTI, *, poles=None, sdeg: float | N
     dt = float(model.dt)
     margin = default_smarg(dt) if smarg is None else float(smarg)
     limit = np.inf if (sdeg is None or keep_stable_poles) else float(sdeg) + 1e-9 * max(1.0, abs(float(sdeg)))
+    bound = margin_limit(margin)  # inclusive, as the judge (margin.outside_margin)
     if dt:
-        good = lambda re, im: np.hypot(re, im) < margin and np.hypot(re, im) <= limit  # noqa: E731
+        good = lambda re, im: np.hypot(re, im) <= bound and np.hypot(re, im) <= limit  # noqa: E731
     else:
-        good = lambda re, im: re < margin and re <= limit  # noqa: E731
+        good = lambda re, im: re <= bound and re <= limit  # noqa: E731
     # the poles of [Q R] are among those of Q and of the plant: decided on each block's own
     # eigenvalues (the joint matrix couples Q's poles, often the plant's own, to the plant's, and
     # its computed eigenvalues can leave a cluster by far more than rounding)

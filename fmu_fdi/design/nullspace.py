@@ -187,7 +187,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         Seed of the deterministic combination search.
     smarg : float, optional
         Stability margin the poles of the filter *and of its internal form* ``R = Q·Ge`` must
-        satisfy (``Re p < smarg``, or ``|p| < smarg`` in discrete time); default just inside the
+        satisfy (``Re p ≤ smarg``, or ``|p| ≤ smarg`` in discrete time); default just inside the
         stability boundary. Given ``poles`` outside it are refused. When ``R`` keeps a pole of the
         plant outside it (``Gf = [1/(s−1); 1/(s+2)]``: the basis is static and ``Q·Gf`` keeps +1),
         Q is replaced by ``M·Q``, M the stable left factor of a coprime factorisation of the whole
