@@ -34,6 +34,19 @@ def margin_limit(smarg: float) -> float:
     return float(smarg) + MARGIN_RTOL * max(1.0, abs(float(smarg)))
 
 
+def near_poles(points, poles, rel: float = 1e-9) -> np.ndarray:
+    """Mask of the evaluation ``points`` that lie on one of ``poles`` (within ``rel`` of
+    ``max(1, max|pole|)``): where a transfer matrix with those poles is infinite or, rounded, huge
+    (an integrator at ω = 0, an undamped pair at ±2j computed 1e-24 off the axis), so that a
+    stable product ``Q(λ)·G(λ)`` must be evaluated from a realisation or beside the point."""
+    points = np.atleast_1d(np.asarray(points, complex))
+    poles = np.atleast_1d(np.asarray(poles, complex))
+    if not poles.size or not points.size:
+        return np.zeros(points.size, bool)
+    dist = np.min(np.abs(points[:, None] - poles[None, :]), axis=1)
+    return dist <= rel * max(1.0, float(np.max(np.abs(poles))))
+
+
 def default_smarg(dt: float) -> float:
     """Stability margin just inside the boundary: ``-sqrt(eps)`` or ``1 - sqrt(eps)``."""
     return 1.0 - np.sqrt(EPS) if dt else -np.sqrt(EPS)

@@ -291,6 +291,22 @@ def stable_internal_form(model: FDIModel, Q: LTI, *, poles=None, sdeg: float | N
     Returns ``(Q, info)``; ``info`` is empty when nothing moved, else ``moved_poles`` (the poles
     of ``[Q R]`` that were moved), ``moved`` (their count) and ``order_before`` (Q's order).
     """
+    good = _stability_region(model, sdeg, smarg, keep_stable_poles)
+    # the poles of [Q R] are among those of Q and of the plant: decided on each block's own
+    # eigenvalues (the joint matrix couples Q's poles, often the plant's own, to the plant's, and
+    # its computed eigenvalues can leave a cluster by far more than rounding)
+    eig = np.concatenate([Q.poles(), np.linalg.eigvals(model.A) if model.n else np.zeros(0)])
+    if all(good(z.real, z.imag) for z in eig):
+        return Q, {}
+    N, q, info = stable_joint_factor(model, Q, poles=poles, sdeg=sdeg, smarg=smarg,
+                                     keep_stable_poles=keep_stable_poles)
+    if not info:
+        return Q, {}
+    return N[:, :q].minreal(), info
+
+
+def _stability_region(model: FDIModel, sdeg, smarg, keep_stable_poles: bool):
+    """``good(re, im)``: the region the poles of ``[Q R]`` must lie in (margin inclusive, as the judge)."""
     from .postconditions import default_smarg
 
     dt = float(model.dt)
@@ -298,15 +314,22 @@ def stable_internal_form(model: FDIModel, Q: LTI, *, poles=None, sdeg: float | N
     limit = np.inf if (sdeg is None or keep_stable_poles) else float(sdeg) + 1e-9 * max(1.0, abs(float(sdeg)))
     bound = margin_limit(margin)  # inclusive, as the judge (margin.outside_margin)
     if dt:
-        good = lambda re, im: np.hypot(re, im) <= bound and np.hypot(re, im) <= limit  # noqa: E731
-    else:
-        good = lambda re, im: re <= bound and re <= limit  # noqa: E731
-    # the poles of [Q R] are among those of Q and of the plant: decided on each block's own
-    # eigenvalues (the joint matrix couples Q's poles, often the plant's own, to the plant's, and
-    # its computed eigenvalues can leave a cluster by far more than rounding)
-    eig = np.concatenate([Q.poles(), np.linalg.eigvals(model.A) if model.n else np.zeros(0)])
-    if all(good(z.real, z.imag) for z in eig):
-        return Q, {}
+        return lambda re, im: np.hypot(re, im) <= bound and np.hypot(re, im) <= limit  # noqa: E731
+    return lambda re, im: re <= bound and re <= limit  # noqa: E731
+
+
+def stable_joint_factor(model: FDIModel, Q: LTI, *, poles=None, sdeg: float | None = None,
+                        smarg: float | None = None, keep_stable_poles: bool = True) -> tuple[LTI, int, dict]:
+    """The stable factor ``[N_Q N_Rw N_Rf] = M·[Q R_w R_f]`` of :func:`stable_internal_form` as one
+    realisation (``q`` = Q's inputs first, then the columns of w and f), and the same ``info``.
+
+    Unlike ``Q·Ge`` evaluated point by point, its values are finite at a pole of the plant on the
+    stability boundary (an integrator of Gf at a strong-detectability frequency ω = 0): what a
+    stable residual built from these rows keeps there, the peer's ``fdisspec(...; stabilize =
+    true)`` on the ``glnull`` rows stabilised with ``sdeg`` (Varga 2017, sec. 5.4). When nothing
+    violates the region the minimal realisation of ``[Q R]`` itself is returned (``info`` empty).
+    """
+    good = _stability_region(model, sdeg, smarg, keep_stable_poles)
     J, q = internal_form_realisation(model, Q)
     # a plant pole that Q's zero cancels (an integrator the decoupling row annihilates) is left by a
     # series connection as a mode observable only through the cancellation error, ~1e-12 relative:
@@ -317,16 +340,16 @@ def stable_internal_form(model: FDIModel, Q: LTI, *, poles=None, sdeg: float | N
     eig = Jm.poles()
     bad = eig[~np.array([good(z.real, z.imag) for z in eig], bool)] if eig.size else eig
     if bad.size == 0:
-        return Q, {}
+        return Jm, q, {}
     N, _, moved = glcf(Jm, moved_pole_targets(model, poles, sdeg, smarg), good)
-    Qn = N[:, :q].minreal()
     left = [z for z in N.poles() if not good(z.real, z.imag)]
     if left:
-        from .postconditions import NumericalDesignError
+        from .postconditions import NumericalDesignError, default_smarg
 
+        margin = default_smarg(float(model.dt)) if smarg is None else float(smarg)
         raise NumericalDesignError(
             f"the internal form R = Q·Ge keeps the poles {np.round(np.asarray(left), 6).tolist()} outside the "
             f"stability region (stability margin smarg = {margin:.6g}) after its stable left coprime "
             f"factorisation: the poles of [Q R] are too ill-conditioned to be moved — pass other poles/sdeg or "
             f"rank tolerances")
-    return Qn, {"moved_poles": np.asarray(bad).tolist(), "moved": int(moved), "order_before": int(Q.n)}
+    return N, q, {"moved_poles": np.asarray(bad).tolist(), "moved": int(moved), "order_before": int(Q.n)}

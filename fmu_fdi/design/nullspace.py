@@ -29,7 +29,8 @@ from ..model import FDIModel
 from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
 from .approximate import coouter_inverse, gap_objective
-from .coprime import stable_internal_form
+from ..margin import near_poles
+from .coprime import stable_internal_form, stable_joint_factor
 from .postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
 
 
@@ -695,9 +696,16 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         lam, Ge_grid = lam[finite], Ge_grid[finite]
         P = [row_responses(cand, basis, Ge_grid, lam, c, den_mu) for c in fcols]
         strong = None
-        if freqs is not None and model.faults:
+        # a strong frequency on a pole of the plant on the stability boundary: the rows' stable factor
+        Js = _boundary_rows(model, cand, basis, nu, den_mu, freqs, place) if freqs is not None else None
+        if Js is not None:
+            Jv, Sv, w0 = _values(Js[0], lam), _values(Js[0], _points(model, freqs)), model.group_slices()["w"].start
+            P, Y_stable = [Jv[:, :, Js[1] + c - w0] for c in fcols], Jv[:, :, :model.ny]
+            strong = [Sv[:, :, Js[1] + c - w0] for c in fcols]
+        elif freqs is not None and model.faults:
             lam_s, Ge_s = _strong_points(model, Ge, freqs)
             strong = [row_responses(cand, basis, Ge_s, lam_s, c, den_mu) for c in fcols]
+        if strong is not None:
             # as the post-condition: each fault's gain at ω against that fault's own peak (not the
             # strongest fault's, which would refuse a weak but flat fault response)
             ok = [[np.max(np.linalg.norm(Sj[w], axis=1)) > FDGainTol * np.max(np.linalg.norm(Pj, axis=2))
@@ -715,6 +723,7 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
             mu = _lam_to_mu(lam, basis.rho)
             dvals = np.prod(mu[:, None] - den_mu[None, :], axis=1) if den_mu.size else np.ones(mu.size)
             Y = np.stack([r.at(mu)[:, :model.ny] for r in cand], axis=1) / dvals[:, None, None]
+            Y = Y if Js is None else Y_stable
             objective = visibility_gated(P, Y, Ge_grid, fcols, FDtol, strong)
             H = greedy_combinations(objective, k, int(rdim), seed)
             fsc = min(objective(h) for h in H)
@@ -722,7 +731,8 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
             H = np.eye(k)[: int(rdim)]
             fsc = None
         coefs = [sum(h[i] * cand[i].padded(nu) for i in range(k)) for h in H]
-        Q = realize_rows(coefs, [den_mu] * len(coefs), basis.rho, model.dt)
+        Q = realize_rows(coefs, [den_mu] * len(coefs), basis.rho, model.dt) if Js is None else (
+            H @ Js[0][:, :Js[1]]).minreal()  # the stable rows combined: R = H·N_R, as the strong test judged
         info = {"order": int(Q.n), "rdim": len(coefs), "combination": H.tolist(),
                 "fault_sensitivity_estimate": fsc}
         gen = _finish(model, Q, basis, "nullspace", info, degrees, place=place)
@@ -731,6 +741,20 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         f"rdim = {rdim} residuals requested but the null space of [Gu Gd; I 0] has only "
         f"{len(rows)} basis vectors (p - rank Gd)"
     )
+
+
+def _boundary_rows(model, cand, basis, nu, den_mu, freqs, place):
+    """``(J, q)``: the stable factor ``[N_Q N_R]`` of the candidate rows (:func:`.coprime.stable_joint_factor`)
+    when a strong frequency lies on a pole of the plant on the stability boundary, else None. There
+    ``Q·Ge`` is infinite (or, rounded, huge): what a stable residual keeps is the value of the stable
+    factor, in which glcf has moved the pole (the peer's ``glnull(...; sdeg)`` before ``fdisspec``)."""
+    if not model.n or not model.faults:
+        return None
+    if not np.any(near_poles(_points(model, np.atleast_1d(freqs)), np.linalg.eigvals(model.A))):
+        return None
+    Qc = realize_rows([r.padded(nu) for r in cand], [den_mu] * len(cand), basis.rho, model.dt)
+    J, q, _ = stable_joint_factor(model, Qc, **(place or {}))
+    return J, q
 
 
 def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degrees,
