@@ -129,11 +129,6 @@ def test_efdsyn_strong_at_zeros_of_gf_two_faults_rdim2():
     assert strong_structure(gen, model, [0.0, 2.0], 1e-3).tolist() == [[1, 1]]
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 17: Gf = [1/s; 1/(s^2+4)] with FDfreq = [0, 2] is refused ('fault f1 has zero gain at ω = 0/2 "
-    "in every residual that decouples u and d'): the strong test at a pole of Gf on the axis does not use"
-    ' the stable factor of R; main: ValueError in nullspace.py'
-))
 def test_efdsyn_strong_at_poles_of_gf():
     """efdsyn(Gf = [1/s; 1/(s²+4)]; sdeg=-3, rdim=1, FDfreq=[0, 2]): designed, R stable (its poles
     at 0 and ±2j cancelled by Q), strongly visible at ω = 0 and 2 (fdisspec(Rf, [0, 2]) = [1])."""
@@ -469,10 +464,6 @@ def boeing747():
                     Df=BOEING_DU[:, :5])
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    'achievable_structure(freqs=[0, 1], FDGainTol=1e-5) lists 6 rows on the Boeing 747 where fdigenspec '
-    'lists 4 ([0 0 1 1 0] and [1 1 0 0 0] are kept though not strongly detectable at both 0 and 1)'
-))
 def test_boeing747_achievable_structures():
     """fdigenspec: 7 weak specifications; 4 strong ones at FDfreq = [0, 1] (FDGainTol = 1e-5)."""
     model = boeing747()
