@@ -472,10 +472,6 @@ def test_boeing747_achievable_structures():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 17: structured_bank refuses achievable Boeing 747 rows (main: 6 of 7, 'relative gain ... <= "
-    "FDtol'; main+core+judge: row [0 0 1 1 0] 'u+d leak 0.167 x the weakest fault gain')"
-))
 def test_boeing747_every_weak_row_designed_at_least_order():
     """fdichkspec(minimal = true): every weak row is designable with least orders [1, 2, 1, 2, 1, 1, 1];
     issue 17: structured_bank refused 6 of the 7 rows."""

@@ -757,6 +757,25 @@ def _boundary_rows(model, cand, basis, nu, den_mu, freqs, place):
     return J, q
 
 
+def _refined(model, Q: LTI, lam, Gv) -> LTI:
+    """Q with its numerator refined (:func:`.refine.refine_decoupling`) when its u/d leak on the grid
+    exceeds 1e-9 of its weakest fault peak (a rounding error the plant amplifies near a pole on the
+    boundary) and the correction is small enough to compute (≤ 2000 numerator coefficients)."""
+    from .refine import refine_decoupling
+
+    ud, fsl = slice(0, model.nu + model.nd), model.group_slices()["f"]
+    if not (ud.stop and model.faults) or (Q.n + Q.p) * Q.m > 2000:
+        return Q
+    Qv = _values(Q, lam)
+    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))
+    R = np.einsum("kiq,kqc->kic", Qv[ok], Gv[ok])
+    weakest = min(np.max(np.linalg.norm(R[:, :, fsl][:, :, c], 2, axis=(1, 2))) for c in
+                  [np.arange(model.nf)[f.columns] for f in model.faults])
+    if np.max(np.linalg.norm(R[:, :, ud], 2, axis=(1, 2)), initial=0.0) <= 1e-9 * weakest:
+        return Q
+    return refine_decoupling(Q, lam, Gv[:, :, ud])[0]
+
+
 def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degrees,
             scale_rows: bool = True, place: dict | None = None) -> ResidualGenerator:
     """Where every null-space design ends: make the whole internal form stable, then normalise
@@ -779,7 +798,9 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
         grid = frequency_grid(dyn, num=200) if dyn else np.array([0.0])
         lam = _points(model, grid)
         fsl = model.group_slices()["f"]
-        Rv = np.einsum("kiq,kqc->kic", _values(Q, lam), _values(model.augmented(), lam)[:, :, fsl])
+        Gv = _values(model.augmented(), lam)
+        Q = _refined(model, Q, lam, Gv)
+        Rv = np.einsum("kiq,kqc->kic", _values(Q, lam), Gv[:, :, fsl])
         ok = np.all(np.isfinite(Rv), axis=(1, 2))
         if np.any(ok):
             peaks = np.max(np.abs(Rv[ok]), axis=(0, 2))
