@@ -415,7 +415,7 @@ def _stable_fault_response(mi: FDIModel, basis) -> LTI:
     no stable residual may keep it: the fault responses ``Ñ`` of all decoupling filters of
     ``mi``, stable: ``T = N Ge_f`` with the basis rows over the design's default denominators,
     and ``Ñ`` the fault part of the stable factor ``M·[Q T]`` of the joint left coprime
-    factorisation :func:`~fmu_fdi.design.coprime.stable_joint_factor` (glcf: an ordered Schur
+    factorisation :func:`~fmu_fdi.design.stable_factor.stable_joint_factor` (glcf: an ordered Schur
     form moves only the poles on or outside the boundary; the designs end with the same
     factorisation, and the peer's ``fdigenspec`` judges ``fdisspec(...; stabilize = true)`` on the
     ``glnull`` rows stabilised so). Any stable residual's fault response is ``Y Ñ`` with Y stable,
@@ -423,7 +423,7 @@ def _stable_fault_response(mi: FDIModel, basis) -> LTI:
     every decoupling residual has.
     """
     from .design._basis import pole_chooser, realize_rows
-    from .design.coprime import stable_joint_factor
+    from .design.stable_factor import stable_joint_factor
     from .design.postconditions import NumericalDesignError
 
     choose = pole_chooser(mi, None, None)
