@@ -197,7 +197,8 @@ def test_cs1_1_efdisyn_and_table_8_2(cs1, capsys):
     model = models[NOM]
     names = model.fault_names
     t0 = time.perf_counter()
-    bank = structured_bank(model, SFDI_CS1, freqs=[0.0], FDGainTol=1e-3, sdeg=-5, smarg=-0.2)
+    # the peer's efdisyn(sysactf[nom], SFDI; atol, FDGainTol, FDfreq, rdim = 1, sdeg = -5, smarg = -0.2), atol = 1e-6
+    bank = structured_bank(model, SFDI_CS1, freqs=[0.0], FDGainTol=1e-3, sdeg=-5, smarg=-0.2, atol=1e-6)
     elapsed = time.perf_counter() - t0
     assert judge(bank, model, SFDI_CS1, names) == []
     poles = np.linalg.eigvals(bank.Q.A) if bank.Q.n else np.zeros(0)
@@ -236,7 +237,8 @@ def test_cs1_2_efdisyn_identity(cs1):
     models = cs1_models(cs1, positions=True)
     model = models[NOM]
     S = np.eye(8, dtype=int)
-    bank = structured_bank(model, S, freqs=[0.0], FDGainTol=0.01, sdeg=-5, smarg=-1)
+    # the peer's efdisyn(sysactf[nom], SFDI; atol, FDGainTol = 0.01, FDfreq, ...), atol = 1e-6 (CS1_2.jl)
+    bank = structured_bank(model, S, freqs=[0.0], FDGainTol=0.01, sdeg=-5, smarg=-1, atol=1e-6)
     assert judge(bank, model, S, model.fault_names) == []
     poles = np.linalg.eigvals(bank.Q.A) if bank.Q.n else np.zeros(0)
     assert np.all(poles.real <= -1 + 1e-9), poles.real.max()
