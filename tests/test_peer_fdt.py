@@ -20,6 +20,11 @@ Tally (27 tests ported from 11 peer cases files/examples; state of 2026-11-26 ~1
   failing on main but passing with the issue-17 branches 2 (test_afdsyn_ex5_6c_gap_and_poles: core+judge;
   test_fdigenspec_marginal_poles_strong_at_0_and_1: core). bankfix (12:30 UTC): test_afdisyn_ex5_11c_gaps_3_and_inf
   passes (R_u/R_d poles judged against the stability boundary, R_w/R_f against smarg): xfail 4.
+  peer (issue 17, ~14:45 UTC): xfail 0 — strong tests at boundary poles on the stable factor of the rows
+  (test_efdsyn_strong_at_poles_of_gf), smarg inclusive (the Yuan pole-assignment test; its McMillan degree
+  counted from residues: sqrt(eig(Wc·Wo)) put ~1e-7 rounding above the peer's 1e-7 threshold), every ω of
+  achievable_structure's strong test on the stable factor (Boeing 747: fdigenspec's 4 rows), numerator
+  refinement of near-boundary leaks (Boeing 747 weak rows at the least orders [1, 2, 1, 2, 1, 1, 1]).
 Each test names the peer file and case it comes from.
 """
 from __future__ import annotations
