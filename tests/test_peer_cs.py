@@ -25,7 +25,9 @@ The book's Table 8.2 values for the ten off-nominal models are not in the peer's
 assert the nominal row < 1e-6), so only that row is asserted; test_cs1_1_efdisyn_and_table_8_2 prints
 ours. Tally (~11:45 UTC): 7 tests · passing on main 4 (data, CS1_1 achievability, CS2_1 strong
 specifications, CS2_1 Table 8.4: Nref 9.8e-10, Nnom 643.5, N0 545.3) · xfail 3 (the CS1 designs and
-CS1_2's 255 strong specifications fail on main and with the issue-17 branches).
+CS1_2's 255 strong specifications fail on main and with the issue-17 branches). peer (~14:55 UTC): xfail 0 —
+CS1_1 orders [6, 6, 6, 5, 4, 4] (31), nominal Table 8.2 row NormRu 7.8e-10, NormRd 3.0e-9; CS1_2 SFDI = I8 orders
+[1, 1, 1, 2, 1, 1, 1, 1]; all 255 CS1_2 rows strongly achievable (the designs pass the peer's atol = 1e-6).
 """
 from __future__ import annotations
 
@@ -185,11 +187,6 @@ def test_cs1_1_structure_is_achievable(cs1):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 17: CS1_1 SFDI 6x8 refused: main: 'fault act2 has relative gain 4.3e-12 <= FDtol'; "
-    "main+core+judge: 'strong detectability at a pole of the fault channels on the stability boundary "
-    "cannot be decided: the left coprime factorisation ... failed'"
-))
 def test_cs1_1_efdisyn_and_table_8_2(cs1, capsys):
     """CS1_1 Part 3–4: the 6×8 bank is designed, exact, strongly structured at ω = 0 as SFDI, with
     poles Re ≤ smarg = −0.2, and Table 8.2's nominal row is below 1e-6."""
