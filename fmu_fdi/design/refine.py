@@ -25,7 +25,10 @@ when it lowers the leak on the points.
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
+import scipy.linalg as sla
 
 from ..lti import LTI
 
@@ -45,8 +48,13 @@ def refine_decoupling(Q: LTI, lam: np.ndarray, Ge_ud: np.ndarray) -> tuple[LTI, 
     pr, q, n = Q.p, Q.m, Q.n
     if not lam.size or not G.shape[2]:
         return Q, 0.0, 0.0
-    K = np.concatenate([LTI(Q.A, np.eye(n), Q.C, np.zeros((pr, n)), Q.dt).values(lam) if n
-                        else np.zeros((lam.size, pr, 0)), np.broadcast_to(np.eye(pr), (lam.size, pr, pr))], axis=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sla.LinAlgWarning)
+        try:  # Q's resolvent unreliable at the points (poles next to them): no refinement
+            Kq = LTI(Q.A, np.eye(n), Q.C, np.zeros((pr, n)), Q.dt).values(lam) if n else np.zeros((lam.size, pr, 0))
+        except (sla.LinAlgWarning, np.linalg.LinAlgError):
+            return Q, float("nan"), float("nan")
+    K = np.concatenate([Kq, np.broadcast_to(np.eye(pr), (lam.size, pr, pr))], axis=2)
     Theta0 = np.vstack([Q.B, Q.D])  # (n + pr) × q
 
     def leak(Theta):
