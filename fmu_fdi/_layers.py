@@ -23,7 +23,7 @@ LAYERS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("judge", "post-conditions on the normalised internal form",
      ("design.postconditions",)),
     ("toolkit", "state-space toolkit: minimal bases, pencils, poles",
-     ("design._basis", "design.pencil")),
+     ("design._basis", "design.pencil", "design.stable_factor")),
     ("analysis", "structure, gains, gaps, leakage; robustness",
      ("analysis", "robustness")),
     ("synthesis", "design/: one module per problem, observers beside",

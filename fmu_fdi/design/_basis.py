@@ -438,11 +438,11 @@ def check_poles(poles, dt: float, smarg: float | None = None) -> None:
         region = "inside the unit circle" if dt else "in the open left half-plane"
         raise DesignError(f"poles {bad.tolist()} are not stable: residual generator poles must lie {region}")
     if smarg is not None:
-        bad = poles[np.abs(poles) >= smarg] if dt else poles[poles.real >= smarg]
+        bad = poles[np.abs(poles) > smarg] if dt else poles[poles.real > smarg]  # inclusive, as the peer's
         if bad.size:
             what = "|pole|" if dt else "Re(pole)"
             raise DesignError(f"poles {bad.tolist()} break the stability margin smarg = {smarg:g} (every {what} "
-                              f"must be below it): pass faster poles or relax smarg")
+                              f"must be at or below it): pass faster poles or relax smarg")
 
 
 def realize_fir(coefs: list[np.ndarray], rho: float, dt: float) -> LTI:

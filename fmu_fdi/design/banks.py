@@ -34,7 +34,8 @@ from .postconditions import DEC_TOL, check_generator
 def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, noise: str = "optimize",
                     FDtol: float = 1e-4, FDGainTol: float = 0.01, freqs=None, tol: float | None = None,
                     seed: int = 0, smarg: float | None = None, dec_tol: float = DEC_TOL,
-                    minimal: bool = True, basis: str = "auto", keep_stable_poles: bool = True) -> ResidualBank:
+                    minimal: bool = True, basis: str = "auto", keep_stable_poles: bool = True,
+                    atol: float = 0.0) -> ResidualBank:
     """One least-order residual per row of the structure matrix ``S``.
 
     Parameters
@@ -45,7 +46,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     faults : list of str, optional
         The faults the columns of S refer to (default: all faults of the model, in order).
         Faults not listed are neither required nor decoupled.
-    poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol, minimal, basis, keep_stable_poles
+    poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol, minimal, basis, keep_stable_poles, atol
         As in :func:`~fmu_fdi.design.nullspace.nullspace_design`, per row; with ``freqs`` every
         fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies (a row is
         designed when :func:`~fmu_fdi.analysis.achievable_structure` with the same ``freqs`` and
@@ -84,7 +85,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         mi_design = mi._replace(faults=[f for f in mi.faults if f.name in keep]) if extra else mi
         g = nullspace_design(mi_design, rdim=1, poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol,
                              FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol,
-                             minimal=minimal, basis=how, keep_stable_poles=keep_stable_poles)
+                             minimal=minimal, basis=how, keep_stable_poles=keep_stable_poles, atol=atol)
         if extra:
             g = _cover_faults(mi, g, keep, place={"poles": poles, "sdeg": sdeg, "smarg": smarg,
                                                   "keep_stable_poles": bool(keep_stable_poles)},
@@ -93,7 +94,8 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
 
     from ..analysis import row_test
 
-    achievable = row_test(model, names, freqs=freqs, FDGainTol=FDGainTol, tol=tol)  # as achievable_structure
+    # as achievable_structure
+    achievable = row_test(model, names, freqs=freqs, FDGainTol=FDGainTol, tol=tol, atol=atol)
     members, failures = [], []
     for i, row in enumerate(S.astype(int)):
         why = achievable(row)

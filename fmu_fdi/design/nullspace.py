@@ -31,7 +31,8 @@ from ..model import FDIModel
 from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
 from .approximate import coouter_inverse, gap_objective
-from .coprime import stable_internal_form
+from ..margin import near_poles
+from .coprime import stable_internal_form, stable_joint_factor
 from .postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
 
 
@@ -189,7 +190,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         Seed of the deterministic combination search.
     smarg : float, optional
         Stability margin the poles of the filter *and of its internal form* ``R = Q·Ge`` must
-        satisfy (``Re p < smarg``, or ``|p| < smarg`` in discrete time); default just inside the
+        satisfy (``Re p ≤ smarg``, or ``|p| ≤ smarg`` in discrete time); default just inside the
         stability boundary. Given ``poles`` outside it are refused. When ``R`` keeps a pole of the
         plant outside it (``Gf = [1/(s−1); 1/(s+2)]``: the basis is static and ``Q·Gf`` keeps +1),
         Q is replaced by ``M·Q``, M the stable left factor of a coprime factorisation of the whole
@@ -739,9 +740,7 @@ def _strong_points(model: FDIModel, Ge: LTI, freqs: np.ndarray) -> tuple[np.ndar
     G = _values(Ge, lam)
     bad = ~np.all(np.isfinite(G), axis=(1, 2))
     # a pole that rounding put 1e-16 off the boundary leaves G finite (~1e16) at it: the limit there too
-    poles = Ge.poles()
-    if poles.size:
-        bad |= np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) <= 1e-9 * max(1.0, float(np.max(np.abs(poles))))
+    bad |= near_poles(lam, Ge.poles())
     if np.any(bad):
         delta = 1e-7
         lam = lam.copy()
@@ -790,9 +789,16 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         lam, Ge_grid = lam[finite], Ge_grid[finite]
         P = [row_responses(cand, basis, Ge_grid, lam, c, den_mu) for c in fcols]
         strong = None
-        if freqs is not None and model.faults:
+        # a strong frequency on a pole of the plant on the stability boundary: the rows' stable factor
+        Js = _boundary_rows(model, cand, basis, nu, den_mu, freqs, place) if freqs is not None else None
+        if Js is not None:
+            Jv, Sv, w0 = _values(Js[0], lam), _values(Js[0], _points(model, freqs)), model.group_slices()["w"].start
+            P, Y_stable = [Jv[:, :, Js[1] + c - w0] for c in fcols], Jv[:, :, :model.ny]
+            strong = [Sv[:, :, Js[1] + c - w0] for c in fcols]
+        elif freqs is not None and model.faults:
             lam_s, Ge_s = _strong_points(model, Ge, freqs)
             strong = [row_responses(cand, basis, Ge_s, lam_s, c, den_mu) for c in fcols]
+        if strong is not None:
             # as the post-condition: each fault's gain at ω against that fault's own peak (not the
             # strongest fault's, which would refuse a weak but flat fault response)
             ok = [[np.max(np.linalg.norm(Sj[w], axis=1)) > FDGainTol * np.max(np.linalg.norm(Pj, axis=2))
@@ -810,6 +816,7 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
             mu = _lam_to_mu(lam, basis.rho)
             dvals = np.prod(mu[:, None] - den_mu[None, :], axis=1) if den_mu.size else np.ones(mu.size)
             Y = np.stack([r.at(mu)[:, :model.ny] for r in cand], axis=1) / dvals[:, None, None]
+            Y = Y if Js is None else Y_stable
             objective = visibility_gated(P, Y, Ge_grid, fcols, FDtol, strong)
             H = greedy_combinations(objective, k, int(rdim), seed)
             fsc = min(objective(h) for h in H)
@@ -817,7 +824,8 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
             H = np.eye(k)[: int(rdim)]
             fsc = None
         coefs = [sum(h[i] * cand[i].padded(nu) for i in range(k)) for h in H]
-        Q = realize_rows(coefs, [den_mu] * len(coefs), basis.rho, model.dt)
+        Q = realize_rows(coefs, [den_mu] * len(coefs), basis.rho, model.dt) if Js is None else (
+            H @ Js[0][:, :Js[1]]).minreal()  # the stable rows combined: R = H·N_R, as the strong test judged
         info = {"order": int(Q.n), "rdim": len(coefs), "combination": H.tolist(),
                 "fault_sensitivity_estimate": fsc}
         gen = _finish(model, Q, basis, "nullspace", info, degrees, place=place)
@@ -826,6 +834,41 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         f"rdim = {rdim} residuals requested but the null space of [Gu Gd; I 0] has only "
         f"{len(rows)} basis vectors (p - rank Gd)"
     )
+
+
+def _boundary_rows(model, cand, basis, nu, den_mu, freqs, place):
+    """``(J, q)``: the stable factor ``[N_Q N_R]`` of the candidate rows (:func:`.coprime.stable_joint_factor`)
+    when a strong frequency lies on a pole of the plant on the stability boundary, else None. There
+    ``Q·Ge`` is infinite (or, rounded, huge): what a stable residual keeps is the value of the stable
+    factor, in which glcf has moved the pole (the peer's ``glnull(...; sdeg)`` before ``fdisspec``)."""
+    if not model.n or not model.faults:
+        return None
+    if not np.any(near_poles(_points(model, np.atleast_1d(freqs)), np.linalg.eigvals(model.A))):
+        return None
+    Qc = realize_rows([r.padded(nu) for r in cand], [den_mu] * len(cand), basis.rho, model.dt)
+    J, q, _ = stable_joint_factor(model, Qc, **(place or {}))
+    return J, q
+
+
+def _refined(model, Q: LTI, lam, Gv) -> LTI:
+    """Q with its numerator refined (:func:`.refine.refine_decoupling`) when its u/d leak on the grid
+    exceeds 1e-9 of its weakest fault peak (a rounding error the plant amplifies near a pole on the
+    boundary) and the correction is small enough to compute (≤ 2000 numerator coefficients)."""
+    from .refine import refine_decoupling
+
+    ud, fsl = slice(0, model.nu + model.nd), model.group_slices()["f"]
+    if not (ud.stop and model.faults) or (Q.n + Q.p) * Q.m > 2000:
+        return Q
+    Qv = _values(Q, lam)
+    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))
+    if model.n:  # beside a plant pole (an integrator at ω = 0) Ge's values are rounding-dominated
+        ok &= ~near_poles(lam, np.linalg.eigvals(model.A), 1e-6)
+    R = np.einsum("kiq,kqc->kic", Qv[ok], Gv[ok])
+    weakest = min(np.max(np.linalg.norm(R[:, :, fsl][:, :, c], 2, axis=(1, 2))) for c in
+                  [np.arange(model.nf)[f.columns] for f in model.faults])
+    if np.max(np.linalg.norm(R[:, :, ud], 2, axis=(1, 2)), initial=0.0) <= 1e-9 * weakest:
+        return Q
+    return refine_decoupling(Q, lam[ok], Gv[ok][:, :, ud])[0]
 
 
 def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degrees,
@@ -850,7 +893,9 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
         grid = frequency_grid(dyn, num=200) if dyn else np.array([0.0])
         lam = _points(model, grid)
         fsl = model.group_slices()["f"]
-        Rv = np.einsum("kiq,kqc->kic", _values(Q, lam), _values(model.augmented(), lam)[:, :, fsl])
+        Gv = _values(model.augmented(), lam)
+        Q = _refined(model, Q, lam, Gv)
+        Rv = np.einsum("kiq,kqc->kic", _values(Q, lam), Gv[:, :, fsl])
         ok = np.all(np.isfinite(Rv), axis=(1, 2))
         if np.any(ok):
             peaks = np.max(np.abs(Rv[ok]), axis=(0, 2))

@@ -305,6 +305,7 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
         number of moved poles.
     """
     from ._basis import normal_rank
+    from ..margin import margin_limit
     from .postconditions import NumericalDesignError, default_smarg
 
     p, m, md = model.ny, model.nu, model.nd
@@ -333,13 +334,13 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
     degrees = conjugate_partition(taus, k)
     choose = _targets(model, poles, sdeg)
     margin = default_smarg(model.dt) if smarg is None else float(smarg)
-    # the stability region: strictly inside the margin, and at sdeg or better (the targets
+    # the stability region: at or inside the margin (inclusive, as the peer), at sdeg or better (the targets
     # themselves sit on sdeg; 1e-9 relative lets them count as placed)
     limit = np.inf if sdeg is None else float(sdeg) + 1e-9 * max(1.0, abs(float(sdeg)))
     if model.dt:
-        good = lambda re, im: np.hypot(re, im) < margin and np.hypot(re, im) <= limit  # noqa: E731
+        good = lambda re, im: np.hypot(re, im) <= margin_limit(margin) and np.hypot(re, im) <= limit  # noqa: E731
     else:
-        good = lambda re, im: re < margin and re <= limit  # noqa: E731
+        good = lambda re, im: re <= margin_limit(margin) and re <= limit  # noqa: E731
     # the dual realisation (ac, bc, Cz, Dz) of Nlᵀ before any pole is moved: the rows' covers start here
     Cz = np.vstack([Fc, -(Bu.T @ Pc + Du.T @ Fc)]) if m else Fc  # Nuᵀ = -(Buᵀ X + Duᵀ N)
     Dz = np.vstack([K, -(Du.T @ K)]) if m else K

@@ -54,7 +54,7 @@ import numpy as np
 from ..errors import DesignError
 from ..linalg import EPS
 from ..lti import LTI, frequency_grid
-from ..margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, outside_margin  # noqa: F401
+from ..margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
 
 class NumericalDesignError(DesignError):
     """A design broke a numerical post-condition (decoupling, basis rank, stability of the
@@ -161,12 +161,10 @@ def _freq_values(model, Q: LTI, freqs) -> tuple[np.ndarray, np.ndarray]:
     pts = lambda w: np.exp(1j * w * model.dt) if model.dt else 1j * w  # noqa: E731
     Ge, Qv = _values(model.augmented(), pts(omega)), _values(Q, pts(omega))
     bad = ~(np.all(np.isfinite(Ge), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2)))
-    # a pole that rounding put 1e-16 off the axis leaves Ge finite (~1e16) there, and Q Ge is 0·∞ rounding
-    # (a zero of Q at the pole gives exactly 0): within 1e-9 (relative) of a pole the limit is taken too
-    poles = np.concatenate([model.lti().poles(), Q.poles()])
-    if poles.size:
-        lam = pts(omega)
-        bad |= np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) <= 1e-9 * max(1.0, float(np.max(np.abs(poles))))
+    # on a pole computed 1e-16…1e-24 off the axis Ge (or Q) is finite but huge, and Q·Ge is rounding
+    # there (a zero of Q at the pole gives exactly 0): within 1e-9 (relative) of a pole the limit is taken
+    poles = np.concatenate([np.linalg.eigvals(model.A) if model.n else np.zeros(0, complex), Q.poles()])
+    bad |= near_poles(pts(omega), poles)
     if np.any(bad):
         w2 = omega[bad] + 1e-7 * np.maximum(1.0, np.abs(omega[bad]))
         Ge[bad], Qv[bad] = _values(model.augmented(), pts(w2)), _values(Q, pts(w2))
