@@ -106,11 +106,13 @@ def impulse_norms(H: LTI, tail_tol: float, max_taps: int) -> tuple[np.ndarray, f
         Cn = np.linalg.norm(H.C, 2)
         X = H.B.copy()
         far = 0.0
+        running = norms[0]  # sum(norms) in the same order, kept as it grows (not re-added per tap: O(K²))
         for _ in range(max_taps):
             norms.append(np.linalg.norm(H.C @ X, 2))
+            running += norms[-1]
             X = H.A @ X
             far = Cn * S * np.linalg.norm(X, 2)
-            if far <= 1e-3 * tail_tol * sum(norms):
+            if far <= 1e-3 * tail_tol * running:
                 break
     else:
         far = 0.0
