@@ -19,6 +19,10 @@ Boolean alarms and flags; Integer ``isolated_fault``), all discrete with no dire
 feedthrough (outputs change at doStep only). FMI 3.0 adds the independent variable ``time``.
 Value references: time 0, u/y 1..n, threshold_scale n+1, outputs from n+2 (``c/fdi_glue.h``).
 
+The runtime's own units (``RUNTIME_SOURCES``, which read no header of the design) are compiled once
+per compiler, flags and sources into a per-user object cache (:mod:`.objcache`; folder
+``$FMU_FDI_NATIVE_CACHE``, ``off`` to compile every source each time) and linked into each FMU.
+
 Nothing is written when anything fails (no compiler, a compiler error, a design the C runtime
 cannot express): the FMU is assembled in a temporary file and moved into place at the end.
 """
@@ -40,10 +44,12 @@ from ..designfile import DesignFileError
 from ..errors import DesignError
 from ..outpath import write_atomically
 from ..runtime.engine import BOOLEAN_OUTPUTS, output_names
-from . import C_DIR, RUNTIME_HEADERS, RUNTIME_SOURCES
+from . import C_DIR, RUNTIME_HEADERS, RUNTIME_SOURCES, objcache
 
 GLUE_SOURCES = ("fdi_glue.c", "fdi_glue.h", "fdi_schedule.h")
 CFLAGS = ("-std=c99", "-pedantic", "-O2", "-fPIC", "-shared", "-fvisibility=hidden", "-Wall", "-Wextra", "-Werror")
+#: the flags that compile one unit into an object (the library is linked with CFLAGS)
+COMPILE_FLAGS = tuple(f for f in CFLAGS if f != "-shared")
 #: (system, machine) -> binaries/ folder for FMI 2 and FMI 3 (None: the standard names none)
 PLATFORMS = {("Linux", "x86_64"): {2: "linux64", 3: "x86_64-linux"},
              ("Linux", "aarch64"): {2: None, 3: "aarch64-linux"}}
@@ -288,12 +294,28 @@ def _fmi_headers(fmi_version: int) -> dict[str, bytes]:
     return {h: (folder / h).read_bytes() for h in FMI_HEADERS[fmi_version]}
 
 
-def compile_binary(src: Path, out: Path, cc: list[str] | None = None) -> Path:
-    """Compile every .c in ``src`` into the shared library ``out``; NativeBuildError with the log if it fails."""
+def compile_binary(src: Path, out: Path, cc: list[str] | None = None, shared: tuple[str, ...] = (),
+                   shared_headers: tuple[str, ...] = ()) -> Path:
+    """Compile every .c in ``src`` into the shared library ``out``; NativeBuildError with the log if it fails.
+
+    ``shared`` names units of ``src`` that include no header of ``src`` but ``shared_headers``: their
+    objects come from :mod:`.objcache` (compiled once per compiler, flags and sources) and the rest is
+    compiled and linked against them. Should that fail, every source is compiled in one command as
+    without the cache, so an error message is the compiler's on the full sources.
+    """
     cc = cc or find_compiler()
     files = sorted(str(p) for p in src.glob("*.c"))
+    objects = objcache.shared_objects(src, shared, shared_headers, cc, COMPILE_FLAGS) if shared else None
+    if objects is not None:
+        own = [f for f in files if Path(f).name not in shared]
+        cmd = [*cc, *CFLAGS, "-I", str(src), "-o", str(out), *own, *(str(o) for o in objects), "-lm"]
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+        if proc.returncode == 0:
+            return out
     cmd = [*cc, *CFLAGS, "-I", str(src), "-o", str(out), *files, "-lm"]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    if proc.returncode == 0 and objects is not None:
+        objcache.discard(objects)  # the full sources link but the cached objects did not: stale or damaged
     if proc.returncode != 0:
         raise NativeBuildError(f"compiling the native FMU failed ({' '.join(cc)} exited with {proc.returncode}):\n"
                                f"{(proc.stderr or proc.stdout)[-3000:]}")
@@ -378,7 +400,8 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2, stop_time: fl
         src.mkdir()
         for name, content in sources.items():
             (src / name).write_bytes(content)
-        lib = compile_binary(src, Path(tmp, f"{ident}.so"), cc)
+        # the runtime's units include only the runtime headers: compiled once, kept in the object cache
+        lib = compile_binary(src, Path(tmp, f"{ident}.so"), cc, shared=RUNTIME_SOURCES, shared_headers=RUNTIME_HEADERS)
         members = {"modelDescription.xml": model_description(design, ident, token, fmi_version, names, stop_time)}
         members[f"binaries/{folder}/{ident}.so"] = lib.read_bytes()
         for name in names:
