@@ -261,6 +261,8 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
             rec = run_experiment(path, sig, y_names, excite=excite, at=at, parameters=parameters, step=ts_new,
                                  excitation=probe, check_settle=False)
             r = np.sqrt(np.maximum((rec.y - rec.y0).var(axis=0) - sigma ** 2, 0.0))
+        if set(names) != set(sig) and rough is not None and np.any(noisy):
+            amp = _each_reference_seen(rough, exc, names, amp, free, limit, sigma, ts_new, ts0, notes)
         snr_now = np.min(r[noisy] / sigma[noisy]) if np.any(noisy) and np.all(r[noisy] > 0) else np.inf
         if user.samples is None and np.isfinite(snr_now) and snr_now < SNR_TARGET:
             longer = int(min(cap, np.ceil(samples * (SNR_TARGET / snr_now) ** 2)))
@@ -338,6 +340,26 @@ def _time_scales(z, ts0):
     tau_max = min(1.0 / max(float(slow.min()), 1e-300), 10 * T_pre) if lam.size else T_pre
     tau_max = max(tau_max, tau_min)
     return tau_min, tau_max
+
+
+def _each_reference_seen(rough, exc, names, amp, free, limit, sigma, ts, ts0, notes) -> dict:
+    """Stage of :func:`plan_experiment` for a plant in its own loop: each reference is the instrument
+    of its own model input (:mod:`fmu_fdi.identify.closed_loop`), so each must reach ``SNR_TARGET``
+    on its best-seen output by itself (a reference the loop integrates, like a load torque, would
+    otherwise meet the common target alone and leave the others in the noise); raised within
+    its limit, never lowered."""
+    noisy = sigma > 0
+    out = dict(amp)
+    for k in free:
+        alone = {n: (amp[n] if n == k else 0.0) for n in names}
+        r = _predicted_response(rough, exc, names, alone, None, ts, ts0)
+        snr = float(np.max(r[noisy] / sigma[noisy]))
+        if snr < SNR_TARGET:
+            out[k] = min(amp[k] * SNR_TARGET / max(snr, 1e-12), max(limit[k], amp[k]))
+    if out != amp:
+        notes.append("a plant in its own loop: each reference raised to signal/noise "
+                     f"{SNR_TARGET:g} by itself: {', '.join(f'{k} ±{v:.4g}' for k, v in out.items())}")
+    return out
 
 
 def _predicted_response(rough, exc, names, seed_amp, pre, ts, ts0) -> np.ndarray:

@@ -195,7 +195,20 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
                                                        design=design, log=log)
     du, dy = ident.u - ident.u0, ident.y - ident.y0      # deviations from the operating point
     du_val, dy_val = check.u - check.u0, check.y - check.y0
-    if order is None:
+    excited = list(ident.excited)
+    # a plant in its own loop (model inputs that are FMU outputs): the references as instruments
+    own = [excited.index(n) if n in excited else None for n in sig] if set(excited) != set(sig) else None
+    joint = None
+    if own is not None and len(excited) == len(sig):
+        from .closed_loop import identify_closed_loop, joint_outputs
+
+        sub, joint = identify_closed_loop(ident.r, du, dy, check.r, du_val, dy_val, ts, own, order,
+                                          max_order=max_order)
+        A, B, C, D = sub.to_continuous()
+        # validated as what it is identified as: the closed loop from the references, simulated
+        rep = validate(joint_outputs(joint, own), check.r, dy_val, check.t, np.linalg.eigvals(A), y_names,
+                       kind="closed-loop simulation")
+    elif order is None:
         sub, rep, A, B, C, D = _order_by_cross_validation(
             moesp(du, dy, ts, None, max_order=max_order, feedthrough=False, candidates=True),
             du_val, dy_val, check.t, y_names)
@@ -226,7 +239,8 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
     eps = None
     if inn is not None:
         eps = predictor_innovations(sub, inn.K, du_val, dy_val, drop=2 * sub.block_rows * max(sub.order, 1))
-    tests = residual_tests(eps, dy_val - rep.y_hat, du_val)
+    # the output error of a plant in its own loop follows the measured u through the loop: judged against r
+    tests = residual_tests(eps, dy_val - rep.y_hat, du_val if joint is None else check.r)
     Bw = None
     if nm is not None:  # Bw: the inverse zero-order hold of the discrete K Lₑ, as for B
         Bw = replace(sub, B=np.hstack([sub.B, nm.Bw])).to_continuous()[1][:, sub.B.shape[1]:]
@@ -235,7 +249,7 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
     verdict = _verdict(y_names, rep, floor, tests, sub.order, exc, plan)
     if log is not None:
         log(verdict)
-    if rep.kind != "simulation" and not tests.independent and np.max(tests.whiteness) > 10:
+    if rep.kind == "one-step predictor" and not tests.independent and np.max(tests.whiteness) > 10:
         raise IdentificationError(
             f"{path}: the identified model (order {sub.order}) is unstable, so it is validated by its one-step "
             f"predictor, whose fit flatters it; its output error is correlated with past inputs and its own "
@@ -269,6 +283,9 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
                  "whiteness": tests.whiteness.tolist(), "independence": tests.independence.tolist(),
                  "residual_lags": tests.lags,
                  "poles": [f"{p.real:.6g}{p.imag:+.6g}j" for p in rep.poles_continuous]})
+    if joint is not None:
+        prov.update({"method": "closed-loop subspace identification (joint input-output PO-MOESP, references "
+                               "as instruments)", "joint_order": joint.order, "delays": sub.info["delays"]})
     if nm is not None:
         prov.update(nm.provenance(y_names))
     if d_names:
