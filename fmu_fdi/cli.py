@@ -209,8 +209,9 @@ def _check_model_options(args) -> None:
         bad("--min-fit", args.min_fit, "the least validation fit must be a finite percentage <= 100")
     for option in ("samples", "period", "order"):
         value = getattr(args, option, None)
-        if value is not None and not 1 <= value <= MAX_MODEL_SAMPLES:
-            bad(f"--{option}", value, f"must be a whole number in [1, {MAX_MODEL_SAMPLES}]")
+        low = 0 if option == "order" else 1  # order 0: a static plant (a pure feedthrough)
+        if value is not None and not low <= value <= MAX_MODEL_SAMPLES:
+            bad(f"--{option}", value, f"must be a whole number in [{low}, {MAX_MODEL_SAMPLES}]")
     md = _plant_description(args.plant)
     if md is None:
         return  # not an FMU: the model builder says so

@@ -180,7 +180,7 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
     from dataclasses import replace
 
     from .noise import innovation_noise, measurement_noise, predictor_innovations
-    from .subspace import moesp
+    from .subspace import moesp, static_model
     from .validation import noise_floor, residual_tests, validate
 
     if md.coSimulation is None:
@@ -210,8 +210,12 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
                        kind="closed-loop simulation")
     elif order is None:
         sub, rep, A, B, C, D = _order_by_cross_validation(
-            moesp(du, dy, ts, None, max_order=max_order, feedthrough=False, candidates=True),
-            du_val, dy_val, check.t, y_names)
+            moesp(du, dy, ts, None, max_order=max_order, feedthrough=False, candidates=True)
+            + [static_model(du, dy, ts)], du_val, dy_val, check.t, y_names)
+    elif order == 0:
+        sub = static_model(du, dy, ts)
+        A, B, C, D = sub.to_continuous()
+        rep = validate(sub, du_val, dy_val, check.t, np.zeros(0), y_names)
     else:
         sub = moesp(du, dy, ts, order, max_order=max_order, feedthrough=False)
         A, B, C, D = sub.to_continuous()
@@ -283,6 +287,8 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
                  "whiteness": tests.whiteness.tolist(), "independence": tests.independence.tolist(),
                  "residual_lags": tests.lags,
                  "poles": [f"{p.real:.6g}{p.imag:+.6g}j" for p in rep.poles_continuous]})
+    if sub.info.get("static") is not None:
+        prov["method"] = "static gain (least squares; order 0: no state)"
     if joint is not None:
         prov.update({"method": "closed-loop subspace identification (joint input-output PO-MOESP, references "
                                "as instruments)", "joint_order": joint.order, "delays": sub.info["delays"]})
@@ -344,7 +350,8 @@ def _experiments(path, md, sig, y_names, *, at, params, ts, excite, excitation, 
 
 def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
     """The order from the singular values, or a lower-error one on the validation run (Ljung 1999,
-    sec. 16.4, cross-validation): among the stable candidates within 3 of it that have a continuous model, the
+    sec. 16.4, cross-validation): among the stable candidates within 3 of it (and the static gain,
+    order 0, :func:`~fmu_fdi.identify.subspace.static_model`) that have a continuous model, the
     smallest order whose mean normalised squared simulation error Σ_j ||e_j||²/||y_j − ȳ_j||² / p
     is within 2 % of the best plus 1e-4 (a 1 % NRMSE: on noise-free data a higher order only fits
     a nonlinearity a little better). The gap order stands when it is unstable (a plant in its own
@@ -360,7 +367,7 @@ def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
         return judged(gap)
     scored = []
     for sub in cands[1:]:
-        if abs(sub.order - gap.order) > 3 or np.any(np.abs(np.linalg.eigvals(sub.A)) >= 1.0):
+        if (abs(sub.order - gap.order) > 3 and sub.order) or np.any(np.abs(np.linalg.eigvals(sub.A)) >= 1.0):
             continue
         try:
             res = judged(sub)
