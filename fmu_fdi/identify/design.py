@@ -41,6 +41,11 @@ None, no ``ts``) is made from what a short pre-test on the plant FMU shows:
      default nominal, whose scale means nothing) and within 90 % of the declared min/max. When the cap leaves the
      signal-to-noise ratio short, the record is lengthened by (target/achieved)² (the
      variance of the estimates falls as 1/(N·SNR²), Ljung 1999 eq. 9.62) within the budget.
+   - *a plant in its own loop* (model inputs that are FMU outputs, identified from its
+     references by :mod:`fmu_fdi.identify.closed_loop`): each reference is the instrument of
+     its own model input, so each is raised until it alone reaches ``SNR_TARGET`` on its
+     best-seen output (DR300: a load torque the PI loop integrates met the common target alone
+     and left the speed reference at ±0.07, whose model then missed the plant's slow pole);
    - *seed amplitude* per input: 5 % of its operating value; at a zero operating point
      5 % of its declared range (max − min), else 5 % of its nominal (FMI default 1).
 
