@@ -182,6 +182,11 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
     fmu_inputs, excite = _checked_signals(path, fmu, inputs, outputs, excite)
     at = dict(at or {})
     params = dict(parameters or {})
+    # inputs that are not continuous Reals (Integer, Boolean, discrete) change only at events: held at
+    # their values from ``at``, set before initialisation like a parameter (FMI 3.0 sec. 4.2.4)
+    for nm in [k for k in at if k not in fmu_inputs and k in fmu.variables
+               and fmu.variable(k).causality == "input"]:
+        params[nm] = at.pop(nm)
     v0 = {}
     for nm in fmu_inputs:
         start = fmu.start_value(nm)
