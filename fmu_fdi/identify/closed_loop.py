@@ -26,7 +26,8 @@ and with ξ = x − H₁ u (causal form) the plant is
 Its feedthrough ``C' H₁ + Dy E⁻¹ S₀`` is that of a record whose y_k is read before u_k acts,
 zero up to the noise, and dropped (as ``feedthrough=False`` does for an open-loop record). Each
 delayed channel leaves one mode at z = 0 that u cannot reach (F's null space): the controllable
-staircase (SLICOT TB01PD) removes it. A model input that is itself an excited FMU input (the
+staircase (SLICOT TB01PD) removes it, and the controller's states, which y does not see, with it
+(exactly so on noise-free data). A model input that is itself an excited FMU input (the
 DR300's load torque) is its own reference: ``Cu_j = 0``, ``Du_j = e_j``.
 
 References
@@ -92,11 +93,12 @@ def open_loop(joint: SubspaceModel, own: list) -> SubspaceModel:
     BW = B @ W
     H1, H0 = BW * delay, BW * ~delay
     Cp = Cy - Dy @ W @ G
-    # the inversion leaves a mode at 0 per delayed channel that u cannot reach: the controllable part
-    # (rank decisions at 1e-10 of ‖[F, B]‖: that mode is uncontrollable up to round-off)
+    # the inversion leaves a mode at 0 per delayed channel that u cannot reach, and the controller's states,
+    # which y does not see: the minimal part (rank decisions at 1e-10 of ‖[F, B]‖: exact up to round-off;
+    # from noisy data a controller state may stay as a near-cancelled pole/zero pair)
     Bo = F @ H1 + H0
     tol = 1e-10 * np.linalg.norm(np.hstack([F, Bo]), 2)
-    red = LTI(F, Bo, Cp, np.zeros((Cp.shape[0], m)), joint.dt).minreal(tol=tol, job="C")
+    red = LTI(F, Bo, Cp, np.zeros((Cp.shape[0], m)), joint.dt).minreal(tol=tol, job="M")
     return SubspaceModel(red.A, red.B, red.C, np.zeros((Cp.shape[0], m)), joint.dt, joint.singular_values,
                          red.n, joint.block_rows, info={**joint.info, "delays": delay.astype(int).tolist(),
                                                         "joint_order": joint.order})
@@ -116,13 +118,18 @@ def identify_closed_loop(r, u, y, r_val, u_val, y_val, dt: float, own: list, ord
     The joint order is the singular values' or, among the candidates within 3 of it whose plant
     has a continuous model, the smallest whose joint simulation error on the validation run
     (r_val → [u_val; y_val], initial state fitted; Σ_j ||e_j||²/||z_j − z̄_j||² / (m + p)) is
-    within 2 % of the best plus 1e-4 (Ljung 1999, sec. 16.4, cross-validation)."""
+    within 2 % of the best plus 1e-4 (Ljung 1999, sec. 16.4, cross-validation). Noise-free data (the
+    singular values past the gap at round-off, over 1e6 below it) keep the gap order: it is exact."""
     from .validation import simulated
 
     cands = joint_models(r, u, y, dt, own, order, max_order=max_order)
     free = [j for j, k in enumerate(own) if k is None]
     z_val = np.hstack([np.asarray(u_val, float)[:, free], np.asarray(y_val, float)])
     gap = cands[0]
+    sv = gap.singular_values
+    exact = gap.order < len(sv) and sv[gap.order - 1] > 1e6 * sv[gap.order]
+    if exact:
+        cands = [gap]
     scored = []
     for joint in cands:
         if joint is not gap and abs(joint.order - gap.order) > 3:
