@@ -277,7 +277,8 @@ def _analyze(args) -> int:
     det = detectability(model)
     set_stage(f"isolability analysis (n = {model.n} states, {len(model.faults)} faults)")
     iso = isolability(model)
-    print(f"model '{model.name}': n={model.n}, u={model.u_names}, y={model.y_names}, d={model.d_names}, "
+    print(f"model '{model.name}': n={model.n}, u={model.labels(model.u_names)}, y={model.labels(model.y_names)}, "
+          f"d={model.labels(model.d_names)}, "
           f"w={model.w_names}, {'dt=' + format(model.dt, 'g') if model.dt else 'continuous'}")
     width = max([len("fault")] + [len(n) for n in model.fault_names])
     print(f"{'fault':<{width}}  kind        detectable  rank[Gd Gf]  rank Gd  isolable from")
@@ -445,7 +446,14 @@ def _design(args) -> int:
         thresholds = _thresholds(args.threshold or "sigma:1e-4", gen, evaluation, args.calibrate)
     else:
         evaluation = parse_evaluation(args.evaluation or "rms:10")
-        thresholds = _thresholds(args.threshold or "fault-size:1", gen, evaluation, args.calibrate)
+        if args.threshold:
+            thresholds = _thresholds(args.threshold, gen, evaluation, args.calibrate)
+        else:  # fault-size:1, raised to the noise model's analytic threshold (evaluation/defaults.py)
+            from .evaluation import default_thresholds
+
+            thresholds, why = default_thresholds(gen, evaluation)
+            for i, text in enumerate(why):
+                print(f"group {i + 1}: default threshold {thresholds[i]:.4g} from {text}")
     # plantfmu (issue 18): what the thresholds mean under the model's noise (evaluation/guidance.py)
     from .evaluation.guidance import describe, threshold_guidance
 

@@ -32,7 +32,7 @@ FORMAT = "fmu-fdi-model/1"
 FORMAT_SIDECAR = "fmu-fdi-model/2"
 GROUPS = ("u", "d", "w", "f")
 _TOP_KEYS = {"format", "name", "dt", "signals", "units", "matrices", "faults", "description", "operating_point",
-             "provenance", "minimal", "minreal_tol", "arrays"}
+             "provenance", "minimal", "minreal_tol", "arrays", "declared_types"}
 _MATRIX_KEYS = {"A", "Bu", "C", "Du", "Bd", "Dd", "Bw", "Dw"}
 
 
@@ -50,7 +50,8 @@ class FDIModel:
                  d_names: Sequence[str] | None = None, w_names: Sequence[str] | None = None,
                  units: dict | None = None, name: str = "plant", description: str = "",
                  operating_point: dict | None = None, provenance: dict | None = None,
-                 minimal: bool | None = None, minreal_tol: float | None = None):
+                 minimal: bool | None = None, minreal_tol: float | None = None,
+                 declared_types: dict | None = None):
         tol = minreal_option(minimal, minreal_tol)
         # a static plant (n = 0) has an empty A; its outputs are the rows of C (p x 0) or of the
         # feedthroughs, its inputs the columns of Du
@@ -109,12 +110,9 @@ class FDIModel:
                 if nm in seen:
                     raise ModelError(f"signal name '{nm}' is used twice (in {seen[nm]} and {group})")
                 seen[nm] = group
-        self.units = dict(units or {})
-        for key, unit in self.units.items():
-            if key not in seen:
-                raise ModelError(f"units given for unknown signal '{key}'; signals are {sorted(seen)}")
-            if not isinstance(unit, str):
-                raise ModelError(f"unit of '{key}' must be a string, got {unit!r}")
+        self.units = _per_signal(units, seen, "units", "unit")
+        #: the FMI declaredType (type definition) of each signal that has one, e.g. ``"Modelica.Units.SI.Angle"``
+        self.declared_types = _per_signal(declared_types, seen, "declared_types", "declared type")
 
         op = dict(operating_point or {})
         bad = set(op) - {"u", "y"}
@@ -267,6 +265,16 @@ class FDIModel:
             units=units, name=name, minimal=minimal, minreal_tol=minreal_tol,
         )
 
+    def labels(self, names: Sequence[str]) -> list[str]:
+        """Signal names as listed to a user: ``h1 [cm]``, ``beta [rad: Angle]`` (unit, then the
+        declaredType the plant FMU gave it), the bare name when it has neither."""
+        out = []
+        for nm in names:
+            unit, typ = self.units.get(nm, ""), self.declared_types.get(nm, "")
+            tag = unit + (": " if unit and typ else "") + typ
+            out.append(f"{nm} [{tag}]" if tag else nm)
+        return out
+
     # ------------------------------------------------------------------ sizes
     @property
     def n(self) -> int:
@@ -356,7 +364,7 @@ class FDIModel:
                   Dw=self.Dw, faults=self.faults, dt=self.dt, u_names=self.u_names, y_names=self.y_names,
                   d_names=self.d_names, w_names=self.w_names, units=self.units, name=self.name,
                   description=self.description, operating_point={"u": self.u0, "y": self.y0},
-                  provenance=self.provenance)
+                  provenance=self.provenance, declared_types=self.declared_types)
         kw.update(changes)
         return FDIModel(**kw)
 
@@ -405,6 +413,8 @@ class FDIModel:
             w_names=w_names, faults=faults_left,
             units={k: v for k, v in self.units.items() if k in set(self.u_names) | set(self.y_names)
                    | set(self.d_names) | set(self.w_names)},
+            declared_types={k: v for k, v in self.declared_types.items() if k in set(self.u_names)
+                            | set(self.y_names) | set(self.d_names) | set(self.w_names)},
         )
 
     def minreal(self, tol: float | None = None) -> "FDIModel":
@@ -448,6 +458,8 @@ class FDIModel:
             d["description"] = self.description
         if self.units:
             d["units"] = dict(self.units)
+        if self.declared_types:
+            d["declared_types"] = dict(self.declared_types)
         if np.any(self.u0) or np.any(self.y0):
             d["operating_point"] = {"u": self.u0.tolist(), "y": self.y0.tolist()}
         if self.provenance:
@@ -491,7 +503,8 @@ class FDIModel:
                 Bd=get("Bd", n, nd), Dd=get("Dd", p, nd), Bw=get("Bw", n, nw), Dw=get("Dw", p, nw),
                 faults=d.get("faults", []), dt=d.get("dt", 0.0),
                 u_names=u, y_names=sig["y"], d_names=sig.get("d", []), w_names=sig.get("w", []),
-                units=d.get("units"), name=d.get("name", "plant"), description=d.get("description", ""),
+                units=d.get("units"), declared_types=d.get("declared_types"), name=d.get("name", "plant"),
+                description=d.get("description", ""),
                 operating_point=d.get("operating_point"), provenance=d.get("provenance"),
                 minimal=minimal, minreal_tol=minreal_tol,
             )
@@ -608,6 +621,7 @@ def series(model: FDIModel, pre, *, name: str | None = None, minimal: bool | Non
     return FDIModel(A, Bu, C, Du, Bd=z(model.Bd), Dd=model.Dd, Bw=z(model.Bw), Dw=model.Dw,
                     faults=_carried_faults(model, z(model.Bf), model.Df), dt=model.dt, u_names=model.u_names,
                     y_names=model.y_names, d_names=model.d_names, w_names=model.w_names, units=model.units,
+                    declared_types=model.declared_types,
                     name=name or f"{model.name}_series", description=f"{model.name} with a {nP}-state pre-system "
                     f"in series", minimal=minimal, minreal_tol=minreal_tol)
 
@@ -646,6 +660,8 @@ def feedback(model: FDIModel, K, *, name: str | None = None, r_names: Sequence[s
                     y_names=model.y_names, d_names=model.d_names, w_names=model.w_names,
                     units={k: v for k, v in model.units.items() if k in set(model.y_names) | set(model.d_names)
                            | set(model.w_names)},
+                    declared_types={k: v for k, v in model.declared_types.items()
+                                    if k in set(model.y_names) | set(model.d_names) | set(model.w_names)},
                     name=name or f"{model.name}_loop", description=f"{model.name} in closed loop with a "
                     f"{nk}-state controller (u = r - K y)", minimal=minimal, minreal_tol=minreal_tol)
 
@@ -676,6 +692,17 @@ def parallel(first: FDIModel, second: FDIModel, *, name: str | None = None, mini
                     name=name or f"{first.name}_{second.name}", minimal=minimal, minreal_tol=minreal_tol)
 
 
+def _per_signal(table, seen: dict, what: str, one: str) -> dict:
+    """A per-signal table of text (``units``, ``declared_types``): keys are signals of the model."""
+    out = dict(table or {})
+    for key, value in out.items():
+        if key not in seen:
+            raise ModelError(f"{what} given for unknown signal '{key}'; signals are {sorted(seen)}")
+        if not isinstance(value, str):
+            raise ModelError(f"{one} of '{key}' must be a string, got {value!r}")
+    return out
+
+
 def _toml_value(v) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
@@ -699,7 +726,7 @@ def _toml_dumps(d: dict) -> str:
     for key, val in d.items():
         if not isinstance(val, (dict, list)):
             lines.append(f"{key} = {_toml_value(val)}")
-    for key in ("arrays", "signals", "units", "operating_point", "provenance", "matrices"):
+    for key in ("arrays", "signals", "units", "declared_types", "operating_point", "provenance", "matrices"):
         if key in d:
             lines.append(f"\n[{key}]")
             lines.extend(f"{k} = {_toml_value(v)}" for k, v in d[key].items())
@@ -829,9 +856,10 @@ def _check_model_dict(d, source: str) -> None:
         raise ModelError(f"{source}: unknown signal groups {sorted(map(str, bad))}; use u, y, d, w")
     for key, names in sig.items():
         S.names(names, f"{source}: signals.{key}", ModelError)
-    if "units" in d:
-        for key, unit in S.table(d["units"], f"{source}: units", ModelError).items():
-            S.text(unit, f"{source}: units.{key}", ModelError, empty=True)
+    for table in ("units", "declared_types"):
+        if table in d:
+            for key, unit in S.table(d[table], f"{source}: {table}", ModelError).items():
+                S.text(unit, f"{source}: {table}.{key}", ModelError, empty=True)
     if "operating_point" in d:
         op = S.table(d["operating_point"], f"{source}: operating_point", ModelError)
         for key in ("u", "y"):

@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .errors import CoSimulationError
+from .startvalues import refusal
 
 _SETTABLE = ("parameter", "input")
 
@@ -138,10 +139,9 @@ def wire(fmus, connections, signal_names, faults, parameters, start: float) -> W
     for key, value in (parameters or {}).items():
         f, v = split_target(key, fmus, "parameter")
         var = fmus[f].variable(v)
-        if var.causality not in _SETTABLE or var.variability == "constant":
-            raise CoSimulationError(f"parameter {key}: only parameters and inputs can be set before "
-                                    f"initialisation ({key} has causality {var.causality}, "
-                                    f"variability {var.variability})")
+        why = refusal(var)  # the one rule of what a master may set before initialisation
+        if why is not None:
+            raise CoSimulationError(f"parameter {key}: cannot be set before initialisation: {key} {why}")
         kind = fmus[f].kind(v)
         if kind is None:
             raise CoSimulationError(f"parameter {key}: type {var.type} is not supported")

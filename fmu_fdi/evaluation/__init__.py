@@ -12,8 +12,8 @@ parameters (thresholds from uncertainty, statistics or data) that the runtime re
 from .analytic import analytic_threshold
 from .covariance import residual_autocovariance
 from .datadriven import ThresholdEstimate, data_driven_threshold
-from .defaults import fault_size_thresholds
+from .defaults import default_thresholds, fault_size_thresholds
 from .selector import ThresholdDesign, sensor_gain_plants, threshold_selector
 
 __all__ = ["ThresholdDesign", "threshold_selector", "sensor_gain_plants", "fault_size_thresholds",
-           "analytic_threshold", "residual_autocovariance", "data_driven_threshold", "ThresholdEstimate"]
+           "default_thresholds", "analytic_threshold", "residual_autocovariance", "data_driven_threshold", "ThresholdEstimate"]

@@ -7,12 +7,30 @@ The default threshold of group i is half the smallest settled evaluation over th
 the group sees, so every step fault of size ≥ F is detected at steady state with a
 factor-2 margin against modelling error. It assumes no noise or uncertainty: with
 either, design the threshold (threshold_selector, analytic or data-driven thresholds).
+
+A model with a noise model (noise inputs w, unit white: e.g. the innovation form an
+identified model carries) knows more than fault sizes, and its default threshold comes from
+that noise (:func:`default_thresholds`): per group the analytic threshold whose per-sample
+false-alarm probability under the noise model is ``DEFAULT_RATE``,
+
+    J_th,i = Q_i⁻¹(1 − DEFAULT_RATE)
+
+(:func:`~fmu_fdi.evaluation.analytic_threshold`, Imhof's exact quantile of the evaluation's
+quadratic form). The fault-size rule is unit-dependent (a "unit" fault is 1 cm on a tank level
+but 1 rad on an aircraft's sideslip) and blind to noise: below the noise's threshold it alarms
+without a fault, far above it it misses faults the noise would let through. The design prints
+the smallest fault each group then detects at steady state (:mod:`.guidance`).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..errors import DesignError
+
+#: per-sample false-alarm probability of the default threshold under a model's noise model
+#: (one false alarm per 10⁵ samples before persistence: the order of the wind-turbine
+#: benchmark's mean time between false alarms, 10⁵·Ts)
+DEFAULT_RATE = 1e-5
 
 
 def _settled_gain(evaluation: dict) -> float:
@@ -52,3 +70,31 @@ def settled_fault_gains(gen) -> list[list[float]]:
     dc = gen.Rf.dcgain() if gen.Rf.m else np.zeros((gen.Q.p, 0))
     return [[float(np.linalg.norm(dc[np.ix_(grp, np.arange(model.nf)[f.columns])], 2)) for f in model.faults]
             for grp in gen.groups]
+
+
+def default_thresholds(gen, evaluation: dict | list, size: float = 1.0) -> tuple[list[float], list[str]]:
+    """The threshold per residual group when none is given, and for each a phrase saying what set
+    it (module docstring): the analytic threshold at ``DEFAULT_RATE`` under the model's noise
+    inputs (w unit white) when the model has them and the group's evaluation is quadratic
+    (``norm``, ``rms``, ``ewrms``, ``chi2``), else ``fault_size_thresholds(gen, evaluation, size)``;
+    ``gen`` discrete."""
+    from .analytic import analytic_threshold
+
+    evals = evaluation if isinstance(evaluation, list) else [evaluation] * len(gen.groups)
+    out, why, sized = [], [], None
+    for i in range(len(gen.groups)):
+        noise = None
+        if gen.model.nw:
+            try:
+                noise = analytic_threshold(gen, evals[i], DEFAULT_RATE, noise_cov=np.eye(gen.model.nw), group=i)
+            except ValueError:  # an evaluation without a closed-form distribution (peak, narendra)
+                noise = None
+        if noise is not None:
+            out.append(float(noise))
+            why.append(f"the model's noise (analytic:{DEFAULT_RATE:g}: false alarms {DEFAULT_RATE:g} per sample)")
+            continue
+        sized = fault_size_thresholds(gen, evals, size) if sized is None else sized
+        out.append(float(sized[i]))
+        why.append(f"fault-size:{size:g} (" + ("the model has no noise model" if not gen.model.nw else
+                                               f"no noise quantile for a '{evals[i].get('kind')}' evaluation") + ")")
+    return out, why

@@ -125,6 +125,7 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
         v = by_name.get(k)
         if v is not None and v.causality in ("parameter", "calculatedParameter", "structuralParameter"):
             params[k] = at.pop(k)
+    _start_values(md, at, params, path, method)
     guid = getattr(md, "instantiationToken", None) or md.guid
     prov = {"fmu": path.name, "model_name": md.modelName, "guid": str(guid or ""), "fmi_version": md.fmiVersion}
     if params:
@@ -143,11 +144,52 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
     noise_kw = {} if noise is None else {"Bw": Bw, "Dw": nm.Dw, "w_names": list(prov["noise_inputs"])}
     nu = len(u_names)
     faults = _fault_list(sensor_faults, y_names, "sensor") + _fault_list(actuator_faults, u_names, "actuator")
+    units, types = _signal_types(md, u_names + y_names + d_names)
     return FDIModel(A, B[:, :nu], C, D[:, :nu], Bd=B[:, nu:], Dd=D[:, nu:], faults=faults,
-                    u_names=u_names, y_names=y_names, d_names=d_names,
+                    u_names=u_names, y_names=y_names, d_names=d_names, units=units, declared_types=types,
                     name=_model_name(name or md.modelName), operating_point={"u": u0, "y": y0},
                     description=f"{prov['method']} of {path.name} at its operating point",
                     provenance=prov, **noise_kw)
+
+
+def _start_values(md, at, params, path, method) -> None:
+    """``at`` entries that are neither inputs (the operating point) nor, for a linearisation, states
+    (the trim's guess) are start values set before initialisation (e.g. an output with
+    ``initial="exact"``): moved to ``params`` when FMI lets a master set them
+    (:func:`fmu_fdi.cosim.startvalues.refusal`, the one rule), else a one-line error."""
+    from ..cosim.startvalues import refusal
+
+    by_name = {v.name: v for v in md.modelVariables}
+    states = set()
+    if method == "linearise":
+        states = {u.variable.derivative.name for u in (md.derivatives or [])
+                  if getattr(u.variable, "derivative", None) is not None}
+    for k in list(at):
+        v = by_name.get(k)
+        if v is None:
+            raise IdentificationError(f"{path}: --at {k}: the FMU has no variable {k!r}")
+        if v.causality == "input" or k in states:
+            continue
+        why = refusal(v)
+        if why is not None:
+            raise IdentificationError(f"{path}: --at {k}: cannot be set before initialisation: {k} {why}")
+        params[k] = at.pop(k)
+
+
+def _signal_types(md, names) -> tuple[dict, dict]:
+    """The unit and declaredType of each signal, as the model description gives them (a variable's
+    own ``unit``, else its type definition's)."""
+    by_name = {v.name: v for v in md.modelVariables}
+    units, types = {}, {}
+    for nm in names:
+        v = by_name.get(nm)
+        declared = getattr(v, "declaredType", None)
+        unit = getattr(v, "unit", None) or getattr(declared, "unit", None)
+        if unit:
+            units[nm] = str(unit)
+        if declared is not None and getattr(declared, "name", None):
+            types[nm] = str(declared.name)
+    return units, types
 
 
 def _linearised(path, inputs, outputs, disturbances, at, trim, params, prov, log):
@@ -449,7 +491,8 @@ def summary(model) -> str:
     prov = model.provenance
     fit = (", fit " + ", ".join(f"{n} {f:.1f} %" for n, f in zip(model.y_names, prov["fit_percent"]))
            if "fit_percent" in prov else "")
-    return f"{prov.get('method', '?')}, n = {model.n}, u = {model.u_names}, y = {model.y_names}{fit}"
+    return (f"{prov.get('method', '?')}, n = {model.n}, u = {', '.join(model.labels(model.u_names))}; "
+            f"y = {', '.join(model.labels(model.y_names))}{fit}")
 
 
 def _model_name(text):
