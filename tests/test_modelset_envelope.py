@@ -59,7 +59,9 @@ def test_cli_grid_product_path_and_output_schedule(me_fmu, tmp_path, capsys):
                  "-o", str(out)]) == 0
     assert ModelSet.from_file(out).points.tolist() == [[0.5, 0.2], [1.0, 0.4], [1.5, 0.6000000000000001], [2.0, 0.8]]
     # scheduled on a measured output: the member's place is the steady state y1 the trim found
-    assert main(["model", str(me_fmu), "--at-grid", "u1=0.5:2:3", "--schedule-on", "y1", "-o", str(out)]) == 0
+    # (--noise none, the identification's explicit "no noise inputs", is accepted on a grid too)
+    assert main(["model", str(me_fmu), "--at-grid", "u1=0.5:2:3", "--schedule-on", "y1", "--noise", "none",
+                 "-o", str(out)]) == 0
     ms = ModelSet.from_file(out)
     y1 = [analytic("nonlinear", equilibrium("nonlinear", [u, 0.5]), [u, 0.5])[1][0] for u in (0.5, 1.25, 2.0)]
     assert ms.schedule == ["y1"] and np.allclose(ms.points[:, 0], y1, rtol=1e-7)
@@ -75,7 +77,8 @@ def test_cli_grid_product_path_and_output_schedule(me_fmu, tmp_path, capsys):
 ])
 def test_bad_grids_are_one_line_errors(me_fmu, tmp_path, capsys, argv, message):
     assert main(["model", str(me_fmu), *argv, "-o", str(tmp_path / "s.json")]) == 2
-    err = capsys.readouterr().err
+    # (a progress note "still working after 10 s" may precede the error on a loaded machine)
+    err = "".join(ln for ln in capsys.readouterr().err.splitlines(True) if not ln.startswith("fmu-fdi: still working"))
     assert message in err and err.count("\n") == 1 and not (tmp_path / "s.json").exists()
 
 
@@ -93,3 +96,81 @@ def test_grid_helpers_and_set_consistency():
     m3 = FDIModel.from_matrices([[-2.0]], [[1.0]], [[1.0], [1.0]])
     with pytest.raises(ModelError, match="same signals"):
         ModelSet([m1, m3], ["u0"])
+
+
+def test_settle_noise_is_measured_about_a_settling_transient():
+    """A member identified away from where the FMU starts settles from there: a noise-free run's
+    settle phase still holds the tail of that transient, which is no noise (issue 19: members 2-5
+    of the DTS200 envelope gained an innovation noise model from it, and their designs, thresholds
+    1/30 of member 1's, alarmed at the first switch)."""
+    from fmu_fdi.identify.validation import settle_noise_std
+
+    k = np.arange(1250.0)
+    rng = np.random.default_rng(19)
+    # two modes (z = 0.996 ~ tau 500 s at ts 2 s, z = 0.9), no noise: the plain std is the transient's
+    transient = 40.0 + 0.03 * 0.996 ** k + 0.01 * 0.9 ** k
+    z = np.column_stack([transient, 40.0 + 0.0 * k])
+    assert transient.std() > 1e-3
+    # an order-10 recursion predicts a 2-mode transient exactly: round-off, far below the 1e-9 of the
+    # output level that counts as noise (fmu_model: noise above round-off)
+    assert np.all(settle_noise_std(z) < 1e-9 * 40.0)
+    # white noise dominating: its plain std (computed here by numpy), whatever the recursion finds
+    # (to the round-off of the offset 40: 40 eps / 0.1 ~ 1e-13 relative)
+    white = rng.standard_normal((1250, 2)) * 0.1
+    assert np.allclose(settle_noise_std(40.0 + white), white.std(axis=0), rtol=1e-12, atol=0)
+    # coloured noise (AR(1), pole 0.95): its one-step error is sqrt(1 - 0.95²) = 31 % of its std, so
+    # the noise dominates and its size is the plain std (the innovation would understate it 3-fold)
+    from scipy.signal import lfilter
+
+    coloured = lfilter([1.0], [1.0, -0.95], rng.standard_normal(1250)) * 0.01
+    assert np.isclose(settle_noise_std(coloured[:, None])[0], coloured.std(), rtol=1e-12, atol=0)
+    # a transient with white noise 1e-5 about it: the noise, not the transient's spread. The least
+    # squares recursion's error is at least the innovation σ (less the (p+1)/N in-sample fit, which
+    # the N - 2p - 1 degrees of freedom restore; ± 2 % sampling) and at most that of the exact 2-mode
+    # recursion a = (λ1 + λ2, -λ1 λ2) = (1.896, -0.8964), σ sqrt(1 + 1.896² + 0.8964²) = 2.33 σ
+    sigma = 1e-5
+    noisy = transient + sigma * rng.standard_normal(1250)
+    est = settle_noise_std(noisy[:, None])[0]
+    assert 0.9 * sigma < est < 2.5 * sigma, est
+
+
+def test_members_with_and_without_a_noise_model_are_refused(monkeypatch):
+    """The default noise='auto' decides per point; a set whose members disagree would get designs of
+    different kinds (issue 19's DTS200 regression), so it is refused naming them."""
+    from fmu_fdi.identify import envelope
+
+    def fake(path, inputs, outputs, disturbances=(), *, at, **options):
+        noisy = at["u1"] > 1.0  # member 2 "found" noise, member 1 did not
+        kw = {"Bw": [[0.1]], "Dw": [[0.2]]} if noisy else {}
+        return FDIModel.from_matrices([[-1.0]], [[1.0]], [[1.0]], operating_point={"u": [at["u1"]], "y": [1.0]},
+                                      u_names=["u1"], provenance={}, **kw)
+
+    monkeypatch.setattr(envelope.fmu_model, "model_from_fmu", fake)
+    with pytest.raises(ModelError, match=r"members \[2\] were identified with a noise model and members \[1\]"):
+        model_set_from_fmu("plant.fmu", at=[{"u1": 1.0}, {"u1": 2.0}])
+    monkeypatch.setattr(envelope.fmu_model, "model_from_fmu",
+                        lambda *a, at, **k: fake(*a, at={"u1": at["u1"] + 5.0}, **k))
+    assert len(model_set_from_fmu("plant.fmu", at=[{"u1": 1.0}, {"u1": 2.0}])) == 2  # all with one: accepted
+
+
+@pytest.mark.slow  # one designed identification of the native DTS200 (~10 s of CPU)
+@pytest.mark.xfail(strict=True, reason="identify/design.py (plantid): the designed settle is 200 samples whatever the "
+                                       "plant's slowest time scale, and its settle check is loosened by a pre-test "
+                                       "'noise' that is the settling transient, so a member away from the FMU's start "
+                                       "is identified before it settles (DTS200 at +20 %: y0 off by ~1.3 cm); "
+                                       "workaround --settle")
+def test_a_member_away_from_the_start_is_identified_at_its_steady_state(tmp_path):
+    from scipy.optimize import fsolve
+
+    import plant_fmus
+    from plant_fmus.dts200 import dts200_physics as phys
+    from plant_fmus.native_build import build_native
+
+    nominal = FDIModel.from_file(plant_fmus.model_path("dts200"))
+    q = nominal.u0 * np.array([1.2, 0.8])
+    # the steady state by Powell's method on the plant's own equations (the FMU integrates them)
+    h = fsolve(lambda x: phys.derivative(x, q), nominal.y0, xtol=1e-13)
+    m = model_from_fmu(build_native("dts200", tmp_path), ["Q1", "Q2"], ["h1", "h2", "h3"],
+                       at={"Q1": float(q[0]), "Q2": float(q[1]), "noise_enable": False}, method="identify")
+    # settled within 1 % of the way from the start (|y0_start - h| ~ 2-5 cm): 0.05 cm
+    assert np.max(np.abs(m.y0 - h)) < 0.05, (m.y0, h)

@@ -27,12 +27,12 @@ def _f(x, u):
     return [u[0] - A * s, A * s - B * x[1] * x[1] + C * u[1] * x[0]]
 
 
-def _simulate(u, bias=None, sub=20):
+def _simulate(u, bias=None, sub=20, seed=5, onset=ONSET):
     x = list(equilibrium("nonlinear", list(u[0])))
-    rng, h, ys = np.random.default_rng(5), TS / sub, []
+    rng, h, ys = np.random.default_rng(seed), TS / sub, []
     for k, uk in enumerate(u):
         y = [x[1], x[0] * x[1] + E * uk[0]]
-        if bias is not None and k * TS >= ONSET:
+        if bias is not None and k * TS >= onset:
             y[bias] += BIAS[bias]
         ys.append(y)
         for _ in range(sub):
@@ -44,17 +44,25 @@ def _simulate(u, bias=None, sub=20):
     return np.array(ys) + 0.005 * rng.standard_normal((len(u), 2))  # sensor noise
 
 
-@pytest.fixture(scope="module")
-def setup(tmp_path_factory):
-    fmu = build_me_fmu(tmp_path_factory.mktemp("me"), "nonlinear", 2, True)
-    mset = model_from_fmu(fmu, ["u1", "u2"], ["y1", "y2"], at=[{"u1": float(v)} for v in np.linspace(0.5, 2, 9)],
+def scheduled_design(folder, points=9):
+    """The scheduled sensor DOS bank of the nonlinear FMU linearised at ``points`` values of u1 over
+    [0.5, 2] (also benchmarks/envelope_scheduled.py's second plant)."""
+    fmu = build_me_fmu(folder, "nonlinear", 2, True)
+    mset = model_from_fmu(fmu, ["u1", "u2"], ["y1", "y2"],
+                          at=[{"u1": float(v)} for v in np.linspace(0.5, 2, points)],
                           sensor_faults="all")  # u2 at its start value 0.5
 
     def thresholds(gen, evaluation):  # each residual sized for its own sensor's bias
         return [fault_size_thresholds(gen, evaluation, size)[i] for i, size in enumerate(BIAS)]
 
-    sd = ScheduledDiagnoser.design(mset, dedicated_bank, kind="sensor", Ts=TS, evaluation={"kind": "rms", "window": 20},
-                                   thresholds=thresholds, decision={"persistence": [3, 5]})
+    return ScheduledDiagnoser.design(mset, dedicated_bank, kind="sensor", Ts=TS,
+                                     evaluation={"kind": "rms", "window": 20}, thresholds=thresholds,
+                                     decision={"persistence": [3, 5]})
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    sd = scheduled_design(tmp_path_factory.mktemp("me"))
     t = np.arange(0.0, 600.0, TS)
     u = np.column_stack([0.5 + 1.5 * np.clip((t - 50.0) / 400.0, 0.0, 1.0), np.full(t.size, 0.5)])
     single = Diagnoser.from_design(sd.design["members"][0])  # the same design at the start point only

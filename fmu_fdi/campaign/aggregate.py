@@ -20,6 +20,11 @@ Per diagnoser:
 - **Detection delays**: their distribution per target and magnitude (quantiles, all values).
 - **Isolation confusion matrix**: runs by injected fault (its label) and the diagnoser's
   predominant verdict (:mod:`fmu_fdi.campaign.execute`).
+- **Across the operating envelope** (campaigns with [sample.operating_points]): per operating
+  point the false-alarm rate (as above, over that point's fault-free samples), the detection
+  probability over its faulty runs and the share isolated as the injected fault, each with its
+  Clopper–Pearson interval — per diagnoser, so a scheduled diagnoser and a single-point one
+  in the same campaign are compared on the same runs.
 - **Threshold sweep**: for each factor ``s`` on every threshold, the false-alarm rate (and its
   one-sided upper bound at the campaign's confidence) and the detection probability: the ROC.
   The chosen scale is the smallest ``s`` whose upper bound is at most the target rate
@@ -84,6 +89,7 @@ class DiagnoserFigures:
     sweep: list
     choice: dict
     notes: list = field(default_factory=list)
+    by_point: list = field(default_factory=list)  # one row per operating point (module docstring)
 
 
 @dataclass
@@ -100,6 +106,7 @@ class CampaignFigures:
     warnings: list = field(default_factory=list)  # what reading the results left out
     settings: dict = field(default_factory=dict)  # the campaign's set-up, for the report
     run_rows: list = field(default_factory=list)  # one compact row per run record, for the report
+    points: list = field(default_factory=list)  # the operating points' labels, in the campaign's order
 
 
 def aggregate(results) -> CampaignFigures:
@@ -117,15 +124,48 @@ def aggregate(results) -> CampaignFigures:
     ok = [r for r in results.records if r["status"] == "ok"]
     failed = [{"run": r["run"]["index"], "error": r.get("error", "")} for r in results.records if r["status"] != "ok"]
     names = sorted({d for r in ok for d in r["diagnosers"]})
+    points = spec.sample.get("operating_points") or []
     out = {}
     for name in names:
         runs = [(r["run"], r["diagnosers"][name]) for r in ok if name in r["diagnosers"]]
         out[name] = _diagnoser(name, runs, spec.step, conf, target, scales)
+        if points:
+            out[name].by_point = by_operating_point(runs, points, conf)
     extra = getattr(results, "extra", {}) or {}
     return CampaignFigures(spec.name, len(results.records), failed, spec.step, conf, target, out,
                            planned=extra.get("planned"), interrupted=bool(getattr(results, "interrupted", False)),
                            warnings=list(extra.get("warnings", [])), settings=_settings(spec),
-                           run_rows=[_run_row(r) for r in results.records])
+                           run_rows=[_run_row(r) for r in results.records],
+                           points=[point_label(p) for p in points])
+
+
+def point_label(point: dict) -> str:
+    """``Q1=21.37, Q2=53.8``: the point's input signals (its parameters too when it has no signal)."""
+    shown = {n: v for n, v in point.items() if "." not in n} or point
+    return ", ".join(f"{n}={v:.4g}" for n, v in shown.items())
+
+
+def by_operating_point(runs, points: list, conf: float) -> list:
+    """Per operating point of the campaign (in its order): fault-free samples ``N``, alarmed
+    samples ``k``, alarm onsets, rate ``k/N`` and its Clopper–Pearson interval; faulty runs
+    ``n``, detected ``d``, ``d/n`` and its interval; isolated as the injected fault ``i``, ``i/n``
+    and its interval (module docstring). A run belongs to the point its operating point equals."""
+    rows = []
+    for j, point in enumerate(points, 1):
+        mine = [(run, s) for run, s in runs if run.get("operating_point") == point]
+        N = sum(s["samples"] for _, s in mine)
+        k = sum(s["alarm_samples"] for _, s in mine)
+        faulty = [(run, s) for run, s in mine if run["fault"] is not None]
+        n = len(faulty)
+        d = sum(bool(s["detected"]) for _, s in faulty)
+        i = sum(s.get("isolated_as") == run["fault"]["label"] for run, s in faulty if run["fault"]["label"])
+        rows.append({"point": j, "label": point_label(point), "values": dict(point), "fault_free_runs": len(mine) - n,
+                     "samples": N, "alarm_samples": k, "onsets": sum(s["false_alarms"] for _, s in mine),
+                     "rate": k / N if N else None, "interval": clopper_pearson(k, N, conf) if N else None,
+                     "faulty_runs": n, "detected": d, "detection": d / n if n else None,
+                     "detection_interval": clopper_pearson(d, n, conf) if n else None, "isolated": i,
+                     "isolation": i / n if n else None, "isolation_interval": clopper_pearson(i, n, conf) if n else None})
+    return rows
 
 
 def _run_row(record) -> dict:

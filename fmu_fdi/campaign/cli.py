@@ -67,7 +67,8 @@ def run(args) -> int:
                         f"{f['kind']} {f['target']} {f['magnitude']:g} from {f['onset']:g} s"
                         + ("" if f["duration"] is None else f" for {f['duration']:g} s"))
                 params = " ".join(f"{k}={v}" for k, v in r.parameters.items())
-                print(f"{r.index:6d}  {r.key}  {what}  {params}")
+                held = " ".join(f"{k}={v:g}" for k, v in (r.operating_point or {}).items() if "." not in k)
+                print(f"{r.index:6d}  {r.key}  {what}  {params}" + (f"  at {held}" if held else ""))
             print(f"{len(runs)} runs, {len(spec.fmus)} FMUs, {spec.stop - spec.start:g} s each")
             return 0
         results = run_campaign(spec, args.output, workers=args.workers, scheduler=args.scheduler,

@@ -104,11 +104,12 @@ class Worker:
 
         p = self.payload
         tic = time.perf_counter()
-        r = Run(run["index"], run["fault"], run["parameters"])
+        r = Run(run["index"], run["fault"], run["parameters"], run.get("operating_point"))
         record = {"run": r.to_dict(), "status": "ok", "pid": os.getpid(),
                   "reused": all(inst._slave is not None for inst in self.instances.values())}
         try:
-            sim = CoSimulation(self.instances, p["connections"], p["inputs"], step=p["step"], stop=p["stop"],
+            sim = CoSimulation(self.instances, p["connections"], r.input_signals(p["inputs"], p["start"]),
+                               step=p["step"], stop=p["stop"],
                                start=p["start"], order=p["order"], faults=r.faults(),
                                parameters={**p["parameters"], **r.parameters})
             result = sim.run()

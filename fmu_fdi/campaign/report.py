@@ -3,7 +3,8 @@
 Files written to the output folder: ``report.html``; ``false_alarms.csv`` (one row per
 diagnoser), ``detection.csv``, ``delays.csv``, ``sweep.csv`` (rows per diagnoser and target /
 scale), ``confusion_<diagnoser>.csv``, ``runs.csv`` (one row per run: scenario, status, per diagnoser
-false alarms, delay and verdict).
+false alarms, delay and verdict); with operating points, ``operating_points.csv`` (per diagnoser
+and point: false-alarm rate, detection and isolation with their intervals).
 
 The report opens with the campaign's settings (simulation, sample, analysis, every FMU with its
 GUID) and, when fewer runs finished than the campaign file plans (Ctrl-C), a banner saying so:
@@ -29,8 +30,16 @@ def write_report(figures: CampaignFigures, out_dir) -> dict:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = {}
-    fa_rows, det_rows, delay_rows, sweep_rows = [], [], [], []
+    fa_rows, det_rows, delay_rows, sweep_rows, point_rows = [], [], [], [], []
     for name, d in figures.diagnosers.items():
+        for r in d.by_point:
+            row = {"diagnoser": name, **{k: v for k, v in r.items() if not k.endswith("interval") and k != "values"},
+                   **r["values"]}
+            for key in ("interval", "detection_interval", "isolation_interval"):
+                lo, hi = r[key] or (None, None)
+                row[f"{key.replace('interval', '').rstrip('_') or 'rate'}_lower"] = lo
+                row[f"{key.replace('interval', '').rstrip('_') or 'rate'}_upper"] = hi
+            point_rows.append(row)
         fa = d.false_alarms
         row = {"diagnoser": name, "samples": fa["samples"], "alarm_samples": fa["alarm_samples"],
                "rate": fa["rate"], "onsets": fa["onsets"]}
@@ -53,6 +62,8 @@ def write_report(figures: CampaignFigures, out_dir) -> dict:
     for key, rows in (("false_alarms", fa_rows), ("detection", det_rows), ("delays", delay_rows),
                       ("sweep", sweep_rows), ("runs", figures.run_rows)):
         files[key] = _csv(out / f"{key}.csv", rows)
+    if point_rows:
+        files["operating_points"] = _csv(out / "operating_points.csv", point_rows)
     files["report"] = out / "report.html"
     files["report"].write_text(_html(figures), encoding="utf-8")
     return files
@@ -105,6 +116,8 @@ def _html(fig: CampaignFigures) -> str:
                  f"{fig.target_rate:g} per sample.</p>")
     parts += [f"<p class='note'>{html.escape(w)}</p>" for w in fig.warnings]
     parts.append(_settings_html(fig.settings))
+    if fig.points:
+        parts.append(_envelope_html(fig))
     if fig.failed:
         parts.append("<h2>Failed runs</h2>" + _table(["run", "error"], [[f["run"], f["error"]] for f in fig.failed]))
     for name, d in fig.diagnosers.items():
@@ -162,6 +175,67 @@ def _html(fig: CampaignFigures) -> str:
 
 
 _RUNS_SHOWN = 500
+
+
+def _envelope_html(fig: CampaignFigures) -> str:
+    """False alarms, detection and isolation per operating point, the diagnosers side by side."""
+    pct = f"{fig.confidence:.0%}"
+    names = [n for n, d in fig.diagnosers.items() if d.by_point]
+    if not names:
+        return ""
+
+    def cell(p, lo_hi):
+        return "–" if p is None else f"{_fmt(p)} [{_fmt(lo_hi[0])}, {_fmt(lo_hi[1])}]"
+
+    header = ["operating point"]
+    for n in names:
+        header += [f"{n}: false-alarm rate [{pct}]", f"{n}: detection [{pct}]", f"{n}: isolation [{pct}]"]
+    rows = []
+    for j, label in enumerate(fig.points):
+        row = [f"{j + 1}: {label}"]
+        for n in names:
+            r = fig.diagnosers[n].by_point[j]
+            row += [cell(r["rate"], r["interval"] or (None, None)) + f" ({r['alarm_samples']} of {r['samples']})",
+                    cell(r["detection"], r["detection_interval"] or (None, None)) + f" ({r['detected']} of "
+                                                                                    f"{r['faulty_runs']})",
+                    cell(r["isolation"], r["isolation_interval"] or (None, None))]
+        rows.append(row)
+    return ("<h2>Across the operating envelope</h2><p>Per operating point: the false-alarm rate per fault-free "
+            f"sample, the share of faulty runs detected and the share isolated as the injected fault, with exact "
+            f"{pct} intervals, for every diagnoser on the same runs.</p>" + _envelope_plot(fig, names)
+            + _table(header, rows))
+
+
+def _envelope_plot(fig: CampaignFigures, names) -> str:
+    import matplotlib.pyplot as plt
+
+    f, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.5))
+    x = list(range(1, len(fig.points) + 1))
+    for i, n in enumerate(names):
+        rows = fig.diagnosers[n].by_point
+        shift = (i - (len(names) - 1) / 2) * 0.06
+        fa = [(j + shift, r["rate"], r["interval"]) for j, r in zip(x, rows) if r["rate"] is not None]
+        if fa:
+            a1.errorbar([p[0] for p in fa], [p[1] for p in fa], capsize=3, marker="o", label=n,
+                        yerr=[[p[1] - p[2][0] for p in fa], [p[2][1] - p[1] for p in fa]])
+        det = [(j + shift, r["detection"], r["detection_interval"]) for j, r in zip(x, rows)
+               if r["detection"] is not None]
+        if det:
+            a2.errorbar([p[0] for p in det], [p[1] for p in det], capsize=3, marker="s", label=n,
+                        yerr=[[p[1] - p[2][0] for p in det], [p[2][1] - p[1] for p in det]])
+    samples = [r["samples"] for n in names for r in fig.diagnosers[n].by_point if r["samples"]]
+    a1.set_yscale("symlog", linthresh=1.0 / max(max(samples, default=1), 1))
+    a1.set_ylim(bottom=0.0)
+    a1.set_ylabel("false-alarm rate per sample (linear below one alarm)", fontsize=10)
+    a2.set_ylabel("detection probability", fontsize=10)
+    a2.set_ylim(-0.05, 1.05)
+    for ax in (a1, a2):
+        ax.set_xticks(x, [str(j) for j in x])
+        ax.set_xlabel("operating point (numbered as in the table)", fontsize=10)
+        ax.tick_params(labelsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=9)
+    return _png(f)
 
 
 def _settings_html(settings: dict) -> str:

@@ -53,6 +53,12 @@ are relative to the campaign file. A complete file::
     [sample.parameters]              # plant parameters, sampled like the fault
     "plant.az1" = [0.44, 0.46]
 
+    [sample.operating_points]        # optional: the operating envelope, a dimension of its own
+    mode = "path"                    # point k takes value k of every list ("product": every
+    Q1 = [21.37, 25.65, 29.92]       #  combination); a bare name is an input signal held at the
+    Q2 = [53.80, 43.04, 32.28]       #  value over the run, "instance.variable" a parameter set at
+    "plant.h1_start" = [41.0, 42.1, 43.8]  # its start (e.g. the plant's state at that point)
+
     [analysis]
     confidence = 0.95                # of every interval
     false_alarm_rate = 1e-3          # target per sample of the threshold choice
@@ -61,6 +67,11 @@ are relative to the campaign file. A complete file::
 
     [output]
     traces = false                   # keep every run's full record (CSV)
+
+Operating points: a grid makes its runs (fault-free and faulty) at every point; a random sample
+draws a point per run. An input signal of a point replaces the [inputs] signal of that name
+(or adds one); the report shows false alarms and detection per point, diagnoser by diagnoser
+(:mod:`fmu_fdi.campaign.aggregate`).
 
 Seeds: the k-th run (0-based, in the order of :meth:`CampaignSpec.runs`) sets the j-th seed
 parameter to ``seed_base + k · len(seeds) + j``: no two runs share a noise sequence, and a
@@ -92,7 +103,8 @@ FORMAT = "fmu-fdi-campaign/1"
 FAULT_DIMENSIONS = ("kind", "target", "magnitude", "onset", "duration")
 _TOP = {"format", "name", "simulation", "fmus", "connections", "inputs", "parameters", "diagnosers", "labels",
         "sample", "analysis", "output"}
-_SAMPLE = {"method", "runs", "seed", "replicates", "fault_free", "seeds", "seed_base", "fault", "parameters"}
+_SAMPLE = {"method", "runs", "seed", "replicates", "fault_free", "seeds", "seed_base", "fault", "parameters",
+           "operating_points"}
 _ANALYSIS_DEFAULTS = {"confidence": 0.95, "false_alarm_rate": 1e-3,
                       "scales": {"min": 0.5, "max": 2.0, "count": 16}, "zone_start": None}
 
@@ -113,18 +125,35 @@ class Run:
 
     ``fault`` is None (fault-free) or a dict with the keys of :data:`FAULT_DIMENSIONS`
     (``duration`` None: permanent) and ``label``, the model fault it realises; ``parameters`` holds the sampled plant parameters and the
-    noise seeds. ``key`` identifies the scenario (a hash of its content), so a resumed campaign
-    recognises the runs it has finished.
+    noise seeds (and the operating point's parameters). ``operating_point`` (None without
+    [sample.operating_points]) maps each name of the point to its value: bare names are input
+    signals held at that value (:meth:`input_signals`). ``key`` identifies the scenario (a hash
+    of its content), so a resumed campaign recognises the runs it has finished.
     """
 
     index: int
     fault: dict | None
     parameters: dict
+    operating_point: dict | None = None
 
     @property
     def key(self) -> str:
-        text = json.dumps({"fault": self.fault, "parameters": self.parameters}, sort_keys=True, default=repr)
+        content = {"fault": self.fault, "parameters": self.parameters}
+        if self.operating_point is not None:
+            content["operating_point"] = self.operating_point
+        text = json.dumps(content, sort_keys=True, default=repr)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def input_signals(self, base: InputSignals | None, start: float = 0.0) -> InputSignals | None:
+        """The campaign's input signals ``base`` with the operating point's signals (its bare
+        names) held at their values over the whole run, added when ``base`` lacks them."""
+        held = {n: v for n, v in (self.operating_point or {}).items() if "." not in n}
+        if not held:
+            return base
+        if base is None:
+            return InputSignals([start], {n: [v] for n, v in held.items()})
+        values = dict(base.values, **{n: np.full(base.time.shape, float(v)) for n, v in held.items()})
+        return InputSignals(base.time, values, base.interpolation)
 
     def faults(self) -> list:
         """The :class:`~fmu_fdi.cosim.Fault` list of the run (empty when fault-free)."""
@@ -136,7 +165,10 @@ class Run:
                       name="injected", ramp=f.get("ramp"), period=f.get("period"))]
 
     def to_dict(self) -> dict:
-        return {"index": self.index, "key": self.key, "fault": self.fault, "parameters": self.parameters}
+        out = {"index": self.index, "key": self.key, "fault": self.fault, "parameters": self.parameters}
+        if self.operating_point is not None:
+            out["operating_point"] = self.operating_point
+        return out
 
 
 @dataclass
@@ -234,6 +266,11 @@ class CampaignSpec:
             raise CampaignError(f"campaign: {', '.join(twice)} is set in [parameters] and drawn per run by [sample] "
                                 f"(seeds or sample.parameters); the run would ignore the [parameters] value: "
                                 f"give it in one place")
+        points = spec.sample["operating_points"]
+        twice = sorted(set(points[0] if points else ()) & (drawn | set(spec.parameters)))
+        if twice:
+            raise CampaignError(f"campaign: {', '.join(twice)} is set by [sample.operating_points] and by "
+                                f"[parameters] or [sample] (seeds or sample.parameters): give it in one place")
         for name, table in spec.diagnosers.items():
             if name not in paths:
                 raise CampaignError(f"campaign: [diagnosers.{name}] is not an FMU of [fmus] ({', '.join(paths)})")
@@ -259,7 +296,8 @@ class CampaignSpec:
             seen.setdefault(key, r)
         for r in seen.values():
             try:
-                CoSimulation(instances, self.connections, self.inputs, step=self.step, stop=self.stop,
+                CoSimulation(instances, self.connections, r.input_signals(self.inputs, self.start), step=self.step,
+                             stop=self.stop,
                              start=self.start, order=self.order, faults=r.faults(),
                              parameters={**self.parameters, **r.parameters})
             except CoSimulationError as exc:
@@ -275,28 +313,31 @@ class CampaignSpec:
         if count > MAX_RUNS:
             raise CampaignError(f"campaign: [sample] makes {count:.4g} runs, more than the {MAX_RUNS} a campaign may "
                                 f"have; sample fewer (method = \"random\" with runs = N, or shorter lists)")
-        scenarios = []  # (fault or None, parameters)
+        scenarios = []  # (fault or None, parameters, operating point or None)
+        points = s["operating_points"] or [None]
         if s["method"] == "grid":
             names = list(params)
             combos = [dict(zip(names, values)) for values in itertools.product(*(params[n] for n in names))]
-            for combo in combos:
-                scenarios += [(None, combo)] * s["fault_free"]
-            if s["fault"]["target"]:
+            for point in points:  # every run of the grid at each operating point in turn
                 for combo in combos:
-                    for values in itertools.product(*(fault_dims[k] for k in FAULT_DIMENSIONS)):
-                        fault = dict(zip(FAULT_DIMENSIONS, values))
-                        scenarios += [(fault, combo)] * s["replicates"]
+                    scenarios += [(None, combo, point)] * s["fault_free"]
+                if s["fault"]["target"]:
+                    for combo in combos:
+                        for values in itertools.product(*(fault_dims[k] for k in FAULT_DIMENSIONS)):
+                            fault = dict(zip(FAULT_DIMENSIONS, values))
+                            scenarios += [(fault, combo, point)] * s["replicates"]
         else:
             rng = np.random.default_rng(s["seed"])
             for k in range(s["fault_free"] + s["runs"]):
                 combo = {n: _draw(rng, v) for n, v in params.items()}
                 fault = ({d: _draw(rng, fault_dims[d]) for d in FAULT_DIMENSIONS}
                          if k >= s["fault_free"] else None)
-                scenarios.append((fault, combo))
+                point = points[int(rng.integers(len(points)))] if s["operating_points"] else None
+                scenarios.append((fault, combo, point))
         runs = []
         seeds = s["seeds"]
-        for k, (fault, combo) in enumerate(scenarios):
-            p = dict(combo)
+        for k, (fault, combo, point) in enumerate(scenarios):
+            p = dict(combo, **{n: v for n, v in (point or {}).items() if "." in n})
             for j, name in enumerate(seeds):
                 p[name] = s["seed_base"] + k * len(seeds) + j
             if fault is not None:
@@ -308,7 +349,7 @@ class CampaignSpec:
                 if zone is not None and fault["onset"] < zone:
                     raise CampaignError(f"campaign: run {k}: fault onset {fault['onset']:g} is before "
                                         f"analysis.zone_start {zone:g} (the scored part must start fault-free)")
-            run = Run(k, fault, p)
+            run = Run(k, fault, p, None if point is None else dict(point))
             try:
                 run.faults()
             except CoSimulationError as exc:
@@ -321,7 +362,7 @@ class CampaignSpec:
         s = self.sample
         if s["method"] != "grid":
             return s["fault_free"] + s["runs"]
-        combos = math.prod(len(v) for v in s["parameters"].values())
+        combos = math.prod(len(v) for v in s["parameters"].values()) * max(len(s["operating_points"]), 1)
         faults = math.prod(len(s["fault"][k]) for k in FAULT_DIMENSIONS) if s["fault"]["target"] else 0
         return combos * (s["fault_free"] + faults * s["replicates"])
 
@@ -465,7 +506,42 @@ def _sample(s: dict) -> dict:
         out["parameters"][name] = d
     if not out["fault_free"] and not fault["target"]:
         raise CampaignError("campaign: [sample] has no runs: give fault_free > 0 or [sample.fault] target")
+    out["operating_points"] = _operating_points(s.get("operating_points"))
     return out
+
+
+def _operating_points(table) -> list:
+    """[sample.operating_points] as a list of points ``{name: value}`` ([] when absent): ``mode``
+    "path" (default; every list of one length K, point k takes value k of each) or "product"
+    (every combination, last name fastest), as ``fmu-fdi model --at-grid`` (:func:`fmu_fdi.modelset.grid_points`)."""
+    from ..errors import ModelError
+    from ..modelset import grid_points
+
+    if table is None:
+        return []
+    if not isinstance(table, dict):
+        raise CampaignError(f"campaign: [sample.operating_points] must be a table, got {type(table).__name__}")
+    table = dict(table)
+    mode = table.pop("mode", "path")
+    if not table:
+        raise CampaignError("campaign: [sample.operating_points] names no signal or parameter")
+    grids = []
+    for name, values in table.items():
+        if "." in name and (name.startswith(".") or name.endswith(".")):
+            raise CampaignError(f"campaign: sample.operating_points {name!r} must be a signal name or "
+                                f"'instance.parameter'")
+        vals = _dimension(values, f"sample.operating_points.{name!r}", numeric=True)
+        if isinstance(vals, dict) or any(not math.isfinite(v) for v in vals):
+            raise CampaignError(f"campaign: sample.operating_points.{name!r} must be a list of finite numbers, "
+                                f"got {values!r}")
+        grids.append((name, np.asarray(vals, float)))
+    try:
+        points = grid_points(grids, {"path": "path", "product": "product"}.get(mode, repr(mode)))
+    except ModelError as exc:
+        raise CampaignError(f"campaign: [sample.operating_points]: {exc}") from None
+    if len({tuple(p.values()) for p in points}) != len(points):
+        raise CampaignError("campaign: [sample.operating_points] lists a point twice")
+    return points
 
 
 def _analysis(a: dict) -> dict:

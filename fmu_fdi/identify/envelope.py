@@ -53,7 +53,8 @@ def model_set_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at: 
     (e.g. ``{"noise_enable": False}``) go in ``options["fixed"]``. ``schedule`` defaults to
     the variables the points vary that are model inputs or outputs. ``progress(k, K, point,
     model)`` is called after each member. Each member's provenance adds ``member`` (1-based),
-    ``set_size`` and ``requested_point``.
+    ``set_size`` and ``requested_point``. Members with and without a noise model (the default
+    ``noise='auto'`` deciding differently per point) are refused.
     """
     points = [dict(p) for p in at]
     if not points:
@@ -74,6 +75,12 @@ def model_set_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at: 
         members.append(model)
         if progress is not None:
             progress(k, len(points), pt, model)
+    noisy = [k for k, m in enumerate(members, 1) if m.w_names]
+    if noisy and len(noisy) < len(members):
+        quiet = [k for k in range(1, len(members) + 1) if k not in noisy]
+        raise ModelError(f"members {noisy} were identified with a noise model and members {quiet} without one: their "
+                         f"designs would differ in kind, not only in operating point; choose one for all "
+                         f"(noise='innovation' or None / --noise innovation or none)")
     if schedule is None:
         m0 = members[0]
         schedule = [v for v in varied if v in m0.u_names or v in m0.y_names]
@@ -108,7 +115,8 @@ def envelope_cli(args, excitation, fixed: dict) -> int:
                               schedule=args.schedule_on, fixed=fixed, progress=progress, method=args.method,
                               trim=args.trim, sensor_faults=args.sensor_faults, actuator_faults=args.actuator_faults,
                               ts=args.ts, excite=args.excite, excitation=excitation, order=args.order,
-                              min_fit=args.min_fit, noise=args.noise)
+                              min_fit=args.min_fit,
+                              noise=None if args.noise == "none" else args.noise)
     if tol is not None:
         mset.members = [m.minreal(tol) for m in mset.members]
     from .plant_stability import check_plant_models

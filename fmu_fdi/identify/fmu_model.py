@@ -223,7 +223,7 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
 
     from .noise import innovation_noise, measurement_noise, predictor_innovations
     from .subspace import moesp, static_model
-    from .validation import noise_floor, residual_tests, validate
+    from .validation import noise_floor, residual_tests, settle_noise_std, validate
 
     if md.coSimulation is None:
         raise IdentificationError(f"{path} has no co-simulation interface to run an experiment on")
@@ -262,7 +262,9 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
         sub = moesp(du, dy, ts, order, max_order=max_order, feedthrough=False)
         A, B, C, D = sub.to_continuous()
         rep = validate(sub, du_val, dy_val, check.t, np.linalg.eigvals(A), y_names)
-    sigma = check.settle_y[len(check.settle_y) // 2:].std(axis=0) if len(check.settle_y) > 1 else None
+    # the settle phase's noise about a settling transient (a noise-free plant still settling has none)
+    half = check.settle_y[len(check.settle_y) // 2:]
+    sigma = settle_noise_std(half, max_order) if len(check.settle_y) > 1 else None
     floor = noise_floor(dy_val, rep.y_hat, repeat.y - check.y0, sigma)
     # the innovation form is estimated whatever noise model is asked for: its innovations are what
     # the whiteness test judges

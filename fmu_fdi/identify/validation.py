@@ -159,6 +159,36 @@ def noise_floor(y, y_hat, y_rep, sigma_settle=None) -> NoiseFloor:
     return NoiseFloor(floor, fit, np.sqrt(v2 / N), source)
 
 
+def settle_noise_std(z, order: int = 10) -> np.ndarray:
+    """Std per output of the noise in a settle record ``z`` (samples × outputs, constant inputs).
+
+    A settling transient of at most ``order`` modes under a constant input is predicted exactly
+    by the linear recursion ``z_k = c + Σ_{i=1..p} a_i z_{k−i}`` (Prony's method: p damped modes
+    obey a recursion of order p; Kay & Marple 1981), noise is not. With ``e`` the RMS one-step
+    error of the least-squares recursion (p = order, fewer on a short record; N − p equations, p + 1
+    coefficients: N − 2p − 1 degrees of freedom): a record whose ``e`` is below 1 % of
+    its std is a deterministic transient, and its noise is ``e`` (round-off on a noise-free
+    plant, the measurement noise around a transient otherwise); else the noise dominates and
+    its size is the plain std (coloured noise included, whose one-step error would understate
+    it). The plain std alone would count a noise-free plant still settling as noise.
+    """
+    z = np.asarray(z, float).reshape(len(z), -1)
+    N = len(z)
+    std = z.std(axis=0)
+    p = min(int(order), (N - 1) // 3 - 1)
+    if p < 1:
+        return std
+    out = std.copy()
+    for j in range(z.shape[1]):
+        x = z[:, j] - z[:, j].mean()
+        X = np.column_stack([np.ones(N - p)] + [x[p - i - 1:N - i - 1] for i in range(p)])
+        coef = np.linalg.lstsq(X, x[p:], rcond=None)[0]
+        e = float(np.sqrt(np.sum((x[p:] - X @ coef) ** 2) / (N - 2 * p - 1)))
+        if e < 0.01 * std[j]:
+            out[j] = e
+    return out
+
+
 @dataclass
 class ResidualTests:
     """Ljung's residual tests (Ljung 1999, sec. 16.6) at lags up to ``lags``, risk 1 % per test.
