@@ -770,7 +770,8 @@ def build_parser() -> argparse.ArgumentParser:
     mo.add_argument("--amplitude", nargs="+", metavar="NAME=A",
                     help="peak excitation per input (default: chosen from a pre-test for signal/noise 10)")
     mo.add_argument("--samples", type=int, help="recorded steps per run (default: chosen, 6 slowest time scales)")
-    mo.add_argument("--settle", type=float, help="seconds at the operating point first (default 200 steps)")
+    mo.add_argument("--settle", type=float, help="seconds at the operating point first (default: designed, until the "
+                    "outputs are steady; 200 steps when the whole experiment is given)")
     mo.add_argument("--period", type=int, help="PRBS clock period in steps (default: chosen, fastest time scale)")
     mo.add_argument("--seed", type=int, default=0, help="excitation seed (default: 0; validation run: seed + 1)")
     mo.add_argument("--order", type=int, help="model order (default: by cross-validation near the singular "

@@ -222,3 +222,55 @@ def test_joint_input_output_method_recovers_a_plant_under_noisy_feedback():
     # Ljung 1999 eq. 9.62: relative std ≈ sqrt(n/N) σ_v / σ_u ≈ sqrt(3/4000) · 0.05 / 0.5 ≈ 0.003 where
     # |G| is smallest; 10 standard deviations
     assert np.abs(Gi - G).max() / np.abs(G).max() < 0.03
+
+
+def test_the_designed_experiment_does_not_depend_on_the_machines_speed(tmp_path, monkeypatch):
+    """The plan (and so the model) is a function of the FMU and the options only: the same DTS200 FMU (noise
+    on, its noise seed fixed) planned once on this machine's clock and once on a clock that runs 1000 times
+    faster than real time (as if the machine were 1000 times slower: every co-simulation then takes 1000 times
+    longer in the time the tool sees) gives the same sample time, record, settle, signal and amplitudes."""
+    import plant_fmus
+    from fmu_fdi.identify import Excitation
+    from fmu_fdi.identify.design import plan_experiment
+
+    fmu = plant_fmus.build("dts200", tmp_path)
+
+    def plan():
+        return plan_experiment(fmu, ["Q1", "Q2"], ["h1", "h2", "h3"], excite=None, at={}, parameters={"seed": 3},
+                               ts=None, step=plant_fmus.PLANTS["dts200"].step, excitation=Excitation())
+
+    fast = plan()
+    real, start = time.perf_counter, time.perf_counter()
+    monkeypatch.setattr(time, "perf_counter", lambda: start + 1000.0 * (real() - start))
+    slow = plan()
+    assert slow.steps_per_second < fast.steps_per_second / 100       # the slow clock did reach the experiment
+    assert (slow.ts, slow.excitation, slow.tau, slow.noise_std) == (fast.ts, fast.excitation, fast.tau, fast.noise_std)
+
+
+def test_designed_settle_lasts_until_the_start_transient_is_below_a_tenth_of_the_noise():
+    """The settle rule on a synthetic pre-test: a start transient a·e^{−t/τ} (a = 10, τ = 50 s) seen for 200 s
+    of 1 s samples with white noise of std 0.1: after the designed settle T the transient left, a·e^{−T/τ}
+    (the exact decay, not the rule's estimate of it), is at most a tenth of the noise, and T ≤ 10 τ; with
+    no transient (noise only) the settle stays at its 200-sample minimum; on a very slow plant the 10 τ
+    and MAX_SETTLE-sample caps hold (a transient of 1e3 would need τ ln(1e3 / 7e-4) = 14 τ)."""
+    from types import SimpleNamespace
+
+    from fmu_fdi.identify.design import MAX_SETTLE, MIN_SETTLE, SETTLE_TAUS, _steady_settle
+
+    rng = np.random.default_rng(5)
+    t = np.arange(1, 201, dtype=float)
+    a, tau, sigma = 10.0, 50.0, 0.1
+    noise = sigma * rng.standard_normal((200, 1))
+    dy = np.sin(np.arange(1000.0))[:, None]  # response std 0.7: its thousandth is below σ/10 here
+    T = _steady_settle(SimpleNamespace(settle_y=a * np.exp(-t / tau)[:, None] + noise), [sigma], dy, tau, 1.0, 1.0)
+    assert a * np.exp(-T / tau) <= sigma / 10 and T <= SETTLE_TAUS * tau, T
+    # and not needlessly longer than the exact need: the rule bounds the transient by its peak-to-peak plus 6 σ,
+    # noise included (at most 12 σ more: τ ln(1 + 12σ/a) = 5.7 s longer), over 1 − e^{−4} of its decay (τ · 0.02
+    # = 1 s) and rounds up to a sample (1 s): 8 s
+    assert T <= tau * np.log(a / (sigma / 10)) + 8.0, T
+    quiet = _steady_settle(SimpleNamespace(settle_y=noise), [sigma], dy, tau, 1.0, 1.0)
+    assert quiet == MIN_SETTLE * 1.0
+    slow = _steady_settle(SimpleNamespace(settle_y=1e3 * np.exp(-t / 1e4)[:, None]), [0.0], dy, 1e4, 1.0, 10.0)
+    assert slow == SETTLE_TAUS * 1e4                                   # (10⁴ samples of 10 s)
+    at_1s = _steady_settle(SimpleNamespace(settle_y=1e3 * np.exp(-t / 1e4)[:, None]), [0.0], dy, 1e4, 1.0, 1.0)
+    assert at_1s == MAX_SETTLE * 1.0                                   # and at most MAX_SETTLE samples
