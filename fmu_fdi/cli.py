@@ -209,8 +209,9 @@ def _check_model_options(args) -> None:
         bad("--min-fit", args.min_fit, "the least validation fit must be a finite percentage <= 100")
     for option in ("samples", "period", "order"):
         value = getattr(args, option, None)
-        if value is not None and not 1 <= value <= MAX_MODEL_SAMPLES:
-            bad(f"--{option}", value, f"must be a whole number in [1, {MAX_MODEL_SAMPLES}]")
+        low = 0 if option == "order" else 1  # order 0: a static plant (a pure feedthrough)
+        if value is not None and not low <= value <= MAX_MODEL_SAMPLES:
+            bad(f"--{option}", value, f"must be a whole number in [{low}, {MAX_MODEL_SAMPLES}]")
     md = _plant_description(args.plant)
     if md is None:
         return  # not an FMU: the model builder says so
@@ -793,7 +794,8 @@ def _model_parser(sub) -> None:
     mo.add_argument("--amplitude", nargs="+", metavar="NAME=A",
                     help="peak excitation per input (default: chosen from a pre-test for signal/noise 10)")
     mo.add_argument("--samples", type=int, help="recorded steps per run (default: chosen, 6 slowest time scales)")
-    mo.add_argument("--settle", type=float, help="seconds at the operating point first (default 200 steps)")
+    mo.add_argument("--settle", type=float, help="seconds at the operating point first (default: designed, until the "
+                    "outputs are steady; 200 steps when the whole experiment is given)")
     mo.add_argument("--period", type=int, help="PRBS clock period in steps (default: chosen, fastest time scale)")
     mo.add_argument("--seed", type=int, default=0, help="excitation seed (default: 0; validation run: seed + 1)")
     mo.add_argument("--order", type=int, help="model order (default: by cross-validation near the singular "

@@ -184,11 +184,6 @@ def test_lateral_aircraft_from_plant_fmu_alone_noise_on_default_thresholds(tmp_p
     plant = plant_fmus.build("lateral_aircraft", tmp_path)
     doublets = tmp_path / "doublets.csv"
     doublets.write_text("time,u1,u2\n0,0,0\n5,0.1,0\n6,-0.1,0\n7,0,0\n10,0,0.1\n11,0,-0.1\n12,0,0\n")
-    # the sample time and length the automatic design chooses on an idle machine, given (the rest is still
-    # designed: pre-test, noise level, signal, amplitude): its wall-time budget (fmu_fdi/identify/design.py
-    # BUDGET, scaled by the pre-test's measured speed) makes the default length and sample time depend on the
-    # machine's load (a loaded run chose ts 0.06 s and was refused: r still moving after settling)
-    experiment = ["--ts", "0.04", "--samples", "14134"]
     # the aircraft at trim is neutrally stable in roll (phi integrates p): its operating point is where the
     # identification found it (phi -0.006 rad after the settle phase's noise), so the plant starts there, through
     # its start-value parameters <y>_start (C = I: the states are the outputs); started at 0 instead, the bank
@@ -197,8 +192,7 @@ def test_lateral_aircraft_from_plant_fmu_alone_noise_on_default_thresholds(tmp_p
         return {f"{y}_start": float(v) for y, v in zip(m.y_names, m.y0)}
 
     _from_fmu_alone(tmp_path, plant, ["u1", "u2"], ["beta", "phi", "p", "r"], inputs_csv=doublets, stop=30.0,
-                    t_fault=15.0, biases={"beta": 0.05, "phi": 0.05, "p": 0.05, "r": -0.05}, experiment=experiment,
-                    start=start)
+                    t_fault=15.0, biases={"beta": 0.05, "phi": 0.05, "p": 0.05, "r": -0.05}, start=start)
 
 
 def test_docs_print_the_worked_example_these_tests_run():

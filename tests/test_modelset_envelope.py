@@ -154,11 +154,6 @@ def test_members_with_and_without_a_noise_model_are_refused(monkeypatch):
 
 
 @pytest.mark.slow  # one designed identification of the native DTS200 (~10 s of CPU)
-@pytest.mark.xfail(strict=True, reason="identify/design.py (plantid): the designed settle is 200 samples whatever the "
-                                       "plant's slowest time scale, and its settle check is loosened by a pre-test "
-                                       "'noise' that is the settling transient, so a member away from the FMU's start "
-                                       "is identified before it settles (DTS200 at +20 %: y0 off by ~1.3 cm); "
-                                       "workaround --settle")
 def test_a_member_away_from_the_start_is_identified_at_its_steady_state(tmp_path):
     from scipy.optimize import fsolve
 

@@ -8,6 +8,9 @@ This package only *produces* models (nothing else in fmu_fdi imports it):
 - :func:`run_experiment` — excitation (multisine or PRBS) of a co-simulation FMU through
   :class:`fmu_fdi.cosim.CoSimulation` (:mod:`.experiment`).
 - :func:`moesp` — PO-MOESP subspace identification with order selection (:mod:`.subspace`).
+- :func:`~.closed_loop.identify_closed_loop` — a plant in its own loop (model inputs that are FMU
+  outputs) from its references: the joint input-output method, then the plant by inversion
+  (:mod:`.closed_loop`).
 - :func:`validate` — fit (NRMSE %) per output on an independent run, poles, PNG (:mod:`.validation`).
 - :func:`innovation_noise`, :func:`measurement_noise` — opt-in noise models (w unit white) of an
   identified model: Kalman innovation form or output-error covariance (:mod:`.noise`).

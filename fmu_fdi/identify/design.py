@@ -4,8 +4,11 @@ Every choice the user left open (an :class:`~fmu_fdi.identify.experiment.Excitat
 None, no ``ts``) is made from what a short pre-test on the plant FMU shows:
 
 1. **Noise level at the operating point.** The pre-test first holds every input at its
-   operating value for the settle phase; the standard deviation σ_j of each output over the
-   second half of it is the noise level (white sensor noise and coloured process noise alike).
+   operating value for the settle phase (``MIN_SETTLE`` samples); the noise level σ_j of each
+   output is read over the second half of it by
+   :func:`~fmu_fdi.identify.validation.settle_noise_std` (the plain std — white sensor noise and
+   coloured process noise alike — unless a recursion predicts the record: then it is a settling
+   transient, and the noise is that recursion's error).
    Noise coloured by a slow or lightly damped mode outlasts that window, so σ_j is raised to
    the std of the pre-test model's output error (after its first fifth) when that is larger.
 2. **Time scales.** Then a multisine (all inputs at once, disjoint lines log-spaced from the
@@ -29,9 +32,22 @@ None, no ``ts``) is made from what a short pre-test on the plant FMU shows:
      0.44/(P ts) Hz, which covers 1/(2π τ_min); at most a fiftieth of a given record (the
      input must stay persistently exciting of order 2s);
    - *duration* T = 6 τ_max (frequency resolution 1/T below the slowest mode's corner
-     1/(2π τ_max)), at least 1000 samples; when the wall-time budget (the pre-test's measured
-     steps per second; three runs: estimation, validation and its noise repeat) does not allow
-     T/ts samples, ts becomes a multiple of the FMU's step, at most τ_min/3;
+     1/(2π τ_max)), at least ``MIN_SAMPLES``; the budget is counted in samples, never in wall
+     time (the experiment, hence the model, is a function of the FMU and the options only, not
+     of the machine's speed or load): when T/ts exceeds ``MAX_SAMPLES``, ts becomes a multiple
+     of the FMU's step, at most τ_min/3, and the record is cut at ``MAX_SAMPLES`` (a note says
+     how many slowest time scales it covers); a given ``samples`` or ``ts`` caps it;
+   - *settle* (the phase at the operating point before each run): until the outputs are steady.
+     The pre-test's settle record holds the start's transient d_j (when its peak-to-peak exceeds
+     the ±3 σ_j of noise: that plus 6 σ_j, an upper bound; else zero); the slowest
+     mode decays as e^{−t/τ_max}, so the transient that remains after T_s is
+     a_j = d_j / (1 − e^{−T_s/τ_max}), and it is below the tolerance tol_j after
+     τ_max·ln(a_j / tol_j). tol_j = max(σ_j / 10, response_j / 1000): a tenth of the noise, or
+     on a noise-free plant a thousandth of the excitation's response (the operating point y0 is
+     then exact to the identification's own accuracy). At least ``MIN_SETTLE`` samples, at most
+     ``SETTLE_TAUS`` τ_max (e^{−10} = 4.5e-5 of the transient) and ``MAX_SETTLE`` samples. When
+     the pre-test itself ran on a transient larger than tol_j, it is repeated once after that
+     settle (its time scales and noise level were read on a moving plant);
    - *amplitude*: the rough model's response to the chosen PRBS at the seed amplitude
      predicts each output's response std r_j; the amplitude is scaled by c ≥ 1 so that
      min_j r_j c / σ_j reaches ``SNR_TARGET``; a probe run of the chosen signal
@@ -41,6 +57,11 @@ None, no ``ts``) is made from what a short pre-test on the plant FMU shows:
      default nominal, whose scale means nothing) and within 90 % of the declared min/max. When the cap leaves the
      signal-to-noise ratio short, the record is lengthened by (target/achieved)² (the
      variance of the estimates falls as 1/(N·SNR²), Ljung 1999 eq. 9.62) within the budget.
+   - *a plant in its own loop* (model inputs that are FMU outputs, identified from its
+     references by :mod:`fmu_fdi.identify.closed_loop`): each reference is the instrument of
+     its own model input, so each is raised until it alone reaches ``SNR_TARGET`` on its
+     best-seen output (DR300: a load torque the PI loop integrates met the common target alone
+     and left the speed reference at ±0.07, whose model then missed the plant's slow pole);
    - *seed amplitude* per input: 5 % of its operating value; at a zero operating point
      5 % of its declared range (max − min), else 5 % of its nominal (FMI default 1).
 
@@ -57,8 +78,15 @@ import numpy as np
 
 from .errors import IdentificationError
 from .experiment import Excitation, _limit, excitation_signals, run_experiment
+from .validation import settle_noise_std
 
 PRETEST_SAMPLES = 1000
+#: samples at the operating point before the pre-test, and the fewest before a run
+MIN_SETTLE = 200
+#: the settle phase lasts at most this many slowest time scales ...
+SETTLE_TAUS = 10.0
+#: ... and at most this many samples
+MAX_SETTLE = 20000
 #: length of the probe run of the chosen signal that measures the response at the chosen amplitude
 PROBE_SAMPLES = 400
 SNR_TARGET = 10.0
@@ -66,9 +94,8 @@ MAX_GROWTH = 4.0
 MIN_SAMPLES = 1000
 #: samples per fastest time scale: ts = the FMU step's largest multiple below τ_min / TS_PER_TAU
 TS_PER_TAU = 10.0
+#: the most samples a run's record holds (the budget: samples, not wall time)
 MAX_SAMPLES = 20000
-#: wall-clock seconds the three main runs (estimation, validation, noise repeat) may take
-BUDGET = 15.0
 
 
 @dataclass
@@ -155,7 +182,7 @@ def headroom(var, v0: float) -> float:
 
 
 def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, excitation: Excitation,
-                    max_order: int = 10, budget: float = BUDGET) -> ExperimentPlan:
+                    max_order: int = 10) -> ExperimentPlan:
     """Choose what ``excitation`` and ``ts`` leave open from a pre-test (module docstring).
 
     Parameters
@@ -167,7 +194,6 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     excitation : the user's choices (None fields are chosen here).
     """
     from .linearise import read_description
-    from .subspace import moesp
 
     md = read_description(path)
     by_name = {v.name: v for v in md.modelVariables}
@@ -180,47 +206,45 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     ts0 = float(ts if ts is not None else step)
     given_amp = user.amplitude
     seed_amp, limit = _seed_amplitudes(excite, by_name, at, given_amp)
-    settle = user.settle if user.settle is not None else 200 * ts0
+    settle = user.settle if user.settle is not None else MIN_SETTLE * ts0
     settle_given = user.settle is not None
-    pre, pre_exc, sigma, dy, seed_amp, notes = _pretest(path, sig, y_names, excite=excite, at=at,
-                                                        parameters=parameters, ts0=ts0, settle=settle,
-                                                        seed=user.seed, seed_amp=seed_amp, limit=limit,
-                                                        given_amp=given_amp)
+    kw = dict(excite=excite, at=at, parameters=parameters, ts0=ts0, seed=user.seed, limit=limit,
+              given_amp=given_amp, max_order=max_order)
+    pre, pre_exc, sigma, dy, seed_amp, notes = _pretest(path, sig, y_names, settle=settle, seed_amp=seed_amp, **kw)
+    rough, z = _rough_model(pre, pre_exc, dy, ts0, max_order, notes)
+    sigma = _with_misfit(sigma, rough, pre, pre_exc, dy)
+    if not settle_given:  # the pre-test ran on the start's transient: once more, after it has died out
+        longer = _steady_settle(pre, sigma, dy, _time_scales(z, ts0)[1], ts0, ts0)
+        if longer > settle * (1 + 1e-9):
+            notes.append(f"the pre-test started on a transient: repeated after settling {longer:g} s")
+            settle = longer
+            pre, pre_exc, sigma, dy, seed_amp, more = _pretest(path, sig, y_names, settle=settle,
+                                                               seed_amp=seed_amp, **kw)
+            notes += more
+            rough, z = _rough_model(pre, pre_exc, dy, ts0, max_order, notes)
+            sigma = _with_misfit(sigma, rough, pre, pre_exc, dy)
     # round-off is no noise: a std below 1e-9 of the output's level and response counts as zero
     level = np.maximum(np.abs(pre.y0), dy.std(axis=0))
     sigma = np.where(sigma > 1e-9 * level, sigma, 0.0)
-    rate = pre.steps / max(pre.seconds, 1e-6)
+    rate = pre.steps / max(pre.seconds, 1e-6)  # reported only: the plan never depends on the machine's speed
     names = list(pre.excited)
-    # the rough model maps the applied excitation (references, for a plant in its own loop) to the outputs
-    dev = excitation_signals(pre_exc, names, [pre.excited[k] for k in names])
-    try:
-        rough = moesp(dev, dy, ts0, None, max_order=max_order, feedthrough=False)
-        z = np.linalg.eigvals(rough.A)
-    except IdentificationError as exc:
-        notes.append(f"pre-test model failed ({exc}); time scales assumed from the pre-test's length")
-        rough, z = None, np.zeros(0)
-    if rough is not None:  # coloured noise outlasts a short settle window: the misfit bounds it from above
-        res = dy - rough.simulate(dev)
-        res = res[len(res) // 5:]
-        sigma = np.where(sigma > 0, np.maximum(sigma, res.std(axis=0)), 0.0)
     tau_min, tau_max = _time_scales(z, ts0)
     chosen = []
-    # sample time and duration within the budget
-    runs_steps = budget * rate / 3.0
+    # sample time and duration within the budget of MAX_SAMPLES per record
     want = 6.0 * tau_max
     ts_new = ts0
     if ts is None and user.samples is None and user.period is None:  # (given in steps: at the FMU's step)
         k = max(1, int(np.floor(tau_min / (TS_PER_TAU * ts0))))
-        if want / (k * ts0) > min(MAX_SAMPLES, runs_steps):
-            k_budget = int(np.ceil(want / (ts0 * min(MAX_SAMPLES, runs_steps))))
+        if want / (k * ts0) > MAX_SAMPLES:
+            k_budget = int(np.ceil(want / (ts0 * MAX_SAMPLES)))
             k = max(k, min(k_budget, int(np.floor(tau_min / (3 * ts0)))))
         ts_new = k * ts0
         if k > 1:
             chosen.append("ts")
-    if not settle_given:  # 200 samples at the chosen ts: the noise level is read over the second half
-        settle = 200 * ts_new
-    n_settle = int(round(settle / ts_new))
-    cap = int(max(MIN_SAMPLES, min(MAX_SAMPLES, runs_steps - n_settle)))
+    if not settle_given:  # until the outputs are steady, on the chosen ts's grid
+        settle = _steady_settle(pre, sigma, dy, tau_max, ts0, ts_new)
+        chosen.append("settle")
+    cap = MAX_SAMPLES
     signal = user.signal or "prbs"
     if user.signal is None:
         chosen.append("signal")
@@ -236,7 +260,7 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
         chosen.append("samples")
         if samples * ts_new < want:
             notes.append(f"the record covers {samples * ts_new / tau_max:.2g} slowest time scales (6 wanted) "
-                         f"within the {budget:g} s budget")
+                         f"within the budget of {MAX_SAMPLES} samples")
     # amplitude: predicted response of the rough model to the chosen signal at the seed amplitude
     exc = Excitation(signal, dict(seed_amp), samples, settle, user.band, period, user.seed)
     r = _predicted_response(rough, exc, names, seed_amp, pre, ts_new, ts0)
@@ -261,6 +285,8 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
             rec = run_experiment(path, sig, y_names, excite=excite, at=at, parameters=parameters, step=ts_new,
                                  excitation=probe, check_settle=False)
             r = np.sqrt(np.maximum((rec.y - rec.y0).var(axis=0) - sigma ** 2, 0.0))
+        if set(names) != set(sig) and rough is not None and np.any(noisy):
+            amp = _each_reference_seen(rough, exc, names, amp, free, limit, sigma, ts_new, ts0, notes)
         snr_now = np.min(r[noisy] / sigma[noisy]) if np.any(noisy) and np.all(r[noisy] > 0) else np.inf
         if user.samples is None and np.isfinite(snr_now) and snr_now < SNR_TARGET:
             longer = int(min(cap, np.ceil(samples * (SNR_TARGET / snr_now) ** 2)))
@@ -296,7 +322,8 @@ def _seed_amplitudes(excite, by_name, at, given_amp):
     return seed_amp, limit
 
 
-def _pretest(path, sig, y_names, *, excite, at, parameters, ts0, settle, seed, seed_amp, limit, given_amp):
+def _pretest(path, sig, y_names, *, excite, at, parameters, ts0, settle, seed, seed_amp, limit, given_amp,
+             max_order):
     """Stage of :func:`plan_experiment`: the short multisine pre-test, its amplitude raised up to
     three times until an output responds above its noise. Returns ``(record, excitation, noise
     std, output deviations, seed amplitudes, notes)``."""
@@ -307,7 +334,8 @@ def _pretest(path, sig, y_names, *, excite, at, parameters, ts0, settle, seed, s
         pre = run_experiment(path, sig, y_names, excite=excite, at=at, parameters=parameters, step=ts0,
                              excitation=pre_exc, check_settle=False)
         half = pre.settle_y[len(pre.settle_y) // 2:]
-        sigma = half.std(axis=0) if len(half) > 1 else np.zeros(len(y_names))
+        # a settling transient is no noise (it would loosen the settle check and the signal/noise target)
+        sigma = settle_noise_std(half, max_order) if len(half) > 1 else np.zeros(len(y_names))
         dy = pre.y - pre.y0
         resp = np.sqrt(np.maximum(dy.var(axis=0) - sigma ** 2, 0.0))
         if np.any(resp > sigma) or given_amp is not None:
@@ -328,6 +356,56 @@ def _pretest(path, sig, y_names, *, excite, at, parameters, ts0, settle, seed, s
     return pre, pre_exc, sigma, dy, seed_amp, notes
 
 
+def _rough_model(pre, pre_exc, dy, ts0, max_order, notes):
+    """Stage of :func:`plan_experiment`: the pre-test's PO-MOESP model from the applied excitation
+    (references, for a plant in its own loop) to the outputs, and its discrete poles (None and
+    none when it fails: the time scales are then the pre-test's length)."""
+    from .subspace import moesp
+
+    names = list(pre.excited)
+    dev = excitation_signals(pre_exc, names, [pre.excited[k] for k in names])
+    try:
+        rough = moesp(dev, dy, ts0, None, max_order=max_order, feedthrough=False)
+        return rough, np.linalg.eigvals(rough.A)
+    except IdentificationError as exc:
+        notes.append(f"pre-test model failed ({exc}); time scales assumed from the pre-test's length")
+        return None, np.zeros(0)
+
+
+def _with_misfit(sigma, rough, pre, pre_exc, dy):
+    """Stage of :func:`plan_experiment`: coloured noise outlasts a short settle window, and is smooth
+    enough there to pass for a transient: the pre-test model's misfit (after its first fifth)
+    bounds it from above, so each noisy output's σ is raised to it."""
+    if rough is None:
+        return sigma
+    names = list(pre.excited)
+    res = dy - rough.simulate(excitation_signals(pre_exc, names, [pre.excited[k] for k in names]))
+    res = res[len(res) // 5:]
+    return np.where(sigma > 0, np.maximum(sigma, res.std(axis=0)), 0.0)
+
+
+def _steady_settle(pre, sigma, dy, tau_max, ts0, ts) -> float:
+    """Stage of :func:`plan_experiment`: the settle time after which the start's transient is below
+    a tenth of the noise (a thousandth of the response on a noise-free output), on the grid of
+    ``ts`` (module docstring, *settle*)."""
+    z = pre.settle_y
+    n_min = MIN_SETTLE * ts
+    if z is None or len(z) < 2:
+        return n_min
+    T_s = len(z) * ts0
+    noise = np.nan_to_num(np.asarray(sigma, float))
+    # the transient seen over the pre-test's settle: a peak-to-peak beyond the ±3 σ of noise, bounded from
+    # above (noise within ±3 σ hides at most 6 σ of it; an overestimate only settles longer)
+    ptp = np.ptp(z, axis=0)
+    d = np.where(ptp > 6.0 * noise, ptp + 6.0 * noise, 0.0)
+    a = d / max(-np.expm1(-T_s / tau_max), 1e-12)
+    tol = np.maximum(noise / 10.0, dy.std(axis=0) / 1000.0)
+    tiny = np.finfo(float).tiny
+    need = np.where(a > tol, tau_max * np.log(np.maximum(a, tiny) / np.maximum(tol, tiny)), 0.0)
+    T = min(float(np.max(need)) if need.size else 0.0, SETTLE_TAUS * tau_max, MAX_SETTLE * ts)
+    return max(n_min, float(np.ceil(T / ts)) * ts)
+
+
 def _time_scales(z, ts0):
     """Stage of :func:`plan_experiment`: the fastest and slowest time scales ``(tau_min, tau_max)``
     of the pre-test model's discrete poles ``z`` (the pre-test's length when there are none)."""
@@ -338,6 +416,26 @@ def _time_scales(z, ts0):
     tau_max = min(1.0 / max(float(slow.min()), 1e-300), 10 * T_pre) if lam.size else T_pre
     tau_max = max(tau_max, tau_min)
     return tau_min, tau_max
+
+
+def _each_reference_seen(rough, exc, names, amp, free, limit, sigma, ts, ts0, notes) -> dict:
+    """Stage of :func:`plan_experiment` for a plant in its own loop: each reference is the instrument
+    of its own model input (:mod:`fmu_fdi.identify.closed_loop`), so each must reach ``SNR_TARGET``
+    on its best-seen output by itself (a reference the loop integrates, like a load torque, would
+    otherwise meet the common target alone and leave the others in the noise); raised within
+    its limit, never lowered."""
+    noisy = sigma > 0
+    out = dict(amp)
+    for k in free:
+        alone = {n: (amp[n] if n == k else 0.0) for n in names}
+        r = _predicted_response(rough, exc, names, alone, None, ts, ts0)
+        snr = float(np.max(r[noisy] / sigma[noisy]))
+        if snr < SNR_TARGET:
+            out[k] = min(amp[k] * SNR_TARGET / max(snr, 1e-12), max(limit[k], amp[k]))
+    if out != amp:
+        notes.append("a plant in its own loop: each reference raised to signal/noise "
+                     f"{SNR_TARGET:g} by itself: {', '.join(f'{k} ±{v:.4g}' for k, v in out.items())}")
+    return out
 
 
 def _predicted_response(rough, exc, names, seed_amp, pre, ts, ts0) -> np.ndarray:

@@ -130,6 +130,9 @@ class Record:
     #: wall-clock seconds of the run and the number of communication steps it took
     seconds: float = 0.0
     steps: int = 0
+    #: the applied excitation (deviations of the excited inputs, columns in the order of ``excited``):
+    #: the instruments of a plant in its own loop (:mod:`fmu_fdi.identify.closed_loop`)
+    r: np.ndarray | None = field(default=None, repr=False)
 
 
 def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=None, step: float,
@@ -179,6 +182,11 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
     fmu_inputs, excite = _checked_signals(path, fmu, inputs, outputs, excite)
     at = dict(at or {})
     params = dict(parameters or {})
+    # inputs that are not continuous Reals (Integer, Boolean, discrete) change only at events: held at
+    # their values from ``at``, set before initialisation like a parameter (FMI 3.0 sec. 4.2.4)
+    for nm in [k for k in at if k not in fmu_inputs and k in fmu.variables
+               and fmu.variable(k).causality == "input"]:
+        params[nm] = at.pop(nm)
     v0 = {}
     for nm in fmu_inputs:
         start = fmu.start_value(nm)
@@ -242,7 +250,7 @@ def run_experiment(path, inputs, outputs, *, excite=None, at=None, parameters=No
         _check_settled(path, res, outputs, n_settle, y, settle, noise_std)
     settle_y = np.column_stack([col(nm)[1:n_settle + 1] for nm in outputs])
     return Record(t[rows] - t[n_settle], u, y, u0, y0, list(inputs), list(outputs), dict(zip(excite, amps)),
-                  settle_y, clock, int(t.size - 1))
+                  settle_y, clock, int(t.size - 1), dev)
 
 
 def _checked_signals(path, fmu, inputs, outputs, excite):

@@ -222,7 +222,7 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
     from dataclasses import replace
 
     from .noise import innovation_noise, measurement_noise, predictor_innovations
-    from .subspace import moesp
+    from .subspace import moesp, static_model
     from .validation import noise_floor, residual_tests, settle_noise_std, validate
 
     if md.coSimulation is None:
@@ -237,10 +237,27 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
                                                        design=design, log=log)
     du, dy = ident.u - ident.u0, ident.y - ident.y0      # deviations from the operating point
     du_val, dy_val = check.u - check.u0, check.y - check.y0
-    if order is None:
+    excited = list(ident.excited)
+    # a plant in its own loop (model inputs that are FMU outputs): the references as instruments
+    own = [excited.index(n) if n in excited else None for n in sig] if set(excited) != set(sig) else None
+    joint = None
+    if own is not None and len(excited) == len(sig):
+        from .closed_loop import identify_closed_loop, joint_outputs
+
+        sub, joint = identify_closed_loop(ident.r, du, dy, check.r, du_val, dy_val, ts, own, order,
+                                          max_order=max_order)
+        A, B, C, D = sub.to_continuous()
+        # validated as what it is identified as: the closed loop from the references, simulated
+        rep = validate(joint_outputs(joint, own), check.r, dy_val, check.t, np.linalg.eigvals(A), y_names,
+                       kind="closed-loop simulation")
+    elif order is None:
         sub, rep, A, B, C, D = _order_by_cross_validation(
-            moesp(du, dy, ts, None, max_order=max_order, feedthrough=False, candidates=True),
-            du_val, dy_val, check.t, y_names)
+            moesp(du, dy, ts, None, max_order=max_order, feedthrough=False, candidates=True)
+            + [static_model(du, dy, ts)], du_val, dy_val, check.t, y_names)
+    elif order == 0:
+        sub = static_model(du, dy, ts)
+        A, B, C, D = sub.to_continuous()
+        rep = validate(sub, du_val, dy_val, check.t, np.zeros(0), y_names)
     else:
         sub = moesp(du, dy, ts, order, max_order=max_order, feedthrough=False)
         A, B, C, D = sub.to_continuous()
@@ -270,7 +287,8 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
     eps = None
     if inn is not None:
         eps = predictor_innovations(sub, inn.K, du_val, dy_val, drop=2 * sub.block_rows * max(sub.order, 1))
-    tests = residual_tests(eps, dy_val - rep.y_hat, du_val)
+    # the output error of a plant in its own loop follows the measured u through the loop: judged against r
+    tests = residual_tests(eps, dy_val - rep.y_hat, du_val if joint is None else check.r)
     Bw = None
     if nm is not None:  # Bw: the inverse zero-order hold of the discrete K Lₑ, as for B
         Bw = replace(sub, B=np.hstack([sub.B, nm.Bw])).to_continuous()[1][:, sub.B.shape[1]:]
@@ -279,7 +297,7 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
     verdict = _verdict(y_names, rep, floor, tests, sub.order, exc, plan)
     if log is not None:
         log(verdict)
-    if rep.kind != "simulation" and not tests.independent and np.max(tests.whiteness) > 10:
+    if rep.kind == "one-step predictor" and not tests.independent and np.max(tests.whiteness) > 10:
         raise IdentificationError(
             f"{path}: the identified model (order {sub.order}) is unstable, so it is validated by its one-step "
             f"predictor, whose fit flatters it; its output error is correlated with past inputs and its own "
@@ -313,6 +331,11 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
                  "whiteness": tests.whiteness.tolist(), "independence": tests.independence.tolist(),
                  "residual_lags": tests.lags,
                  "poles": [f"{p.real:.6g}{p.imag:+.6g}j" for p in rep.poles_continuous]})
+    if sub.info.get("static") is not None:
+        prov["method"] = "static gain (least squares; order 0: no state)"
+    if joint is not None:
+        prov.update({"method": "closed-loop subspace identification (joint input-output PO-MOESP, references "
+                               "as instruments)", "joint_order": joint.order, "delays": sub.info["delays"]})
     if nm is not None:
         prov.update(nm.provenance(y_names))
     if d_names:
@@ -371,7 +394,8 @@ def _experiments(path, md, sig, y_names, *, at, params, ts, excite, excitation, 
 
 def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
     """The order from the singular values, or a lower-error one on the validation run (Ljung 1999,
-    sec. 16.4, cross-validation): among the stable candidates within 3 of it that have a continuous model, the
+    sec. 16.4, cross-validation): among the stable candidates within 3 of it (and the static gain,
+    order 0, :func:`~fmu_fdi.identify.subspace.static_model`) that have a continuous model, the
     smallest order whose mean normalised squared simulation error Σ_j ||e_j||²/||y_j − ȳ_j||² / p
     is within 2 % of the best plus 1e-4 (a 1 % NRMSE: on noise-free data a higher order only fits
     a nonlinearity a little better). The gap order stands when it is unstable (a plant in its own
@@ -387,7 +411,7 @@ def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
         return judged(gap)
     scored = []
     for sub in cands[1:]:
-        if abs(sub.order - gap.order) > 3 or np.any(np.abs(np.linalg.eigvals(sub.A)) >= 1.0):
+        if (abs(sub.order - gap.order) > 3 and sub.order) or np.any(np.abs(np.linalg.eigvals(sub.A)) >= 1.0):
             continue
         try:
             res = judged(sub)

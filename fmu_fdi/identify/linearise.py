@@ -111,10 +111,14 @@ class _MEInstance:
         ders = md.derivatives  # the continuous-state order is the order of the derivatives
         self.der_vrs = [u.variable.valueReference for u in ders]
         self.state_names = []
-        for u in ders:
+        # an FMI 3 array derivative holds one state per element (FMI 3.0 sec. 2.4.7.1.2), named x[i]
+        sizes = [array_size(md, u.variable) for u in ders]
+        self.arrays = any(u.variable.dimensions for u in ders)
+        for u, size in zip(ders, sizes):
             state = u.variable.derivative
-            self.state_names.append(state.name if state is not None else f"x{len(self.state_names)}")
-        self.nx = len(self.der_vrs)
+            name = state.name if state is not None else f"x{len(self.state_names)}"
+            self.state_names += [name] if not u.variable.dimensions else [f"{name}[{i + 1}]" for i in range(size)]
+        self.nx = len(self.state_names)
         self._x = (ctypes.c_double * max(self.nx, 1))()
         self._dx = (ctypes.c_double * max(self.nx, 1))()
 
@@ -171,6 +175,19 @@ class _MEInstance:
             self.fmu.freeInstance()
 
 
+def array_size(md, v) -> int:
+    """Number of elements of an FMI 3 array variable (1 for a scalar): the product of its
+    dimensions, each a fixed ``start`` or the start value of the structural parameter it names."""
+    size = 1
+    if not v.dimensions:
+        return size
+    by_vr = {w.valueReference: w for w in md.modelVariables}
+    for dim in v.dimensions:
+        n = dim.start if dim.start is not None else getattr(by_vr.get(dim.valueReference), "start", None)
+        size *= int(n)
+    return size
+
+
 def read_description(path):
     """fmpy's model description of ``path`` or an IdentificationError naming the file."""
     from fmpy import read_model_description
@@ -189,6 +206,10 @@ def check_names(md, path, names, what, causalities) -> list:
     out = []
     for nm in names:
         v = by_name.get(nm)
+        if v is not None and v.dimensions:
+            raise IdentificationError(f"{path}: {what} {nm!r} is an FMI 3 array variable "
+                                      f"({array_size(md, v)} elements): array inputs and outputs are not model "
+                                      f"signals yet (array states are); name scalar variables")
         if v is None or v.causality not in causalities or v.type not in ("Real", "Float64"):
             pool = [w.name for w in md.modelVariables if w.causality in causalities
                     and w.type in ("Real", "Float64")]
@@ -208,21 +229,25 @@ def _signals(path, md, inputs, outputs, disturbances, at, parameters):
     # continuous Real inputs can be perturbed; discrete-variability, Integer and Boolean inputs change only
     # at events (FMI 2.0.4 sec. 3.2.3, FMI 3.0 sec. 3.2.3): they are held at their values (``at`` or start)
     real_in = [v.name for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")
-               and v.variability in (None, "continuous")]
-    real_out = [v.name for v in md.modelVariables if v.causality == "output" and v.type in ("Real", "Float64")]
+               and v.variability in (None, "continuous") and not v.dimensions]
+    real_out = [v.name for v in md.modelVariables if v.causality == "output" and v.type in ("Real", "Float64")
+                and not v.dimensions]
+    arrays = [v.name for v in md.modelVariables if v.causality in ("input", "output") and v.dimensions]
     d_names = check_names(md, path, list(disturbances), "disturbance", ("input",))
     u_names = (check_names(md, path, list(inputs), "input", ("input",)) if inputs is not None
                else [n for n in real_in if n not in d_names])
     y_names = check_names(md, path, list(outputs), "output", ("output",)) if outputs is not None else real_out
     if not y_names:
-        raise IdentificationError(f"{path}: no outputs to linearise (the FMU has no Real outputs)")
+        raise IdentificationError(f"{path}: no outputs to linearise (the FMU has no scalar Real outputs"
+                                  + (f"; array inputs/outputs {arrays} are not model signals yet)" if arrays else ")"))
     at = dict(at or {})
     by_name = {v.name: v for v in md.modelVariables}
-    unknown = [k for k in at if k not in by_name]
+    unknown = [k for k in at if k.split("[")[0] not in by_name]  # x[i]: an element of an array state
     if unknown:
         raise IdentificationError(f"{path}: operating-point values for unknown variables {unknown}")
     parameters = dict(parameters or {})
-    for k in [k for k in at if by_name[k].causality in ("parameter", "calculatedParameter", "structuralParameter")]:
+    for k in [k for k in at if k in by_name and by_name[k].causality in ("parameter", "calculatedParameter",
+                                                                        "structuralParameter")]:
         parameters[k] = at.pop(k)
     v_names = u_names + d_names
     held_only = [n for n in v_names if n not in real_in]
@@ -231,7 +256,8 @@ def _signals(path, md, inputs, outputs, disturbances, at, parameters):
         raise IdentificationError(f"{path}: inputs {kinds} change only at events, so a linearisation cannot "
                                   f"perturb them; they are held at their values: give them with at=... "
                                   f"(--at NAME=VALUE) and leave them out of the inputs")
-    held = {k: at.pop(k) for k in [k for k in at if by_name[k].causality == "input" and k not in v_names]}
+    held = {k: at.pop(k) for k in [k for k in at if k in by_name and by_name[k].causality == "input"
+                                   and k not in v_names]}
     return u_names, d_names, y_names, v_names, by_name, at, parameters, held
 
 
@@ -324,6 +350,11 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
         except Exception as exc:
             raise IdentificationError(f"{path}: the FMU failed to instantiate/initialise for linearisation: "
                                       f"{exc}") from None
+        if inst.arrays and use_dd:  # array states are seeded per variable, not per element: differences
+            if directional is True:
+                raise IdentificationError(f"{path}: its states are FMI 3 arrays; directional derivatives are "
+                                          f"seeded per element only with central differences (directional='auto')")
+            use_dd = False
         state_vars = [by_name.get(n) for n in inst.state_names]
         x0 = inst.states()
         for i, nm in enumerate(inst.state_names):

@@ -62,8 +62,12 @@ class SubspaceModel:
     info: dict = field(default_factory=dict)
 
     def to_continuous(self):
-        """``(Ac, Bc, C, D)``: the continuous model whose ZOH sampling is this one."""
+        """``(Ac, Bc, C, D)``: the continuous model whose ZOH sampling is this one (a static gain,
+        :func:`static_model`: no state, ``D`` the gain)."""
         n, m = self.B.shape
+        if self.info.get("static") is not None:
+            D = np.asarray(self.info["static"], float)
+            return np.zeros((0, 0)), np.zeros((0, m)), np.zeros((D.shape[0], 0)), D.copy()
         M = np.zeros((n + m, n + m))
         M[:n, :n], M[:n, n:], M[n:, n:] = self.A, self.B, np.eye(m)
         ev = np.linalg.eigvals(self.A)
@@ -159,3 +163,24 @@ def moesp(u, y, dt: float, order: int | None = None, *, block_rows: int | None =
         out.append(SubspaceModel(A, B, C, D, float(dt), sv[: min(len(sv), max_order + 1)], n, s,
                                  info={"samples": N}))
     return out if candidates else out[0]
+
+
+def static_model(u, y, dt: float) -> SubspaceModel:
+    """Order 0: a static plant ``y(t) = D u(t)`` (a pure feedthrough), D by least squares.
+
+    A co-simulation record reads y_k after the step that u_{k−1} drove (the inputs of a step are
+    set at its start, the outputs read at its end), so the record sees ``y_{k+1} = D u_k``: the
+    discrete model is that one-sample delay (``x⁺ = u``, ``y = D x``: what validation and the noise
+    model simulate), its continuous model the gain D alone (``info['static']``)."""
+    u = np.asarray(u, float).reshape(len(u), -1)
+    y = np.asarray(y, float).reshape(len(y), -1)
+    N, m = u.shape
+    if N < 2 * m + 2:
+        raise IdentificationError(f"too little data for a static gain: {N} samples for {m} inputs")
+    s = np.linalg.svd(u[:-1], compute_uv=False)
+    if not s[-1] > 1e-9 * s[0]:
+        raise IdentificationError(f"the inputs are not independent in the record (singular values "
+                                  f"{np.array2string(s, precision=3)}): excite each input")
+    D = np.linalg.lstsq(u[:-1], y[1:], rcond=None)[0].T
+    return SubspaceModel(np.zeros((m, m)), np.eye(m), D, np.zeros((y.shape[1], m)), float(dt), np.zeros(0), 0, 1,
+                         info={"samples": N, "static": D})

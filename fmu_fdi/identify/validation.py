@@ -69,24 +69,35 @@ def nrmse_fit(y, y_hat) -> np.ndarray:
     return 100.0 * (1.0 - num / np.where(den > 0, den, np.inf))
 
 
-def validate(model, u, y, t=None, continuous_poles=None, output_names=None) -> ValidationReport:
-    """Compare a :class:`~fmu_fdi.identify.subspace.SubspaceModel` with a record of deviations."""
+def simulated(model, u, y) -> np.ndarray:
+    """The model's simulation from the inputs ``u``, its initial state fitted to ``y`` by least squares
+    (the free-response rows C A^k stacked)."""
+    A, C = model.A, model.C
+    N, n = len(u), A.shape[0]
+    y0 = model.simulate(u)
+    O = np.empty((N * C.shape[0], n))
+    M = C.copy()
+    for k in range(N):
+        O[k * C.shape[0]:(k + 1) * C.shape[0]] = M
+        M = M @ A
+    x0 = np.linalg.lstsq(O, (y - y0).ravel(), rcond=None)[0]
+    return model.simulate(u, x0)
+
+
+def validate(model, u, y, t=None, continuous_poles=None, output_names=None, kind: str | None = None) -> ValidationReport:
+    """Compare a :class:`~fmu_fdi.identify.subspace.SubspaceModel` with a record of deviations.
+
+    ``kind``: what ŷ is called; given, ŷ is the simulation whatever the poles (the closed-loop
+    model of a plant in its own loop, :mod:`fmu_fdi.identify.closed_loop`, may hold a marginal
+    integrator that a record of finite length simulates without harm)."""
     A, B, C, D = model.A, model.B, model.C, model.D
     u = np.asarray(u, float).reshape(len(u), -1)
     y = np.asarray(y, float).reshape(len(y), -1)
     N, n = len(u), A.shape[0]
     poles = np.linalg.eigvals(A)
-    if np.all(np.abs(poles) < 1.0):
-        y0 = model.simulate(u)
-        # free response rows C A^k, stacked: least-squares initial state
-        O = np.empty((N * C.shape[0], n))
-        M = C.copy()
-        for k in range(N):
-            O[k * C.shape[0]:(k + 1) * C.shape[0]] = M
-            M = M @ A
-        x0 = np.linalg.lstsq(O, (y - y0).ravel(), rcond=None)[0]
-        y_hat = model.simulate(u, x0)
-        kind = "simulation"
+    if kind is not None or np.all(np.abs(poles) < 1.0):
+        y_hat = simulated(model, u, y)
+        kind = kind or "simulation"
     else:
         P = sla.solve_discrete_are(A.T, C.T, np.eye(n), np.eye(C.shape[0]))
         K = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + np.eye(C.shape[0]))
