@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
+from ..compression import RowCompression, staircase_zeros
 from ..errors import DesignError
 from ..linalg import EPS, ordered_schur
 from ..lti import LTI
@@ -90,13 +91,13 @@ def controllable_staircase(a: np.ndarray, b: np.ndarray, tol: float):
     start = 0
     blk = b.copy()
     while start < n and blk.size:
-        U, s, _ = sla.svd(blk, full_matrices=True)
-        tau = _rank(s, tol)
+        cmp = RowCompression(blk)
+        tau = _rank(cmp.s, tol)
         if tau == 0:
             break
         # rotate the remaining coordinates so that the first tau rows carry the block
-        # (Z = diag(I, U): only the trailing rows/columns change, O(n²·(n - start)))
-        _rotate(U, slice(start, n), a, rows=(), cols=(T,))
+        # (Z = diag(I, U): only the trailing rows/columns change, O(n²·|blk|) by reflections)
+        cmp.rotate(start, a, rows=(), cols=(T,))
         taus.append(tau)
         blk = a[start + tau:, start:start + tau]
         start += tau
@@ -411,10 +412,10 @@ def row_cover(a, b, c, d, i: int, tol: float):
             part = (bb if which == "b" else a)[r0:, cols]
             rho = 0
             if part.size:
-                U, s, _ = sla.svd(part, full_matrices=True)
-                rho = _rank(s, tol)
+                cmp = RowCompression(part)
+                rho = _rank(cmp.s, tol)
                 if rho:  # rotate rows/cols ≥ r0 only: the source columns (< r0 for a) are not touched
-                    _rotate(U, slice(r0, n), a, rows=(bb,), cols=(c,))
+                    cmp.rotate(r0, a, rows=(bb,), cols=(c,))
             step.append((r0, rho, is_b1))
             r0 += rho
         if step[0][1] + step[1][1] == 0:
@@ -475,6 +476,7 @@ def simple_rows(pb: PencilBasis, dt: float) -> list[tuple[LTI, int, float]]:
     choose, good = pb.placement
     T, V, idx = chain_ordered(a, b, pb.rank_tol)
     a, b, c, d = T.T @ a @ T, T.T @ b @ V, c @ T, d @ V
+    staircase_zeros(a, b, [sum(v > j for v in idx) for j in range(max(idx, default=0))])  # block sizes from the indices
     out = []
     idx_arr = np.asarray(idx)
     rng = np.random.default_rng(0)
