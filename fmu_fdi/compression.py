@@ -10,8 +10,9 @@ step, O(n⁴) for a staircase of n/c steps. Here
     U = Q diag(U_r, I),
 
 the same compression (the singular values of R are those of P; the first ρ columns of U are P's
-left singular vectors, the rest an orthonormal completion) applied by ``dormqr`` in O(n m c) a
-step, O(n³) for the staircase — the cost of a Hessenberg reduction.
+left singular vectors, the rest an orthonormal completion) applied in O(n m c) a
+step (the reflectors in compact WY form, matrix products), O(n³) for the staircase — the cost of a
+Hessenberg reduction.
 
 Rows of P past its last nonzero row are left out of the rotation (``U = U_w ⊕ I``): a staircase on
 a pair already in block Hessenberg form (the chain-ordered pair of a Type 1 cover) then rotates
@@ -37,7 +38,7 @@ class RowCompression:
     def __init__(self, part: np.ndarray):
         m, c = part.shape
         self.m = m
-        self.U = self.qr = self.tau = self.Ur = None
+        self.U = self.qr = self.tau = self.Ur = self._V = self._T = None
         if m <= DENSE_ROWS:
             self.U, self.s, _ = sla.svd(part, full_matrices=True)
             self.width = m
@@ -56,12 +57,28 @@ class RowCompression:
             self.qr, self.tau = qr, tau
             self.Ur, self.s, _ = sla.svd(np.triu(qr[:c, :c]))
 
+    def _wy(self):
+        """``Q = I - V T Vᵀ`` (compact WY form of the reflectors; Schreiber & Van Loan 1989, LAPACK dlarft):
+        V unit lower trapezoidal from dgeqrf, T upper triangular by the forward recurrence."""
+        if self._V is None:
+            qr, tau = self.qr, self.tau
+            c = tau.size
+            V = np.tril(qr[:, :c], -1)
+            V[np.arange(c), np.arange(c)] = 1.0
+            T = np.zeros((c, c))
+            for i in range(c):
+                T[:i, i] = -tau[i] * (T[:i, :i] @ (V[:, :i].T @ V[:, i]))
+                T[i, i] = tau[i]
+            self._V, self._T = V, T
+        return self._V, self._T
+
     def _left_T(self, X: np.ndarray) -> np.ndarray:
         """``Uᵀ X`` for X with ``width`` rows."""
         if self.U is not None:
             return self.U.T @ X
+        V, T = self._wy()
+        Y = X - V @ (T.T @ (V.T @ X))
         c = self.Ur.shape[0]
-        Y = self._ormqr("L", "T", X)
         Y[:c] = self.Ur.T @ Y[:c]
         return Y
 
@@ -69,18 +86,10 @@ class RowCompression:
         """``X U`` for X with ``width`` columns."""
         if self.U is not None:
             return X @ self.U
+        V, T = self._wy()
+        Y = X - ((X @ V) @ T) @ V.T
         c = self.Ur.shape[0]
-        Y = self._ormqr("R", "N", X)
         Y[:, :c] = Y[:, :c] @ self.Ur
-        return Y
-
-    def _ormqr(self, side: str, trans: str, X: np.ndarray) -> np.ndarray:
-        ormqr, = sla.get_lapack_funcs(("ormqr",), (self.qr,))
-        X = np.array(X, float, order="F")
-        work = ormqr(side, trans, self.qr, self.tau, X, -1)[1]
-        Y, _, info = ormqr(side, trans, self.qr, self.tau, X, max(1, int(work[0].real)), overwrite_c=1)
-        if info != 0:  # pragma: no cover - ormqr fails only on invalid arguments
-            raise np.linalg.LinAlgError(f"applying the Householder reflections failed (LAPACK dormqr info = {info})")
         return Y
 
     def rotate(self, start: int, a: np.ndarray, rows=(), cols=()) -> None:

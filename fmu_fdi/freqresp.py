@@ -16,7 +16,8 @@ The design and its judge evaluate the same plant on several grids, stage after s
 post-conditions' internal form ``R = Q·Ge`` before and after the normalisation, the report);
 the factorisation is therefore kept for the next call on the same matrix, found by the content
 of A (a BLAKE2 digest of its bytes, shape and type), as are the eigenvalues
-(:func:`eigenvalues`): a plant of order 1000 is factorised once, not once per stage.
+(:func:`eigenvalues`) and the values on a grid met again: a plant of order 1000 is factorised
+once, not once per stage.
 """
 from __future__ import annotations
 
@@ -30,17 +31,21 @@ import scipy.linalg as sla
 SCHUR_CACHE_SIZE = 4
 #: eigenvalue sets kept
 EIG_CACHE_SIZE = 32
+#: value sets kept (a plant on the judge's grid is read before and after the normalisation, and by the report)
+VALUE_CACHE_SIZE = 8
 
 _schur_cache: "OrderedDict[bytes, tuple[np.ndarray, np.ndarray]]" = OrderedDict()
 _eig_cache: "OrderedDict[bytes, np.ndarray]" = OrderedDict()
+_value_cache: "OrderedDict[bytes, np.ndarray]" = OrderedDict()
 
 
-def content_key(A: np.ndarray) -> bytes:
-    """A digest of the array's shape, type and bytes (equal content, equal key)."""
-    A = np.ascontiguousarray(A)
+def content_key(*arrays: np.ndarray) -> bytes:
+    """A digest of the arrays' shapes, types and bytes (equal content, equal key)."""
     h = hashlib.blake2b(digest_size=20)
-    h.update(repr((A.shape, A.dtype.str)).encode())
-    h.update(A.data)
+    for A in arrays:
+        A = np.ascontiguousarray(A)
+        h.update(repr((A.shape, A.dtype.str)).encode())
+        h.update(A.data)
     return h.digest()
 
 
@@ -92,6 +97,11 @@ def transfer_values(A, B, C, D, lams) -> np.ndarray:
     out[:] = D
     if n == 0 or lams.size == 0 or p == 0 or m == 0:
         return out
+    key = content_key(A, B, C, D, lams)
+    hit = _value_cache.get(key)
+    if hit is not None:
+        _value_cache.move_to_end(key)
+        return hit.copy()
     T, Z = complex_schur(A)
     Bh, Ch = Z.conj().T @ B, C @ Z
     left = p < m  # solve on the smaller side: rows of C Z (λI - T)^{-1}
@@ -107,4 +117,5 @@ def transfer_values(A, B, C, D, lams) -> np.ndarray:
             out[k] = np.nan
             continue
         out[k] += X.T @ Bh if left else Ch @ X
+    _remember(_value_cache, key, out.copy(), VALUE_CACHE_SIZE)
     return out

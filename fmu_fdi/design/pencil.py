@@ -427,28 +427,34 @@ def row_cover(a, b, c, d, i: int, tol: float):
     even = [blk for blk in blocks if not blk[2]]
     idx = lambda blks: np.concatenate([np.arange(s0, s0 + sz) for s0, sz, _ in blks]) if blks else np.zeros(0, int)  # noqa: E731
     x1 = idx(odd)
+    # the coordinates permuted to [x1 (odd blocks) | even blocks | the rest]: every block, and the odd blocks
+    # from any l on, is a contiguous slice (views, no gathered copies in the elimination below)
+    perm = np.concatenate([x1, idx(even), np.arange(r0, n)])
+    a, c, bb = a[np.ix_(perm, perm)], c[:, perm], bb[perm, :]
+    n1 = x1.size
+    e0 = np.cumsum([n1] + [sz for _, sz, _ in even])  # even block l at e0[l]:e0[l + 1]
+    o0 = np.cumsum([0] + [sz for _, sz, _ in odd])  # odd blocks l, l+1, ... at o0[l]:n1
     cond = 1.0
     # eliminate the rows of even block l+1 in the x1 columns of the odd blocks from l+1 on, with even block l
     for l in range(len(even) - 1, 0, -1):
-        (r2, n2, _), (c2, m2, _) = even[l], even[l - 1]
-        if n2 == 0:
+        if even[l][1] == 0:
             continue
-        ic1 = idx([blk for blk in odd[l:]])
-        ir2, ic2 = np.arange(r2, r2 + n2), np.arange(c2, c2 + m2)
-        X = -np.linalg.lstsq(a[np.ix_(ir2, ic2)], a[np.ix_(ir2, ic1)], rcond=None)[0]
+        ic1 = slice(o0[min(l, len(odd))], n1)
+        ir2, ic2 = slice(e0[l], e0[l + 1]), slice(e0[l - 1], e0[l])
+        X = -np.linalg.lstsq(a[ir2, ic2], a[ir2, ic1], rcond=None)[0]
         cond = max(cond, float(np.linalg.norm(X, 2)) if X.size else 0.0)
         a[:, ic1] += a[:, ic2] @ X   # a T with T = I + E (E: X at rows ic2, columns ic1)
         c[:, ic1] += c[:, ic2] @ X
         a[ic2, :] -= X @ a[ic1, :]   # T⁻¹ = I - E
         bb[ic2, :] -= X @ bb[ic1, :]
-    f2 = np.zeros((k - 1, x1.size))
-    if even and even[0][1] and x1.size:
-        ir = np.arange(even[0][0], even[0][0] + even[0][1])
-        f2 = -np.linalg.lstsq(bb[np.ix_(ir, np.arange(1, k))], a[np.ix_(ir, x1)], rcond=None)[0]
+    f2 = np.zeros((k - 1, n1))
+    if even and even[0][1] and n1:
+        ir = slice(e0[0], e0[1])
+        f2 = -np.linalg.lstsq(bb[ir, 1:], a[ir, :n1], rcond=None)[0]
         cond = max(cond, float(np.linalg.norm(f2, 2)))
-    a1 = a[np.ix_(x1, x1)] + bb[np.ix_(x1, np.arange(1, k))] @ f2
-    c1 = c[:, x1] + dd[:, 1:] @ f2
-    return a1, bb[x1, :1], c1, dd[:, :1], cond
+    a1 = a[:n1, :n1] + bb[:n1, 1:] @ f2
+    c1 = c[:, :n1] + dd[:, 1:] @ f2
+    return a1, bb[:n1, :1], c1, dd[:, :1], cond
 
 
 #: a cover whose non-orthogonal transformations exceed this norm is retried with another input direction of
