@@ -331,6 +331,7 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
     nc = sum(taus)
     T1 = T[:, :nc]
     ac, bc, Fc, Pc = T1.T @ af @ T1, T1.T @ bf, F @ T1, P @ T1
+    staircase_zeros(ac, bc, taus)  # exact zeros below the staircase: chain_ordered's staircase on it is O(n² k)
     degrees = conjugate_partition(taus, k)
     choose = _targets(model, poles, sdeg)
     margin = default_smarg(model.dt) if smarg is None else float(smarg)
