@@ -41,6 +41,7 @@ import scipy.linalg as sla
 
 from ..compression import RowCompression, staircase_zeros
 from ..errors import DesignError
+from ..freqresp import eigenvalues
 from ..linalg import EPS, ordered_schur
 from ..lti import LTI
 from ..model import FDIModel
@@ -217,7 +218,7 @@ def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good) -> tuple
     F = np.zeros((b.shape[1], n))
     if n == 0:
         return F, 0
-    eig = np.linalg.eigvals(a)
+    eig = eigenvalues(a)  # kept for the basis Nl, whose A is aᵀ when no pole moves (freqresp)
     bad = eig[~np.array([good(z.real, z.imag) for z in eig])]
     if bad.size == 0:
         return F, 0
