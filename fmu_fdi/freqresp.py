@@ -1,16 +1,17 @@
 """Frequency responses of large realisations: one Schur form of A, reused across points and stages.
 
 A transfer matrix ``G(λ) = C (λI - A)^{-1} B + D`` at K points costs K dense O(n³) solves when
-each point is solved on its own. With the complex Schur form ``A = Z T Zᴴ`` (T upper triangular,
-Z unitary: the real Schur form and ``rsf2csf``; Golub & Van Loan, *Matrix Computations*, 4th ed.,
-sec. 7.5) every point is one triangular solve
+each point is solved on its own. With the real Schur form ``A = Z T Zᵀ`` (T upper quasi-triangular,
+Z orthogonal; Golub & Van Loan, *Matrix Computations*, 4th ed., sec. 7.5) every point is one
+quasi-triangular solve
 
-    G(λ) = (C Z) (λI - T)^{-1} (Zᴴ B) + D,
+    G(λ) = (C Z) (λI - T)^{-1} (Zᵀ B) + D,
 
 O(n² min(p, m)), and between two points only the diagonal of ``λI - T`` changes — Laub's method
-(IEEE TAC 26, 1981) with the Schur form in place of the Hessenberg form, so that the solve is one
-LAPACK ``ztrtrs`` call instead of an elimination loop. The solve runs on the smaller side:
-``(λI - T)ᵀ Yᵀ = (C Z)ᵀ`` when there are fewer outputs than inputs.
+(IEEE TAC 26, 1981) with the Schur form in place of the Hessenberg form, so that all the points are
+solved together by one block back substitution whose work is real matrix products
+(:func:`shifted_triangular_solve`). The solve runs on the smaller side: ``(λI - T)ᵀ Yᵀ = (C Z)ᵀ``
+when there are fewer outputs than inputs.
 
 The design and its judge evaluate the same plant on several grids, stage after stage (the
 post-conditions' internal form ``R = Q·Ge`` before and after the normalisation, the report);
@@ -76,16 +77,15 @@ def eigenvalues(A: np.ndarray) -> np.ndarray:
     return hit.copy()
 
 
-def complex_schur(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(T, Z)`` with ``A = Z T Zᴴ``, T complex upper triangular, Z unitary; kept per content of A
-    (read-only arrays: the cached form is shared)."""
+def schur_form(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(T, Z)`` with ``A = Z T Zᵀ``, T real upper quasi-triangular (1×1 and 2×2 diagonal blocks, LAPACK
+    dgees), Z orthogonal; kept per content of A (read-only arrays: the cached form is shared)."""
     key = content_key(A)
     hit = _schur_cache.get(key)
     if hit is not None:
         _schur_cache.move_to_end(key)
         return hit
     T, Z = sla.schur(np.asarray(A, float), output="real")
-    T, Z = sla.rsf2csf(T, Z)
     T.setflags(write=False)
     Z.setflags(write=False)
     return _remember(_schur_cache, key, (T, Z), SCHUR_CACHE_SIZE)
@@ -95,7 +95,7 @@ def transfer_values(A, B, C, D, lams) -> np.ndarray:
     """``C (λI - A)^{-1} B + D`` at the complex points ``lams``: shape (K, p, m), NaN at a point
     where ``λI - A`` is exactly singular (λ equals an eigenvalue of the Schur form).
 
-    Backward stable (unitary reduction, then a triangular solve), as a dense LU solve per point is;
+    Backward stable (orthogonal reduction, then a triangular solve), as a dense LU solve per point is;
     the values near a pole are as ill-conditioned as the point is close to it, either way.
     """
     A, B, C, D = (np.asarray(X, float) for X in (A, B, C, D))
@@ -152,17 +152,16 @@ def _strictly_proper(A, B, C, lams) -> np.ndarray:
     out = np.zeros((lams.size, p, m), complex)
     if n == 0 or p == 0 or m == 0:
         return out
-    T, Z = complex_schur(A)
-    Bh, Ch = Z.conj().T @ B, C @ Z
-    if p < m:  # the smaller side: (λI - T)ᵀ Yᵀ = (C Z)ᵀ, upper triangular after reversing the order
-        U, R = T.T[::-1, ::-1], Ch.T[::-1]
+    T, Z = schur_form(A)
+    Bh, Ch = Z.T @ B, C @ Z
+    if p < m:  # the smaller side: (λI - T)ᵀ Yᵀ = (C Z)ᵀ, upper quasi-triangular after reversing the order
+        U, R = np.ascontiguousarray(T.T[::-1, ::-1]), Ch.T[::-1]
     else:
         U, R = T, Bh
     r = R.shape[1]
     step = max(1, 512 // r)  # points per pass: the right-hand sides of all of them form one block
     for k0 in range(0, lams.size, step):
-        lam = lams[k0:k0 + step]
-        X = shifted_triangular_solve(U, lam, R)  # (n, points, r)
+        X = shifted_triangular_solve(U, lams[k0:k0 + step], R)  # (n, points, r)
         if p < m:
             out[k0:k0 + step] = np.einsum("nkp,nm->kpm", X[::-1], Bh)
         else:
@@ -175,28 +174,50 @@ SOLVE_BLOCK = 64
 
 
 def shifted_triangular_solve(U: np.ndarray, lams: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """``X[:, k, :] = (λ_k I - U)^{-1} R`` for an upper triangular U and all the points at once:
-    shape (n, K, r); NaN for a point where ``λ_k`` equals a diagonal entry of U.
+    """``X[:, k, :] = (λ_k I - U)^{-1} R`` for a real upper quasi-triangular U (a real Schur form) and
+    complex points, all at once: shape (n, K, r); NaN for a point where ``λ_k I - U`` is singular.
 
-    Block back substitution (Golub & Van Loan, sec. 3.1): within a diagonal block of
-    :data:`SOLVE_BLOCK` rows, row by row for every point together; above it, one matrix product
-    with the block's solution for every point and right-hand side — the O(n² K r) work is a
-    matrix product instead of K triangular solves of r columns each.
+    Block back substitution (Golub & Van Loan, sec. 3.1): within a diagonal block of about
+    :data:`SOLVE_BLOCK` rows, row by row (a 2×2 diagonal block of U by Cramer's rule) for every point
+    together; above it, one matrix product with the block's solution. U is real, so every update is
+    a real matrix product on the real and imaginary parts side by side (half the work of complex
+    arithmetic), and the O(n² K r) work runs as a matrix product instead of K triangular solves.
     """
     n, K, r = U.shape[0], lams.size, R.shape[1]
     X = np.empty((n, K * r), complex)
-    X[:] = np.tile(R, (1, K))  # column k·r + i: point k, right-hand side i
-    pivots = lams[None, :] - U.diagonal()[:, None]  # (n, K): λ_k - u_jj
-    singular = np.any(pivots == 0, axis=0)
-    piv = np.repeat(np.where(pivots == 0, 1.0, pivots), r, axis=1)
-    for hi in range(n, 0, -SOLVE_BLOCK):
+    X[:] = np.tile(np.asarray(R, float), (1, K))  # column k·r + i: point k, right-hand side i
+    Xv = X.view(float)  # (n, 2 K r): real and imaginary parts interleaved; a real row operation acts on both
+    lam = np.repeat(np.asarray(lams, complex), r)
+    sub = np.zeros(n)
+    sub[1:] = np.diagonal(U, -1)
+    zero = np.zeros(K * r, bool)
+
+    def pivot(d):
+        zero[:] |= d == 0
+        return np.where(d == 0, 1.0, d)
+
+    hi = n
+    while hi > 0:
         lo = max(0, hi - SOLVE_BLOCK)
-        for j in range(hi - 1, lo - 1, -1):  # (λ - u_jj) x_j = r_j + Σ_{l > j} u_jl x_l
-            if j + 1 < hi:
-                X[j] += U[j, j + 1:hi] @ X[j + 1:hi]
-            X[j] /= piv[j]
+        if lo > 0 and sub[lo] != 0:
+            lo -= 1  # do not split a 2×2 block
+        j = hi - 1
+        while j >= lo:
+            i = j - 1 if j > lo and sub[j] != 0 else j  # rows i..j: a 1×1 or 2×2 diagonal block
+            if j + 1 < hi:  # (λI - U_jj) x_j = r_j + Σ_{l > j} u_jl x_l
+                Xv[i:j + 1] += U[i:j + 1, j + 1:hi] @ Xv[j + 1:hi]
+            if i == j:
+                X[j] /= pivot(lam - U[j, j])
+            else:
+                a11, a22, a12, a21 = lam - U[i, i], lam - U[j, j], -U[i, j], -U[j, i]
+                det = pivot(a11 * a22 - a12 * a21)
+                r1, r2 = X[i].copy(), X[j].copy()
+                X[i] = (a22 * r1 - a12 * r2) / det
+                X[j] = (a11 * r2 - a21 * r1) / det
+            j = i - 1
         if lo:
-            X[:lo] += U[:lo, lo:hi] @ X[lo:hi]
+            Xv[:lo] += U[:lo, lo:hi] @ Xv[lo:hi]
+        hi = lo
     X = X.reshape(n, K, r)
-    X[:, singular, :] = np.nan
+    X[:, np.any(zero.reshape(K, r), axis=1), :] = np.nan
     return X
