@@ -484,7 +484,8 @@ def simple_rows(pb: PencilBasis, dt: float) -> list[tuple[LTI, int, float]]:
     choose, good = pb.placement
     T, V, idx = chain_ordered(a, b, pb.rank_tol)
     a, b, c, d = T.T @ a @ T, T.T @ b @ V, c @ T, d @ V
-    staircase_zeros(a, b, [sum(v > j for v in idx) for j in range(max(idx, default=0))])  # block sizes from the indices
+    # exact zeros below the staircase (block sizes from the indices): the covers' staircases rotate only what they reach
+    staircase_zeros(a, b, [sum(v > j for v in idx) for j in range(max(idx, default=0))])
     out = []
     idx_arr = np.asarray(idx)
     rng = np.random.default_rng(0)
