@@ -112,6 +112,9 @@ def transfer_values(A, B, C, D, lams) -> np.ndarray:
     out[:] = D
     if n == 0 or lams.size == 0 or p == 0 or m == 0:
         return out
+    if not all(np.all(np.isfinite(X)) for X in (A, B, C, D)):  # as a dense solve would: NaN, no error
+        out[:] = np.nan
+        return out
     key = content_key(A, B, C, D, lams)
     hit = _value_cache.get(key)
     if hit is not None:

@@ -69,6 +69,13 @@ def test_complex_pole_pairs_and_exact_poles(schur_everywhere):
     assert np.isnan(v[0]) and abs(v[1]) < 1e-15  # 1/(λ+1) + 1/(λ+2) = 0 at λ = -1.5
 
 
+def test_non_finite_data_gives_nan_values(schur_everywhere):
+    A = stable(np.random.default_rng(2), 70)
+    A[3, 5] = np.nan
+    v = transfer_values(A, np.ones((70, 2)), np.ones((1, 70)), np.zeros((1, 2)), [1j, 2j])
+    assert v.shape == (2, 1, 2) and np.all(np.isnan(v))
+
+
 def test_block_diagonal_is_solved_by_blocks():
     """Stacked rows (a block-diagonal A of order ≥ 2·BLOCK_MIN) give the values of the whole."""
     rng = np.random.default_rng(3)
