@@ -118,3 +118,18 @@ def staircase_zeros(a: np.ndarray, b: np.ndarray, taus: list[int]) -> None:
         b[starts[1]:, :] = 0.0
     for j in range(len(taus)):
         a[starts[min(j + 2, len(taus))]:, starts[j]:starts[j + 1]] = 0.0
+
+
+def nonzero_spans(M: np.ndarray, *cuts: int) -> list[slice]:
+    """The rows of M split at ``cuts`` into contiguous ranges, each trimmed to its first and last row with a
+    nonzero entry (empty ranges dropped): an update ``X[rows] += M[rows] Y`` over these slices changes
+    what it would over all rows (the zero rows add exact zeros) and costs their size only — the
+    elimination of a Type 1 cover works on a block Hessenberg pair whose blocks reach a few rows."""
+    nz = np.any(M != 0, axis=1)
+    edges = sorted({0, M.shape[0], *[min(max(c, 0), M.shape[0]) for c in cuts]})
+    out = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        idx = np.flatnonzero(nz[lo:hi])
+        if idx.size:
+            out.append(slice(lo + int(idx[0]), lo + int(idx[-1]) + 1))
+    return out

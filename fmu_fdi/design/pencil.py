@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from ..compression import RowCompression, staircase_zeros
+from ..compression import RowCompression, nonzero_spans, staircase_zeros
 from ..errors import DesignError
 from ..freqresp import eigenvalues
 from ..linalg import EPS, ordered_schur
@@ -445,9 +445,11 @@ def row_cover(a, b, c, d, i: int, tol: float):
         ir2, ic2 = slice(e0[l], e0[l + 1]), slice(e0[l - 1], e0[l])
         X = -np.linalg.lstsq(a[ir2, ic2], a[ir2, ic1], rcond=None)[0]
         cond = max(cond, float(np.linalg.norm(X, 2)) if X.size else 0.0)
-        a[:, ic1] += a[:, ic2] @ X   # a T with T = I + E (E: X at rows ic2, columns ic1)
+        for rs in nonzero_spans(a[:, ic2], 0, n1):  # (the rows/columns that are exactly zero add nothing)
+            a[rs, ic1] += a[rs, ic2] @ X   # a T with T = I + E (E: X at rows ic2, columns ic1)
         c[:, ic1] += c[:, ic2] @ X
-        a[ic2, :] -= X @ a[ic1, :]   # T⁻¹ = I - E
+        for cs in nonzero_spans(a[ic1, :].T, 0, n1):
+            a[ic2, cs] -= X @ a[ic1, cs]   # T⁻¹ = I - E
         bb[ic2, :] -= X @ bb[ic1, :]
     f2 = np.zeros((k - 1, n1))
     if even and even[0][1] and n1:
