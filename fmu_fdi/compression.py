@@ -72,39 +72,40 @@ class RowCompression:
             self._V, self._T = V, T
         return self._V, self._T
 
-    def _left_T(self, X: np.ndarray) -> np.ndarray:
-        """``Uᵀ X`` for X with ``width`` rows."""
+    def _left_T(self, X: np.ndarray) -> None:
+        """``X ← Uᵀ X`` in place (X a view of ``width`` rows: no copy of the rows it spans)."""
         if self.U is not None:
-            return self.U.T @ X
+            X[...] = self.U.T @ X
+            return
         V, T = self._wy()
-        Y = X - V @ (T.T @ (V.T @ X))
+        X -= V @ (T.T @ (V.T @ X))
         c = self.Ur.shape[0]
-        Y[:c] = self.Ur.T @ Y[:c]
-        return Y
+        X[:c] = self.Ur.T @ X[:c]
 
-    def _right(self, X: np.ndarray) -> np.ndarray:
-        """``X U`` for X with ``width`` columns."""
+    def _right(self, X: np.ndarray) -> None:
+        """``X ← X U`` in place (X a view of ``width`` columns)."""
         if self.U is not None:
-            return X @ self.U
+            X[...] = X @ self.U
+            return
         V, T = self._wy()
-        Y = X - ((X @ V) @ T) @ V.T
+        X -= ((X @ V) @ T) @ V.T
         c = self.Ur.shape[0]
-        Y[:, :c] = Y[:, :c] @ self.Ur
-        return Y
+        X[:, :c] = X[:, :c] @ self.Ur
 
     def rotate(self, start: int, a: np.ndarray, rows=(), cols=()) -> None:
         """In place, with Z the identity whose block at ``start`` is U (the block P sat at rows
         ``start:start + m`` of the system): ``a ← Zᵀ a Z``, each of ``rows`` ``← Zᵀ X``, each of
-        ``cols`` ``← X Z``. Only the ``width`` rows/columns U acts on change."""
+        ``cols`` ``← X Z``. Only the ``width`` rows/columns U acts on change (updated through views:
+        a staircase on a large pair is bound by memory traffic, not by arithmetic)."""
         if self.width == 0:
             return
         sl = slice(start, start + self.width)
-        a[sl, :] = self._left_T(a[sl, :])
-        a[:, sl] = self._right(a[:, sl])
+        self._left_T(a[sl, :])
+        self._right(a[:, sl])
         for X in rows:
-            X[sl, :] = self._left_T(X[sl, :])
+            self._left_T(X[sl, :])
         for X in cols:
-            X[:, sl] = self._right(X[:, sl])
+            self._right(X[:, sl])
 
 
 def staircase_zeros(a: np.ndarray, b: np.ndarray, taus: list[int]) -> None:
