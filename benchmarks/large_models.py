@@ -14,6 +14,13 @@ binary ``.npz`` sidecar above ``fmu_fdi.sidecar.SIDECAR_MIN_ENTRIES`` numbers), 
 JSON and all-text TOML (the last two are the old formats, for comparison; the all-text TOML
 is skipped above n = 500, where it takes tens of seconds in Python's TOML parser).
 
+Under ``nullspace design`` the indented lines are its parts, timed inside that one run: the pencil
+basis (output-nulling deflation and controllability staircase, ``pencil.pencil_basis``), the simple
+rows (chain order and Type 1 covers, ``pencil.simple_rows``), the rows' fault gains on the design
+grid (``nullspace._pencil_gains``) and the judge (``postconditions.check_generator``). The kept
+Schur forms, spectra and values of :mod:`fmu_fdi.freqresp` are forgotten before every stage, so each
+stage costs what it costs in a process of its own (as the CLI runs ``analyze`` and ``design``).
+
 BLAS runs single-threaded unless OPENBLAS_NUM_THREADS is set: on a loaded machine the
 threaded BLAS was 100-300x slower for these sizes (eigvals of 100 x 100: 2.7 ms with one
 thread, 741 ms with two threads on 2 busy cores), which would hide the scaling.
@@ -28,6 +35,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import sys  # noqa: E402
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np  # noqa: E402
@@ -50,6 +58,44 @@ def timed(fn, *args, **kw):
     return out, time.perf_counter() - t0
 
 
+def fresh() -> None:
+    """Forget the factorisations kept across calls (each stage timed as in a process of its own)."""
+    try:
+        from fmu_fdi.freqresp import clear_caches
+    except ImportError:  # the code before fmu_fdi.freqresp (the 'before' figures)
+        return
+    clear_caches()
+
+
+@contextmanager
+def parts():
+    """Time the parts of nullspace_design inside one run: ``{part: seconds}`` (module attributes wrapped)."""
+    import fmu_fdi.design.nullspace as ns
+    import fmu_fdi.design.pencil as pe
+
+    spent: dict = {}
+    targets = [(pe, "pencil_basis", "pencil basis (staircase)"), (pe, "simple_rows", "simple rows (covers)"),
+               (ns, "_pencil_gains", "row gains (design grid)"), (ns, "check_generator", "judge (post-conditions)")]
+    saved = [(mod, name, getattr(mod, name)) for mod, name, _ in targets]
+
+    def wrap(fn, label):
+        def inner(*args, **kw):
+            t0 = time.perf_counter()
+            try:
+                return fn(*args, **kw)
+            finally:
+                spent[label] = spent.get(label, 0.0) + time.perf_counter() - t0
+        return inner
+
+    for (mod, name, fn), (_, _, label) in zip(saved, targets):
+        setattr(mod, name, wrap(fn, label))
+    try:
+        yield spent
+    finally:
+        for mod, name, fn in saved:
+            setattr(mod, name, fn)
+
+
 def measure(n: int) -> dict:
     from fmu_fdi import Diagnoser, FDIModel
     from fmu_fdi.analysis import detectability, isolability
@@ -66,9 +112,15 @@ def measure(n: int) -> dict:
         if n <= 500:
             _, out["load model (TOML text)"] = timed(FDIModel.from_file,
                                                      m.to_file(Path(tmp) / "t.toml", sidecar=False))
+        fresh()
         _, out["detectability"] = timed(detectability, m)
+        fresh()
         _, out["isolability"] = timed(isolability, m)
-        gen, out["nullspace design"] = timed(nullspace_design, m)
+        fresh()
+        with parts() as part:
+            gen, out["nullspace design"] = timed(nullspace_design, m)
+        out.update({f"  {k}": t for k, t in part.items()})
+        fresh()
         gen, out["discretise (Ts = 0.1)"] = timed(gen.to_discrete, 0.1)
         dg, out["diagnoser (validate)"] = timed(Diagnoser, gen, thresholds=1.0)
         _, out["save design file"] = timed(dg.save, Path(tmp) / "d.json")
@@ -86,10 +138,15 @@ def main(sizes):
         print(f"n = {n}: one eigvals(A) = {base * 1e3:.3g} ms")
         for stage, t in res.items():
             if stage != "eigvals (unit)":
-                print(f"  {stage:<24} {t:9.3f} s   {t / base:9.1f} x eigvals"
-                      + ("   (comparison, not in the total)" if "text" in stage else ""))
-        total = sum(t for k, t in res.items() if k != "eigvals (unit)" and "text" not in k)
-        print(f"  {'total':<24} {total:9.3f} s   {total / base:9.1f} x eigvals", flush=True)
+                print(f"  {stage:<28} {t:9.3f} s   {t / base:9.1f} x eigvals"
+                      + ("   (comparison, not in the total)" if "text" in stage else "")
+                      + ("   (part of the design)" if stage.startswith(" ") else ""))
+        total = sum(t for k, t in res.items() if k != "eigvals (unit)" and "text" not in k and not k.startswith(" "))
+        analyze = res["load model (sidecar)"] + res["detectability"] + res["isolability"]
+        design = res["load model (sidecar)"] + res["nullspace design"]
+        print(f"  {'total':<28} {total:9.3f} s   {total / base:9.1f} x eigvals")
+        both = analyze + design
+        print(f"  {'analyze + design (CLI)':<28} {both:9.3f} s   {both / base:9.1f} x eigvals", flush=True)
 
 
 if __name__ == "__main__":

@@ -14,8 +14,8 @@ from __future__ import annotations
 #: (name, what it holds, modules), lowest layer first
 LAYERS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("numerics", "numbers, files, and the numpy-only per-sample runtime",
-     ("errors", "linalg", "lti", "margin", "progress", "outpath", "_schema", "sidecar", "inputfiles", "runtime",
-      "_layers")),
+     ("errors", "linalg", "compression", "freqresp", "lti", "margin", "progress", "outpath", "_schema", "sidecar",
+      "inputfiles", "runtime", "_layers")),
     ("model", "the FDI model: data and its own algebra; model sets",
      ("faults", "model", "modelset")),
     ("generator", "the residual generator Q and its internal form R = Q Ge",

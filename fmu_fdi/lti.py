@@ -15,6 +15,7 @@ from typing import Iterable, Sequence
 import numpy as np
 import scipy.linalg as sla
 
+from .freqresp import eigenvalues
 from .linalg import EPS, is_finite, shifted_hessenberg_solve
 
 
@@ -205,7 +206,7 @@ class LTI:
         return self.freqresp([0.0])[0].real
 
     def poles(self) -> np.ndarray:
-        return np.linalg.eigvals(self.A) if self.n else np.zeros(0, complex)
+        return eigenvalues(self.A) if self.n else np.zeros(0, complex)  # once per content of A (freqresp)
 
     def is_stable(self, margin: float = 0.0) -> bool:
         """All poles in Re < -margin (continuous) or |z| < 1 - margin (discrete)."""

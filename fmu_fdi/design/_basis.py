@@ -30,6 +30,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import DesignError
+from ..freqresp import eigenvalues
 from ..linalg import complement_rows, left_null, rank
 from ..lti import LTI
 from ..model import FDIModel
@@ -329,7 +330,7 @@ def plant_pole_pool(A: np.ndarray, dt: float) -> list[complex]:
     would make a near-integrator filter whose huge low-frequency gain lifts the rounding of
     the decoupling above ``dec_tol`` of a weak fault's gain (leak 2e-5 at -3.1e-5, 1.3e-8 at -0.05).
     """
-    eig = np.linalg.eigvals(A) if A.size else np.zeros(0, complex)
+    eig = eigenvalues(A) if A.size else np.zeros(0, complex)  # the plant's: computed once (freqresp)
     scale = max(1.0, float(np.max(np.abs(eig), initial=0.0)))
     out = []
     for lam in eig:

@@ -39,7 +39,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
+from ..compression import RowCompression, nonzero_spans, staircase_zeros
 from ..errors import DesignError
+from ..freqresp import eigenvalues
 from ..linalg import EPS, ordered_schur
 from ..lti import LTI
 from ..model import FDIModel
@@ -90,13 +92,13 @@ def controllable_staircase(a: np.ndarray, b: np.ndarray, tol: float):
     start = 0
     blk = b.copy()
     while start < n and blk.size:
-        U, s, _ = sla.svd(blk, full_matrices=True)
-        tau = _rank(s, tol)
+        cmp = RowCompression(blk)
+        tau = _rank(cmp.s, tol)
         if tau == 0:
             break
         # rotate the remaining coordinates so that the first tau rows carry the block
-        # (Z = diag(I, U): only the trailing rows/columns change, O(n²·(n - start)))
-        _rotate(U, slice(start, n), a, rows=(), cols=(T,))
+        # (Z = diag(I, U): only the trailing rows/columns change, O(n²·|blk|) by reflections)
+        cmp.rotate(start, a, rows=(), cols=(T,))
         taus.append(tau)
         blk = a[start + tau:, start:start + tau]
         start += tau
@@ -216,7 +218,7 @@ def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good) -> tuple
     F = np.zeros((b.shape[1], n))
     if n == 0:
         return F, 0
-    eig = np.linalg.eigvals(a)
+    eig = eigenvalues(a)  # kept for the basis Nl, whose A is aᵀ when no pole moves (freqresp)
     bad = eig[~np.array([good(z.real, z.imag) for z in eig])]
     if bad.size == 0:
         return F, 0
@@ -331,6 +333,7 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
     nc = sum(taus)
     T1 = T[:, :nc]
     ac, bc, Fc, Pc = T1.T @ af @ T1, T1.T @ bf, F @ T1, P @ T1
+    staircase_zeros(ac, bc, taus)  # exact zeros below the staircase: chain_ordered's staircase on it is O(n² k)
     degrees = conjugate_partition(taus, k)
     choose = _targets(model, poles, sdeg)
     margin = default_smarg(model.dt) if smarg is None else float(smarg)
@@ -412,10 +415,10 @@ def row_cover(a, b, c, d, i: int, tol: float):
             part = (bb if which == "b" else a)[r0:, cols]
             rho = 0
             if part.size:
-                U, s, _ = sla.svd(part, full_matrices=True)
-                rho = _rank(s, tol)
+                cmp = RowCompression(part)
+                rho = _rank(cmp.s, tol)
                 if rho:  # rotate rows/cols ≥ r0 only: the source columns (< r0 for a) are not touched
-                    _rotate(U, slice(r0, n), a, rows=(bb,), cols=(c,))
+                    cmp.rotate(r0, a, rows=(bb,), cols=(c,))
             step.append((r0, rho, is_b1))
             r0 += rho
         if step[0][1] + step[1][1] == 0:
@@ -427,28 +430,36 @@ def row_cover(a, b, c, d, i: int, tol: float):
     even = [blk for blk in blocks if not blk[2]]
     idx = lambda blks: np.concatenate([np.arange(s0, s0 + sz) for s0, sz, _ in blks]) if blks else np.zeros(0, int)  # noqa: E731
     x1 = idx(odd)
+    # the coordinates permuted to [x1 (odd blocks) | even blocks | the rest]: every block, and the odd blocks
+    # from any l on, is a contiguous slice (views, no gathered copies in the elimination below)
+    perm = np.concatenate([x1, idx(even), np.arange(r0, n)])
+    a, c, bb = a[np.ix_(perm, perm)], c[:, perm], bb[perm, :]
+    n1 = x1.size
+    e0 = np.cumsum([n1] + [sz for _, sz, _ in even])  # even block l at e0[l]:e0[l + 1]
+    o0 = np.cumsum([0] + [sz for _, sz, _ in odd])  # odd blocks l, l+1, ... at o0[l]:n1
     cond = 1.0
     # eliminate the rows of even block l+1 in the x1 columns of the odd blocks from l+1 on, with even block l
     for l in range(len(even) - 1, 0, -1):
-        (r2, n2, _), (c2, m2, _) = even[l], even[l - 1]
-        if n2 == 0:
+        if even[l][1] == 0:
             continue
-        ic1 = idx([blk for blk in odd[l:]])
-        ir2, ic2 = np.arange(r2, r2 + n2), np.arange(c2, c2 + m2)
-        X = -np.linalg.lstsq(a[np.ix_(ir2, ic2)], a[np.ix_(ir2, ic1)], rcond=None)[0]
+        ic1 = slice(o0[min(l, len(odd))], n1)
+        ir2, ic2 = slice(e0[l], e0[l + 1]), slice(e0[l - 1], e0[l])
+        X = -np.linalg.lstsq(a[ir2, ic2], a[ir2, ic1], rcond=None)[0]
         cond = max(cond, float(np.linalg.norm(X, 2)) if X.size else 0.0)
-        a[:, ic1] += a[:, ic2] @ X   # a T with T = I + E (E: X at rows ic2, columns ic1)
+        for rs in nonzero_spans(a[:, ic2], 0, n1):  # (the rows/columns that are exactly zero add nothing)
+            a[rs, ic1] += a[rs, ic2] @ X   # a T with T = I + E (E: X at rows ic2, columns ic1)
         c[:, ic1] += c[:, ic2] @ X
-        a[ic2, :] -= X @ a[ic1, :]   # T⁻¹ = I - E
+        for cs in nonzero_spans(a[ic1, :].T, 0, n1):
+            a[ic2, cs] -= X @ a[ic1, cs]   # T⁻¹ = I - E
         bb[ic2, :] -= X @ bb[ic1, :]
-    f2 = np.zeros((k - 1, x1.size))
-    if even and even[0][1] and x1.size:
-        ir = np.arange(even[0][0], even[0][0] + even[0][1])
-        f2 = -np.linalg.lstsq(bb[np.ix_(ir, np.arange(1, k))], a[np.ix_(ir, x1)], rcond=None)[0]
+    f2 = np.zeros((k - 1, n1))
+    if even and even[0][1] and n1:
+        ir = slice(e0[0], e0[1])
+        f2 = -np.linalg.lstsq(bb[ir, 1:], a[ir, :n1], rcond=None)[0]
         cond = max(cond, float(np.linalg.norm(f2, 2)))
-    a1 = a[np.ix_(x1, x1)] + bb[np.ix_(x1, np.arange(1, k))] @ f2
-    c1 = c[:, x1] + dd[:, 1:] @ f2
-    return a1, bb[x1, :1], c1, dd[:, :1], cond
+    a1 = a[:n1, :n1] + bb[:n1, 1:] @ f2
+    c1 = c[:, :n1] + dd[:, 1:] @ f2
+    return a1, bb[:n1, :1], c1, dd[:, :1], cond
 
 
 #: a cover whose non-orthogonal transformations exceed this norm is retried with another input direction of
@@ -476,6 +487,8 @@ def simple_rows(pb: PencilBasis, dt: float) -> list[tuple[LTI, int, float]]:
     choose, good = pb.placement
     T, V, idx = chain_ordered(a, b, pb.rank_tol)
     a, b, c, d = T.T @ a @ T, T.T @ b @ V, c @ T, d @ V
+    # exact zeros below the staircase (block sizes from the indices): the covers' staircases rotate only what they reach
+    staircase_zeros(a, b, [sum(v > j for v in idx) for j in range(max(idx, default=0))])
     out = []
     idx_arr = np.asarray(idx)
     rng = np.random.default_rng(0)

@@ -52,6 +52,7 @@ import warnings
 import numpy as np
 
 from ..errors import DesignError
+from ..freqresp import transfer_values
 from ..linalg import EPS
 from ..lti import LTI, frequency_grid
 from ..margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
@@ -115,19 +116,14 @@ def _eval_points(model, Q: LTI, freqs=None) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _values(sys: LTI, lam: np.ndarray) -> np.ndarray:
-    """Values at the points ``lam`` from a balanced realisation (non-finite where λ is a pole)."""
+    """Values at the points ``lam`` from a balanced realisation (non-finite where λ is a pole);
+    one Schur form of its A serves every point and every later call (:mod:`fmu_fdi.freqresp`)."""
     if sys.n:
         bal, _ = sys.balanced()
         sys = bal
-    out = np.full((lam.size, sys.p, sys.m), np.nan, complex)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        for k, l in enumerate(lam):
-            try:
-                out[k] = sys.evalfr(l)
-            except np.linalg.LinAlgError:
-                pass
-    return out
+        return transfer_values(sys.A, sys.B, sys.C, sys.D, lam)
 
 
 def _nrm(X: np.ndarray) -> np.ndarray:

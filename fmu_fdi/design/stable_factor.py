@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..freqresp import eigenvalues
 from ..lti import LTI
 from ..margin import margin_limit
 from ..model import FDIModel
@@ -67,7 +68,7 @@ def moved_pole_targets(model: FDIModel, poles=None, sdeg: float | None = None, s
     dt = float(model.dt)
     margin = default_smarg(dt) if smarg is None else float(smarg)
     given_all = np.zeros(0, complex) if poles is None else np.atleast_1d(np.asarray(poles, complex))
-    eig = np.linalg.eigvals(model.A) if model.n else np.zeros(0, complex)
+    eig = eigenvalues(model.A) if model.n else np.zeros(0, complex)
     speeds = np.abs(np.log(eig[np.abs(eig) > 0]) / dt) if dt else np.abs(eig)
     speeds = speeds[speeds > 1e-6 * max(1.0, float(np.max(speeds, initial=0.0)))]
     ref = float(np.median(speeds)) if speeds.size else 1.0
@@ -157,7 +158,7 @@ def stable_internal_form(model: FDIModel, Q: LTI, *, poles=None, sdeg: float | N
     # the poles of [Q R] are among those of Q and of the plant: decided on each block's own
     # eigenvalues (the joint matrix couples Q's poles, often the plant's own, to the plant's, and
     # its computed eigenvalues can leave a cluster by far more than rounding)
-    eig = np.concatenate([Q.poles(), np.linalg.eigvals(model.A) if model.n else np.zeros(0)])
+    eig = np.concatenate([Q.poles(), eigenvalues(model.A) if model.n else np.zeros(0)])
     if all(good(z.real, z.imag) for z in eig):
         return Q, {}
     if (sdeg is None or keep_stable_poles) and all(good(z.real, z.imag) for z in Q.poles()):
