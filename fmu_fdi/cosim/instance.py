@@ -11,13 +11,38 @@ from __future__ import annotations
 
 import collections
 import difflib
+import itertools
 import re
 import shutil
+import weakref
 from ctypes import byref
 from pathlib import Path
 
 from ..fmu.exit_guard import guard_library
 from .errors import CoSimulationError, SimulationFailed
+
+# FMI 2 logging. fmpy's native proxy (fmpy/logging: it formats the printf arguments ctypes cannot
+# pass) keeps ONE logger per process — the last one registered — so a Python logger per instance
+# would route every FMU's messages to the newest instance, and call freed memory once that
+# instance is gone while an older one (a campaign's pooled instance) still logs. Every instance
+# therefore registers the same logger, made once and never freed, and is found again by its
+# componentEnvironment (an id of its own, FMI 2.0 sec. 2.1.5).
+_BY_ENVIRONMENT: "weakref.WeakValueDictionary[int, FMUInstance]" = weakref.WeakValueDictionary()
+_ENVIRONMENT_IDS = itertools.count(1)
+_LOGGER2 = []  # [the CFUNCTYPE logger], made on first use (fmpy is imported lazily)
+
+
+def _logger2():
+    if not _LOGGER2:
+        from fmpy.fmi2 import fmi2CallbackLoggerTYPE
+
+        def dispatch(env, instance, status, category, message):
+            fmu = _BY_ENVIRONMENT.get(env or 0)
+            if fmu is not None:
+                fmu._log2(env, instance, status, category, message)
+
+        _LOGGER2.append(fmi2CallbackLoggerTYPE(dispatch))
+    return _LOGGER2[0]
 
 # FMI type name -> the master's value kind. Enumerations travel as integers in both versions.
 _KIND = {
@@ -165,12 +190,14 @@ class FMUInstance:
 
     def _start2(self, kwargs, start_time, stop_time, values):
         from fmpy import calloc, free
-        from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
-                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+        from fmpy.fmi2 import FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions
 
         # FMI 2 log messages are printf formats; fmpy's native proxy formats them for Python.
         self._callbacks = fmi2CallbackFunctions()
-        self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log2)
+        self._environment = next(_ENVIRONMENT_IDS)
+        _BY_ENVIRONMENT[self._environment] = self
+        self._callbacks.logger = _logger2()
+        self._callbacks.componentEnvironment = self._environment
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         try:
