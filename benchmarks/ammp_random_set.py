@@ -17,7 +17,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from fmu_fdi import DesignError, approximate_model_matching  # noqa: E402
-from fmu_fdi.design.approximate_matching import fault_noise_map  # noqa: E402
+from fmu_fdi.design.problems.approximate_matching import fault_noise_map  # noqa: E402
 from fmu_fdi.lti import LTI, hstack  # noqa: E402
 from synthesis_models import random_model  # noqa: E402
 

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from fmu_fdi import FDIModel, actuator_fault, leakage, nullspace_design, sensor_fault
-from fmu_fdi.design.parity import parity_space
+from fmu_fdi.design.problems.parity import parity_space
 
 
 def random_model(n=200, p=50, m=5, md=1, seed=0) -> FDIModel:

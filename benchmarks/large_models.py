@@ -70,8 +70,8 @@ def fresh() -> None:
 @contextmanager
 def parts():
     """Time the parts of nullspace_design inside one run: ``{part: seconds}`` (module attributes wrapped)."""
-    import fmu_fdi.design.nullspace as ns
-    import fmu_fdi.design.pencil as pe
+    import fmu_fdi.design.problems.nullspace as ns
+    import fmu_fdi.design.toolkit.pencil as pe
 
     spent: dict = {}
     targets = [(pe, "pencil_basis", "pencil basis (staircase)"), (pe, "simple_rows", "simple rows (covers)"),
@@ -99,7 +99,7 @@ def parts():
 def measure(n: int) -> dict:
     from fmu_fdi import Diagnoser, FDIModel
     from fmu_fdi.analysis import detectability, isolability
-    from fmu_fdi.design.nullspace import nullspace_design
+    from fmu_fdi.design.problems.nullspace import nullspace_design
     from fmu_fdi.fmu.builder import build_fmu
 
     m = plant(n)

@@ -21,13 +21,13 @@ LAYERS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("generator", "the residual generator Q and its internal form R = Q Ge",
      ("generator",)),
     ("judge", "post-conditions on the normalised internal form",
-     ("design.postconditions",)),
-    ("toolkit", "state-space toolkit: minimal bases, pencils, poles",
-     ("design._basis", "design.pencil", "design.stable_factor")),
+     ("design.toolkit.postconditions",)),
+    ("toolkit", "design/toolkit/: minimal bases, pencils, stable factors, co-outer",
+     ("design.toolkit",)),
     ("analysis", "structure, gains, gaps, leakage; robustness",
      ("analysis", "robustness")),
-    ("synthesis", "design/: one module per problem, observers beside",
-     ("design",)),
+    ("synthesis", "design/problems/: one module per problem; design/observers/ beside",
+     ("design.problems", "design.observers", "design")),
     ("diagnosis", "evaluation, design files, diagnoser, scheduling",
      ("designfile", "evaluation", "diagnoser", "schedule", "designinfo")),
     ("export", "native C target; the pythonfmu builder picks the target",
@@ -40,8 +40,9 @@ LAYERS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
 
 
 def layer_of(module: str, layers=LAYERS, package: str = "fmu_fdi") -> str | None:
-    """The layer of ``module`` (``"fmu_fdi.design.nullspace"`` or ``"design.nullspace"``): the
-    one whose most specific entry is the module or one of its packages; None when unlisted."""
+    """The layer of ``module`` (``"fmu_fdi.design.problems.nullspace"`` or
+    ``"design.problems.nullspace"``): the one whose most specific entry is the module or one
+    of its packages; None when unlisted."""
     rel = module[len(package) + 1:] if module.startswith(package + ".") else module
     rel = "__init__" if rel == package else rel
     best, found = -1, None

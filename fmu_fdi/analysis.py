@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .design._basis import normal_rank, sample_values, sampled_rank
+from .design.toolkit._basis import normal_rank, sample_values, sampled_rank
 from .errors import DesignError
 from .generator import ResidualGenerator
 from .linalg import single_blas_thread
@@ -82,7 +82,7 @@ def structure_matrix(obj, freqs=None, tol: float | None = None, block: bool = Fa
         Strong: absolute gain threshold, ``S_ij = 1`` when ``||Rf_ij(jω)|| ≥ tol`` at every ω
         (default 0.01, Varga's ``FDGainTol``, inclusive as ``fdisspec``). Weak: for a
         residual generator, the judge's absolute threshold on the peak ``max_λ ||Rf_ij(λ)||``
-        over its grid (default :data:`~fmu_fdi.design.postconditions.DEC_TOL`; the designs
+        over its grid (default :data:`~fmu_fdi.design.toolkit.postconditions.DEC_TOL`; the designs
         return rows normalised to unit weakest fault gain, so this is the decoupling tolerance
         of their post-conditions and ``structure_matrix(gen)`` is
         ``gen.info['postconditions']['structure_matrix']``); for a model or an LTI system, an
@@ -91,7 +91,7 @@ def structure_matrix(obj, freqs=None, tol: float | None = None, block: bool = Fa
         Treat all residual outputs as one group.
     """
     if isinstance(obj, ResidualGenerator):
-        from .design.postconditions import DEC_TOL, report
+        from .design.toolkit.postconditions import DEC_TOL, report
 
         groups = [list(range(obj.Q.p))] if block else None
         if freqs is None:
@@ -178,11 +178,11 @@ def _hstack_norm(systems: list[LTI]) -> float:
 def leakage(gen: ResidualGenerator) -> float:
     """``max(||Ru||∞, ||Rd||∞)``: how much of the known and unknown inputs leaks into r.
 
-    The judge's figure (:func:`fmu_fdi.design.postconditions.report`): peaks of the block
+    The judge's figure (:func:`fmu_fdi.design.toolkit.postconditions.report`): peaks of the block
     2-norms over its frequency grid, per residual group, of ``R = Q Ge`` evaluated point by
     point; on a design's normalised rows it is relative to the weakest fault gain, and equal
     to ``gen.info['postconditions']['leakage']``."""
-    from .design.postconditions import report
+    from .design.toolkit.postconditions import report
 
     return report(gen)["leakage"]
 
@@ -286,7 +286,7 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
 def row_test(model: FDIModel, names, *, freqs=None, FDGainTol: float = DEFAULT_GAIN_TOL, tol: float | None = None,
              atol: float = 0.0):
     """The one test of a structure row, shared by :func:`achievable_structure` (which lists the
-    rows it passes) and :func:`~fmu_fdi.design.banks.structured_bank` (which refuses the rows
+    rows it passes) and :func:`~fmu_fdi.design.problems.banks.structured_bank` (which refuses the rows
     it fails, before designing): a predicate ``row -> None`` (achievable) or the reason it is
     not (a string naming the fault and the test). Weak: ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]``
     for every required fault j (normal ranks, cached over the rows); strong (``freqs``): the
@@ -334,7 +334,7 @@ def row_test(model: FDIModel, names, *, freqs=None, FDGainTol: float = DEFAULT_G
 def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
     """The predicate ``(names, row) -> bool`` of strong achievability at ``freqs``
     (see :func:`achievable_structure`)."""
-    from .design._basis import minimal_basis
+    from .design.toolkit._basis import minimal_basis
 
     omega = np.atleast_1d(np.asarray(freqs, float))
     if omega.ndim != 1 or not omega.size or np.any(omega < 0) or not np.all(np.isfinite(omega)):
@@ -415,16 +415,16 @@ def _stable_fault_response(mi: FDIModel, basis) -> LTI:
     no stable residual may keep it: the fault responses ``Ñ`` of all decoupling filters of
     ``mi``, stable: ``T = N Ge_f`` with the basis rows over the design's default denominators,
     and ``Ñ`` the fault part of the stable factor ``M·[Q T]`` of the joint left coprime
-    factorisation :func:`~fmu_fdi.design.stable_factor.stable_joint_factor` (glcf: an ordered Schur
+    factorisation :func:`~fmu_fdi.design.toolkit.stable_factor.stable_joint_factor` (glcf: an ordered Schur
     form moves only the poles on or outside the boundary; the designs end with the same
     factorisation, and the peer's ``fdigenspec`` judges ``fdisspec(...; stabilize = true)`` on the
     ``glnull`` rows stabilised so). Any stable residual's fault response is ``Y Ñ`` with Y stable,
     and Ñ is unique up to a unit (no zeros on the boundary), so the zeros of ``Ñ_j`` at ω are those
     every decoupling residual has.
     """
-    from .design._basis import pole_chooser, realize_rows
-    from .design.stable_factor import stable_joint_factor
-    from .design.postconditions import NumericalDesignError
+    from .design.toolkit._basis import pole_chooser, realize_rows
+    from .design.toolkit.stable_factor import stable_joint_factor
+    from .design.toolkit.postconditions import NumericalDesignError
 
     choose = pole_chooser(mi, None, None)
     Q = realize_rows([r.coef for r in basis.rows], [choose(r.degree) / basis.rho for r in basis.rows],

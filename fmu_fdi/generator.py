@@ -81,7 +81,7 @@ class ResidualGenerator:
 
     def scale_rows(self, scales) -> None:
         """Scale residual component k by ``scales[k]`` (``Q ← diag(scales) Q``; a bank's members
-        follow): the normalisation of :func:`~fmu_fdi.design.postconditions.check_generator`."""
+        follow): the normalisation of :func:`~fmu_fdi.design.toolkit.postconditions.check_generator`."""
         s = np.asarray(scales, float).reshape(-1)
         if s.size != self.Q.p or not np.all(np.isfinite(s)) or np.any(s == 0):
             raise ValueError(f"row scales must be {self.Q.p} finite non-zero numbers, got {s.tolist()}")

@@ -1,5 +1,5 @@
 """The stability margin of a system and the realisation of it without its cancelled
-margin-violating modes: what the judge (:mod:`fmu_fdi.design.postconditions`) calls the poles
+margin-violating modes: what the judge (:mod:`fmu_fdi.design.toolkit.postconditions`) calls the poles
 of R, and what :class:`~fmu_fdi.generator.ResidualGenerator` removes from its internal form.
 
 A pole p violates the margin ``smarg`` when ``Re p > smarg`` (continuous) or ``|p| > smarg``

@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import Sequence
 
 from .analysis import hinf_minus
-from .design.postconditions import check_generator
+from .design.toolkit.postconditions import check_generator
 from .errors import ModelError
 from .generator import ResidualGenerator
 from .model import FDIModel
@@ -18,7 +18,7 @@ def robustness(gen, models: Sequence[FDIModel], *, structure=None, faults=None) 
 
     For each model (same signals as the design model): the relative decoupling of u and d
     and of the faults with ``S = 0``, and the smallest relative fault gain of the required
-    faults (:func:`~fmu_fdi.design.postconditions.check_generator` with ``raise_error=False``),
+    faults (:func:`~fmu_fdi.design.toolkit.postconditions.check_generator` with ``raise_error=False``),
     plus the H∞− index ``min_j ||Rf_j||∞``.
     """
     S = structure if structure is not None else gen.info.get("structure")

@@ -14,7 +14,7 @@ from campaign import Campaign, FaultCase, Subsystem
 from fmu_fdi import (LTI, FDIModel, ResidualBank, ResidualGenerator, component_fault, dedicated_bank, factorized,
                      fault_detection_filter, generalized_bank, kalman, luenberger, nullspace_design, parity_space,
                      rls_estimator, structured_bank, unknown_input_observer)
-from fmu_fdi.design._basis import plant_pole_pool, spread_poles
+from fmu_fdi.design.toolkit._basis import plant_pole_pool, spread_poles
 from plant_fmus.dts200 import dts200_physics as dts
 from plant_fmus.wind_turbine import windturbine_physics as wind
 

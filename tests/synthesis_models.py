@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from fmu_fdi import FDIModel, actuator_fault, sensor_fault
-from fmu_fdi.design._basis import normal_rank
+from fmu_fdi.design.toolkit._basis import normal_rank
 
 
 def random_model(seed: int) -> FDIModel:

@@ -552,7 +552,7 @@ def test_binary_input_csv_is_a_one_line_error(tmp_path):
 def diagnostic_fmu(tmp_path_factory):
     """A diagnoser reading the test plant's y and u (first-order model, one sensor fault)."""
     from fmu_fdi import Diagnoser, FDIModel, sensor_fault
-    from fmu_fdi.design.nullspace import nullspace_design
+    from fmu_fdi.design.problems.nullspace import nullspace_design
     from fmu_fdi.fmu.builder import build_fmu
 
     m = FDIModel.from_matrices([[-1.0]], [[1.0]], [[1.0]], u_names=["u"], y_names=["y"],

@@ -12,7 +12,7 @@ import published as pub
 from published import three_tank_like
 from fmu_fdi import (DesignError, FDIModel, component_fault, dedicated_bank, generalized_bank,
                      leakage, nullspace_design, sensor_fault, structure_matrix, structured_bank)
-from fmu_fdi.design.parity import parity_space
+from fmu_fdi.design.problems.parity import parity_space
 from simulate import cascade_residual, plant_outputs
 
 RESIDUAL_REL = 1e-9

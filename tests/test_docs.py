@@ -87,7 +87,7 @@ def test_readme_keeps_its_first_commands_and_its_python_block_does_not_overwrite
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     first = re.search(r"```\n(.*?)```", text, re.S).group(1).splitlines()
     assert first[0] == 'python3 -m venv .venv && . .venv/bin/activate && pip install ".[test]" && fmu-fdi demo'
-    assert first[1] == "python -m pytest -q"
+    assert first[1] == "python -m pytest -q -n 2"
     cli_outputs = set(re.findall(r"-o (out/[\w.]+)", text))
     python = _blocks(text, "python")[0]
     written = set(re.findall(r'build_fmu\([^,]+, "([^"]+)"\)', python))

@@ -166,7 +166,7 @@ def test_row_compression(m, c):
 def test_staircase_matches_the_dense_reference():
     """An uncontrollable part and a rank drop: the block sizes and the controllable subspace are those of
     the full-SVD staircase, the form below the staircase is zero to rounding."""
-    from fmu_fdi.design.pencil import controllable_staircase
+    from fmu_fdi.design.toolkit.pencil import controllable_staircase
 
     rng = np.random.default_rng(11)
     n1, n2, k = 110, 30, 3
@@ -197,7 +197,7 @@ def test_row_cover_same_transfer_function_on_both_paths(monkeypatch):
     staircase (DENSE_ROWS above n): on the dual pencil basis of a random plant of order 100 (four rows of
     index 25, as benchmarks/large_models.py), the covers' transfer functions agree at a few points."""
     from fmu_fdi import FDIModel, sensor_fault
-    from fmu_fdi.design.pencil import chain_ordered, pencil_basis, row_cover
+    from fmu_fdi.design.toolkit.pencil import chain_ordered, pencil_basis, row_cover
 
     rng = np.random.default_rng(1)
     n = 100

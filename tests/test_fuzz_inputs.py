@@ -106,8 +106,8 @@ def mutate_bytes(data: bytes, rng: random.Random) -> bytes:
 
 
 def design_corpus() -> list[dict]:
-    from fmu_fdi.design.nullspace import nullspace_design
-    from fmu_fdi.design.rls import rls_estimator
+    from fmu_fdi.design.problems.nullspace import nullspace_design
+    from fmu_fdi.design.problems.rls import rls_estimator
 
     m = pub.three_tank_like()
     m = FDIModel.from_matrices(m.A, m.Bu, m.C, u_names=m.u_names, y_names=m.y_names,

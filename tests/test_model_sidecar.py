@@ -198,7 +198,7 @@ def test_structured_frequency_response_equals_dense_solves(dt):
 
 def test_staircase_rotations_equal_the_dense_products():
     """pencil._rotate (trailing block only) equals Zᵀ a Z, Zᵀ b, c Z with the dense Z."""
-    from fmu_fdi.design.pencil import _rotate
+    from fmu_fdi.design.toolkit.pencil import _rotate
 
     rng = np.random.default_rng(2)
     n = 8

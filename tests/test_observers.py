@@ -29,12 +29,12 @@ import published as pub
 from simulate import cascade_residual, plant_outputs
 from fmu_fdi import (DesignError, FDIModel, LTI, actuator_fault, component_fault, leakage, sensor_fault,
                      structure_matrix)
-from fmu_fdi.design.beard_jones import fault_detection_filter
-from fmu_fdi.design._observer import filter_riccati
-from fmu_fdi.design.coprime import factorized, left_coprime_factors
-from fmu_fdi.design.kalman_filter import kalman
-from fmu_fdi.design.output_observer import luenberger
-from fmu_fdi.design.uio import unknown_input_observer
+from fmu_fdi.design.observers.beard_jones import fault_detection_filter
+from fmu_fdi.design.observers._observer import filter_riccati
+from fmu_fdi.design.problems.coprime import factorized, left_coprime_factors
+from fmu_fdi.design.observers.kalman_filter import kalman
+from fmu_fdi.design.observers.output_observer import luenberger
+from fmu_fdi.design.observers.uio import unknown_input_observer
 
 EPS = np.finfo(float).eps
 DECOUPLED = 1e-9

@@ -12,7 +12,7 @@ import pytest
 from scipy.stats import norm
 
 from fmu_fdi import DesignError, FDIModel, parametric_fault
-from fmu_fdi.design.rls import RLSEstimator, rls_estimator
+from fmu_fdi.design.problems.rls import RLSEstimator, rls_estimator
 from fmu_fdi.lti import LTI
 from fmu_fdi.runtime.generators import make_generator
 from fmu_fdi.runtime.rls import RLSStep

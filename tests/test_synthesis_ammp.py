@@ -1,4 +1,4 @@
-"""Approximate model matching (design/approximate_matching.py) and the EMMP updating factor M.
+"""Approximate model matching (design/problems/approximate_matching.py) and the EMMP updating factor M.
 
 Published sources: Varga (2017) Examples 5.6c, 5.11c, 5.12, 5.13c, 5.14-5.17 and the Niemann
 model, as run by FaultDetectionTools.jl Examples/Ex5_1*.jl and test/test_ammsyn.jl,
@@ -30,7 +30,7 @@ def error_norm(gen, Mr, M, norm):
     factor on a dense grid (independent of the design's own figures and of realisation-level norms,
     which lose digits on products with near-cancelling modes): H∞ as the peak over 1200
     log-spaced points refined around the maximum, H2 by the trapezoidal rule on the same points."""
-    from fmu_fdi.design.approximate_matching import fault_noise_map
+    from fmu_fdi.design.problems.approximate_matching import fault_noise_map
 
     model = gen.model
     Mr = Mr if isinstance(Mr, LTI) else LTI.from_control(ct.ss(Mr))
@@ -67,7 +67,7 @@ def pointwise_bound(model, Mr, norm="inf"):
     Y(jω) leaves ||F(jω) (I − G1⁺G1)(jω)|| with G1 = N [Gf Gw; 0 0], N a left null space of
     [Gu Gd; I 0] at that point (SVD) — computed from the model alone. H∞: its peak over 400 log
     points; H2: (1/π ∫ ||·||_F² dω)^½ by the trapezoidal rule on 3000 log points (continuous)."""
-    from fmu_fdi.design.approximate_matching import fault_noise_map
+    from fmu_fdi.design.problems.approximate_matching import fault_noise_map
 
     sl = model.group_slices()
     ud = np.r_[np.arange(sl["u"].start, sl["u"].stop), np.arange(sl["d"].start, sl["d"].stop)]

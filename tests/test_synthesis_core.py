@@ -363,7 +363,7 @@ def test_static_plant_builds_and_designs(k):
     """n = 0 (empty A; python-control static ss/tf): the model keeps its 3 outputs and 2 inputs, and
     nullspace_design, the dedicated bank and parity_space return static filters with
     ``Q_y Du + Q_u = 0`` (u decoupled, 1e-12 of |Q|) that see their faults."""
-    from fmu_fdi.design.parity import parity_space
+    from fmu_fdi.design.problems.parity import parity_space
 
     model = list(_static_models())[k]
     assert (model.n, model.ny, model.nu) == (0, 3, 2)

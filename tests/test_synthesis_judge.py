@@ -17,7 +17,7 @@ from judge_models import ill_scaled_model
 
 from fmu_fdi import DesignError, FDIModel, component_fault, leakage, nullspace_design, structure_matrix, structured_bank
 from fmu_fdi.analysis import achievable_structure
-from fmu_fdi.design.postconditions import DEC_TOL, check_generator
+from fmu_fdi.design.toolkit.postconditions import DEC_TOL, check_generator
 from fmu_fdi.generator import ResidualGenerator
 from fmu_fdi.lti import LTI
 
@@ -367,7 +367,7 @@ def test_combination_gate_is_inclusive():
     """The combination search's visibility gate (``_select.visibility_gated``) admits a combination
     whose cosine γ equals FDtol exactly, as the judge does (``γ ≥ FDtol``). One point, one row,
     one output, one fault: ||h P|| = 0.5, ||h Y|| ||Gf|| = 1·1, so γ = 0.5 exactly in binary."""
-    from fmu_fdi.design._select import visibility_gated
+    from fmu_fdi.design.toolkit._select import visibility_gated
 
     P = [np.array([[[0.5]]])]
     Y = np.array([[[1.0]]])

@@ -1,4 +1,4 @@
-"""Exact model matching (design/matching.py) against FaultDetectionTools.jl test/test_emmsyn.jl.
+"""Exact model matching (design/problems/matching.py) against FaultDetectionTools.jl test/test_emmsyn.jl.
 
 Example 5.4c: emmsyn with the reference Rf of efdsyn(sdeg = -3) returns efdsyn's Q itself,
 Q = [0, (s-3)/(s+3), -(s+2)/(s+3)] (Varga 2017, Example 5.4); compared to 1e-6 (printed
@@ -9,7 +9,7 @@ import pytest
 
 import published as pub
 from fmu_fdi import DesignError, leakage, nullspace_design, structured_bank
-from fmu_fdi.design.matching import model_matching
+from fmu_fdi.design.problems.matching import model_matching
 from fmu_fdi.lti import LTI
 
 

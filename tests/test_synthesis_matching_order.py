@@ -1,4 +1,4 @@
-"""Least-order exact model matching (design/matching.py) against FaultDetectionTools.jl test/test_emmsyn.jl.
+"""Least-order exact model matching (design/problems/matching.py) against FaultDetectionTools.jl test/test_emmsyn.jl.
 
 The peer's ``emmsyn(sysf, Rf; atol = 1e-7, minimal = true)`` returns row orders ``order.(QM.sys) ==
 [1, 1, 1]`` for the efdisyn bank references of Niemann (1998) and of Xiong & Saif (2000, Example 2),
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from fmu_fdi import DesignError, FDIModel, component_fault, structured_bank
-from fmu_fdi.design.matching import model_matching
+from fmu_fdi.design.problems.matching import model_matching
 from fmu_fdi.lti import LTI, vstack
 from test_synthesis_published import niemann, xiong_saif_2
 

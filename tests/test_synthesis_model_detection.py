@@ -1,4 +1,4 @@
-"""Exact and approximate model detection (design/model_detection.py) against FaultDetectionTools.jl
+"""Exact and approximate model detection (design/problems/model_detection.py) against FaultDetectionTools.jl
 test/test_emdsyn.jl and test/test_amdsyn.jl: the actuator example (four first-order actuator
 models), Example 6.1c (lateral aircraft, nine loss-of-effectiveness models) and Example 6.2
 (the same with noise; see the AMDP section below).
@@ -15,7 +15,7 @@ import pytest
 import scipy.signal as ss
 
 from fmu_fdi import FDIModel
-from fmu_fdi.design.model_detection import (approximate_model_detection_bank, distance_mapping, match_model,
+from fmu_fdi.design.problems.model_detection import (approximate_model_detection_bank, distance_mapping, match_model,
                                             model_detection_bank, noise_gaps, nu_gap_siso)
 from fmu_fdi.errors import DesignError
 from fmu_fdi.lti import LTI

@@ -1,4 +1,4 @@
-"""State-space (pencil) left null-space basis (design/pencil.py, Varga's glnull) and its use as the
+"""State-space (pencil) left null-space basis (design/toolkit/pencil.py, Varga's glnull) and its use as the
 last fallback of nullspace_design/structured_bank (issue 13, bullet 2).
 
 Properties any correct basis must have, checked on seeded random models (tests/synthesis_models.py):
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from fmu_fdi import DesignError, nullspace_design, structured_bank
-from fmu_fdi.design._basis import minimal_basis, normal_rank
-from fmu_fdi.design.pencil import conjugate_partition, controllable_staircase, pencil_basis
-from fmu_fdi.design.postconditions import DEC_TOL, check_generator
+from fmu_fdi.design.toolkit._basis import minimal_basis, normal_rank
+from fmu_fdi.design.toolkit.pencil import conjugate_partition, controllable_staircase, pencil_basis
+from fmu_fdi.design.toolkit.postconditions import DEC_TOL, check_generator
 from fmu_fdi.linalg import EPS
 from synthesis_models import contract, random_model, random_structure
 
@@ -104,7 +104,7 @@ def _pointwise_leak(Q, model, num=300):
     """``max_λ ||Q(λ) Ge_ud(λ)|| / (||Q(λ)|| ||Ge_ud(λ)||)`` per residual on a grid: relative to |G|
     *at each sample*, not to its peak (the post-condition's measure), so that a row which only
     makes the leak small where |G| is large shows it where |G| is small."""
-    from fmu_fdi.design.postconditions import _values
+    from fmu_fdi.design.toolkit.postconditions import _values
     from fmu_fdi.lti import frequency_grid
 
     om = frequency_grid([model.lti(), Q], num=num)
@@ -189,7 +189,7 @@ def test_sampled_rows_report_whether_they_can_be_exact():
     (every rational null row is r(λ)·N(λ) with N row-reduced of that degree): the sampled fallback
     says which kind of decoupling it delivers. Published Ex. 5.3: the degree-1 detector is exact."""
     import published as pub
-    from fmu_fdi.design.nullspace import _sampled
+    from fmu_fdi.design.problems.nullspace import _sampled
 
     gen = _sampled(pub.ex5_3(), 1, [-3.0], None, None, 1e-4, 0.01, 0, None, DEC_TOL)
     assert gen.info["left_minimal_indices"] == [1] and gen.info["decoupling_kind"].startswith("exact")
@@ -221,7 +221,7 @@ def test_simple_basis_rows_have_their_own_index(seed):
     """A simple basis (Type 1 minimum dynamic covers of each row by the others): row i alone has McMillan
     degree ν_i (the left minimal indices), annihilates [Gu Gd; I 0], is stable, and together the rows keep
     rank p - rank Gd (they are a basis, not k copies of one row)."""
-    from fmu_fdi.design.pencil import simple_rows
+    from fmu_fdi.design.toolkit.pencil import simple_rows
 
     model = random_model(seed)
     pb = pencil_basis(model)

@@ -10,9 +10,9 @@ import pytest
 
 import published as pub
 from fmu_fdi import DesignError, leakage, nullspace_design, structure_matrix, structured_bank
-from fmu_fdi.design._basis import PolyRow, basis_rank
-from fmu_fdi.design.nullspace import undetectable_error
-from fmu_fdi.design.postconditions import DEC_TOL, check_generator
+from fmu_fdi.design.toolkit._basis import PolyRow, basis_rank
+from fmu_fdi.design.problems.nullspace import undetectable_error
+from fmu_fdi.design.toolkit.postconditions import DEC_TOL, check_generator
 from fmu_fdi.generator import ResidualGenerator
 from fmu_fdi.lti import LTI
 from synthesis_models import aircraft_loop, contract, random_model, random_structure

@@ -1,4 +1,4 @@
-"""Frequency-sampled least-order synthesis (design/sampled.py), the fallback of
+"""Frequency-sampled least-order synthesis (design/toolkit/sampled.py), the fallback of
 nullspace_design when the polynomial basis is too ill-conditioned.
 
 Published: Varga 2017, Example 5.3/5.4 (acceptance A3): the least-order detector with pole
@@ -11,9 +11,9 @@ import pytest
 
 import published as pub
 from fmu_fdi import DesignError
-from fmu_fdi.design._basis import pole_chooser
-from fmu_fdi.design.nullspace import _sampled, fault_columns
-from fmu_fdi.design.sampled import cascade, sampled_rows
+from fmu_fdi.design.toolkit._basis import pole_chooser
+from fmu_fdi.design.problems.nullspace import _sampled, fault_columns
+from fmu_fdi.design.toolkit.sampled import cascade, sampled_rows
 from synthesis_models import contract, random_model
 
 

@@ -1,4 +1,4 @@
-"""Ding's unified H−/H∞ solution (design/unified.py) on the shipped lateral aircraft (Varga 2017,
+"""Ding's unified H−/H∞ solution (design/problems/unified.py) on the shipped lateral aircraft (Varga 2017,
 Ex. 6.2 noise: process noise on every state, measurement noise on every output).
 
 Properties from Ding (2013), Theorem 7.14: the noise response is co-inner (||Rw||∞ = 1), and
@@ -8,7 +8,7 @@ one's, frequency by frequency. Tolerance 1e-6 relative: Riccati-based factors ca
 import numpy as np
 
 from fmu_fdi import factorized, kalman, nullspace_design
-from fmu_fdi.design.unified import unified_observer
+from fmu_fdi.design.problems.unified import unified_observer
 from fmu_fdi.lti import frequency_grid
 from plant_fmus.lateral_aircraft import linear_model
 

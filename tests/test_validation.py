@@ -25,7 +25,7 @@ TS = 0.1
 @pytest.fixture(scope="module")
 def design():
     """A small LTI design (three-tank plant, nullspace bank) as saved JSON data."""
-    from fmu_fdi.design.nullspace import nullspace_design
+    from fmu_fdi.design.problems.nullspace import nullspace_design
 
     m = pub.three_tank_like()
     m = FDIModel.from_matrices(m.A, m.Bu, m.C, u_names=m.u_names, y_names=m.y_names,

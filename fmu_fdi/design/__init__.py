@@ -1,19 +1,24 @@
-"""Residual generator design: one function per method, each returning a ResidualGenerator."""
-from .approximate_matching import approximate_model_matching
-from .banks import afdi_bank, dedicated_bank, generalized_bank, structured_bank
-from .beard_jones import fault_detection_filter
-from .coprime import factorized, left_coprime_factors
-from .datadriven import data_driven
-from .kalman_filter import kalman
-from .matching import model_matching
-from .model_detection import (approximate_model_detection_bank, distance_mapping, match_model, model_detection_bank,
-                              noise_gaps)
-from .nullspace import nullspace_design
-from .output_observer import luenberger
-from .parity import parity_space
-from .rls import RLSEstimator, rls_estimator
-from .uio import unknown_input_observer
-from .unified import unified_observer
+"""Residual generator design: one function per method, each returning a ResidualGenerator.
+
+Laid out as the theory reads (Varga 2017): :mod:`.toolkit` holds the state-space machinery
+underneath (minimal bases, pencils, stable factorisations, the judge), :mod:`.problems` one
+module per synthesis problem above it, :mod:`.observers` the classical observers beside them.
+"""
+from .observers.beard_jones import fault_detection_filter
+from .observers.kalman_filter import kalman
+from .observers.output_observer import luenberger
+from .observers.uio import unknown_input_observer
+from .problems.approximate_matching import approximate_model_matching
+from .problems.banks import afdi_bank, dedicated_bank, generalized_bank, structured_bank
+from .problems.coprime import factorized, left_coprime_factors
+from .problems.datadriven import data_driven
+from .problems.matching import model_matching
+from .problems.model_detection import (approximate_model_detection_bank, distance_mapping, match_model,
+                                       model_detection_bank, noise_gaps)
+from .problems.nullspace import nullspace_design
+from .problems.parity import parity_space
+from .problems.rls import RLSEstimator, rls_estimator
+from .problems.unified import unified_observer
 
 __all__ = [
     "parity_space", "luenberger", "kalman", "unknown_input_observer", "fault_detection_filter", "factorized",

@@ -25,7 +25,7 @@ unit white noise (``E[w wᵀ] = I``), sample time ``dt`` of the experiment:
     2. the least-squares residuals of the state and output equations,
        ``ρ_w = X̂⁺ − A X̂ − B U``, ``ρ_v = Y − C X̂ − D U``, and their joint sample covariance
        ``[[Q, S], [Sᵀ, R]]``;
-    3. the filter Riccati equation (:func:`fmu_fdi.design._observer.filter_riccati`) for
+    3. the filter Riccati equation (:func:`fmu_fdi.design.observers._observer.filter_riccati`) for
        (A, C, Q, R, S): ``P = A P Aᵀ + Q − (A P Cᵀ + S) Re⁻¹ (…)ᵀ``, ``Re = C P Cᵀ + R``,
        ``K = (A P Cᵀ + S) Re⁻¹`` — the stabilising steady-state gain even when the horizon-s
        estimates are not yet steady (for steady ones, P = 0, K = S R⁻¹, Re = R).
@@ -126,9 +126,9 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
         s, block rows of the past used for the state estimates (default
         ``max(model.block_rows, 2 n + 2, 10)``).
     """
-    from ..design._basis import _block_toeplitz
-    from ..design._observer import filter_riccati
-    from ..design.datadriven import block_hankel
+    from ..design.toolkit._basis import _block_toeplitz
+    from ..design.observers._observer import filter_riccati
+    from ..design.problems.datadriven import block_hankel
     from ..errors import DesignError
 
     A, B, C, D = model.A, model.B, model.C, model.D

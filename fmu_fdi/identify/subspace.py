@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from ..design.datadriven import past_future_lq, realize_from_lq
+from ..design.problems.datadriven import past_future_lq, realize_from_lq
 from ..errors import DesignError
 from .errors import IdentificationError
 

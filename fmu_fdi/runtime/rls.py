@@ -1,7 +1,7 @@
 """Recursive least squares with forgetting at run time: one sample in, residuals out.
 
 numpy and the standard library only (bundled into the FMU as it is). The design side,
-:func:`fmu_fdi.design.rls.rls_estimator`, writes the spec this module reads.
+:func:`fmu_fdi.design.problems.rls.rls_estimator`, writes the spec this module reads.
 
 Each *estimator* (one per estimated output) owns a linear prefilter, discrete and exact,
 
@@ -150,7 +150,7 @@ class RLSStep:
 
     Implements the runtime generator interface of :mod:`.generators` (``step``,
     ``get_state``, ``set_state``, ``reset``) for specs of kind ``"rls"``. See the module
-    docstring for the equations and :func:`fmu_fdi.design.rls.rls_estimator` for the
+    docstring for the equations and :func:`fmu_fdi.design.problems.rls.rls_estimator` for the
     spec's keys.
     """
 

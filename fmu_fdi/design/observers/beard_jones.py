@@ -40,10 +40,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import DesignError
-from ..generator import ResidualGenerator
-from ..linalg import default_rtol, rank, right_null
-from ..model import FDIModel
+from ...errors import DesignError
+from ...generator import ResidualGenerator
+from ...linalg import default_rtol, rank, right_null
+from ...model import FDIModel
 from ._observer import (check_pole_set, default_poles, detectable_split, observer_gain,
                         observer_generator, output_observer, residual_names)
 

@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from ..linalg import inv_sqrtm_pd, rank, sqrtm_psd
-from ..lti import LTI
+from ...linalg import inv_sqrtm_pd, rank, sqrtm_psd
+from ...lti import LTI
 
 
 def coouter_inverse(G: LTI) -> tuple[LTI, LTI] | None:

@@ -31,12 +31,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import DesignError
-from ..generator import ResidualGenerator
-from ..linalg import EPS, default_rtol, ordered_schur
-from ..lti import LTI
-from ..model import FDIModel
-from .pencil import controllable_staircase
+from ...errors import DesignError
+from ...generator import ResidualGenerator
+from ...linalg import EPS, default_rtol, ordered_schur
+from ...lti import LTI
+from ...model import FDIModel
+from ..toolkit.pencil import controllable_staircase
 
 
 # ------------------------------------------------------------------------ formatting
@@ -111,13 +111,13 @@ def default_poles(count: int, dt: float, A: np.ndarray) -> np.ndarray:
     """Distinct poles twice as fast as the plant's own (stabilised) modes.
 
     The plant's eigenvalues, mirrored into the stability region and spread from slow to
-    fast (:func:`fmu_fdi.design._basis.plant_pole_pool`), are made twice as fast (``2 λ``
+    fast (:func:`fmu_fdi.design.toolkit._basis.plant_pole_pool`), are made twice as fast (``2 λ``
     in continuous time, ``λ²`` in discrete time) — the usual rule for an observer — and
     nudged apart by a few per cent where they coincide, so the placement has no Jordan
     blocks. Tied to the plant's modes rather than to ``||A||``, they stay assignable for
     stiff models whose matrix norm dwarfs their dynamics.
     """
-    from ._basis import plant_pole_pool, spread_poles
+    from ..toolkit._basis import plant_pole_pool, spread_poles
 
     if count <= 0:
         return np.zeros(0, complex)
@@ -461,7 +461,7 @@ def observer_generator(model: FDIModel, Q: LTI, method: str, info: dict, names=N
     ``info['detected_faults']`` lists the faults whose response ``Rf_j`` is not identically
     zero (weak structure of the whole residual vector, :func:`~fmu_fdi.analysis.structure_matrix`).
     """
-    from ..analysis import structure_matrix
+    from ...analysis import structure_matrix
 
     gen = ResidualGenerator(Q, model, method, names, groups=[list(range(Q.p))], info=info)
     if model.faults:
@@ -469,7 +469,7 @@ def observer_generator(model: FDIModel, Q: LTI, method: str, info: dict, names=N
         gen.info["detected_faults"] = [nm for nm, s in zip(model.fault_names, seen) if s]
     else:
         gen.info["detected_faults"] = []
-    from .postconditions import check_generator
+    from ..toolkit.postconditions import check_generator
 
     # an observer residual decouples u (the UIO also d); it promises no fault structure
     check_generator(gen, decouple=("u", "d") if method == "unknown_input_observer" else ("u",), faults=[],

@@ -8,7 +8,7 @@ other model,
 
 so the residual of the true model's filter is the one that stays at zero (Varga 2017,
 sec. 6.2, Procedure EMD; FaultDetectionTools.jl ``emdsyn``). Filter i is the least-order
-detector of :func:`~fmu_fdi.design.nullspace.nullspace_design` on model i with one fault
+detector of :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` on model i with one fault
 channel per other model, ``f_j ↦ (Gu_j − Gu_i) f_j`` (the u-response filter i sees when
 model j is true), appended as extra states. The distance-mapping performance is the
 matrix ``MDperf[i, j] = ||R_ij||∞`` (zero diagonal), each row scaled to a largest entry 1.
@@ -22,13 +22,13 @@ exactly, and among those filters maximises the noise gap
 where ``R_ij^u = Q_i [Gu_j; I]`` is the distance mapping (``Q_i [Gu_j - Gu_i; 0]``) and
 ``R_ii^w = Q_i [Gw_i; 0]`` the residual's noise response when model i is true. Step 1 is the
 left null space ``Q1`` of ``[Gu_i Gd_i; I 0]``; step 2 the co-outer–co-inner factorisation
-``Q1 [Gw_i; 0] = Ro Ri`` and ``Q_i = Ro^{-1} Q1`` (:mod:`.approximate`), after which every
+``Q1 [Gw_i; 0] = Ro Ri`` and ``Q_i = Ro^{-1} Q1`` (:mod:`..toolkit.approximate`), after which every
 ``h Q_i`` has ``||h R_ii^w||∞ = |h|``. Keeping all rows (``rdim='all'``) is then optimal: for any
 other admissible filter ``Q4 Q_i``, ``||Q4 X||∞ ≤ ||Q4||∞ ||X||∞ = ||Q4 Ri||∞ ||X||∞``, so no filter
 has a larger gap (when ``Q1 [Gw_i; 0]`` has zeros at infinity or on the stability boundary the
 factor does not exist; a regularised factor is tried, see :func:`_full_order`). With ``rdim = 1``
 the gap-maximising combination of the normalised rows is
-chosen on a grid, as in Procedure AFD (:func:`~fmu_fdi.design.nullspace.nullspace_design`).
+chosen on a grid, as in Procedure AFD (:func:`~fmu_fdi.design.problems.nullspace.nullspace_design`).
 Each filter is finally scaled so that ``β_i = 1`` (``amdsyn``'s default): the rows of
 ``MDperf`` have a zero diagonal and off-diagonal minimum 1, and ``γ_i = 1 / gap_i``.
 
@@ -47,14 +47,14 @@ from typing import Sequence
 
 import numpy as np
 
-from ..errors import DesignError
-from ..faults import component_fault
-from ..generator import ResidualBank, ResidualGenerator
-from ..linalg import single_blas_thread
-from ..lti import LTI
-from ..model import FDIModel
+from ...errors import DesignError
+from ...faults import component_fault
+from ...generator import ResidualBank, ResidualGenerator
+from ...linalg import single_blas_thread
+from ...lti import LTI
+from ...model import FDIModel
 from .nullspace import nullspace_design
-from .postconditions import DEC_TOL, check_generator
+from ..toolkit.postconditions import DEC_TOL, check_generator
 
 
 def _with_model_faults(models: Sequence[FDIModel], i: int, atol: float = 0.0) -> FDIModel:
@@ -98,7 +98,7 @@ def model_detection_bank(models: Sequence[FDIModel], *, poles=None, sdeg=None, F
         are H∞ norms); unknown inputs d of each model are decoupled by its own filter; faults
         and noise of the models are ignored.
     poles, sdeg, FDtol, **kwargs
-        Passed to :func:`~fmu_fdi.design.nullspace.nullspace_design` for each filter.
+        Passed to :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` for each filter.
     atol : float
         Absolute rank tolerance (Varga's ``atol``): passed to ``nullspace_design`` and to the
         minimal realisations of the model differences ``Gu_j − Gu_i``.
@@ -318,7 +318,7 @@ def noise_gaps(bank, models: Sequence[FDIModel], *, freqs=None) -> tuple[np.ndar
 
 def _noise_gain(Q: LTI, model: FDIModel) -> float:
     """``γ = ||Q [Gw; 0]||∞``, or 0 when it is rounding of an exact decoupling: at most 1e-9 of the
-    bound ``||Q||∞ ||Gw||∞`` (the backward-error scale of the product, as in :mod:`.postconditions`)."""
+    bound ``||Q||∞ ||Gw||∞`` (the backward-error scale of the product, as in :mod:`..toolkit.postconditions`)."""
     if not model.nw:
         return 0.0
     Gw = _w_map(model)
@@ -338,7 +338,7 @@ def match_model(bank, model: FDIModel, *, freqs=None) -> tuple[np.ndarray, int]:
 
 
 def _static_coouter_inverse(Rw: LTI) -> LTI | None:
-    from ..linalg import inv_sqrtm_pd, rank
+    from ...linalg import inv_sqrtm_pd, rank
 
     D = Rw.D
     if rank(D) < D.shape[0]:
@@ -353,9 +353,9 @@ def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
     at infinity, i.e. a feedthrough without full row rank, or on the stability boundary), the
     factor of the regularised ``[Rw  ε||Rw||∞ I]`` (ε = 1e-3; Varga's ``nonstd = 2``) is used
     if it gives a larger measured gap than ``Q1`` itself."""
-    from ..linalg import rank
-    from ..lti import hstack
-    from .approximate import coouter_inverse
+    from ...linalg import rank
+    from ...lti import hstack
+    from ..toolkit.approximate import coouter_inverse
 
     g = nullspace_design(mi, rdim="all", noise="ignore", **design_kw)
     Q1 = g.Q
@@ -406,7 +406,7 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
         co-outer normalised null-space basis, which attains the largest gap of any filter;
         an integer: that many gap-maximising combinations of its rows (a smaller filter).
     poles, sdeg : optional
-        Poles of the null-space rows (as in :func:`~fmu_fdi.design.nullspace.nullspace_design`).
+        Poles of the null-space rows (as in :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`).
     freqs : array_like, optional
         Frequencies (rad/s; ``amdsyn``'s ``MDfreq``) at which every other model must be strongly
         visible; the distances β and ``MDperf`` are then the peaks over these frequencies.
@@ -414,7 +414,7 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
         Weak and strong model detectability thresholds (``MDtol``, ``MDGainTol``).
     tol, atol, seed, smarg, dec_tol
         Rank tolerances, combination search seed, stability margin and the largest relative
-        leakage of u and d allowed (:mod:`.postconditions`).
+        leakage of u and d allowed (:mod:`..toolkit.postconditions`).
 
     Returns
     -------

@@ -24,18 +24,18 @@ forward shift.) It exists if and only if (Thm 3.2)
 
 The measurement must not see d directly (``Dd = 0``): ``y = C x + Dd d`` would put ``Dd d``
 into ``r`` (the classical UIO has no direct feedthrough of d; use
-:func:`~fmu_fdi.design.nullspace.nullspace_design` for such models).
+:func:`~fmu_fdi.design.problems.nullspace.nullspace_design` for such models).
 """
 from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import DesignError
-from ..generator import ResidualGenerator
-from ..linalg import default_rtol, orth_rows, right_null
-from ..lti import LTI
-from ..model import FDIModel
+from ...errors import DesignError
+from ...generator import ResidualGenerator
+from ...linalg import default_rtol, orth_rows, right_null
+from ...lti import LTI
+from ...model import FDIModel
 from ._observer import observer_gain, observer_generator, residual_names
 
 

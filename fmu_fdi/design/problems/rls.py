@@ -54,9 +54,9 @@ from math import comb
 
 import numpy as np
 
-from ..errors import DesignError
-from ..lti import LTI, blockdiag, frequency_grid
-from ..model import FDIModel
+from ...errors import DesignError
+from ...lti import LTI, blockdiag, frequency_grid
+from ...model import FDIModel
 
 _POLICIES = (None, "none", "floor", "periodic")
 
@@ -124,7 +124,7 @@ class RLSEstimator:
         With ``return_estimates=True`` also returns θ̂ after every sample (N × parameters,
         physical coordinates).
         """
-        from ..runtime.rls import RLSStep
+        from ...runtime.rls import RLSStep
 
         N = len(y)
         V = np.hstack([np.asarray(y, float).reshape(N, -1), np.asarray(u, float).reshape(N, -1)])

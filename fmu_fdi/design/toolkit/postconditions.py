@@ -51,11 +51,11 @@ import warnings
 
 import numpy as np
 
-from ..errors import DesignError
-from ..freqresp import transfer_values
-from ..linalg import EPS
-from ..lti import LTI, frequency_grid
-from ..margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
+from ...errors import DesignError
+from ...freqresp import transfer_values
+from ...linalg import EPS
+from ...lti import LTI, frequency_grid
+from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
 
 class NumericalDesignError(DesignError):
     """A design broke a numerical post-condition (decoupling, basis rank, stability of the
@@ -172,7 +172,7 @@ def _r_poles(model, Q: LTI, smarg: float) -> np.ndarray:
     the eigenvalues of the violating part :func:`margin_reduced` keeps.
 
     The blocks ``R_w``, ``R_f`` are judged against ``smarg`` (they are the internal form the design
-    factorises, :func:`.coprime.internal_form_realisation`). The decoupled blocks ``R_u``, ``R_d``
+    factorises, :func:`.stable_factor.internal_form_realisation`). The decoupled blocks ``R_u``, ``R_d``
     are judged by their leakage (≤ ``dec_tol``) and, for their poles, only against the stability
     boundary itself (:func:`default_smarg`, or ``smarg`` if looser): a stable plant mode slower
     than ``smarg`` that only u or d excite decays with a coupling below ``dec_tol`` (CS2: a static
@@ -352,7 +352,7 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
         for i, g in enumerate(judged):
             row_scale[g] = scales[i]
         if not normalize:
-            from ..generator import ResidualGenerator
+            from ...generator import ResidualGenerator
 
             gen = ResidualGenerator(gen.Q, model, gen.method, gen.residual_names, gen.groups)
         gen.scale_rows(row_scale)

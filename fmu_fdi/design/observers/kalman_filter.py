@@ -33,10 +33,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import DesignError
-from ..generator import ResidualGenerator
-from ..linalg import EPS, inv_sqrtm_pd
-from ..model import FDIModel
+from ...errors import DesignError
+from ...generator import ResidualGenerator
+from ...linalg import EPS, inv_sqrtm_pd
+from ...model import FDIModel
 from ._observer import detectable_split, filter_riccati, observer_generator, output_observer, residual_names
 
 

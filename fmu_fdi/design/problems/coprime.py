@@ -16,7 +16,7 @@ so ``M̂ y − N̂ u = W (y − C x̂ − Du u)``. The factorisation is built on
 state, so ``M̂ [Gu Gd Gw Gf]`` is stable even for plant modes that u does not reach.
 
 - ``normalized=False``: L by pole placement (``W = I``), as in
-  :func:`~fmu_fdi.design.output_observer.luenberger`.
+  :func:`~fmu_fdi.design.observers.output_observer.luenberger`.
 - ``normalized=True``: the normalised factorisation, ``M̂ M̂~ + N̂ N̂~ = I`` on the
   stability boundary. It is the innovation filter of ``y = Gu u + v`` with u and v unit
   white noise: L from the filter Riccati equation with ``Qx = Bu Buᵀ``, ``S = Bu Duᵀ``,
@@ -27,16 +27,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DesignError
-from ..generator import ResidualGenerator
-from ..linalg import inv_sqrtm_pd
-from ..lti import LTI
-from ..model import FDIModel
-from ._observer import (as_matrix, filter_riccati, fmt_modes, observer_gain, observer_generator, output_observer,
-                        residual_names, unstable)
+from ...errors import DesignError
+from ...generator import ResidualGenerator
+from ...linalg import inv_sqrtm_pd
+from ...lti import LTI
+from ...model import FDIModel
+from ..observers._observer import (as_matrix, filter_riccati, fmt_modes, observer_gain, observer_generator,
+                                   output_observer, residual_names, unstable)
 # the stable factorisation of the internal form lives in the toolkit layer (analysis uses it too)
-from .stable_factor import (CANCEL_RTOL, MOVED_DAMPING, glcf, internal_form_realisation,  # noqa: F401
-                            moved_pole_targets, stable_internal_form, stable_joint_factor)
+from ..toolkit.stable_factor import (CANCEL_RTOL, MOVED_DAMPING, glcf, internal_form_realisation,  # noqa: F401
+                                    moved_pole_targets, stable_internal_form, stable_joint_factor)
 
 
 def factorized(model: FDIModel, poles=None, normalized: bool = False, post_filter=None) -> ResidualGenerator:

@@ -11,7 +11,7 @@ in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetection
    ``[I  −Gu]`` when Gu is stable (``Q = [X  −X Gu]`` is stable iff X is) and the left
    coprime factor ``[M̂  −N̂]`` of an observer otherwise (every admissible Q is then
    ``Y Q0`` with ``Y ∈ RH∞``); with d, the full minimal basis of
-   :func:`~fmu_fdi.design.nullspace.nullspace_design`; the reduced system is
+   :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`; the reduced system is
    ``G1 = Q0 [Gf Gw; 0 0]`` and (1) becomes ``min_{Y ∈ RH∞} ||Y G1 − F||``, ``F = [Mr 0]``;
 2. zeros of ``G1`` at infinity (a strictly proper plant gives them) make (1) *non-standard*:
    its infimum is approached only by improper Y. Silverman's structure algorithm
@@ -75,12 +75,12 @@ import numpy as np
 import scipy.linalg as sla
 from slycot.exceptions import SlycotError
 
-from ..errors import DesignError
-from ..generator import ResidualGenerator
-from ..linalg import EPS, single_blas_thread
-from ..lti import LTI, blockdiag, frequency_grid, hstack
-from ..model import FDIModel
-from .postconditions import DEC_TOL, _nrm, _values, check_generator
+from ...errors import DesignError
+from ...generator import ResidualGenerator
+from ...linalg import EPS, single_blas_thread
+from ...lti import LTI, blockdiag, frequency_grid, hstack
+from ...model import FDIModel
+from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
 
 
 @single_blas_thread
@@ -107,10 +107,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         Relative accuracy of the H∞ γ-iteration (Varga's ``reltol``): the bisection stops when
         its feasible level is within ``1 + reltol`` of its infeasible one.
     smarg, dec_tol : float, optional
-        Stability margin and decoupling tolerance of the post-conditions (:mod:`.postconditions`).
+        Stability margin and decoupling tolerance of the post-conditions (:mod:`..toolkit.postconditions`).
     atol : float
         Absolute rank tolerance (Varga's ``atol``), passed to the null-space basis
-        (:func:`~fmu_fdi.design.nullspace.nullspace_design`) and to the minimal realisations of
+        (:func:`~fmu_fdi.design.problems.nullspace.nullspace_design`) and to the minimal realisations of
         Mr, of the reduced system and of the filter (SLICOT's default when 0).
 
     Returns

@@ -5,17 +5,17 @@
 (Frank, section 5: the diagnostic observer; Chen & Patton 1999, sec. 2.4). The error
 ``e = x − x̂`` obeys ``e' = (A − L C) e + ... f`` whatever u is, so ``Ru = 0`` and the
 residual dynamics are the eigenvalues of ``A − L C``. The unknown inputs d are *not*
-decoupled: they drive r like faults (use :func:`~fmu_fdi.design.uio.unknown_input_observer`
-or :func:`~fmu_fdi.design.nullspace.nullspace_design` to decouple them).
+decoupled: they drive r like faults (use :func:`~fmu_fdi.design.observers.uio.unknown_input_observer`
+or :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` to decouple them).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DesignError
-from ..generator import ResidualGenerator
-from ..linalg import rank
-from ..model import FDIModel
+from ...errors import DesignError
+from ...generator import ResidualGenerator
+from ...linalg import rank
+from ...model import FDIModel
 from ._observer import as_matrix, observer_gain, observer_generator, output_observer, residual_names
 
 
@@ -30,7 +30,7 @@ def luenberger(model: FDIModel, poles=None, V=None) -> ResidualGenerator:
     poles : array_like
         Observer poles, closed under conjugation, stable. Exactly as many as ``(A, C)`` has
         observable modes (``n`` for an observable pair); ``None`` picks distinct poles
-        twice as fast as the plant's modes (:func:`~fmu_fdi.design._observer.default_poles`).
+        twice as fast as the plant's modes (:func:`~fmu_fdi.design.observers._observer.default_poles`).
     V : array_like, optional
         Static output weighting (k × p, default the identity): r has k components.
 

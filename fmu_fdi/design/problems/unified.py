@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DesignError
-from ..generator import ResidualGenerator
-from ..linalg import single_blas_thread
-from ..model import FDIModel
-from .approximate import coouter_inverse
+from ...errors import DesignError
+from ...generator import ResidualGenerator
+from ...linalg import single_blas_thread
+from ...model import FDIModel
+from ..toolkit.approximate import coouter_inverse
 from .coprime import factorized
-from .postconditions import check_generator
+from ..toolkit.postconditions import check_generator
 
 
 @single_blas_thread
@@ -34,9 +34,9 @@ def unified_observer(model: FDIModel, poles=None, *, atol: float = 0.0) -> Resid
     ----------
     model : FDIModel
         With noise inputs w and no unknown inputs d (decouple d first, e.g. by designing on
-        a model with d, or use :func:`~fmu_fdi.design.nullspace.nullspace_design`).
+        a model with d, or use :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`).
     poles : array_like, optional
-        Poles of the coprime factorisation (as in :func:`~fmu_fdi.design.coprime.factorized`);
+        Poles of the coprime factorisation (as in :func:`~fmu_fdi.design.problems.coprime.factorized`);
         the optimum does not depend on them.
     atol : float
         Absolute rank tolerance (Varga's ``atol``) of the minimal realisations of the noise

@@ -29,10 +29,10 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import DesignError
-from ..generator import ResidualBank, ResidualGenerator
-from ..lti import LTI
-from ..model import FDIModel
+from ...errors import DesignError
+from ...generator import ResidualBank, ResidualGenerator
+from ...lti import LTI
+from ...model import FDIModel
 
 
 def block_hankel(w: np.ndarray, start: int, rows: int, cols: int) -> np.ndarray:

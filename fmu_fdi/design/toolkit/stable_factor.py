@@ -4,17 +4,17 @@ The state-space toolkit piece every null-space design ends with (Varga 2017, Pro
 FaultDetectionTools.jl ``glcf``) and the strong-detectability tests judge on
 (:func:`fmu_fdi.analysis.achievable_structure` at a pole on the stability boundary): an ordered
 real Schur form moves only the poles that violate the margin, to targets chosen by
-:func:`moved_pole_targets`. :mod:`fmu_fdi.design.coprime` (the factorised residual form) re-exports
+:func:`moved_pole_targets`. :mod:`fmu_fdi.design.problems.coprime` (the factorised residual form) re-exports
 these names.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..freqresp import eigenvalues
-from ..lti import LTI
-from ..margin import margin_limit
-from ..model import FDIModel
+from ...freqresp import eigenvalues
+from ...lti import LTI
+from ...margin import margin_limit
+from ...model import FDIModel
 
 
 def glcf(sys: LTI, choose, good) -> tuple[LTI, LTI, int]:
@@ -25,7 +25,7 @@ def glcf(sys: LTI, choose, good) -> tuple[LTI, LTI, int]:
         M = (A + L C, L, C, I),        N = (A + L C, B + L D, C, D),        M⁻¹ N = sys,
 
     (Zhou, Doyle & Glover 1996, Thm 5.9). L is the transpose of the state feedback that
-    :func:`~fmu_fdi.design.pencil.assign_poles` computes for the dual pair ``(Aᵀ, Cᵀ)``: an
+    :func:`~fmu_fdi.design.toolkit.pencil.assign_poles` computes for the dual pair ``(Aᵀ, Cᵀ)``: an
     ordered real Schur form moves one 1×1 or 2×2 block outside ``good(re, im)`` at a time to
     ``choose(bad_eigenvalues)`` and leaves every other eigenvalue where it is (Varga 1981; the
     method of Varga's ``glcf``). ``M`` is biproper (D = I), so ``M·X`` is zero only where X is.
@@ -54,7 +54,7 @@ def moved_pole_targets(model: FDIModel, poles=None, sdeg: float | None = None, s
 
     - ``poles`` given: they are used first (conjugate pairs kept together);
     - ``sdeg`` given: the rest are mirrored into ``Re λ ≤ sdeg`` (``|z| ≤ sdeg``; as the pencil
-      basis, :func:`~fmu_fdi.design.pencil.mirror`: distinct eigenvalues stay distinct);
+      basis, :func:`~fmu_fdi.design.toolkit.pencil.mirror`: distinct eigenvalues stay distinct);
     - neither: an unstable pole is mirrored about the boundary (``-Re λ + j Im λ``, the plant's
       own speed) and a pole on or near it gets the real part ``-ζ ω₀`` with ``ζ =``
       :data:`MOVED_DAMPING` and ``ω₀ = |λ|``, or for λ = 0 the median speed of the plant's other
@@ -239,7 +239,7 @@ def _move_plant_poles(model: FDIModel, Q: LTI, choose, good, margin: float) -> t
     ``M·G_good + (A_b + L C_b, B_b, C_b, 0)``, stable, and ``Q ← M·Q`` is the series realisation,
     order ``n_Q`` + the number of moved poles.
     """
-    from ..margin import margin_reduced
+    from ...margin import margin_reduced
 
     J, q = internal_form_realisation(model, Q)
     red, kept = margin_reduced(J, margin, parts=True)

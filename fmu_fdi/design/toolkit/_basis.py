@@ -29,11 +29,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import DesignError
-from ..freqresp import eigenvalues
-from ..linalg import complement_rows, left_null, rank
-from ..lti import LTI
-from ..model import FDIModel
+from ...errors import DesignError
+from ...freqresp import eigenvalues
+from ...linalg import complement_rows, left_null, rank
+from ...lti import LTI
+from ...model import FDIModel
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Least-order exact residual rows from frequency samples with a fixed stable denominator.
 
-The fallback of :func:`~fmu_fdi.design.nullspace.nullspace_design` when the polynomial
+The fallback of :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` when the polynomial
 (parity) basis is too ill-conditioned — high degrees, stiff or badly scaled models — to
 meet the post-conditions. For a degree ν and ν chosen stable poles, every proper row with
 that denominator is
@@ -30,8 +30,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import DesignError
-from ..lti import LTI, frequency_grid
+from ...errors import DesignError
+from ...lti import LTI, frequency_grid
 from ._select import greedy_combinations, visibility_gated
 from .postconditions import _cosine, _values
 
@@ -168,7 +168,7 @@ def sampled_rows(model, choose, fault_cols: list[np.ndarray], rdim: int, *, freq
         for h in H:
             X = T @ (h @ Z).reshape(r, q)  # (ν+1, q) in the Φ basis
             rows.append(LTI(A, X[:nu], C, X[nu:], model.dt))
-        from ..lti import vstack
+        from ...lti import vstack
 
         Q = vstack(rows) if len(rows) > 1 else rows[0]
         info = {"order": int(Q.n), "rdim": len(rows), "degree": nu, "combination": H.tolist(),

@@ -16,7 +16,7 @@ equation ``n Ge = d [0 0 Mr_i]`` is *linear and homogeneous* in the pair ``(n, d
 denominator is an unknown, not a guess (a reference's poles need not be the filter's:
 ``Mr = Gf`` is matched by the static ``Q = [I 0]``). Both are written over a reference
 denominator e of degree δ with stable, well-separated roots,
-``Q̃_i = n/e = C (λI − A)^{-1} B + D`` and ``m_i = d/e`` (same ``(A, C)``, :func:`.sampled.cascade`),
+``Q̃_i = n/e = C (λI − A)^{-1} B + D`` and ``m_i = d/e`` (same ``(A, C)``, :func:`..toolkit.sampled.cascade`),
 so that the equation ``Q̃_i(λ_k) Ge(λ_k) − m_i(λ_k) [0 0 Mr_i(λ_k)] = 0`` at K grid points
 (K far above the degrees involved, so a rational identity holding there holds everywhere)
 is a linear system in ``(B, D, b_m, d_m)``. Its null space, read from an SVD with
@@ -34,7 +34,7 @@ whose poles are the zeros of ``m_i``. When this least-order row is unstable or i
   up to a diagonal updating factor, ``Q Ge = [0 0 M Mr]``. For an unstable but proper least
   row, ``[Q_i  Mr_i] = m_i^{-1} [Q̃_i  R̃_i]`` is a stable left coprime factorisation of the
   whole row (output injection moving only the poles outside the stability region, as
-  ``glcf(…; mindeg = true)``; :func:`.pencil.assign_poles`), so that both the filter and its
+  ``glcf(…; mindeg = true)``; :func:`..toolkit.pencil.assign_poles`), so that both the filter and its
   fault response ``m_i Mr_i`` are stable; for an improper one, the least ν for which
   ``Q_i Ge = m_i [0 0 Mr_i]`` has a solution with both ``Q_i`` and ``m_i`` over ν chosen
   stable poles. ``m_i`` is normalised to unit zpk gain (the first nonzero Markov parameter,
@@ -47,7 +47,7 @@ to ~1e-12) are dropped (:func:`_drop_cancelled`); the plant modes outside the st
 are made to cancel exactly in ``R = Q Ge`` by a minimum-norm correction of Q's y-input part
 (:func:`_cancel_plant_modes`). Every returned row is verified on an independent grid: the
 relative matching error of each row must not exceed ``sqrt(mm_tol)`` and the post-conditions
-(:mod:`.postconditions`) must hold. ``atol`` is the absolute rank tolerance of the minimal
+(:mod:`..toolkit.postconditions`) must hold. ``atol`` is the absolute rank tolerance of the minimal
 realisations and of the properness decision.
 
 The approximate problem (AMMP, H∞/H2 optimal) is :mod:`.approximate_matching`.
@@ -59,15 +59,15 @@ import warnings
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import DesignError
-from ..generator import ResidualGenerator
-from ..linalg import ordered_schur, single_blas_thread
-from ..lti import LTI, blockdiag, frequency_grid, vstack
-from ..model import FDIModel
-from ._basis import check_poles, pole_chooser
+from ...errors import DesignError
+from ...generator import ResidualGenerator
+from ...linalg import ordered_schur, single_blas_thread
+from ...lti import LTI, blockdiag, frequency_grid, vstack
+from ...model import FDIModel
+from ..toolkit._basis import check_poles, pole_chooser
 from .approximate_matching import reference
-from .postconditions import DEC_TOL, _values, check_generator, default_smarg
-from .sampled import _basis_values, cascade
+from ..toolkit.postconditions import DEC_TOL, _values, check_generator, default_smarg
+from ..toolkit.sampled import _basis_values, cascade
 
 
 @single_blas_thread
@@ -85,7 +85,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
     poles, sdeg : optional
         Poles given to the filter where they are free: the reference denominators of the
         sampled equations, the fixed-denominator rows, and the poles moved by the updating
-        factor (as in :func:`~fmu_fdi.design.nullspace.nullspace_design`).
+        factor (as in :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`).
     max_degree : int, optional
         Largest row degree tried (default ``n + order(Mr_i) + 1``); for the fixed-denominator
         rows, the largest number of poles added to those of ``Mr_i``.
@@ -387,9 +387,9 @@ def _fixed_row(eq: _Equations, Mi: LTI, top: int, mm_tol: float, margin: float, 
 def _coprime_row(model: FDIModel, Q0: LTI, Mi: LTI, choose, margin: float, atol: float) -> tuple[LTI, LTI]:
     """``[Q_i  R_i] = m_i [Q0  Mr_i]`` stable: a left coprime factorisation of the row ``[Q0 Mr_i]``
     by output injection L moving the eigenvalues outside the region (``Re λ < margin``, ``|λ| <
-    margin``), one Schur block at a time (:func:`.pencil.assign_poles` on the dual pair):
+    margin``), one Schur block at a time (:func:`..toolkit.pencil.assign_poles` on the dual pair):
     ``Ã = A + L C``, ``[Q_i R_i] = (Ã, B + L D, C, D)``, ``m_i = (Ã, L, C, 1)``."""
-    from .pencil import assign_poles
+    from ..toolkit.pencil import assign_poles
 
     row = _minimal(LTI(sla.block_diag(Q0.A, Mi.A), sla.block_diag(Q0.B, Mi.B), np.hstack([Q0.C, Mi.C]),
                        np.hstack([Q0.D, Mi.D]), model.dt), atol)

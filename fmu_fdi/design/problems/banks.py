@@ -21,13 +21,13 @@ import re
 
 import numpy as np
 
-from ..errors import DesignError
-from ..linalg import single_blas_thread
-from ..generator import ResidualBank, ResidualGenerator
-from ..model import FDIModel
+from ...errors import DesignError
+from ...linalg import single_blas_thread
+from ...generator import ResidualBank, ResidualGenerator
+from ...model import FDIModel
 from .nullspace import nullspace_design
-from .coprime import stable_internal_form
-from .postconditions import DEC_TOL, check_generator
+from ..toolkit.stable_factor import stable_internal_form
+from ..toolkit.postconditions import DEC_TOL, check_generator
 
 
 @single_blas_thread
@@ -47,7 +47,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         The faults the columns of S refer to (default: all faults of the model, in order).
         Faults not listed are neither required nor decoupled.
     poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol, minimal, basis, keep_stable_poles, atol
-        As in :func:`~fmu_fdi.design.nullspace.nullspace_design`, per row; with ``freqs`` every
+        As in :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`, per row; with ``freqs`` every
         fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies (a row is
         designed when :func:`~fmu_fdi.analysis.achievable_structure` with the same ``freqs`` and
         ``FDGainTol`` lists it; checked on the published examples in
@@ -59,7 +59,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     -------
     ResidualBank
         ``info['postconditions']`` holds the figures of the whole bank against S
-        (:func:`~fmu_fdi.design.postconditions.check_generator`); ``info['decoupling_kinds']``
+        (:func:`~fmu_fdi.design.toolkit.postconditions.check_generator`); ``info['decoupling_kinds']``
         each row's ``info['decoupling_kind']`` ('exact', or 'approximate: ...' with a warning).
 
     Raises
@@ -92,7 +92,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
                               freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol)
         return ResidualGenerator(g.Q, model, "structured", info=g.info)
 
-    from ..analysis import row_test
+    from ...analysis import row_test
 
     # as achievable_structure
     achievable = row_test(model, names, freqs=freqs, FDGainTol=FDGainTol, tol=tol, atol=atol)
@@ -142,7 +142,7 @@ def _cover_faults(model: FDIModel, gen: ResidualGenerator, required: list[str], 
     """Make a row designed without the faults outside the structure stable on every fault channel.
 
     A row is designed on the model reduced to the faults it requires (the others are don't-care),
-    so the stable factorisation of its internal form (:func:`.coprime.stable_internal_form`)
+    so the stable factorisation of its internal form (:func:`..toolkit.stable_factor.stable_internal_form`)
     covered only those; the bank is judged on ``R = Q·Ge`` over all faults, where a don't-care
     fault's unstable or marginal pole stays in ``Q·Gf_j``. Factorising the whole ``[Q R]`` of
     ``model`` (all its faults) moves it: ``Q ← M·Q`` keeps the decoupled blocks zero and every
@@ -201,7 +201,7 @@ def afdi_bank(model: FDIModel, S, **kwargs) -> ResidualBank:
         ``info['gaps']``: the achieved gap of every row (:func:`fmu_fdi.analysis.fault_noise_gap`
         with S), besides the structure and the post-conditions.
     """
-    from ..analysis import fault_noise_gap
+    from ...analysis import fault_noise_gap
 
     kwargs["noise"] = "optimize"
     bank = structured_bank(model, S, **kwargs)

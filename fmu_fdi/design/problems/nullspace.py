@@ -6,7 +6,7 @@ inputs d is ``Q = Y(λ) N(λ)`` for a left null-space basis ``N`` of
     G(λ) = [Gu(λ) Gd(λ); I 0]
 
 (Frank, eqs. 9-12; Varga 2017, Procedure EFD). We compute a minimal polynomial basis
-(:mod:`._basis`), and the least-order stable filter is a constant combination of the
+(:mod:`..toolkit._basis`), and the least-order stable filter is a constant combination of the
 basis rows of the smallest degree ν that detect every fault, divided by a monic
 polynomial of degree ν whose roots are the requested poles:
 
@@ -15,7 +15,7 @@ polynomial of degree ν whose roots are the requested poles:
 A fault j is detectable once d is decoupled exactly when
 ``rank [Gd Gf_j] > rank Gd`` (normal ranks); when it is not, no Q exists and the error
 names the fault. With noise inputs w, the combination is chosen to maximise the
-fault-to-noise gap after a co-outer normalisation (:mod:`.approximate`).
+fault-to-noise gap after a co-outer normalisation (:mod:`..toolkit.approximate`).
 """
 from __future__ import annotations
 
@@ -23,17 +23,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import DesignError
-from ..linalg import single_blas_thread
-from ..generator import ResidualGenerator
-from ..lti import LTI, frequency_grid, vstack
-from ..model import FDIModel
-from ._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
-from ._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
-from .approximate import coouter_inverse, gap_objective
-from ..margin import near_poles
-from .coprime import stable_internal_form, stable_joint_factor
-from .postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
+from ...errors import DesignError
+from ...linalg import single_blas_thread
+from ...generator import ResidualGenerator
+from ...lti import LTI, frequency_grid, vstack
+from ...model import FDIModel
+from ..toolkit._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
+from ..toolkit._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
+from ..toolkit.approximate import coouter_inverse, gap_objective
+from ...margin import near_poles
+from ..toolkit.stable_factor import stable_internal_form, stable_joint_factor
+from ..toolkit.postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
 
 
 def _random_points(basis: NullspaceBasis, count: int = 4, seed: int = 1) -> np.ndarray:
@@ -194,9 +194,9 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         stability boundary. Given ``poles`` outside it are refused. When ``R`` keeps a pole of the
         plant outside it (``Gf = [1/(s−1); 1/(s+2)]``: the basis is static and ``Q·Gf`` keeps +1),
         Q is replaced by ``M·Q``, M the stable left factor of a coprime factorisation of the whole
-        ``[Q R]`` that moves only the violating poles (:func:`.coprime.stable_internal_form`; Varga's
+        ``[Q R]`` that moves only the violating poles (:func:`..toolkit.stable_factor.stable_internal_form`; Varga's
         ``glcf``): to ``poles`` first, then mirrored about ``sdeg`` when given, else to the plant's
-        own speed with damping 0.7 (:func:`.coprime.moved_pole_targets`). ``info['internal_form']``
+        own speed with damping 0.7 (:func:`..toolkit.stable_factor.moved_pole_targets`). ``info['internal_form']``
         names the moved poles; the order grows, typically by their number.
     keep_stable_poles : bool
         True (default): only poles violating ``smarg`` move, the plant's stable poles stay in R.
@@ -204,7 +204,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         that the residual's whole response has that stability degree (Varga's ``sdeg`` in ``glcf``).
     dec_tol : float
         Largest relative leakage of u and d (and w when it is decoupled) the returned filter
-        may show (:mod:`.postconditions`).
+        may show (:mod:`..toolkit.postconditions`).
     minimal : bool
         True (default): least order — the smallest degree ν whose basis rows meet the
         requirements. False: fixed (full) order — a combination of *all* basis rows at the
@@ -212,11 +212,11 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         combination more freedom (e.g. for strong detectability or sensitivity) at a higher order.
     basis : {'auto', 'polynomial', 'pencil'}
         Which left null-space basis the design starts from. 'polynomial': the minimal
-        polynomial (parity) basis (:mod:`._basis`, least order), with the frequency-sampled
-        least-order fallback (:mod:`.sampled`). 'pencil': the proper state-space basis from
-        the system pencil (:mod:`.pencil`, Varga's ``glnull``), accurate at any degree. With
+        polynomial (parity) basis (:mod:`..toolkit._basis`, least order), with the frequency-sampled
+        least-order fallback (:mod:`..toolkit.sampled`). 'pencil': the proper state-space basis from
+        the system pencil (:mod:`..toolkit.pencil`, Varga's ``glnull``), accurate at any degree. With
         several basis rows each row is first taken on its own at its left minimal index ν_i
-        (a simple basis from Type 1 minimum dynamic covers, :func:`.pencil.simple_rows`) and the
+        (a simple basis from Type 1 minimum dynamic covers, :func:`..toolkit.pencil.simple_rows`) and the
         residual is the first set of them, in increasing total order (single rows first), whose
         combination sees every fault and passes every post-condition — least order when one row
         suffices (``info['simple_rows']`` the indices used); otherwise (or when the covers are
@@ -485,7 +485,7 @@ def _sampled(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec
              degrees: list[int] | None = None, place: dict | None = None) -> ResidualGenerator:
     from types import SimpleNamespace
 
-    from .sampled import sampled_rows
+    from ..toolkit.sampled import sampled_rows
 
     choose = pole_chooser(model, poles, sdeg, freqs)
     # a direction whose RMS relative leak is 1/100 of dec_tol passes the post-condition's peak test
@@ -504,7 +504,7 @@ def _exactness(model: FDIModel, gen: ResidualGenerator, degrees: list[int] | Non
     post-condition's peak-relative tolerance only (on the random set: orders 9-18 against indices
     13-26, pointwise relative leak up to 1e-2 where |G| is 1e-7 of its peak). ``degrees``: those
     indices when already known from ``pencil_basis(model)`` itself (not computed again)."""
-    from .pencil import pencil_basis
+    from ..toolkit.pencil import pencil_basis
 
     if degrees is None:
         try:
@@ -522,10 +522,10 @@ def _exactness(model: FDIModel, gen: ResidualGenerator, degrees: list[int] | Non
 
 def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
             minimal: bool = True, place: dict | None = None) -> ResidualGenerator:
-    """Residual from the proper stable pencil basis (:func:`.pencil.pencil_basis`), least order first.
+    """Residual from the proper stable pencil basis (:func:`..toolkit.pencil.pencil_basis`), least order first.
 
     With several basis rows and ``rdim`` below their number, each row is first taken on its own at
-    its left minimal index ν_i (a simple basis, :func:`.pencil.simple_rows`), and sets of rows are
+    its left minimal index ν_i (a simple basis, :func:`..toolkit.pencil.simple_rows`), and sets of rows are
     tried in increasing total order Σ ν_i (single rows first): the first set whose constant
     combination keeps every fault visible (:func:`visibility_gated`) and passes every post-condition
     is returned — a single row of index ν is least order for the faults it sees, as every null row
@@ -534,7 +534,7 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     (or with ``rdim`` = 'all' / the whole basis) the constant combination of all rows with the
     best fault sensitivity condition, realised from the basis' own state space and reduced to a
     minimal realisation — also with ``minimal=False`` (fixed order: the whole basis' freedom)."""
-    from .pencil import pencil_basis, simple_rows
+    from ..toolkit.pencil import pencil_basis, simple_rows
 
     pb = pencil_basis(model, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
     N = pb.N
@@ -604,12 +604,12 @@ def _common_poles(rows: list, dt: float) -> list:
 
     Each row ``N_i`` (one output, McMillan degree ν, observable) is replaced by ``m_i N_i``, ``m_i`` the
     scalar stable biproper left factor of the output injection that places all its poles at those of
-    the first row of its index (:func:`.pencil._place` on the dual pair) — again a null-space row
+    the first row of its index (:func:`..toolkit.pencil._place` on the dual pair) — again a null-space row
     seeing the same faults. Rows with one denominator ``p(λ)`` combine as ``(Σ h_i n_i)/p``: McMillan
     degree ν, not Σ ν (the least order of a constant combination, as the polynomial basis has it). A row
     whose placement fails or needs a gain above ``COVER_COND`` keeps its poles (``shared_i`` False).
     """
-    from .pencil import COVER_COND, _place
+    from ..toolkit.pencil import COVER_COND, _place
 
     out = [(N, nu, cond, False) for N, nu, cond in rows]
     for nu in sorted({r[1] for r in rows if r[1] >= 1}):
@@ -837,8 +837,9 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
 
 
 def _boundary_rows(model, cand, basis, nu, den_mu, freqs, place):
-    """``(J, q)``: the stable factor ``[N_Q N_R]`` of the candidate rows (:func:`.coprime.stable_joint_factor`)
-    when a strong frequency lies on a pole of the plant on the stability boundary, else None. There
+    """``(J, q)``: the stable factor ``[N_Q N_R]`` of the candidate rows
+    (:func:`..toolkit.stable_factor.stable_joint_factor`) when a strong frequency lies on a pole
+    of the plant on the stability boundary, else None. There
     ``Q·Ge`` is infinite (or, rounded, huge): what a stable residual keeps is the value of the stable
     factor, in which glcf has moved the pole (the peer's ``glnull(...; sdeg)`` before ``fdisspec``)."""
     if not model.n or not model.faults:
@@ -858,10 +859,10 @@ REFINE_MAX_LEAK = 1e-4
 
 
 def _refined(model, Q: LTI, lam, Gv) -> LTI:
-    """Q with its numerator refined (:func:`.refine.refine_decoupling`) when its u/d leak on the grid
+    """Q with its numerator refined (:func:`..toolkit.refine.refine_decoupling`) when its u/d leak on the grid
     exceeds 1e-9 of its weakest fault peak (a rounding error the plant amplifies near a pole on the
     boundary) but not :data:`REFINE_MAX_LEAK` of it, and the correction is small enough to compute (≤ 2000 numerator coefficients)."""
-    from .refine import refine_decoupling
+    from ..toolkit.refine import refine_decoupling
 
     ud, fsl = slice(0, model.nu + model.nd), model.group_slices()["f"]
     if not (ud.stop and model.faults) or (Q.n + Q.p) * Q.m > 2000:
@@ -884,7 +885,7 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
     """Where every null-space design ends: make the whole internal form stable, then normalise
     each residual to unit peak fault gain (scale-free designs read better).
 
-    ``Q ← M·Q`` with the stable left factor of ``[Q R]`` (:func:`.coprime.stable_internal_form`)
+    ``Q ← M·Q`` with the stable left factor of ``[Q R]`` (:func:`..toolkit.stable_factor.stable_internal_form`)
     when ``R = Q·Ge`` keeps a pole of the plant outside the stability region (``place``: the
     design's ``poles``, ``sdeg``, ``smarg``, ``keep_stable_poles``); ``info['internal_form']``
     then names the moved poles.
@@ -895,7 +896,7 @@ def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degre
     gen = ResidualGenerator(Q, model, method)
     if scale_rows and model.faults:
         # peaks of R_f = Q·Gf as the judge reads them: the product of the two values point by point
-        # (:func:`.postconditions.internal_figures`), never the series realisation of order n_Q + n,
+        # (:func:`..toolkit.postconditions.internal_figures`), never the series realisation of order n_Q + n,
         # which is non-minimal (the modes Q cancels) and singular on the axis where the plant has poles
         dyn = [S for S in (model.lti(), Q) if S.n]
         grid = frequency_grid(dyn, num=200) if dyn else np.array([0.0])
@@ -1023,7 +1024,7 @@ BOUNDARY_RTOL = 1e-6
 def _clear_of_boundary(poles: np.ndarray, dt: float, smarg: float | None) -> bool:
     """Every pole inside the margin (``smarg``, default just inside the boundary) and at least
     :data:`BOUNDARY_RTOL` (relative to its modulus, at least 1) away from the boundary itself."""
-    from ..margin import default_smarg
+    from ...margin import default_smarg
 
     poles = np.asarray(poles, complex)
     margin = default_smarg(dt) if smarg is None else float(smarg)
@@ -1049,11 +1050,11 @@ def _approximate_pencil(model: FDIModel, rdim, poles, sdeg, FDtol, FDGainTol, se
     """Procedure AFD on the state-space core (FaultDetectionTools.jl ``afdsyn``): w decoupled
     exactly when a least-order pencil row of ``[Gu Gd Gw; I 0 0]`` sees every fault
     (:func:`_pencil` on the model with w as unknown inputs); otherwise the proper stable pencil
-    bases of ``[Gu Gd; I 0]`` and ``[Gu Gd Gw; I 0 0]`` (:func:`.pencil.pencil_basis`, no powers of
+    bases of ``[Gu Gd; I 0]`` and ``[Gu Gd Gw; I 0 0]`` (:func:`..toolkit.pencil.pencil_basis`, no powers of
     A) combined by :func:`_noise_combination`."""
     from types import SimpleNamespace
 
-    from .pencil import pencil_basis
+    from ..toolkit.pencil import pencil_basis
 
     exact_w = model.with_disturbances(noise=True)
     try:

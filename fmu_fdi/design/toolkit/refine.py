@@ -30,7 +30,7 @@ import warnings
 import numpy as np
 import scipy.linalg as sla
 
-from ..lti import LTI
+from ...lti import LTI
 
 #: singular values of Φ above this fraction of the largest are directions a correction may remove
 #: (~4500 eps: Φ's rows at a near-boundary pole are 1e5 times its others, so σ_max is theirs)

@@ -42,13 +42,13 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import DesignError
-from ..generator import ResidualGenerator
-from ..linalg import left_null, rank_tol, single_blas_thread
-from ..model import FDIModel
-from ._basis import NullspaceBasis, ParityData, _block_toeplitz, realize_rows
+from ...errors import DesignError
+from ...generator import ResidualGenerator
+from ...linalg import left_null, rank_tol, single_blas_thread
+from ...model import FDIModel
+from ..toolkit._basis import NullspaceBasis, ParityData, _block_toeplitz, realize_rows
 from .nullspace import _exact, detectability_by_rows, undetectable_error
-from .postconditions import check_generator
+from ..toolkit.postconditions import check_generator
 
 
 @single_blas_thread

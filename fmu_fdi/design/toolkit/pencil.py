@@ -39,12 +39,12 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from ..compression import RowCompression, nonzero_spans, staircase_zeros
-from ..errors import DesignError
-from ..freqresp import eigenvalues
-from ..linalg import EPS, ordered_schur
-from ..lti import LTI
-from ..model import FDIModel
+from ...compression import RowCompression, nonzero_spans, staircase_zeros
+from ...errors import DesignError
+from ...freqresp import eigenvalues
+from ...linalg import EPS, ordered_schur
+from ...lti import LTI
+from ...model import FDIModel
 
 
 @dataclass
@@ -307,7 +307,7 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
         number of moved poles.
     """
     from ._basis import normal_rank
-    from ..margin import margin_limit
+    from ...margin import margin_limit
     from .postconditions import NumericalDesignError, default_smarg
 
     p, m, md = model.ny, model.nu, model.nd
