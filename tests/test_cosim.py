@@ -312,6 +312,17 @@ def test_failed_initialisation_names_the_fmu_and_frees_the_others(fmus, tmp_path
     assert len(CoSimulation({"plant": fmus["plant"]}, step=H, stop=N * H).run()) == N + 1
 
 
+def test_fmi2_messages_reach_the_instance_that_logged_them(fmus, tmp_path):
+    """fmpy's FMI 2 log proxy keeps one logger per process (the last registered): the failing FMU is
+    started BEFORE the plant here, so its traceback would have been routed to the plant's log (and,
+    once that instance was freed, to freed memory). Its own log must hold it."""
+    bad = build_failing(tmp_path, at=0.5, how="error")
+    s = CoSimulation({"valve": bad, "plant": fmus["plant"]}, step=H, stop=N * H)
+    with pytest.raises(SimulationFailed, match="FMU 'valve' doStep") as info:
+        s.run()
+    assert any("broken valve model" in line for line in info.value.log), info.value.log
+
+
 def test_missing_fmu_file(tmp_path):
     with pytest.raises(FileNotFoundError, match="FMU 'plant': no such file"):
         CoSimulation({"plant": tmp_path / "nope.fmu"}, step=1, stop=2)
