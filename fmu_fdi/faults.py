@@ -27,6 +27,7 @@ import scipy.linalg as sla
 
 from .errors import ModelError
 from .linalg import rank_tol
+from .runtime.schema import SIGNAL_NAME
 
 KINDS = ("actuator", "sensor", "component", "parametric")
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -38,6 +39,21 @@ def check_name(name, what: str) -> str:
             f"{what} name {name!r} is not valid: use letters, digits and '_' and start with a letter or '_'"
         )
     return name
+
+
+def check_signal_name(name, what: str) -> str:
+    """``name`` if it can name a signal: an identifier, or an FMI 3 array element ``y[2]``
+    (:data:`fmu_fdi.runtime.schema.SIGNAL_NAME`)."""
+    if not isinstance(name, str) or not SIGNAL_NAME.match(name):
+        raise ModelError(f"{what} name {name!r} is not valid: use letters, digits and '_', start with a letter "
+                         f"or '_', optionally an array element's indices from 1 ('y[2]', 'A[1,2]')")
+    return name
+
+
+def identifier_of(name: str) -> str:
+    """An identifier made of a signal name, for names derived from it: ``y[2]`` → ``y_2``,
+    ``A[1,2]`` → ``A_1_2`` (a fault name ``sensor_y_2``); an identifier is returned as it is."""
+    return re.sub(r"[^A-Za-z0-9_]+", "_", name).rstrip("_")
 
 
 @dataclass

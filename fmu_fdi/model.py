@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import copy
 import json
+import re
 from pathlib import Path
 from typing import Iterable, Sequence
 
@@ -22,7 +23,7 @@ import numpy as np
 from . import _schema as S
 from . import sidecar
 from ._schema import check_format, check_keys, parse, read_text
-from .faults import FaultSpec, ModelError, _matrix, check_name, component_fault
+from .faults import FaultSpec, ModelError, _matrix, check_name, check_signal_name, component_fault
 from .lti import LTI
 from .progress import log, set_stage
 
@@ -720,6 +721,11 @@ def _toml_value(v) -> str:
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
 
 
+def _toml_key(k: str) -> str:
+    """A TOML key: bare when it is one (letters, digits, '_', '-'), else quoted (``"y[2]"``)."""
+    return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else json.dumps(k)
+
+
 def _toml_dumps(d: dict) -> str:
     """TOML writer for the model schema: scalars, then tables, matrices row by row."""
     lines = []
@@ -729,7 +735,7 @@ def _toml_dumps(d: dict) -> str:
     for key in ("arrays", "signals", "units", "declared_types", "operating_point", "provenance", "matrices"):
         if key in d:
             lines.append(f"\n[{key}]")
-            lines.extend(f"{k} = {_toml_value(v)}" for k, v in d[key].items())
+            lines.extend(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in d[key].items())
     for fault in d.get("faults", []):
         lines.append("\n[[faults]]")
         lines.extend(f"{k} = {_toml_value(v)}" for k, v in fault.items())
@@ -807,7 +813,7 @@ def _names(names, count: int, group: str, prefix: str) -> list[str]:
     if len(names) != count:
         raise ModelError(f"{len(names)} names given for {group} but the matrices have {count} {group} channels")
     for nm in names:
-        check_name(nm, f"signal ({group})")
+        check_signal_name(nm, f"signal ({group})")
     return names
 
 

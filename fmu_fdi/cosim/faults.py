@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..faults import identifier_of
 from .errors import CoSimulationError
 
 KINDS = ("abrupt", "incipient", "intermittent", "stuck", "gain", "drift", "parameter")
@@ -106,7 +107,7 @@ class Fault:
         else:
             object.__setattr__(self, "magnitude", _number(self.magnitude, "magnitude", self.target))
         self._check_shape(kind)
-        name = self.name if self.name is not None else f"{kind}_{self.target.replace('.', '_')}"
+        name = self.name if self.name is not None else f"{kind}_{identifier_of(self.target)}"  # plant.y[2]: plant_y_2
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
             raise CoSimulationError(f"fault name {name!r} is not valid: use letters, digits and '_'")
         object.__setattr__(self, "name", name)

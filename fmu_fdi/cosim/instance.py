@@ -19,6 +19,7 @@ from ctypes import byref
 from pathlib import Path
 
 from ..fmu.exit_guard import guard_library
+from .elements import Element, Packed, refused_array, variables_by_name
 from .errors import CoSimulationError, SimulationFailed
 
 # FMI 2 logging. fmpy's native proxy (fmpy/logging: it formats the printf arguments ctypes cannot
@@ -107,7 +108,10 @@ class FMUInstance:
                                     f"(model exchange only)")
         self.model_description = md
         self.fmi_version = int(md.fmiVersion[0])
-        self.variables = {v.name: v for v in md.modelVariables}
+        # FMI 3 arrays also as their elements 'y[1]', 'y[2]' (scalar variables to the master, fmu_fdi/cosim/elements.py)
+        self._unsized = {}  # array name -> why its dimension is variable (not expanded)
+        self.variables = variables_by_name(md, self._unsized)
+        self._array_values = {}  # array value reference -> the values last set (elements.Packed)
         self._kinds = {}   # var -> kind, and causality -> names: the description never changes
         self._names = {}
         self.log = collections.deque(maxlen=_LOG_LINES)
@@ -126,12 +130,16 @@ class FMUInstance:
         try:
             return self.variables[var]
         except KeyError:
+            why = refused_array(var, self._unsized)
+            if why is not None:
+                raise CoSimulationError(f"FMU '{self.name}': {var!r} cannot be a signal: {why}") from None
             near = difflib.get_close_matches(var, list(self.variables), n=3)
             hint = f" (did you mean {', '.join(repr(n) for n in near)}?)" if near else ""
             raise CoSimulationError(f"FMU '{self.name}' has no variable {var!r}{hint}") from None
 
     def kind(self, var: str):
-        """Value kind of ``var`` (``"real"``, ...), or None for arrays, binaries and clocks."""
+        """Value kind of ``var`` (``"real"``, ...), or None for whole arrays (their elements
+        ``var[i]`` have kinds), binaries and clocks."""
         try:
             return self._kinds[var]
         except KeyError:
@@ -170,6 +178,7 @@ class FMUInstance:
         import fmpy
 
         self._status = 0
+        self._array_values.clear()  # arrays start from their start values again
         self.log.clear()
         self.warnings, self.n_warnings, self.now = {}, 0, start_time
         md = self.model_description
@@ -318,7 +327,11 @@ class FMUInstance:
 
 
 class Accessor:
-    """Reads and writes a fixed list of scalar variables of one running :class:`FMUInstance`."""
+    """Reads and writes a fixed list of scalar variables of one running :class:`FMUInstance`.
+
+    FMI 3 array elements (``y[2]``) are read with their whole array (one value reference, N
+    values) and written by setting the whole array, the other elements keeping the values last
+    set (:class:`fmu_fdi.cosim.elements.Packed`)."""
 
     def __init__(self, fmu: FMUInstance, names: list):
         self.fmu = fmu
@@ -327,25 +340,33 @@ class Accessor:
         self.kinds = []
         for pos, name in enumerate(names):
             kind = fmu.kind(name)
-            if kind is None:
+            v = fmu.variables[name]
+            if kind is None or (isinstance(v, Element) and kind == "string"):
                 raise CoSimulationError(f"FMU '{fmu.name}': variable {name!r} is not a scalar of a "
                                         f"supported type (Real/Float, Integer, Boolean, String)")
             self.kinds.append(kind)
-            v = fmu.variables[name]
             call = _FMI2_CALL[v.type] if fmu.fmi_version == 2 else (
                 "Int64" if v.type == "Enumeration" else v.type)
             group = groups.setdefault(call, ([], [], kind))
             group[0].append(v.valueReference)
             group[1].append(pos)
-        self._groups = [(call, vrs, pos, _CAST[kind]) for call, (vrs, pos, kind) in groups.items()]
+        # a group with array elements reads and writes whole arrays (Packed); others one value per reference
+        self._groups = [(call, vrs, pos, _CAST[kind], self._packed(fmu, [names[p] for p in pos]))
+                        for call, (vrs, pos, kind) in groups.items()]
+
+    @staticmethod
+    def _packed(fmu, names):
+        vs = [fmu.variables[n] for n in names]
+        return Packed(vs, store=fmu._array_values) if any(isinstance(v, Element) for v in vs) else None
 
     def read(self, time: float | None = None) -> list:
         """Current values, in the order of ``names``; ``time`` only labels a failure."""
         out = [None] * len(self.names)
         slave = self.fmu._slave
-        for call, vrs, positions, cast in self._groups:
+        for call, vrs, positions, cast, packed in self._groups:
             try:
-                values = getattr(slave, "get" + call)(vrs)
+                get = getattr(slave, "get" + call)
+                values = get(vrs) if packed is None else packed.get(lambda r, n: get(r, nValues=n))
             except Exception as exc:
                 raise self._failed("get" + call, positions, time, exc) from exc
             for p, value in zip(positions, values):
@@ -355,9 +376,12 @@ class Accessor:
     def write(self, values, time: float | None = None):
         """Set the variables to ``values`` (same order as ``names``), converted to their kinds."""
         slave = self.fmu._slave
-        for call, vrs, positions, cast in self._groups:
+        for call, vrs, positions, cast, packed in self._groups:
             try:
-                getattr(slave, "set" + call)(vrs, [cast(values[p]) for p in positions])
+                if packed is None:
+                    getattr(slave, "set" + call)(vrs, [cast(values[p]) for p in positions])
+                else:
+                    packed.set(getattr(slave, "set" + call), [values[p] for p in positions], cast)
             except Exception as exc:
                 raise self._failed("set" + call, positions, time, exc) from exc
 

@@ -20,6 +20,7 @@ from ctypes import c_bool, c_double, c_float, c_int, c_size_t, c_uint, c_void_p
 
 import numpy as np
 
+from .elements import Element, Packed
 from .errors import CoSimulationError
 
 # value ctype of each FMI call; FMI 2 passes Integer and Boolean as int
@@ -65,7 +66,11 @@ class Group:
                                     f"master loop")
         self.fmu, self.call, self.direction, self.positions = fmu, call, direction, list(positions)
         self.names = list(names)
-        vrs = [fmu.variable(v).valueReference for v in self.names]
+        variables = [fmu.variable(v) for v in self.names]
+        if any(isinstance(v, Element) for v in variables):  # FMI 3 array elements: whole arrays per call
+            self._packed(fmu, variables, ctype)
+            return
+        vrs = [v.valueReference for v in variables]
         self.ctype, self.n = ctype, len(vrs)
         self.vrs = (c_uint * self.n)(*vrs)
         if memory is not None:  # a slice of the caller's array: values land there directly
@@ -86,6 +91,39 @@ class Group:
             self.bound = _bind(f, c_void_p(component(fmu)), self.vrs, n, self.values)
         else:
             self.bound = _bind(f, c_void_p(component(fmu)), self.vrs, n, self.values, n)
+
+    def _packed(self, fmu, variables, ctype):
+        """The group's call on whole arrays (:class:`~fmu_fdi.cosim.elements.Packed`: one value
+        reference, N values each); ``view`` holds the group's own elements, copied to or from the
+        call's values by :attr:`bound`, the elements not set keeping their values in the
+        instance's store (``fmu._array_values``, shared with :class:`~fmu_fdi.cosim.instance.Accessor`)."""
+        packed = Packed(variables, store=fmu._array_values)
+        self.ctype, self.n = ctype, len(variables)
+        self.vrs = (c_uint * len(packed.vrs))(*packed.vrs)
+        raw = (ctype * packed.n_values)()
+        flat = np.ctypeslib.as_array(raw) if ctype is not c_bool else np.frombuffer(raw, dtype=np.bool_)
+        self.values, self._memory = raw, False
+        self.view = np.zeros(self.n, flat.dtype)
+        self.name = f"fmi3{self.direction.capitalize()}{self.call}"
+        call = _bind(c_function(fmu, self.name), c_void_p(component(fmu)), self.vrs, c_size_t(len(packed.vrs)), raw,
+                     c_size_t(packed.n_values))
+        index, view, store = packed.index, self.view, packed.store
+        spans = [(vr, sum(packed.sizes[:k]), size) for k, (vr, size) in enumerate(zip(packed.vrs, packed.sizes))]
+
+        if self.direction == "get":
+            def bound():
+                st = call()
+                view[:] = flat[index]
+                return st
+        else:
+            def bound():
+                for vr, at, size in spans:
+                    flat[at:at + size] = store[vr]
+                flat[index] = view
+                for vr, at, size in spans:
+                    store[vr][:] = flat[at:at + size]
+                return call()
+        self.bound = bound
 
     @property
     def direct(self) -> bool:

@@ -19,7 +19,7 @@ METHODS = ("auto", "linearise", "identify")
 
 
 def _fault_list(spec, names, kind):
-    from ..faults import actuator_fault, sensor_fault
+    from ..faults import actuator_fault, identifier_of, sensor_fault
 
     if spec is None or spec == [] or spec == ():
         return []
@@ -29,7 +29,7 @@ def _fault_list(spec, names, kind):
         raise IdentificationError(f"{kind} faults asked for {bad}, which are not model "
                                   f"{'outputs' if kind == 'sensor' else 'inputs'} {list(names)}")
     make = sensor_fault if kind == "sensor" else actuator_fault
-    return [make(f"{kind}_{n}", n, description=f"additive {kind} fault on {n}") for n in chosen]
+    return [make(f"{kind}_{identifier_of(n)}", n, description=f"additive {kind} fault on {n}") for n in chosen]
 
 
 def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None, method: str = "auto",
@@ -157,13 +157,15 @@ def _start_values(md, at, params, path, method) -> None:
     (the trim's guess) are start values set before initialisation (e.g. an output with
     ``initial="exact"``): moved to ``params`` when FMI lets a master set them
     (:func:`fmu_fdi.cosim.startvalues.refusal`, the one rule), else a one-line error."""
+    from ..cosim.elements import ELEMENT, variables_by_name
     from ..cosim.startvalues import refusal
 
-    by_name = {v.name: v for v in md.modelVariables}
+    by_name = variables_by_name(md)  # FMI 3 array elements 'x[1]' too
     states = set()
     if method == "linearise":
         states = {u.variable.derivative.name for u in (md.derivatives or [])
                   if getattr(u.variable, "derivative", None) is not None}
+        states |= {k for k in at if ELEMENT.match(k) and ELEMENT.match(k).group("array") in states}
     for k in list(at):
         v = by_name.get(k)
         if v is None:
@@ -179,7 +181,9 @@ def _start_values(md, at, params, path, method) -> None:
 def _signal_types(md, names) -> tuple[dict, dict]:
     """The unit and declaredType of each signal, as the model description gives them (a variable's
     own ``unit``, else its type definition's)."""
-    by_name = {v.name: v for v in md.modelVariables}
+    from ..cosim.elements import variables_by_name
+
+    by_name = variables_by_name(md)  # an array element has its array's unit and type
     units, types = {}, {}
     for nm in names:
         v = by_name.get(nm)

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..cosim.elements import Element, Packed, element_names, refused_array, shape, variables_by_name
 from .errors import IdentificationError
 
 _EPS_STEP = np.finfo(float).eps ** (1.0 / 3.0)
@@ -96,7 +97,7 @@ class _MEInstance:
         guid = md.instantiationToken if self.v3 else md.guid
         self.fmu = cls(guid=guid, unzipDirectory=unzipdir, modelIdentifier=md.modelExchange.modelIdentifier,
                        instanceName="linearise")
-        self.vars = {v.name: v for v in md.modelVariables}
+        self.vars = variables_by_name(md)  # FMI 3 array elements 'u[1]' too (cosim/elements.py)
         self.fmu.instantiate()
         if not self.v3:
             self.fmu.setupExperiment(startTime=0.0)
@@ -129,7 +130,9 @@ class _MEInstance:
         for name, val in values.items():
             vr = [self.vr(name)]
             v = self.vars[name]
-            if v.type in ("Real", "Float64", "Float32"):
+            if isinstance(v, Element):  # an array is set whole, the other elements at their start values
+                Packed([v], held=values).set(self.fmu.setFloat64, [float(val)])
+            elif v.type in ("Real", "Float64", "Float32"):
                 (self.fmu.setFloat64 if self.v3 else self.fmu.setReal)(vr, [float(val)])
             elif v.type == "Boolean":
                 self.fmu.setBoolean(vr, [bool(val)])
@@ -152,8 +155,11 @@ class _MEInstance:
         return np.abs(np.array(self._x[: self.nx]))
 
     def evaluate(self, x, v, in_vrs, out_vrs):
-        """(f(x, v), g(x, v))."""
-        if len(in_vrs):
+        """(f(x, v), g(x, v)); ``in_vrs``/``out_vrs`` value references, or :class:`Packed` when
+        FMI 3 array elements are among them."""
+        if isinstance(in_vrs, Packed):
+            in_vrs.set(self.fmu.setFloat64, v)
+        elif len(in_vrs):
             (self.fmu.setFloat64 if self.v3 else self.fmu.setReal)(list(in_vrs), [float(a) for a in v])
         if self.nx:
             self._x[: self.nx] = [float(a) for a in x]
@@ -163,6 +169,8 @@ class _MEInstance:
             else:
                 self.fmu.getDerivatives(self._dx, self.nx)
         f = np.array(self._dx[: self.nx], float)
+        if isinstance(out_vrs, Packed):
+            return f, np.array(out_vrs.get(lambda r, n: self.fmu.getFloat64(r, nValues=n)), float)
         return f, self.get(out_vrs) if len(out_vrs) else np.zeros(0)
 
     def directional(self, unknowns, knowns, seed) -> np.ndarray:
@@ -177,15 +185,12 @@ class _MEInstance:
 
 def array_size(md, v) -> int:
     """Number of elements of an FMI 3 array variable (1 for a scalar): the product of its
-    dimensions, each a fixed ``start`` or the start value of the structural parameter it names."""
-    size = 1
-    if not v.dimensions:
-        return size
-    by_vr = {w.valueReference: w for w in md.modelVariables}
-    for dim in v.dimensions:
-        n = dim.start if dim.start is not None else getattr(by_vr.get(dim.valueReference), "start", None)
-        size *= int(n)
-    return size
+    dimensions, each a fixed ``start`` or the start value of the fixed structural parameter it
+    names (:func:`fmu_fdi.cosim.elements.shape`; a variable dimension is an IdentificationError)."""
+    try:
+        return int(np.prod(shape(md, v), dtype=int)) if v.dimensions else 1
+    except ValueError as exc:
+        raise IdentificationError(str(exc)) from None
 
 
 def read_description(path):
@@ -202,14 +207,18 @@ def check_names(md, path, names, what, causalities) -> list:
     """Every name is a Real variable of one of ``causalities``; the message lists what exists."""
     import difflib
 
-    by_name = {v.name: v for v in md.modelVariables}
+    refused = {}
+    by_name = variables_by_name(md, refused)
     out = []
     for nm in names:
         v = by_name.get(nm)
+        why = refused_array(nm, refused) or (refused.get(nm) if v is not None and v.dimensions else None)
+        if why is not None:
+            raise IdentificationError(f"{path}: {what} {nm!r}: {why}")
         if v is not None and v.dimensions:
-            raise IdentificationError(f"{path}: {what} {nm!r} is an FMI 3 array variable "
-                                      f"({array_size(md, v)} elements): array inputs and outputs are not model "
-                                      f"signals yet (array states are); name scalar variables")
+            els = element_names(nm, shape(md, v))
+            raise IdentificationError(f"{path}: {what} {nm!r} is an FMI 3 array variable ({len(els)} elements): "
+                                      f"a model signal is one element, name them: {' '.join(els)}")
         if v is None or v.causality not in causalities or v.type not in ("Real", "Float64"):
             pool = [w.name for w in md.modelVariables if w.causality in causalities
                     and w.type in ("Real", "Float64")]
@@ -228,20 +237,23 @@ def _signals(path, md, inputs, outputs, disturbances, at, parameters):
     Returns ``(u_names, d_names, y_names, v_names, by_name, at, parameters, held)``."""
     # continuous Real inputs can be perturbed; discrete-variability, Integer and Boolean inputs change only
     # at events (FMI 2.0.4 sec. 3.2.3, FMI 3.0 sec. 3.2.3): they are held at their values (``at`` or start)
-    real_in = [v.name for v in md.modelVariables if v.causality == "input" and v.type in ("Real", "Float64")
-               and v.variability in (None, "continuous") and not v.dimensions]
-    real_out = [v.name for v in md.modelVariables if v.causality == "output" and v.type in ("Real", "Float64")
-                and not v.dimensions]
-    arrays = [v.name for v in md.modelVariables if v.causality in ("input", "output") and v.dimensions]
+    # an FMI 3 array is the vector of its elements y[1], y[2], ... (fmu_fdi/cosim/elements.py)
+    refused = {}
+    scalars = [v for v in variables_by_name(md, refused).values() if not v.dimensions]
+    real_in = [v.name for v in scalars if v.causality == "input" and v.type in ("Real", "Float64")
+               and v.variability in (None, "continuous")]
+    real_out = [v.name for v in scalars if v.causality == "output" and v.type in ("Real", "Float64")]
+    io = {v.name for v in md.modelVariables if v.causality in ("input", "output")}
+    arrays = [f"{k}: {why}" for k, why in refused.items() if k in io]
     d_names = check_names(md, path, list(disturbances), "disturbance", ("input",))
     u_names = (check_names(md, path, list(inputs), "input", ("input",)) if inputs is not None
                else [n for n in real_in if n not in d_names])
     y_names = check_names(md, path, list(outputs), "output", ("output",)) if outputs is not None else real_out
     if not y_names:
-        raise IdentificationError(f"{path}: no outputs to linearise (the FMU has no scalar Real outputs"
-                                  + (f"; array inputs/outputs {arrays} are not model signals yet)" if arrays else ")"))
+        raise IdentificationError(f"{path}: no outputs to linearise (the FMU has no Real outputs"
+                                  + (f"; arrays of variable dimension are refused: {arrays})" if arrays else ")"))
     at = dict(at or {})
-    by_name = {v.name: v for v in md.modelVariables}
+    by_name = variables_by_name(md)
     unknown = [k for k in at if k.split("[")[0] not in by_name]  # x[i]: an element of an array state
     if unknown:
         raise IdentificationError(f"{path}: operating-point values for unknown variables {unknown}")
@@ -350,9 +362,10 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
         except Exception as exc:
             raise IdentificationError(f"{path}: the FMU failed to instantiate/initialise for linearisation: "
                                       f"{exc}") from None
-        if inst.arrays and use_dd:  # array states are seeded per variable, not per element: differences
+        elements = any(isinstance(by_name[n], Element) for n in v_names + y_names)
+        if (inst.arrays or elements) and use_dd:  # arrays are seeded per variable, not per element: differences
             if directional is True:
-                raise IdentificationError(f"{path}: its states are FMI 3 arrays; directional derivatives are "
+                raise IdentificationError(f"{path}: its states or signals are FMI 3 arrays; directional derivatives are "
                                           f"seeded per element only with central differences (directional='auto')")
             use_dd = False
         state_vars = [by_name.get(n) for n in inst.state_names]
@@ -363,6 +376,8 @@ def linearise(path, inputs=None, outputs=None, disturbances=(), *, at=None, trim
         v0 = np.array([float(at[n]) if n in at else float(by_name[n].start or 0.0) for n in v_names])
         in_vrs = [by_name[n].valueReference for n in v_names]
         out_vrs = [by_name[n].valueReference for n in y_names]
+        if elements:  # whole arrays set and read, the held elements at their values (cosim/elements.py)
+            in_vrs, out_vrs = Packed([by_name[n] for n in v_names], held=held), Packed([by_name[n] for n in y_names])
         nominal_x = np.maximum(inst.nominals(), 1e-300) if inst.nx else np.zeros(0)
         nominal_v = np.array([abs(float(getattr(by_name[n], "nominal", None) or 1.0)) for n in v_names])
 

@@ -44,7 +44,6 @@ MAX_COUNT = 2**31 - 1
 #: §12, whose members are plain designs); a signal may not take them
 RESERVED = re.compile(r"^(residual|evaluation|threshold|alarm)_\d+$|^(fault_detected|isolated_fault|input_invalid|"
                       r"numeric_reset|threshold_scale|active_member)$")
-_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 _TOP_REQUIRED = ("format", "name", "signals", "generator", "evaluation", "decision", "faults")
 _TOP_ALLOWED = set(_TOP_REQUIRED) | {"units", "operating_point", "model", "created_by", "description", "report"}
@@ -114,9 +113,10 @@ def _signals(d: dict, source: str) -> tuple[int, int, list[str]]:
     both = u + y
     if len(set(both)) != len(both):
         raise E(f"{source}: signal names must be distinct, {sorted(set(u) & set(y))} are both input and output")
-    bad = [s for s in both if not _IDENT.match(s)]
+    bad = [s for s in both if not S.SIGNAL_NAME.match(s)]
     if bad:
-        raise E(f"{source}: signal names {bad} are not valid variable names (letters, digits, '_')")
+        raise E(f"{source}: signal names {bad} are not valid variable names (letters, digits, '_'; an array "
+                f"element 'y[2]')")
     clash = [s for s in both if RESERVED.match(s)]
     if clash:
         raise E(f"{source}: signal names {clash} collide with the diagnostic FMU's own variable names")

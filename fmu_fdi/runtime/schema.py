@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import re
 
 import numpy as np
 
@@ -22,6 +23,11 @@ import numpy as np
 #: square stays below 1e300 < 1.8e308 (the float maximum), so no overflow comes from
 #: the data alone.
 MAX_ABS = 1e150
+
+
+#: a signal name: an identifier, or an FMI 3 array element in FMI's structured naming,
+#: ``y[2]`` / ``A[1,2]`` (indices from 1; fmu_fdi/cosim/elements.py says why this spelling)
+SIGNAL_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[[1-9][0-9]*(,[1-9][0-9]*)*\])?$")
 
 
 #: deepest nesting of lists/tables a file may have (the deepest legitimate value, a
