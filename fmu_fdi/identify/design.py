@@ -195,8 +195,10 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     """
     from .linearise import read_description
 
+    from ..cosim.elements import variables_by_name
+
     md = read_description(path)
-    by_name = {v.name: v for v in md.modelVariables}
+    by_name = variables_by_name(md)  # FMI 3 array elements 'u[1]' too
     excite = list(excite) if excite is not None else [n for n in sig if by_name.get(n) is not None
                                                       and by_name[n].causality == "input"]
     if not excite:  # run_experiment names the problem
