@@ -11,8 +11,8 @@
   directional isolation every fault with a nonzero direction can be named.
 - :func:`residual_unit`: the residuals' unit when the outputs share one (see
   :mod:`fmu_fdi.fmu.builder`).
-- :func:`variable_units`, :func:`variable_descriptions`: the one description of the FMU's
-  variables that both builders (:mod:`fmu_fdi.fmu.builder`, :mod:`fmu_fdi.native.build`) write.
+- :func:`variable_units`, :func:`variable_types`, :func:`type_definitions`,
+  :func:`variable_descriptions`: the one description of the FMU's variables that both builders (:mod:`fmu_fdi.fmu.builder`, :mod:`fmu_fdi.native.build`) write.
 """
 from __future__ import annotations
 
@@ -102,6 +102,24 @@ def variable_units(design: dict) -> dict[str, str]:
     units = {k: v for k, v in (design.get("units") or {}).items() if k in signals}
     units.update(_output_units(design))
     return units
+
+
+def variable_types(design: dict) -> dict[str, str]:
+    """Variable name -> ``declaredType`` of the plant signals, from the model the design carries
+    (the model file's ``[declared_types]``, e.g. the plant FMU's own types); both targets."""
+    view = design["members"][0] if "members" in design else design
+    signals = set(view["signals"]["u"]) | set(view["signals"]["y"])
+    types = (view.get("model") or {}).get("declared_types") or {}
+    return {k: v for k, v in types.items() if k in signals and isinstance(v, str) and v}
+
+
+def type_definitions(types: dict, units: dict) -> dict[str, str | None]:
+    """``declaredType`` name -> its unit: the one unit every variable of that type has, else
+    None (the units then stay on the variables alone, which FMI lets override the type's)."""
+    out: dict = {}
+    for name, typ in types.items():
+        out.setdefault(typ, set()).add(units.get(name))
+    return {typ: next(iter(us)) if len(us) == 1 else None for typ, us in sorted(out.items())}
 
 
 def variable_descriptions(design: dict) -> dict[str, str]:

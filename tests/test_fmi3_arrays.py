@@ -150,3 +150,47 @@ def test_model_design_build_simulate_a_fault_on_one_element(plant, tmp_path):
             named = iso[~before][iso[~before] > 0]
             assert named.size and np.bincount(named).argmax() == faults.index(f"sensor_{y[0]}_{y[2]}") + 1, \
                 (label, y, np.unique(iso[~before], return_counts=True))
+
+
+# ---- declaredTypes: model file [declared_types] → the diagnostic FMU's TypeDefinitions, every target ---------
+def test_declared_types_reach_the_diagnostic_fmu(tmp_path):
+    """Read back with ElementTree (not our writer) and fmpy: each declaredType of the model's signals is a
+    Real type in TypeDefinitions (FMI 2 SimpleType/Real, FMI 3 Float64Type) named on its variables; a type
+    whose variables share a unit carries it, one whose variables differ (m, mm) carries none and the units
+    stay on the variables; fmpy reads the description with validation and finds nothing to report."""
+    import zipfile
+    from xml.etree import ElementTree as ET
+
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    from fmu_fdi.faults import sensor_fault
+    from fmu_fdi.fmu.builder import build_fmu
+
+    types = {"u[1]": "Force", "y[1]": "Position", "y[2]": "Position"}
+    units = {"u[1]": "N", "y[1]": "m", "y[2]": "mm"}
+    m = FDIModel(P.A, P.B[:, :1], P.C, P.D[:, :1], u_names=["u[1]"], y_names=["y[1]", "y[2]"], units=units,
+                 declared_types=types, faults=[sensor_fault("sensor_y_1", "y[1]"), sensor_fault("sensor_y_2", "y[2]")])
+    m.to_file(tmp_path / "m.toml")
+    assert main(["design", str(tmp_path / "m.toml"), "--method", "dos", "--ts", "0.05", "-o",
+                 str(tmp_path / "d.json")]) == 0
+    for target, fmi in (("pythonfmu", 2), ("native", 2), ("native", 3)):
+        fmu = build_fmu(tmp_path / "d.json", tmp_path / f"{target}{fmi}.fmu", target=target, fmi_version=fmi)
+        with zipfile.ZipFile(fmu) as zf:
+            root = ET.fromstring(zf.read("modelDescription.xml"))
+        if fmi == 2:
+            defs = {t.get("name"): t.find("Real").get("unit") for t in root.findall("TypeDefinitions/SimpleType")}
+            declared = {sv.get("name"): sv.find("Real").get("declaredType")
+                        for sv in root.findall("ModelVariables/ScalarVariable") if sv.find("Real") is not None}
+            own_unit = {sv.get("name"): sv.find("Real").get("unit")
+                        for sv in root.findall("ModelVariables/ScalarVariable") if sv.find("Real") is not None}
+        else:
+            defs = {t.get("name"): t.get("unit") for t in root.findall("TypeDefinitions/Float64Type")}
+            declared = {v.get("name"): v.get("declaredType") for v in root.findall("ModelVariables/Float64")}
+            own_unit = {v.get("name"): v.get("unit") for v in root.findall("ModelVariables/Float64")}
+        assert defs == {"Force": "N", "Position": None}, (target, fmi, defs)
+        assert {k: v for k, v in declared.items() if v} == types, (target, fmi)
+        assert all(own_unit[k] == units[k] for k in units), (target, fmi)
+        assert validate_fmu(str(fmu)) == [], (target, fmi)
+        md = read_model_description(str(fmu), validate=True)
+        assert {v.name: v.declaredType.name for v in md.modelVariables if v.declaredType} == types

@@ -78,6 +78,7 @@ def patch_model_description(
     xml: bytes | str,
     *,
     units: Mapping[str, str] | None = None,
+    declared_types: Mapping[str, str] | None = None,
     descriptions: Mapping[str, str] | None = None,
     output_dependencies: Mapping[str, Sequence[str]] | None = None,
     initial_dependencies: Mapping[str, Sequence[str]] | None = None,
@@ -95,6 +96,10 @@ def patch_model_description(
     units : mapping, optional
         Variable name → unit string (Real variables only). Each distinct unit becomes a
         ``<Unit name=...>`` without base units (fmpy and FMI accept that).
+    declared_types : mapping, optional
+        Variable name → ``declaredType`` (Real variables only). Each distinct type becomes a
+        ``<SimpleType name=...><Real unit=.../>`` in ``TypeDefinitions``, with the unit its
+        variables share (:func:`fmu_fdi.designinfo.type_definitions`).
     descriptions : mapping, optional
         Variable name → description; replaces any description pythonfmu wrote.
     output_dependencies : mapping, optional
@@ -136,7 +141,9 @@ def patch_model_description(
 
     units = dict(units or {})
     descriptions = dict(descriptions or {})
+    declared_types = dict(declared_types or {})
     check_names("units", units)
+    check_names("declared_types", declared_types)
     check_names("descriptions", descriptions)
 
     for v in variables:
@@ -149,8 +156,13 @@ def patch_model_description(
             if v.type != "Real":
                 raise ValueError(f"units: {v.name!r} is {v.type}; FMI 2.0 gives units to Real variables only")
             v.value.set("unit", units[v.name])
+        if v.name in declared_types:
+            if v.type != "Real":
+                raise ValueError(f"declared_types: {v.name!r} is {v.type}; only Real types are written")
+            v.value.set("declaredType", declared_types[v.name])
 
     _set_unit_definitions(root, sorted(set(units.values())))
+    _set_type_definitions(root, declared_types, units)
     _set_model_structure(root, variables, by_name, output_dependencies, initial_dependencies, check_names)
     _set_capabilities(root, capabilities or {})
     if default_experiment is not None:
@@ -199,6 +211,21 @@ def _set_unit_definitions(root, unit_names):
     ud = ET.SubElement(root, "UnitDefinitions")
     for name in unit_names:
         ET.SubElement(ud, "Unit", name=name)
+
+
+def _set_type_definitions(root, declared_types, units):
+    from ..designinfo import type_definitions
+
+    if not declared_types:
+        return
+    old = root.find("TypeDefinitions")
+    if old is not None:
+        root.remove(old)
+    td = ET.SubElement(root, "TypeDefinitions")
+    for name, unit in type_definitions(declared_types, units).items():
+        real = ET.SubElement(ET.SubElement(td, "SimpleType", name=name), "Real")
+        if unit:
+            real.set("unit", unit)
 
 
 def _set_model_structure(root, variables, by_name, output_dependencies, initial_dependencies, check_names):

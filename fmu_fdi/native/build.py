@@ -89,7 +89,7 @@ def variables(design: dict) -> list[dict]:
     Each: ``name, causality, variability, kind (Real/Boolean/Integer), start, unit, description``.
     Names, descriptions and units are the pythonfmu target's.
     """
-    from ..designinfo import variable_descriptions, variable_units
+    from ..designinfo import variable_descriptions, variable_types, variable_units
 
     if "members" in design:  # a scheduled design: member 1's variables and active_member
         from .schedule_emit import scheduled_variables
@@ -97,13 +97,13 @@ def variables(design: dict) -> list[dict]:
         return scheduled_variables(design, variables)
     sig, g = design["signals"], design["generator"]
     desc = variable_descriptions(design)
-    units = variable_units(design)
+    units, types = variable_units(design), variable_types(design)
     op = design.get("operating_point") or {}
     starts = list(op.get("u", [0.0] * len(sig["u"]))) + list(op.get("y", [0.0] * len(sig["y"])))
     out = []
     for name, start in zip(list(sig["u"]) + list(sig["y"]), starts):
         out.append(dict(name=name, causality="input", variability="continuous", kind="Real", start=float(start),
-                        unit=units.get(name), description=desc[name]))
+                        unit=units.get(name), description=desc[name], declared_type=types.get(name)))
     out.append(dict(name="threshold_scale", causality="parameter", variability="tunable", kind="Real", start=1.0,
                     unit=None, description=desc["threshold_scale"]))
     for name in output_names(len(g["residual_names"]), len(g["groups"])):
@@ -205,6 +205,7 @@ def model_description(design: dict, identifier: str, token: str, fmi_version: in
         ud = ET.SubElement(root, "UnitDefinitions")
         for u in units:
             ET.SubElement(ud, "Unit", name=u)
+    _type_definitions(root, vs, fmi3)
     cats = ET.SubElement(root, "LogCategories")
     for name, text in LOG_CATEGORIES.items():
         ET.SubElement(cats, "Category", name=name, description=text)
@@ -229,11 +230,15 @@ def model_description(design: dict, identifier: str, token: str, fmi_version: in
             el.set("start", start)
             if v["unit"]:
                 el.set("unit", v["unit"])
+            if v.get("declared_type"):
+                el.set("declaredType", v["declared_type"])
         else:
             el = ET.SubElement(mv, "ScalarVariable", attrs)
             typ = ET.SubElement(el, v["kind"], start=start)
             if v["unit"]:
                 typ.set("unit", v["unit"])
+            if v.get("declared_type"):
+                typ.set("declaredType", v["declared_type"])
     ms = ET.SubElement(root, "ModelStructure")
     outputs = [vr for vr, v in enumerate(vs, start=1) if v["causality"] == "output"]
     if fmi3:  # no direct feedthrough: outputs change at fmi3DoStep only
@@ -247,6 +252,22 @@ def model_description(design: dict, identifier: str, token: str, fmi_version: in
     buf = io.BytesIO()
     ET.ElementTree(root).write(buf, encoding="UTF-8", xml_declaration=True)
     return buf.getvalue()
+
+
+def _type_definitions(root, vs, fmi3: bool) -> None:
+    """``<TypeDefinitions>``: one Real type per ``declaredType`` of the plant signals (FMI 2.0
+    ``<SimpleType><Real/>``, FMI 3.0 ``<Float64Type>``), with the unit its variables share."""
+    from ..designinfo import type_definitions
+
+    types = {v["name"]: v["declared_type"] for v in vs if v.get("declared_type")}
+    if not types:
+        return
+    td = ET.SubElement(root, "TypeDefinitions")
+    for name, unit in type_definitions(types, {v["name"]: v["unit"] for v in vs}).items():
+        el = ET.SubElement(td, "Float64Type", name=name) if fmi3 else ET.SubElement(
+            ET.SubElement(td, "SimpleType", name=name), "Real")
+        if unit:
+            el.set("unit", unit)
 
 
 def build_description(identifier: str, sources: list[str]) -> bytes:
