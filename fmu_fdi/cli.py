@@ -339,7 +339,7 @@ def _thresholds(text: str, gen, evaluation: dict, calibrate=None):
 
 
 def _threshold_values(kind, nums, gen, evaluation, calibrate):
-    from .evaluation import (analytic_threshold, data_driven_threshold, fault_size_thresholds, sensor_gain_plants,
+    from .evaluation import (analytic_threshold, fault_size_thresholds, sensor_gain_plants,
                              threshold_selector)
 
     if kind == "sigma":
@@ -358,7 +358,7 @@ def _threshold_values(kind, nums, gen, evaluation, calibrate):
         t, u, y = _read_record(calibrate, gen.model)
         probe = Diagnoser(gen, evaluation=evaluation, thresholds=1e150)  # evaluations only (reachable: design_check)
         out = probe.run(t, u, y)
-        return [data_driven_threshold(out[f"evaluation_{i + 1}"], nums[0]) for i in range(len(gen.groups))]
+        return [_log_threshold(out, gen, evaluation, i, nums[0]) for i in range(len(gen.groups))]
     if kind == "fixed":
         return nums[0]
     if kind == "fault-size":
@@ -366,6 +366,22 @@ def _threshold_values(kind, nums, gen, evaluation, calibrate):
     delta, J0 = nums  # sensor-gain
     plants = sensor_gain_plants(gen.model, delta)
     return [threshold_selector(gen, evaluation, J0=J0, plants=plants)] * len(gen.groups)
+
+
+def _log_threshold(out, gen, evaluation, i, rate):
+    """Group i's ``data:RATE`` threshold (fmu_fdi/evaluation/gaussfit.log_threshold); a Gaussian fit, used
+    when the log is too short for the evaluation's tail, is said and recorded in the design's info."""
+    from .evaluation import log_threshold
+
+    r = np.column_stack([out[f"residual_{j + 1}"] for j in gen.groups[i]])
+    est = log_threshold(out[f"evaluation_{i + 1}"], r, evaluation, rate)
+    if est.method == "gaussian":
+        note = (f"group {i + 1}: threshold {est.value:.4g} from a Gaussian fit of the residuals (rate {rate:g}, "
+                f"level bound at confidence {est.confidence:g} from {est.n_effective} effective residual samples), "
+                f"not from the evaluation's tail: {est.details['short_log']}")
+        print(f"note: {note}")
+        gen.info.setdefault("threshold_fits", []).append(note)
+    return est
 
 
 def _read_record(path, model):

@@ -42,6 +42,23 @@ import numpy as np
 from scipy import stats
 
 METHODS = ("auto", "empirical", "gpd")
+
+
+class ShortLogError(ValueError):
+    """The records hold too few effective samples for the estimate asked for (the message says
+    how many there are, why, and how long a log is needed); ``needed`` is that length in samples."""
+
+    def __init__(self, message: str, needed: int | None = None):
+        super().__init__(message)
+        self.needed = needed
+
+
+def empirical_need(rate: float, confidence: float) -> int:
+    """Effective samples the distribution-free bound needs: the smallest n with
+    ``1 − (1 − rate)^n ≥ confidence``, i.e. ``ceil(ln(1 − confidence) / ln(1 − rate))``
+    (the largest of n independent samples exceeds the ``1 − rate`` quantile with probability
+    ``1 − (1 − rate)^n``). rate 1e-3, confidence 0.95: 2995."""
+    return int(np.ceil(np.log1p(-confidence) / np.log1p(-rate) - 1e-9))
 ACF_LEVEL = 0.05  # autocorrelation below which thinned samples count as independent
 MIN_EXCESSES = 30  # fewest excesses a GPD fit is made from
 
@@ -130,9 +147,9 @@ def decorrelation_length(records, level: float = ACF_LEVEL) -> int:
     rho = sums[:max_lag + 1] / counts[:max_lag + 1] / (sums[0] / counts[0])
     below = np.flatnonzero(rho[1:] < level)
     if below.size == 0:
-        raise ValueError(f"the autocorrelation of J stays above {level} up to lag {max_lag} (half the longest "
-                         "record): the records are too short for their correlation time; give longer records or "
-                         "thin= explicitly")
+        raise ShortLogError(f"the autocorrelation of J stays above {level} up to lag {max_lag} (half the longest "
+                            "record): the records are too short for their correlation time; give longer records or "
+                            "thin= explicitly")
     return int(below[0] + 1)
 
 
@@ -168,10 +185,12 @@ def _gpd(x: np.ndarray, rate: float, confidence: float, tail_fraction: float, n_
     k = max(MIN_EXCESSES, int(np.ceil(tail_fraction * n)))
     if 2 * k > n:
         need = 2 * MIN_EXCESSES  # k = MIN_EXCESSES excesses, at most half the samples
-        raise ValueError(f"{_effective(n, n_all or n, L)}: too few for a tail fit, which needs {need} ({k} excesses, "
-                         f"at most half the samples): a fault-free log of at least about {need * L} samples (or several "
-                         f"independent runs adding up to it; a short log underestimates the correlation length, so "
-                         f"allow more), or a shorter evaluation window (less correlation)")
+        raise ShortLogError(f"{_effective(n, n_all or n, L)}: too few for a tail fit, which needs {need} ({k} excesses, "
+                            f"at most half the samples): a fault-free log of at least about {need * L} samples (the "
+                            f"distribution-free bound needs {empirical_need(rate, confidence)} effective samples, about "
+                            f"{empirical_need(rate, confidence) * L}; several independent runs may add up to it; a short "
+                            f"log underestimates the correlation length, so allow more), or a shorter evaluation window "
+                            f"(less correlation)", need * L)
     xs = np.sort(x)
     u = float(xs[n - k - 1])
     y = xs[n - k:] - u
@@ -273,10 +292,10 @@ def data_driven_threshold(evaluations, rate: float, confidence: float = 0.95, me
 
     r = _order_index(n, rate, confidence)
     if method == "empirical" and r is None:
-        need = int(np.ceil(np.log1p(-confidence) / np.log1p(-rate)))
-        raise ValueError(f"the empirical bound needs at least {need} effective samples for rate {rate} at confidence "
+        need = empirical_need(rate, confidence)
+        raise ShortLogError(f"the empirical bound needs at least {need} effective samples for rate {rate} at confidence "
                          f"{confidence} (a log of at least about {need * L} samples), got {_effective(n, n_all, L)}; use "
-                         f"method='gpd'")
+                         f"method='gpd'", need * L)
     if method == "empirical" or (method == "auto" and r is not None):
         value = float(np.sort(x)[r - 1])
         achieved = float(stats.binom.cdf(r - 1, n, 1.0 - rate))
