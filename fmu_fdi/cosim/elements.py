@@ -46,8 +46,11 @@ class Element:
         self.dimensions = []      # a scalar
         self.shape = None         # the array's dimensions (set by :func:`elements`)
 
-    def __getattr__(self, attr):  # everything else is the array's
-        return getattr(self.__dict__["array"], attr)
+    def __getattr__(self, attr):  # everything else is the array's (not the special names: copy, pickle)
+        array = self.__dict__.get("array")
+        if array is None or attr.startswith("__"):
+            raise AttributeError(attr)
+        return getattr(array, attr)
 
     def __repr__(self):
         return f"Element({self.name!r} of {self.array.name!r}, offset {self.offset})"
