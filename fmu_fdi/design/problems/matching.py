@@ -68,8 +68,10 @@ from ..toolkit._basis import check_poles, pole_chooser
 from .approximate_matching import reference
 from ..toolkit.postconditions import DEC_TOL, _values, check_generator, default_smarg
 from ..toolkit.sampled import _basis_values, cascade
+from ..toolkit.notes import keeps_notes
 
 
+@keeps_notes
 @single_blas_thread
 def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None, max_degree: int | None = None,
                    mm_tol: float = 1e-9, smarg: float | None = None, dec_tol: float = DEC_TOL,

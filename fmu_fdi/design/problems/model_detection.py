@@ -55,6 +55,7 @@ from ...lti import LTI
 from ...model import FDIModel
 from .nullspace import nullspace_design
 from ..toolkit.postconditions import DEC_TOL, check_generator
+from ..toolkit.notes import keeps_notes
 
 
 def _with_model_faults(models: Sequence[FDIModel], i: int, atol: float = 0.0) -> FDIModel:
@@ -86,6 +87,7 @@ def _with_model_faults(models: Sequence[FDIModel], i: int, atol: float = 0.0) ->
                     u_names=base.u_names, y_names=base.y_names, d_names=base.d_names, name=f"{base.name}_md")
 
 
+@keeps_notes
 @single_blas_thread
 def model_detection_bank(models: Sequence[FDIModel], *, poles=None, sdeg=None, FDtol: float = 1e-4,
                          atol: float = 0.0, **kwargs) -> ResidualBank:
@@ -384,6 +386,7 @@ def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
     return Q1, info
 
 
+@keeps_notes
 @single_blas_thread
 def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | str = 1, poles=None, sdeg=None,
                                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01,

@@ -34,6 +34,7 @@ from ..toolkit.approximate import coouter_inverse, gap_objective
 from ...margin import near_poles
 from ..toolkit.stable_factor import stable_internal_form, stable_joint_factor
 from ..toolkit.postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
+from ..toolkit.notes import keeps_notes, note
 
 
 def _random_points(basis: NullspaceBasis, count: int = 4, seed: int = 1) -> np.ndarray:
@@ -141,12 +142,13 @@ def _normalize_rows(Q: LTI, scale: np.ndarray) -> LTI:
     return LTI(Q.A, Q.B, S @ Q.C, S @ Q.D, Q.dt)
 
 
+@keeps_notes
 @single_blas_thread
 def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: float | None = None,
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
                      tol: float | None = None, atol: float = 0.0, seed: int = 0, smarg: float | None = None,
                      dec_tol: float = DEC_TOL, minimal: bool = True, basis: str = "auto",
-                     keep_stable_poles: bool = True) -> ResidualGenerator:
+                     keep_stable_poles: bool = True, HDesign=None) -> ResidualGenerator:
     """Least-order residual generator from a minimal proper stable left null space of ``[Gu Gd; I 0]``.
 
     Solves the exact fault detection problem (Varga 2017, Procedure EFD; FaultDetectionTools.jl
@@ -202,6 +204,13 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         True (default): only poles violating ``smarg`` move, the plant's stable poles stay in R.
         False: with ``sdeg`` given, the stable poles of ``[Q R]`` slower than ``sdeg`` move too, so
         that the residual's whole response has that stability degree (Varga's ``sdeg`` in ``glcf``).
+    HDesign : array_like, optional
+        A full-row-rank design matrix ``H`` (``q × k``, ``k = p − rank Gd``) that forms the ``q``
+        residuals as ``Q = M·H·N`` from the proper stable pencil basis ``N`` (FaultDetectionTools.jl's
+        ``HDesign``; :mod:`.hdesign`): the combination is the user's, not searched (w, if any, is not
+        optimised). Fewer than ``k`` columns combine the leading basis rows; ``rdim``, if not 1, must
+        equal the rows of H. Refused (DesignError) with more than ``k`` columns, rank below its rows, or
+        rows that together miss a fault. ``info['HDesign']`` is the matrix used.
     dec_tol : float
         Largest relative leakage of u and d (and w when it is decoupled) the returned filter
         may show (:mod:`..toolkit.postconditions`).
@@ -264,6 +273,12 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     req = _Request.validated(model, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
                              FDGainTol=FDGainTol, noise=noise, tol=tol, atol=atol, seed=seed, smarg=smarg,
                              dec_tol=dec_tol, minimal=minimal, basis=basis, keep_stable_poles=keep_stable_poles)
+    if HDesign is not None:
+        from .hdesign import hdesign_generator
+
+        return hdesign_generator(model, HDesign, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
+                                 FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol, tol=tol, atol=atol,
+                                 place=req.place)
     if basis == "pencil":
         return req.pencil() if req.exact_only else req.noise_pencil()
     auto = basis == "auto" and req.exact_only
@@ -470,14 +485,12 @@ EXACT = "exact"
 
 
 def _announce(model: FDIModel, gen: ResidualGenerator) -> ResidualGenerator:
-    """Warn when a returned row decouples only approximately (its ``info['decoupling_kind']``)."""
-    import warnings
-
+    """Note (``info['notes']``) when a returned row decouples only approximately (``info['decoupling_kind']``)."""
     kind = gen.info.setdefault("decoupling_kind", EXACT)
     if not kind.startswith(EXACT):
-        warnings.warn(f"model '{model.name}': the residual generator decouples u and d {kind} (order {gen.Q.n}, "
-                      f"left minimal indices {gen.info.get('left_minimal_indices', '?')}); "
-                      f"{gen.info.get('exact_alternative', 'no exact row was found')}", UserWarning, stacklevel=3)
+        note(f"model '{model.name}': the residual generator decouples u and d {kind} (order {gen.Q.n}, "
+             f"left minimal indices {gen.info.get('left_minimal_indices', '?')}); "
+             f"{gen.info.get('exact_alternative', 'no exact row was found')}")
     return gen
 
 

@@ -1,0 +1,57 @@
+"""Design notes: what a user should know about a returned filter, kept with the filter.
+
+A design either returns a filter that meets every requirement or raises a ``DesignError``
+(FaultDetectionTools.jl returns its remarks in ``info`` too): a remark that does not stop the
+design — a requested pole the filter's order leaves unused, a row that decouples only to the
+post-condition tolerance — belongs in the filter's ``info['notes']`` (a list of one-line
+strings), not in a ``UserWarning`` printed beside it. The toolkit calls :func:`note` where it
+notices; every public design function runs under :func:`keeps_notes`, which collects the notes
+of the call (nested designs included) and attaches them to the returned object. Outside any
+design (a toolkit function called on its own) :func:`note` still warns, so nothing is lost.
+"""
+from __future__ import annotations
+
+import functools
+import warnings
+from contextvars import ContextVar
+
+_COLLECTORS: ContextVar[tuple[list[str], ...]] = ContextVar("fmu_fdi_design_notes", default=())
+
+
+def note(message: str) -> None:
+    """Record ``message`` for the design in progress (every enclosing design collects it);
+    a ``UserWarning`` when no design is in progress."""
+    stack = _COLLECTORS.get()
+    if not stack:
+        warnings.warn(message, UserWarning, stacklevel=3)
+        return
+    for notes in stack:
+        if message not in notes:
+            notes.append(message)
+
+
+def keeps_notes(design):
+    """Decorator of a public design function: the notes of the call go into ``info['notes']`` of
+    the returned ResidualGenerator/ResidualBank (and of a bank's members that made them)."""
+
+    @functools.wraps(design)
+    def wrapper(*args, **kwargs):
+        notes: list[str] = []
+        token = _COLLECTORS.set(_COLLECTORS.get() + (notes,))
+        try:
+            out = design(*args, **kwargs)
+        finally:
+            _COLLECTORS.reset(token)
+        attach(out, notes)
+        return out
+
+    return wrapper
+
+
+def attach(out, notes: list[str]) -> None:
+    """Append ``notes`` to ``out.info['notes']`` (no duplicates); no-op for objects without ``info``."""
+    info = getattr(out, "info", None)
+    if not isinstance(info, dict) or not notes:
+        return
+    have = info.setdefault("notes", [])
+    have.extend(n for n in notes if n not in have)
