@@ -30,7 +30,7 @@ from ...lti import LTI, frequency_grid, vstack
 from ...model import FDIModel
 from ..toolkit._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ..toolkit._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
-from ..toolkit.approximate import coouter_inverse, gap_objective
+from ..toolkit.approximate import gap_objective, noise_normalizer, with_nonstandard_options
 from ...margin import near_poles
 from ..toolkit.stable_factor import stable_internal_form, stable_joint_factor
 from ..toolkit.postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
@@ -143,12 +143,14 @@ def _normalize_rows(Q: LTI, scale: np.ndarray) -> LTI:
 
 
 @keeps_notes
+@with_nonstandard_options
 @single_blas_thread
 def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: float | None = None,
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
                      tol: float | None = None, atol: float = 0.0, seed: int = 0, smarg: float | None = None,
                      dec_tol: float = DEC_TOL, minimal: bool = True, basis: str = "auto",
-                     keep_stable_poles: bool = True, HDesign=None) -> ResidualGenerator:
+                     keep_stable_poles: bool = True, HDesign=None, nonstd: int | None = None, epsreg: float = 0.1,
+                     sdegzer: float | None = None) -> ResidualGenerator:
     """Least-order residual generator from a minimal proper stable left null space of ``[Gu Gd; I 0]``.
 
     Solves the exact fault detection problem (Varga 2017, Procedure EFD; FaultDetectionTools.jl
@@ -211,6 +213,12 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         optimised). Fewer than ``k`` columns combine the leading basis rows; ``rdim``, if not 1, must
         equal the rows of H. Refused (DesignError) with more than ``k`` columns, rank below its rows, or
         rows that together miss a fault. ``info['HDesign']`` is the matrix used.
+    nonstd, epsreg, sdegzer
+        With noise to optimise, how a noise response without an invertible co-outer factor (zeros at
+        infinity — Gw strictly proper — or on the stability boundary) is normalised, as FaultDetectionTools.jl
+        ``afdsyn``: 1 the quasi-co-outer factor with its boundary/infinite zeros moved (default), 2 the
+        factor of ``[Rw  epsreg·||Rw||∞·I]``, 4 the zeros shifted by ``sdegzer``; 3 and 5 are refused in that
+        case (:func:`..toolkit.approximate.noise_normalizer`). ``info['noise']`` says what was done.
     dec_tol : float
         Largest relative leakage of u and d (and w when it is decoupled) the returned filter
         may show (:mod:`..toolkit.postconditions`).
@@ -988,14 +996,11 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
     Ge = model.augmented()
     Rw1 = (Q1 @ Ge)[:, sl["w"]].minreal()
     normalized = False
-    fac = coouter_inverse(Rw1) if Rw1.n else None
-    if fac is not None and not _clear_of_boundary(fac[0].poles(), model.dt, (place or {}).get("smarg")):
-        # Rw1 has a zero on or next to the stability boundary (Varga's non-standard case): its inverse
-        # would put a near-integrator into the filter (a pole at -5e-9, random seeds 22, 28); the
-        # filter poles set the frequency weighting instead
-        fac = None
+    # Rw1 with a zero at infinity or on or next to the stability boundary (Varga's non-standard case: an inverse
+    # would put a near-integrator into the filter, a pole at -5e-9 on random seeds 22, 28): the nonstd option
+    fac, how = noise_normalizer(Rw1, **{k: (place or {}).get(k) for k in ("smarg", "poles", "sdeg")})
     if fac is not None:
-        Q1 = (fac[0] @ Q1).minreal()
+        Q1 = (fac @ Q1).minreal()
         normalized = True
     Qc = vstack([Q1] + ([Q2] if Q2 is not None else []))
     grid = frequency_grid([Qc, model.lti()], num=200)
@@ -1023,7 +1028,7 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
         H = h[None, :]
     Q = (H @ Qc).minreal() if H.shape[0] < Qc.p else Qc
     info = {"order": int(Q.n), "rdim": int(H.shape[0]), "gap_estimate": min(objective(h) for h in H),
-            "noise": "co-outer normalised" if normalized else "weighted by the filter poles",
+            "noise": how,
             "combination": H.tolist()}
     if moved:
         info["internal_form"] = moved
