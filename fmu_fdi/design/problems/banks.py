@@ -37,8 +37,8 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
                     FDtol: float = 1e-4, FDGainTol: float = 0.01, freqs=None, tol: float | None = None,
                     seed: int = 0, smarg: float | None = None, dec_tol: float = DEC_TOL,
                     minimal: bool = True, basis: str = "auto", keep_stable_poles: bool = True,
-                    atol: float = 0.0, rdim=1, HDesign=None, nonstd: int | None = None, epsreg: float = 0.1,
-                    sdegzer: float | None = None) -> ResidualBank:
+                    atol: float = 0.0, rdim=1, HDesign=None, simple: bool = False, nonstd: int | None = None,
+                    epsreg: float = 0.1, sdegzer: float | None = None) -> ResidualBank:
     """One least-order residual per row of the structure matrix ``S``.
 
     Parameters
@@ -66,6 +66,8 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         One design matrix (or None) per structure row, as ``HDesign`` of
         :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` for that row (its rows fix the row's
         residual count).
+    simple : bool
+        Every row from a simple basis, as ``simple`` of :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`.
     nonstd, epsreg, sdegzer
         With noise to optimise (:func:`afdi_bank`), the non-standard noise factorisation of every row, as in
         :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` (FaultDetectionTools.jl ``afdisyn``).
@@ -105,7 +107,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         g = nullspace_design(mi_design, rdim=rdims[i], HDesign=Hs[i], poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol,
                              FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol,
                              minimal=minimal, basis=how, keep_stable_poles=keep_stable_poles, atol=atol,
-                             nonstd=nonstd, epsreg=epsreg, sdegzer=sdegzer)
+                             simple=simple, nonstd=nonstd, epsreg=epsreg, sdegzer=sdegzer)
         if extra:
             g = _cover_faults(mi, g, keep, place={"poles": poles, "sdeg": sdeg, "smarg": smarg,
                                                   "keep_stable_poles": bool(keep_stable_poles)},

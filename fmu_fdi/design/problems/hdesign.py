@@ -51,37 +51,61 @@ def design_matrix(H, k: int, *, rows: int | None = None, what: str = "HDesign") 
     return np.hstack([Hm, np.zeros((Hm.shape[0], k - Hm.shape[1]))])
 
 
-def hdesign_generator(model: FDIModel, H, *, rdim, poles, sdeg, freqs, FDtol, FDGainTol, smarg, dec_tol, tol,
-                      atol, place: dict) -> ResidualGenerator:
-    """``Q = M·H·N`` (module docstring), judged as every null-space design
-    (:func:`..toolkit.postconditions.check_generator`, u and d decoupled, every fault visible).
-
-    ``rdim``: 1 (the default of :func:`.nullspace.nullspace_design`, which then means "as many as H has
-    rows") or the row count of H. ``info['HDesign']`` is the (padded) matrix used,
-    ``info['left_minimal_indices']`` the degrees of the basis it multiplies."""
-    from ..toolkit.pencil import pencil_basis
-    from ..toolkit.postconditions import check_generator
-    from .nullspace import EXACT, _finish, _pencil_gains
+def basis_rows(model: FDIModel, *, simple: bool, tol, atol, poles, sdeg, smarg):
+    """``(N, pb, orders)``: the proper stable left null-space basis of ``[Gu Gd; I 0]`` the design matrix
+    multiplies — :func:`..toolkit.pencil.pencil_basis` itself, or with ``simple`` its simple form (each row
+    ``N_i`` of McMillan degree ``ν_i``, its left minimal index, ascending; Varga's ``glnull(simple = true)``,
+    :func:`..toolkit.pencil.simple_rows`); ``orders`` the rows' degrees (simple) or None."""
+    from ...lti import vstack
+    from ..toolkit.pencil import pencil_basis, simple_rows
 
     pb = pencil_basis(model, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
     k = pb.N.p
     if k == 0:
         raise DesignError(f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
                           f"output direction (normal rank of Gd = {pb.rank_d} = number of outputs {model.ny})")
-    Hm = design_matrix(H, k, rows=None if rdim in (1, None) else rdim)
-    HN = Hm @ pb.N
+    if not simple or k == 1:
+        return pb.N, pb, ([int(pb.degrees[0])] if simple else None)
+    rows = simple_rows(pb, model.dt)
+    if len(rows) < k:
+        raise DesignError(f"simple = True: only {len(rows)} of the {k} basis rows have a simple form (a minimum "
+                          f"dynamic cover of order ν_i; the others need transformations above the conditioning "
+                          f"bound); left minimal indices {pb.degrees}")
+    return vstack([r[0] for r in rows]), pb, [int(r[1]) for r in rows]
+
+
+def hdesign_generator(model: FDIModel, H, *, rdim, poles, sdeg, freqs, FDtol, FDGainTol, smarg, dec_tol, tol,
+                      atol, place: dict, simple: bool = False) -> ResidualGenerator:
+    """``Q = M·H·N`` (module docstring), judged as every null-space design
+    (:func:`..toolkit.postconditions.check_generator`, u and d decoupled, every fault visible).
+
+    ``rdim``: 1 (the default of :func:`.nullspace.nullspace_design`, which then means "as many as H has
+    rows") or the row count of H. ``H = None``: the whole basis (``H = I``; with ``simple`` the simple
+    basis, row i of order ``ν_i``). ``info['HDesign']`` is the (padded) matrix used,
+    ``info['left_minimal_indices']`` the degrees of the basis it multiplies, ``info['simple_orders']`` the
+    orders of the simple rows (with ``simple``)."""
+    from ..toolkit.postconditions import check_generator
+    from .nullspace import EXACT, _finish, _pencil_gains
+
+    N, pb, orders = basis_rows(model, simple=simple, tol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
+    k = N.p
+    Hm = np.eye(k) if H is None else design_matrix(H, k, rows=None if rdim in (1, None) else rdim)
+    HN = N if H is None else Hm @ N
     if model.faults:
         gains = _pencil_gains(model, HN, freqs, FDtol)  # per row of H·N, relative gain (cosine) to every fault
         missed = [j for j in range(len(model.faults)) if gains[:, j].max() < FDtol]
         if missed:
-            basis_gains = _pencil_gains(model, pb.N, freqs, FDtol)
+            basis_gains = _pencil_gains(model, N, freqs, FDtol)
             why = "; ".join(
                 f"fault '{model.faults[j].name}': largest relative gain of the rows H·N {gains[:, j].max():.2e} "
                 f"< FDtol = {FDtol:g} (of the basis rows: {basis_gains[:, j].max():.2e})" for j in missed)
-            raise DesignError(f"the residuals formed by HDesign do not see every required fault: {why}")
+            raise DesignError(f"the residuals formed by {'HDesign' if H is not None else 'the basis'} do not see "
+                              f"every required fault: {why}")
     Q = HN.minreal()
     info = {"order": int(Q.n), "rdim": int(Hm.shape[0]), "combination": Hm.tolist(), "HDesign": Hm.tolist(),
             "basis": "pencil", "decoupling_kind": EXACT, "left_minimal_indices": pb.degrees, "pencil": pb.info}
+    if orders is not None:
+        info["simple_orders"] = orders
     gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, pb.degrees, place=place)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)

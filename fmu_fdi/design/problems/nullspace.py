@@ -149,8 +149,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
                      tol: float | None = None, atol: float = 0.0, seed: int = 0, smarg: float | None = None,
                      dec_tol: float = DEC_TOL, minimal: bool = True, basis: str = "auto",
-                     keep_stable_poles: bool = True, HDesign=None, nonstd: int | None = None, epsreg: float = 0.1,
-                     sdegzer: float | None = None) -> ResidualGenerator:
+                     keep_stable_poles: bool = True, HDesign=None, simple: bool = False, nonstd: int | None = None,
+                     epsreg: float = 0.1, sdegzer: float | None = None) -> ResidualGenerator:
     """Least-order residual generator from a minimal proper stable left null space of ``[Gu Gd; I 0]``.
 
     Solves the exact fault detection problem (Varga 2017, Procedure EFD; FaultDetectionTools.jl
@@ -213,6 +213,12 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         optimised). Fewer than ``k`` columns combine the leading basis rows; ``rdim``, if not 1, must
         equal the rows of H. Refused (DesignError) with more than ``k`` columns, rank below its rows, or
         rows that together miss a fault. ``info['HDesign']`` is the matrix used.
+    simple : bool
+        Synthesis from a simple basis (FaultDetectionTools.jl's ``simple = true``): every basis row of
+        McMillan degree its own left minimal index ν_i (:func:`.hdesign.basis_rows`). With ``rdim='all'``
+        the residuals are those rows (``info['simple_orders']``, order Σ ν_i), with ``HDesign`` H times
+        them; with an integer ``rdim`` the pencil path's least-order search over the simple rows
+        (``basis='pencil'``; refused with ``basis='polynomial'``).
     nonstd, epsreg, sdegzer
         With noise to optimise, how a noise response without an invertible co-outer factor (zeros at
         infinity — Gw strictly proper — or on the stability boundary) is normalised, as FaultDetectionTools.jl
@@ -281,12 +287,16 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     req = _Request.validated(model, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
                              FDGainTol=FDGainTol, noise=noise, tol=tol, atol=atol, seed=seed, smarg=smarg,
                              dec_tol=dec_tol, minimal=minimal, basis=basis, keep_stable_poles=keep_stable_poles)
-    if HDesign is not None:
+    if HDesign is not None or (simple and rdim == "all"):
         from .hdesign import hdesign_generator
 
         return hdesign_generator(model, HDesign, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
                                  FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol, tol=tol, atol=atol,
-                                 place=req.place)
+                                 place=req.place, simple=bool(simple))
+    if simple:
+        if basis == "polynomial":
+            raise DesignError("simple = True needs the state-space (pencil) basis: basis='polynomial' has no simple form")
+        basis = "pencil"
     if basis == "pencil":
         return req.pencil() if req.exact_only else req.noise_pencil()
     auto = basis == "auto" and req.exact_only
