@@ -77,7 +77,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     ResidualBank
         ``info['postconditions']`` holds the figures of the whole bank against S
         (:func:`~fmu_fdi.design.toolkit.postconditions.check_generator`); ``info['decoupling_kinds']``
-        each row's ``info['decoupling_kind']`` ('exact', or 'approximate: ...' with a warning).
+        each row's ``info['decoupling_kind']`` ('exact', or 'approximate: ...' with a note in ``info['notes']``).
 
     Raises
     ------

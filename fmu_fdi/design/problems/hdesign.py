@@ -75,7 +75,7 @@ def basis_rows(model: FDIModel, *, simple: bool, tol, atol, poles, sdeg, smarg):
 
 
 def hdesign_generator(model: FDIModel, H, *, rdim, poles, sdeg, freqs, FDtol, FDGainTol, smarg, dec_tol, tol,
-                      atol, place: dict, simple: bool = False) -> ResidualGenerator:
+                      atol, place: dict, finish, gains, simple: bool = False) -> ResidualGenerator:
     """``Q = M·H·N`` (module docstring), judged as every null-space design
     (:func:`..toolkit.postconditions.check_generator`, u and d decoupled, every fault visible).
 
@@ -83,30 +83,31 @@ def hdesign_generator(model: FDIModel, H, *, rdim, poles, sdeg, freqs, FDtol, FD
     rows") or the row count of H. ``H = None``: the whole basis (``H = I``; with ``simple`` the simple
     basis, row i of order ``ν_i``). ``info['HDesign']`` is the (padded) matrix used,
     ``info['left_minimal_indices']`` the degrees of the basis it multiplies, ``info['simple_orders']`` the
-    orders of the simple rows (with ``simple``)."""
+    orders of the simple rows (with ``simple``). ``finish``, ``gains``: the null-space design's last stage
+    (stable internal form, rows normalised) and its per-row fault gains (:func:`.nullspace._finish`,
+    :func:`.nullspace._pencil_gains`; passed in, as :mod:`.nullspace` calls this module)."""
     from ..toolkit.postconditions import check_generator
-    from .nullspace import EXACT, _finish, _pencil_gains
 
     N, pb, orders = basis_rows(model, simple=simple, tol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
     k = N.p
     Hm = np.eye(k) if H is None else design_matrix(H, k, rows=None if rdim in (1, None) else rdim)
     HN = N if H is None else Hm @ N
     if model.faults:
-        gains = _pencil_gains(model, HN, freqs, FDtol)  # per row of H·N, relative gain (cosine) to every fault
-        missed = [j for j in range(len(model.faults)) if gains[:, j].max() < FDtol]
+        seen = gains(model, HN, freqs, FDtol)  # per row of H·N, relative gain (cosine) to every fault
+        missed = [j for j in range(len(model.faults)) if seen[:, j].max() < FDtol]
         if missed:
-            basis_gains = _pencil_gains(model, N, freqs, FDtol)
+            basis_gains = gains(model, N, freqs, FDtol)
             why = "; ".join(
-                f"fault '{model.faults[j].name}': largest relative gain of the rows H·N {gains[:, j].max():.2e} "
+                f"fault '{model.faults[j].name}': largest relative gain of the rows H·N {seen[:, j].max():.2e} "
                 f"< FDtol = {FDtol:g} (of the basis rows: {basis_gains[:, j].max():.2e})" for j in missed)
             raise DesignError(f"the residuals formed by {'HDesign' if H is not None else 'the basis'} do not see "
                               f"every required fault: {why}")
     Q = HN.minreal()
     info = {"order": int(Q.n), "rdim": int(Hm.shape[0]), "combination": Hm.tolist(), "HDesign": Hm.tolist(),
-            "basis": "pencil", "decoupling_kind": EXACT, "left_minimal_indices": pb.degrees, "pencil": pb.info}
+            "basis": "pencil", "left_minimal_indices": pb.degrees, "pencil": pb.info}
     if orders is not None:
         info["simple_orders"] = orders
-    gen = _finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, pb.degrees, place=place)
+    gen = finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, pb.degrees, place=place)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)
     return gen

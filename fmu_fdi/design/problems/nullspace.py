@@ -260,7 +260,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         ``info['replaces']`` the approximate row a pencil row replaced).
         ``info['decoupling_kind']`` is 'exact' or, for a sampled row below the smallest index
         returned because no exact row was found (or with ``basis='polynomial'``), starts with
-        'approximate' — and a ``UserWarning`` says so. With noise and ``noise='optimize'``,
+        'approximate' — and a note in ``info['notes']`` says so. With noise and ``noise='optimize'``,
         'pencil' solves the approximate problem on the pencil bases of ``[Gu Gd; I 0]`` and
         ``[Gu Gd Gw; I 0 0]`` (:func:`_approximate_pencil`); 'auto' does so when every rank
         tolerance of the polynomial ladder breaks a post-condition (``info['fallback_from']``).
@@ -290,9 +290,11 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     if HDesign is not None or (simple and rdim == "all"):
         from .hdesign import hdesign_generator
 
-        return hdesign_generator(model, HDesign, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
-                                 FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol, tol=tol, atol=atol,
-                                 place=req.place, simple=bool(simple))
+        gen = hdesign_generator(model, HDesign, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
+                                FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol, tol=tol, atol=atol,
+                                place=req.place, finish=_finish, gains=_pencil_gains, simple=bool(simple))
+        gen.info["decoupling_kind"] = EXACT
+        return gen
     if simple:
         if basis == "polynomial":
             raise DesignError("simple = True needs the state-space (pencil) basis: basis='polynomial' has no simple form")

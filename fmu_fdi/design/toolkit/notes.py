@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 import warnings
+from contextlib import contextmanager
 from contextvars import ContextVar
 
 _COLLECTORS: ContextVar[tuple[list[str], ...]] = ContextVar("fmu_fdi_design_notes", default=())
@@ -55,3 +56,14 @@ def attach(out, notes: list[str]) -> None:
         return
     have = info.setdefault("notes", [])
     have.extend(n for n in notes if n not in have)
+
+
+@contextmanager
+def silenced():
+    """Within: :func:`note` records and warns nothing (a remark that is no news to the caller, e.g. the pole
+    choice for an internal denominator)."""
+    token = _COLLECTORS.set(([],))
+    try:
+        yield
+    finally:
+        _COLLECTORS.reset(token)
