@@ -156,6 +156,26 @@ def test_per_row_rdim_sets_group_sizes_and_refuses_above_the_achievable():
     assert [len(g) for g in bank.groups] == [1, 2]
 
 
+def test_model_detection_per_filter_rdim_and_hdesign():
+    """emdsyn's per-filter rdim/HDesign: filter 2 has two residuals, each filter decouples its own model
+    (numpy: Q_i(λ)·[Gu_i; I](λ) = 0) and sees the other; an rdim above p − rank Gd_i = 2 is refused."""
+    m1 = tf_model({"u": [[1 / (s + 1), 1 / (s + 2)]]})._replace(name="m1")
+    m2 = tf_model({"u": [[2 / (s + 1), 1 / (s + 3)]]})._replace(name="m2")
+    bank = D.model_detection_bank([m1, m2], rdim=[1, 2])
+    assert [len(g) for g in bank.groups] == [1, 2]
+    for i, gen in enumerate(bank.members):
+        for j, mj in enumerate((m1, m2)):
+            A, B, Ce, De = _extended(mj)
+            R = _values(gen.Q) @ _freqresp(A, B, Ce, De, LAM)
+            peak = np.abs(R).max()
+            # own model: exact decoupling (~1e-13 of O(1) data); other model: its distance, normalised to 1
+            assert peak <= 1e-9 if i == j else peak >= 0.1, (i, j, peak)
+    with pytest.raises(DesignError, match="filter 1 .*rdim = 3 .*only 2 basis vectors"):
+        D.model_detection_bank([m1, m2], rdim=[3, 1])
+    bank = D.model_detection_bank([m1, m2], HDesign=[[[1.0, 1.0]], None])
+    np.testing.assert_allclose(bank.members[0].info["HDesign"], [[1.0, 1.0]])
+
+
 # ------------------------------------------------------------------------------------------ nonstd
 def _noise_model(gw) -> FDIModel:
     return tf_model({"u": [[1 / (s + 2)]], "w": [[gw]], "f": [[1 / (s + 3)]]})
@@ -216,6 +236,20 @@ def test_nonstd_1_on_two_noise_facing_rows_is_refused_and_the_default_falls_back
         gen = nullspace_design(model)
     assert "nonstd = 2" in gen.info["noise"]
     assert any("nonstd = 1 (the default) does not apply" in n for n in gen.info["notes"])
+
+
+def test_amdsyn_nonstd_quasi_co_outer_flattens_each_filters_noise():
+    """amdsyn with a strictly proper noise channel (rdim='all', nonstd = 1, sdeg = -3): each filter's
+    |R_w,i(jω)|·|jω + 3| is flat (the zero at infinity of its co-outer factor moved to -3); 3 is refused."""
+    m1 = tf_model({"u": [[1 / (s + 1)]], "w": [[1 / (s + 2)]]})._replace(name="m1")
+    m2 = tf_model({"u": [[2 / (s + 1)]], "w": [[1 / (s + 2)]]})._replace(name="m2")
+    bank = D.approximate_model_detection_bank([m1, m2], rdim="all", nonstd=1, sdeg=-3.0)
+    for gen, mi in zip(bank.members, (m1, m2)):
+        flat = _rw(gen, mi) * np.abs(LAM + 3.0)
+        np.testing.assert_allclose(flat, flat[0], rtol=1e-6)  # exact in theory (see the nullspace case above)
+    assert all("nonstd = 1" in how for how in bank.info["noise"])
+    with pytest.raises(DesignError, match="nonstd = 3 .*not available"):
+        D.approximate_model_detection_bank([m1, m2], rdim="all", nonstd=3)
 
 
 # -------------------------------------------------------------------------------------------- atol

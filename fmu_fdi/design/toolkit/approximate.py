@@ -139,6 +139,11 @@ def with_nonstandard_options(design):
     return wrapper
 
 
+def active_options() -> NonstandardOptions | None:
+    """The options of the design in progress (:func:`with_nonstandard_options`), None outside one."""
+    return _OPTIONS.get()
+
+
 def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: float | None = None,
                      options: NonstandardOptions | None = None) -> tuple[LTI | None, str]:
     """``(Ro⁻¹, how)``: the left factor that normalises the stable noise response ``Rw`` (Procedure AFD,
