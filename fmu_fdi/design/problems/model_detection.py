@@ -384,9 +384,11 @@ def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
         return Q1, info
     opts = active_options()
     if opts is not None and opts.nonstd is not None:  # the user's choice of the peer's nonstd
-        Ro_inv, info["noise"] = noise_normalizer(Rw, smarg=design_kw.get("smarg"), poles=design_kw.get("poles"),
-                                                 sdeg=design_kw.get("sdeg"))
-        return (Ro_inv @ Q1).minreal(), info
+        Ro_inv, how = noise_normalizer(Rw, smarg=design_kw.get("smarg"), poles=design_kw.get("poles"),
+                                       sdeg=design_kw.get("sdeg"))
+        if Ro_inv is not None:
+            info["noise"] = how
+            return (Ro_inv @ Q1).minreal(), info
     eps = 1e-3 * _gain(Rw)
     reg = coouter_inverse(hstack([Rw, LTI.static(eps * np.eye(Rw.p), Rw.dt)]))
     if reg is not None:

@@ -167,11 +167,11 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
     - ``nonstd = 3, 5`` need the Wiener–Hopf separation of the boundary zeros (the peer's ``gcrange``),
       which this toolkit does not have: refused (DesignError) in the non-standard case.
 
-    Without ``nonstd`` (None): 1 where it applies, else 2, the choice noted in ``info['notes']``. A chosen
-    option that cannot handle the case raises a DesignError naming it.
+    Without ``nonstd`` (None): 1 where it applies, else 2, else no normalisation (the filter poles weight
+    the noise), the fallback said in ``how`` (``info['noise']``). A chosen option that cannot handle the case raises
+    a DesignError naming it.
     """
     from ...margin import default_smarg
-    from .notes import note
 
     opts = options or _OPTIONS.get() or NonstandardOptions()
     if Rw.n == 0:
@@ -189,19 +189,27 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
             f"it is implemented for one noise-facing residual row in continuous time (here {Rw.p} rows, "
             f"{'discrete' if Rw.dt else 'continuous'} time)")
         if why is None:
-            inv, text = _scalar_shifted_inverse(Rw, job, poles=poles, sdeg=sdeg, sdegzer=opts.sdegzer)
-            return inv, f"quasi-co-outer normalised (nonstd = {job}): {text}"
+            try:
+                inv, text = _scalar_shifted_inverse(Rw, job, poles=poles, sdeg=sdeg, sdegzer=opts.sdegzer)
+                return inv, f"quasi-co-outer normalised (nonstd = {job}): {text}"
+            except (np.linalg.LinAlgError, ValueError, DesignError) as exc:
+                why = f"the scalar spectral factor failed: {exc}"
         if opts.nonstd is not None:
             raise DesignError(f"nonstd = {job} ({NONSTD[job]}) cannot handle this non-standard noise response: {why}; "
                               f"use nonstd = 2")
-        note(f"nonstd = 1 (the default) does not apply to this noise response ({why}): the regularised factor "
-             f"(nonstd = 2, epsreg = {opts.epsreg:g}) normalised it")
-    eps = opts.epsreg * max(Rw.hinfnorm()[0], np.finfo(float).tiny)
-    reg = coouter_inverse(hstack([Rw, LTI.static(eps * np.eye(Rw.p), Rw.dt)]))
+        fallback = f"; nonstd = 1 (the default) does not apply ({why})"
+    else:
+        fallback = ""
+    peak = Rw.hinfnorm()[0]
+    eps = opts.epsreg * peak
+    reg = coouter_inverse(hstack([Rw, LTI.static(eps * np.eye(Rw.p), Rw.dt)])) if 0 < peak < np.inf else None
     if reg is None:
+        if opts.nonstd is None:  # the default: the filter poles weight the noise, as before the option existed
+            return None, (f"weighted by the filter poles: the noise response has no invertible co-outer factor and "
+                          f"neither nonstd = 1 nor 2 applied (||Rw||∞ = {peak:.3g}){fallback}")
         raise DesignError(f"nonstd = 2: the co-outer factor of [Rw  ε I] (ε = {eps:.3g}) could not be computed "
                           f"(the Riccati equation has no stabilising solution)")
-    return reg[0], f"regularised co-outer normalised (nonstd = 2, ε = {eps:.3g} = epsreg·||Rw||∞)"
+    return reg[0], f"regularised co-outer normalised (nonstd = 2, ε = {eps:.3g} = epsreg·||Rw||∞){fallback}"
 
 
 def _clear(poles: np.ndarray, dt: float, margin: float) -> bool:

@@ -33,17 +33,21 @@ def note(message: str) -> None:
 
 def keeps_notes(design):
     """Decorator of a public design function: the notes of the call go into ``info['notes']`` of
-    the returned ResidualGenerator/ResidualBank (and of a bank's members that made them)."""
+    the returned ResidualGenerator/ResidualBank (and of a bank's members that made them); the notes of
+    a call that raises are dropped with it (a bank's row tried and refused says nothing)."""
 
     @functools.wraps(design)
     def wrapper(*args, **kwargs):
         notes: list[str] = []
-        token = _COLLECTORS.set(_COLLECTORS.get() + (notes,))
+        token = _COLLECTORS.set((notes,))  # this call's own: a call that fails leaves no notes behind
         try:
             out = design(*args, **kwargs)
         finally:
             _COLLECTORS.reset(token)
         attach(out, notes)
+        for text in notes:  # an enclosing design (a bank of rows) keeps them too
+            if _COLLECTORS.get():
+                note(text)
         return out
 
     return wrapper
