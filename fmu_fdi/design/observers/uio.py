@@ -54,7 +54,8 @@ def unknown_input_observer(model: FDIModel, poles=None, *, atol: float = 0.0) ->
 
     atol : float
         Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
-        below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only); also the bound of the rank test ``rank(C E) = rank(E)``.
+        below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only);
+        also the bound of the rank test ``rank(C E) = rank(E)``.
 
     Returns
     -------

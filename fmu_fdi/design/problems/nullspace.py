@@ -297,7 +297,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         return gen
     if simple:
         if basis == "polynomial":
-            raise DesignError("simple = True needs the state-space (pencil) basis: basis='polynomial' has no simple form")
+            raise DesignError("simple = True needs the state-space (pencil) basis: basis='polynomial' has no "
+                              "simple form")
         basis = "pencil"
     if basis == "pencil":
         return req.pencil() if req.exact_only else req.noise_pencil()
@@ -1007,13 +1008,11 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
     sl = model.group_slices()
     Ge = model.augmented()
     Rw1 = (Q1 @ Ge)[:, sl["w"]].minreal()
-    normalized = False
     # Rw1 with a zero at infinity or on or next to the stability boundary (Varga's non-standard case: an inverse
     # would put a near-integrator into the filter, a pole at -5e-9 on random seeds 22, 28): the nonstd option
     fac, how = noise_normalizer(Rw1, **{k: (place or {}).get(k) for k in ("smarg", "poles", "sdeg")})
     if fac is not None:
         Q1 = (fac @ Q1).minreal()
-        normalized = True
     Qc = vstack([Q1] + ([Q2] if Q2 is not None else []))
     grid = frequency_grid([Qc, model.lti()], num=200)
     lam_g = _points(model, grid)
@@ -1045,22 +1044,6 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
     if moved:
         info["internal_form"] = moved
     return _finish(model, Q, basis, "nullspace", info, degrees, place=place)
-
-
-#: a co-outer inverse pole within this relative distance of the stability boundary counts as on it
-BOUNDARY_RTOL = 1e-6
-
-
-def _clear_of_boundary(poles: np.ndarray, dt: float, smarg: float | None) -> bool:
-    """Every pole inside the margin (``smarg``, default just inside the boundary) and at least
-    :data:`BOUNDARY_RTOL` (relative to its modulus, at least 1) away from the boundary itself."""
-    from ...margin import default_smarg
-
-    poles = np.asarray(poles, complex)
-    margin = default_smarg(dt) if smarg is None else float(smarg)
-    if dt:
-        return bool(np.all(np.abs(poles) <= min(margin, 1.0 - BOUNDARY_RTOL)))
-    return bool(np.all(poles.real <= np.minimum(margin, -BOUNDARY_RTOL * np.maximum(1.0, np.abs(poles)))))
 
 
 def _noise_pencil(model, rdim, poles, sdeg, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol, minimal,

@@ -60,6 +60,7 @@ def row_dimensions(model: FDIModel, names: list[str], S: np.ndarray, rdim, HDesi
             if want > k:
                 raise DesignError(
                     f"structure row {i + 1} {row.tolist()}: rdim = {want} residuals requested but at most {k} are "
-                    f"achievable (p − rank [Gd Gf_0] = {model.ny} − {model.ny - k}, the faults marked 0 counted as d)")
+                    f"achievable (p − rank [Gd Gf_0] = {model.ny} − {model.ny - k}, the faults marked 0 counted "
+                    f"as d)")
         out.append(want)
     return out, Hs

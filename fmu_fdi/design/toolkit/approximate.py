@@ -177,7 +177,8 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
     if Rw.n == 0:
         return None, "weighted by the filter poles (static noise response)"
     fac = coouter_inverse(Rw)
-    if fac is not None and _clear(fac[0].poles(), Rw.dt, default_smarg(Rw.dt) if smarg is None else smarg):
+    margin = default_smarg(Rw.dt) if smarg is None else smarg
+    if fac is not None and _clear_of_boundary(fac[0].poles(), Rw.dt, margin):
         return fac[0], "co-outer normalised"
     job = opts.nonstd if opts.nonstd is not None else 1
     if job in (3, 5):
@@ -212,12 +213,17 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
     return reg[0], f"regularised co-outer normalised (nonstd = 2, ε = {eps:.3g} = epsreg·||Rw||∞){fallback}"
 
 
-def _clear(poles: np.ndarray, dt: float, margin: float) -> bool:
-    """Every pole inside the margin and off the boundary by :data:`ZERO_BOUNDARY_RTOL` (relative)."""
+#: a co-outer inverse pole within this relative distance of the stability boundary counts as on it
+BOUNDARY_RTOL = 1e-6
+
+
+def _clear_of_boundary(poles: np.ndarray, dt: float, margin: float) -> bool:
+    """Every pole inside the margin and at least :data:`BOUNDARY_RTOL` (relative to its modulus, at
+    least 1) away from the boundary itself."""
     poles = np.asarray(poles, complex)
     if dt:
-        return bool(np.all(np.abs(poles) <= min(margin, 1.0 - ZERO_BOUNDARY_RTOL)))
-    return bool(np.all(poles.real <= np.minimum(margin, -ZERO_BOUNDARY_RTOL * np.maximum(1.0, np.abs(poles)))))
+        return bool(np.all(np.abs(poles) <= min(margin, 1.0 - BOUNDARY_RTOL)))
+    return bool(np.all(poles.real <= np.minimum(margin, -BOUNDARY_RTOL * np.maximum(1.0, np.abs(poles)))))
 
 
 def _scalar_shifted_inverse(Rw: LTI, job: int, *, poles, sdeg, sdegzer) -> tuple[LTI, str]:
