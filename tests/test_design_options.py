@@ -209,6 +209,17 @@ def test_nonstd_replaces_the_boundary_zeros_of_the_noise_factor(gw, job, zeros, 
     assert judge(gen, model, [[1]], model.fault_names) == []
 
 
+def test_hdesign_with_noise_normalises_the_rows_noise_as_afdsyn():
+    """HDesign on a noisy model (afdsyn with HDesign): the given row, then its noise response (strictly
+    proper: a zero at infinity) quasi-co-outer normalised (nonstd = 1, sdeg = -5): |R_w(jω)|·|jω + 5| flat."""
+    model = _noise_model(1 / (s + 1))
+    gen = nullspace_design(model, HDesign=[[2.0]], nonstd=1, sdeg=-5.0)
+    assert gen.info["noise"].startswith("quasi-co-outer normalised (nonstd = 1)")
+    flat = _rw(gen, model) * np.abs(LAM + 5.0)
+    np.testing.assert_allclose(flat, flat[0], rtol=1e-6)
+    assert judge(gen, model, [[1]], model.fault_names) == []
+
+
 def test_nonstd_regularised_and_refused_choices():
     model = _noise_model(1 / (s + 1))
     gen = nullspace_design(model, nonstd=2, epsreg=0.05)

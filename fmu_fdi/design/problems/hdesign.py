@@ -75,7 +75,8 @@ def basis_rows(model: FDIModel, *, simple: bool, tol, atol, poles, sdeg, smarg):
 
 
 def hdesign_generator(model: FDIModel, H, *, rdim, poles, sdeg, freqs, FDtol, FDGainTol, smarg, dec_tol, tol,
-                      atol, place: dict, finish, gains, simple: bool = False) -> ResidualGenerator:
+                      atol, place: dict, finish, gains, simple: bool = False,
+                      normalize_noise: bool = False) -> ResidualGenerator:
     """``Q = M·H·N`` (module docstring), judged as every null-space design
     (:func:`..toolkit.postconditions.check_generator`, u and d decoupled, every fault visible).
 
@@ -83,7 +84,10 @@ def hdesign_generator(model: FDIModel, H, *, rdim, poles, sdeg, freqs, FDtol, FD
     rows") or the row count of H. ``H = None``: the whole basis (``H = I``; with ``simple`` the simple
     basis, row i of order ``ν_i``). ``info['HDesign']`` is the (padded) matrix used,
     ``info['left_minimal_indices']`` the degrees of the basis it multiplies, ``info['simple_orders']`` the
-    orders of the simple rows (with ``simple``). ``finish``, ``gains``: the null-space design's last stage
+    orders of the simple rows (with ``simple``). ``normalize_noise`` (noise to optimise): as the peer's
+    ``afdsyn`` with ``HDesign``, the rows' internal form is made stable and their noise response ``Rw``
+    normalised by the (quasi-)co-outer factor, ``Q ← Ro⁻¹·M·H·N`` (:func:`..toolkit.approximate.noise_normalizer`,
+    ``nonstd``; ``info['noise']`` says how) — the same residual space, the noise weighted flat. ``finish``, ``gains``: the null-space design's last stage
     (stable internal form, rows normalised) and its per-row fault gains (:func:`.nullspace._finish`,
     :func:`.nullspace._pencil_gains`; passed in, as :mod:`.nullspace` calls this module)."""
     from ..toolkit.postconditions import check_generator
@@ -103,10 +107,21 @@ def hdesign_generator(model: FDIModel, H, *, rdim, poles, sdeg, freqs, FDtol, FD
             raise DesignError(f"the residuals formed by {'HDesign' if H is not None else 'the basis'} do not see "
                               f"every required fault: {why}")
     Q = HN.minreal()
+    how = None
+    if normalize_noise and model.nw:
+        from ..toolkit.approximate import noise_normalizer
+        from ..toolkit.stable_factor import stable_internal_form
+
+        Q, _ = stable_internal_form(model, Q, **place)  # the co-outer factor needs a stable Rw
+        Rw = (Q @ model.augmented())[:, model.group_slices()["w"]].minreal()
+        fac, how = noise_normalizer(Rw, **{k: place.get(k) for k in ("smarg", "poles", "sdeg")})
+        Q = Q if fac is None else (fac @ Q).minreal()
     info = {"order": int(Q.n), "rdim": int(Hm.shape[0]), "combination": Hm.tolist(), "HDesign": Hm.tolist(),
             "basis": "pencil", "left_minimal_indices": pb.degrees, "pencil": pb.info}
     if orders is not None:
         info["simple_orders"] = orders
+    if how is not None:
+        info["noise"] = how
     gen = finish(model, Q, SimpleNamespace(rho=1.0), "nullspace", info, pb.degrees, place=place)
     check_generator(gen, decouple=("u", "d"), block=True, freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol,
                     smarg=smarg, dec_tol=dec_tol)

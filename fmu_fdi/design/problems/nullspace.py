@@ -209,8 +209,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     HDesign : array_like, optional
         A full-row-rank design matrix ``H`` (``q × k``, ``k = p − rank Gd``) that forms the ``q``
         residuals as ``Q = M·H·N`` from the proper stable pencil basis ``N`` (FaultDetectionTools.jl's
-        ``HDesign``; :mod:`.hdesign`): the combination is the user's, not searched (w, if any, is not
-        optimised). Fewer than ``k`` columns combine the leading basis rows; ``rdim``, if not 1, must
+        ``HDesign``; :mod:`.hdesign`): the combination is the user's, not searched; with noise to
+        optimise its noise response is co-outer normalised (``nonstd``), as ``afdsyn``. Fewer than ``k`` columns combine the leading basis rows; ``rdim``, if not 1, must
         equal the rows of H. Refused (DesignError) with more than ``k`` columns, rank below its rows, or
         rows that together miss a fault. ``info['HDesign']`` is the matrix used.
     simple : bool
@@ -292,7 +292,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
 
         gen = hdesign_generator(model, HDesign, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
                                 FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol, tol=tol, atol=atol,
-                                place=req.place, finish=_finish, gains=_pencil_gains, simple=bool(simple))
+                                place=req.place, finish=_finish, gains=_pencil_gains, simple=bool(simple),
+                                normalize_noise=not req.exact_only)
         gen.info["decoupling_kind"] = EXACT
         return gen
     if simple:
