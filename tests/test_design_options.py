@@ -116,8 +116,17 @@ def test_hdesign_refusals_name_the_condition():
         nullspace_design(model, HDesign=U[:, -1:].T)
 
 
+def _with_disturbance() -> FDIModel:
+    """A seeded stable 4-state plant, 3 outputs, 1 input, 1 unknown input d, 3 sensor faults (O(1) data)."""
+    rng = np.random.default_rng(3)
+    A = np.diag([-1.0, -2.0, -3.0, -4.0]) + 0.3 * rng.standard_normal((4, 4))
+    return FDIModel.from_matrices(A, rng.standard_normal((4, 1)), rng.standard_normal((3, 4)),
+                                  Bd=rng.standard_normal((4, 1)),
+                                  faults=[sensor_fault(f"s{i}", f"y{i}") for i in range(3)])
+
+
 # ----------------------------------------------------------------------------------------- simple
-@pytest.mark.parametrize("make", [yuan, _two_channels])
+@pytest.mark.parametrize("make", [yuan, _two_channels, _with_disturbance])
 def test_simple_basis_rows_have_their_left_minimal_index(make):
     model = make()
     nu = _left_minimal_indices(model)
