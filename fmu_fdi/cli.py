@@ -449,6 +449,8 @@ def _design(args) -> int:
         kw["Ts"] = args.ts
     set_stage(f"designing the residual generator ({args.method}, n = {model.n} states)")
     gen = fn(model, **kw)
+    for text in (getattr(gen, "info", None) or {}).get("notes", ()):  # design remarks (design/toolkit/notes.py)
+        print(f"note: {text}")
     set_stage(f"discretising, thresholds and the design file ({args.method}, n = {model.n} states)")
     if gen.dt == 0.0:
         if args.ts is None:

@@ -149,7 +149,8 @@ def pole_error(achieved, requested) -> float:
 
 
 # ------------------------------------------------------------------- staircase
-def observable_staircase(A: np.ndarray, C: np.ndarray, tol: float | None = None) -> tuple[np.ndarray, int]:
+def observable_staircase(A: np.ndarray, C: np.ndarray, tol: float | None = None,
+                         atol: float = 0.0) -> tuple[np.ndarray, int]:
     """Orthogonal ``Z`` and the observable order ``n_o`` of ``(A, C)``.
 
     In the coordinates ``x = Z ξ``,
@@ -160,13 +161,14 @@ def observable_staircase(A: np.ndarray, C: np.ndarray, tol: float | None = None)
     the dual of the controllability staircase (Van Dooren 1981; Varga 1981): each step
     compresses the current output block by an SVD, so only orthogonal transformations are
     used and a rank decision compares singular values with ``tol`` (default ``1e3 max(n, p)
-    eps ||[A; C]||₂``).
+    eps ||[A; C]||₂``), or ``atol`` when larger (Varga's absolute rank tolerance).
     """
     n, p = A.shape[0], C.shape[0]
     if n == 0:
         return np.eye(n), 0
     if tol is None:
         tol = default_rtol((n, n + p)) * max(float(np.linalg.norm(np.vstack([A, C]), 2)), np.finfo(float).tiny)
+    tol = max(tol, float(atol))
     # the controllability staircase of the dual pair (Aᵀ, Cᵀ): its T is Z, its blocks sum to n_o
     Z, taus = controllable_staircase(A.T, C.T, tol)
     return Z, sum(taus)
@@ -184,11 +186,12 @@ class ObserverGain:
 
 
 def detectable_split(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)",
-                     fixed_reason: str = "") -> tuple[np.ndarray, int, np.ndarray]:
+                     fixed_reason: str = "", atol: float = 0.0) -> tuple[np.ndarray, int, np.ndarray]:
     """Staircase ``(Z, n_o, unobservable eigenvalues)``; a DesignError naming the
-    unobservable modes that are unstable when ``(A, C)`` is not detectable."""
+    unobservable modes that are unstable when ``(A, C)`` is not detectable (``atol``: the staircase's
+    absolute rank tolerance)."""
     n = A.shape[0]
-    Z, n_o = observable_staircase(A, C)
+    Z, n_o = observable_staircase(A, C, atol=atol)
     At = Z.T @ A @ Z
     fixed = np.linalg.eigvals(At[n_o:, n_o:]) if n_o < n else np.zeros(0, complex)
     bad = unstable(fixed, dt, float(np.linalg.norm(A, 2)) if n else 1.0)
@@ -202,7 +205,7 @@ def detectable_split(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A
 
 
 def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str = "(A, C)",
-                  fixed_reason: str = "") -> ObserverGain:
+                  fixed_reason: str = "", atol: float = 0.0) -> ObserverGain:
     """Output-injection gain ``L`` placing the observable eigenvalues of ``A − L C``.
 
     The pair is split by :func:`observable_staircase`; the ``n_o`` observable eigenvalues
@@ -223,7 +226,7 @@ def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str =
         requested poles.
     """
     n = A.shape[0]
-    Z, n_o, fixed = detectable_split(A, C, dt, what=what, fixed_reason=fixed_reason)
+    Z, n_o, fixed = detectable_split(A, C, dt, what=what, fixed_reason=fixed_reason, atol=atol)
     At = Z.T @ A @ Z
     Ct = C @ Z
     scale = max(1.0, float(np.linalg.norm(A, 2)) if n else 1.0)

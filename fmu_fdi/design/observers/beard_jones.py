@@ -48,7 +48,7 @@ from ._observer import (check_pole_set, default_poles, detectable_split, observe
                         observer_generator, output_observer, residual_names)
 
 
-def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> ResidualGenerator:
+def fault_detection_filter(model: FDIModel, poles=None, faults=None, *, atol: float = 0.0) -> ResidualGenerator:
     """Beard–Jones detection filter: fault i drives ``r = y − ŷ`` along ``C f_i*`` only.
 
     Parameters
@@ -64,6 +64,10 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
     faults : list of str, optional
         The faults to give directions to (default: all faults of the model). Other faults
         are not constrained: they move r in no particular direction.
+
+    atol : float
+        Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
+        below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only).
 
     Returns
     -------
@@ -136,7 +140,8 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
         raise DesignError(f"the detection spaces are not invariant under A - D1 C (leak {leak:.3g}): the fault "
                           f"directions are too close to dependent for this placement")
     A_R, C_R = Wperp.T @ A0 @ Wperp, Cbar @ Wperp
-    _, n_o, _ = detectable_split(A_R, C_R, model.dt, what="the Beard–Jones filter", fixed_reason=fixed_reason)
+    _, n_o, _ = detectable_split(A_R, C_R, model.dt, what="the Beard–Jones filter", fixed_reason=fixed_reason,
+                                 atol=atol)
     rest = defaults[nk:nk + n_o]
     if given is not None:
         rest = given[nk:]
@@ -145,7 +150,8 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None) -> Residual
                 f"{given.size} poles given but the Beard–Jones filter assigns {nk + n_o}: {nk} for the detection "
                 f"spaces (k = {dict(zip(names, orders))}) and {n_o} through the projected output"
                 + (f"; the other {n - nk - n_o} modes are fixed" if n - nk - n_o else ""))
-    gain = observer_gain(A_R, C_R, rest, model.dt, what="the Beard–Jones filter", fixed_reason=fixed_reason)
+    gain = observer_gain(A_R, C_R, rest, model.dt, what="the Beard–Jones filter", fixed_reason=fixed_reason,
+                         atol=atol)
     Dgain = D1 + Wperp @ gain.L @ Uperp.T
     Q = output_observer(model, Dgain)
 

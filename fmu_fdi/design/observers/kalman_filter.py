@@ -40,7 +40,7 @@ from ...model import FDIModel
 from ._observer import detectable_split, filter_riccati, observer_generator, output_observer, residual_names
 
 
-def kalman(model: FDIModel, Qw=None, Rv=None) -> ResidualGenerator:
+def kalman(model: FDIModel, Qw=None, Rv=None, *, atol: float = 0.0) -> ResidualGenerator:
     """Innovation residual ``e = y − C x̂ − Du u`` of the steady-state Kalman filter.
 
     Parameters
@@ -55,6 +55,10 @@ def kalman(model: FDIModel, Qw=None, Rv=None) -> ResidualGenerator:
         Covariance (intensity) of the additional measurement noise v, p×p, symmetric
         positive semidefinite, with ``R = Dw Qw Dwᵀ + Rv`` positive definite. Scalar or
         vector as for Qw.
+
+    atol : float
+        Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
+        below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only).
 
     Returns
     -------
@@ -99,7 +103,7 @@ def kalman(model: FDIModel, Qw=None, Rv=None) -> ResidualGenerator:
             f"the measurement noise covariance R = Dw Qw Dwᵀ + Rv is singular (eigenvalues {lam.tolist()}): "
             f"the steady-state Kalman filter needs every output direction to be noisy; make Rv positive definite")
     detectable_split(model.A, model.C, model.dt, what="(A, C)",
-                     fixed_reason="no Kalman filter (no observer at all) has a stable error")
+                     fixed_reason="no Kalman filter (no observer at all) has a stable error", atol=atol)
     kf = filter_riccati(model.A, model.C, Qx, R, S, model.dt, what="kalman")
     Q = output_observer(model, kf.L)
     info = {

@@ -19,7 +19,7 @@ from ...model import FDIModel
 from ._observer import as_matrix, observer_gain, observer_generator, output_observer, residual_names
 
 
-def luenberger(model: FDIModel, poles=None, V=None) -> ResidualGenerator:
+def luenberger(model: FDIModel, poles=None, V=None, *, atol: float = 0.0) -> ResidualGenerator:
     """Output-observer residual ``r = V (y − C x̂ − Du u)`` with ``eig(A − L C)`` at ``poles``.
 
     Parameters
@@ -33,6 +33,10 @@ def luenberger(model: FDIModel, poles=None, V=None) -> ResidualGenerator:
         twice as fast as the plant's modes (:func:`~fmu_fdi.design.observers._observer.default_poles`).
     V : array_like, optional
         Static output weighting (k × p, default the identity): r has k components.
+
+    atol : float
+        Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
+        below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only).
 
     Returns
     -------
@@ -60,7 +64,7 @@ def luenberger(model: FDIModel, poles=None, V=None) -> ResidualGenerator:
         if rank(W) == 0:
             raise DesignError("V is zero: the weighted residual V (y − ŷ) would be identically zero")
     gain = observer_gain(model.A, model.C, poles, model.dt, what="(A, C)",
-                         fixed_reason="an output observer cannot exist (add sensors that see these modes)")
+                         fixed_reason="an output observer cannot exist (add sensors that see these modes)", atol=atol)
     Q = output_observer(model, gain.L, W)
     info = {"gain": gain.L.tolist(), "poles": gain.poles.tolist(), "fixed_modes": gain.fixed.tolist(),
             "placement": gain.method, "V": (np.eye(model.ny) if W is None else W).tolist()}

@@ -39,7 +39,7 @@ from ...model import FDIModel
 from ._observer import observer_gain, observer_generator, residual_names
 
 
-def unknown_input_observer(model: FDIModel, poles=None) -> ResidualGenerator:
+def unknown_input_observer(model: FDIModel, poles=None, *, atol: float = 0.0) -> ResidualGenerator:
     """Full-order UIO residual ``r = (I − C H)(y − Du u) − C z`` decoupled from u and d.
 
     Parameters
@@ -51,6 +51,11 @@ def unknown_input_observer(model: FDIModel, poles=None) -> ResidualGenerator:
         Eigenvalues of ``F = T A − K1 C``: as many as ``(C, T A)`` has observable modes (n
         when observable), stable, closed under conjugation. Default: distinct poles twice as
         fast as the plant's modes.
+
+    atol : float
+        Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
+        below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only);
+        also the bound of the rank test ``rank(C E) = rank(E)``.
 
     Returns
     -------
@@ -85,11 +90,11 @@ def unknown_input_observer(model: FDIModel, poles=None) -> ResidualGenerator:
     rank_E = E0.shape[1]
     CE = C @ E0
     # C E0 has the size of C; a singular value below eps-level times ||C|| is a structural zero.
-    atol = default_rtol(CE.shape) * max(float(np.linalg.norm(C, 2)), np.finfo(float).tiny)
+    ce_tol = max(default_rtol(CE.shape) * max(float(np.linalg.norm(C, 2)), np.finfo(float).tiny), atol)
     s = sla.svdvals(CE) if rank_E else np.zeros(0)
-    rank_CE = int(np.sum(s > atol))
+    rank_CE = int(np.sum(s > ce_tol))
     if rank_CE < rank_E:
-        raise DesignError(_rank_message(model, rank_CE, rank_E, atol))
+        raise DesignError(_rank_message(model, rank_CE, rank_E, ce_tol))
     if rank_E >= p:
         raise DesignError(
             f"no residual remains: rank(E) = {rank_E} ≥ {p} outputs, so the unknown inputs span every output "
@@ -102,7 +107,7 @@ def unknown_input_observer(model: FDIModel, poles=None) -> ResidualGenerator:
         A1, C, poles, model.dt, what="(C, A1 = T A)",
         fixed_reason=("these are invariant zeros of the unknown-input channel (A, Bd, C) "
                       "(rank [λI − A, Bd; C, 0] < n + rank Bd there), so no UIO exists "
-                      "(Chen & Patton 1999, Thm 3.2, condition 2)"))
+                      "(Chen & Patton 1999, Thm 3.2, condition 2)"), atol=atol)
     K1 = gain.L
     F = A1 - K1 @ C
     K = K1 + F @ H

@@ -81,8 +81,10 @@ from ...linalg import EPS, single_blas_thread
 from ...lti import LTI, blockdiag, frequency_grid, hstack
 from ...model import FDIModel
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
+from ..toolkit.notes import keeps_notes
 
 
+@keeps_notes
 @single_blas_thread
 def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: float | None = None,
                                normalize: str = "dcgain", reltol: float = 1e-4, smarg: float | None = None,

@@ -28,14 +28,17 @@ from ...model import FDIModel
 from .nullspace import nullspace_design
 from ..toolkit.stable_factor import stable_internal_form
 from ..toolkit.postconditions import DEC_TOL, check_generator
+from ..toolkit.notes import keeps_notes
 
 
+@keeps_notes
 @single_blas_thread
 def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, noise: str = "optimize",
                     FDtol: float = 1e-4, FDGainTol: float = 0.01, freqs=None, tol: float | None = None,
                     seed: int = 0, smarg: float | None = None, dec_tol: float = DEC_TOL,
                     minimal: bool = True, basis: str = "auto", keep_stable_poles: bool = True,
-                    atol: float = 0.0) -> ResidualBank:
+                    atol: float = 0.0, rdim=1, HDesign=None, simple: bool = False, nonstd: int | None = None,
+                    epsreg: float = 0.1, sdegzer: float | None = None) -> ResidualBank:
     """One least-order residual per row of the structure matrix ``S``.
 
     Parameters
@@ -54,13 +57,27 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         tests/test_achievable_structure.py). With
         ``basis='auto'``, a row that passes its own check but breaks the bank's (leakage just
         above ``dec_tol`` on the bank's frequency grid) is redesigned from the pencil basis.
+    rdim : int or list of int
+        Residuals per structure row (FaultDetectionTools.jl ``efdisyn``'s vector ``rdim``): one count
+        for every row, or a list with one per row (default 1); row i's residuals form group i of the
+        bank. Refused when a count exceeds the row's achievable dimension ``p − rank [Gd Gf_{S_i=0}]``
+        (:func:`.row_options.row_dimensions`, the message names it).
+    HDesign : list, optional
+        One design matrix (or None) per structure row, as ``HDesign`` of
+        :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` for that row (its rows fix the row's
+        residual count).
+    simple : bool
+        Every row from a simple basis, as ``simple`` of :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`.
+    nonstd, epsreg, sdegzer
+        With noise to optimise (:func:`afdi_bank`), the non-standard noise factorisation of every row, as in
+        :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` (FaultDetectionTools.jl ``afdisyn``).
 
     Returns
     -------
     ResidualBank
         ``info['postconditions']`` holds the figures of the whole bank against S
         (:func:`~fmu_fdi.design.toolkit.postconditions.check_generator`); ``info['decoupling_kinds']``
-        each row's ``info['decoupling_kind']`` ('exact', or 'approximate: ...' with a warning).
+        each row's ``info['decoupling_kind']`` ('exact', or 'approximate: ...' with a note in ``info['notes']``).
 
     Raises
     ------
@@ -76,16 +93,21 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         raise DesignError(f"structure matrix must have {len(names)} columns (faults {names}), got shape {S.shape}")
     if not np.all(np.isin(S, (0, 1))):
         raise DesignError("structure matrix entries must be 0 or 1")
-    def design_row(row, how):
+    from .row_options import row_dimensions
+
+    rdims, Hs = row_dimensions(model, names, S, rdim, HDesign, atol=atol)
+
+    def design_row(row, how, i):
         ignore = [nm for nm, s in zip(names, row) if s == 0]
         keep = [nm for nm, s in zip(names, row) if s == 1]
         mi = model.with_disturbances(ignore)
         # faults outside the structure are don't-care for this row
         extra = [f.name for f in mi.faults if f.name not in keep]
         mi_design = mi._replace(faults=[f for f in mi.faults if f.name in keep]) if extra else mi
-        g = nullspace_design(mi_design, rdim=1, poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol,
+        g = nullspace_design(mi_design, rdim=rdims[i], HDesign=Hs[i], poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol,
                              FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol,
-                             minimal=minimal, basis=how, keep_stable_poles=keep_stable_poles, atol=atol)
+                             minimal=minimal, basis=how, keep_stable_poles=keep_stable_poles, atol=atol,
+                             simple=simple, nonstd=nonstd, epsreg=epsreg, sdegzer=sdegzer)
         if extra:
             g = _cover_faults(mi, g, keep, place={"poles": poles, "sdeg": sdeg, "smarg": smarg,
                                                   "keep_stable_poles": bool(keep_stable_poles)},
@@ -103,7 +125,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
             failures.append(f"row {i + 1} {row.tolist()} is not achievable: {why}")
             continue
         try:
-            members.append(design_row(row, basis))
+            members.append(design_row(row, basis, i))
         except DesignError as exc:
             ignore = [nm for nm, s in zip(names, row) if s == 0]
             failures.append(f"row {i + 1} {row.tolist()} (decoupling {ignore or 'nothing'}): {exc}")
@@ -126,7 +148,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         redone = list(members)
         for i in bad:
             try:
-                redone[i] = design_row(S.astype(int)[i], "pencil")
+                redone[i] = design_row(S.astype(int)[i], "pencil", i)
                 redone[i].info["redesigned"] = "the bank's post-condition check failed for the least-order row"
             except DesignError:
                 pass

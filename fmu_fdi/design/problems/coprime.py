@@ -39,7 +39,8 @@ from ..toolkit.stable_factor import (CANCEL_RTOL, MOVED_DAMPING, glcf, internal_
                                     moved_pole_targets, stable_internal_form, stable_joint_factor)
 
 
-def factorized(model: FDIModel, poles=None, normalized: bool = False, post_filter=None) -> ResidualGenerator:
+def factorized(model: FDIModel, poles=None, normalized: bool = False, post_filter=None, *,
+               atol: float = 0.0) -> ResidualGenerator:
     """Residual ``r = R [M̂ y − N̂ u]`` from a left coprime factorisation ``Gu = M̂⁻¹ N̂``.
 
     Parameters
@@ -56,6 +57,10 @@ def factorized(model: FDIModel, poles=None, normalized: bool = False, post_filte
         The free stable filter ``R(p)`` with p inputs (default the identity). A static
         matrix is a constant R; a python-control system with an unspecified time base
         (``dt=True`` or ``None``) takes the model's sample time.
+
+    atol : float
+        Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
+        below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only).
 
     Returns
     -------
@@ -79,21 +84,22 @@ def factorized(model: FDIModel, poles=None, normalized: bool = False, post_filte
     K. Zhou, J. C. Doyle and K. Glover, *Robust and Optimal Control*, 1996, secs. 5.4 and 13.8.
     """
     R = _post_filter(post_filter, model)
-    Q0, info = _factor_filter(model, poles, normalized)
+    Q0, info = _factor_filter(model, poles, normalized, atol)
     Q = Q0 if R is None else R @ Q0
     info["post_filter_order"] = 0 if R is None else int(R.n)
     names = residual_names(model) if R is None and not normalized else None
     return observer_generator(model, Q, "factorized", info, names)
 
 
-def left_coprime_factors(model: FDIModel, poles=None, normalized: bool = False) -> tuple[LTI, LTI]:
+def left_coprime_factors(model: FDIModel, poles=None, normalized: bool = False, *,
+                         atol: float = 0.0) -> tuple[LTI, LTI]:
     """The factors ``(M̂, N̂)`` of ``Gu = M̂⁻¹ N̂`` used by :func:`factorized` (same options)."""
-    Q0, _ = _factor_filter(model, poles, normalized)
+    Q0, _ = _factor_filter(model, poles, normalized, atol)
     p = model.ny
     return Q0[:, :p], -Q0[:, p:]
 
 
-def _factor_filter(model: FDIModel, poles, normalized: bool) -> tuple[LTI, dict]:
+def _factor_filter(model: FDIModel, poles, normalized: bool, atol: float = 0.0) -> tuple[LTI, dict]:
     """``[M̂  −N̂]`` as one filter from ``[y; u]`` (shared states), and its design data."""
     if not isinstance(normalized, (bool, np.bool_)):
         raise DesignError(f"normalized must be True or False, got {normalized!r}")
@@ -111,7 +117,7 @@ def _factor_filter(model: FDIModel, poles, normalized: bool) -> tuple[LTI, dict]
         method = "filter Riccati equation"
     else:
         gain = observer_gain(A, C, poles, model.dt, what="(A, C)",
-                             fixed_reason="no coprime factorisation over the model's state exists")
+                             fixed_reason="no coprime factorisation over the model's state exists", atol=atol)
         L, W, fixed, placed, method = gain.L, np.eye(model.ny), gain.fixed, gain.poles, gain.method
     info = {"gain": L.tolist(), "poles": np.asarray(placed).tolist(), "fixed_modes": np.asarray(fixed).tolist(),
             "normalized": bool(normalized), "W": W.tolist(), "placement": method}

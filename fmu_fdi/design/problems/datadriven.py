@@ -71,9 +71,9 @@ def past_future_lq(u: np.ndarray, y: np.ndarray, s: int, error=DesignError):
     return L11, L[sm + sz:, :sm], L[sm + sz:, sm:sm + sz]
 
 
-def order_from_singular_values(sv: np.ndarray, max_order: int, rtol: float = 1e-9) -> int:
-    """The largest gap log(σ_i/σ_{i+1}) among the values above ``rtol·σ_1`` (at least 1)."""
-    cands = int(min(max_order, sv.size - 1, np.sum(sv > rtol * sv[0])))
+def order_from_singular_values(sv: np.ndarray, max_order: int, rtol: float = 1e-9, atol: float = 0.0) -> int:
+    """The largest gap log(σ_i/σ_{i+1}) among the values above ``max(rtol·σ_1, atol)`` (at least 1)."""
+    cands = int(min(max_order, sv.size - 1, np.sum(sv > max(rtol * sv[0], atol))))
     if cands < 1:
         return 1
     gaps = np.log(sv[:cands] / np.maximum(sv[1:cands + 1], rtol * sv[0]))
@@ -199,7 +199,7 @@ def _weights(r: np.ndarray, G: np.ndarray, s: int, p_group: int | None) -> np.nd
 
 
 def data_driven(model: FDIModel, t, u, y, *, kind: str = "sensor", form: str = "kernel", order: int | None = None,
-                extra: int = 2, max_order: int = 10, rtol: float = 1e-9) -> ResidualGenerator:
+                extra: int = 2, max_order: int = 10, rtol: float = 1e-9, atol: float = 0.0) -> ResidualGenerator:
     """Parity relations identified from a fault-free record (module docstring).
 
     Parameters
@@ -226,8 +226,9 @@ def data_driven(model: FDIModel, t, u, y, *, kind: str = "sensor", form: str = "
         else read from the singular values).
     extra : int
         Block rows beyond the smallest window with a relation.
-    max_order, rtol
-        Order selection (module docstring).
+    max_order, rtol, atol
+        Order selection (module docstring): singular values at or below ``max(rtol·σ_1, atol)`` are
+        not candidates (``atol`` absolute, default 0).
 
     Raises
     ------
@@ -268,7 +269,7 @@ def data_driven(model: FDIModel, t, u, y, *, kind: str = "sensor", form: str = "
         n = order if order is not None else (model.n or None)
         if n is None:
             sv = sla.svd(past_future_lq(du, yi, s0)[2], compute_uv=False)
-            n = order_from_singular_values(sv, max_order, rtol)
+            n = order_from_singular_values(sv, max_order, rtol, atol)
         if form == "kernel":
             s = max(n + 1, s0)
             if joint is None:  # one plant from all outputs (the best-conditioned estimate of the modes);

@@ -54,8 +54,6 @@ The approximate problem (AMMP, H∞/H2 optimal) is :mod:`.approximate_matching`.
 """
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import scipy.linalg as sla
 
@@ -68,8 +66,10 @@ from ..toolkit._basis import check_poles, pole_chooser
 from .approximate_matching import reference
 from ..toolkit.postconditions import DEC_TOL, _values, check_generator, default_smarg
 from ..toolkit.sampled import _basis_values, cascade
+from ..toolkit.notes import keeps_notes, silenced
 
 
+@keeps_notes
 @single_blas_thread
 def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None, max_degree: int | None = None,
                    mm_tol: float = 1e-9, smarg: float | None = None, dec_tol: float = DEC_TOL,
@@ -132,8 +132,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
     chooser = pole_chooser(model, poles, sdeg)
 
     def choose(count):  # "poles not used" is no news for the internal reference denominators
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
+        with silenced():
             return chooser(count)
 
     margin = default_smarg(model.dt) if smarg is None else float(smarg)

@@ -55,6 +55,8 @@ from ...lti import LTI
 from ...model import FDIModel
 from .nullspace import nullspace_design
 from ..toolkit.postconditions import DEC_TOL, check_generator
+from ..toolkit.approximate import with_nonstandard_options
+from ..toolkit.notes import keeps_notes
 
 
 def _with_model_faults(models: Sequence[FDIModel], i: int, atol: float = 0.0) -> FDIModel:
@@ -86,9 +88,10 @@ def _with_model_faults(models: Sequence[FDIModel], i: int, atol: float = 0.0) ->
                     u_names=base.u_names, y_names=base.y_names, d_names=base.d_names, name=f"{base.name}_md")
 
 
+@keeps_notes
 @single_blas_thread
 def model_detection_bank(models: Sequence[FDIModel], *, poles=None, sdeg=None, FDtol: float = 1e-4,
-                         atol: float = 0.0, **kwargs) -> ResidualBank:
+                         atol: float = 0.0, rdim=1, HDesign=None, **kwargs) -> ResidualBank:
     """A bank of least-order filters, filter i exact for model i and sensitive to all others.
 
     Parameters
@@ -102,6 +105,10 @@ def model_detection_bank(models: Sequence[FDIModel], *, poles=None, sdeg=None, F
     atol : float
         Absolute rank tolerance (Varga's ``atol``): passed to ``nullspace_design`` and to the
         minimal realisations of the model differences ``Gu_j − Gu_i``.
+    rdim, HDesign
+        Per filter (FaultDetectionTools.jl ``emdsyn``): the number of residuals of filter i (an int for
+        all, or a list with one per model; at most ``p − rank Gd_i``) and its design matrix (a list with
+        one matrix or None per model), as ``rdim``/``HDesign`` of ``nullspace_design``.
 
     Returns
     -------
@@ -127,11 +134,15 @@ def model_detection_bank(models: Sequence[FDIModel], *, poles=None, sdeg=None, F
     _check_distinguishable(models, rtol=np.sqrt(np.finfo(float).eps))
     bare = [mj._replace(faults=[], Bw=np.zeros((mj.n, 0)), Dw=np.zeros((mj.ny, 0)), w_names=[]) for mj in models]
     umaps = [_u_map(mj) for mj in bare]
+    from .row_options import per_row
+
+    rdims, Hs = per_row(rdim, len(bare), "rdim"), per_row(HDesign, len(bare), "HDesign")
     members, perf_abs, betas = [], [], []
     for i in range(len(bare)):
         mi = _with_model_faults(bare, i, atol)
         try:
-            g = nullspace_design(mi, rdim=1, poles=poles, sdeg=sdeg, FDtol=FDtol, atol=atol, **kwargs)
+            g = nullspace_design(mi, rdim=rdims[i], HDesign=Hs[i], poles=poles, sdeg=sdeg, FDtol=FDtol, atol=atol,
+                                 **kwargs)
         except DesignError as exc:
             msg = str(exc).replace("fault 'model_", "model '")  # the fault channels stand for the other models
             raise type(exc)(f"filter {i + 1} (model '{models[i].name}'): {msg}") from None
@@ -355,7 +366,7 @@ def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
     if it gives a larger measured gap than ``Q1`` itself."""
     from ...linalg import rank
     from ...lti import hstack
-    from ..toolkit.approximate import coouter_inverse
+    from ..toolkit.approximate import active_options, coouter_inverse, noise_normalizer
 
     g = nullspace_design(mi, rdim="all", noise="ignore", **design_kw)
     Q1 = g.Q
@@ -371,6 +382,13 @@ def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
         info["noise"] = (f"weighted by the filter poles: Q1 [Gw; 0] has normal rank {rw} < {Rw.p} rows, so some "
                          f"combination decouples w exactly — rdim=1 finds it (gap ∞)")
         return Q1, info
+    opts = active_options()
+    if opts is not None and opts.nonstd is not None:  # the user's choice of the peer's nonstd
+        Ro_inv, how = noise_normalizer(Rw, smarg=design_kw.get("smarg"), poles=design_kw.get("poles"),
+                                       sdeg=design_kw.get("sdeg"))
+        if Ro_inv is not None:
+            info["noise"] = how
+            return (Ro_inv @ Q1).minreal(), info
     eps = 1e-3 * _gain(Rw)
     reg = coouter_inverse(hstack([Rw, LTI.static(eps * np.eye(Rw.p), Rw.dt)]))
     if reg is not None:
@@ -384,11 +402,14 @@ def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
     return Q1, info
 
 
+@keeps_notes
+@with_nonstandard_options
 @single_blas_thread
 def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | str = 1, poles=None, sdeg=None,
                                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01,
                                      tol: float | None = None, atol: float = 0.0, seed: int = 0,
-                                     smarg: float | None = None, dec_tol: float = DEC_TOL) -> ResidualBank:
+                                     smarg: float | None = None, dec_tol: float = DEC_TOL, nonstd: int | None = None,
+                                     epsreg: float = 0.1, sdegzer: float | None = None) -> ResidualBank:
     """Approximate model detection (AMDP): filter i exact for u and d of model i, noise gap maximised.
 
     Solves Varga's AMDP (Procedure AMD; FaultDetectionTools.jl ``amdsyn``) for a set of models
@@ -415,6 +436,10 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
     tol, atol, seed, smarg, dec_tol
         Rank tolerances, combination search seed, stability margin and the largest relative
         leakage of u and d allowed (:mod:`..toolkit.postconditions`).
+    nonstd, epsreg, sdegzer
+        ``amdsyn``'s choice for a noise response without an invertible co-outer factor
+        (:func:`..toolkit.approximate.noise_normalizer`). Default (None): the regularised factor of
+        ``[Rw  1e-3·||Rw||∞·I]`` when it improves the measured gap, else the filter poles weight the noise.
 
     Returns
     -------
@@ -450,7 +475,7 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
     stripped = [mj._replace(faults=[]) for mj in models]
     bare = [mj._replace(Bw=np.zeros((mj.n, 0)), Dw=np.zeros((mj.ny, 0)), w_names=[]) for mj in stripped]
     design_kw = dict(poles=poles, sdeg=sdeg, FDtol=FDtol, FDGainTol=FDGainTol, tol=tol, atol=atol, seed=seed,
-                     smarg=smarg, dec_tol=dec_tol)
+                     smarg=smarg, dec_tol=dec_tol, nonstd=nonstd, epsreg=epsreg, sdegzer=sdegzer)
     umaps = [_u_map(mj) for mj in models]
     members, figures, rows, gammas = [], [], [], []
     for i, mi in enumerate(stripped):

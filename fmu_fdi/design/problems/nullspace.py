@@ -30,10 +30,11 @@ from ...lti import LTI, frequency_grid, vstack
 from ...model import FDIModel
 from ..toolkit._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
 from ..toolkit._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
-from ..toolkit.approximate import coouter_inverse, gap_objective
+from ..toolkit.approximate import gap_objective, noise_normalizer, with_nonstandard_options
 from ...margin import near_poles
 from ..toolkit.stable_factor import stable_internal_form, stable_joint_factor
 from ..toolkit.postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
+from ..toolkit.notes import keeps_notes, note
 
 
 def _random_points(basis: NullspaceBasis, count: int = 4, seed: int = 1) -> np.ndarray:
@@ -141,12 +142,15 @@ def _normalize_rows(Q: LTI, scale: np.ndarray) -> LTI:
     return LTI(Q.A, Q.B, S @ Q.C, S @ Q.D, Q.dt)
 
 
+@keeps_notes
+@with_nonstandard_options
 @single_blas_thread
 def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: float | None = None,
                      freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, noise: str = "optimize",
                      tol: float | None = None, atol: float = 0.0, seed: int = 0, smarg: float | None = None,
                      dec_tol: float = DEC_TOL, minimal: bool = True, basis: str = "auto",
-                     keep_stable_poles: bool = True) -> ResidualGenerator:
+                     keep_stable_poles: bool = True, HDesign=None, simple: bool = False, nonstd: int | None = None,
+                     epsreg: float = 0.1, sdegzer: float | None = None) -> ResidualGenerator:
     """Least-order residual generator from a minimal proper stable left null space of ``[Gu Gd; I 0]``.
 
     Solves the exact fault detection problem (Varga 2017, Procedure EFD; FaultDetectionTools.jl
@@ -202,6 +206,25 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         True (default): only poles violating ``smarg`` move, the plant's stable poles stay in R.
         False: with ``sdeg`` given, the stable poles of ``[Q R]`` slower than ``sdeg`` move too, so
         that the residual's whole response has that stability degree (Varga's ``sdeg`` in ``glcf``).
+    HDesign : array_like, optional
+        A full-row-rank design matrix ``H`` (``q × k``, ``k = p − rank Gd``) that forms the ``q``
+        residuals as ``Q = M·H·N`` from the proper stable pencil basis ``N`` (FaultDetectionTools.jl's
+        ``HDesign``; :mod:`.hdesign`): the combination is the user's, not searched; with noise to
+        optimise its noise response is co-outer normalised (``nonstd``), as ``afdsyn``. Fewer than ``k`` columns combine the leading basis rows; ``rdim``, if not 1, must
+        equal the rows of H. Refused (DesignError) with more than ``k`` columns, rank below its rows, or
+        rows that together miss a fault. ``info['HDesign']`` is the matrix used.
+    simple : bool
+        Synthesis from a simple basis (FaultDetectionTools.jl's ``simple = true``): every basis row of
+        McMillan degree its own left minimal index ν_i (:func:`.hdesign.basis_rows`). With ``rdim='all'``
+        the residuals are those rows (``info['simple_orders']``, order Σ ν_i), with ``HDesign`` H times
+        them; with an integer ``rdim`` the pencil path's least-order search over the simple rows
+        (``basis='pencil'``; refused with ``basis='polynomial'``).
+    nonstd, epsreg, sdegzer
+        With noise to optimise, how a noise response without an invertible co-outer factor (zeros at
+        infinity — Gw strictly proper — or on the stability boundary) is normalised, as FaultDetectionTools.jl
+        ``afdsyn``: 1 the quasi-co-outer factor with its boundary/infinite zeros moved (default), 2 the
+        factor of ``[Rw  epsreg·||Rw||∞·I]``, 4 the zeros shifted by ``sdegzer``; 3 and 5 are refused in that
+        case (:func:`..toolkit.approximate.noise_normalizer`). ``info['noise']`` says what was done.
     dec_tol : float
         Largest relative leakage of u and d (and w when it is decoupled) the returned filter
         may show (:mod:`..toolkit.postconditions`).
@@ -237,7 +260,7 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         ``info['replaces']`` the approximate row a pencil row replaced).
         ``info['decoupling_kind']`` is 'exact' or, for a sampled row below the smallest index
         returned because no exact row was found (or with ``basis='polynomial'``), starts with
-        'approximate' — and a ``UserWarning`` says so. With noise and ``noise='optimize'``,
+        'approximate' — and a note in ``info['notes']`` says so. With noise and ``noise='optimize'``,
         'pencil' solves the approximate problem on the pencil bases of ``[Gu Gd; I 0]`` and
         ``[Gu Gd Gw; I 0 0]`` (:func:`_approximate_pencil`); 'auto' does so when every rank
         tolerance of the polynomial ladder breaks a post-condition (``info['fallback_from']``).
@@ -264,6 +287,20 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     req = _Request.validated(model, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
                              FDGainTol=FDGainTol, noise=noise, tol=tol, atol=atol, seed=seed, smarg=smarg,
                              dec_tol=dec_tol, minimal=minimal, basis=basis, keep_stable_poles=keep_stable_poles)
+    if HDesign is not None or (simple and rdim == "all"):
+        from .hdesign import hdesign_generator
+
+        gen = hdesign_generator(model, HDesign, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
+                                FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol, tol=tol, atol=atol,
+                                place=req.place, finish=_finish, gains=_pencil_gains, simple=bool(simple),
+                                normalize_noise=not req.exact_only)
+        gen.info["decoupling_kind"] = EXACT
+        return gen
+    if simple:
+        if basis == "polynomial":
+            raise DesignError("simple = True needs the state-space (pencil) basis: basis='polynomial' has no "
+                              "simple form")
+        basis = "pencil"
     if basis == "pencil":
         return req.pencil() if req.exact_only else req.noise_pencil()
     auto = basis == "auto" and req.exact_only
@@ -470,14 +507,12 @@ EXACT = "exact"
 
 
 def _announce(model: FDIModel, gen: ResidualGenerator) -> ResidualGenerator:
-    """Warn when a returned row decouples only approximately (its ``info['decoupling_kind']``)."""
-    import warnings
-
+    """Note (``info['notes']``) when a returned row decouples only approximately (``info['decoupling_kind']``)."""
     kind = gen.info.setdefault("decoupling_kind", EXACT)
     if not kind.startswith(EXACT):
-        warnings.warn(f"model '{model.name}': the residual generator decouples u and d {kind} (order {gen.Q.n}, "
-                      f"left minimal indices {gen.info.get('left_minimal_indices', '?')}); "
-                      f"{gen.info.get('exact_alternative', 'no exact row was found')}", UserWarning, stacklevel=3)
+        note(f"model '{model.name}': the residual generator decouples u and d {kind} (order {gen.Q.n}, "
+             f"left minimal indices {gen.info.get('left_minimal_indices', '?')}); "
+             f"{gen.info.get('exact_alternative', 'no exact row was found')}")
     return gen
 
 
@@ -974,16 +1009,11 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
     sl = model.group_slices()
     Ge = model.augmented()
     Rw1 = (Q1 @ Ge)[:, sl["w"]].minreal()
-    normalized = False
-    fac = coouter_inverse(Rw1) if Rw1.n else None
-    if fac is not None and not _clear_of_boundary(fac[0].poles(), model.dt, (place or {}).get("smarg")):
-        # Rw1 has a zero on or next to the stability boundary (Varga's non-standard case): its inverse
-        # would put a near-integrator into the filter (a pole at -5e-9, random seeds 22, 28); the
-        # filter poles set the frequency weighting instead
-        fac = None
+    # Rw1 with a zero at infinity or on or next to the stability boundary (Varga's non-standard case: an inverse
+    # would put a near-integrator into the filter, a pole at -5e-9 on random seeds 22, 28): the nonstd option
+    fac, how = noise_normalizer(Rw1, **{k: (place or {}).get(k) for k in ("smarg", "poles", "sdeg")})
     if fac is not None:
-        Q1 = (fac[0] @ Q1).minreal()
-        normalized = True
+        Q1 = (fac @ Q1).minreal()
     Qc = vstack([Q1] + ([Q2] if Q2 is not None else []))
     grid = frequency_grid([Qc, model.lti()], num=200)
     lam_g = _points(model, grid)
@@ -1010,27 +1040,11 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
         H = h[None, :]
     Q = (H @ Qc).minreal() if H.shape[0] < Qc.p else Qc
     info = {"order": int(Q.n), "rdim": int(H.shape[0]), "gap_estimate": min(objective(h) for h in H),
-            "noise": "co-outer normalised" if normalized else "weighted by the filter poles",
+            "noise": how,
             "combination": H.tolist()}
     if moved:
         info["internal_form"] = moved
     return _finish(model, Q, basis, "nullspace", info, degrees, place=place)
-
-
-#: a co-outer inverse pole within this relative distance of the stability boundary counts as on it
-BOUNDARY_RTOL = 1e-6
-
-
-def _clear_of_boundary(poles: np.ndarray, dt: float, smarg: float | None) -> bool:
-    """Every pole inside the margin (``smarg``, default just inside the boundary) and at least
-    :data:`BOUNDARY_RTOL` (relative to its modulus, at least 1) away from the boundary itself."""
-    from ...margin import default_smarg
-
-    poles = np.asarray(poles, complex)
-    margin = default_smarg(dt) if smarg is None else float(smarg)
-    if dt:
-        return bool(np.all(np.abs(poles) <= min(margin, 1.0 - BOUNDARY_RTOL)))
-    return bool(np.all(poles.real <= np.minimum(margin, -BOUNDARY_RTOL * np.maximum(1.0, np.abs(poles)))))
 
 
 def _noise_pencil(model, rdim, poles, sdeg, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol, minimal,

@@ -49,8 +49,10 @@ from ...model import FDIModel
 from ..toolkit._basis import NullspaceBasis, ParityData, _block_toeplitz, realize_rows
 from .nullspace import _exact, detectability_by_rows, undetectable_error
 from ..toolkit.postconditions import check_generator
+from ..toolkit.notes import keeps_notes
 
 
+@keeps_notes
 @single_blas_thread
 def parity_space(model: FDIModel, order: int | None = None, *, Ts: float | None = None, rdim: int | None = None,
                  robust: str | bool = "auto", FDtol: float = 1e-4, tol: float | None = None,

@@ -24,8 +24,10 @@ from ...model import FDIModel
 from ..toolkit.approximate import coouter_inverse
 from .coprime import factorized
 from ..toolkit.postconditions import check_generator
+from ..toolkit.notes import keeps_notes
 
 
+@keeps_notes
 @single_blas_thread
 def unified_observer(model: FDIModel, poles=None, *, atol: float = 0.0) -> ResidualGenerator:
     """Ding's unified H−/H∞ (and H∞/H∞, H2/H2) optimal residual generator.

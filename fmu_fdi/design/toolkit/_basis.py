@@ -23,7 +23,6 @@ columns are normalised before every SVD (which leaves a left null space unchange
 """
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,6 +33,7 @@ from ...freqresp import eigenvalues
 from ...linalg import complement_rows, left_null, rank
 from ...lti import LTI
 from ...model import FDIModel
+from .notes import note
 
 
 @dataclass
@@ -424,8 +424,7 @@ def pick_poles(poles, sdeg: float, count: int) -> np.ndarray:
     unused = [p for p in poles if not np.any(np.isclose(np.array(out, complex), p))]
     if unused and count:
         why = " (a complex pole needs its conjugate and two states)" if any(np.iscomplex(unused)) else ""
-        warnings.warn(f"poles {[complex(p) for p in unused]} not used: the filter has order {count}{why}",
-                      UserWarning, stacklevel=4)
+        note(f"poles {[complex(p) for p in unused]} not used: the filter has order {count}{why}")
     return np.array(out[:count])
 
 

@@ -45,6 +45,7 @@ from ...freqresp import eigenvalues
 from ...linalg import EPS, ordered_schur
 from ...lti import LTI
 from ...model import FDIModel
+from .notes import note
 
 
 @dataclass
@@ -273,8 +274,8 @@ def _targets(model: FDIModel, poles, sdeg):
         if given.size and abs(given[-1].imag) > 0 and (given.size < 2 or given[-2] != np.conj(given[-1])):
             given = given[:-1]  # do not split a pair
         if given.size < given_all.size:
-            warnings.warn(f"poles {given_all[given.size:].tolist()} not used: the pencil basis has only {bad.size} "
-                          f"eigenvalues outside the stability region to move", UserWarning, stacklevel=6)
+            note(f"poles {given_all[given.size:].tolist()} not used: the pencil basis has only {bad.size} "
+                 f"eigenvalues outside the stability region to move")
         return np.concatenate([given, mirror(bad, beta, bool(model.dt))])[: max(bad.size, given.size)]
 
     return choose
