@@ -446,14 +446,11 @@ class FDIModel:
             "dt": self.dt,
             "signals": {"u": list(self.u_names), "y": list(self.y_names), "d": list(self.d_names),
                         "w": list(self.w_names)},
-            "matrices": {k: _stored(v, k, arrays) for k, v in mats.items()},
+            "matrices": {k: np.asarray(v, float).tolist() for k, v in mats.items()},
             "faults": [f.to_dict() for f in self.faults],
         }
         if arrays is not None:
-            for spec, fd in zip(self.faults, d["faults"]):
-                for key in ("Bf", "Df", "dA", "dB", "dC"):
-                    if key in fd:
-                        fd[key] = _stored(getattr(spec, key), f"faults.{spec.name}.{key}", arrays)
+            d = sidecar.externalise(d, arrays)
         if self.description:
             d["description"] = self.description
         if self.units:
@@ -562,16 +559,6 @@ class FDIModel:
 
 
 _sidecar = sidecar  # to_file's argument of the same name hides the module
-
-
-def _stored(value, name: str, arrays: dict | None):
-    """A matrix as written to a model file: a list of rows, or with ``arrays`` (sidecar
-    mode) the reference to the entry ``name`` added to ``arrays``."""
-    value = np.asarray(value, float)
-    if arrays is None:
-        return value.tolist()
-    arrays[name] = value
-    return sidecar.reference(name, value)
 
 
 # ---------------------------------------------------------------- the model's own algebra

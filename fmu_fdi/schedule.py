@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .designfile import DesignFileError, _clean, validate_design
+from .designfile import DesignFileError, _clean, checked_design, validate_design
 from .diagnoser import Diagnoser, _version
 from .errors import DesignError
 from .runtime.design_check import DesignCheckError
@@ -189,7 +189,7 @@ def load_diagnoser(path):
     d = _read(path)
     if is_scheduled(d):
         return ScheduledDiagnoser.from_design(d)
-    return Diagnoser.from_design(validate_design(d, str(path)))
+    return Diagnoser._from_checked(d, checked_design(d, str(path), base=Path(path).parent))
 
 
 def design_cli(args, design_one) -> int:

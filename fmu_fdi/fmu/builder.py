@@ -23,13 +23,13 @@ claimed for them, nor when the outputs' units differ.
 """
 from __future__ import annotations
 
-import json
 import math
 import re
 from pathlib import Path
 
-from ..designfile import DesignFileError, load_design, validate_design
+from ..designfile import DesignFileError, design_resources, load_design, validate_design
 from ..designinfo import variable_descriptions, variable_units
+from ..outpath import _clean
 from ..runtime.engine import output_names
 from .packaging import build_slave_fmu, checked_destination, unique_bundle_name
 from .slave_template import TEMPLATE
@@ -47,7 +47,7 @@ def _design_of(diagnoser_or_path) -> dict:
     if scheduled is not None:
         return scheduled
     if isinstance(diagnoser_or_path, Diagnoser):
-        return validate_design(json.loads(json.dumps(diagnoser_or_path.design)), "diagnoser")
+        return validate_design(_clean(diagnoser_or_path.design), "diagnoser")  # a JSON-ready copy
     if isinstance(diagnoser_or_path, dict):
         return validate_design(diagnoser_or_path, "design")
     return load_design(diagnoser_or_path)
@@ -107,11 +107,11 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     if target != "pythonfmu" or fmi_version != 2:
         raise DesignFileError(f"target {target!r} with FMI {fmi_version}: the pythonfmu target is FMI 2 only, "
                               "the native target FMI 2 or 3")
-    design_bytes = json.dumps(design, sort_keys=True).encode("utf-8")
+    resources = design_resources(design)
     modules = {f.name: f.read_text(encoding="utf-8") for f in sorted(RUNTIME_DIR.glob("*.py"))
                if f.name != "__init__.py"}
     base = re.sub(r"[^A-Za-z0-9_]", "_", design["name"]) or "fdi"
-    ident = unique_bundle_name(base if base[0].isalpha() else "fdi_" + base, design_bytes.decode(),
+    ident = unique_bundle_name(base if base[0].isalpha() else "fdi_" + base, resources["design.json"].decode(),
                                *(modules[k] for k in sorted(modules)))
     modules["diagnoser_slave.py"] = TEMPLATE.replace("__CLASS__", ident).replace(
         "__DESCRIPTION__", repr(f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {g['dt']:g} s)"))
@@ -125,7 +125,7 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     dt = float(g["dt"])
     return build_slave_fmu(
         modules, f"diagnoser_slave:{ident}", fmu_path, bundle_name=f"{ident}_fmu",
-        data_files={"design.json": design_bytes},
+        data_files=resources,
         units=units, descriptions=descriptions,
         output_dependencies={n: [] for n in names},
         capabilities={"canGetAndSetFMUstate": True, "canSerializeFMUstate": True,
