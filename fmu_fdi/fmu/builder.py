@@ -24,13 +24,16 @@ claimed for them, nor when the outputs' units differ.
 from __future__ import annotations
 
 import math
+import os
 import re
 from pathlib import Path
 
-from ..designfile import DesignFileError, design_resources, load_design, validate_design
+from .._schema import parse, read_text
+from ..designfile import DesignFileError, checked_design, design_resources, validate_design
 from ..designinfo import variable_descriptions, variable_units
 from ..outpath import _clean
 from ..runtime.engine import output_names
+from ..runtime.schedule import is_scheduled
 from .packaging import build_slave_fmu, checked_destination, unique_bundle_name
 from .slave_template import TEMPLATE
 
@@ -40,6 +43,17 @@ DEFAULT_SAMPLES = 1000
 
 
 def _design_of(diagnoser_or_path) -> dict:
+    if isinstance(diagnoser_or_path, (str, os.PathLike)):
+        # a file, read once; the diagnoser classes (and the analysis and scipy they import, seconds
+        # in a fresh 'fmu-fdi build') are not needed for it
+        d = parse(read_text(diagnoser_or_path, "design file", DesignFileError), "json", str(diagnoser_or_path),
+                  DesignFileError)
+        if is_scheduled(d):
+            from ..schedule import validate_scheduled_design
+
+            return validate_scheduled_design(d, str(diagnoser_or_path))
+        checked_design(d, str(diagnoser_or_path), base=Path(diagnoser_or_path).parent)
+        return d
     from ..diagnoser import Diagnoser
     from ..schedule import design_of  # a scheduled design (fmu_fdi/schedule.py) or None
 
@@ -50,7 +64,8 @@ def _design_of(diagnoser_or_path) -> dict:
         return validate_design(_clean(diagnoser_or_path.design), "diagnoser")  # a JSON-ready copy
     if isinstance(diagnoser_or_path, dict):
         return validate_design(diagnoser_or_path, "design")
-    return load_design(diagnoser_or_path)
+    raise DesignFileError(f"build_fmu needs a Diagnoser, a design dict or a design file path, got "
+                          f"{type(diagnoser_or_path).__name__}")
 
 
 def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_version: int = 2, *,
