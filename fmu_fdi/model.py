@@ -820,6 +820,15 @@ def _check_format(d, source: str) -> None:
         raise ModelError(f"{source}: a sidecar ([arrays]) needs format = {FORMAT_SIDECAR!r}, got {FORMAT!r}")
 
 
+def _checked_array(value: np.ndarray, where: str) -> None:
+    """A matrix given as an array (read from a sidecar, or a design held in memory): real numbers,
+    finite and within the range of a file's numbers, checked at numpy speed."""
+    if value.dtype.kind not in "fiu" or value.ndim not in (1, 2):
+        raise ModelError(f"{where} must be an array of real numbers (a matrix or one column), got {value.dtype} "
+                         f"of shape {value.shape}")
+    sidecar.finite(value, where, ModelError)
+
+
 def _check_model_dict(d, source: str) -> None:
     """Types of every value of a model file, before anything is converted (nothing is
     coerced: ``dt = "0.5"``, ``dt = true`` or ``"1e-3"`` in a matrix are errors). Matrices
@@ -872,6 +881,7 @@ def _check_model_dict(d, source: str) -> None:
     for key, value in mats.items():
         rows, cols = shapes[key]
         if isinstance(value, np.ndarray):
+            _checked_array(value, f"{source}: matrix {key}")
             if value.shape != (rows, cols):
                 raise ModelError(f"{source}: matrix {key} must be {rows}x{cols}, got shape {value.shape}")
             continue
@@ -895,7 +905,8 @@ def _check_model_dict(d, source: str) -> None:
             if key in f:
                 value = f[key]
                 if isinstance(value, np.ndarray):
-                    continue  # from the sidecar: float64, finite; the fault checks its shape
+                    _checked_array(value, f"{where}: {key}")  # the fault checks its shape
+                    continue
                 if isinstance(value, list) and value and not isinstance(value[0], list):
                     S.vector(value, f"{where}: {key}", ModelError)  # one column written as a list
                 else:

@@ -215,12 +215,18 @@ def _entry(npz, ref: dict, path: Path, where: str, error: type[Exception]) -> np
     except _DAMAGE as exc:  # e.g. fewer data bytes than the header announces
         raise error(f"{damaged}: {_first_line(exc)}") from None
     value = value.astype(float, copy=False)
+    finite(value, f"{where}: array {key!r} of the sidecar {path}", error)
+    return value
+
+
+def finite(value: np.ndarray, where: str, error: type[Exception]) -> None:
+    """Every entry of ``value`` is finite and within a file number's range (:data:`MAX_ABS`), else a
+    one-line ``error`` naming the first bad entry (1-based, as a file's rows and columns)."""
     bad = ~(np.abs(value) <= MAX_ABS)  # NaN too
     if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise error(f"{where}: array {key!r} of the sidecar {path} has a non-finite or too large entry "
-                    f"[{i + 1}][{j + 1}] = {value[i, j]!r}")
-    return value
+        at = tuple(int(k) for k in np.argwhere(bad)[0])
+        raise error(f"{where} has a non-finite or too large entry {''.join(f'[{k + 1}]' for k in at)} = "
+                    f"{float(value[at])!r}")
 
 
 

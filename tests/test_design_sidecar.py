@@ -125,3 +125,22 @@ def test_both_fmu_targets_carry_the_design_and_its_sidecar(tmp_path, small_thres
     with zipfile.ZipFile(py) as z:
         names = [n for n in z.namelist() if n.startswith("resources/") and "/design.json" in n]
     assert sorted(n.rsplit("/", 1)[1] for n in names) == ["design.json", "design.json.npz"]
+
+
+def test_a_design_held_in_memory_with_arrays_is_still_checked(tmp_path, small_threshold):
+    """A design read from a sidecar holds arrays; given back (edited) to from_design, its arrays are
+    checked as a file's numbers are: a NaN or a string array is refused with the entry named."""
+    dg, _ = _diagnoser()
+    back = Diagnoser.load(dg.save(tmp_path / "d.json"))
+    design = back.design
+    assert isinstance(design["model"]["matrices"]["A"], np.ndarray)
+    A = design["model"]["matrices"]["A"]
+    design["model"]["matrices"]["A"] = A.copy()
+    design["model"]["matrices"]["A"][1, 2] = np.nan
+    with pytest.raises(DesignFileError, match=r"matrix A has a non-finite or too large entry \[2\]\[3\] = nan"):
+        Diagnoser.from_design(design)
+    design["model"]["matrices"]["A"] = A.astype(str)
+    with pytest.raises(DesignFileError, match="matrix A must be an array of real numbers"):
+        Diagnoser.from_design(design)
+    design["model"]["matrices"]["A"] = A
+    assert np.array_equal(Diagnoser.from_design(design).generator.model.A, A)  # the original is accepted
