@@ -125,6 +125,11 @@ def test_both_fmu_targets_carry_the_design_and_its_sidecar(tmp_path, small_thres
     with zipfile.ZipFile(py) as z:
         names = [n for n in z.namelist() if n.startswith("resources/") and "/design.json" in n]
     assert sorted(n.rsplit("/", 1)[1] for n in names) == ["design.json", "design.json.npz"]
+    from fmu_fdi.cli import _design_file
+    from fmu_fdi.errors import InputFileError
+
+    with pytest.raises(InputFileError, match=r"diagnostic FMU.*unzip -j .*design\.json .*design\.json\.npz"):
+        _design_file(fmu)  # given as a design file: the advice extracts the pair
 
 
 def test_a_design_held_in_memory_with_arrays_is_still_checked(tmp_path, small_threshold):
