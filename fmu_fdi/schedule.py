@@ -138,13 +138,11 @@ class ScheduledDiagnoser(Diagnoser):
     # -------------------------------------------------------------- files
     def save(self, path) -> Path:
         """Write the scheduled design file (JSON, docs/design-file.md)."""
-        import json
-
-        from .outpath import check_output_path, write_atomically
+        from .outpath import check_output_path, json_text, write_atomically
 
         d = validate_scheduled_design(_clean(self.design), str(path))
         path = check_output_path(path, (".json",), "design file", error=DesignFileError)
-        body = json.dumps(d, indent=1, allow_nan=False)
+        body = json_text(d)  # rows on one line, by the C encoder
         return write_atomically(path, lambda part: part.write_text(body, encoding="utf-8"))
 
     @classmethod
