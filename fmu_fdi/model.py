@@ -21,6 +21,7 @@ import numpy as np
 
 from . import _schema as S
 from . import sidecar
+from .outpath import write_atomically
 from ._schema import check_format, check_keys, parse, read_text
 from .faults import FaultSpec, ModelError, _matrix, check_name, component_fault
 from .lti import LTI
@@ -533,7 +534,9 @@ class FDIModel:
         ``sidecar=True`` writes the matrices to ``<name>.npz`` (``plant.toml.npz``) beside the file (format
         ``fmu-fdi-model/2``, :mod:`fmu_fdi.sidecar`), ``False`` keeps them in the text;
         None (default) uses the sidecar when the matrices hold more than
-        :data:`fmu_fdi.sidecar.SIDECAR_MIN_ENTRIES` numbers in all.
+        :data:`fmu_fdi.sidecar.SIDECAR_MIN_ENTRIES` numbers in all. The file is written under a
+        temporary name and renamed (the sidecar first); a file written without a sidecar removes
+        the one an earlier save left under its name.
         """
         path = Path(path)
         suffix = path.suffix.lower()
@@ -548,14 +551,15 @@ class FDIModel:
         if arrays is not None:
             d["format"] = FORMAT_SIDECAR
             d["arrays"] = _sidecar.write(_sidecar.sidecar_path(path), arrays)
+        elif _sidecar.sidecar_path(path).is_file():  # an earlier save's: it would describe another model
+            _sidecar.sidecar_path(path).unlink()
         if suffix == ".json":
             text = json.dumps(d, indent=2)
         elif suffix == ".toml":
             text = _toml_dumps(d)
         else:
             raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
-        path.write_text(text, encoding="utf-8")
-        return path
+        return write_atomically(path, lambda part: part.write_text(text, encoding="utf-8"))  # never half a file
 
 
 _sidecar = sidecar  # to_file's argument of the same name hides the module

@@ -51,6 +51,9 @@ def test_the_sidecar_is_chosen_by_size(tmp_path):
     assert np.array_equal(FDIModel.from_file(path).A, -np.eye(n))
     path = big.to_file(tmp_path / "t.json", sidecar=False)  # asked for text: one file
     assert not (tmp_path / "t.json.npz").exists() and np.array_equal(FDIModel.from_file(path).A, -np.eye(n))
+    path = big.to_file(tmp_path / "b.toml", sidecar=False)  # the same name as text: the earlier sidecar goes
+    assert not (tmp_path / "b.toml.npz").exists() and np.array_equal(FDIModel.from_file(path).A, -np.eye(n))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.toml", "s.json", "t.json"]  # no temporary left
 
 
 def _rewrite_digest(path):
