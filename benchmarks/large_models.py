@@ -9,7 +9,10 @@ eigenvalue timing.
 
     python benchmarks/large_models.py [n ...]        (default: 500 1000)
 
-The model file is read three ways: the default ``to_file`` (TOML with its matrices in a
+The model and design files are written and read (both keep the matrices of a large model in a
+binary ``.npz`` sidecar) and the diagnostic FMU is built for both targets (the native one compiles
+the runtime's own units once per machine into its object cache, :mod:`fmu_fdi.native.objcache`:
+a first build after a change of the C sources costs a few seconds more). The model file is read three ways: the default ``to_file`` (TOML with its matrices in a
 binary ``.npz`` sidecar above ``fmu_fdi.sidecar.SIDECAR_MIN_ENTRIES`` numbers), all-text
 JSON and all-text TOML (the last two are the old formats, for comparison; the all-text TOML
 is skipped above n = 500, where it takes tens of seconds in Python's TOML parser).
@@ -96,17 +99,31 @@ def parts():
             setattr(mod, name, fn)
 
 
+def warm_native_cache() -> None:
+    """Build a small native FMU (FMI 2 and 3) untimed: the runtime's objects, compiled once per machine
+    and source change (:mod:`fmu_fdi.native.objcache`), are then in the cache as for any later build."""
+    from fmu_fdi import Diagnoser
+    from fmu_fdi.design.problems.nullspace import nullspace_design
+    from fmu_fdi.fmu.builder import build_fmu
+
+    dg = Diagnoser(nullspace_design(plant(6)), Ts=0.1, thresholds=1.0)
+    with tempfile.TemporaryDirectory() as tmp:
+        for fmi in (2, 3):
+            build_fmu(dg, Path(tmp) / f"w{fmi}.fmu", target="native", fmi_version=fmi)
+
+
 def measure(n: int) -> dict:
     from fmu_fdi import Diagnoser, FDIModel
     from fmu_fdi.analysis import detectability, isolability
     from fmu_fdi.design.problems.nullspace import nullspace_design
     from fmu_fdi.fmu.builder import build_fmu
 
+    warm_native_cache()
     m = plant(n)
     base = min(timed(np.linalg.eigvals, m.A)[1] for _ in range(3))
     out = {"eigvals (unit)": base}
     with tempfile.TemporaryDirectory() as tmp:
-        path = m.to_file(Path(tmp) / "m.toml")  # the default: a sidecar at this size
+        path, out["save model (sidecar)"] = timed(m.to_file, Path(tmp) / "m.toml")  # the default at this size
         m, out["load model (sidecar)"] = timed(FDIModel.from_file, path)
         _, out["load model (JSON text)"] = timed(FDIModel.from_file, m.to_file(Path(tmp) / "t.json", sidecar=False))
         if n <= 500:
@@ -125,7 +142,9 @@ def measure(n: int) -> dict:
         dg, out["diagnoser (validate)"] = timed(Diagnoser, gen, thresholds=1.0)
         _, out["save design file"] = timed(dg.save, Path(tmp) / "d.json")
         _, out["load design file"] = timed(Diagnoser.load, Path(tmp) / "d.json")
-        _, out["build FMU"] = timed(build_fmu, Path(tmp) / "d.json", Path(tmp) / "d.fmu")
+        for target, fmi in (("pythonfmu", 2), ("native", 2), ("native", 3)):
+            _, out[f"build FMU ({target}, FMI {fmi})"] = timed(build_fmu, Path(tmp) / "d.json", Path(tmp) / "d.fmu",
+                                                               target=target, fmi_version=fmi)
     # the unit again at the end: on a shared machine the smaller of the two is the machine's
     out["eigvals (unit)"] = min(base, min(timed(np.linalg.eigvals, m.A)[1] for _ in range(3)))
     return out
@@ -135,7 +154,7 @@ def main(sizes):
     for n in sizes:
         res = measure(n)
         base = res["eigvals (unit)"]
-        print(f"n = {n}: one eigvals(A) = {base * 1e3:.3g} ms")
+        print(f"n = {n}: one eigvals(A) = {base * 1e3:.3g} ms (load average {os.getloadavg()[0]:.2f})")
         for stage, t in res.items():
             if stage != "eigvals (unit)":
                 print(f"  {stage:<28} {t:9.3f} s   {t / base:9.1f} x eigvals"

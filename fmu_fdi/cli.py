@@ -601,9 +601,11 @@ def _design_file(path):
     p = Path(path)
     inside = _design_inside(p)
     if inside:
+        with zipfile.ZipFile(p) as z:  # a large plant's model is in the sidecar beside it
+            copy = (f"unzip -j {p} {inside} {inside}.npz" if f"{inside}.npz" in z.namelist()
+                    else f"unzip -p {p} {inside} > design.json")
         raise InputFileError(f"{p} is a diagnostic FMU (built by 'fmu-fdi build'), not a design file; give the "
-                             f"design file it was built from (the FMU carries a copy: unzip -p {p} {inside} "
-                             f"> design.json)")
+                             f"design file it was built from (the FMU carries a copy: {copy})")
     if p.is_file() and not zipfile.is_zipfile(p):
         head = p.read_bytes()[:4096].lstrip()
         model = b"fmu-fdi-model/" in head and b"fmu-fdi-design/" not in head  # the design embeds its model

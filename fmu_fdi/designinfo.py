@@ -16,8 +16,9 @@
 """
 from __future__ import annotations
 
-#: largest generator order for which the structure is computed at build/plot time: an H∞
-#: norm per fault block costs O(n³) per iteration, seconds beyond this on large plants
+#: largest order of the internal form (generator and plant states together) for which the
+#: structure is computed at build/plot time: an H∞ norm per fault block costs O(n³) per
+#: iteration, seconds beyond this on large plants
 MAX_ORDER_FOR_STRUCTURE = 200
 
 #: evaluation kinds whose value has the residual's unit
@@ -38,7 +39,11 @@ def _structure(design: dict):
 def _computed_structure(design: dict):
     """Weak structure matrix (groups × faults) of the design's LTI generator, or None."""
     disc = design["generator"]["discrete"]
-    if "model" not in design or disc.get("kind") != "lti" or len(disc["A"]) > MAX_ORDER_FOR_STRUCTURE:
+    if "model" not in design or disc.get("kind") != "lti":
+        return None
+    plant = design["model"].get("matrices", {}).get("A", []) if isinstance(design["model"], dict) else []
+    n = plant["shape"][0] if isinstance(plant, dict) else len(plant)  # a sidecar reference or the rows
+    if len(disc["A"]) + n > MAX_ORDER_FOR_STRUCTURE:  # R = Q·Ge holds both
         return None
     from .analysis import structure_matrix
     from .diagnoser import Diagnoser

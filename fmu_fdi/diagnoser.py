@@ -7,18 +7,18 @@ the same numbers.
 """
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
 import numpy as np
 
 from .analysis import structure_matrix
-from .designfile import FORMAT, load_design, save_design, validate_design
+from .designfile import FORMAT, checked_design, read_design, save_design, validate_design
 from .errors import DesignError
 from .evaluation.selector import ThresholdDesign
 from .generator import ResidualGenerator
 from .lti import LTI
 from .model import FDIModel
+from .outpath import copied
 from .runtime.engine import DiagnoserRuntime, output_type
 
 DEFAULT_EVALUATION = {"kind": "rms", "window": 10}
@@ -244,19 +244,25 @@ class Diagnoser:
     def load(cls, path) -> "Diagnoser":
         """Read a design file. The returned diagnoser runs exactly as the saved one;
         its ``generator`` is rebuilt from the embedded model when the design is LTI."""
-        design = load_design(path)
-        return cls.from_design(design)
+        return cls._from_checked(*read_design(path))
 
     @classmethod
     def from_design(cls, design: dict) -> "Diagnoser":
+        """A diagnoser of a design dict (validated here; a copy is kept, so the caller's dict may change)."""
+        design = copied(design)
+        return cls._from_checked(design, checked_design(design, "design"))
+
+    @classmethod
+    def _from_checked(cls, design: dict, model: FDIModel | None) -> "Diagnoser":
+        """A diagnoser of a design validated by :func:`~fmu_fdi.designfile.checked_design`, which
+        returned ``model`` (the embedded one); the diagnoser keeps ``design`` itself."""
         self = cls.__new__(cls)
-        self.design = validate_design(copy.deepcopy(design), "design")
-        self.runtime = DiagnoserRuntime(self.design, checked=True)  # validated just above
+        self.design = design
+        self.runtime = DiagnoserRuntime(self.design, checked=True)  # validated by the caller
         self.Ts = float(design["generator"]["dt"])
         self.generator = self.continuous = None
         g = design["generator"]
-        if "model" in design and g["discrete"].get("kind") == "lti":
-            model = FDIModel.from_dict(design["model"], source="design model")
+        if model is not None and g["discrete"].get("kind") == "lti":
             Qd = LTI(g["discrete"]["A"], g["discrete"]["B"], g["discrete"]["C"], g["discrete"]["D"], self.Ts)
             md = model if model.is_discrete else model.discretize(self.Ts)
             self.generator = ResidualGenerator(Qd, md, g["method"], g["residual_names"], g["groups"], g.get("info"))

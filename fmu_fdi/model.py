@@ -22,6 +22,7 @@ import numpy as np
 
 from . import _schema as S
 from . import sidecar
+from .outpath import write_atomically
 from ._schema import check_format, check_keys, parse, read_text
 from .faults import FaultSpec, ModelError, _matrix, check_name, check_signal_name, component_fault
 from .lti import LTI
@@ -447,14 +448,11 @@ class FDIModel:
             "dt": self.dt,
             "signals": {"u": list(self.u_names), "y": list(self.y_names), "d": list(self.d_names),
                         "w": list(self.w_names)},
-            "matrices": {k: _stored(v, k, arrays) for k, v in mats.items()},
+            "matrices": {k: np.asarray(v, float).tolist() for k, v in mats.items()},
             "faults": [f.to_dict() for f in self.faults],
         }
         if arrays is not None:
-            for spec, fd in zip(self.faults, d["faults"]):
-                for key in ("Bf", "Df", "dA", "dB", "dC"):
-                    if key in fd:
-                        fd[key] = _stored(getattr(spec, key), f"faults.{spec.name}.{key}", arrays)
+            d = sidecar.externalise(d, arrays)
         if self.description:
             d["description"] = self.description
         if self.units:
@@ -537,7 +535,9 @@ class FDIModel:
         ``sidecar=True`` writes the matrices to ``<name>.npz`` (``plant.toml.npz``) beside the file (format
         ``fmu-fdi-model/2``, :mod:`fmu_fdi.sidecar`), ``False`` keeps them in the text;
         None (default) uses the sidecar when the matrices hold more than
-        :data:`fmu_fdi.sidecar.SIDECAR_MIN_ENTRIES` numbers in all.
+        :data:`fmu_fdi.sidecar.SIDECAR_MIN_ENTRIES` numbers in all. The file is written under a
+        temporary name and renamed (the sidecar first); a file written without a sidecar removes
+        the one an earlier save left under its name.
         """
         path = Path(path)
         suffix = path.suffix.lower()
@@ -552,27 +552,18 @@ class FDIModel:
         if arrays is not None:
             d["format"] = FORMAT_SIDECAR
             d["arrays"] = _sidecar.write(_sidecar.sidecar_path(path), arrays)
+        elif _sidecar.sidecar_path(path).is_file():  # an earlier save's: it would describe another model
+            _sidecar.sidecar_path(path).unlink()
         if suffix == ".json":
             text = json.dumps(d, indent=2)
         elif suffix == ".toml":
             text = _toml_dumps(d)
         else:
             raise ModelError(f"{path}: model files end in .json or .toml, got '{suffix}'")
-        path.write_text(text, encoding="utf-8")
-        return path
+        return write_atomically(path, lambda part: part.write_text(text, encoding="utf-8"))  # never half a file
 
 
 _sidecar = sidecar  # to_file's argument of the same name hides the module
-
-
-def _stored(value, name: str, arrays: dict | None):
-    """A matrix as written to a model file: a list of rows, or with ``arrays`` (sidecar
-    mode) the reference to the entry ``name`` added to ``arrays``."""
-    value = np.asarray(value, float)
-    if arrays is None:
-        return value.tolist()
-    arrays[name] = value
-    return sidecar.reference(name, value)
 
 
 # ---------------------------------------------------------------- the model's own algebra
@@ -839,6 +830,15 @@ def _check_format(d, source: str) -> None:
         raise ModelError(f"{source}: a sidecar ([arrays]) needs format = {FORMAT_SIDECAR!r}, got {FORMAT!r}")
 
 
+def _checked_array(value: np.ndarray, where: str) -> None:
+    """A matrix given as an array (read from a sidecar, or a design held in memory): real numbers,
+    finite and within the range of a file's numbers, checked at numpy speed."""
+    if value.dtype.kind not in "fiu" or value.ndim not in (1, 2):
+        raise ModelError(f"{where} must be an array of real numbers (a matrix or one column), got {value.dtype} "
+                         f"of shape {value.shape}")
+    sidecar.finite(value, where, ModelError)
+
+
 def _check_model_dict(d, source: str) -> None:
     """Types of every value of a model file, before anything is converted (nothing is
     coerced: ``dt = "0.5"``, ``dt = true`` or ``"1e-3"`` in a matrix are errors). Matrices
@@ -891,6 +891,7 @@ def _check_model_dict(d, source: str) -> None:
     for key, value in mats.items():
         rows, cols = shapes[key]
         if isinstance(value, np.ndarray):
+            _checked_array(value, f"{source}: matrix {key}")
             if value.shape != (rows, cols):
                 raise ModelError(f"{source}: matrix {key} must be {rows}x{cols}, got shape {value.shape}")
             continue
@@ -914,7 +915,8 @@ def _check_model_dict(d, source: str) -> None:
             if key in f:
                 value = f[key]
                 if isinstance(value, np.ndarray):
-                    continue  # from the sidecar: float64, finite; the fault checks its shape
+                    _checked_array(value, f"{where}: {key}")  # the fault checks its shape
+                    continue
                 if isinstance(value, list) and value and not isinstance(value[0], list):
                     S.vector(value, f"{where}: {key}", ModelError)  # one column written as a list
                 else:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .designfile import DesignFileError, _clean, validate_design
+from .designfile import DesignFileError, _clean, checked_design, validate_design
 from .diagnoser import Diagnoser, _version
 from .errors import DesignError
 from .runtime.design_check import DesignCheckError
@@ -138,13 +138,11 @@ class ScheduledDiagnoser(Diagnoser):
     # -------------------------------------------------------------- files
     def save(self, path) -> Path:
         """Write the scheduled design file (JSON, docs/design-file.md)."""
-        import json
-
-        from .outpath import check_output_path, write_atomically
+        from .outpath import check_output_path, json_text, write_atomically
 
         d = validate_scheduled_design(_clean(self.design), str(path))
         path = check_output_path(path, (".json",), "design file", error=DesignFileError)
-        body = json.dumps(d, indent=1, allow_nan=False)
+        body = json_text(d)  # rows on one line, by the C encoder
         return write_atomically(path, lambda part: part.write_text(body, encoding="utf-8"))
 
     @classmethod
@@ -189,7 +187,7 @@ def load_diagnoser(path):
     d = _read(path)
     if is_scheduled(d):
         return ScheduledDiagnoser.from_design(d)
-    return Diagnoser.from_design(validate_design(d, str(path)))
+    return Diagnoser._from_checked(d, checked_design(d, str(path), base=Path(path).parent))
 
 
 def design_cli(args, design_one) -> int:

@@ -21,11 +21,15 @@ one-line error naming the model file, the sidecar and the entry.
 from __future__ import annotations
 
 import hashlib
+import io
+import tokenize
 import zipfile
 from pathlib import Path
 
 import numpy as np
+from numpy.lib import format as npy
 
+from .outpath import write_atomically
 from .runtime.schema import MAX_ABS, check_keys, text, type_name
 
 #: above this many matrix entries in all, :meth:`FDIModel.to_file` writes the matrices to a
@@ -54,19 +58,67 @@ def sha256(path) -> str:
     return h.hexdigest()
 
 
+def encode(arrays: dict[str, np.ndarray]) -> bytes:
+    """The ``.npz`` bytes of ``arrays`` (float64, little-endian, C order; no pickle)."""
+    buf = io.BytesIO()
+    np.savez(buf, allow_pickle=False, **{k: np.ascontiguousarray(v, dtype="<f8") for k, v in arrays.items()})
+    return buf.getvalue()
+
+
+def table(name: str, data: bytes) -> dict:
+    """The ``[arrays]`` table naming the sidecar ``name`` with the bytes ``data``."""
+    return {"file": name, "sha256": hashlib.sha256(data).hexdigest()}
+
+
 def write(path, arrays: dict[str, np.ndarray]) -> dict:
-    """Write ``arrays`` (float64, little-endian, C order) to the ``.npz`` at ``path``; the
-    model file's ``[arrays]`` table (file name and digest) is returned."""
+    """Write ``arrays`` (:func:`encode`) to the ``.npz`` at ``path``; the model file's ``[arrays]``
+    table (file name and digest) is returned. The file is written under a temporary name and
+    renamed: a reader never sees half a sidecar."""
     path = Path(path)
-    data = {k: np.ascontiguousarray(v, dtype="<f8") for k, v in arrays.items()}
-    with open(path, "wb") as fh:
-        np.savez(fh, allow_pickle=False, **data)
-    return {"file": path.name, "sha256": sha256(path)}
+    data = encode(arrays)
+    write_atomically(path, lambda part: part.write_bytes(data))
+    return table(path.name, data)
 
 
 def reference(name: str, value: np.ndarray) -> dict:
     """The model file's entry for a matrix stored in the sidecar under ``name``."""
     return {"array": name, "shape": [int(s) for s in np.shape(value)]}
+
+
+#: the matrices of a fault entry (docs/model-file.md)
+FAULT_MATRICES = ("Bf", "Df", "dA", "dB", "dC")
+
+
+def externalise(d: dict, arrays: dict) -> dict:
+    """A copy of the model dict ``d`` whose matrices (in ``matrices`` and the faults' ``Bf``, ``Df``,
+    ``dA``, ``dB``, ``dC``: every two-dimensional one) are references, their values added to
+    ``arrays`` under ``A``, ``Bu``, ... and ``faults.<name>.<key>`` (``d`` is not changed). The
+    caller writes ``arrays`` with :func:`write` and records its table as ``arrays`` of the copy."""
+    def stored(value, name):
+        if isinstance(value, list) and not value:
+            return value
+        try:
+            array = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            return value  # not numbers: left for the model's validation to name
+        if array.ndim != 2:
+            return value  # a fault column written as a list stays text
+        arrays[name] = array
+        return reference(name, array)
+
+    out = dict(d)
+    out["matrices"] = {k: stored(v, k) for k, v in (d.get("matrices") or {}).items()}
+    out["faults"] = [dict(f, **{k: stored(f[k], f"faults.{f['name']}.{k}") for k in FAULT_MATRICES if k in f})
+                     for f in d.get("faults", [])]
+    return out
+
+
+def entries(d: dict) -> int:
+    """How many matrix entries the model dict ``d`` holds (lists or arrays)."""
+    mats = list((d.get("matrices") or {}).values())
+    mats += [f[k] for f in d.get("faults", []) if isinstance(f, dict) for k in FAULT_MATRICES if k in f]
+    return sum(int(np.size(v)) if isinstance(v, np.ndarray) else sum(len(r) if isinstance(r, list) else 1 for r in v)
+               for v in mats if isinstance(v, (list, np.ndarray)))
 
 
 def resolve(d: dict, base, source: str, error: type[Exception]) -> dict:
@@ -140,24 +192,48 @@ def _entry(npz, ref: dict, path: Path, where: str, error: type[Exception]) -> np
         raise error(f"{where}.shape must be [rows, columns] (two integers >= 0), got {shape!r}")
     if key not in npz.files:
         raise error(f"{where}: array {key!r} is not in the sidecar {path} (it holds {sorted(npz.files)})")
+    damaged = f"{where}: array {key!r} of the sidecar {path} is damaged"
+    try:  # the header first: an object (pickled) array is refused before any of its data is read
+        with npz.zip.open(f"{key}.npy") as fh:
+            version = npy.read_magic(fh)
+            header = {(1, 0): npy.read_array_header_1_0, (2, 0): npy.read_array_header_2_0}.get(version)
+            if header is None:
+                raise ValueError(f".npy format version {version[0]}.{version[1]}")
+            stored, _, dtype = header(fh)
+    except _DAMAGE as exc:
+        raise error(f"{damaged}: {_first_line(exc)}") from None
+    if dtype.hasobject:
+        raise error(f"{where}: array {key!r} of the sidecar {path} cannot be read without pickle (an object "
+                    f"array); sidecar arrays are float64 data")
+    if dtype != np.dtype("<f8") and dtype != np.dtype(">f8"):
+        raise error(f"{where}: array {key!r} of the sidecar {path} is {dtype}, expected float64")
+    if stored != tuple(shape):
+        raise error(f"{where}: array {key!r} of the sidecar {path} has shape {stored}, the model file "
+                    f"records {tuple(shape)}")
     try:
         value = npz[key]
-    except ValueError as exc:  # an object array: loading it would unpickle
-        raise error(f"{where}: array {key!r} of the sidecar {path} cannot be read without pickle ({exc}); "
-                    f"sidecar arrays are float64 data") from None
-    except (OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise error(f"{where}: array {key!r} of the sidecar {path} is damaged: {exc}") from None
-    if value.dtype != np.dtype("<f8") and value.dtype != np.dtype(">f8"):
-        raise error(f"{where}: array {key!r} of the sidecar {path} is {value.dtype}, expected float64")
-    if value.shape != tuple(shape):
-        raise error(f"{where}: array {key!r} of the sidecar {path} has shape {value.shape}, the model file "
-                    f"records {tuple(shape)}")
+    except _DAMAGE as exc:  # e.g. fewer data bytes than the header announces
+        raise error(f"{damaged}: {_first_line(exc)}") from None
     value = value.astype(float, copy=False)
-    bad = ~(np.abs(value) <= MAX_ABS)  # NaN too
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise error(f"{where}: array {key!r} of the sidecar {path} has a non-finite or too large entry "
-                    f"[{i + 1}][{j + 1}] = {value[i, j]!r}")
+    finite(value, f"{where}: array {key!r} of the sidecar {path}", error)
     return value
 
 
+def finite(value: np.ndarray, where: str, error: type[Exception]) -> None:
+    """Every entry of ``value`` is finite and within a file number's range (:data:`MAX_ABS`), else a
+    one-line ``error`` naming the first bad entry (1-based, as a file's rows and columns)."""
+    bad = ~(np.abs(value) <= MAX_ABS)  # NaN too
+    if bad.any():
+        at = tuple(int(k) for k in np.argwhere(bad)[0])
+        raise error(f"{where} has a non-finite or too large entry {''.join(f'[{k + 1}]' for k in at)} = "
+                    f"{float(value[at])!r}")
+
+
+
+
+#: what numpy and zipfile raise for a damaged ``.npy`` member (a bad header is parsed by tokenize)
+_DAMAGE = (ValueError, SyntaxError, OSError, EOFError, KeyError, zipfile.BadZipFile, tokenize.TokenError)
+
+
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).splitlines() or [type(exc).__name__])[0][:160]

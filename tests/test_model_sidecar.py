@@ -1,8 +1,10 @@
 """Model files with a binary array sidecar (fmu-fdi-model/2, docs/model-file.md) and the
 structured frequency-response path of large models (docs/large-models.md)."""
 import hashlib
+import io
 import json
 import re
+import zipfile
 
 import numpy as np
 import pytest
@@ -49,6 +51,9 @@ def test_the_sidecar_is_chosen_by_size(tmp_path):
     assert np.array_equal(FDIModel.from_file(path).A, -np.eye(n))
     path = big.to_file(tmp_path / "t.json", sidecar=False)  # asked for text: one file
     assert not (tmp_path / "t.json.npz").exists() and np.array_equal(FDIModel.from_file(path).A, -np.eye(n))
+    path = big.to_file(tmp_path / "b.toml", sidecar=False)  # the same name as text: the earlier sidecar goes
+    assert not (tmp_path / "b.toml.npz").exists() and np.array_equal(FDIModel.from_file(path).A, -np.eye(n))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.toml", "s.json", "t.json"]  # no temporary left
 
 
 def _rewrite_digest(path):
@@ -71,6 +76,51 @@ def test_missing_or_corrupt_sidecar_is_refused(tmp_path):
     side.write_bytes(b"not a zip at all")
     _rewrite_digest(path)
     with pytest.raises(ModelError, match="not a valid .npz"):
+        FDIModel.from_file(path)
+
+
+def _rezip(side, model_path, edit):
+    """Rewrite the sidecar with ``edit`` applied to the bytes of its member A.npy (the zip itself
+    stays valid, CRCs included) and record its digest, so the check of the member runs."""
+    with zipfile.ZipFile(side) as z:
+        members = {k: z.read(k) for k in z.namelist()}
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as z:
+        for k, v in members.items():
+            z.writestr(k, edit(v) if k == "A.npy" else v)
+    side.write_bytes(buf.getvalue())
+    _rewrite_digest(model_path)
+
+
+@pytest.mark.parametrize("how, edit", [
+    ("truncated data", lambda b: b[:-8]),                              # fewer bytes than the header announces
+    ("damaged header", lambda b: b[:10] + b"garbage" + b[17:]),        # the header dict no longer parses
+    ("not an .npy", lambda b: b"XX" + b[2:]),                          # the magic string is gone
+    ("unknown version", lambda b: b[:6] + bytes([9, 0]) + b[8:]),
+])
+def test_damaged_sidecar_members_are_one_line_errors(tmp_path, how, edit):
+    path = _model().to_file(tmp_path / "m.json", sidecar=True)
+    _rezip(tmp_path / "m.json.npz", path, edit)
+    with pytest.raises(ModelError, match=r"m\.json: matrix A: array 'A' of the sidecar .*m\.json\.npz is damaged: "):
+        FDIModel.from_file(path)
+
+
+def test_truncated_or_bit_flipped_sidecar_with_a_matching_digest_is_refused(tmp_path):
+    """Past the digest (a sidecar replaced together with its model file's digest): a cut zip is not
+    an .npz, a flipped data bit fails the member's CRC."""
+    path = _model().to_file(tmp_path / "m.json", sidecar=True)
+    side = tmp_path / "m.json.npz"
+    good = side.read_bytes()
+    for cut in (0, 100, len(good) // 2, len(good) - 1):
+        side.write_bytes(good[:cut])
+        _rewrite_digest(path)
+        with pytest.raises(ModelError, match="is not a valid .npz"):
+            FDIModel.from_file(path)
+    flipped = bytearray(good)
+    flipped[good.index(b"\x93NUMPY") + 200] ^= 0xFF  # inside A's data (A.npy is the first member)
+    side.write_bytes(bytes(flipped))
+    _rewrite_digest(path)
+    with pytest.raises(ModelError, match=r"array 'A' of the sidecar .* is damaged: Bad CRC-32"):
         FDIModel.from_file(path)
 
 

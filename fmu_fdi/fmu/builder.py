@@ -23,14 +23,17 @@ claimed for them, nor when the outputs' units differ.
 """
 from __future__ import annotations
 
-import json
 import math
+import os
 import re
 from pathlib import Path
 
-from ..designfile import DesignFileError, load_design, validate_design
+from .._schema import parse, read_text
+from ..designfile import DesignFileError, checked_design, design_resources, validate_design
 from ..designinfo import variable_descriptions, variable_types, variable_units
+from ..outpath import _clean
 from ..runtime.engine import output_names
+from ..runtime.schedule import is_scheduled
 from .packaging import build_slave_fmu, checked_destination, unique_bundle_name
 from .slave_template import TEMPLATE
 
@@ -40,6 +43,17 @@ DEFAULT_SAMPLES = 1000
 
 
 def _design_of(diagnoser_or_path) -> dict:
+    if isinstance(diagnoser_or_path, (str, os.PathLike)):
+        # a file, read once; the diagnoser classes (and the analysis and scipy they import, seconds
+        # in a fresh 'fmu-fdi build') are not needed for it
+        d = parse(read_text(diagnoser_or_path, "design file", DesignFileError), "json", str(diagnoser_or_path),
+                  DesignFileError)
+        if is_scheduled(d):
+            from ..schedule import validate_scheduled_design
+
+            return validate_scheduled_design(d, str(diagnoser_or_path))
+        checked_design(d, str(diagnoser_or_path), base=Path(diagnoser_or_path).parent)
+        return d
     from ..diagnoser import Diagnoser
     from ..schedule import design_of  # a scheduled design (fmu_fdi/schedule.py) or None
 
@@ -47,10 +61,11 @@ def _design_of(diagnoser_or_path) -> dict:
     if scheduled is not None:
         return scheduled
     if isinstance(diagnoser_or_path, Diagnoser):
-        return validate_design(json.loads(json.dumps(diagnoser_or_path.design)), "diagnoser")
+        return validate_design(_clean(diagnoser_or_path.design), "diagnoser")  # a JSON-ready copy
     if isinstance(diagnoser_or_path, dict):
         return validate_design(diagnoser_or_path, "design")
-    return load_design(diagnoser_or_path)
+    raise DesignFileError(f"build_fmu needs a Diagnoser, a design dict or a design file path, got "
+                          f"{type(diagnoser_or_path).__name__}")
 
 
 def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_version: int = 2, *,
@@ -107,11 +122,11 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     if target != "pythonfmu" or fmi_version != 2:
         raise DesignFileError(f"target {target!r} with FMI {fmi_version}: the pythonfmu target is FMI 2 only, "
                               "the native target FMI 2 or 3")
-    design_bytes = json.dumps(design, sort_keys=True).encode("utf-8")
+    resources = design_resources(design)
     modules = {f.name: f.read_text(encoding="utf-8") for f in sorted(RUNTIME_DIR.glob("*.py"))
                if f.name != "__init__.py"}
     base = re.sub(r"[^A-Za-z0-9_]", "_", design["name"]) or "fdi"
-    ident = unique_bundle_name(base if base[0].isalpha() else "fdi_" + base, design_bytes.decode(),
+    ident = unique_bundle_name(base if base[0].isalpha() else "fdi_" + base, resources["design.json"].decode(),
                                *(modules[k] for k in sorted(modules)))
     modules["diagnoser_slave.py"] = TEMPLATE.replace("__CLASS__", ident).replace(
         "__DESCRIPTION__", repr(f"fmu-fdi diagnoser '{design['name']}' ({g['method']}, Ts = {g['dt']:g} s)"))
@@ -125,7 +140,7 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     dt = float(g["dt"])
     return build_slave_fmu(
         modules, f"diagnoser_slave:{ident}", fmu_path, bundle_name=f"{ident}_fmu",
-        data_files={"design.json": design_bytes},
+        data_files=resources,
         units=units, declared_types=variable_types(view), descriptions=descriptions,
         output_dependencies={n: [] for n in names},
         capabilities={"canGetAndSetFMUstate": True, "canSerializeFMUstate": True,

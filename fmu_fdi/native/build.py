@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import hashlib
 import io
-import json
 import os
 import shutil
 import subprocess
@@ -40,7 +39,7 @@ import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from ..designfile import DesignFileError
+from ..designfile import DesignFileError, design_resources
 from ..errors import DesignError
 from ..outpath import write_atomically
 from ..runtime.engine import BOOLEAN_OUTPUTS, output_names
@@ -431,12 +430,12 @@ def build_native_fmu(design: dict, fmu_path, fmi_version: int = 2, stop_time: fl
             members["sources/buildDescription.xml"] = build_description(ident, names)
         # the design it was built from, where the pythonfmu target keeps it too (campaigns read the
         # fault names and the decision rule from it; the C code does not read it)
-        members["resources/fmu_fdi/design.json"] = json.dumps(design, sort_keys=True).encode("utf-8")
+        members.update({f"resources/fmu_fdi/{k}": v for k, v in design_resources(design).items()})
 
         def fill(part):
             with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zf:
-                for name, content in members.items():
-                    zf.writestr(name, content)
+                for name, content in members.items():  # float64 arrays do not deflate: stored
+                    zf.writestr(name, content, zipfile.ZIP_STORED if name.endswith(".npz") else None)
 
         write_atomically(fmu_path, fill)
     return fmu_path

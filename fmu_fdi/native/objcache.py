@@ -23,6 +23,14 @@ Concurrent builds, in threads or processes: an object is compiled in a private t
 inside the cache and moved to its final name with an atomic rename only after the compiler
 succeeded, so a reader sees either no file or a complete one; two builds that miss together both
 compile and the second rename replaces an identical file.
+
+Pruning: each change of the runtime's sources, the compiler or its flags adds a set of objects
+(five of about 20 KB). A build touches the objects it links (their modification time is their last
+use), and a build that compiled keeps the :data:`MAX_OBJECTS` most recently used ones and removes
+the rest, with the build folders of builds killed more than :data:`STALE_BUILD_SECONDS` ago. Builds
+in other processes lose nothing they need: the objects they link were touched at their start (newer
+than anything removed while fewer than ``MAX_OBJECTS`` objects are newer), and an object removed
+under a build all the same only makes its link fail, after which it compiles every source itself.
 """
 from __future__ import annotations
 
@@ -32,6 +40,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import time
 from pathlib import Path
 
 #: environment variable naming the cache folder ("off", "0", "none" or empty: compile every source)
@@ -39,6 +48,10 @@ CACHE_ENV = "FMU_FDI_NATIVE_CACHE"
 _OFF = ("", "0", "off", "none", "false", "no")
 #: environment variables that change which headers or tools the compiler uses
 _COMPILER_ENV = ("CPATH", "C_INCLUDE_PATH", "GCC_EXEC_PREFIX", "COMPILER_PATH")
+#: objects a pruned cache keeps, the most recently used: a dozen sets of the runtime's units (~1.3 MB)
+MAX_OBJECTS = 64
+#: a ``.build-*`` folder this old (seconds) belongs to a build that was killed: pruning removes it
+STALE_BUILD_SECONDS = 3600.0
 
 
 def cache_dir() -> Path | None:
@@ -97,7 +110,7 @@ def shared_objects(src: Path, names: tuple[str, ...], headers: tuple[str, ...], 
         head = {h: (src / h).read_bytes() for h in headers}
         objs = {n: folder / f"{Path(n).stem}-{object_key(identity, flags, n, (src / n).read_bytes(), head)}.o"
                 for n in names}
-        missing = [n for n, o in objs.items() if not o.is_file()]
+        missing = [n for n, o in objs.items() if not _touched(o)]
         if missing:
             folder.mkdir(parents=True, exist_ok=True, mode=0o700)
             with tempfile.TemporaryDirectory(prefix=".build-", dir=folder) as tmp:
@@ -108,6 +121,7 @@ def shared_objects(src: Path, names: tuple[str, ...], headers: tuple[str, ...], 
                     return None  # the caller's full compile reports the compiler's message
                 for n in missing:
                     os.replace(Path(tmp, f"{Path(n).stem}.o"), objs[n])
+            prune(folder, keep=set(objs.values()))
         return [objs[n] for n in names]
     except (OSError, subprocess.SubprocessError):
         return None
@@ -118,5 +132,46 @@ def discard(objects: list[Path]) -> None:
     for o in objects:
         try:
             o.unlink()
+        except OSError:
+            pass
+
+
+def _touched(obj: Path) -> bool:
+    """Whether ``obj`` is in the cache; if so its modification time becomes now (its last use)."""
+    try:
+        os.utime(obj)
+        return True
+    except FileNotFoundError:
+        return False
+    except OSError:  # a cache this user may read but not write: used as it is
+        return obj.is_file()
+
+
+def prune(folder: Path, max_objects: int | None = None, keep=()) -> None:
+    """Keep the ``max_objects`` (default :data:`MAX_OBJECTS`) most recently used objects of the cache
+    ``folder`` and those in ``keep``; remove the other objects and the build folders older than
+    :data:`STALE_BUILD_SECONDS`. Best effort: a file another build removed first is passed over."""
+    limit = MAX_OBJECTS if max_objects is None else max_objects
+    keep = {Path(k).name for k in keep}
+    objects = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return
+    now = time.time()
+    for entry in entries:
+        try:
+            st = entry.stat(follow_symlinks=False)
+            if entry.name.endswith(".o") and entry.is_file(follow_symlinks=False):
+                objects.append((st.st_mtime_ns, entry.name))
+            elif entry.name.startswith(".build-") and entry.is_dir(follow_symlinks=False) \
+                    and now - st.st_mtime > STALE_BUILD_SECONDS:
+                shutil.rmtree(entry.path, ignore_errors=True)
+        except OSError:
+            continue
+    others = sorted((o for o in objects if o[1] not in keep), reverse=True)  # newest first
+    for _, name in others[max(limit - len(keep), 0):]:
+        try:
+            os.unlink(os.path.join(folder, name))
         except OSError:
             pass

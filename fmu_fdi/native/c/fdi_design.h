@@ -50,7 +50,7 @@ typedef struct {
 } fdi_rls_est_def;
 
 struct fdi_design {
-    unsigned long long hash;      /* FNV-1a of the emitted data: guards FMU state images */
+    unsigned long long hash;      /* 64 bits of the SHA-256 of the emitted data: guards FMU state images */
     long n_u, n_y, n_r, n_groups, n_faults;
     double Ts;
     const double *u0, *y0;        /* operating point */

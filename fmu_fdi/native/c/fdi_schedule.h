@@ -19,7 +19,7 @@
 
 /* Generated constant data (schedule_data.c, written by fmu_fdi/native/schedule_emit.py). */
 typedef struct fdi_schedule {
-    unsigned long long hash;            /* FNV-1a of the emitted schedule and member hashes */
+    unsigned long long hash;            /* 64 bits of the SHA-256 of the emitted schedule and member hashes */
     long K, S;                          /* members, scheduling signals */
     const fdi_design *const *members;   /* K member designs (FDI_MEMBER_1 ..) */
     const long *sig_index;              /* S: index into [u; y] of each scheduling signal */
