@@ -264,7 +264,8 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     req = _Request.validated(model, rdim=rdim, poles=poles, sdeg=sdeg, freqs=freqs, FDtol=FDtol,
                              FDGainTol=FDGainTol, noise=noise, tol=tol, atol=atol, seed=seed, smarg=smarg,
                              dec_tol=dec_tol, minimal=minimal, basis=basis, keep_stable_poles=keep_stable_poles)
-    if basis == "pencil":
+    import os
+    if basis == "pencil" or (basis == "auto" and os.environ.get("FMU_FDI_PENCIL_ONLY")):  # TEMP measurement switch
         return req.pencil() if req.exact_only else req.noise_pencil()
     auto = basis == "auto" and req.exact_only
     pencil_gen, pencil_failed = _pencil_first(req) if auto else (None, None)
@@ -565,8 +566,9 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
         shared = any(r[3] for r in rows)
         top = len(rows) if shared else min(len(rows), k - 1)
 
-        def order(c):  # the McMillan degree of a combination: rows of one index with common poles count once
-            return sum({rows[i][1] for i in c if rows[i][3]}) + sum(rows[i][1] for i in c if not rows[i][3])
+        def order(c):  # the McMillan degree of a combination: the union of the shared rows' pole sets, once
+            return len(frozenset().union(*[rows[i][3] for i in c if rows[i][3]])) + \
+                sum(rows[i][1] for i in c if not rows[i][3])
 
         sets = sorted((c for size in range(int(rdim), top + 1) for c in combinations(range(len(rows)), size)),
                       key=lambda c: (order(c), len(c)))
@@ -600,39 +602,83 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
 
 
 def _common_poles(rows: list, dt: float) -> list:
-    """Simple rows of one index ν ≥ 1 with the same poles: ``[(N_i, ν_i, cond_i, shared_i)]``.
+    """Simple rows whose poles are drawn from one set: ``[(N_i, ν_i, cond_i, shared_i)]``.
 
-    Each row ``N_i`` (one output, McMillan degree ν, observable) is replaced by ``m_i N_i``, ``m_i`` the
-    scalar stable biproper left factor of the output injection that places all its poles at those of
-    the first row of its index (:func:`..toolkit.pencil._place` on the dual pair) — again a null-space row
-    seeing the same faults. Rows with one denominator ``p(λ)`` combine as ``(Σ h_i n_i)/p``: McMillan
-    degree ν, not Σ ν (the least order of a constant combination, as the polynomial basis has it). A row
-    whose placement fails or needs a gain above ``COVER_COND`` keeps its poles (``shared_i`` False).
+    The poles of the first row of the largest index are the pool; each row ``N_i`` of index ν_i ≥ 1
+    (one output, McMillan degree ν_i, observable) is replaced by ``m_i N_i``, ``m_i`` the scalar stable
+    biproper left factor of the output injection that places its poles at a conjugate-closed sub-multiset
+    of the pool of size ν_i (:func:`_pool_subset`: the same one for every row of that index; with given
+    ``poles`` the rows already share them) — again a null-space row seeing the same faults. Rows whose
+    denominators all divide one ``p(λ)`` combine as ``(Σ h_i n_i)/p``: McMillan degree ``deg p`` (the
+    size of the union of their pole sets), not Σ ν_i — the least order of a constant combination over a
+    common denominator, as the polynomial basis has it (``N_1/d`` padded to the degree of d). ``shared_i``
+    is the set of pool positions row i uses (False: its placement failed or needed a gain above
+    ``COVER_COND``, it keeps its poles).
     """
     from ..toolkit.pencil import COVER_COND, _place
 
     out = [(N, nu, cond, False) for N, nu, cond in rows]
-    for nu in sorted({r[1] for r in rows if r[1] >= 1}):
-        group = [i for i, r in enumerate(rows) if r[1] == nu]
-        if len(group) < 2:
+    dyn = [i for i, r in enumerate(rows) if r[1] >= 1]
+    if len(dyn) < 2:
+        return out
+    top = max(dyn, key=lambda i: (rows[i][1], -i))
+    pool = np.asarray(rows[top][0].poles(), complex)
+    placed = []
+    for i in dyn:
+        N, nu, cond = rows[i]
+        sub = _pool_subset(pool, nu)
+        if sub is None:
             continue
-        target = rows[group[0]][0].poles()
-        placed = []
-        for i in group:
-            N, _, cond = rows[i]
-            try:
-                F = _place(N.A.T, N.C.T, target)
-            except (DesignError, ValueError, np.linalg.LinAlgError):
-                continue
-            g = float(np.linalg.norm(F, 2))
-            if g > COVER_COND:
-                continue
-            Nm = LTI(N.A + F.T @ N.C, N.B + F.T @ N.D, N.C, N.D, dt)
-            placed.append((i, Nm, max(cond, g)))
-        if len(placed) >= 2:
-            for i, Nm, cond in placed:
-                out[i] = (Nm, nu, cond, True)
+        target = pool[sorted(sub)]
+        if _same_poles(N.poles(), target):
+            placed.append((i, N, cond, sub))
+            continue
+        try:
+            F = _place(N.A.T, N.C.T, target)
+        except (DesignError, ValueError, np.linalg.LinAlgError):
+            continue
+        g = float(np.linalg.norm(F, 2))
+        if g > COVER_COND:
+            continue
+        Nm = LTI(N.A + F.T @ N.C, N.B + F.T @ N.D, N.C, N.D, dt)
+        if _same_poles(Nm.poles(), target):
+            placed.append((i, Nm, max(cond, g), sub))
+    if len(placed) >= 2:
+        for i, Nm, cond, sub in placed:
+            out[i] = (Nm, rows[i][1], cond, frozenset(sub))
     return out
+
+
+def _pool_subset(pool: np.ndarray, size: int) -> list[int] | None:
+    """Positions of a conjugate-closed sub-multiset of ``pool`` with ``size`` members (real poles first,
+    then pairs, in the pool's order; deterministic, so every row of one index gets the same one), or None."""
+    tol = lambda z: 1e-9 * max(1.0, abs(z))  # noqa: E731
+    reals = [[i] for i, z in enumerate(pool) if abs(z.imag) <= tol(z)]
+    pairs, used = [], set()
+    for i, z in enumerate(pool):
+        if z.imag > tol(z) and i not in used:
+            j = next((j for j, w in enumerate(pool) if j not in used and j != i and abs(w - np.conj(z)) <= tol(z)), None)
+            if j is not None:
+                used |= {i, j}
+                pairs.append([i, j])
+    out: list[int] = []
+    for unit in reals + pairs:
+        if len(out) + len(unit) <= size:
+            out += unit
+    return out if len(out) == size else None
+
+
+def _same_poles(a: np.ndarray, b: np.ndarray) -> bool:
+    """The same multiset of poles, to 1e-9 relative (matched greedily)."""
+    a, b = list(np.asarray(a, complex)), list(np.asarray(b, complex))
+    if len(a) != len(b):
+        return False
+    for z in a:
+        k = next((k for k, w in enumerate(b) if abs(z - w) <= 1e-9 * max(1.0, abs(w))), None)
+        if k is None:
+            return False
+        b.pop(k)
+    return True
 
 
 def _pencil_gains(model, N: LTI, freqs, FDtol) -> np.ndarray:
