@@ -180,9 +180,9 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         (``|Rf_j(jω)| > 0``); the combination is chosen with these gains in its objective,
         among the combinations whose every fault is visible (:func:`visibility_gated`). At a
         pole of the plant on the stability boundary (an integrator at ω = 0) the gain is the
-        limit of the stable fault response (:func:`_strong_points`). With neither ``poles`` nor
-        ``sdeg``, plant poles slower than the fastest frequency are sped up to it
-        (``_basis.pole_chooser``).
+        limit of the stable fault response (:func:`_strong_points`). (``basis='polynomial'``, with
+        neither ``poles`` nor ``sdeg``: plant poles slower than the fastest frequency are sped up to
+        it, ``_basis.pole_chooser``.)
     FDtol, FDGainTol : float
         Relative thresholds for (weak) detectability and for strong detectability.
     noise : {'optimize', 'ignore'}
