@@ -3,10 +3,9 @@
 Prints, per call, whether the design returned a contract-keeping generator ("ok"), raised
 DesignError ("refused"; "refused*" when the rank test says the request was achievable), or
 returned a generator that breaks its contract ("BROKEN"), and the totals; for returned designs the
-order of every residual with the basis it came from (po: polynomial least order, sa: frequency-sampled
-least order, pe: pencil state-space basis, see nullspace_design's ``basis``), and the totals of
-residuals per basis and per ``info['decoupling_kind']`` (exact, or approximate: a sampled row of order
-below the smallest left minimal index, which 'auto' returns only when no exact row passes), and for the
+order of every residual with the basis it came from (pe: the pencil state-space core, 'auto'; po: the
+polynomial basis, only with the explicit ``basis='polynomial'``; sa: frequency-sampled rows, retired in
+issue 17), and the totals of residuals per basis and per ``info['decoupling_kind']``, and for the
 pencil rows from a null space of several rows how many sit at the smallest left minimal index (the least
 order of any exact row) and their total order above it.
 Run: python benchmarks/synthesis_random_set.py [N] [auto|polynomial|pencil] (the ``basis`` option: 'polynomial'

@@ -184,19 +184,12 @@ def test_basis_option_is_validated():
         nullspace_design(random_model(11), basis="kronecker")
 
 
-def test_sampled_rows_report_whether_they_can_be_exact():
-    """A row of McMillan degree below the smallest left minimal index cannot annihilate G exactly
-    (every rational null row is r(λ)·N(λ) with N row-reduced of that degree): the sampled fallback
-    says which kind of decoupling it delivers. Published Ex. 5.3: the degree-1 detector is exact."""
-    import published as pub
-    from fmu_fdi.design.problems.nullspace import _sampled
-
-    gen = _sampled(pub.ex5_3(), 1, [-3.0], None, None, 1e-4, 0.01, 0, None, DEC_TOL)
-    assert gen.info["left_minimal_indices"] == [1] and gen.info["decoupling_kind"].startswith("exact")
-    # n = 29: without the pencil basis only the sampled fallback meets the post-conditions, at an order
-    # below the smallest index; it is returned only with basis='polynomial', labelled and with a warning
-    # (issue 17: the judge is absolute on the normalised form, and that row's residual moves with
-    # u 7.7e-4 times as much as with its weakest fault: refused, no longer returned with a warning)
+def test_polynomial_basis_is_explicit_and_never_a_fallback():
+    """n = 29: the polynomial (parity) basis, chosen explicitly, breaks the judge and is refused —
+    nothing falls back to it, and it falls back to nothing (issue 17: one core); 'auto' is the exact
+    pencil row at the smallest left minimal index.
+    (The judge is absolute on the normalised form; that row's residual moves with u far more than
+    1e-7 times its weakest fault.)"""
     model = random_model(29)
     import warnings
 
@@ -208,8 +201,7 @@ def test_sampled_rows_report_whether_they_can_be_exact():
         warnings.simplefilter("error", sla.LinAlgWarning)
         with pytest.raises(DesignError, match=r"decoupling.*leak [0-9.e-]+ × the weakest fault"):
             nullspace_design(model, basis="polynomial")
-    # basis='auto' prefers the exact pencil row, at its higher order: a simple row at the smallest index (the
-    # least order of any exact row), so the sampled search is not even run
+    # basis='auto' is the exact pencil row: a simple row at the smallest index (the least order of any exact row)
     auto = nullspace_design(model)
     assert auto.info["basis"] == "pencil" and auto.info["decoupling_kind"] == "exact"
     assert auto.Q.n == min(auto.info["left_minimal_indices"]) and "replaces" not in auto.info

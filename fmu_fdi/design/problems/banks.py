@@ -17,8 +17,6 @@ A fault is isolated when the pattern of alarms matches exactly one column of S.
 """
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from ...errors import DesignError
@@ -54,9 +52,8 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies (a row is
         designed when :func:`~fmu_fdi.analysis.achievable_structure` with the same ``freqs`` and
         ``FDGainTol`` lists it; checked on the published examples in
-        tests/test_achievable_structure.py). With
-        ``basis='auto'``, a row that passes its own check but breaks the bank's (leakage just
-        above ``dec_tol`` on the bank's frequency grid) is redesigned from the pencil basis.
+        tests/test_achievable_structure.py). Every row comes from the one state-space core
+        (``basis='auto'``); ``basis='polynomial'`` is the explicit parity-basis choice.
     rdim : int or list of int
         Residuals per structure row (FaultDetectionTools.jl ``efdisyn``'s vector ``rdim``): one count
         for every row, or a list with one per row (default 1); row i's residuals form group i of the
@@ -77,7 +74,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     ResidualBank
         ``info['postconditions']`` holds the figures of the whole bank against S
         (:func:`~fmu_fdi.design.toolkit.postconditions.check_generator`); ``info['decoupling_kinds']``
-        each row's ``info['decoupling_kind']`` ('exact', or 'approximate: ...' with a note in ``info['notes']``).
+        each row's ``info['decoupling_kind']`` ('exact').
 
     Raises
     ------
@@ -141,18 +138,6 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         return bank, fig
 
     bank, fig = check(members)
-    # a least-order row that passed its own check (on its own grid) can still leak above dec_tol
-    # on the bank's grid: redesign the rows the bank check names from the pencil basis
-    bad = sorted({int(x) - 1 for msg in fig.get("failures", []) for x in re.findall(r"^residual (\d+):", msg)})
-    if bad and basis == "auto" and not (model.nw and noise == "optimize"):
-        redone = list(members)
-        for i in bad:
-            try:
-                redone[i] = design_row(S.astype(int)[i], "pencil", i)
-                redone[i].info["redesigned"] = "the bank's post-condition check failed for the least-order row"
-            except DesignError:
-                pass
-        bank, fig = check(redone)
     if fig.get("failures"):
         check(bank.members, raise_error=True)  # raises the DesignError naming every failed condition
     bank.info["decoupling_kinds"] = [g.info.get("decoupling_kind", "exact") for g in bank.members]

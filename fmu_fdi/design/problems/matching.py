@@ -16,7 +16,7 @@ equation ``n Ge = d [0 0 Mr_i]`` is *linear and homogeneous* in the pair ``(n, d
 denominator is an unknown, not a guess (a reference's poles need not be the filter's:
 ``Mr = Gf`` is matched by the static ``Q = [I 0]``). Both are written over a reference
 denominator e of degree δ with stable, well-separated roots,
-``Q̃_i = n/e = C (λI − A)^{-1} B + D`` and ``m_i = d/e`` (same ``(A, C)``, :func:`..toolkit.sampled.cascade`),
+``Q̃_i = n/e = C (λI − A)^{-1} B + D`` and ``m_i = d/e`` (same ``(A, C)``, :func:`cascade`),
 so that the equation ``Q̃_i(λ_k) Ge(λ_k) − m_i(λ_k) [0 0 Mr_i(λ_k)] = 0`` at K grid points
 (K far above the degrees involved, so a rational identity holding there holds everywhere)
 is a linear system in ``(B, D, b_m, d_m)``. Its null space, read from an SVD with
@@ -65,7 +65,6 @@ from ...model import FDIModel
 from ..toolkit._basis import check_poles, pole_chooser
 from .approximate_matching import reference
 from ..toolkit.postconditions import DEC_TOL, _values, check_generator, default_smarg
-from ..toolkit.sampled import _basis_values, cascade
 from ..toolkit.notes import keeps_notes, silenced
 
 
@@ -491,3 +490,58 @@ def _zeros(m: LTI) -> np.ndarray:
     E = sla.block_diag(np.eye(n), np.zeros((1, 1)))
     z = sla.eigvals(P, E)
     return z[np.isfinite(z) & (np.abs(z) < 1e12)]
+
+
+def cascade(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(A_m, C_m)`` holding the poles exactly: real first-order sections (real poles) and
+    rotation blocks ``[a b; −b a]`` (pairs). Distinct poles: modal form, output the sum of
+    the sections' first states (observable as the poles differ). Repeated poles: a cascade,
+    each section driven by the previous section's first state, output the last section's
+    (observable when no section's zero cancels a later pole)."""
+    poles = np.asarray(poles, complex)
+    units, used = [], np.zeros(poles.size, bool)
+    for i, z in enumerate(poles):
+        if used[i]:
+            continue
+        used[i] = True
+        if abs(z.imag) > 1e-12 * max(1.0, abs(z)):
+            j = next((k for k in range(poles.size) if not used[k] and abs(poles[k] - np.conj(z)) <= 1e-9 * max(1.0, abs(z))), None)
+            if j is None:
+                raise DesignError(f"pole {z} has no conjugate: filter poles must be closed under conjugation")
+            used[j] = True
+            units.append(np.array([[z.real, abs(z.imag)], [-abs(z.imag), z.real]]))
+        else:
+            units.append(np.array([[z.real]]))
+    nu = sum(u.shape[0] for u in units)
+    A = np.zeros((nu, nu))
+    # distinct poles: a modal (partial-fraction) form, output the sum of the sections — its
+    # basis functions 1/(λ - p_i) are far better conditioned than the cascade's products
+    eig = np.array([complex(u[0, 0], u[0, 1] if u.shape[0] == 2 else 0.0) for u in units])
+    gaps = np.abs(eig[:, None] - eig[None, :])
+    np.fill_diagonal(gaps, np.inf)
+    modal = eig.size <= 1 or np.min(gaps) > 1e-6 * max(1.0, float(np.max(np.abs(eig))))
+    k, prev = 0, None
+    C = np.zeros((1, nu))
+    for u in units:
+        d = u.shape[0]
+        A[k:k + d, k:k + d] = u
+        if modal:
+            C[0, k] = 1.0
+        elif prev is not None:
+            A[k, prev] = 1.0  # input of this section = output (first state) of the previous one
+        prev = k
+        k += d
+    if nu and not modal:
+        C[0, prev] = 1.0
+    return A, C
+
+
+def _basis_values(A: np.ndarray, C: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """``[C (λI − A)^{-1}, 1]`` at every point: (K, ν + 1)."""
+    nu = A.shape[0]
+    out = np.ones((lam.size, nu + 1), complex)
+    if nu:
+        eye = np.eye(nu)
+        for k, l in enumerate(lam):
+            out[k, :nu] = sla.solve((l * eye - A).T, C.ravel().astype(complex))
+    return out

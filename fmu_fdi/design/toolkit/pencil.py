@@ -45,7 +45,6 @@ from ...freqresp import eigenvalues
 from ...linalg import EPS, ordered_schur
 from ...lti import LTI
 from ...model import FDIModel
-from .notes import note
 
 
 @dataclass
@@ -58,7 +57,7 @@ class PencilBasis:
     info: dict = field(default_factory=dict)
     #: ``(a, b, c, d)``: realisation of ``Nlᵀ`` (dual, input w = the k basis rows) before the poles are moved
     dual: tuple | None = None
-    #: ``(choose, good)`` of :func:`assign_poles` as used for ``N``
+    #: ``(choose, good, full)`` of :func:`assign_poles` as used for ``N``
     placement: tuple | None = None
     rank_tol: float = 0.0
 
@@ -161,6 +160,8 @@ def _place(a: np.ndarray, b: np.ndarray, targets: np.ndarray) -> np.ndarray:
     if a.shape[0] == 0:
         return np.zeros((b.shape[1], 0))
     rb = max(1, np.linalg.matrix_rank(b))
+    if a.shape[0] == 2 and rb == 1 and abs(targets[0] - targets[1]) <= 1e-9 * max(1.0, abs(targets[0])):
+        return _place_double(a, b, targets[0].real)
     t = targets.copy()
     for i in range(t.size):  # spread repeats of the *requested* values (conjugate pairs move together)
         j = int(np.sum(np.abs(targets[:i] - targets[i]) <= 1e-9 * max(1.0, abs(targets[i]))))
@@ -182,6 +183,24 @@ def _place(a: np.ndarray, b: np.ndarray, targets: np.ndarray) -> np.ndarray:
             raise NumericalDesignError(f"pencil null space: the poles cannot be assigned ({exc}); pass other "
                                        f"poles/sdeg") from None
     return -res.gain_matrix
+
+
+def _place_double(a: np.ndarray, b: np.ndarray, target: float) -> np.ndarray:
+    """Gain F with the double eigenvalue ``target`` of ``a + b F`` (2 × 2, one input direction):
+    Ackermann's formula ``F = -v e₂ᵀ [b v, a b v]⁻¹ (a - t I)²`` on the dominant input direction v
+    (exact, where KNV/YT needs distinct targets for a single input)."""
+    from .postconditions import NumericalDesignError
+
+    _, _, Vh = np.linalg.svd(b)
+    v = Vh[0]
+    bv = b @ v
+    ctrb = np.column_stack([bv, a @ bv])
+    if np.linalg.cond(ctrb) > 1e12:
+        raise NumericalDesignError(f"pencil null space: the 2 × 2 block is not controllable from its input "
+                                   f"(condition {np.linalg.cond(ctrb):.2e}); pass other poles/sdeg")
+    P = (a - target * np.eye(2)) @ (a - target * np.eye(2))
+    k = np.linalg.solve(ctrb, P)[1]
+    return -np.outer(v, k)
 
 
 def _pop_targets(targets: list, size: int, dt: float, spare: float) -> np.ndarray:
@@ -206,9 +225,10 @@ def _pop_targets(targets: list, size: int, dt: float, spare: float) -> np.ndarra
     return np.concatenate([_pop_targets(targets, 1, dt, spare), _pop_targets(targets, 1, dt, spare)])
 
 
-def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good) -> tuple[np.ndarray, int]:
+def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good, full: bool = False) -> tuple[np.ndarray, int]:
     """State feedback F for the controllable pair ``(a, b)`` moving every eigenvalue outside the
-    region ``good(re, im)`` to the targets ``choose(bad_eigenvalues)``: ``(F, moved)``.
+    region ``good(re, im)`` to the targets ``choose(bad_eigenvalues)``: ``(F, moved)``. ``full``: every
+    eigenvalue is moved, to ``choose(all eigenvalues)`` (given filter poles: Varga's ``evals``).
 
     Schur method (Varga 1981, as in Varga's ``saloc``/``glcf``): an ordered real Schur form puts
     one bad 1×1 or 2×2 block last; a feedback acting on its coordinates alone moves it and leaves
@@ -220,10 +240,14 @@ def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good) -> tuple
     if n == 0:
         return F, 0
     eig = eigenvalues(a)  # kept for the basis Nl, whose A is aᵀ when no pole moves (freqresp)
-    bad = eig[~np.array([good(z.real, z.imag) for z in eig])]
+    bad = eig if full else eig[~np.array([good(z.real, z.imag) for z in eig])]
     if bad.size == 0:
         return F, 0
     targets = list(np.asarray(choose(bad), complex))
+    placed: list[complex] = []
+    if full:  # the blocks already moved lead the ordered Schur form; every other block is moved next
+        def good(re, im):
+            return any(abs(complex(re, im) - t) <= 1e-6 * max(1.0, abs(t)) for t in placed)
     last = targets[-1] if targets else complex(0.5 if dt else -1.0)
     spare = abs(last) if dt else last.real  # a 2×2 block may need one target more than counted
     moved = 0
@@ -232,8 +256,12 @@ def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good) -> tuple
         if kgood == n:
             break
         size = 2 if n - kgood >= 2 and abs(T[n - 1, n - 2]) > 0 else 1
+        if full and size == 1 and n - kgood >= 2 and (n == 2 or T[n - 2, n - 3] == 0) and targets and \
+                abs(targets[0].imag) > 1e-12 * max(1.0, abs(targets[0])):
+            size = 2  # a conjugate pair for two real eigenvalues: the trailing 2 × 2 of the Schur form
         blk, B2 = T[n - size:, n - size:], (Z.T @ b)[n - size:]
         tg = _pop_targets(targets, size, dt, spare)
+        placed.extend(tg)
         if size == 1:
             nb = float(np.sum(B2 ** 2))
             if nb <= 0:
@@ -258,27 +286,42 @@ def mirror(eig: np.ndarray, beta: float, dt: bool) -> np.ndarray:
 
 
 def _targets(model: FDIModel, poles, sdeg):
-    """``bad eigenvalues ↦ targets``: the plant's stabilised eigenvalues spread from slow to fast
-    (``_basis.pole_chooser``) with neither poles nor sdeg; else the given poles first and the
-    rest mirrored about ``sdeg`` (default -1, or 0.5 in discrete time)."""
+    """``eigenvalues to move ↦ targets``: the plant's stabilised eigenvalues spread from slow to fast
+    (``_basis.pole_chooser``) with neither poles nor sdeg; with ``poles`` (every eigenvalue moves:
+    :func:`pencil_basis`) the given ones first and the rest at ``sdeg`` (default -1, or 0 in discrete
+    time: ``_basis.pick_poles``, as the filter's poles are documented); with ``sdeg`` alone the
+    eigenvalues slower than it mirrored about it (:func:`mirror`)."""
     from ._basis import pole_chooser
 
     if poles is None and sdeg is None:
         chooser = pole_chooser(model, None, None)
         return lambda bad: chooser(bad.size)
-    beta = float(sdeg) if sdeg is not None else (0.5 if model.dt else -1.0)
-    given_all = np.zeros(0, complex) if poles is None else np.atleast_1d(np.asarray(poles, complex))
+    if poles is not None:
+        chooser = pole_chooser(model, poles, sdeg)
+        return lambda eig: _distinct(chooser(eig.size), bool(model.dt))
+    return lambda bad: mirror(bad, float(sdeg), bool(model.dt))
 
-    def choose(bad):
-        given = given_all[: bad.size]
-        if given.size and abs(given[-1].imag) > 0 and (given.size < 2 or given[-2] != np.conj(given[-1])):
-            given = given[:-1]  # do not split a pair
-        if given.size < given_all.size:
-            note(f"poles {given_all[given.size:].tolist()} not used: the pencil basis has only {bad.size} "
-                 f"eigenvalues outside the stability region to move")
-        return np.concatenate([given, mirror(bad, beta, bool(model.dt))])[: max(bad.size, given.size)]
 
-    return choose
+#: relative step between repeated targets of a full assignment (:func:`_distinct`)
+REPEAT_STEP = 0.05
+
+
+def _distinct(targets: np.ndarray, dt: bool) -> np.ndarray:
+    """Targets made distinct, in order: a value already taken moves to the first free one of
+    ``t·(1 + 0.05 j)`` (continuous: faster), ``t·0.95^j`` (discrete: closer to 0; ``0.5·(1 − 0.95^j)``
+    for t = 0), j = 1, 2, … A cluster of equal targets assigned to a pair with one or two inputs is
+    defective: its computed eigenvalues scatter by ~eps^(1/multiplicity) (7e-6 for five at -2 on a
+    15-state basis), so the Schur method could no longer tell the moved blocks from the others; 5 %
+    apart they stay accurate to rounding, and every one stays at least as fast as ``sdeg``."""
+    out: list[complex] = []
+    for z in np.asarray(targets, complex):
+        c, j = z, 0
+        while any(abs(c - w) <= 1e-9 * max(1.0, abs(w)) for w in out):
+            j += 1
+            c = ((0.5 * (1 - (1 - REPEAT_STEP) ** j) if z == 0 else z * (1 - REPEAT_STEP) ** j) if dt
+                 else z * (1 + REPEAT_STEP * j))
+        out.append(c)
+    return np.array(out, complex)
 
 
 def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.0, poles=None,
@@ -292,11 +335,12 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
         Rank decisions count singular values above ``max(atol, rtol·||[A B; C D]||_2)``
         (default ``rtol = (n + 1)·1e3·eps``) of the balanced minimal realisation of ``[Gu Gd]``.
     poles, sdeg : optional
-        The basis' eigenvalues outside the stability region (``Re λ < smarg``, and ``< sdeg`` when
-        given; moduli in discrete time) are moved to ``poles`` first, then to their mirror image
-        about ``sdeg`` (default -1, or 0.5 in discrete time; :func:`mirror`); the others stay, as
-        with Varga's ``sdeg`` in ``glcf``. With neither, the moved ones go to the plant's
-        stabilised eigenvalues (``_basis.pole_chooser``).
+        With ``poles`` every eigenvalue of the basis is placed: at the given poles first, the rest at
+        ``sdeg`` (default -1, or 0 in discrete time) — the filter's poles are the requested ones where
+        its order allows. Without ``poles``, the basis' eigenvalues outside the stability region
+        (``Re λ > smarg``, or ``> sdeg`` when given; moduli in discrete time) are moved to their mirror
+        image about ``sdeg`` (:func:`mirror`) and the others stay, as with Varga's ``sdeg`` in ``glcf``;
+        with neither, the moved ones go to the plant's stabilised eigenvalues (``_basis.pole_chooser``).
     smarg : float, optional
         Stability margin of the basis poles (default just inside the stability boundary).
 
@@ -349,7 +393,8 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
     Cz = np.vstack([Fc, -(Bu.T @ Pc + Du.T @ Fc)]) if m else Fc  # Nuᵀ = -(Buᵀ X + Duᵀ N)
     Dz = np.vstack([K, -(Du.T @ K)]) if m else K
     dual = (ac.copy(), bc.copy(), Cz.copy(), Dz.copy())
-    Fw, moved = assign_poles(ac, bc, model.dt, choose, good)
+    full = poles is not None
+    Fw, moved = assign_poles(ac, bc, model.dt, choose, good, full)
     if Fw.size:
         ac, Cz = ac + bc @ Fw, Cz + Dz @ Fw  # state feedback w = Fw ξ + v on the dual: a right coprime factor
         fnorm = max(fnorm, float(np.linalg.norm(Fw, 2)))
@@ -362,7 +407,7 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
             f"rank of Gd — pass other rtol/atol")
     info = {"rank_tol": tol, "feedback_norm": fnorm, "moved_poles": moved, "order": nc,
             "controllable_order": n, "staircase": taus}
-    return PencilBasis(N, degrees, rank_d, info, dual, (choose, good), tol)
+    return PencilBasis(N, degrees, rank_d, info, dual, (choose, good, full), tol)
 
 
 def chain_ordered(a: np.ndarray, b: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray, list[int]]:
@@ -485,7 +530,7 @@ def simple_rows(pb: PencilBasis, dt: float) -> list[tuple[LTI, int, float]]:
     moved (an ordered Schur form that fails to converge), is left out.
     """
     a, b, c, d = pb.dual
-    choose, good = pb.placement
+    choose, good, full = pb.placement
     T, V, idx = chain_ordered(a, b, pb.rank_tol)
     a, b, c, d = T.T @ a @ T, T.T @ b @ V, c @ T, d @ V
     # exact zeros below the staircase (block sizes from the indices): the covers' staircases rotate only what they reach
@@ -513,7 +558,7 @@ def simple_rows(pb: PencilBasis, dt: float) -> list[tuple[LTI, int, float]]:
             continue  # no cover of order ν (a rank decision made differently), or too ill-conditioned: left out
         a1, b1, c1, d1, cond = best
         try:
-            F, _ = assign_poles(a1, b1, dt, choose, good)
+            F, _ = assign_poles(a1, b1, dt, choose, good, full)
         except (np.linalg.LinAlgError, DesignError):  # an ordered Schur form / placement that fails: row left out
             continue
         a1, c1 = a1 + b1 @ F, c1 + d1 @ F
