@@ -154,24 +154,98 @@ def stable_internal_form(model: FDIModel, Q: LTI, *, poles=None, sdeg: float | N
     Returns ``(Q, info)``; ``info`` is empty when nothing moved, else ``moved_poles`` (the poles
     of ``[Q R]`` that were moved), ``moved`` (their count) and ``order_before`` (Q's order).
     """
+    slow = {}
+    if poles is None and sdeg is None:
+        Q, slow = speed_up_slow_poles(model, Q)
     good = _stability_region(model, sdeg, smarg, keep_stable_poles)
     # the poles of [Q R] are among those of Q and of the plant: decided on each block's own
     # eigenvalues (the joint matrix couples Q's poles, often the plant's own, to the plant's, and
     # its computed eigenvalues can leave a cluster by far more than rounding)
     eig = np.concatenate([Q.poles(), eigenvalues(model.A) if model.n else np.zeros(0)])
     if all(good(z.real, z.imag) for z in eig):
-        return Q, {}
+        return Q, slow
     if (sdeg is None or keep_stable_poles) and all(good(z.real, z.imag) for z in Q.poles()):
         # only plant poles violate the region: factorise the part of [Q R] that carries them alone
         from .postconditions import default_smarg
 
         margin = default_smarg(float(model.dt)) if smarg is None else float(smarg)
-        return _move_plant_poles(model, Q, moved_pole_targets(model, poles, sdeg, smarg), good, margin)
+        Q, info = _move_plant_poles(model, Q, moved_pole_targets(model, poles, sdeg, smarg), good, margin)
+        return Q, _merged(slow, info)
     N, q, info = stable_joint_factor(model, Q, poles=poles, sdeg=sdeg, smarg=smarg,
                                      keep_stable_poles=keep_stable_poles)
     if not info:
+        return Q, slow
+    return N[:, :q].minreal(), _merged(slow, info)
+
+
+def _merged(slow: dict, info: dict) -> dict:
+    """The ``info`` of :func:`stable_internal_form` after both of its steps (either may be empty)."""
+    if not slow or not info:
+        return slow or info
+    return {**info, "moved_poles": slow["moved_poles"] + info["moved_poles"], "moved": slow["moved"] + info["moved"],
+            "order_before": slow["order_before"], "slow_filter_poles": slow["slow_filter_poles"]}
+
+
+def speed_up_slow_poles(model: FDIModel, Q: LTI) -> tuple[LTI, dict]:
+    """Q with its poles slower than the plant's slowest stable pole moved to that speed: ``Q ← M·Q``.
+
+    A pencil basis keeps the free poles its deflation happens to give (only those outside the margin are
+    moved). One far slower than any stable pole of the plant is a time constant the plant does not have
+    — random seed 33's row [1 0 0 0]: |z| = 1 − 3.5e-5 (2900 s) beside plant poles no slower than 25 s
+    and the decoupled fault's mode at z = 1 — and it makes the row ill-conditioned exactly where the
+    decoupling matters: ``Q(λ)`` near that pole is a difference of terms ``1/δ`` larger than itself, so
+    the rounding of the numerator is lifted by ``1/δ`` into ``R_u``, ``R_d`` (3.2e-7 of the weakest fault
+    gain, and the plant's z = 1 counted a pole of R), and no numerator refinement can evaluate ``Q`` there
+    well enough to remove it. The left factor M of :func:`glcf` (``Q = M⁻¹ N``, N's poles placed, Q's
+    zeros and order kept) leaves ``N = M·Q`` a null-space row seeing the same faults; a pole with
+    ``|Re s| < v`` (``s = ln z / dt`` in discrete time), ``v`` the slowest stable plant speed ``min |Re s|``,
+    goes to ``Re s = −(2v − |Re s|)`` (mirrored about −v: distinct poles stay distinct), ``Im s`` kept. The
+    peer (FaultDetectionTools.jl ``efdsyn``) places every basis pole at ``sdeg = −0.05`` / ``0.95``; this
+    moves only the poles slower than the plant itself. Returns ``(Q, info)``, info empty when none moved.
+    """
+    if not Q.n or not model.n:
         return Q, {}
-    return N[:, :q].minreal(), info
+    from .postconditions import default_smarg
+    from ...margin import outside_margin
+
+    dt = float(model.dt)
+
+    def speed(z):
+        z = np.asarray(z, complex)
+        if not dt:
+            return -z.real
+        return -np.log(np.maximum(np.abs(z), 1e-300)) / dt
+
+    ep = eigenvalues(model.A)
+    ep = ep[~outside_margin(ep, dt, default_smarg(dt))]
+    sp = speed(ep)
+    sp = sp[sp > 0]
+    if not sp.size:
+        return Q, {}
+    v = float(np.min(sp))
+    qp = Q.poles()
+    if not np.any(speed(qp) < v * (1 - 1e-9)):
+        return Q, {}
+
+    def good(re, im):
+        return bool(speed(complex(re, im)) >= v * (1 - 1e-9))
+
+    def target(z: complex) -> complex:
+        if not dt:
+            return complex(-(2 * v - speed(z)), z.imag)
+        s = np.log(complex(z)) / dt
+        t = complex(np.exp(complex(-(2 * v - (-s.real)), s.imag) * dt))
+        return complex(t.real, 0.0) if abs(z.imag) <= 1e-12 * max(1.0, abs(z)) else t
+
+    def choose(bad):
+        return np.array([target(complex(z)) for z in np.asarray(bad, complex)], complex)
+
+    N, _, moved = glcf(Q, choose, good)
+    if not moved or not all(good(z.real, z.imag) for z in N.poles()):
+        return Q, {}
+    bad = qp[speed(qp) < v * (1 - 1e-9)]
+    return N, {"moved_poles": bad.tolist(), "moved": int(moved), "order_before": int(Q.n),
+               "slow_filter_poles": f"slower than the plant's slowest stable pole (speed {v:.4g})"}
 
 
 def _stability_region(model: FDIModel, sdeg, smarg, keep_stable_poles: bool):
