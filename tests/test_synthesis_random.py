@@ -515,6 +515,27 @@ def test_judge_verdict_does_not_depend_on_the_solver_next_to_an_integrator(monke
         freqresp.clear_caches()
 
 
+@pytest.mark.parametrize("eps, leaks", [(0.0, False), (1e-12, True), (1e-9, True)])
+def test_library_judge_gap_hides_no_inexact_cancellation(eps, leaks):
+    """The library judge keeps its points BOUNDARY_GAP·||A|| (1e-6) away from a pole on the boundary; a row
+    that cancels the pole only to a residue ε still reads ε/δ ≥ ε·1e6 beside it. y1 = d/s + u/(s + 2) + f,
+    y2 = d/s + u/(s + 2): r = (y1 − (1 + ε) y2)/(s + 1) has R_f = 1/(s + 1), R_u = −ε/((s + 1)(s + 2)) and
+    R_d = −ε/(s(s + 1)). The exact row passes; ε = 1e-12 (seed 33's rows show 3e-14 relative to the fault
+    gain) and above is refused — by the leak ε/δ read beside the gap, or as a pole of R kept."""
+    from fmu_fdi.design.toolkit.postconditions import check_generator
+    from fmu_fdi.generator import ResidualGenerator
+    from fmu_fdi.lti import LTI
+
+    model = FDIModel.from_matrices(np.diag([0.0, -2.0]), [[0.0], [1.0]], np.ones((2, 2)), Bd=[[1.0], [0.0]],
+                                   faults=[sensor_fault("f", "y1")])
+    Q = LTI(np.array([[-1.0]]), np.array([[1.0, -(1.0 + eps), 0.0]]), np.array([[1.0]]), np.zeros((1, 3)))
+    fig = check_generator(ResidualGenerator(Q, model, "test"), raise_error=False)
+    assert bool(fig.get("failures")) == leaks, fig
+    # the numpy judge agrees on the clear cases (its grid stops at ω = 1e-4: ε/1e-4 > 1e-7 from ε = 1e-11)
+    if eps >= 1e-9 or eps == 0:
+        assert bool(judge(type("G", (), {"Q": Q, "groups": [[0]]}), model, [[1]], ["f"])) == leaks
+
+
 def _minimal_order(A, B, C) -> int:
     """McMillan degree of ``C (λI − A)⁻¹ B`` for an A with distinct eigenvalues: the eigenvalues passing
     both PBH tests (numpy only, on the balanced data; the test's own PBH_TOL)."""

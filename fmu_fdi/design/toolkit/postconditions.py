@@ -8,7 +8,8 @@ the transfer from every plant input to the residual the user sees. Every figure 
 peak over one frequency grid Λ (:func:`_eval_points`: log-spaced two decades beyond every
 pole scale of the plant and the filter, plus 0, the resonances of lightly damped poles and,
 discrete, Nyquist; without points below
-1e-9 of its top or within 1e-9, relative, of a pole of either realisation) of values computed
+1e-9 of its top, within 1e-9, relative, of a pole of either realisation, or within
+``BOUNDARY_GAP·||A||`` of one on the stability boundary: :func:`_beside_boundary_poles`) of values computed
 point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no minimal realisation, no
 rank decision). :func:`internal_figures` computes them once; ``leakage()``,
 ``structure_matrix()`` (:mod:`fmu_fdi.analysis`) and :func:`check_generator` all read them,
@@ -126,15 +127,15 @@ def _beside_boundary_poles(lam: np.ndarray, systems, dt: float) -> np.ndarray:
     ``systems`` that lies outside the default margin (an integrator computed at ±1e-17, an undamped pair
     1e-24 off the axis, z = 1, an unstable pole).
 
-    At a distance δ from such a pole ``p`` every value of that system carries the rounding
-    ``eps·||A||/δ`` relative (the condition of ``λI − A``) in a response itself ``~1/δ`` large, so the
-    product ``Q(λ)·Ge(λ)`` of an *exact* cancellation (Q's zero at p) reads ``eps·||A||·|Q||res|/δ²``
-    there: on a grid reaching δ = 1e-9 rad/s that is a leak of 1e-7 … 1e-6 from a design whose
-    residue at p is 2e-16 of ``|Q(p)||res|`` (random seeds 10, 26), and which value it reads depends on
-    the solver's rounding (a dense LU solve passed, a Schur-form solve failed seed 10). Beyond the gap
-    the amplification is at most ``1e6·eps ≈ 2e-10``. A cancellation that is not exact is a pole of R
-    (:func:`_r_poles`, coupling ``R_POLE_TOL``) or shows beyond the gap as ``coupling/δ``: a residue of
-    1e-12 (relative) reads 1e-6 at δ = 1e-6 — the gap hides no leak the decoupling test is for.
+    At a distance δ from such a pole ``p`` the plant's values are ``~|res|/δ`` and carry the rounding
+    ``eps·||A||/δ`` relative (the condition of ``λI − A``). A decoupling row cancels p by its zero, exactly
+    only up to rounding: its residue ρ (1e-15 … 1e-14 of the weakest fault gain on the random set) reads as a
+    leak ``ρ/δ``, plus evaluation rounding of the same kind. On a grid reaching δ = 1e-9 rad/s (the 1e-9·top
+    floor next to an integrator computed at 1e-17) that is 1e-7 … 1e-6: random seeds 10 and 26 were refused
+    for it, and the value seed 10 read depended on the solver (a dense LU solve passed, the Schur-form solve
+    of larger models failed). At δ ≥ 1e-6·||A|| such a residue reads ≤ 1e-8, while a cancellation off by
+    1e-12 of the fault gain still reads ≥ 1e-6 > dec_tol (tests/test_synthesis_random.py); a coupling above
+    ``R_POLE_TOL`` is refused as a pole of R (:func:`_r_poles`) whatever the grid.
     """
     mask = np.zeros(lam.size, bool)
     smarg = default_smarg(dt)
