@@ -258,64 +258,72 @@ def _merged(slow: dict, info: dict) -> dict:
             "order_before": slow["order_before"], "slow_filter_poles": slow["slow_filter_poles"]}
 
 
-#: a filter pole slower than this fraction of the plant's slowest time scale is moved
-#: (:func:`speed_up_slow_poles`); the pencil places the basis poles it moves at the plant's own (stabilised)
-#: eigenvalues — the Boeing 747's altitude mode +3.1e-5 mirrored to -2.1e-5 is one, and stays
+#: a filter pole closer than this fraction of the plant's slowest time scale to a boundary pole the row
+#: must cancel is moved (:func:`speed_up_slow_poles`)
 SLOW_FRACTION = 0.5
 
 
 def speed_up_slow_poles(model: FDIModel, Q: LTI) -> tuple[LTI, dict]:
-    """Q with its poles far slower than every pole of the plant moved to the plant's speed: ``Q ← M·Q``.
+    """Q with its poles next to a boundary pole it must cancel moved to the plant's speed: ``Q ← M·Q``.
 
-    A pencil basis keeps the free poles its deflation happens to give (only those outside the margin are
-    moved). One far slower than every pole of the plant is a time constant the plant does not have
-    — random seed 33's row [1 0 0 0]: |z| = 1 − 3.5e-5 (2900 s) beside plant poles no slower than 25 s
-    and the decoupled fault's mode at z = 1 — and it makes the row ill-conditioned exactly where the
-    decoupling matters: ``Q(λ)`` near that pole is a difference of terms ``1/δ`` larger than itself, so
-    the rounding of the numerator is lifted by ``1/δ`` into ``R_u``, ``R_d`` (3.2e-7 of the weakest fault
-    gain, and the plant's z = 1 counted a pole of R), and no numerator refinement can evaluate ``Q`` there
-    well enough to remove it. The left factor M of :func:`glcf` (``Q = M⁻¹ N``, N's poles placed, Q's
-    zeros and order kept) leaves ``N = M·Q`` a null-space row seeing the same faults; a pole with
-    ``|Re s| <`` :data:`SLOW_FRACTION` ``· v`` (``s = ln z / dt`` in discrete time), ``v`` the plant's slowest
-    speed ``min |Re s|`` over its poles off the boundary (stable or not), goes to ``Re s = −(2v − |Re s|)``
-    (mirrored about −v: distinct poles stay distinct), ``Im s`` kept. Moving is not free: N's fault gains
-    below that speed drop by ``|Re s_old| / |Re s_new|`` against its rounding (the Boeing 747 row
-    [1 1 1 1 1] with its pole -2.1e-5 moved leaked 1.5e-7 of its weakest fault gain and was refused), hence
-    only poles slower than half of every time scale of the plant. The peer (FaultDetectionTools.jl ``efdsyn``) places every basis pole at
-    ``sdeg = −0.05`` / ``0.95``. Returns ``(Q, info)``, info empty when none moved.
+    A decoupling row cancels each plant pole on the stability boundary that u or d excite
+    (:func:`.refine.boundary_residues`: an integrator, z = 1, an undamped pair of a decoupled fault) by a zero
+    ``Q(λ_j) c_j = 0``, and R reads any error in it as ``residue/|λ − λ_j|`` beside the pole. A pencil basis
+    keeps the free poles its deflation happens to give (only those outside the margin are moved); one next
+    to λ_j — random seed 33's row [1 0 0 0]: |z| = 1 − 3.5e-5 (2900 s) beside its decoupled fault's z = 1,
+    plant poles no slower than 25 s — makes ``Q(λ)`` there a difference of terms ``1/δ`` larger than itself:
+    the rounding of the numerator reaches ``R_d`` (3.2e-7 of the weakest fault gain, and z = 1 counted a pole
+    of R), and no numerator refinement can evaluate Q there well enough to remove it. The left factor M of
+    :func:`glcf` (``Q = M⁻¹ N``, N's poles placed, Q's zeros and order kept) leaves ``N = M·Q`` a null-space
+    row seeing the same faults; a pole ``s`` (``s = ln z / dt`` in discrete time) closer than
+    :data:`SLOW_FRACTION` ``· v`` to some ``λ_j``, ``v`` the plant's slowest speed ``min |Re s|`` over its poles
+    off the boundary, goes to ``Re s = −(2v − |Re s|)``, ``Im s`` kept. Moving is not free — N's fault gains
+    near the old pole drop by ``|s_old − λ_j| / |s_new − λ_j|`` against its rounding: the Boeing 747 row
+    [1 1 1 1 1] with its pole -2.1e-5 moved leaked 1.5e-7 of its weakest fault gain, the A4 noise design's
+    gap fell from 2 to 1 — hence only next to the boundary poles a row cancels (the Boeing's altitude mode
+    +3.1e-5 is beyond the boundary, not on it; A4 has none). The peer (FaultDetectionTools.jl ``efdsyn``)
+    places every basis pole at ``sdeg = −0.05`` / ``0.95``. Returns ``(Q, info)``, info empty when none moved.
     """
     if not Q.n or not model.n:
         return Q, {}
     from .postconditions import default_smarg
+    from .refine import boundary_residues
 
     dt = float(model.dt)
 
-    def speed(z):
+    def to_s(z):
         z = np.asarray(z, complex)
-        if not dt:
-            return -z.real
-        return -np.log(np.maximum(np.abs(z), 1e-300)) / dt
+        return np.log(np.where(z == 0, 1e-300, z)) / dt if dt else z
 
+    # the boundary poles Q must cancel (u or d excite them): only next to these does a slow pole of Q matter
+    sj = to_s(np.array([lam for lam, _ in boundary_residues(model)], complex))
+    if not sj.size:
+        return Q, {}
     # the plant's time scales: every pole's |Re s|, stable or not, but those on the boundary (within the
     # default margin's sqrt(eps): integrators, z = 1, undamped pairs) have none
-    sp = np.abs(speed(eigenvalues(model.A)))
+    sp = np.abs(to_s(eigenvalues(model.A)).real)
     sp = sp[sp > -default_smarg(0.0)]
     if not sp.size:
         return Q, {}
     v = float(np.min(sp))
     qp = Q.poles()
-    slow = speed(qp) < SLOW_FRACTION * v
+
+    def near(z):
+        return np.min(np.abs(np.atleast_1d(to_s(z))[:, None] - sj[None, :]), axis=1) < SLOW_FRACTION * v
+
+    slow = near(qp)
     if not np.any(slow):
         return Q, {}
 
     def good(re, im):
-        return bool(speed(complex(re, im)) >= SLOW_FRACTION * v)
+        return not bool(near(complex(re, im))[0])
 
     def target(z: complex) -> complex:
+        s_ = complex(to_s(complex(z)))
+        t = complex(-(2 * v - abs(s_.real)), s_.imag)
         if not dt:
-            return complex(-(2 * v - speed(z)), z.imag)
-        s = np.log(complex(z)) / dt
-        t = complex(np.exp(complex(-(2 * v - (-s.real)), s.imag) * dt))
+            return t
+        t = complex(np.exp(t * dt))
         return complex(t.real, 0.0) if abs(z.imag) <= 1e-12 * max(1.0, abs(z)) else t
 
     def choose(bad):
@@ -326,7 +334,8 @@ def speed_up_slow_poles(model: FDIModel, Q: LTI) -> tuple[LTI, dict]:
         return Q, {}
     bad = qp[slow]
     return N, {"moved_poles": bad.tolist(), "moved": int(moved), "order_before": int(Q.n),
-               "slow_filter_poles": f"slower than {SLOW_FRACTION:g} × the plant's slowest pole (speed {v:.4g})"}
+               "slow_filter_poles": f"within {SLOW_FRACTION:g} × the plant's slowest speed ({v:.4g}) of a boundary "
+                                    f"pole the row cancels"}
 
 
 def _stability_region(model: FDIModel, sdeg, smarg, keep_stable_poles: bool):
