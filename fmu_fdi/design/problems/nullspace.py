@@ -784,7 +784,7 @@ def _refined(model, Q: LTI, lam, Gv) -> LTI:
     """Q with its numerator refined (:func:`..toolkit.refine.refine_decoupling`) when its u/d leak on the grid
     exceeds 1e-9 of its weakest fault peak (a rounding error the plant amplifies near a pole on the
     boundary) but not :data:`REFINE_MAX_LEAK` of it, and the correction is small enough to compute (≤ 2000 numerator coefficients)."""
-    from ..toolkit.refine import refine_decoupling
+    from ..toolkit.refine import boundary_residues, refine_decoupling
 
     ud, fsl = slice(0, model.nu + model.nd), model.group_slices()["f"]
     if not (ud.stop and model.faults) or (Q.n + Q.p) * Q.m > 2000:
@@ -799,7 +799,7 @@ def _refined(model, Q: LTI, lam, Gv) -> LTI:
     leak = np.max(np.linalg.norm(R[:, :, ud], 2, axis=(1, 2)), initial=0.0)
     if leak <= 1e-9 * weakest or leak > REFINE_MAX_LEAK * weakest:
         return Q
-    return refine_decoupling(Q, lam[ok], Gv[ok][:, :, ud])[0]
+    return refine_decoupling(Q, lam[ok], Gv[ok][:, :, ud], boundary_residues(model))[0]
 
 
 def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degrees,

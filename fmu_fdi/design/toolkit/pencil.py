@@ -324,6 +324,17 @@ def _distinct(targets: np.ndarray, dt: bool) -> np.ndarray:
     return np.array(out, complex)
 
 
+def _without_exact_boundary_modes(G: LTI) -> LTI:
+    """``G`` without its modes on or beyond the stability boundary that are uncontrollable or unobservable
+    to rounding (:func:`fmu_fdi.margin.margin_reduced` at :data:`~fmu_fdi.margin.EXACT_RTOL`): TB01PD's staircase
+    keeps such a mode when stable poles cluster next to it (random seed 21: a fault-only z = 1, PBH 6.5e-17,
+    beside poles within 5e-3), and the basis then carries it as one state above the least order."""
+    from ...margin import EXACT_RTOL, default_smarg, margin_reduced
+
+    red = margin_reduced(G, default_smarg(G.dt), tol=EXACT_RTOL)
+    return red if red.n < G.n else G
+
+
 def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.0, poles=None,
                  sdeg: float | None = None, smarg: float | None = None) -> PencilBasis:
     """Proper stable left null-space basis ``Nl`` of ``[Gu Gd; I 0]`` of ``model`` (acts on ``[y; u]``).
@@ -359,6 +370,7 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
     G = model.lti("u", "d")
     if G.n and G.m:
         G = G.minreal()  # a minimal realisation of [Gu Gd] makes the basis minimal (Varga, glnull)
+        G = _without_exact_boundary_modes(G)
     if not G.m:
         G = LTI.static(G.D, G.dt)  # no u, no d: the basis is the identity
     if G.n:

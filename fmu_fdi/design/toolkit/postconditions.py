@@ -8,7 +8,8 @@ the transfer from every plant input to the residual the user sees. Every figure 
 peak over one frequency grid Λ (:func:`_eval_points`: log-spaced two decades beyond every
 pole scale of the plant and the filter, plus 0, the resonances of lightly damped poles and,
 discrete, Nyquist; without points below
-1e-9 of its top or within 1e-9, relative, of a pole of either realisation) of values computed
+1e-9 of its top, within 1e-9, relative, of a pole of either realisation, or within
+``BOUNDARY_GAP·||A||`` of one on the stability boundary: :func:`_beside_boundary_poles`) of values computed
 point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no minimal realisation, no
 rank decision). :func:`internal_figures` computes them once; ``leakage()``,
 ``structure_matrix()`` (:mod:`fmu_fdi.analysis`) and :func:`check_generator` all read them,
@@ -111,8 +112,44 @@ def _eval_points(model, Q: LTI, freqs=None) -> tuple[np.ndarray, np.ndarray]:
     poles = np.concatenate([model.lti().poles(), Q.poles()])
     if poles.size:
         near = np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) <= 1e-9 * max(1.0, float(np.max(np.abs(poles))))
+        near |= _beside_boundary_poles(lam, [model.lti(), Q], model.dt)
         omega, lam = omega[~near], lam[~near]
     return omega, lam
+
+
+#: the judge reads no point closer than this, relative to ``max(1, ||A||)`` of the balanced realisation,
+#: to a pole of the plant or the filter on (or beyond) the stability boundary (:func:`_beside_boundary_poles`)
+BOUNDARY_GAP = 1e-6
+
+
+def _beside_boundary_poles(lam: np.ndarray, systems, dt: float) -> np.ndarray:
+    """Mask of the points ``lam`` within :data:`BOUNDARY_GAP` ``· max(1, ||A_bal||)`` of a pole of one of
+    ``systems`` that lies outside the default margin (an integrator computed at ±1e-17, an undamped pair
+    1e-24 off the axis, z = 1, an unstable pole).
+
+    At a distance δ from such a pole ``p`` the plant's values are ``~|res|/δ`` and carry the rounding
+    ``eps·||A||/δ`` relative (the condition of ``λI − A``). A decoupling row cancels p by its zero, exactly
+    only up to rounding: its residue ρ (1e-15 … 1e-14 of the weakest fault gain on the random set) reads as a
+    leak ``ρ/δ``, plus evaluation rounding of the same kind. On a grid reaching δ = 1e-9 rad/s (the 1e-9·top
+    floor next to an integrator computed at 1e-17) that is 1e-7 … 1e-6: random seeds 10 and 26 were refused
+    for it, and the value seed 10 read depended on the solver (a dense LU solve passed, the Schur-form solve
+    of larger models failed). At δ ≥ 1e-6·||A|| such a residue reads ≤ 1e-8, while a cancellation off by
+    1e-12 of the fault gain still reads ≥ 1e-6 > dec_tol (tests/test_synthesis_random.py); a coupling above
+    ``R_POLE_TOL`` is refused as a pole of R (:func:`_r_poles`) whatever the grid.
+    """
+    mask = np.zeros(lam.size, bool)
+    smarg = default_smarg(dt)
+    for S in systems:
+        if not S.n:
+            continue
+        p = S.poles()
+        p = p[outside_margin(p, dt, smarg)]
+        if not p.size:
+            continue
+        bal = S.balanced()[0] if S.m and S.p else S
+        gap = BOUNDARY_GAP * max(1.0, float(np.linalg.norm(bal.A, 2)))
+        mask |= np.min(np.abs(lam[:, None] - p[None, :]), axis=1) <= gap
+    return mask
 
 
 def _values(sys: LTI, lam: np.ndarray) -> np.ndarray:

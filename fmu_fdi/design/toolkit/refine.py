@@ -37,10 +37,18 @@ from ...lti import LTI
 REFINE_RTOL = 1e-12
 
 
-def refine_decoupling(Q: LTI, lam: np.ndarray, Ge_ud: np.ndarray) -> tuple[LTI, float, float]:
+def refine_decoupling(Q: LTI, lam: np.ndarray, Ge_ud: np.ndarray, residues=()) -> tuple[LTI, float, float]:
     """``(Q', leak_before, leak_after)``: Q with ``[B_q; D_q]`` corrected so that ``Q·Ge_ud`` is
     zero to rounding at the points ``lam`` (``Ge_ud``: the plant's values of the decoupled columns
     there, shape (points, Q's inputs, columns)); leaks are ``max_k ||Q(λ_k) Ge_ud(λ_k)||`` (2-norm).
+
+    ``residues``: pairs ``(λ_j, c_j)`` of plant poles on the stability boundary that u or d
+    excite, with their output direction ``c_j = Ce v_j`` (:func:`boundary_residues`). There ``Ge_ud`` is
+    infinite and no point can stand for it; an exact decoupling row has the zero ``Q(λ_j) c_j = 0``
+    (else ``R_ud`` keeps the pole: a drift or an oscillation driven by u, d). Each adds the rows
+    ``(c_jᵀ ⊗ K(λ_j)) vec(Θ) = 0``, weighted to the largest row of the points, so the correction
+    removes the residue with the leak (random seed 33: a basis pole 3.5e-5 inside |z| = 1 next to
+    the plant's z = 1 left ``Q(1) c`` at 1.4e-12 of ``||Q(1)|| ||c||``, a leak ``residue/|z − 1|``).
     Q is returned unchanged (the same object) when the correction does not lower the leak."""
     lam = np.asarray(lam, complex)
     ok = np.all(np.isfinite(Ge_ud), axis=(1, 2))
@@ -48,13 +56,16 @@ def refine_decoupling(Q: LTI, lam: np.ndarray, Ge_ud: np.ndarray) -> tuple[LTI, 
     pr, q, n = Q.p, Q.m, Q.n
     if not lam.size or not G.shape[2]:
         return Q, 0.0, 0.0
+    lj = np.array([complex(r[0]) for r in residues], complex)
     with warnings.catch_warnings():
         warnings.simplefilter("error", sla.LinAlgWarning)
         try:  # Q's resolvent unreliable at the points (poles next to them): no refinement
-            Kq = LTI(Q.A, np.eye(n), Q.C, np.zeros((pr, n)), Q.dt).values(lam) if n else np.zeros((lam.size, pr, 0))
+            Kall = LTI(Q.A, np.eye(n), Q.C, np.zeros((pr, n)), Q.dt).values(np.r_[lam, lj]) if n else \
+                np.zeros((lam.size + lj.size, pr, 0))
         except (sla.LinAlgWarning, np.linalg.LinAlgError):
             return Q, float("nan"), float("nan")
-    K = np.concatenate([Kq, np.broadcast_to(np.eye(pr), (lam.size, pr, pr))], axis=2)
+    Kall = np.concatenate([Kall, np.broadcast_to(np.eye(pr), (Kall.shape[0], pr, pr))], axis=2)
+    K, Kj = Kall[:lam.size], Kall[lam.size:]
     Theta0 = np.vstack([Q.B, Q.D])  # (n + pr) × q
 
     def leak(Theta):
@@ -63,6 +74,11 @@ def refine_decoupling(Q: LTI, lam: np.ndarray, Ge_ud: np.ndarray) -> tuple[LTI, 
     before = leak(Theta0)
     # vec(K Θ G) = (Gᵀ ⊗ K) vec(Θ) (column-major vec), stacked over the points, real and imaginary parts
     Phi = np.concatenate([np.kron(G[k].T, K[k]) for k in range(lam.size)], axis=0)
+    if lj.size:
+        top = float(np.max(np.linalg.norm(Phi, axis=1)))
+        rows = [np.kron(np.asarray(c, complex)[None, :], Kj[j]) for j, (_, c) in enumerate(residues)]
+        rows = [R * (top / max(float(np.max(np.linalg.norm(R, axis=1))), 1e-300)) for R in rows]
+        Phi = np.concatenate([Phi] + rows, axis=0)
     Phi = np.vstack([Phi.real, Phi.imag])
     theta = Theta0.reshape(-1, order="F")
     U, sv, Vt = np.linalg.svd(Phi, full_matrices=False)
@@ -77,3 +93,38 @@ def refine_decoupling(Q: LTI, lam: np.ndarray, Ge_ud: np.ndarray) -> tuple[LTI, 
     if not after < before:
         return Q, before, before
     return LTI(Q.A, Theta[:n], Q.C, Theta[n:], Q.dt), before, after
+
+
+def boundary_residues(model) -> list[tuple[complex, np.ndarray]]:
+    """``[(λ_j, c_j)]`` for :func:`refine_decoupling`: the simple eigenvalues of the plant's A on the stability
+    boundary (within the default margin's offset sqrt(eps) of it) that u or d excite, with ``c_j = [C; 0] v_j`` the
+    direction in which ``Ge = [Gu Gd ...; I 0 ...]`` has its residue there (``v_j`` a unit right
+    eigenvector of the balanced A; the left one decides whether u, d excite it: ``|w_jᴴ [Bu Bd]|`` above
+    1e-8 of ``||w_j|| ||[Bu Bd]||``). None for a defective (repeated) boundary eigenvalue."""
+    from ...margin import default_smarg, outside_margin
+
+    if not model.n or not (model.nu + model.nd):
+        return []
+    Ge = model.augmented()
+    bal = Ge.balanced()[0] if Ge.m and Ge.p else Ge
+    ev, V = np.linalg.eig(bal.A)
+    # on the boundary (within the default margin's offset): no grid point can stand for these; a pole
+    # beyond it (the Boeing 747's altitude mode +3.1e-5) has points next to it, and a constraint from its
+    # computed eigenvector (accurate to eps·||A||/gap) only trades leak there for leak elsewhere
+    off = -default_smarg(0.0)
+    on = (np.abs(np.abs(ev) - 1.0) <= off) if model.dt else (np.abs(ev.real) <= off * np.maximum(1.0, np.abs(ev)))
+    bad = np.flatnonzero(on & outside_margin(ev, model.dt, default_smarg(model.dt)))
+    if not bad.size:
+        return []
+    W = np.linalg.inv(V)  # rows: left eigenvectors (W V = I)
+    Bud = bal.B[:, :model.nu + model.nd]
+    scale = max(float(np.linalg.norm(Bud, 2)), 1e-300)
+    out = []
+    for j in bad:
+        if np.sum(np.abs(ev - ev[j]) <= 1e-8 * max(1.0, abs(ev[j]))) > 1:
+            return []  # repeated: a Jordan block has derivative conditions too; not refined
+        wj = W[j]
+        if np.linalg.norm(wj @ Bud) > 1e-8 * np.linalg.norm(wj) * scale:
+            c = bal.C @ V[:, j]
+            out.append((complex(ev[j]), c / max(float(np.linalg.norm(c)), 1e-300)))
+    return out

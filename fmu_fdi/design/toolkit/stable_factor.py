@@ -153,25 +153,189 @@ def stable_internal_form(model: FDIModel, Q: LTI, *, poles=None, sdeg: float | N
 
     Returns ``(Q, info)``; ``info`` is empty when nothing moved, else ``moved_poles`` (the poles
     of ``[Q R]`` that were moved), ``moved`` (their count) and ``order_before`` (Q's order).
+    The returned realisation is :func:`conditioned_realisation`'s.
     """
+    Q, info = _stable_internal_form(model, Q, poles=poles, sdeg=sdeg, smarg=smarg, keep_stable_poles=keep_stable_poles)
+    return conditioned_realisation(model, Q), info
+
+
+def _stable_internal_form(model: FDIModel, Q: LTI, *, poles, sdeg, smarg, keep_stable_poles) -> tuple[LTI, dict]:
+    slow = {}
+    if poles is None and sdeg is None:
+        Q, slow = speed_up_slow_poles(model, Q)
     good = _stability_region(model, sdeg, smarg, keep_stable_poles)
     # the poles of [Q R] are among those of Q and of the plant: decided on each block's own
     # eigenvalues (the joint matrix couples Q's poles, often the plant's own, to the plant's, and
     # its computed eigenvalues can leave a cluster by far more than rounding)
     eig = np.concatenate([Q.poles(), eigenvalues(model.A) if model.n else np.zeros(0)])
     if all(good(z.real, z.imag) for z in eig):
-        return Q, {}
+        return Q, slow
     if (sdeg is None or keep_stable_poles) and all(good(z.real, z.imag) for z in Q.poles()):
         # only plant poles violate the region: factorise the part of [Q R] that carries them alone
         from .postconditions import default_smarg
 
         margin = default_smarg(float(model.dt)) if smarg is None else float(smarg)
-        return _move_plant_poles(model, Q, moved_pole_targets(model, poles, sdeg, smarg), good, margin)
+        Q, info = _move_plant_poles(model, Q, moved_pole_targets(model, poles, sdeg, smarg), good, margin)
+        return Q, _merged(slow, info)
     N, q, info = stable_joint_factor(model, Q, poles=poles, sdeg=sdeg, smarg=smarg,
                                      keep_stable_poles=keep_stable_poles)
     if not info:
+        return Q, slow
+    return N[:, :q].minreal(), _merged(slow, info)
+
+
+#: a filter realisation is re-realised when its resolvent at a plant pole on the stability boundary is
+#: more than this times larger than the distance to its own poles implies (a normal A has factor 1)
+NONNORMAL_MAX = 1e4
+
+
+def conditioned_realisation(model: FDIModel, Q: LTI) -> LTI:
+    """Q in a balanced realisation (SLICOT AB09AD, square-root balance, no truncation beyond the minimal
+    order) when its realisation is far from normal at a plant pole ``λ_j`` on or beyond the stability
+    boundary: ``dist(λ_j, eig A_q) / σ_min(λ_j I − A_q) > NONNORMAL_MAX``; else Q itself.
+
+    At such a pole the decoupling row must have the zero ``Q(λ_j) c_j = 0``, and ``R_u``, ``R_d`` read the
+    residue as ``residue/|λ − λ_j|`` next to it. A pencil row of a plant with clustered poles (random seed
+    33's row [1 1 0 0], order 17, poles ≤ 0.9943) can come with ``σ_min(I − A_q) = 1.7e-11``: ``Q(1)`` is
+    then a difference of terms 4.5e5 times larger than itself, its residue is rounding of that size, and
+    the numerator refinement (:mod:`.refine`) cannot evaluate it well enough to remove it. The transfer
+    function is unchanged (checked at eight points away from the poles: relative 1e-9 of the peak,
+    else Q is kept); a balanced realisation of a stable system has ``||A|| ≤ 1`` (discrete) and no such
+    amplification (seed 33: σ_min(I − A_q) = 1.6e-3, ``|K||Θ|`` 9.3)."""
+    if not Q.n or not model.n or not (Q.m and Q.p):
+        return Q
+    from ...margin import default_smarg, outside_margin
+
+    dt = float(model.dt)
+    ep = eigenvalues(model.A)
+    ep = ep[outside_margin(ep, dt, default_smarg(dt))]
+    qp = Q.poles()
+    if not ep.size or np.any(outside_margin(qp, dt, default_smarg(dt))) or np.min(np.abs(ep[:, None] - qp[None, :])) <= \
+            1e-9 * max(1.0, float(np.max(np.abs(ep)))):
+        return Q
+
+    def amplification(A):
+        eq = np.linalg.eigvals(A)
+        worst = 0.0
+        for lam in ep:
+            smin = np.linalg.svd(lam * np.eye(A.shape[0]) - A, compute_uv=False)[-1]
+            worst = max(worst, float(np.min(np.abs(lam - eq))) / max(smin, 1e-300))
+        return worst
+
+    before = amplification(Q.A)
+    if before <= NONNORMAL_MAX:
+        return Q
+    import warnings
+
+    import slycot
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # AB09AD's note that the minimal order is below n
+            nr, Ar, Br, Cr, _ = slycot.ab09ad("D" if dt else "C", "B", "S", Q.n, Q.m, Q.p, Q.A.copy(), Q.B.copy(),
+                                              Q.C.copy(), nr=Q.n)
+    except Exception:  # noqa: BLE001 - slycot raises its own error types; the given realisation stays
+        return Q
+    Qb = LTI(Ar[:nr, :nr], Br[:nr, :], Cr[:, :nr], Q.D, Q.dt)
+    if not nr or amplification(Qb.A) >= before:
+        return Q
+    # the same transfer function (the old realisation's values next to ep are the unreliable ones)
+    ang = np.linspace(0.2, 3.0, 8)
+    pts = np.exp(1j * ang) if dt else 1j * np.max(np.abs(qp)) * np.tan(ang / 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        v0, v1 = Q.values(pts), Qb.values(pts)
+    if not (np.all(np.isfinite(v1)) and np.max(np.abs(v1 - v0)) <= 1e-9 * max(1.0, float(np.max(np.abs(v0))))):
+        return Q
+    return Qb
+
+
+def _merged(slow: dict, info: dict) -> dict:
+    """The ``info`` of :func:`stable_internal_form` after both of its steps (either may be empty)."""
+    if not slow or not info:
+        return slow or info
+    return {**info, "moved_poles": slow["moved_poles"] + info["moved_poles"], "moved": slow["moved"] + info["moved"],
+            "order_before": slow["order_before"], "slow_filter_poles": slow["slow_filter_poles"]}
+
+
+#: a filter pole closer than this fraction of the plant's slowest time scale to a boundary pole the row
+#: must cancel is moved (:func:`speed_up_slow_poles`)
+SLOW_FRACTION = 0.5
+
+
+def speed_up_slow_poles(model: FDIModel, Q: LTI) -> tuple[LTI, dict]:
+    """Q with its poles next to a boundary pole it must cancel moved to the plant's speed: ``Q ← M·Q``.
+
+    A decoupling row cancels each plant pole on the stability boundary that u or d excite
+    (:func:`.refine.boundary_residues`: an integrator, z = 1, an undamped pair of a decoupled fault) by a zero
+    ``Q(λ_j) c_j = 0``, and R reads any error in it as ``residue/|λ − λ_j|`` beside the pole. A pencil basis
+    keeps the free poles its deflation happens to give (only those outside the margin are moved); one next
+    to λ_j — random seed 33's row [1 0 0 0]: |z| = 1 − 3.5e-5 (2900 s) beside its decoupled fault's z = 1,
+    plant poles no slower than 25 s — makes ``Q(λ)`` there a difference of terms ``1/δ`` larger than itself:
+    the rounding of the numerator reaches ``R_d`` (3.2e-7 of the weakest fault gain, and z = 1 counted a pole
+    of R), and no numerator refinement can evaluate Q there well enough to remove it. The left factor M of
+    :func:`glcf` (``Q = M⁻¹ N``, N's poles placed, Q's zeros and order kept) leaves ``N = M·Q`` a null-space
+    row seeing the same faults; a pole ``s`` (``s = ln z / dt`` in discrete time) closer than
+    :data:`SLOW_FRACTION` ``· v`` to some ``λ_j``, ``v`` the plant's slowest speed ``min |Re s|`` over its poles
+    off the boundary, goes to ``Re s = −(2v − |Re s|)``, ``Im s`` kept. Moving is not free — N's fault gains
+    near the old pole drop by ``|s_old − λ_j| / |s_new − λ_j|`` against its rounding: the Boeing 747 row
+    [1 1 1 1 1] with its pole -2.1e-5 moved leaked 1.5e-7 of its weakest fault gain, the A4 noise design's
+    gap fell from 2 to 1 — hence only next to the boundary poles a row cancels (the Boeing's altitude mode
+    +3.1e-5 is beyond the boundary, not on it; A4 has none). The peer (FaultDetectionTools.jl ``efdsyn``)
+    places every basis pole at ``sdeg = −0.05`` / ``0.95``. Returns ``(Q, info)``, info empty when none moved.
+    """
+    if not Q.n or not model.n:
         return Q, {}
-    return N[:, :q].minreal(), info
+    from .postconditions import default_smarg
+    from .refine import boundary_residues
+
+    dt = float(model.dt)
+
+    def to_s(z):
+        z = np.asarray(z, complex)
+        return np.log(np.where(z == 0, 1e-300, z)) / dt if dt else z
+
+    # the boundary poles Q must cancel (u or d excite them): only next to these does a slow pole of Q matter
+    sj = to_s(np.array([lam for lam, _ in boundary_residues(model)], complex))
+    if not sj.size:
+        return Q, {}
+    # the plant's time scales: every pole's |Re s|, stable or not, but those on the boundary (within the
+    # default margin's sqrt(eps): integrators, z = 1, undamped pairs) have none
+    sp = np.abs(to_s(eigenvalues(model.A)).real)
+    sp = sp[sp > -default_smarg(0.0)]
+    if not sp.size:
+        return Q, {}
+    v = float(np.min(sp))
+    qp = Q.poles()
+
+    def near(z):
+        return np.min(np.abs(np.atleast_1d(to_s(z))[:, None] - sj[None, :]), axis=1) < SLOW_FRACTION * v
+
+    slow = near(qp)
+    if not np.any(slow):
+        return Q, {}
+
+    def good(re, im):
+        return not bool(near(complex(re, im))[0])
+
+    def target(z: complex) -> complex:
+        s_ = complex(to_s(complex(z)))
+        t = complex(-(2 * v - abs(s_.real)), s_.imag)
+        if not dt:
+            return t
+        t = complex(np.exp(t * dt))
+        return complex(t.real, 0.0) if abs(z.imag) <= 1e-12 * max(1.0, abs(z)) else t
+
+    def choose(bad):
+        return np.array([target(complex(z)) for z in np.asarray(bad, complex)], complex)
+
+    N, _, moved = glcf(Q, choose, good)
+    if not moved or not all(good(z.real, z.imag) for z in N.poles()):
+        return Q, {}
+    bad = qp[slow]
+    return N, {"moved_poles": bad.tolist(), "moved": int(moved), "order_before": int(Q.n),
+               "slow_filter_poles": f"within {SLOW_FRACTION:g} × the plant's slowest speed ({v:.4g}) of a boundary "
+                                    f"pole the row cancels"}
 
 
 def _stability_region(model: FDIModel, sdeg, smarg, keep_stable_poles: bool):
