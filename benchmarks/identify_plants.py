@@ -26,6 +26,8 @@ CASES = {  # plant FMU: (u, y, d, excite) as in tests/test_identify_design.py
     "dr300": ("dr300", ["voltage"], ["speed"], ["load_torque"], ["speed_ref", "load_torque"]),
     "wind_pitch": ("wind_turbine", ["beta_ref_1", "beta_ref_2", "beta_ref_3"],
                    ["beta_1_m1", "beta_1_m2", "beta_2_m1", "beta_2_m2", "beta_3_m1", "beta_3_m2"], [], []),
+    "wind_drive_train": ("wind_turbine", ["tau_g_ref"], ["omega_r_m1", "omega_r_m2", "omega_g_m1", "omega_g_m2",
+                                                          "tau_g_m"], ["tau_r"], []),
 }
 
 

@@ -81,6 +81,9 @@ CASES = {
     "dr300": ("dr300", 0, ["voltage"], ["speed"], ["load_torque"], ["speed_ref", "load_torque"]),
     "wind_pitch": ("wind_turbine", 0, ["beta_ref_1", "beta_ref_2", "beta_ref_3"],
                    ["beta_1_m1", "beta_1_m2", "beta_2_m1", "beta_2_m2", "beta_3_m1", "beta_3_m2"], [], None),
+    # a stiff plant: time scales 1/50 s (converter), a torsional mode at 28 rad/s and 138 s (the rotor)
+    "wind_drive_train": ("wind_turbine", 1, ["tau_g_ref"],
+                         ["omega_r_m1", "omega_r_m2", "omega_g_m1", "omega_g_m2", "tau_g_m"], ["tau_r"], None),
 }
 
 

@@ -71,16 +71,22 @@ def nrmse_fit(y, y_hat) -> np.ndarray:
 
 def simulated(model, u, y) -> np.ndarray:
     """The model's simulation from the inputs ``u``, its initial state fitted to ``y`` by least squares
-    (the free-response rows C A^k stacked)."""
+    (the free-response rows C A^k stacked), each output weighted by 1/RMS of its record: unweighted,
+    an output in large units (a torque in Nm beside speeds in rad/s) would buy a sliver of its own
+    fit with a free response that ruins the others' (the wind turbine's drive train: ω_g's error
+    0.05 → 1.4 rad/s for 0.01 % of τ_g's)."""
     A, C = model.A, model.C
     N, n = len(u), A.shape[0]
     y0 = model.simulate(u)
+    rms = np.sqrt(np.mean(np.asarray(y, float) ** 2, axis=0))
+    w = 1.0 / np.where(rms > 0, rms, 1.0)
+    Cw = C * w[:, None]
     O = np.empty((N * C.shape[0], n))
-    M = C.copy()
+    M = Cw.copy()
     for k in range(N):
         O[k * C.shape[0]:(k + 1) * C.shape[0]] = M
         M = M @ A
-    x0 = np.linalg.lstsq(O, (y - y0).ravel(), rcond=None)[0]
+    x0 = np.linalg.lstsq(O, ((y - y0) * w).ravel(), rcond=None)[0]
     return model.simulate(u, x0)
 
 
