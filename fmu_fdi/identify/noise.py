@@ -126,6 +126,8 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
         s, block rows of the past used for the state estimates (default
         ``max(model.block_rows, 2 n + 2, 10)``).
     """
+    import scipy.linalg as sla
+
     from ..design.toolkit._basis import _block_toeplitz
     from ..design.observers._observer import filter_riccati
     from ..design.problems.datadriven import block_hankel
@@ -153,8 +155,12 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
     sy = np.sqrt(np.mean(y * y, axis=0)) + np.finfo(float).tiny
     Zp = np.vstack([block_hankel(u / su, 0, s, j), block_hankel(y / sy, 0, s, j)])  # row scaling: same projection
     G = block_hankel(y, s, s, j) - H @ block_hankel(u, s, s, j)
-    theta = np.linalg.lstsq(Zp.T, G.T, rcond=None)[0]
-    X = np.linalg.lstsq(O, (Zp.T @ theta).T, rcond=None)[0]          # n × j: x̂ at times s … s + j − 1
+    # Π_{Z_p} Gᵀ = Q Qᵀ Gᵀ, Q an orthonormal basis of Z_pᵀ's column space (pivoted QR, rank to 1e-12 of the
+    # largest |R_ii|): the projection without the least-squares coefficients (an SVD of j × s(m+p) is 5× dearer)
+    Qz, Rz, _ = sla.qr(Zp.T, mode="economic", pivoting=True)
+    d = np.abs(np.diag(Rz))
+    Qz = Qz[:, : int(np.count_nonzero(d > 1e-12 * d[0]))] if d.size and d[0] > 0 else Qz[:, :0]
+    X = np.linalg.lstsq(O, (Qz @ (Qz.T @ G.T)).T, rcond=None)[0]     # n × j: x̂ at times s … s + j − 1
     uk, yk = u[s:s + j].T, y[s:s + j].T
     rho_w = X[:, 1:] - A @ X[:, :-1] - B @ uk[:, :-1]
     rho_v = yk[:, :-1] - C @ X[:, :-1] - D @ uk[:, :-1]
@@ -180,11 +186,16 @@ def predictor_innovations(model, K, u, y, drop: int = 0) -> np.ndarray:
     A, B, C, D = model.A, model.B, model.C, model.D
     u = np.asarray(u, float).reshape(len(u), -1)
     y = np.asarray(y, float).reshape(len(y), -1)
+    # x̂⁺ = (A − K C) x̂ + (B − K D) u + K y: the data's push per step formed once for the whole record
     x = np.zeros(A.shape[0])
-    e = np.empty_like(y)
+    F = A - K @ C
+    drive = u @ (B - K @ D).T + y @ K.T
+    X = np.empty((len(u), A.shape[0]))
+    step = F.dot
     for k in range(len(u)):
-        e[k] = y[k] - C @ x - D @ u[k]
-        x = A @ x + B @ u[k] + K @ e[k]
+        X[k] = x
+        x = step(x) + drive[k]
+    e = y - X @ C.T - u @ D.T
     return e[min(drop, len(e) // 2):]
 
 

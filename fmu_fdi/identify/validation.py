@@ -81,12 +81,12 @@ def simulated(model, u, y) -> np.ndarray:
     rms = np.sqrt(np.mean(np.asarray(y, float) ** 2, axis=0))
     w = 1.0 / np.where(rms > 0, rms, 1.0)
     Cw = C * w[:, None]
-    O = np.empty((N * C.shape[0], n))
+    O = np.empty((N, C.shape[0], n))
     M = Cw.copy()
     for k in range(N):
-        O[k * C.shape[0]:(k + 1) * C.shape[0]] = M
+        O[k] = M
         M = M @ A
-    x0 = np.linalg.lstsq(O, ((y - y0) * w).ravel(), rcond=None)[0]
+    x0 = np.linalg.lstsq(O.reshape(N * C.shape[0], n), ((y - y0) * w).ravel(), rcond=None)[0]
     return model.simulate(u, x0)
 
 
