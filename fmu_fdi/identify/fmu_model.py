@@ -247,7 +247,7 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
     if record is not None:
         _write_record(record, ident, sig, y_names)
     nu = len(u_names)
-    u0, y0 = ident.u0[:nu], ident.y0
+    u0, y0 = ident.u0[:nu], ident.y0 + (refined["offset"] if refined is not None else 0.0)
     A, B, C, D = sub.to_continuous()
     _identification_provenance(prov, sub, rep, floor, tests, exc, ident, ts, joint, refined)
     if nm is not None:
@@ -299,7 +299,8 @@ def _refined(sub, rep, ident, check, y_names, max_order):
     (:func:`~fmu_fdi.identify.output_error.refine_output_error`: PO-MOESP's window of s samples
     cannot resolve both ends), each output weighted by its noise in the settle phase. Kept when
     its simulation error on the validation run (mean over outputs of ||e_j||²/||y_j − ȳ_j||²) is
-    smaller. Returns ``(sub, rep, info or None)``."""
+    smaller. Returns ``(sub, rep, info or None)``; ``info['offset']`` corrects the operating
+    point's outputs (estimated over the whole run instead of the settle phase)."""
     from .design import STIFF_RATIO
     from .output_error import refine_output_error
     from .validation import settle_noise_std, validate
@@ -414,7 +415,8 @@ def _identification_provenance(prov, sub, rep, floor, tests, exc, ident, ts, joi
     if refined is not None:
         prov["method"] = ("subspace identification (PO-MOESP) refined by output-error prediction-error "
                           "minimisation (stiff plant)")
-        prov.update({f"refinement_{k}": (float(v) if isinstance(v, (int, float)) else str(v))
+        prov.update({f"refinement_{k}": (np.asarray(v, float).tolist() if isinstance(v, np.ndarray) else
+                                         float(v) if isinstance(v, (int, float)) else str(v))
                      for k, v in refined.items()})
     if joint is not None:
         prov.update({"method": "closed-loop subspace identification (joint input-output PO-MOESP, references "

@@ -20,7 +20,11 @@ mode is one first-order recursion (scipy.signal.lfilter), so a simulation of the
 costs O(N n). Parameters: log(−Re λ_i) (the modes stay stable: the structure is for a plant
 that settles, as the experiment design has checked), Im λ_i, β_i and γ_i, with each mode's
 largest input coefficient fixed at its initial value (the scale ξ_i → a ξ_i is not
-identifiable). The criterion is the sum of squared output errors, each output weighted by
+identifiable), and a constant per output: the record's operating point y0 is the mean of a
+short settle phase, and its error (the noise over that phase) would otherwise be fitted by the
+slow modes as a spurious coupling (Ljung 1999, sec. 14.1: offsets estimated with the model; it
+is the mean output error at each θ, so it adds no iteration). The criterion is the sum of
+squared output errors, each output weighted by
 1/σ_j (its noise level: the Gaussian maximum-likelihood criterion for white sensor noise
 independent between outputs, Ljung 1999, eq. 7.89), minimised by the trust-region
 Levenberg–Marquardt iteration of :func:`scipy.optimize.least_squares` (Ljung 1999,
@@ -139,7 +143,8 @@ def refine_output_error(sub, u, y, sigma, *, max_nfev: int = 200):
     (module docstring). ``sigma``: each output's noise level (the weights; a zero is replaced by
     the output's RMS). Returns ``(model, info)``: a :class:`~fmu_fdi.identify.subspace.SubspaceModel`
     at the same sample time (its discrete matrices the exact sampling of the refined continuous
-    model) and a dict with the criterion before and after and the number of evaluations.
+    model) and a dict with the criterion before and after, the number of evaluations and the
+    estimated output ``offset`` (p values: the correction of the record's operating point y0).
 
     Raises
     ------
@@ -159,7 +164,8 @@ def refine_output_error(sub, u, y, sigma, *, max_nfev: int = 200):
 
     def residual(theta):
         modal.set(theta)
-        return ((y - modal.simulate(u, ts)) * w).ravel()
+        e = y - modal.simulate(u, ts)
+        return ((e - e.mean(axis=0)) * w).ravel()
 
     theta0 = modal.theta()
     cost0 = 0.5 * float(np.sum(residual(theta0) ** 2))
@@ -172,5 +178,6 @@ def refine_output_error(sub, u, y, sigma, *, max_nfev: int = 200):
     E = sla.expm(M)
     out = replace(sub, A=E[:n, :n], B=E[:n, n:], C=Cc, D=np.zeros_like(sub.D),
                   info=dict(sub.info, refined="output error"))
+    offset = (y - modal.simulate(u, ts)).mean(axis=0)
     return out, {"cost_before": cost0, "cost_after": float(fit.cost), "evaluations": int(fit.nfev),
-                 "status": fit.message}
+                 "status": fit.message, "offset": offset}
