@@ -130,11 +130,17 @@ def test_default_model_of_a_noisy_plant_fmu(plants, case, tmp_path, capsys):
     assert min(prov["fit_corrected_percent"]) >= 50 and prov["noise_model"] == "innovation"
     # the frequency response over the excited band: from 10 cycles per record (the asymptotic variance
     # below needs several; and the spectra's resolution, 1024 samples) to the PRBS clock's −3 dB point
-    # 0.44/(P ts) Hz
+    # 0.44/(P ts) Hz. A stiff plant's model (refined by output error: its slow mode is what the refinement
+    # is for) is judged down to the resolution of a quarter record (drive train: 0.1 rad/s, against 0.4),
+    # and on every recorded input, u and d (the rotor torque is the input its diagnosis decouples)
     ts, N = prov["sample_time"], prov["samples"]
     P = int(prov["excitation"].split("clock ")[1].split(",")[0])
-    w = np.geomspace(2 * np.pi * max(10 / (N * ts), 2 / (min(1024, N // 4) * ts)), 2 * np.pi * 0.44 / (P * ts), 40)
-    Gi, Gr = m.lti("u").freqresp(w), ref.lti("u").freqresp(w)          # (len(w), p, m)
+    refined = "output-error" in prov["method"]
+    seg = N // 4 if refined else min(1024, N // 4)
+    w = np.geomspace(2 * np.pi * max(10 / (N * ts), 2 / (seg * ts)), 2 * np.pi * 0.44 / (P * ts), 40)
+    signals = ("u", "d") if refined else ("u",)
+    inputs = u + d if refined else u
+    Gi, Gr = m.lti(*signals).freqresp(w), ref.lti(*signals).freqresp(w)      # (len(w), p, m)
     # Ljung 1999, eq. 9.62: Var Ĝ(ω) ≈ (n/N) Φ_v(ω) Φ_u(ω)⁻¹ (per sample). Its matrix form bounds the
     # Frobenius error: E||ΔG||² ≈ (n/N) tr Φ_v · tr Φ_u⁻¹. Φ_u from the estimation run's own inputs
     # (--record; Welch, so a plant in its own loop is judged on the inputs it really had), Φ_v from the
@@ -146,12 +152,12 @@ def test_default_model_of_a_noisy_plant_fmu(plants, case, tmp_path, capsys):
         rows = list(csv.DictReader(fh))
     from scipy.signal import csd
 
-    uu = np.array([[float(r[n]) for n in u] for r in rows])
+    uu = np.array([[float(r[n]) for n in inputs] for r in rows])
     uu -= uu.mean(axis=0)
-    phi_u = np.empty((len(w), len(u), len(u)), complex)
-    for i in range(len(u)):
-        for k in range(len(u)):
-            f, pxy = csd(uu[:, i], uu[:, k], fs=1 / ts, nperseg=min(1024, len(uu) // 4))
+    phi_u = np.empty((len(w), len(inputs), len(inputs)), complex)
+    for i in range(len(inputs)):
+        for k in range(len(inputs)):
+            f, pxy = csd(uu[:, i], uu[:, k], fs=1 / ts, nperseg=seg)
             phi_u[:, i, k] = (np.interp(w / (2 * np.pi), f[1:], pxy[1:].real)
                               + 1j * np.interp(w / (2 * np.pi), f[1:], pxy[1:].imag)) / (2 * ts)
     tr_inv = np.array([np.trace(np.linalg.inv(phi)).real for phi in phi_u])
@@ -183,7 +189,11 @@ def test_default_model_of_a_noisy_plant_fmu(plants, case, tmp_path, capsys):
             assert np.abs(Gd_i - Gd_r).max() / np.abs(Gd_r).max() <= tol
     else:
         # PO-MOESP is not minimum-variance: its variance exceeds the prediction-error method's asymptotic
-        # one (eq. 9.62) by factors up to about 10 (Bauer & Ljung 2002, Automatica 38(5)): 5 × 10 std
+        # one (eq. 9.62) by factors up to about 10 (Bauer & Ljung 2002, Automatica 38(5)): 5 × 10 std.
+        # The output-error refinement is a prediction-error estimate, but eq. 9.62 is asymptotic in the
+        # order (Ljung 1999, sec. 9.4): a low-order model's parameter shared by all frequencies (the drive
+        # train's converter gain, set by the fast band) carries its error to where the local Φ_u is larger
+        # (the slow PRBS's band, 0.1 rad/s: 11 std there, 0.2 std above 1 rad/s): the same factor 10
         assert z.max() <= 50.0, (case, z.max(), rel, z)
 
 
