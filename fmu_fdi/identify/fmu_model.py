@@ -234,7 +234,8 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
     refined = None
     if joint is None:
         sub, rep, refined = _refined(sub, rep, ident, check, y_names, max_order)
-    nm, Bw, floor, tests, why_none = _noise_and_tests(path, sub, rep, ident, check, repeat, joint, noise, max_order)
+    nm, Bw, floor, tests, why_none = _noise_and_tests(path, sub, rep, ident, check, repeat, joint, noise, max_order,
+                                                      refined is not None)
     if validation_png is not None:
         rep.plot(validation_png)
     verdict = _verdict(y_names, rep, floor, tests, sub.order, exc, plan)
@@ -330,12 +331,15 @@ def _refined(sub, rep, ident, check, y_names, max_order):
     return new, new_rep, info
 
 
-def _noise_and_tests(path, sub, rep, ident, check, repeat, joint, noise, max_order):
+def _noise_and_tests(path, sub, rep, ident, check, repeat, joint, noise, max_order, refined=False):
     """Stage of :func:`_identified`: the noise floor, the noise model and Ljung's residual tests.
-    Returns ``(nm, Bw, floor, tests, why_none)``."""
+    A model ``refined`` by output error has a second innovation form, its own (K = 0,
+    :func:`~fmu_fdi.identify.noise.output_error_noise`): the one whose predictor's innovations on the
+    validation run are whiter (Ljung's test, worst output) is kept. Returns ``(nm, Bw, floor, tests,
+    why_none)``."""
     from dataclasses import replace
 
-    from .noise import innovation_noise, measurement_noise, predictor_innovations
+    from .noise import innovation_noise, measurement_noise, output_error_noise, predictor_innovations
     from .validation import noise_floor, residual_tests, settle_noise_std
 
     du, dy = ident.u - ident.u0, ident.y - ident.y0
@@ -364,7 +368,16 @@ def _noise_and_tests(path, sub, rep, ident, check, repeat, joint, noise, max_ord
                     "identical, and the outputs are constant at the operating point)")
     eps = None
     if inn is not None:
-        eps = predictor_innovations(sub, inn.K, du_val, dy_val, drop=2 * sub.block_rows * max(sub.order, 1))
+        drop = 2 * sub.block_rows * max(sub.order, 1)
+        eps = predictor_innovations(sub, inn.K, du_val, dy_val, drop=drop)
+        if refined:
+            oe = output_error_noise(sub, du, dy, du_val, dy_val)
+            eps_oe = predictor_innovations(sub, oe.K, du_val, dy_val, drop=drop)
+            if np.max(residual_tests(eps_oe, eps_oe, du_val).whiteness) < np.max(
+                    residual_tests(eps, eps, du_val).whiteness):
+                inn, eps = oe, eps_oe
+                if nm is not None and nm.kind == "innovation":
+                    nm = oe
     # the output error of a plant in its own loop follows the measured u through the loop: judged against r
     tests = residual_tests(eps, dy_val - rep.y_hat, du_val if joint is None else check.r)
     Bw = None

@@ -181,6 +181,28 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
     return NoiseModel("innovation", K @ Le, Le, Re, K, "estimation", rho.shape[1], val)
 
 
+def output_error_noise(model, u, y, u_val=None, y_val=None) -> NoiseModel:
+    """The innovation form of an output-error model (:mod:`fmu_fdi.identify.output_error`): K = 0,
+    ``Re`` the covariance of its output error ``y − ŷ`` (mean removed: the fitted offsets) on the
+    estimation run. For a plant whose noise is white sensor noise, with no process noise, the
+    steady-state Kalman gain is zero and this is its exact innovation form (Ljung 1999, sec. 4.3,
+    the output-error structure: H(q) = I); the subspace estimate of K then holds only the
+    finite-horizon state estimates' errors (:func:`innovation_noise`)."""
+    u = np.asarray(u, float).reshape(len(u), -1)
+    y = np.asarray(y, float).reshape(len(y), -1)
+    e = y - model.simulate(u)
+    e -= e.mean(axis=0)
+    cov = e.T @ e / len(e)
+    Le = _chol(cov, "the output error y − ŷ on the estimation run", y)
+    n, p = model.A.shape[0], cov.shape[0]
+    val = None
+    if u_val is not None:
+        ev = predictor_innovations(model, np.zeros((n, p)), u_val, y_val, drop=len(u_val) // 10)
+        val = np.cov(ev, rowvar=False).reshape(p, p)
+    return NoiseModel("innovation", np.zeros((n, p)), Le, cov, np.zeros((n, p)), "estimation (output error)",
+                      len(e), val)
+
+
 def predictor_innovations(model, K, u, y, drop: int = 0) -> np.ndarray:
     """``e[k] = y[k] − C x̂[k] − D u[k]``, ``x̂[k+1] = A x̂ + B u + K e`` from x̂[0] = 0, first ``drop`` left out."""
     A, B, C, D = model.A, model.B, model.C, model.D
