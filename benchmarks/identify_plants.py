@@ -6,6 +6,10 @@ output against the noise floor (plain fit, the fit to the noise-free response, t
 perfect model would reach). The experiment is a function of the FMU and the options only
 (fmu_fdi/identify/design.py: the budget is counted in samples), so it is the same on every run.
 
+The wind turbine's drive train is the stiff case (138 s rotor mode, 28 rad/s shaft mode, 1/50 s
+converter): slow pre-tests, a two-scale PRBS and the output-error refinement
+(fmu_fdi/identify/design.py, output_error.py).
+
 Run: ``python benchmarks/identify_plants.py [PLANT ...]``
 """
 from __future__ import annotations

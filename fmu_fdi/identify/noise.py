@@ -185,7 +185,7 @@ def output_error_noise(model, u, y, u_val=None, y_val=None) -> NoiseModel:
     """The innovation form of an output-error model (:mod:`fmu_fdi.identify.output_error`): K = 0,
     ``Re`` the covariance of its output error ``y − ŷ`` (mean removed: the fitted offsets) on the
     estimation run. For a plant whose noise is white sensor noise, with no process noise, the
-    steady-state Kalman gain is zero and this is its exact innovation form (Ljung 1999, sec. 4.3,
+    steady-state Kalman gain is zero and this is its exact innovation form (Ljung 1999, sec. 4.2,
     the output-error structure: H(q) = I); the subspace estimate of K then holds only the
     finite-horizon state estimates' errors (:func:`innovation_noise`)."""
     u = np.asarray(u, float).reshape(len(u), -1)

@@ -1,12 +1,14 @@
 """Prediction-error refinement of a subspace model: the output-error fit over the whole record.
 
 PO-MOESP (:mod:`fmu_fdi.identify.subspace`) reads the dynamics through a window of s block
-rows. On a stiff plant — time scales 138 s and 1/28 s in one record, the wind turbine's drive
-train — the window is a few hundredths of a percent of the slow mode: its pole z = e^{−ts/τ}
-is estimated from differences of 1 − z ≈ 1e-4, with a variance that no record length in the
-budget brings down. The prediction-error method has no window: it fits the model's simulated
+rows. On a stiff plant — time scales 138 s and 1/50 s in one record, the wind turbine's drive
+train — the window (11 samples of 0.03 s) is a quarter of a percent of the slow mode: its pole
+z = e^{−ts/τ} is read from 1 − z ≈ 2e-4 across a window that barely sees it move, with a
+variance the budget's record length does not bring down (drive train, PO-MOESP alone:
+validation fit of ω_g 93 % against a floor of 99.8 %). The prediction-error method has no window: it fits the model's simulated
 response to the whole record (Ljung 1999, ch. 7 and sec. 10.2; Verhaegen & Verdult 2007,
-ch. 8, "output-error methods", initialised from the subspace estimate as in their ch. 10).
+ch. 7, output-error parametric model estimation, started from the subspace estimate as their
+ch. 10 recommends).
 
 Model structure (output error, continuous time, zero-order hold): the subspace model's
 continuous form ``(A, B, C)`` (D = 0: a co-simulation record reads y_k before u_k acts) in
@@ -26,10 +28,11 @@ slow modes as a spurious coupling (Ljung 1999, sec. 14.1: offsets estimated with
 is the mean output error at each θ, so it adds no iteration). The criterion is the sum of
 squared output errors, each output weighted by
 1/σ_j (its noise level: the Gaussian maximum-likelihood criterion for white sensor noise
-independent between outputs, Ljung 1999, eq. 7.89), minimised by the trust-region
+independent between outputs, Ljung 1999, sec. 7.4), minimised by the
 Levenberg–Marquardt iteration of :func:`scipy.optimize.least_squares` (Ljung 1999,
-sec. 10.2). Output error is consistent for any noise colour in open loop (Ljung 1999,
-theorem 8.4, the noise model fixed), so it is not used for a plant in its own loop.
+sec. 10.2). Output error is consistent for any noise colour in open loop (Ljung 1999, ch. 8:
+the noise model fixed, G still converges to the truth), so it is not used for a plant in its
+own loop.
 
 References
 ----------
