@@ -5,8 +5,8 @@ rows. On a stiff plant — time scales 138 s and 1/50 s in one record, the wind 
 train — the window (11 samples of 0.03 s) is a quarter of a percent of the slow mode: its pole
 z = e^{−ts/τ} is read from 1 − z ≈ 2e-4 across a window that barely sees it move, with a
 variance the budget's record length does not bring down (drive train, PO-MOESP alone:
-validation fit of ω_g 93 % against a floor of 99.8 %). The prediction-error method has no window: it fits the model's simulated
-response to the whole record (Ljung 1999, ch. 7 and sec. 10.2; Verhaegen & Verdult 2007,
+validation fit of ω_g 93 % against a floor of 99.8 %). The prediction-error method has no
+window: it fits the model's simulated response to the whole record (Ljung 1999, ch. 7 and sec. 10.2; Verhaegen & Verdult 2007,
 ch. 7, output-error parametric model estimation, started from the subspace estimate as their
 ch. 10 recommends).
 
