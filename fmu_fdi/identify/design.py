@@ -137,6 +137,9 @@ class ExperimentPlan:
     notes: list = field(default_factory=list)
     #: largest amplitude of each input whose amplitude was chosen here
     limits: dict = field(default_factory=dict)
+    #: the settle phase's noise std per output (``noise_std`` may exceed it: the pre-test model's misfit
+    #: bounds coloured noise from above)
+    noise_settle: dict = field(default_factory=dict)
 
     def adapted(self, record) -> Excitation | None:
         """A stronger excitation when the run ``record`` fell short of the signal/noise target.
@@ -176,7 +179,10 @@ class ExperimentPlan:
                  + f", {amps}; ts = {self.ts:g} s, {e.samples} samples ({e.samples * self.ts:g} s) per run, "
                    f"settle {e.settle:g} s",
                  "  pre-test: time scales {:.3g} .. {:.3g} s; noise std at the operating point {}".format(
-                     self.tau[0], self.tau[1], ", ".join(f"{k} {v:.3g}" for k, v in self.noise_std.items())),
+                     self.tau[0], self.tau[1], ", ".join(
+                         f"{k} {v:.3g}" + (f" (misfit bound; settle {self.noise_settle[k]:.3g})"
+                                           if self.noise_settle.get(k, v) < v / 1.5 else "")
+                         for k, v in self.noise_std.items())),
                  "  predicted response std (signal/noise) {}".format(", ".join(
                      f"{k} {v:.3g} ({v / self.noise_std[k]:.3g})" if self.noise_std[k] > 0 else f"{k} {v:.3g} (no noise)"
                      for k, v in self.response_std.items()))]
@@ -332,7 +338,8 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     exc = replace(exc, amplitude=amp, samples=samples)
     exc = replace(exc, settle=settle)
     return ExperimentPlan(ts_new, exc, dict(zip(y_names, sigma.tolist())), dict(zip(y_names, r.tolist())),
-                          (tau_min, tau_max), chosen, rate, notes, auto_limits)
+                          (tau_min, tau_max), chosen, rate, notes, auto_limits,
+                          dict(zip(y_names, np.asarray(sigma_settle, float).tolist())))
 
 
 def _seed_amplitudes(excite, by_name, at, given_amp):
@@ -529,8 +536,8 @@ def _least_misfit_model(pre, pre_exc, dy, ts, max_order):
     return min(((o, c) for e, o, c in scored if e <= 1.02 * best + 1e-4), key=lambda t: t[0])[1]
 
 
-def _slow_stages(path, sig, y_names, tau_max, sigma_settle, sigma, *, settle, seed_amp, notes, excite, at, parameters, ts0, seed,
-                 limit, given_amp, max_order):
+def _slow_stages(path, sig, y_names, tau_max, sigma_settle, sigma, *, settle, seed_amp, notes, excite, at,
+                 parameters, ts0, seed, limit, given_amp, max_order):
     """Stage of :func:`plan_experiment`: slow modes the pre-test does not see settle.
 
     The multisine's lowest line is 1/T_pre (T_pre = ``PRETEST_SAMPLES`` · ts), and a mode slower

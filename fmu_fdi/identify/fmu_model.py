@@ -340,7 +340,7 @@ def _noise_and_tests(path, sub, rep, ident, check, repeat, joint, noise, max_ord
     from dataclasses import replace
 
     from .noise import innovation_noise, measurement_noise, output_error_noise, predictor_innovations
-    from .validation import noise_floor, residual_tests, settle_noise_std
+    from .validation import noise_floor, residual_tests, settle_noise_std, whiteness
 
     du, dy = ident.u - ident.u0, ident.y - ident.y0
     du_val, dy_val = check.u - check.u0, check.y - check.y0
@@ -373,8 +373,7 @@ def _noise_and_tests(path, sub, rep, ident, check, repeat, joint, noise, max_ord
         if refined:
             oe = output_error_noise(sub, du, dy, du_val, dy_val)
             eps_oe = predictor_innovations(sub, oe.K, du_val, dy_val, drop=drop)
-            if np.max(residual_tests(eps_oe, eps_oe, du_val).whiteness) < np.max(
-                    residual_tests(eps, eps, du_val).whiteness):
+            if np.max(whiteness(eps_oe)) < np.max(whiteness(eps)):
                 inn, eps = oe, eps_oe
                 if nm is not None and nm.kind == "innovation":
                     nm = oe

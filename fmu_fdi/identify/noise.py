@@ -155,11 +155,15 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
     sy = np.sqrt(np.mean(y * y, axis=0)) + np.finfo(float).tiny
     Zp = np.vstack([block_hankel(u / su, 0, s, j), block_hankel(y / sy, 0, s, j)])  # row scaling: same projection
     G = block_hankel(y, s, s, j) - H @ block_hankel(u, s, s, j)
-    # Π_{Z_p} Gᵀ = Q Qᵀ Gᵀ, Q an orthonormal basis of Z_pᵀ's column space (pivoted QR, rank to 1e-12 of the
-    # largest |R_ii|): the projection without the least-squares coefficients (an SVD of j × s(m+p) is 5× dearer)
-    Qz, Rz, _ = sla.qr(Zp.T, mode="economic", pivoting=True)
+    # Π_{Z_p} Gᵀ = Q Qᵀ Gᵀ, Q an orthonormal basis of Z_pᵀ's column space: the projection without the
+    # least-squares coefficients (an SVD of j × s(m+p) is 5× dearer). Householder QR; when a |R_ii| falls
+    # below 1e-12 of the largest (Z_p rank-deficient), the column-pivoted QR, truncated there
+    Qz, Rz = sla.qr(Zp.T, mode="economic")
     d = np.abs(np.diag(Rz))
-    Qz = Qz[:, : int(np.count_nonzero(d > 1e-12 * d[0]))] if d.size and d[0] > 0 else Qz[:, :0]
+    if d.size and not np.all(d > 1e-12 * d.max()):
+        Qz, Rz, _ = sla.qr(Zp.T, mode="economic", pivoting=True)
+        d = np.abs(np.diag(Rz))
+        Qz = Qz[:, : int(np.count_nonzero(d > 1e-12 * d[0]))] if d[0] > 0 else Qz[:, :0]
     X = np.linalg.lstsq(O, (Qz @ (Qz.T @ G.T)).T, rcond=None)[0]     # n × j: x̂ at times s … s + j − 1
     uk, yk = u[s:s + j].T, y[s:s + j].T
     rho_w = X[:, 1:] - A @ X[:, :-1] - B @ uk[:, :-1]

@@ -238,21 +238,30 @@ def _acf(x, lags):
     return np.fft.irfft(f * np.conj(f), n)[: lags + 1] / d
 
 
+def whiteness(eps, lags: int = 25) -> np.ndarray:
+    """Ljung's whiteness statistic per output of innovations ``eps`` (N×p): ``N Σ_{τ=1..M} r_ε(τ)²``
+    relative to the 99 % point of χ²(M) (≤ 1 passes; :class:`ResidualTests`)."""
+    from scipy.stats import chi2
+
+    eps = np.asarray(eps, float)
+    M = int(min(lags, len(eps) // 5))
+    bound = chi2.ppf(0.99, M)
+    out = np.zeros(eps.shape[1])
+    for j in range(eps.shape[1]):
+        r = _acf(eps[:, j], M)[1:]
+        out[j] = len(eps) * float(r @ r) / bound
+    return out
+
+
 def residual_tests(eps, e, u, lags: int = 25) -> ResidualTests:
     """:class:`ResidualTests` of innovations ``eps`` (N×p, may be None) and output error ``e`` vs inputs ``u``."""
-    from scipy.stats import chi2, norm
+    from scipy.stats import norm
 
     e = np.asarray(e, float)
     u = np.asarray(u, float).reshape(len(u), -1)
     N, p = e.shape
     M = int(min(lags, N // 5))
-    white = np.zeros(p)
-    if eps is not None:
-        eps = np.asarray(eps, float)
-        bound = chi2.ppf(0.99, M)
-        for j in range(p):
-            r = _acf(eps[:, j], M)[1:]
-            white[j] = len(eps) * float(r @ r) / bound
+    white = whiteness(eps, M) if eps is not None else np.zeros(p)
     # two-sided 1 % per test, Bonferroni over the M + 1 lags and the inputs
     z = norm.ppf(1 - 0.005 / ((M + 1) * max(u.shape[1], 1)))
     indep = np.zeros(p)
