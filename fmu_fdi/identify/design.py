@@ -264,44 +264,11 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     tau_min, tau_max = _time_scales(z, ts0)
     tau_max = max(tau_max_slow[0], tau_min)
     slow_model = tau_max_slow[1]
-    stiff = tau_max / tau_min > STIFF_RATIO
-    chosen = []
-    # sample time and duration within the budget of MAX_SAMPLES per record
-    want = 6.0 * tau_max
-    ts_new = ts0
-    if ts is None and user.samples is None and user.period is None:  # (given in steps: at the FMU's step)
-        k = max(1, int(np.floor(tau_min / (TS_PER_TAU * ts0))))
-        if want / (k * ts0) > MAX_SAMPLES:
-            k_budget = int(np.ceil(want / (ts0 * MAX_SAMPLES)))
-            k = max(k, min(k_budget, int(np.floor(tau_min / ((1 if stiff else 3) * ts0)))))
-        ts_new = k * ts0
-        if k > 1:
-            chosen.append("ts")
+    ts_new, signal, period, samples, slow_period, chosen = _timing(user, ts, ts0, tau_min, tau_max, notes)
     if not settle_given:  # until the outputs are steady, on the chosen ts's grid
         settle = _steady_settle(pre, sigma, dy, tau_max, ts0, ts_new)
-        chosen.append("settle")
+        chosen.insert(int("ts" in chosen), "settle")
     cap = MAX_SAMPLES
-    signal = user.signal or "prbs"
-    if user.signal is None:
-        chosen.append("signal")
-    period = user.period
-    if period is None:
-        period = max(1, int(round(tau_min / ts_new)))
-        chosen.append("period")
-    samples = user.samples
-    if samples is not None and user.period is None:  # at least 50 clock periods in a given record
-        period = max(1, min(period, samples // 50))
-    if samples is None:
-        samples = int(min(cap, max(MIN_SAMPLES, np.ceil(want / ts_new), 40 * period)))
-        chosen.append("samples")
-        if samples * ts_new < want:
-            notes.append(f"the record covers {samples * ts_new / tau_max:.2g} slowest time scales (6 wanted) "
-                         f"within the budget of {MAX_SAMPLES} samples")
-    slow_period = None
-    if stiff and signal == "prbs" and user.period is None:
-        slow_period = max(period, int(round(tau_max / (SLOW_CLOCK_TAUS * ts_new))))
-        notes.append(f"a stiff plant (time scales {tau_min:.3g} .. {tau_max:.3g} s, ratio > {STIFF_RATIO:g}): a slow "
-                     f"PRBS (clock {slow_period} steps) added to the fast one, half the amplitude each")
     # amplitude: predicted response of the rough model to the chosen signal at the seed amplitude
     exc = Excitation(signal, dict(seed_amp), samples, settle, user.band, period, user.seed, slow_period)
     r = _predicted_response(rough, exc, names, seed_amp, pre, ts_new, ts0, slow_model)
@@ -340,6 +307,47 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     return ExperimentPlan(ts_new, exc, dict(zip(y_names, sigma.tolist())), dict(zip(y_names, r.tolist())),
                           (tau_min, tau_max), chosen, rate, notes, auto_limits,
                           dict(zip(y_names, np.asarray(sigma_settle, float).tolist())))
+
+
+def _timing(user, ts, ts0, tau_min, tau_max, notes):
+    """Stage of :func:`plan_experiment`: the sample time, signal, PRBS clock (and a stiff plant's slow
+    clock) and record length that ``user`` leaves open (module docstring, 3). Returns ``(ts, signal,
+    period, samples, slow_period, chosen)``."""
+    stiff = tau_max / tau_min > STIFF_RATIO
+    chosen = []
+    # sample time and duration within the budget of MAX_SAMPLES per record
+    want = 6.0 * tau_max
+    ts_new = ts0
+    if ts is None and user.samples is None and user.period is None:  # (given in steps: at the FMU's step)
+        k = max(1, int(np.floor(tau_min / (TS_PER_TAU * ts0))))
+        if want / (k * ts0) > MAX_SAMPLES:
+            k_budget = int(np.ceil(want / (ts0 * MAX_SAMPLES)))
+            k = max(k, min(k_budget, int(np.floor(tau_min / ((1 if stiff else 3) * ts0)))))
+        ts_new = k * ts0
+        if k > 1:
+            chosen.append("ts")
+    signal = user.signal or "prbs"
+    if user.signal is None:
+        chosen.append("signal")
+    period = user.period
+    if period is None:
+        period = max(1, int(round(tau_min / ts_new)))
+        chosen.append("period")
+    samples = user.samples
+    if samples is not None and user.period is None:  # at least 50 clock periods in a given record
+        period = max(1, min(period, samples // 50))
+    if samples is None:
+        samples = int(min(MAX_SAMPLES, max(MIN_SAMPLES, np.ceil(want / ts_new), 40 * period)))
+        chosen.append("samples")
+        if samples * ts_new < want:
+            notes.append(f"the record covers {samples * ts_new / tau_max:.2g} slowest time scales (6 wanted) "
+                         f"within the budget of {MAX_SAMPLES} samples")
+    slow_period = None
+    if stiff and signal == "prbs" and user.period is None:
+        slow_period = max(period, int(round(tau_max / (SLOW_CLOCK_TAUS * ts_new))))
+        notes.append(f"a stiff plant (time scales {tau_min:.3g} .. {tau_max:.3g} s, ratio > {STIFF_RATIO:g}): a slow "
+                     f"PRBS (clock {slow_period} steps) added to the fast one, half the amplitude each")
+    return ts_new, signal, period, samples, slow_period, chosen
 
 
 def _seed_amplitudes(excite, by_name, at, given_amp):
