@@ -125,6 +125,13 @@ def test_default_model_of_a_noisy_plant_fmu(plants, case, tmp_path, capsys):
     ref = FDIModel.from_file(plant_fmus.model_path(fmu, index))
     prov = m.provenance
     assert m.n == ref.n
+    if not excite:
+        # the pre-test's time scales cover the slowest mode (the plant's own, 1/min |Re λ|), to the factor 2 the
+        # design allows its estimate (module docstring of fmu_fdi/identify/design.py); the drive train's 138 s
+        # mode is 12 times its first pre-test's length
+        tau_max = float(text.split("pre-test: time scales ")[1].split(" .. ")[1].split(" s")[0])
+        tau_ref = 1.0 / np.min(np.abs(np.linalg.eigvals(ref.A).real))
+        assert 0.5 <= tau_max / tau_ref <= 2.0, (case, tau_max, tau_ref)
     # judged against the noise floor: within 50 % of the noise-free response on every output, and the
     # noise model (innovation form) on by default
     assert min(prov["fit_corrected_percent"]) >= 50 and prov["noise_model"] == "innovation"
@@ -358,3 +365,20 @@ def test_output_error_refinement_resolves_a_stiff_plant():
     d = 15
     assert error(ref) <= 5 * d / N, (error(ref), d / N)
     assert error(sub) > 100 * error(ref)                               # the refinement is what resolves it
+
+
+def test_plant_child_starts_with_one_blas_thread_unless_the_user_chose(monkeypatch):
+    """The child's OpenBLAS reads its thread count when it loads: set around the start only, never over the
+    user's own setting."""
+    import os
+
+    from fmu_fdi.identify.plant_child import _BLAS_THREADS, _one_blas_thread
+
+    for k in _BLAS_THREADS:
+        monkeypatch.delenv(k, raising=False)
+    with _one_blas_thread():
+        assert os.environ["OPENBLAS_NUM_THREADS"] == "1"
+    assert "OPENBLAS_NUM_THREADS" not in os.environ
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    with _one_blas_thread():
+        assert "OPENBLAS_NUM_THREADS" not in os.environ and os.environ["OMP_NUM_THREADS"] == "2"
