@@ -176,6 +176,7 @@ class ExperimentPlan:
         auto = f" (chosen: {', '.join(self.chosen)})" if self.chosen else " (all given)"
         lines = [f"experiment{auto}: {e.signal}"
                  + (f" clock {e.period} steps" if e.signal == "prbs" else "")
+                 + (f" + slow PRBS clock {e.slow_period} steps" if e.slow_period is not None else "")
                  + f", {amps}; ts = {self.ts:g} s, {e.samples} samples ({e.samples * self.ts:g} s) per run, "
                    f"settle {e.settle:g} s",
                  "  pre-test: time scales {:.3g} .. {:.3g} s; noise std at the operating point {}".format(
