@@ -6,6 +6,10 @@ output against the noise floor (plain fit, the fit to the noise-free response, t
 perfect model would reach). The experiment is a function of the FMU and the options only
 (fmu_fdi/identify/design.py: the budget is counted in samples), so it is the same on every run.
 
+The wind turbine's drive train is the stiff case (138 s rotor mode, 28 rad/s shaft mode, 1/50 s
+converter): slow pre-tests, a two-scale PRBS and the output-error refinement
+(fmu_fdi/identify/design.py, output_error.py).
+
 Run: ``python benchmarks/identify_plants.py [PLANT ...]``
 """
 from __future__ import annotations
@@ -26,6 +30,8 @@ CASES = {  # plant FMU: (u, y, d, excite) as in tests/test_identify_design.py
     "dr300": ("dr300", ["voltage"], ["speed"], ["load_torque"], ["speed_ref", "load_torque"]),
     "wind_pitch": ("wind_turbine", ["beta_ref_1", "beta_ref_2", "beta_ref_3"],
                    ["beta_1_m1", "beta_1_m2", "beta_2_m1", "beta_2_m2", "beta_3_m1", "beta_3_m2"], [], []),
+    "wind_drive_train": ("wind_turbine", ["tau_g_ref"], ["omega_r_m1", "omega_r_m2", "omega_g_m1", "omega_g_m2",
+                                                          "tau_g_m"], ["tau_r"], []),
 }
 
 

@@ -19,6 +19,12 @@ None, no ``ts``) is made from what a short pre-test on the plant FMU shows:
    If no output's response std rises above its σ, the pre-test amplitude is raised by the
    factor that would give 2 σ (2 to 10-fold, within the limits below) and the pre-test
    repeated, three times at most.
+   *Slow modes the pre-test does not see settle* (:func:`_slow_stages`): when τ_max exceeds a
+   third of the pre-test and its model leaves a response unexplained (misfit above
+   ``SLOW_MISFIT`` times the settle noise), the pre-test is repeated with a 10 times coarser
+   step (10 times longer), at most twice, each stage's slowest time scale replacing τ_max
+   (wind turbine drive train: 11.9 s from the first, 158 s from the second, 139 s from the
+   third; the rotor mode is 138 s).
 3. **Choices** (Ljung 1999, ch. 13; Pintelon & Schoukens 2012, ch. 5):
 
    - *signal*: a PRBS — crest factor 1, the most power for a given peak, which is what the
@@ -28,6 +34,16 @@ None, no ``ts``) is made from what a short pre-test on the plant FMU shows:
      samples per fastest time scale (the pre-test's τ_min may be off by 2); finer sampling leaves the s = max_order + 1 block rows of
      the subspace method a window far shorter than the dynamics, and the estimates scatter
      (DTS200: ts = 1 s against τ_min ≈ 21 s gave a 17 % frequency-response error, ts = 4 s 7 %);
+   - *a stiff plant* (τ_max/τ_min > ``STIFF_RATIO``; the drive train: 0.036 s and 139 s): when
+     the budget binds, ts may grow to τ_min (not τ_min/3: the fastest pole stays resolved,
+     z = e^{−1}, and the model is refined by output error on the exact zero-order-hold
+     sampling, :mod:`fmu_fdi.identify.output_error`, which no sample time biases); the PRBS
+     gets a slow companion (half the amplitude each, clock τ_max/``SLOW_CLOCK_TAUS``: flat to
+     0.44·4/τ_max Hz, a decade above the slow corner 1/(2π τ_max)) — a single PRBS with the
+     fast clock spreads its power to 0.44/(P ts) Hz and leaves the slow mode's outputs (the
+     rotor speed) below their noise. Its response is predicted by the slow pre-test's model
+     and the probe is skipped (a short probe cannot see the slow component; the estimation
+     run's own signal/noise check stands);
    - *clock period* P = round(τ_min / ts) ≥ 1: the PRBS spectrum is flat to within 3 dB up to
      0.44/(P ts) Hz, which covers 1/(2π τ_min); at most a fiftieth of a given record (the
      input must stay persistently exciting of order 2s);
@@ -96,6 +112,15 @@ MIN_SAMPLES = 1000
 TS_PER_TAU = 10.0
 #: the most samples a run's record holds (the budget: samples, not wall time)
 MAX_SAMPLES = 20000
+#: slow pre-tests: at most this many, each with a step this many times coarser (module docstring, 2)
+SLOW_STAGES = 2
+#: ... when the first pre-test model's misfit exceeds the settle phase's noise std this many times
+SLOW_MISFIT = 5.0
+SLOW_STAGE_FACTOR = 10
+#: a plant is stiff when its slowest time scale exceeds its fastest this many times (module docstring, 3)
+STIFF_RATIO = 1000.0
+#: a stiff plant's slow PRBS clock: the slowest time scale over this
+SLOW_CLOCK_TAUS = 4.0
 
 
 @dataclass
@@ -112,6 +137,9 @@ class ExperimentPlan:
     notes: list = field(default_factory=list)
     #: largest amplitude of each input whose amplitude was chosen here
     limits: dict = field(default_factory=dict)
+    #: the settle phase's noise std per output (``noise_std`` may exceed it: the pre-test model's misfit
+    #: bounds coloured noise from above)
+    noise_settle: dict = field(default_factory=dict)
 
     def adapted(self, record) -> Excitation | None:
         """A stronger excitation when the run ``record`` fell short of the signal/noise target.
@@ -148,10 +176,14 @@ class ExperimentPlan:
         auto = f" (chosen: {', '.join(self.chosen)})" if self.chosen else " (all given)"
         lines = [f"experiment{auto}: {e.signal}"
                  + (f" clock {e.period} steps" if e.signal == "prbs" else "")
+                 + (f" + slow PRBS clock {e.slow_period} steps" if e.slow_period is not None else "")
                  + f", {amps}; ts = {self.ts:g} s, {e.samples} samples ({e.samples * self.ts:g} s) per run, "
                    f"settle {e.settle:g} s",
                  "  pre-test: time scales {:.3g} .. {:.3g} s; noise std at the operating point {}".format(
-                     self.tau[0], self.tau[1], ", ".join(f"{k} {v:.3g}" for k, v in self.noise_std.items())),
+                     self.tau[0], self.tau[1], ", ".join(
+                         f"{k} {v:.3g}" + (f" (misfit bound; settle {self.noise_settle[k]:.3g})"
+                                           if self.noise_settle.get(k, v) < v / 1.5 else "")
+                         for k, v in self.noise_std.items())),
                  "  predicted response std (signal/noise) {}".format(", ".join(
                      f"{k} {v:.3g} ({v / self.noise_std[k]:.3g})" if self.noise_std[k] > 0 else f"{k} {v:.3g} (no noise)"
                      for k, v in self.response_std.items()))]
@@ -214,7 +246,7 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
               given_amp=given_amp, max_order=max_order)
     pre, pre_exc, sigma, dy, seed_amp, notes = _pretest(path, sig, y_names, settle=settle, seed_amp=seed_amp, **kw)
     rough, z = _rough_model(pre, pre_exc, dy, ts0, max_order, notes)
-    sigma = _with_misfit(sigma, rough, pre, pre_exc, dy)
+    sigma_settle, sigma = sigma, _with_misfit(sigma, rough, pre, pre_exc, dy)
     if not settle_given:  # the pre-test ran on the start's transient: once more, after it has died out
         longer = _steady_settle(pre, sigma, dy, _time_scales(z, ts0)[1], ts0, ts0)
         if longer > settle * (1 + 1e-9):
@@ -224,48 +256,25 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
                                                                seed_amp=seed_amp, **kw)
             notes += more
             rough, z = _rough_model(pre, pre_exc, dy, ts0, max_order, notes)
-            sigma = _with_misfit(sigma, rough, pre, pre_exc, dy)
+            sigma_settle, sigma = sigma, _with_misfit(sigma, rough, pre, pre_exc, dy)
+    tau_max_slow, sigma = _slow_stages(path, sig, y_names, _time_scales(z, ts0)[1], sigma_settle, sigma,
+                                       settle=settle, seed_amp=seed_amp, notes=notes, **kw)
     # round-off is no noise: a std below 1e-9 of the output's level and response counts as zero
     level = np.maximum(np.abs(pre.y0), dy.std(axis=0))
     sigma = np.where(sigma > 1e-9 * level, sigma, 0.0)
     rate = pre.steps / max(pre.seconds, 1e-6)  # reported only: the plan never depends on the machine's speed
     names = list(pre.excited)
     tau_min, tau_max = _time_scales(z, ts0)
-    chosen = []
-    # sample time and duration within the budget of MAX_SAMPLES per record
-    want = 6.0 * tau_max
-    ts_new = ts0
-    if ts is None and user.samples is None and user.period is None:  # (given in steps: at the FMU's step)
-        k = max(1, int(np.floor(tau_min / (TS_PER_TAU * ts0))))
-        if want / (k * ts0) > MAX_SAMPLES:
-            k_budget = int(np.ceil(want / (ts0 * MAX_SAMPLES)))
-            k = max(k, min(k_budget, int(np.floor(tau_min / (3 * ts0)))))
-        ts_new = k * ts0
-        if k > 1:
-            chosen.append("ts")
+    tau_max = max(tau_max_slow[0], tau_min)
+    slow_model = tau_max_slow[1]
+    ts_new, signal, period, samples, slow_period, chosen = _timing(user, ts, ts0, tau_min, tau_max, notes)
     if not settle_given:  # until the outputs are steady, on the chosen ts's grid
         settle = _steady_settle(pre, sigma, dy, tau_max, ts0, ts_new)
-        chosen.append("settle")
+        chosen.insert(int("ts" in chosen), "settle")
     cap = MAX_SAMPLES
-    signal = user.signal or "prbs"
-    if user.signal is None:
-        chosen.append("signal")
-    period = user.period
-    if period is None:
-        period = max(1, int(round(tau_min / ts_new)))
-        chosen.append("period")
-    samples = user.samples
-    if samples is not None and user.period is None:  # at least 50 clock periods in a given record
-        period = max(1, min(period, samples // 50))
-    if samples is None:
-        samples = int(min(cap, max(MIN_SAMPLES, np.ceil(want / ts_new), 40 * period)))
-        chosen.append("samples")
-        if samples * ts_new < want:
-            notes.append(f"the record covers {samples * ts_new / tau_max:.2g} slowest time scales (6 wanted) "
-                         f"within the budget of {MAX_SAMPLES} samples")
     # amplitude: predicted response of the rough model to the chosen signal at the seed amplitude
-    exc = Excitation(signal, dict(seed_amp), samples, settle, user.band, period, user.seed)
-    r = _predicted_response(rough, exc, names, seed_amp, pre, ts_new, ts0)
+    exc = Excitation(signal, dict(seed_amp), samples, settle, user.band, period, user.seed, slow_period)
+    r = _predicted_response(rough, exc, names, seed_amp, pre, ts_new, ts0, slow_model)
     amp = dict(seed_amp)
     auto_limits = {}
     noisy = sigma > 0
@@ -279,8 +288,8 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
             new = {k: (min(max(amp[k] * c, seed_amp[k]), limit[k]) if k in free else amp[k]) for k in amp}
             r = r * min(new[k] / amp[k] for k in amp)
             amp = new
-            if trial == 1 or not np.any(noisy):
-                break
+            if trial == 1 or not np.any(noisy) or slow_period is not None:
+                break  # (a short probe cannot see a slow component: the estimation run is checked instead)
             # a short run of the chosen signal: what the outputs really do at this amplitude
             probe = Excitation(signal, dict(amp), int(min(samples, max(PROBE_SAMPLES, 20 * period))), settle,
                                user.band, period, user.seed + 2000)
@@ -299,7 +308,49 @@ def plan_experiment(path, sig, y_names, *, excite, at, parameters, ts, step, exc
     exc = replace(exc, amplitude=amp, samples=samples)
     exc = replace(exc, settle=settle)
     return ExperimentPlan(ts_new, exc, dict(zip(y_names, sigma.tolist())), dict(zip(y_names, r.tolist())),
-                          (tau_min, tau_max), chosen, rate, notes, auto_limits)
+                          (tau_min, tau_max), chosen, rate, notes, auto_limits,
+                          dict(zip(y_names, np.asarray(sigma_settle, float).tolist())))
+
+
+def _timing(user, ts, ts0, tau_min, tau_max, notes):
+    """Stage of :func:`plan_experiment`: the sample time, signal, PRBS clock (and a stiff plant's slow
+    clock) and record length that ``user`` leaves open (module docstring, 3). Returns ``(ts, signal,
+    period, samples, slow_period, chosen)``."""
+    stiff = tau_max / tau_min > STIFF_RATIO
+    chosen = []
+    # sample time and duration within the budget of MAX_SAMPLES per record
+    want = 6.0 * tau_max
+    ts_new = ts0
+    if ts is None and user.samples is None and user.period is None:  # (given in steps: at the FMU's step)
+        k = max(1, int(np.floor(tau_min / (TS_PER_TAU * ts0))))
+        if want / (k * ts0) > MAX_SAMPLES:
+            k_budget = int(np.ceil(want / (ts0 * MAX_SAMPLES)))
+            k = max(k, min(k_budget, int(np.floor(tau_min / ((1 if stiff else 3) * ts0)))))
+        ts_new = k * ts0
+        if k > 1:
+            chosen.append("ts")
+    signal = user.signal or "prbs"
+    if user.signal is None:
+        chosen.append("signal")
+    period = user.period
+    if period is None:
+        period = max(1, int(round(tau_min / ts_new)))
+        chosen.append("period")
+    samples = user.samples
+    if samples is not None and user.period is None:  # at least 50 clock periods in a given record
+        period = max(1, min(period, samples // 50))
+    if samples is None:
+        samples = int(min(MAX_SAMPLES, max(MIN_SAMPLES, np.ceil(want / ts_new), 40 * period)))
+        chosen.append("samples")
+        if samples * ts_new < want:
+            notes.append(f"the record covers {samples * ts_new / tau_max:.2g} slowest time scales (6 wanted) "
+                         f"within the budget of {MAX_SAMPLES} samples")
+    slow_period = None
+    if stiff and signal == "prbs" and user.period is None:
+        slow_period = max(period, int(round(tau_max / (SLOW_CLOCK_TAUS * ts_new))))
+        notes.append(f"a stiff plant (time scales {tau_min:.3g} .. {tau_max:.3g} s, ratio > {STIFF_RATIO:g}): a slow "
+                     f"PRBS (clock {slow_period} steps) added to the fast one, half the amplitude each")
+    return ts_new, signal, period, samples, slow_period, chosen
 
 
 def _seed_amplitudes(excite, by_name, at, given_amp):
@@ -440,15 +491,101 @@ def _each_reference_seen(rough, exc, names, amp, free, limit, sigma, ts, ts0, no
     return out
 
 
-def _predicted_response(rough, exc, names, seed_amp, pre, ts, ts0) -> np.ndarray:
+def _predicted_response(rough, exc, names, seed_amp, pre, ts, ts0, slow_model=None) -> np.ndarray:
     """Std per output of the rough model's response to ``exc`` (seed amplitudes) on the inputs ``names``.
 
     The model runs at the pre-test's ts0; a signal designed at ts = k·ts0 is held k steps and
     the response read every k-th sample. Without a model the pre-test's own response std
-    stands in."""
+    stands in. A two-scale PRBS (``exc.slow_period``): the fast half by this model, the slow
+    half by ``slow_model`` (the slow pre-test's, at its own sample time: the fast pre-test
+    does not see the slow modes), the two independent: r² = r_fast² + r_slow²."""
     if rough is None:
         return (pre.y - pre.y0).std(axis=0)
+    if exc.slow_period is not None:
+        half = {n: 0.5 * seed_amp[n] for n in names}
+        r = _predicted_response(rough, replace(exc, slow_period=None), names, half, pre, ts, ts0)
+        if slow_model is None:
+            return r
+        ts_s = slow_model.dt
+        clock = max(1, int(round(exc.slow_period * ts / ts_s)))
+        slow = replace(exc, period=clock, slow_period=None, samples=max(int(exc.samples * ts / ts_s), 20 * clock))
+        u = excitation_signals(slow, names, [half[n] for n in names])
+        y = slow_model.simulate(u)
+        return np.sqrt(r ** 2 + y[len(y) // 10:].var(axis=0))
     k = max(1, int(round(ts / ts0)))
     u = np.repeat(excitation_signals(exc, names, [seed_amp[n] for n in names]), k, axis=0)
     y = rough.simulate(u)[::k]
     return y[len(y) // 10:].std(axis=0)
+
+
+def _least_misfit_model(pre, pre_exc, dy, ts, max_order):
+    """The slow pre-test's model: among PO-MOESP's stable candidates of every order (one
+    factorisation), the smallest order whose output error (after the first fifth), normalised per
+    output by the response's variance and averaged, is within 2 % of the least. On a coarse
+    step the fast modes are a sample or less and their ringing aliases: the order the singular
+    values' gap gives can pair the slow mode with a spurious one (drive train at ts = 1 s:
+    λ = −0.0070 and +0.0016 s⁻¹), whose simulation error gives it away (Ljung 1999, sec. 16.4).
+    None when no candidate is stable."""
+    from .subspace import moesp
+
+    names = list(pre.excited)
+    dev = excitation_signals(pre_exc, names, [pre.excited[k] for k in names])
+    try:
+        cands = moesp(dev, dy, ts, None, max_order=max_order, feedthrough=False, candidates=True)[1:]
+    except IdentificationError:
+        return None
+    scored = []
+    var = np.maximum(dy[len(dy) // 5:].var(axis=0), np.finfo(float).tiny)
+    for c in cands:
+        if np.any(np.abs(np.linalg.eigvals(c.A)) >= 1.0):
+            continue
+        res = (dy - c.simulate(dev))[len(dy) // 5:]
+        scored.append((float(np.mean(res.var(axis=0) / var)), c.order, c))
+    if not scored:
+        return None
+    best = min(e for e, _, _ in scored)
+    return min(((o, c) for e, o, c in scored if e <= 1.02 * best + 1e-4), key=lambda t: t[0])[1]
+
+
+def _slow_stages(path, sig, y_names, tau_max, sigma_settle, sigma, *, settle, seed_amp, notes, excite, at,
+                 parameters, ts0, seed, limit, given_amp, max_order):
+    """Stage of :func:`plan_experiment`: slow modes the pre-test does not see settle.
+
+    The multisine's lowest line is 1/T_pre (T_pre = ``PRETEST_SAMPLES`` · ts), and a mode slower
+    than a third of T_pre is not seen to settle: its time scale is a guess, and a mode much
+    slower than T_pre (the wind turbine's drive train: 138 s against 10 s) is not seen at all —
+    its response is a drift the pre-test model leaves in its misfit. So while the slowest time
+    scale found exceeds T_pre/3 and the pre-test model leaves a response unexplained (its misfit
+    above ``SLOW_MISFIT`` times the settle phase's noise std on some output: noise coloured
+    beyond the settle window raises it a few times — the lateral aircraft 3.2 —, the drive
+    train's unseen rotor mode 31 times), the pre-test is repeated with a step ``SLOW_STAGE_FACTOR`` times
+    coarser (the same number of samples, that many times longer; at most ``SLOW_STAGES`` times):
+    its model's slowest time scale replaces the estimate. Each stage's model misfit is another
+    upper bound of the noise (:func:`_with_misfit`); the noise std is the smallest of them (and
+    at least ``sigma_settle``, the settle phase's). Returns ``((tau_max, slowest stage's model or None), sigma)``."""
+    model = None
+    ts_k = ts0
+    noisy = sigma_settle > 0
+    if not np.any(noisy) or np.max(sigma[noisy] / sigma_settle[noisy]) <= SLOW_MISFIT:
+        return (tau_max, None), sigma
+    for _ in range(SLOW_STAGES):
+        if tau_max <= PRETEST_SAMPLES * ts_k / 3:
+            break
+        ts_k *= SLOW_STAGE_FACTOR
+        try:
+            pre, pre_exc, _, dy, _, _ = _pretest(path, sig, y_names, excite=excite, at=at, parameters=parameters,
+                                                 ts0=ts_k, settle=max(settle, MIN_SETTLE * ts_k), seed=seed,
+                                                 seed_amp=seed_amp, limit=limit, given_amp=dict(seed_amp),
+                                                 max_order=max_order)
+        except IdentificationError as exc:
+            notes.append(f"slow pre-test at ts = {ts_k:g} s failed ({exc})")
+            break
+        rough = _least_misfit_model(pre, pre_exc, dy, ts_k, max_order)
+        if rough is None:
+            break
+        found = _time_scales(np.linalg.eigvals(rough.A), ts_k)[1]
+        notes.append(f"time scale {tau_max:.3g} s not seen settling in the pre-test: repeated at ts = {ts_k:g} s "
+                     f"({PRETEST_SAMPLES * ts_k:g} s), slowest time scale {found:.3g} s")
+        tau_max, model = found, rough
+        sigma = np.minimum(sigma, _with_misfit(sigma_settle, rough, pre, pre_exc, dy))
+    return (tau_max, model), sigma

@@ -12,7 +12,11 @@ Signals (per excited input, amplitude a, deviation from the operating value):
   ``band``·Nyquist, assigned to the inputs in turn (no two inputs share a line, so they are
   uncorrelated), random phases (seed); scaled to peak a.
 - ``"prbs"``: a maximum-length binary sequence ±a (scipy.signal.max_len_seq) held for
-  ``period`` steps, each input starting at a different seeded offset of the sequence.
+  ``period`` steps, each input starting at a different seeded offset of the sequence. With
+  ``slow_period`` (a stiff plant, :mod:`fmu_fdi.identify.design`) the signal is the sum
+  (a/2)(s_fast + s_slow) of two such sequences, clocks ``period`` and ``slow_period``, peak a:
+  the slow one puts power below the slow modes' corners, where a single fast PRBS, flat
+  over 0 … 0.44/(period·step) Hz, has too little of it.
 
 Checks that make a bad experiment an error rather than a wrong model: excitation beyond an
 input's declared min/max; a recorded output beyond its declared min/max; a Boolean output
@@ -53,6 +57,9 @@ class Excitation:
     period : int, optional
         PRBS clock period in steps.
     seed : int
+    slow_period : int, optional
+        PRBS: clock of a second, slow sequence added at half the amplitude (module docstring);
+        None: a single sequence.
     """
 
     signal: str | None = None
@@ -62,6 +69,7 @@ class Excitation:
     band: float = 0.5
     period: int | None = None
     seed: int = 0
+    slow_period: int | None = None
 
     def check(self):
         if self.signal is not None and self.signal not in SIGNALS:
@@ -72,6 +80,8 @@ class Excitation:
             raise IdentificationError(f"band must be in (0, 1] (fraction of Nyquist), got {self.band!r}")
         if self.period is not None and (int(self.period) != self.period or self.period < 1):
             raise IdentificationError(f"PRBS period must be a positive integer, got {self.period!r}")
+        if self.slow_period is not None and (int(self.slow_period) != self.slow_period or self.slow_period < 1):
+            raise IdentificationError(f"slow PRBS period must be a positive integer, got {self.slow_period!r}")
         if self.settle is not None and not (np.isfinite(self.settle) and self.settle >= 0):
             raise IdentificationError(f"settle must be a non-negative number of seconds, got {self.settle!r}")
 
@@ -102,15 +112,23 @@ def excitation_signals(exc: Excitation, names, amplitudes) -> np.ndarray:
             sig = np.cos(2 * np.pi * np.outer(k, mine) / N + phases).sum(axis=1)
             out[:, j] = sig / np.max(np.abs(sig))
     else:
-        from scipy.signal import max_len_seq
-
-        nbits = max(int(np.ceil(np.log2(N / exc.period + 1))), 3)
-        seq = max_len_seq(nbits)[0].astype(float) * 2 - 1
-        for j in range(m):
-            shift = int(rng.integers(seq.size))
-            held = np.repeat(np.roll(seq, shift), exc.period)
-            out[:, j] = np.resize(held, N)
+        out = _prbs(N, m, exc.period, rng)
+        if exc.slow_period is not None:
+            out = 0.5 * (out + _prbs(N, m, exc.slow_period, rng))
     return out * np.asarray(amplitudes, float)
+
+
+def _prbs(N, m, period, rng) -> np.ndarray:
+    """``N × m`` maximum-length sequences ±1 held ``period`` steps, each at a seeded offset."""
+    from scipy.signal import max_len_seq
+
+    nbits = max(int(np.ceil(np.log2(N / period + 1))), 3)
+    seq = max_len_seq(nbits)[0].astype(float) * 2 - 1
+    out = np.empty((N, m))
+    for j in range(m):
+        shift = int(rng.integers(seq.size))
+        out[:, j] = np.resize(np.repeat(np.roll(seq, shift), period), N)
+    return out
 
 
 @dataclass

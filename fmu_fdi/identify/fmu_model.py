@@ -221,14 +221,9 @@ def _linearised(path, inputs, outputs, disturbances, at, trim, params, prov, log
 def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts, excite, excitation, order,
                 max_order, min_fit, validation_png, record, noise, design, log):
     """Stage of :func:`model_from_fmu`: the co-simulation FMU identified from experiments (PO-MOESP,
-    validated on an independent run, with its noise model ``nm`` and continuous ``Bw`` when one
-    is learned; ``prov`` gets the experiment and the validation figures)."""
-    from dataclasses import replace
-
-    from .noise import innovation_noise, measurement_noise, predictor_innovations
-    from .subspace import moesp, static_model
-    from .validation import noise_floor, residual_tests, settle_noise_std, validate
-
+    refined by output error on a stiff plant, validated on an independent run, with its noise
+    model ``nm`` and continuous ``Bw`` when one is learned; ``prov`` gets the experiment and the
+    validation figures)."""
     if md.coSimulation is None:
         raise IdentificationError(f"{path} has no co-simulation interface to run an experiment on")
     if not inputs or not outputs:
@@ -239,6 +234,41 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
     ident, check, repeat, exc, plan, ts = _experiments(path, md, sig, y_names, at=at, params=params, ts=ts,
                                                        excite=excite, excitation=excitation, max_order=max_order,
                                                        design=design, log=log)
+    sub, rep, joint = _estimated(ident, check, sig, y_names, ts, order, max_order)
+    refined = None
+    if joint is None:
+        sub, rep, refined = _refined(sub, rep, ident, check, y_names, max_order)
+    nm, Bw, floor, tests, why_none = _noise_and_tests(path, sub, rep, ident, check, repeat, joint, noise, max_order,
+                                                      refined is not None)
+    if validation_png is not None:
+        rep.plot(validation_png)
+    verdict = _verdict(y_names, rep, floor, tests, sub.order, exc, plan)
+    if log is not None:
+        log(verdict)
+    _refuse_if_wrong(path, rep, floor, tests, sub, verdict, min_fit, exc, plan, y_names,
+                     own_loop=set(ident.excited) != set(sig))
+    if noise == "auto" and nm is None and log is not None:
+        log(f"no noise model: {why_none}")
+    if record is not None:
+        _write_record(record, ident, sig, y_names)
+    nu = len(u_names)
+    u0, y0 = ident.u0[:nu], ident.y0 + (refined["offset"] if refined is not None else 0.0)
+    A, B, C, D = sub.to_continuous()
+    _identification_provenance(prov, sub, rep, floor, tests, exc, ident, ts, joint, refined)
+    if nm is not None:
+        prov.update(nm.provenance(y_names))
+    if d_names:
+        prov["disturbance_values"] = ident.u0[nu:].tolist()
+    return u_names, d_names, y_names, A, B, C, D, u0, y0, nm, Bw
+
+
+def _estimated(ident, check, sig, y_names, ts, order, max_order):
+    """Stage of :func:`_identified`: the subspace model and its validation report ``(sub, rep, joint)``
+    — joint input-output for a plant in its own loop (``joint`` its joint model, else None), else
+    PO-MOESP with the order given or chosen by cross-validation."""
+    from .subspace import moesp, static_model
+    from .validation import validate
+
     du, dy = ident.u - ident.u0, ident.y - ident.y0      # deviations from the operating point
     du_val, dy_val = check.u - check.u0, check.y - check.y0
     excited = list(ident.excited)
@@ -250,22 +280,74 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
 
         sub, joint = identify_closed_loop(ident.r, du, dy, check.r, du_val, dy_val, ts, own, order,
                                           max_order=max_order)
-        A, B, C, D = sub.to_continuous()
+        A = sub.to_continuous()[0]
         # validated as what it is identified as: the closed loop from the references, simulated
         rep = validate(joint_outputs(joint, own), check.r, dy_val, check.t, np.linalg.eigvals(A), y_names,
                        kind="closed-loop simulation")
     elif order is None:
-        sub, rep, A, B, C, D = _order_by_cross_validation(
+        sub, rep = _order_by_cross_validation(
             moesp(du, dy, ts, None, max_order=max_order, feedthrough=False, candidates=True)
-            + [static_model(du, dy, ts)], du_val, dy_val, check.t, y_names)
+            + [static_model(du, dy, ts)], du_val, dy_val, check.t, y_names)[:2]
     elif order == 0:
         sub = static_model(du, dy, ts)
-        A, B, C, D = sub.to_continuous()
         rep = validate(sub, du_val, dy_val, check.t, np.zeros(0), y_names)
     else:
         sub = moesp(du, dy, ts, order, max_order=max_order, feedthrough=False)
-        A, B, C, D = sub.to_continuous()
-        rep = validate(sub, du_val, dy_val, check.t, np.linalg.eigvals(A), y_names)
+        rep = validate(sub, du_val, dy_val, check.t, np.linalg.eigvals(sub.to_continuous()[0]), y_names)
+    return sub, rep, joint
+
+
+def _refined(sub, rep, ident, check, y_names, max_order):
+    """Stage of :func:`_identified`: on a stiff plant (the identified model's slowest time scale over
+    its fastest above :data:`~fmu_fdi.identify.design.STIFF_RATIO`), the subspace model refined by
+    the output-error criterion over the whole estimation run
+    (:func:`~fmu_fdi.identify.output_error.refine_output_error`: PO-MOESP's window of s samples
+    cannot resolve both ends), each output weighted by its noise in the settle phase. Kept when
+    its simulation error on the validation run (mean over outputs of ||e_j||²/||y_j − ȳ_j||²) is
+    smaller. Returns ``(sub, rep, info or None)``; ``info['offset']`` corrects the operating
+    point's outputs (estimated over the whole run instead of the settle phase)."""
+    from .design import STIFF_RATIO
+    from .output_error import refine_output_error
+    from .validation import settle_noise_std, validate
+
+    if sub.order < 1 or sub.info.get("static") is not None or rep.kind != "simulation":
+        return sub, rep, None
+    lam = np.abs(np.linalg.eigvals(sub.to_continuous()[0]))
+    if lam.min() <= 0 or lam.max() / lam.min() <= STIFF_RATIO:
+        return sub, rep, None
+    du, dy = ident.u - ident.u0, ident.y - ident.y0
+    half = ident.settle_y[len(ident.settle_y) // 2:] if ident.settle_y is not None else np.zeros((0, dy.shape[1]))
+    sigma = settle_noise_std(half, max_order) if len(half) > 1 else np.zeros(dy.shape[1])
+    try:
+        new, info = refine_output_error(sub, du, dy, sigma)
+        A = new.to_continuous()[0]
+    except IdentificationError:
+        return sub, rep, None
+    new_rep = validate(new, check.u - check.u0, check.y - check.y0, check.t, np.linalg.eigvals(A), y_names)
+
+    def error(r):
+        y, yh = r.y, r.y_hat
+        return float(np.mean(np.sum((y - yh) ** 2, axis=0) / np.maximum(np.sum((y - y.mean(0)) ** 2, axis=0),
+                                                                         np.finfo(float).tiny)))
+    if new_rep.kind != "simulation" or not error(new_rep) < error(rep):
+        return sub, rep, None
+    info.update(validation_error_before=error(rep), validation_error_after=error(new_rep))
+    return new, new_rep, info
+
+
+def _noise_and_tests(path, sub, rep, ident, check, repeat, joint, noise, max_order, refined=False):
+    """Stage of :func:`_identified`: the noise floor, the noise model and Ljung's residual tests.
+    A model ``refined`` by output error has a second innovation form, its own (K = 0,
+    :func:`~fmu_fdi.identify.noise.output_error_noise`): the one whose predictor's innovations on the
+    validation run are whiter (Ljung's test, worst output) is kept. Returns ``(nm, Bw, floor, tests,
+    why_none)``."""
+    from dataclasses import replace
+
+    from .noise import innovation_noise, measurement_noise, output_error_noise, predictor_innovations
+    from .validation import noise_floor, residual_tests, settle_noise_std, whiteness
+
+    du, dy = ident.u - ident.u0, ident.y - ident.y0
+    du_val, dy_val = check.u - check.u0, check.y - check.y0
     # the settle phase's noise about a settling transient (a noise-free plant still settling has none)
     half = check.settle_y[len(check.settle_y) // 2:]
     sigma = settle_noise_std(half, max_order) if len(check.settle_y) > 1 else None
@@ -290,17 +372,27 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
                     "identical, and the outputs are constant at the operating point)")
     eps = None
     if inn is not None:
-        eps = predictor_innovations(sub, inn.K, du_val, dy_val, drop=2 * sub.block_rows * max(sub.order, 1))
+        drop = 2 * sub.block_rows * max(sub.order, 1)
+        eps = predictor_innovations(sub, inn.K, du_val, dy_val, drop=drop)
+        if refined:
+            oe = output_error_noise(sub, du, dy, du_val, dy_val)
+            eps_oe = predictor_innovations(sub, oe.K, du_val, dy_val, drop=drop)
+            if np.max(whiteness(eps_oe)) < np.max(whiteness(eps)):
+                inn, eps = oe, eps_oe
+                if nm is not None and nm.kind == "innovation":
+                    nm = oe
     # the output error of a plant in its own loop follows the measured u through the loop: judged against r
     tests = residual_tests(eps, dy_val - rep.y_hat, du_val if joint is None else check.r)
     Bw = None
     if nm is not None:  # Bw: the inverse zero-order hold of the discrete K Lₑ, as for B
         Bw = replace(sub, B=np.hstack([sub.B, nm.Bw])).to_continuous()[1][:, sub.B.shape[1]:]
-    if validation_png is not None:
-        rep.plot(validation_png)
-    verdict = _verdict(y_names, rep, floor, tests, sub.order, exc, plan)
-    if log is not None:
-        log(verdict)
+    return nm, Bw, floor, tests, why_none
+
+
+def _refuse_if_wrong(path, rep, floor, tests, sub, verdict, min_fit, exc, plan, y_names, own_loop):
+    """Stage of :func:`_identified`: a one-line refusal of a model the validation shows wrong (an
+    unstable model whose predictor validation flatters it while its residual tests fail; a fit to
+    the noise-free response below ``min_fit`` on some output), naming the next thing to change."""
     if rep.kind == "one-step predictor" and not tests.independent and np.max(tests.whiteness) > 10:
         raise IdentificationError(
             f"{path}: the identified model (order {sub.order}) is unstable, so it is validated by its one-step "
@@ -308,7 +400,7 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
             f"innovations are far from white (over 10× the bound), so it is wrong: {verdict}; next: "
             + ("a plant in its own loop identified with noise is biased (its inputs follow the noise): excite "
                "more strongly (--amplitude) so the noise matters less, give --order, or switch the noise off "
-               "if the FMU allows" if set(ident.excited) != set(sig) else
+               "if the FMU allows" if own_loop else
                _next_step(floor, tests, exc, plan, int(np.argmin(floor.floor)), y_names)))
     clean = np.nan_to_num(floor.fit_noise_free, nan=-np.inf)
     if np.min(clean) < min_fit:
@@ -317,16 +409,15 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
             f"{path}: the identified model (order {sub.order}) fits the validation run poorly: {verdict} "
             f"(worst {y_names[worst]}, minimum {min_fit:g} % of the noise-free response); next: "
             f"{_next_step(floor, tests, exc, plan, worst, y_names)}")
-    if noise == "auto" and nm is None and log is not None:
-        log(f"no noise model: {why_none}")
-    if record is not None:
-        _write_record(record, ident, sig, y_names)
-    nu = len(u_names)
-    u0, y0 = ident.u0[:nu], ident.y0
+
+
+def _identification_provenance(prov, sub, rep, floor, tests, exc, ident, ts, joint, refined) -> None:
+    """Stage of :func:`_identified`: the method, experiment and validation figures into ``prov``."""
     prov.update({"method": "subspace identification (PO-MOESP)", "order": sub.order, "sample_time": ts,
                  "block_rows": sub.block_rows, "samples": int(exc.samples),
                  "singular_values": sub.singular_values.tolist(),
                  "excitation": f"{exc.signal}" + (f" clock {exc.period}" if exc.signal == "prbs" else "")
+                               + (f", slow clock {exc.slow_period}" if exc.slow_period is not None else "")
                                + f", seed {exc.seed}, settle {exc.settle if exc.settle is not None else 200 * ts:g} s, amplitudes "
                                + ", ".join(f"{k}={v:g}" for k, v in ident.excited.items()),
                  "fit_percent": rep.fit.tolist(), "fit_kind": rep.kind,
@@ -337,14 +428,15 @@ def _identified(path, md, inputs, outputs, disturbances, *, at, params, prov, ts
                  "poles": [f"{p.real:.6g}{p.imag:+.6g}j" for p in rep.poles_continuous]})
     if sub.info.get("static") is not None:
         prov["method"] = "static gain (least squares; order 0: no state)"
+    if refined is not None:
+        prov["method"] = ("subspace identification (PO-MOESP) refined by output-error prediction-error "
+                          "minimisation (stiff plant)")
+        prov.update({f"refinement_{k}": (np.asarray(v, float).tolist() if isinstance(v, np.ndarray) else
+                                         float(v) if isinstance(v, (int, float)) else str(v))
+                     for k, v in refined.items()})
     if joint is not None:
         prov.update({"method": "closed-loop subspace identification (joint input-output PO-MOESP, references "
                                "as instruments)", "joint_order": joint.order, "delays": sub.info["delays"]})
-    if nm is not None:
-        prov.update(nm.provenance(y_names))
-    if d_names:
-        prov["disturbance_values"] = ident.u0[nu:].tolist()
-    return u_names, d_names, y_names, A, B, C, D, u0, y0, nm, Bw
 
 
 def _experiments(path, md, sig, y_names, *, at, params, ts, excite, excitation, max_order, design, log):

@@ -126,6 +126,8 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
         s, block rows of the past used for the state estimates (default
         ``max(model.block_rows, 2 n + 2, 10)``).
     """
+    import scipy.linalg as sla
+
     from ..design.toolkit._basis import _block_toeplitz
     from ..design.observers._observer import filter_riccati
     from ..design.problems.datadriven import block_hankel
@@ -153,8 +155,16 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
     sy = np.sqrt(np.mean(y * y, axis=0)) + np.finfo(float).tiny
     Zp = np.vstack([block_hankel(u / su, 0, s, j), block_hankel(y / sy, 0, s, j)])  # row scaling: same projection
     G = block_hankel(y, s, s, j) - H @ block_hankel(u, s, s, j)
-    theta = np.linalg.lstsq(Zp.T, G.T, rcond=None)[0]
-    X = np.linalg.lstsq(O, (Zp.T @ theta).T, rcond=None)[0]          # n × j: x̂ at times s … s + j − 1
+    # Π_{Z_p} Gᵀ = Q Qᵀ Gᵀ, Q an orthonormal basis of Z_pᵀ's column space: the projection without the
+    # least-squares coefficients (an SVD of j × s(m+p) is 5× dearer). Householder QR; when a |R_ii| falls
+    # below 1e-12 of the largest (Z_p rank-deficient), the column-pivoted QR, truncated there
+    Qz, Rz = sla.qr(Zp.T, mode="economic")
+    d = np.abs(np.diag(Rz))
+    if d.size and not np.all(d > 1e-12 * d.max()):
+        Qz, Rz, _ = sla.qr(Zp.T, mode="economic", pivoting=True)
+        d = np.abs(np.diag(Rz))
+        Qz = Qz[:, : int(np.count_nonzero(d > 1e-12 * d[0]))] if d[0] > 0 else Qz[:, :0]
+    X = np.linalg.lstsq(O, (Qz @ (Qz.T @ G.T)).T, rcond=None)[0]     # n × j: x̂ at times s … s + j − 1
     uk, yk = u[s:s + j].T, y[s:s + j].T
     rho_w = X[:, 1:] - A @ X[:, :-1] - B @ uk[:, :-1]
     rho_v = yk[:, :-1] - C @ X[:, :-1] - D @ uk[:, :-1]
@@ -175,16 +185,43 @@ def innovation_noise(model, u, y, u_val=None, y_val=None, horizon: int | None = 
     return NoiseModel("innovation", K @ Le, Le, Re, K, "estimation", rho.shape[1], val)
 
 
+def output_error_noise(model, u, y, u_val=None, y_val=None) -> NoiseModel:
+    """The innovation form of an output-error model (:mod:`fmu_fdi.identify.output_error`): K = 0,
+    ``Re`` the covariance of its output error ``y − ŷ`` (mean removed: the fitted offsets) on the
+    estimation run. For a plant whose noise is white sensor noise, with no process noise, the
+    steady-state Kalman gain is zero and this is its exact innovation form (Ljung 1999, sec. 4.2,
+    the output-error structure: H(q) = I); the subspace estimate of K then holds only the
+    finite-horizon state estimates' errors (:func:`innovation_noise`)."""
+    u = np.asarray(u, float).reshape(len(u), -1)
+    y = np.asarray(y, float).reshape(len(y), -1)
+    e = y - model.simulate(u)
+    e -= e.mean(axis=0)
+    cov = e.T @ e / len(e)
+    Le = _chol(cov, "the output error y − ŷ on the estimation run", y)
+    n, p = model.A.shape[0], cov.shape[0]
+    val = None
+    if u_val is not None:
+        ev = predictor_innovations(model, np.zeros((n, p)), u_val, y_val, drop=len(u_val) // 10)
+        val = np.cov(ev, rowvar=False).reshape(p, p)
+    return NoiseModel("innovation", np.zeros((n, p)), Le, cov, np.zeros((n, p)), "estimation (output error)",
+                      len(e), val)
+
+
 def predictor_innovations(model, K, u, y, drop: int = 0) -> np.ndarray:
     """``e[k] = y[k] − C x̂[k] − D u[k]``, ``x̂[k+1] = A x̂ + B u + K e`` from x̂[0] = 0, first ``drop`` left out."""
     A, B, C, D = model.A, model.B, model.C, model.D
     u = np.asarray(u, float).reshape(len(u), -1)
     y = np.asarray(y, float).reshape(len(y), -1)
+    # x̂⁺ = (A − K C) x̂ + (B − K D) u + K y: the data's push per step formed once for the whole record
     x = np.zeros(A.shape[0])
-    e = np.empty_like(y)
+    F = A - K @ C
+    drive = u @ (B - K @ D).T + y @ K.T
+    X = np.empty((len(u), A.shape[0]))
+    step = F.dot
     for k in range(len(u)):
-        e[k] = y[k] - C @ x - D @ u[k]
-        x = A @ x + B @ u[k] + K @ e[k]
+        X[k] = x
+        x = step(x) + drive[k]
+    e = y - X @ C.T - u @ D.T
     return e[min(drop, len(e) // 2):]
 
 

@@ -16,8 +16,10 @@ plant (one that does not close its own loop) describes a plant that never settle
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import multiprocessing
+import os
 import signal
 import sys
 import time
@@ -39,7 +41,8 @@ def run_model_child(args: argparse.Namespace, timeout: float = DEFAULT_TIMEOUT) 
     receive, send = ctx.Pipe(duplex=False)
     request = json.dumps({k: v for k, v in vars(args).items() if k != "func"})
     proc = ctx.Process(target=_child_main, args=(request, send), daemon=True, name="fmu-fdi-model-plant")
-    proc.start()
+    with _one_blas_thread():
+        proc.start()
     send.close()  # the child holds the only write end: its death is an end of file here
     deadline = time.monotonic() + timeout
     try:
@@ -64,6 +67,28 @@ def run_model_child(args: argparse.Namespace, timeout: float = DEFAULT_TIMEOUT) 
     if "error" in reply:
         raise ModelError(reply["error"])
     return reply["model"]
+
+
+#: the thread-count variables of the BLAS libraries numpy and scipy load (OpenBLAS, OpenMP, MKL)
+_BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def _one_blas_thread():
+    """The spawned child's BLAS on one thread, unless the user set a thread count. Identification's
+    linear algebra is tall and narrow (records of ≤ 20 000 samples × ≤ a few hundred Hankel rows),
+    where threads gain little, and on a shared machine a threaded BLAS spins against the other
+    processes: a 1000 × 154 QR took 1.8 s with OpenBLAS's threads at load 7 on 2 cores, 0.011 s on
+    one (the drive train's ``fmu-fdi model``: 40 s → see benchmarks/identify_plants.py). The library
+    reads the variable when it loads, so it is set around the child's start only."""
+    if any(k in os.environ for k in _BLAS_THREADS):
+        yield
+        return
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    try:
+        yield
+    finally:
+        os.environ.pop("OPENBLAS_NUM_THREADS", None)
 
 
 def _ended(plant, proc) -> str:

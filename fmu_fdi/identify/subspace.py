@@ -85,11 +85,13 @@ class SubspaceModel:
         """Outputs for inputs u (N×m) from x0 (default 0)."""
         u = np.asarray(u, float).reshape(len(u), -1)
         x = np.zeros(self.A.shape[0]) if x0 is None else np.asarray(x0, float)
-        y = np.empty((len(u), self.C.shape[0]))
+        drive = u @ self.B.T                    # the input's push per step, once for the whole record
+        X = np.empty((len(u), self.A.shape[0]))
+        step = self.A.dot
         for k in range(len(u)):
-            y[k] = self.C @ x + self.D @ u[k]
-            x = self.A @ x + self.B @ u[k]
-        return y
+            X[k] = x
+            x = step(x) + drive[k]
+        return X @ self.C.T + u @ self.D.T
 
 
 def moesp(u, y, dt: float, order: int | None = None, *, block_rows: int | None = None, max_order: int = 10,
