@@ -35,6 +35,7 @@ import numpy as np
 from scipy import stats
 from scipy.signal import lfilter
 
+from fmu_fdi.evaluation import datadriven
 from fmu_fdi.evaluation.datadriven import ShortLogError, data_driven_threshold
 from fmu_fdi.evaluation.gaussfit import gaussian_threshold
 from fmu_fdi.evaluation.quadform import imhof_quantile
@@ -115,7 +116,8 @@ def estimate(method, r, J, spec, rate):
     N = spec.get("window", 1)
     if method == "gaussian":
         return gaussian_threshold(r, spec, rate, CONFIDENCE, skip=N).value
-    return data_driven_threshold(J, rate, CONFIDENCE, method=method).value
+    kw = {"tail_power": datadriven.tail_power_for(spec["kind"])} if hasattr(datadriven, "tail_power_for") else {}
+    return data_driven_threshold(J, rate, CONFIDENCE, method=method, **kw).value  # as log_threshold calls it
 
 
 def main(argv=None):

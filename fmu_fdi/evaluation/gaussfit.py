@@ -260,8 +260,9 @@ def log_threshold(evaluations, residuals, evaluation: dict, rate: float, confide
     distribution-free, else a GPD tail fit); when it does not, the Gaussian fit of
     :func:`gaussian_threshold` on the residuals, its ``details["short_log"]`` saying why; when
     neither can be made, a :class:`ShortLogError` with both reasons and the longer log needed."""
+    power = datadriven.tail_power_for(evaluation.get("kind") if isinstance(evaluation, dict) else None)
     try:
-        return data_driven_threshold(evaluations, rate, confidence, skip=skip)
+        return data_driven_threshold(evaluations, rate, confidence, skip=skip, tail_power=power)
     except ShortLogError as short:
         try:
             est = gaussian_threshold(residuals, evaluation, rate, confidence, skip=skip)
