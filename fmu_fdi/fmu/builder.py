@@ -29,7 +29,7 @@ import re
 from pathlib import Path
 
 from ..designfile import DesignFileError, load_design, validate_design
-from ..designinfo import variable_descriptions, variable_types, variable_units
+from ..designinfo import variable_descriptions, variable_type_attributes, variable_types, variable_units
 from ..runtime.engine import output_names
 from .packaging import build_slave_fmu, checked_destination, unique_bundle_name
 from .slave_template import TEMPLATE
@@ -126,7 +126,8 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     return build_slave_fmu(
         modules, f"diagnoser_slave:{ident}", fmu_path, bundle_name=f"{ident}_fmu",
         data_files={"design.json": design_bytes},
-        units=units, declared_types=variable_types(view), descriptions=descriptions,
+        units=units, declared_types=variable_types(view), type_attributes=variable_type_attributes(view),
+        descriptions=descriptions,
         output_dependencies={n: [] for n in names},
         capabilities={"canGetAndSetFMUstate": True, "canSerializeFMUstate": True,
                       "canHandleVariableCommunicationStepSize": True},
