@@ -125,7 +125,7 @@ def main(argv=None):
     ap.add_argument("--logs", type=int, default=40, help="independent logs per cell")
     ap.add_argument("--quick", action="store_true", help="AR(1) models, rms:20, rate 1e-3")
     ap.add_argument("--methods", default="empirical,gpd,gaussian")
-    ap.add_argument("--lengths", default="3000,12000,60000")
+    ap.add_argument("--lengths", default="3000,12000")
     ap.add_argument("--rates", default="1e-3,1e-4")
     ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--evals", default="rms,norm,peak", help="norm and peak run on ar1-0.9 only")
