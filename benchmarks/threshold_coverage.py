@@ -128,7 +128,7 @@ def main(argv=None):
     ap.add_argument("--lengths", default="3000,12000")
     ap.add_argument("--rates", default="1e-3,1e-4")
     ap.add_argument("--models", default=",".join(MODELS))
-    ap.add_argument("--evals", default="rms,norm,peak", help="norm and peak run on ar1-0.9 only")
+    ap.add_argument("--evals", default="rms,norm,peak", help="norm and peak run on white and ar1-0.9 only")
     args = ap.parse_args(argv)
     methods = args.methods.split(",")
     lengths = [int(x) for x in args.lengths.split(",")]
@@ -137,7 +137,7 @@ def main(argv=None):
     evals = args.evals.split(",")
     if args.quick:
         models, evals, rates = ["ar1-0.9", "ar1-0.99"], ["rms"], [1e-3]
-    cells = [(m, e) for m in models for e in evals if e == "rms" or m == "ar1-0.9"]
+    cells = [(m, e) for m in models for e in evals if e == "rms" or m in ("white", "ar1-0.9")]
     print(f"coverage of data: thresholds at confidence {CONFIDENCE}: {args.logs} logs per cell, seeded\n")
     print(f"{'model':9} {'eval':6} {'rate':>6} {'T':>6} {'method':9} {'cover':>7} {'CP 95 %':>13} {'refused':>7} "
           f"{'med thr/q':>9} {'s/fit':>6}")
