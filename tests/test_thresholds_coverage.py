@@ -42,7 +42,8 @@ def truth():
 
 
 def _least_count(n, confidence=0.95, level=1e-3):
-    """Smallest k with P(Bin(n, confidence) ≤ k − 1) < level... i.e. the 0.1 % quantile of the count."""
+    """The ``level`` quantile of the covering count Bin(n, confidence): fewer covering logs than this occur
+    with probability below ``level`` for a method at nominal."""
     return int(stats.binom.ppf(level, n, confidence))
 
 
