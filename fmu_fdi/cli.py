@@ -377,7 +377,8 @@ def _log_threshold(out, gen, evaluation, i, rate):
     est = log_threshold(out[f"evaluation_{i + 1}"], r, evaluation, rate)
     if est.method == "gaussian":
         note = (f"group {i + 1}: threshold {est.value:.4g} from a Gaussian fit of the residuals (rate {rate:g}, "
-                f"level bound at confidence {est.confidence:g} from {est.n_effective} effective residual samples), "
+                f"bound at confidence {est.confidence:g} on the autocovariance estimated from {est.n_effective} "
+                f"effective residual samples), "
                 f"not from the evaluation's tail: {est.details['short_log']}")
         print(f"note: {note}")
         gen.info.setdefault("threshold_fits", []).append(note)

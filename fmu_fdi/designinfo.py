@@ -118,13 +118,30 @@ def variable_types(design: dict) -> dict[str, str]:
     return {k: v for k, v in types.items() if k in signals and isinstance(v, str) and v}
 
 
-def type_definitions(types: dict, units: dict) -> dict[str, str | None]:
-    """``declaredType`` name -> its unit: the one unit every variable of that type has, else
-    None (the units then stay on the variables alone, which FMI lets override the type's)."""
+def variable_type_attributes(design: dict) -> dict[str, dict[str, str]]:
+    """``declaredType`` name -> the attributes of its type definition (``quantity``, ``unit``,
+    ``displayUnit``) from the model the design carries (the model file's ``[type_definitions]``)."""
+    view = design["members"][0] if "members" in design else design
+    defs = (view.get("model") or {}).get("type_definitions") or {}
+    return {k: dict(v) for k, v in defs.items() if isinstance(v, dict)}
+
+
+def type_definitions(types: dict, units: dict, attributes: dict | None = None) -> dict[str, dict[str, str]]:
+    """``declaredType`` name -> the attributes written on its type definition: ``unit``, the one unit
+    every variable of that type has (none when they differ: the units then stay on the variables
+    alone, which FMI lets override the type's), and ``quantity`` from ``attributes`` (the plant
+    FMU's type definition, :func:`variable_type_attributes`). The type's ``displayUnit`` is not
+    written: FMI resolves it through a ``<DisplayUnit>`` conversion the model file does not hold."""
     out: dict = {}
     for name, typ in types.items():
         out.setdefault(typ, set()).add(units.get(name))
-    return {typ: next(iter(us)) if len(us) == 1 else None for typ, us in sorted(out.items())}
+    attributes = attributes or {}
+    defs = {}
+    for typ, us in sorted(out.items()):
+        quantity = (attributes.get(typ) or {}).get("quantity")
+        unit = next(iter(us)) if len(us) == 1 else None
+        defs[typ] = {k: v for k, v in (("quantity", quantity), ("unit", unit)) if v}
+    return defs
 
 
 def variable_descriptions(design: dict) -> dict[str, str]:

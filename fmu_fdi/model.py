@@ -34,7 +34,9 @@ FORMAT = "fmu-fdi-model/1"
 FORMAT_SIDECAR = "fmu-fdi-model/2"
 GROUPS = ("u", "d", "w", "f")
 _TOP_KEYS = {"format", "name", "dt", "signals", "units", "matrices", "faults", "description", "operating_point",
-             "provenance", "minimal", "minreal_tol", "arrays", "declared_types"}
+             "provenance", "minimal", "minreal_tol", "arrays", "declared_types", "type_definitions"}
+#: the attributes of a declared type (an FMI type definition) a model file carries
+TYPE_ATTRIBUTES = ("quantity", "unit", "displayUnit")
 _MATRIX_KEYS = {"A", "Bu", "C", "Du", "Bd", "Dd", "Bw", "Dw"}
 
 
@@ -53,7 +55,7 @@ class FDIModel:
                  units: dict | None = None, name: str = "plant", description: str = "",
                  operating_point: dict | None = None, provenance: dict | None = None,
                  minimal: bool | None = None, minreal_tol: float | None = None,
-                 declared_types: dict | None = None):
+                 declared_types: dict | None = None, type_definitions: dict | None = None):
         tol = minreal_option(minimal, minreal_tol)
         # a static plant (n = 0) has an empty A; its outputs are the rows of C (p x 0) or of the
         # feedthroughs, its inputs the columns of Du
@@ -115,6 +117,9 @@ class FDIModel:
         self.units = _per_signal(units, seen, "units", "unit")
         #: the FMI declaredType (type definition) of each signal that has one, e.g. ``"Modelica.Units.SI.Angle"``
         self.declared_types = _per_signal(declared_types, seen, "declared_types", "declared type")
+        #: per declared type, the attributes of its FMI type definition (``quantity``, ``unit``,
+        #: ``displayUnit``), e.g. ``{"Modelica.Units.SI.Force": {"quantity": "Force", "unit": "N"}}``
+        self.type_definitions = _type_definitions(type_definitions)
 
         op = dict(operating_point or {})
         bad = set(op) - {"u", "y"}
@@ -366,7 +371,8 @@ class FDIModel:
                   Dw=self.Dw, faults=self.faults, dt=self.dt, u_names=self.u_names, y_names=self.y_names,
                   d_names=self.d_names, w_names=self.w_names, units=self.units, name=self.name,
                   description=self.description, operating_point={"u": self.u0, "y": self.y0},
-                  provenance=self.provenance, declared_types=self.declared_types)
+                  provenance=self.provenance, declared_types=self.declared_types,
+                  type_definitions=self.type_definitions)
         kw.update(changes)
         return FDIModel(**kw)
 
@@ -459,6 +465,9 @@ class FDIModel:
             d["units"] = dict(self.units)
         if self.declared_types:
             d["declared_types"] = dict(self.declared_types)
+        used = {k: dict(v) for k, v in self.type_definitions.items() if k in set(self.declared_types.values())}
+        if used:
+            d["type_definitions"] = used
         if np.any(self.u0) or np.any(self.y0):
             d["operating_point"] = {"u": self.u0.tolist(), "y": self.y0.tolist()}
         if self.provenance:
@@ -503,6 +512,7 @@ class FDIModel:
                 faults=d.get("faults", []), dt=d.get("dt", 0.0),
                 u_names=u, y_names=sig["y"], d_names=sig.get("d", []), w_names=sig.get("w", []),
                 units=d.get("units"), declared_types=d.get("declared_types"), name=d.get("name", "plant"),
+                type_definitions=d.get("type_definitions"),
                 description=d.get("description", ""),
                 operating_point=d.get("operating_point"), provenance=d.get("provenance"),
                 minimal=minimal, minreal_tol=minreal_tol,
@@ -613,7 +623,7 @@ def series(model: FDIModel, pre, *, name: str | None = None, minimal: bool | Non
     return FDIModel(A, Bu, C, Du, Bd=z(model.Bd), Dd=model.Dd, Bw=z(model.Bw), Dw=model.Dw,
                     faults=_carried_faults(model, z(model.Bf), model.Df), dt=model.dt, u_names=model.u_names,
                     y_names=model.y_names, d_names=model.d_names, w_names=model.w_names, units=model.units,
-                    declared_types=model.declared_types,
+                    declared_types=model.declared_types, type_definitions=model.type_definitions,
                     name=name or f"{model.name}_series", description=f"{model.name} with a {nP}-state pre-system "
                     f"in series", minimal=minimal, minreal_tol=minreal_tol)
 
@@ -654,6 +664,7 @@ def feedback(model: FDIModel, K, *, name: str | None = None, r_names: Sequence[s
                            | set(model.w_names)},
                     declared_types={k: v for k, v in model.declared_types.items()
                                     if k in set(model.y_names) | set(model.d_names) | set(model.w_names)},
+                    type_definitions=model.type_definitions,
                     name=name or f"{model.name}_loop", description=f"{model.name} in closed loop with a "
                     f"{nk}-state controller (u = r - K y)", minimal=minimal, minreal_tol=minreal_tol)
 
@@ -695,6 +706,23 @@ def _per_signal(table, seen: dict, what: str, one: str) -> dict:
     return out
 
 
+def _type_definitions(table) -> dict:
+    """Declared type name → its attributes (a subset of ``TYPE_ATTRIBUTES``, strings)."""
+    out = {}
+    for name, attrs in dict(table or {}).items():
+        if not isinstance(attrs, dict):
+            raise ModelError(f"type definition '{name}' must be a table of {', '.join(TYPE_ATTRIBUTES)}, got {attrs!r}")
+        bad = set(attrs) - set(TYPE_ATTRIBUTES)
+        if bad:
+            raise ModelError(f"type definition '{name}': unknown attributes {sorted(map(str, bad))}; use "
+                             f"{', '.join(TYPE_ATTRIBUTES)}")
+        for key, value in attrs.items():
+            if not isinstance(value, str):
+                raise ModelError(f"type definition '{name}': {key} must be a string, got {value!r}")
+        out[str(name)] = {k: attrs[k] for k in TYPE_ATTRIBUTES if attrs.get(k)}
+    return out
+
+
 def _toml_value(v) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
@@ -723,7 +751,8 @@ def _toml_dumps(d: dict) -> str:
     for key, val in d.items():
         if not isinstance(val, (dict, list)):
             lines.append(f"{key} = {_toml_value(val)}")
-    for key in ("arrays", "signals", "units", "declared_types", "operating_point", "provenance", "matrices"):
+    for key in ("arrays", "signals", "units", "declared_types", "type_definitions", "operating_point", "provenance",
+                "matrices"):
         if key in d:
             lines.append(f"\n[{key}]")
             lines.extend(f"{_toml_key(k)} = {_toml_value(v)}" for k, v in d[key].items())
@@ -866,6 +895,10 @@ def _check_model_dict(d, source: str) -> None:
         if table in d:
             for key, unit in S.table(d[table], f"{source}: {table}", ModelError).items():
                 S.text(unit, f"{source}: {table}.{key}", ModelError, empty=True)
+    if "type_definitions" in d:
+        for key, attrs in S.table(d["type_definitions"], f"{source}: type_definitions", ModelError).items():
+            for att, value in S.table(attrs, f"{source}: type_definitions.{key}", ModelError).items():
+                S.text(value, f"{source}: type_definitions.{key}.{att}", ModelError, empty=True)
     if "operating_point" in d:
         op = S.table(d["operating_point"], f"{source}: operating_point", ModelError)
         for key in ("u", "y"):

@@ -30,7 +30,7 @@ from pathlib import Path
 
 from .._schema import parse, read_text
 from ..designfile import DesignFileError, checked_design, design_resources, validate_design
-from ..designinfo import variable_descriptions, variable_types, variable_units
+from ..designinfo import variable_descriptions, variable_type_attributes, variable_types, variable_units
 from ..outpath import _clean
 from ..runtime.engine import output_names
 from ..runtime.schedule import is_scheduled
@@ -141,7 +141,8 @@ def build_fmu(diagnoser_or_path, fmu_path, target: str = "pythonfmu", fmi_versio
     return build_slave_fmu(
         modules, f"diagnoser_slave:{ident}", fmu_path, bundle_name=f"{ident}_fmu",
         data_files=resources,
-        units=units, declared_types=variable_types(view), descriptions=descriptions,
+        units=units, declared_types=variable_types(view), type_attributes=variable_type_attributes(view),
+        descriptions=descriptions,
         output_dependencies={n: [] for n in names},
         capabilities={"canGetAndSetFMUstate": True, "canSerializeFMUstate": True,
                       "canHandleVariableCommunicationStepSize": True},

@@ -79,6 +79,7 @@ def patch_model_description(
     *,
     units: Mapping[str, str] | None = None,
     declared_types: Mapping[str, str] | None = None,
+    type_attributes: Mapping[str, Mapping[str, str]] | None = None,
     descriptions: Mapping[str, str] | None = None,
     output_dependencies: Mapping[str, Sequence[str]] | None = None,
     initial_dependencies: Mapping[str, Sequence[str]] | None = None,
@@ -100,6 +101,8 @@ def patch_model_description(
         Variable name → ``declaredType`` (Real variables only). Each distinct type becomes a
         ``<SimpleType name=...><Real unit=.../>`` in ``TypeDefinitions``, with the unit its
         variables share (:func:`fmu_fdi.designinfo.type_definitions`).
+    type_attributes : mapping, optional
+        ``declaredType`` → its type definition's attributes (``quantity`` is written).
     descriptions : mapping, optional
         Variable name → description; replaces any description pythonfmu wrote.
     output_dependencies : mapping, optional
@@ -162,7 +165,7 @@ def patch_model_description(
             v.value.set("declaredType", declared_types[v.name])
 
     _set_unit_definitions(root, sorted(set(units.values())))
-    _set_type_definitions(root, declared_types, units)
+    _set_type_definitions(root, declared_types, units, type_attributes)
     _set_model_structure(root, variables, by_name, output_dependencies, initial_dependencies, check_names)
     _set_capabilities(root, capabilities or {})
     if default_experiment is not None:
@@ -213,7 +216,7 @@ def _set_unit_definitions(root, unit_names):
         ET.SubElement(ud, "Unit", name=name)
 
 
-def _set_type_definitions(root, declared_types, units):
+def _set_type_definitions(root, declared_types, units, attributes=None):
     from ..designinfo import type_definitions
 
     if not declared_types:
@@ -222,10 +225,8 @@ def _set_type_definitions(root, declared_types, units):
     if old is not None:
         root.remove(old)
     td = ET.SubElement(root, "TypeDefinitions")
-    for name, unit in type_definitions(declared_types, units).items():
-        real = ET.SubElement(ET.SubElement(td, "SimpleType", name=name), "Real")
-        if unit:
-            real.set("unit", unit)
+    for name, attrs in type_definitions(declared_types, units, attributes).items():
+        ET.SubElement(ET.SubElement(td, "SimpleType", name=name), "Real", attrs)
 
 
 def _set_model_structure(root, variables, by_name, output_dependencies, initial_dependencies, check_names):

@@ -145,8 +145,10 @@ def model_from_fmu(path, inputs=None, outputs=None, disturbances=(), *, at=None,
     nu = len(u_names)
     faults = _fault_list(sensor_faults, y_names, "sensor") + _fault_list(actuator_faults, u_names, "actuator")
     units, types = _signal_types(md, u_names + y_names + d_names)
+    type_defs = _type_attributes(md, set(types.values()))
     return FDIModel(A, B[:, :nu], C, D[:, :nu], Bd=B[:, nu:], Dd=D[:, nu:], faults=faults,
                     u_names=u_names, y_names=y_names, d_names=d_names, units=units, declared_types=types,
+                    type_definitions=type_defs,
                     name=_model_name(name or md.modelName), operating_point={"u": u0, "y": y0},
                     description=f"{prov['method']} of {path.name} at its operating point",
                     provenance=prov, **noise_kw)
@@ -194,6 +196,18 @@ def _signal_types(md, names) -> tuple[dict, dict]:
         if declared is not None and getattr(declared, "name", None):
             types[nm] = str(declared.name)
     return units, types
+
+
+def _type_attributes(md, names: set) -> dict:
+    """The ``quantity``, ``unit`` and ``displayUnit`` of each named type definition of the model
+    description (the model file's ``[type_definitions]``)."""
+    from ..model import TYPE_ATTRIBUTES
+
+    out = {}
+    for t in getattr(md, "typeDefinitions", None) or []:
+        if getattr(t, "name", None) in names:
+            out[str(t.name)] = {k: str(getattr(t, k)) for k in TYPE_ATTRIBUTES if getattr(t, k, None)}
+    return out
 
 
 def _linearised(path, inputs, outputs, disturbances, at, trim, params, prov, log):

@@ -204,7 +204,7 @@ def model_description(design: dict, identifier: str, token: str, fmi_version: in
         ud = ET.SubElement(root, "UnitDefinitions")
         for u in units:
             ET.SubElement(ud, "Unit", name=u)
-    _type_definitions(root, vs, fmi3)
+    _type_definitions(root, vs, fmi3, design)
     cats = ET.SubElement(root, "LogCategories")
     for name, text in LOG_CATEGORIES.items():
         ET.SubElement(cats, "Category", name=name, description=text)
@@ -253,20 +253,19 @@ def model_description(design: dict, identifier: str, token: str, fmi_version: in
     return buf.getvalue()
 
 
-def _type_definitions(root, vs, fmi3: bool) -> None:
+def _type_definitions(root, vs, fmi3: bool, design: dict) -> None:
     """``<TypeDefinitions>``: one Real type per ``declaredType`` of the plant signals (FMI 2.0
     ``<SimpleType><Real/>``, FMI 3.0 ``<Float64Type>``), with the unit its variables share."""
-    from ..designinfo import type_definitions
+    from ..designinfo import type_definitions, variable_type_attributes
 
     types = {v["name"]: v["declared_type"] for v in vs if v.get("declared_type")}
     if not types:
         return
     td = ET.SubElement(root, "TypeDefinitions")
-    for name, unit in type_definitions(types, {v["name"]: v["unit"] for v in vs}).items():
-        el = ET.SubElement(td, "Float64Type", name=name) if fmi3 else ET.SubElement(
-            ET.SubElement(td, "SimpleType", name=name), "Real")
-        if unit:
-            el.set("unit", unit)
+    attributes = variable_type_attributes(design)
+    for name, attrs in type_definitions(types, {v["name"]: v["unit"] for v in vs}, attributes).items():
+        ET.SubElement(td, "Float64Type", name=name, **attrs) if fmi3 else ET.SubElement(
+            ET.SubElement(td, "SimpleType", name=name), "Real", attrs)
 
 
 def build_description(identifier: str, sources: list[str]) -> bytes:
