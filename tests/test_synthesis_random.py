@@ -575,6 +575,29 @@ def test_seed21_row_is_least_order():
     assert judge(gen, model, [[1] * len(model.faults)], model.fault_names) == []
 
 
+def test_seed22_row_keeps_its_fault_pair_cancelled():
+    """Seed 22's row [0 1 1 1 1] (continuous, noise w, fault fc alone excites an undamped pair at ±2j): the
+    stable factorisation gives Q the zero ``Q(±2j) c = 0`` that keeps the pair out of ``R_fc``; the numerator
+    refinement of the u/d leak that follows must keep it (it constrained only the boundary modes u or d
+    excite, and its correction of the balanced realisation left the pair in R: the row was refused).
+    Judged independently: PBH poles of the series realisation of ``R = Q·Ge`` (:func:`judge`), and
+    ``R_f`` bounded beside the pair — a kept pole reads ``|residue|/δ``, 100× larger at δ = 1e-6 than
+    at 1e-4, a cancelled one the same value (a factor 1.5 allows the slope of a smooth R)."""
+    model = random_case(22)
+    row = [[0, 1, 1, 1, 1]]
+    assert model.fault_names == ["fs1", "fs2", "fa1", "fa2", "fc"]
+    ev = np.linalg.eigvals(model.A)
+    assert np.any(np.abs(ev - 2j) < 1e-9)
+    gen = structured_bank(model, row)
+    assert judge(gen, model, row, model.fault_names) == []
+    A, B, Ce, De = _extended(model)
+    fsl = slice(model.nu + model.nd + model.nw, None)
+    Q = gen.Q
+    r = [np.linalg.norm(_freqresp(Q.A, Q.B, Q.C, Q.D, np.array([x]))[0]
+                        @ _freqresp(A, B, Ce, De, np.array([x]))[0][:, fsl], 2) for x in 2j * (1 + np.array([1e-4, 1e-6]))]
+    assert r[1] <= 1.5 * r[0], r
+
+
 @pytest.mark.parametrize("seed, what", [
     (21, "discrete plant with eigenvalues within 5e-3 of z = 1 and a fault-only mode at z = 1: the stable "
          "factorisation of the internal form must move that mode alone"),

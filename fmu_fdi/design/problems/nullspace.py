@@ -799,7 +799,7 @@ def _refined(model, Q: LTI, lam, Gv) -> LTI:
     leak = np.max(np.linalg.norm(R[:, :, ud], 2, axis=(1, 2)), initial=0.0)
     if leak <= 1e-9 * weakest or leak > REFINE_MAX_LEAK * weakest:
         return Q
-    return refine_decoupling(Q, lam[ok], Gv[ok][:, :, ud], boundary_residues(model))[0]
+    return refine_decoupling(Q, lam[ok], Gv[ok][:, :, ud], boundary_residues(model, every_input=True))[0]
 
 
 def _finish(model, Q: LTI, basis: NullspaceBasis, method: str, info: dict, degrees,

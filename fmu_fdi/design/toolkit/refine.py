@@ -42,8 +42,8 @@ def refine_decoupling(Q: LTI, lam: np.ndarray, Ge_ud: np.ndarray, residues=()) -
     zero to rounding at the points ``lam`` (``Ge_ud``: the plant's values of the decoupled columns
     there, shape (points, Q's inputs, columns)); leaks are ``max_k ||Q(λ_k) Ge_ud(λ_k)||`` (2-norm).
 
-    ``residues``: pairs ``(λ_j, c_j)`` of plant poles on the stability boundary that u or d
-    excite, with their output direction ``c_j = Ce v_j`` (:func:`boundary_residues`). There ``Ge_ud`` is
+    ``residues``: pairs ``(λ_j, c_j)`` of plant poles on the stability boundary that u or d (or, kept
+    cancelled, w or f) excite, with their output direction ``c_j = Ce v_j`` (:func:`boundary_residues`). There ``Ge_ud`` is
     infinite and no point can stand for it; an exact decoupling row has the zero ``Q(λ_j) c_j = 0``
     (else ``R_ud`` keeps the pole: a drift or an oscillation driven by u, d). Each adds the rows
     ``(c_jᵀ ⊗ K(λ_j)) vec(Θ) = 0``, weighted to the largest row of the points, so the correction
@@ -95,12 +95,19 @@ def refine_decoupling(Q: LTI, lam: np.ndarray, Ge_ud: np.ndarray, residues=()) -
     return LTI(Q.A, Theta[:n], Q.C, Theta[n:], Q.dt), before, after
 
 
-def boundary_residues(model) -> list[tuple[complex, np.ndarray]]:
+def boundary_residues(model, every_input: bool = False) -> list[tuple[complex, np.ndarray]]:
     """``[(λ_j, c_j)]`` for :func:`refine_decoupling`: the simple eigenvalues of the plant's A on the stability
     boundary (within the default margin's offset sqrt(eps) of it) that u or d excite, with ``c_j = [C; 0] v_j`` the
     direction in which ``Ge = [Gu Gd ...; I 0 ...]`` has its residue there (``v_j`` a unit right
     eigenvector of the balanced A; the left one decides whether u, d excite it: ``|w_jᴴ [Bu Bd]|`` above
-    1e-8 of ``||w_j|| ||[Bu Bd]||``). None for a defective (repeated) boundary eigenvalue."""
+    1e-8 of ``||w_j|| ||[Bu Bd]||``). None for a defective (repeated) boundary eigenvalue.
+
+    ``every_input``: those that any input of Ge excites (u, d, w or f). A filter whose whole internal
+    form is stable (after :func:`.stable_factor.stable_internal_form`) cancels each of them too: a mode
+    of Gf or Gw on the boundary by the zero ``Q(λ_j) c_j = 0`` the factor M put there. The refinement
+    sees no grid point of R_w, R_f, so only this row keeps that zero: without it the correction of the
+    numerator moved it by rounding of ``Q``'s realisation and R_f kept the pole (random seed 22's row
+    [0 1 1 1 1]: the pair ±2j of fault fc, refused as a pole of R)."""
     from ...margin import default_smarg, outside_margin
 
     if not model.n or not (model.nu + model.nd):
@@ -117,7 +124,7 @@ def boundary_residues(model) -> list[tuple[complex, np.ndarray]]:
     if not bad.size:
         return []
     W = np.linalg.inv(V)  # rows: left eigenvectors (W V = I)
-    Bud = bal.B[:, :model.nu + model.nd]
+    Bud = bal.B if every_input else bal.B[:, :model.nu + model.nd]
     scale = max(float(np.linalg.norm(Bud, 2)), 1e-300)
     out = []
     for j in bad:
