@@ -24,7 +24,7 @@ from .design.toolkit._basis import normal_rank, sample_values, sampled_rank
 from .errors import DesignError
 from .generator import ResidualGenerator
 from .linalg import single_blas_thread
-from .lti import LTI, frequency_grid
+from .lti import LTI
 from .model import FDIModel
 
 DEFAULT_GAIN_TOL = 0.01  # Varga's FDGainTol: absolute gain for strong structure
@@ -246,30 +246,32 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
     FaultDetectionTools.jl ``fdigenspec``). Rows in lexicographic order.
 
     Weak (``freqs=None``): rank test per row, ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]`` for
-    every ``j`` with ``s_j = 1`` (normal ranks at random points).
+    every ``j`` with ``s_j = 1`` (normal ranks at random points; :func:`row_test`). The condition
+    is necessary and sufficient for an exact design (Varga 2017, Theorem 5.2), and
+    :func:`~fmu_fdi.design.problems.banks.structured_bank` refuses the rows it fails before designing.
 
     Strong (``freqs`` given, rad/s, e.g. 0 for constant faults; Varga's ``FDfreq``): a weakly
-    achievable row is kept when every fault with ``s_j = 1`` stays visible at every ω_k. With
-    ``N(λ) = [V(λ) -W(λ)]`` a minimal polynomial basis of the left null space of
-    ``[Gu Gd Gf_0; I 0 0]`` (irreducible: the values at λ_k of all decoupling filters without a
-    pole there are the row space of ``N(λ_k)``, and their fault responses ``v Gf_j(λ_k)`` with
-    v in the row space of ``V(λ_k)``), the gain kept at ω_k is
-    ``g_j(ω_k) = max_{v, ||v|| = 1} ||v Gf_j(λ_k)||`` (a projection, no filter scaling), and
-    the fault counts as visible when ``g_j(ω_k) > FDGainTol · min(||Gf_j(λ_k)||, max_ω g_j(ω))``:
-    not a rounding-level part of the fault's own response there, nor of what the residuals
-    see of it elsewhere. At a pole of ``Gf`` on the stability boundary (an integrator), where
-    a stable residual must cancel the pole, the test uses the stable factor ``Ñ`` of a left
-    coprime factorisation of ``N Ge_f`` (its ``||Ñ_j(λ_k)||`` against its own peak). A
-    generic combination of the basis rows then sees all those faults at all those frequencies
-    at once. ``tol``/``atol``: rank tolerances of the basis (as in
+    achievable row is listed iff ``structured_bank(model, [row], faults=..., freqs=freqs,
+    FDGainTol=FDGainTol, tol=tol, atol=atol)`` designs it — the one state-space core and its
+    judge (:func:`~fmu_fdi.design.toolkit.postconditions.check_generator`): every required fault
+    has gain ``||R_fj(jω_k)|| ≥ FDGainTol`` at every ω_k on the residual normalised to unit
+    weakest fault peak. No cheaper test decides the same: the gain at ω relative to the peak
+    depends on the denominators the core gives the basis rows and on the combination it picks
+    (Boeing 747, FDGainTol = 1e-2: the minimal polynomial basis over other denominators keeps
+    1.9e-3 at ω = 1, the core's rows more than 1e-2), so a projection test on another basis
+    listed rows the core then refused and refused rows it designs (tests/test_designable_iff_achievable.py).
+    The peer's ``fdigenspec`` judges the same way, on its own filters: ``fdisspec_(...; stabilize =
+    true)`` of the ``glnull(...; sdeg = -0.05)`` rows (0.95 discrete), each row's absolute gain
+    ``|R_fij(jω)| > FDGainTol`` with no normalisation, a row kept when its strong pattern equals its
+    weak one at every ω. ``tol``/``atol``: rank tolerances of the basis (as in
     :func:`~fmu_fdi.design.nullspace_design`). Published results (FaultDetectionTools.jl
     ``fdigenspec``) are reproduced in tests/test_achievable_structure.py.
 
     Raises
     ------
     DesignError
-        Too many faults (``max_faults``), a frequency that is negative, not finite or a
-        pole of the plant on the stability boundary (strong detectability is not defined there).
+        Too many faults (``max_faults``), a frequency that is negative or not finite, or
+        ``FDGainTol`` outside (0, 1).
     """
     import itertools
 
@@ -278,20 +280,42 @@ def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, 
         model.fault(nm)
     if len(names) > max_faults:
         raise DesignError(f"{len(names)} faults give 2^{len(names)} candidate rows; pass max_faults to allow it")
-    test = row_test(model, names, freqs=freqs, FDGainTol=FDGainTol, tol=tol, atol=atol)
+    if freqs is not None:
+        _check_strong_options(freqs, FDGainTol)
+    test = row_test(model, names)
     rows = [row for row in itertools.product((0, 1), repeat=len(names)) if any(row) and test(row) is None]
+    if freqs is not None:
+        rows = [row for row in rows if _designable(model, names, row, freqs, FDGainTol, tol, atol)]
     return np.array(rows, dtype=int).reshape(-1, len(names))
 
 
-def row_test(model: FDIModel, names, *, freqs=None, FDGainTol: float = DEFAULT_GAIN_TOL, tol: float | None = None,
-             atol: float = 0.0):
-    """The one test of a structure row, shared by :func:`achievable_structure` (which lists the
+def _designable(model: FDIModel, names, row, freqs, FDGainTol, tol, atol) -> bool:
+    """Does :func:`~fmu_fdi.design.problems.banks.structured_bank` design the single ``row``
+    strongly at ``freqs``? (A refusal is a :class:`DesignError`; anything else propagates.)"""
+    from .design.problems.banks import structured_bank
+
+    try:
+        structured_bank(model, [list(row)], faults=names, freqs=freqs, FDGainTol=FDGainTol, tol=tol, atol=atol)
+    except DesignError:
+        return False
+    return True
+
+
+def _check_strong_options(freqs, FDGainTol: float) -> None:
+    omega = np.atleast_1d(np.asarray(freqs, float))
+    if omega.ndim != 1 or not omega.size or np.any(omega < 0) or not np.all(np.isfinite(omega)):
+        raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {np.ravel(freqs).tolist()}")
+    if not np.isfinite(FDGainTol) or not 0 < FDGainTol < 1:
+        raise DesignError(f"FDGainTol must be in (0, 1), got {FDGainTol!r}")
+
+
+def row_test(model: FDIModel, names):
+    """The weak test of a structure row, shared by :func:`achievable_structure` (which lists the
     rows it passes) and :func:`~fmu_fdi.design.problems.banks.structured_bank` (which refuses the rows
     it fails, before designing): a predicate ``row -> None`` (achievable) or the reason it is
-    not (a string naming the fault and the test). Weak: ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]``
-    for every required fault j (normal ranks, cached over the rows); strong (``freqs``): the
-    projection test of :func:`achievable_structure`. ``names`` are the faults of the row's
-    columns; ``tol``/``atol`` the basis rank tolerances of the designs."""
+    not (a string naming the fault and the test): ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]``
+    for every required fault j (normal ranks, cached over the rows). ``names`` are the faults of
+    the row's columns. Strong achievability is decided by the design itself (:func:`achievable_structure`)."""
     names = list(names)
     for nm in names:
         model.fault(nm)
@@ -304,8 +328,6 @@ def row_test(model: FDIModel, names, *, freqs=None, FDGainTol: float = DEFAULT_G
         if idx not in cache:
             cache[idx] = normal_rank(G[:, list(idx)]) if idx else 0
         return cache[idx]
-
-    strong = None if freqs is None else _strong_test(model, freqs, FDGainTol, tol, atol)
 
     def test(row) -> str | None:
         row = tuple(int(x) for x in row)
@@ -323,115 +345,6 @@ def row_test(model: FDIModel, names, *, freqs=None, FDGainTol: float = DEFAULT_G
             if s and not rk(base + tuple(cols[nm])) > r0:
                 return (f"fault '{nm}' is invisible once d and the faults marked 0 are decoupled (normal rank "
                         f"{rk(base + tuple(cols[nm]))} of [Gd Gf_0 Gf_{nm}] = rank {r0} of [Gd Gf_0])")
-        if strong is not None and not strong(names, row):
-            return (f"a required fault is not strongly detectable at ω = {np.ravel(freqs).tolist()} rad/s "
-                    f"(FDGainTol = {FDGainTol:g}) once d and the faults marked 0 are decoupled")
         return None
 
     return test
-
-
-def _strong_test(model: FDIModel, freqs, FDGainTol: float, tol, atol):
-    """The predicate ``(names, row) -> bool`` of strong achievability at ``freqs``
-    (see :func:`achievable_structure`)."""
-    from .design.toolkit._basis import minimal_basis
-
-    omega = np.atleast_1d(np.asarray(freqs, float))
-    if omega.ndim != 1 or not omega.size or np.any(omega < 0) or not np.all(np.isfinite(omega)):
-        raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {np.ravel(freqs).tolist()}")
-    if not np.isfinite(FDGainTol) or not 0 < FDGainTol < 1:
-        raise DesignError(f"FDGainTol must be in (0, 1), got {FDGainTol!r}")
-
-    def points(w):
-        return np.exp(1j * w * model.dt) if model.dt else 1j * w
-
-    # the fault channels only (a pole of Gu or Gd is annihilated by every decoupling filter),
-    # minimal to 1e-10 relative: a mode coupled more weakly makes the decision ill-posed anyway
-    from .model import minimal_realisation
-
-    Gf = model.lti("f")
-    Af, Bf, Cf, _ = minimal_realisation(Gf.A, Gf.B, Gf.C, 1e-10)
-    Gf = LTI(Af, Bf, Cf, Gf.D, Gf.dt)
-
-    def near_pole(w, rel):
-        if not Gf.n:
-            return np.zeros(w.size, bool)
-        poles = Gf.poles()
-        dist = np.min(np.abs(points(w)[:, None] - poles[None, :]), axis=1)
-        return dist <= rel * max(1.0, float(np.max(np.abs(poles))))
-
-    at_pole = near_pole(omega, 1e-9)
-    # the kept gains are also compared with their peak over a grid (off Gf's boundary poles)
-    grid = frequency_grid([model.lti()], num=120, extra=omega[~at_pole])
-    w_all = np.concatenate([omega[~at_pole], grid[~near_pole(grid, 1e-6)]])
-    Gf_vals = [Gf.evalfr(x) for x in points(w_all)]
-    finite = np.array([bool(np.all(np.isfinite(v))) for v in Gf_vals])
-    nk = int(np.sum(~at_pole))
-    # ||Gf_j(λ)|| at the kept frequencies (0 where Gf is not finite): per fault, the same for every row
-    local_all = {nm: np.array([np.linalg.norm(Gf_vals[k][:, model.fault(nm).columns], 2) if finite[k] else 0.0
-                               for k in range(nk)]) for nm in model.fault_names}
-
-    def test(names, row) -> bool:
-        ignore = [nm for nm, s in zip(names, row) if not s]
-        keep = [nm for nm, s in zip(names, row) if s]
-        mi = model.with_disturbances(ignore)
-        mi = mi._replace(faults=[f for f in mi.faults if f.name in keep])
-        basis = minimal_basis(mi, tol, atol)
-        gains, local = np.zeros((len(keep), w_all.size)), np.zeros((len(keep), nk))
-        for j, nm in enumerate(keep):
-            local[j] = local_all[nm]
-        for k, x in enumerate(points(w_all)):
-            if not finite[k]:
-                continue
-            # y-part of N at λ (its u-part only cancels Gu): the values v = a^T U^T, ||v|| = ||a||
-            # (rank relative to the whole row values: a y-part at rounding level is no direction)
-            Nk = np.stack([r.at([x / basis.rho])[0] for r in basis.rows])
-            U, sv, _ = np.linalg.svd(Nk[:, :model.ny].T, full_matrices=False)
-            Pi = U[:, sv > 1e-12 * np.linalg.norm(Nk, 2)]
-            for j, nm in enumerate(keep):
-                Gj = Gf_vals[k][:, model.fault(nm).columns]
-                gains[j, k] = np.linalg.norm(Pi.T @ Gj, 2)
-        ref = np.minimum(local, gains.max(axis=1, initial=0.0)[:, None])
-        if np.any(gains[:, :nk] <= FDGainTol * ref) or np.any(ref == 0):
-            return False
-        # what a *stable* residual keeps at every ω (the peer's fdisspec(...; stabilize = true)): at a
-        # boundary pole of Gf the only finite value; off it, a near-boundary pole (Boeing 747: +3.1e-5)
-        # makes the projection above see a large Gf(0) whose stable factor has a zero there
-        T = _stable_fault_response(mi, basis)
-        # the reference peak on 80 log points (a sharp resonance between them lowers the reference only)
-        grid_T = frequency_grid([T], num=80) if T.n else np.array([0.0])
-        H, Hk = T.freqresp(grid_T), np.stack([T.evalfr(x) for x in points(omega)])
-        for f in mi.faults:
-            peak = np.max(np.linalg.norm(H[:, :, f.columns], axis=(1, 2)))
-            if peak == 0 or not np.all(np.linalg.norm(Hk[:, :, f.columns], axis=(1, 2)) > FDGainTol * peak):
-                return False
-        return True
-
-    return test
-
-
-def _stable_fault_response(mi: FDIModel, basis) -> LTI:
-    """At a pole of a fault channel on the stability boundary (an integrator, say), where
-    no stable residual may keep it: the fault responses ``Ñ`` of all decoupling filters of
-    ``mi``, stable: ``T = N Ge_f`` with the basis rows over the design's default denominators,
-    and ``Ñ`` the fault part of the stable factor ``M·[Q T]`` of the joint left coprime
-    factorisation :func:`~fmu_fdi.design.toolkit.stable_factor.stable_joint_factor` (glcf: an ordered Schur
-    form moves only the poles on or outside the boundary; the designs end with the same
-    factorisation, and the peer's ``fdigenspec`` judges ``fdisspec(...; stabilize = true)`` on the
-    ``glnull`` rows stabilised so). Any stable residual's fault response is ``Y Ñ`` with Y stable,
-    and Ñ is unique up to a unit (no zeros on the boundary), so the zeros of ``Ñ_j`` at ω are those
-    every decoupling residual has.
-    """
-    from .design.toolkit._basis import pole_chooser, realize_rows
-    from .design.toolkit.stable_factor import stable_joint_factor
-    from .design.toolkit.postconditions import NumericalDesignError
-
-    choose = pole_chooser(mi, None, None)
-    Q = realize_rows([r.coef for r in basis.rows], [choose(r.degree) / basis.rho for r in basis.rows],
-                     basis.rho, mi.dt)
-    try:
-        J, q, _ = stable_joint_factor(mi, Q)
-    except NumericalDesignError as exc:
-        raise DesignError(f"strong detectability at a pole of the fault channels on the stability boundary "
-                          f"cannot be decided: {exc}; pass other freqs") from None
-    return J[:, q + mi.nw:]

@@ -50,9 +50,10 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol, minimal, basis, keep_stable_poles, atol
         As in :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`, per row; with ``freqs`` every
         fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies (a row is
-        designed when :func:`~fmu_fdi.analysis.achievable_structure` with the same ``freqs`` and
-        ``FDGainTol`` lists it; checked on the published examples in
-        tests/test_achievable_structure.py). Every row comes from the one state-space core
+        designed iff :func:`~fmu_fdi.analysis.achievable_structure` with the same ``freqs``,
+        ``FDGainTol``, ``tol`` and ``atol`` lists it, with the default placement options: both use
+        the weak rank test :func:`~fmu_fdi.analysis.row_test` and decide strong visibility by this
+        design's judge; tests/test_designable_iff_achievable.py). Every row comes from the one state-space core
         (``basis='auto'``); ``basis='polynomial'`` is the explicit parity-basis choice.
     rdim : int or list of int
         Residuals per structure row (FaultDetectionTools.jl ``efdisyn``'s vector ``rdim``): one count
@@ -111,10 +112,12 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
                               freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol)
         return ResidualGenerator(g.Q, model, "structured", info=g.info)
 
-    from ...analysis import row_test
+    from ...analysis import _check_strong_options, row_test
 
-    # as achievable_structure
-    achievable = row_test(model, names, freqs=freqs, FDGainTol=FDGainTol, tol=tol, atol=atol)
+    if freqs is not None:
+        _check_strong_options(freqs, FDGainTol)
+    # as achievable_structure: the weak rank test first; strong visibility at freqs is the design's own judge
+    achievable = row_test(model, names)
     members, failures = [], []
     for i, row in enumerate(S.astype(int)):
         why = achievable(row)
