@@ -915,21 +915,25 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
     H = greedy_combinations(objective, Qc.p, 1 if rdim == "all" else int(rdim), seed)
     if H.shape[0] == 1 and Qc.p > 1:
         # The best gap is often reached on a plateau; on it, prefer the combination whose
-        # faults are most evenly visible (largest fault sensitivity condition), and among equals
-        # (a symmetric plant, e.g. two sensors of one variable: mirror-image optima of equal gap
-        # and condition) the one that favours the faults in the model's order (:func:`_in_fault_order`),
-        # so the choice does not hang on how the basis happens to be parametrised.
+        # faults are most evenly visible (largest fault sensitivity condition).
         best = objective(H[0])
-        fsc = sensitivity_objective(Rf)
-        order = _in_fault_order(Rf)
+        fsc, order = sensitivity_objective(Rf), _in_fault_order(Rf)
 
-        def constrained(h):
+        def constrained(h, tie=0.0):
             g = objective(h)
-            return fsc(h) + TIE_WEIGHT * order(h) if g >= best * (1 - 1e-9) else g / best - 1.0
+            return fsc(h) + tie * order(h) if g >= best * (1 - 1e-9) else g / best - 1.0
 
-        # the starts nearest the plateau crowd round the greedy optimum: refine spread ones so
-        # a mirror image's basin is reached too
-        h, _ = maximize_on_sphere(constrained, Qc.p, seed, extra_starts=[H[0]], spread=TIE_SPREAD)
+        h, _ = maximize_on_sphere(constrained, Qc.p, seed, extra_starts=[H[0]])
+        # Among equals (a symmetric plant, e.g. two sensors of one variable: mirror-image optima of
+        # the same gap and condition) the one that favours the faults in the model's order
+        # (:func:`_in_fault_order`), so the choice does not hang on how the basis is parametrised:
+        # a second search from spread starts (the starts nearest the plateau crowd round the
+        # greedy optimum) with the order as a tie-break, kept only when its condition ties.
+        h2, _ = maximize_on_sphere(lambda x: constrained(x, TIE_WEIGHT), Qc.p, seed, extra_starts=[h],
+                                   spread=TIE_SPREAD)
+        if (objective(h2) >= best * (1 - 1e-9) and abs(fsc(h2) - fsc(h)) <= TIE_RTOL * fsc(h)
+                and order(h2) > order(h)):
+            h = h2
         H = h[None, :]
     Q = (H @ Qc).minreal() if H.shape[0] < Qc.p else Qc
     info = {"order": int(Q.n), "rdim": int(H.shape[0]), "gap_estimate": min(objective(h) for h in H),
@@ -945,6 +949,9 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
 TIE_WEIGHT = 1e-6
 #: refined starts on the plateau are at least acos(0.9) ≈ 26° apart (:func:`maximize_on_sphere`'s spread)
 TIE_SPREAD = 0.9
+#: conditions equal to this relative tolerance tie (mirror images agree to ~1e-9; the tie-break moves
+#: the condition by at most TIE_WEIGHT)
+TIE_RTOL = 1e-5
 
 
 def _in_fault_order(Rf: list[np.ndarray]):
