@@ -929,7 +929,7 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
         # (:func:`_in_fault_order`), so the choice does not hang on how the basis is parametrised:
         # a second search from spread starts (the starts nearest the plateau crowd round the
         # greedy optimum) with the order as a tie-break, kept only when its condition ties.
-        h2, _ = maximize_on_sphere(lambda x: constrained(x, TIE_WEIGHT), Qc.p, seed, extra_starts=[h],
+        h2, _ = maximize_on_sphere(lambda x: constrained(x, TIE_WEIGHT * fsc(h)), Qc.p, seed, extra_starts=[h],
                                    spread=TIE_SPREAD)
         if (objective(h2) >= best * (1 - 1e-9) and abs(fsc(h2) - fsc(h)) <= TIE_RTOL * fsc(h)
                 and order(h2) > order(h)):
@@ -944,13 +944,13 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
     return _finish(model, Q, basis, "nullspace", info, degrees, place=place)
 
 
-#: weight of the fault-order tie-break against the fault sensitivity condition (a value in [0, 1]):
+#: weight of the fault-order tie-break (a value in [0, 1)) relative to the fault sensitivity condition:
 #: far above Nelder-Mead's tolerance (1e-12), far below any difference of condition worth keeping
 TIE_WEIGHT = 1e-6
 #: refined starts on the plateau are at least acos(0.9) ≈ 26° apart (:func:`maximize_on_sphere`'s spread)
 TIE_SPREAD = 0.9
 #: conditions equal to this relative tolerance tie (mirror images agree to ~1e-9; the tie-break moves
-#: the condition by at most TIE_WEIGHT)
+#: the condition by at most TIE_WEIGHT relative)
 TIE_RTOL = 1e-5
 
 
