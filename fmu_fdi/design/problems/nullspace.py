@@ -917,13 +917,23 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
         # The best gap is often reached on a plateau; on it, prefer the combination whose
         # faults are most evenly visible (largest fault sensitivity condition).
         best = objective(H[0])
-        fsc = sensitivity_objective(Rf)
+        fsc, order = sensitivity_objective(Rf), _in_fault_order(Rf)
 
-        def constrained(h):
+        def constrained(h, tie=0.0):
             g = objective(h)
-            return fsc(h) if g >= best * (1 - 1e-9) else g / best - 1.0
+            return fsc(h) + tie * order(h) if g >= best * (1 - 1e-9) else g / best - 1.0
 
         h, _ = maximize_on_sphere(constrained, Qc.p, seed, extra_starts=[H[0]])
+        # Among equals (a symmetric plant, e.g. two sensors of one variable: mirror-image optima of
+        # the same gap and condition) the one that favours the faults in the model's order
+        # (:func:`_in_fault_order`), so the choice does not hang on how the basis is parametrised:
+        # a second search from spread starts (the starts nearest the plateau crowd round the
+        # greedy optimum) with the order as a tie-break, kept only when its condition ties.
+        h2, _ = maximize_on_sphere(lambda x: constrained(x, TIE_WEIGHT * fsc(h)), Qc.p, seed, extra_starts=[h],
+                                   spread=TIE_SPREAD)
+        if (objective(h2) >= best * (1 - 1e-9) and abs(fsc(h2) - fsc(h)) <= TIE_RTOL * fsc(h)
+                and order(h2) > order(h)):
+            h = h2
         H = h[None, :]
     Q = (H @ Qc).minreal() if H.shape[0] < Qc.p else Qc
     info = {"order": int(Q.n), "rdim": int(H.shape[0]), "gap_estimate": min(objective(h) for h in H),
@@ -932,6 +942,30 @@ def _noise_combination(model: FDIModel, Q0: LTI, Q2: LTI | None, basis, degrees,
     if moved:
         info["internal_form"] = moved
     return _finish(model, Q, basis, "nullspace", info, degrees, place=place)
+
+
+#: weight of the fault-order tie-break (a value in [0, 1)) relative to the fault sensitivity condition:
+#: far above Nelder-Mead's tolerance (1e-12), far below any difference of condition worth keeping
+TIE_WEIGHT = 1e-6
+#: refined starts on the plateau are at least acos(0.9) ≈ 26° apart (:func:`maximize_on_sphere`'s spread)
+TIE_SPREAD = 0.9
+#: conditions equal to this relative tolerance tie (mirror images agree to ~1e-9; the tie-break moves
+#: the condition by at most TIE_WEIGHT relative)
+TIE_RTOL = 1e-5
+
+
+def _in_fault_order(Rf: list[np.ndarray]):
+    """Tie-break of equally good combinations ``h``: ``Σ_j 2^-(j+1) ||h Rf_j||∞ / max_i ||h Rf_i||∞``
+    in [0, 1), larger when the earlier faults (model order) are seen more strongly. Equal for
+    every permutation-symmetric figure (gap, condition, noise), it tells mirror images apart."""
+    weights = 0.5 ** np.arange(1, len(Rf) + 1)
+
+    def order(h: np.ndarray) -> float:
+        peaks = np.array([np.max(np.linalg.norm(np.einsum("r,krc->kc", h, F), axis=1)) for F in Rf])
+        top = peaks.max()
+        return float(weights @ peaks / top) if top > 0 else 0.0
+
+    return order
 
 
 def _noise_pencil(model, rdim, poles, sdeg, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol, minimal,

@@ -22,8 +22,11 @@ def _normalize(h: np.ndarray) -> np.ndarray:
 
 
 def maximize_on_sphere(objective: Callable[[np.ndarray], float], k: int, seed: int = 0,
-                       starts: int = 48, extra_starts=(), refine_dim: int = 12) -> tuple[np.ndarray, float]:
-    """Maximise a scale-invariant objective over unit vectors in R^k."""
+                       starts: int = 48, extra_starts=(), refine_dim: int = 12,
+                       spread: float | None = None) -> tuple[np.ndarray, float]:
+    """Maximise a scale-invariant objective over unit vectors in R^k: the 4 best starts refined by
+    Nelder-Mead; with ``spread``, the 4 best of which no two are closer than ``|cos| > spread``
+    (so that several optima of equal value, e.g. mirror images, are all reached)."""
     if k == 1:
         h = np.ones(1)
         return h, objective(h)
@@ -34,7 +37,15 @@ def maximize_on_sphere(objective: Callable[[np.ndarray], float], k: int, seed: i
     scored = sorted(((objective(c), i, c) for i, c in enumerate(cands)), key=lambda t: -t[0])
     best_val, _, best = scored[0]
     if k <= refine_dim:
-        for val0, _, c in scored[:4]:
+        picked = [c for _, _, c in scored]
+        if spread is not None:
+            picked = []
+            for _, _, c in scored:
+                if all(abs(c @ q) <= spread for q in picked):
+                    picked.append(c)
+                if len(picked) == 4:
+                    break
+        for c in picked[:4]:
             res = sopt.minimize(lambda x: -objective(_normalize(x)), c, method="Nelder-Mead",
                                 options={"xatol": 1e-10, "fatol": 1e-12, "maxiter": 400 * k, "maxfev": 400 * k})
             h = _normalize(res.x)
