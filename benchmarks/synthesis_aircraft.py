@@ -11,7 +11,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from fmu_fdi import nullspace_design, structured_bank  # noqa: E402
-from fmu_fdi.analysis import achievable_structure  # noqa: E402
+from fmu_fdi.design.problems.achievable import achievable_structure  # noqa: E402
 from synthesis_models import aircraft_loop  # noqa: E402
 
 model = aircraft_loop()

@@ -23,7 +23,6 @@ import numpy as np
 from .design.toolkit._basis import normal_rank, sample_values, sampled_rank
 from .errors import DesignError
 from .generator import ResidualGenerator
-from .linalg import single_blas_thread
 from .lti import LTI
 from .model import FDIModel
 
@@ -236,72 +235,10 @@ def isolability(model: FDIModel) -> dict:
     return {"faults": model.fault_names, "matrix": M, "fully_isolable": bool(full)}
 
 
-@single_blas_thread  # as the designs: threaded BLAS on small matrices spin-waits (400x on a loaded machine)
-def achievable_structure(model: FDIModel, faults=None, max_faults: int = 12, *, freqs=None,
-                         FDGainTol: float = DEFAULT_GAIN_TOL, tol: float | None = None,
-                         atol: float = 0.0) -> np.ndarray:
-    """Every achievable specification: the rows ``s`` (0/1 over ``faults``, not all 0) for
-    which a residual exists that sees exactly the faults with ``s_j = 1`` once u, d and the
-    faults with ``s_j = 0`` are decoupled (Varga 2017, sec. 5.4, Procedure GENSPEC;
-    FaultDetectionTools.jl ``fdigenspec``). Rows in lexicographic order.
-
-    Weak (``freqs=None``): rank test per row, ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]`` for
-    every ``j`` with ``s_j = 1`` (normal ranks at random points; :func:`row_test`). The condition
-    is necessary and sufficient for an exact design (Varga 2017, Theorem 5.2), and
-    :func:`~fmu_fdi.design.problems.banks.structured_bank` refuses the rows it fails before designing.
-
-    Strong (``freqs`` given, rad/s, e.g. 0 for constant faults; Varga's ``FDfreq``): a weakly
-    achievable row is listed iff ``structured_bank(model, [row], faults=..., freqs=freqs,
-    FDGainTol=FDGainTol, tol=tol, atol=atol)`` designs it — the one state-space core and its
-    judge (:func:`~fmu_fdi.design.toolkit.postconditions.check_generator`): every required fault
-    has gain ``||R_fj(jω_k)|| ≥ FDGainTol`` at every ω_k on the residual normalised to unit
-    weakest fault peak. No cheaper test decides the same: the gain at ω relative to the peak
-    depends on the denominators the core gives the basis rows and on the combination it picks
-    (Boeing 747, FDGainTol = 1e-2: the minimal polynomial basis over other denominators keeps
-    1.9e-3 at ω = 1, the core's rows more than 1e-2), so a projection test on another basis
-    listed rows the core then refused and refused rows it designs (tests/test_designable_iff_achievable.py).
-    The peer's ``fdigenspec`` judges the same way, on its own filters: ``fdisspec_(...; stabilize =
-    true)`` of the ``glnull(...; sdeg = -0.05)`` rows (0.95 discrete), each row's absolute gain
-    ``|R_fij(jω)| > FDGainTol`` with no normalisation, a row kept when its strong pattern equals its
-    weak one at every ω. ``tol``/``atol``: rank tolerances of the basis (as in
-    :func:`~fmu_fdi.design.nullspace_design`). Published results (FaultDetectionTools.jl
-    ``fdigenspec``) are reproduced in tests/test_achievable_structure.py.
-
-    Raises
-    ------
-    DesignError
-        Too many faults (``max_faults``), a frequency that is negative or not finite, or
-        ``FDGainTol`` outside (0, 1).
-    """
-    import itertools
-
-    names = list(model.fault_names if faults is None else faults)
-    for nm in names:
-        model.fault(nm)
-    if len(names) > max_faults:
-        raise DesignError(f"{len(names)} faults give 2^{len(names)} candidate rows; pass max_faults to allow it")
-    if freqs is not None:
-        _check_strong_options(freqs, FDGainTol)
-    test = row_test(model, names)
-    rows = [row for row in itertools.product((0, 1), repeat=len(names)) if any(row) and test(row) is None]
-    if freqs is not None:
-        rows = [row for row in rows if _designable(model, names, row, freqs, FDGainTol, tol, atol)]
-    return np.array(rows, dtype=int).reshape(-1, len(names))
-
-
-def _designable(model: FDIModel, names, row, freqs, FDGainTol, tol, atol) -> bool:
-    """Does :func:`~fmu_fdi.design.problems.banks.structured_bank` design the single ``row``
-    strongly at ``freqs``? (A refusal is a :class:`DesignError`; anything else propagates.)"""
-    from .design.problems.banks import structured_bank
-
-    try:
-        structured_bank(model, [list(row)], faults=names, freqs=freqs, FDGainTol=FDGainTol, tol=tol, atol=atol)
-    except DesignError:
-        return False
-    return True
-
-
-def _check_strong_options(freqs, FDGainTol: float) -> None:
+def check_strong_options(freqs, FDGainTol: float) -> None:
+    """Refuse ``freqs`` that are not finite non-negative rad/s and ``FDGainTol`` outside (0, 1): the strong
+    options of :func:`~fmu_fdi.design.problems.achievable.achievable_structure` and
+    :func:`~fmu_fdi.design.problems.banks.structured_bank`, checked in one place."""
     omega = np.atleast_1d(np.asarray(freqs, float))
     if omega.ndim != 1 or not omega.size or np.any(omega < 0) or not np.all(np.isfinite(omega)):
         raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {np.ravel(freqs).tolist()}")
@@ -310,12 +247,13 @@ def _check_strong_options(freqs, FDGainTol: float) -> None:
 
 
 def row_test(model: FDIModel, names):
-    """The weak test of a structure row, shared by :func:`achievable_structure` (which lists the
+    """The weak test of a structure row, shared by :func:`~fmu_fdi.design.problems.achievable.achievable_structure` (which lists the
     rows it passes) and :func:`~fmu_fdi.design.problems.banks.structured_bank` (which refuses the rows
     it fails, before designing): a predicate ``row -> None`` (achievable) or the reason it is
     not (a string naming the fault and the test): ``rank [Gd Gf_0 Gf_j] > rank [Gd Gf_0]``
     for every required fault j (normal ranks, cached over the rows). ``names`` are the faults of
-    the row's columns. Strong achievability is decided by the design itself (:func:`achievable_structure`)."""
+    the row's columns. Strong achievability is decided by the design itself
+    (:func:`~fmu_fdi.design.problems.achievable.achievable_structure`)."""
     names = list(names)
     for nm in names:
         model.fault(nm)

@@ -11,7 +11,7 @@ import pytest
 from test_synthesis_published import boeing747, niemann, xiong_saif_1, xiong_saif_2, yuan
 
 from fmu_fdi import DesignError, FDIModel, actuator_fault, component_fault, sensor_fault, structured_bank
-from fmu_fdi.analysis import achievable_structure
+from fmu_fdi.design.problems.achievable import achievable_structure
 from fmu_fdi.lti import LTI
 
 

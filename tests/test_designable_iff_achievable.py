@@ -21,7 +21,7 @@ from test_synthesis_random import _extended, _freqresp, _grid, judge, random_cas
 
 import fmu_fdi.analysis as analysis
 from fmu_fdi import DesignError, structured_bank
-from fmu_fdi.analysis import achievable_structure
+from fmu_fdi.design.problems.achievable import achievable_structure
 
 STRONG = {"freqs": [0.0, 1.0], "FDGainTol": 1e-2}
 #: at most this many rows the rank test refuses are sent through the core without the pre-check

@@ -60,7 +60,7 @@ def test_structured_bank_of_random_seed_3_raises_no_linalg_error():
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
     from test_synthesis_random import random_case
 
-    from fmu_fdi.analysis import achievable_structure
+    from fmu_fdi.design.problems.achievable import achievable_structure
     from fmu_fdi.design import structured_bank
 
     model = random_case(3)

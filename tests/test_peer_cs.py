@@ -39,7 +39,7 @@ import numpy as np
 import pytest
 
 from fmu_fdi import FDIModel, actuator_fault, sensor_fault
-from fmu_fdi.analysis import achievable_structure
+from fmu_fdi.design.problems.achievable import achievable_structure
 from fmu_fdi.design import structured_bank
 
 from test_synthesis_random import _freqresp, _pbh_poles, judge

@@ -35,7 +35,7 @@ import pytest
 import scipy.linalg as sla
 
 from fmu_fdi import FDIModel
-from fmu_fdi.analysis import achievable_structure
+from fmu_fdi.design.problems.achievable import achievable_structure
 from fmu_fdi.design import model_detection_bank, model_matching, nullspace_design, structured_bank
 from fmu_fdi.errors import DesignError
 from fmu_fdi.faults import component_fault

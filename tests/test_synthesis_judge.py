@@ -16,7 +16,7 @@ import scipy.linalg as sla
 from judge_models import ill_scaled_model
 
 from fmu_fdi import DesignError, FDIModel, component_fault, leakage, nullspace_design, structure_matrix, structured_bank
-from fmu_fdi.analysis import achievable_structure
+from fmu_fdi.design.problems.achievable import achievable_structure
 from fmu_fdi.design.toolkit.postconditions import DEC_TOL, check_generator
 from fmu_fdi.generator import ResidualGenerator
 from fmu_fdi.lti import LTI

@@ -41,7 +41,7 @@ def test_aircraft_loop_full_achievable_structure():
     """Lateral aircraft + actuators in series + dynamic controller in the loop (n = 8):
     every achievable specification (20 rows over 6 faults, Varga's fdigenspec set) in one
     least-order bank that passes every post-condition and isolates every fault."""
-    from fmu_fdi.analysis import achievable_structure
+    from fmu_fdi.design.problems.achievable import achievable_structure
 
     model = aircraft_loop()
     S = achievable_structure(model)

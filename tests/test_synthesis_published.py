@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fmu_fdi import FDIModel, component_fault, structured_bank
-from fmu_fdi.analysis import achievable_structure
+from fmu_fdi.design.problems.achievable import achievable_structure
 
 
 def _model(A, Bu, Bd, Bf, C, Du=None, Dd=None, Df=None, name="m"):

@@ -42,7 +42,7 @@ import pytest
 import scipy.linalg as sla
 
 from fmu_fdi import FDIModel, actuator_fault, sensor_fault
-from fmu_fdi.analysis import achievable_structure
+from fmu_fdi.design.problems.achievable import achievable_structure
 from fmu_fdi.design import dedicated_bank, generalized_bank, nullspace_design, structured_bank
 from fmu_fdi.errors import DesignError
 from fmu_fdi.faults import component_fault

@@ -50,7 +50,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
     poles, sdeg, noise, FDtol, FDGainTol, freqs, tol, seed, smarg, dec_tol, minimal, basis, keep_stable_poles, atol
         As in :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`, per row; with ``freqs`` every
         fault with ``S[i, j] = 1`` must be strongly visible in row i at those frequencies (a row is
-        designed iff :func:`~fmu_fdi.analysis.achievable_structure` with the same ``freqs``,
+        designed iff :func:`~fmu_fdi.design.problems.achievable.achievable_structure` with the same ``freqs``,
         ``FDGainTol``, ``tol`` and ``atol`` lists it, with the default placement options: both use
         the weak rank test :func:`~fmu_fdi.analysis.row_test` and decide strong visibility by this
         design's judge; tests/test_designable_iff_achievable.py). Every row comes from the one state-space core
@@ -112,10 +112,10 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
                               freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol)
         return ResidualGenerator(g.Q, model, "structured", info=g.info)
 
-    from ...analysis import _check_strong_options, row_test
+    from ...analysis import check_strong_options, row_test
 
     if freqs is not None:
-        _check_strong_options(freqs, FDGainTol)
+        check_strong_options(freqs, FDGainTol)
     # as achievable_structure: the weak rank test first; strong visibility at freqs is the design's own judge
     achievable = row_test(model, names)
     members, failures = [], []

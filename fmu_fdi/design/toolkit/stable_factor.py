@@ -2,7 +2,7 @@
 
 The state-space toolkit piece every null-space design ends with (Varga 2017, Procedure EFD step 3;
 FaultDetectionTools.jl ``glcf``) and the strong-detectability tests judge on
-(:func:`fmu_fdi.analysis.achievable_structure` at a pole on the stability boundary): an ordered
+(:func:`fmu_fdi.design.problems.achievable.achievable_structure` at a pole on the stability boundary): an ordered
 real Schur form moves only the poles that violate the margin, to targets chosen by
 :func:`moved_pole_targets`. :mod:`fmu_fdi.design.problems.coprime` (the factorised residual form) re-exports
 these names.
