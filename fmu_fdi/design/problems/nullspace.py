@@ -526,6 +526,16 @@ def _same_poles(a: np.ndarray, b: np.ndarray) -> bool:
     return True
 
 
+def _grid_values(model, N: LTI, freqs):
+    """``Ge = [Gu Gd Gw Gf; I 0 0 0]`` and the rows ``N`` on the design grid (:func:`_grid` with N's poles),
+    the points where either is not finite left out: arrays (K, ·, ·)."""
+    Ge = model.augmented()
+    lam = _points(model, _grid(model, N.poles(), freqs))
+    Gv, Nv = _values(Ge, lam), _values(N, lam)
+    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Nv), axis=(1, 2))
+    return Gv[ok], Nv[ok]
+
+
 def _span_gains(model, N: LTI, freqs) -> np.ndarray:
     """Per fault, the largest relative gain of any constant combination of the rows of ``N`` on the
     design grid: pointwise ``max_h ||h N Ge_f|| / (||h N_y|| ||Gf||) = ||W N Ge_f||₂ / ||Gf||₂`` with
@@ -534,11 +544,7 @@ def _span_gains(model, N: LTI, freqs) -> np.ndarray:
     the post-condition cosine over the grid (:func:`..toolkit.postconditions._cosine`). A property of
     the row space, not of the basis: rows that each see a fault weakly can span a combination that
     sees it well. Points are left out only where ``||Gf_j||`` is below :data:`SPAN_FLOOR` of its median."""
-    Ge = model.augmented()
-    lam = _points(model, _grid(model, N.poles(), freqs))
-    Gv, Nv = _values(Ge, lam), _values(N, lam)
-    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Nv), axis=(1, 2))
-    Gv, Nv = Gv[ok], Nv[ok]
+    Gv, Nv = _grid_values(model, N, freqs)
     p = model.ny
     U, S, _ = np.linalg.svd(Nv[:, :, :p], full_matrices=False)  # (K, k, r), (K, r)
     S = np.maximum(S, 1e-8 * S[:, :1])
@@ -559,11 +565,7 @@ SPAN_FLOOR = 1e-12
 
 def _pencil_gains(model, N: LTI, freqs, FDtol) -> np.ndarray:
     """Per row of ``N``, the relative gain (post-condition cosine) to every fault on the design grid."""
-    Ge = model.augmented()
-    lam = _points(model, _grid(model, N.poles(), freqs))
-    Gv, Nv = _values(Ge, lam), _values(N, lam)
-    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Nv), axis=(1, 2))
-    Gv, Nv = Gv[ok], Nv[ok]
+    Gv, Nv = _grid_values(model, N, freqs)
     p = model.ny
     nNy = np.linalg.norm(Nv[:, :, :p], axis=2)
     fcols = fault_columns(model)
