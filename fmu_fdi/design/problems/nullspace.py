@@ -400,6 +400,7 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     gains = _span_gains(model, N, freqs)[None, :]
     if model.faults and not np.all(gains >= FDtol):
         raise undetectable_error(model, gains >= FDtol, gains=gains, FDtol=FDtol, numerical=NumericalDesignError)
+    _refuse_unseen_at(model, N, freqs)
     tried = []
     if rows:
         from itertools import combinations
@@ -554,6 +555,41 @@ def _span_gains(model, N: LTI, freqs) -> np.ndarray:
         resp = np.linalg.norm(np.einsum("kri,kiq,kqc->krc", W, Nv, Gv[:, :, c]), 2, axis=(1, 2))
         out[j] = _cosine(resp, np.linalg.norm(Gv[:, :p, c], 2, axis=(1, 2)), floor=SPAN_FLOOR)
     return out
+
+
+#: a fault whose span cosine at a strong frequency (:func:`_refuse_unseen_at`) is at most this is absent
+#: there: an exact zero rounds to ~1e-15 (Boeing 747 at ω = 0: 2.6e-15 .. 2e-20); kept low, as a refusal
+#: here must never refuse a row the design would pass (that is judged on the row, not decided here)
+SPAN_ZERO = 1e-12
+
+
+def _refuse_unseen_at(model, N: LTI, freqs) -> None:
+    """Refuse at once when a required fault is absent at some ω of ``freqs`` from every combination of
+    the rows of ``N``: pointwise ``max_h ||h N Ge_f|| / (||h N_y|| ||Gf||)`` at ``λ = jω`` (e^{jωT}), as
+    :func:`_span_gains` at one point, at most :data:`SPAN_ZERO`. Every design is ``Q = M H N`` (a
+    constant combination, reduced by minreal, times the stable factor ``M`` of the left coprime
+    factorisation, finite at ω), so ``Q(λ) Ge_f(λ) = M(λ) H N(λ) Ge_f(λ)`` vanishes with ``N(λ) Ge_f(λ)``:
+    no design is strongly visible there, and the judge would refuse each after a full design."""
+    if freqs is None or not model.faults:
+        return
+    lam, Gs = _strong_points(model, model.augmented(), freqs)
+    Nv = _values(N, lam)
+    ok = np.all(np.isfinite(Nv), axis=(1, 2))
+    if not np.any(ok):
+        return
+    p = model.ny
+    U, S, _ = np.linalg.svd(Nv[ok][:, :, :p], full_matrices=False)
+    S = np.maximum(S, 1e-8 * S[:, :1])
+    W = np.conj(np.swapaxes(U, 1, 2)) / np.where(S > 0, S, 1.0)[:, :, None]
+    for j, c in enumerate(fault_columns(model)):
+        resp = np.linalg.norm(np.einsum("kri,kiq,kqc->krc", W, Nv[ok], Gs[ok][:, :, c]), 2, axis=(1, 2))
+        gf = np.linalg.norm(Gs[ok][:, :p, c], 2, axis=(1, 2))
+        cos = np.where(gf > 0, resp / np.where(gf > 0, gf, 1.0), 0.0)
+        if np.any(cos <= SPAN_ZERO):
+            w = freqs[ok][int(np.argmin(cos))]
+            raise DesignError(f"fault '{model.faults[j].name}' is not seen at ω = {w:g} rad/s by any combination of "
+                              f"the null-space rows (relative gain {cos.min():.3g} <= {SPAN_ZERO:g}): no design is "
+                              f"strongly visible there")
 
 
 #: points where ``||Gf_j||`` is below this fraction of its median are left out of :func:`_span_gains`: a
