@@ -64,7 +64,6 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None, *, atol: fl
     faults : list of str, optional
         The faults to give directions to (default: all faults of the model). Other faults
         are not constrained: they move r in no particular direction.
-
     atol : float
         Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
         below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only).

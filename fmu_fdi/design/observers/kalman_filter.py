@@ -55,7 +55,6 @@ def kalman(model: FDIModel, Qw=None, Rv=None, *, atol: float = 0.0) -> ResidualG
         Covariance (intensity) of the additional measurement noise v, p×p, symmetric
         positive semidefinite, with ``R = Dw Qw Dwᵀ + Rv`` positive definite. Scalar or
         vector as for Qw.
-
     atol : float
         Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
         below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only).

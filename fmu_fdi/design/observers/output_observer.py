@@ -33,7 +33,6 @@ def luenberger(model: FDIModel, poles=None, V=None, *, atol: float = 0.0) -> Res
         twice as fast as the plant's modes (:func:`~fmu_fdi.design.observers._observer.default_poles`).
     V : array_like, optional
         Static output weighting (k × p, default the identity): r has k components.
-
     atol : float
         Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
         below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only).

@@ -51,7 +51,6 @@ def unknown_input_observer(model: FDIModel, poles=None, *, atol: float = 0.0) ->
         Eigenvalues of ``F = T A − K1 C``: as many as ``(C, T A)`` has observable modes (n
         when observable), stable, closed under conjugation. Default: distinct poles twice as
         fast as the plant's modes.
-
     atol : float
         Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
         below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only);

@@ -57,7 +57,6 @@ def factorized(model: FDIModel, poles=None, normalized: bool = False, post_filte
         The free stable filter ``R(p)`` with p inputs (default the identity). A static
         matrix is a constant R; a python-control system with an unspecified time base
         (``dt=True`` or ``None``) takes the model's sample time.
-
     atol : float
         Absolute rank tolerance of the observability staircase (Varga's ``atol``): singular values at or
         below ``max(rtol·||[A; C]||, atol)`` count as zero (default 0: relative only).
