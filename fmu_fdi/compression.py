@@ -37,7 +37,6 @@ class RowCompression:
 
     def __init__(self, part: np.ndarray):
         m, c = part.shape
-        self.m = m
         self.U = self.qr = self.tau = self.Ur = self._V = self._T = None
         if m <= DENSE_ROWS:
             self.U, self.s, _ = sla.svd(part, full_matrices=True)

@@ -95,7 +95,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
 
     rdims, Hs = row_dimensions(model, names, S, rdim, HDesign, atol=atol)
 
-    def design_row(row, how, i):
+    def design_row(row, i):
         ignore = [nm for nm, s in zip(names, row) if s == 0]
         keep = [nm for nm, s in zip(names, row) if s == 1]
         mi = model.with_disturbances(ignore)
@@ -104,7 +104,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
         mi_design = mi._replace(faults=[f for f in mi.faults if f.name in keep]) if extra else mi
         g = nullspace_design(mi_design, rdim=rdims[i], HDesign=Hs[i], poles=poles, sdeg=sdeg, noise=noise, FDtol=FDtol,
                              FDGainTol=FDGainTol, freqs=freqs, tol=tol, seed=seed, smarg=smarg, dec_tol=dec_tol,
-                             minimal=minimal, basis=how, keep_stable_poles=keep_stable_poles, atol=atol,
+                             minimal=minimal, basis=basis, keep_stable_poles=keep_stable_poles, atol=atol,
                              simple=simple, nonstd=nonstd, epsreg=epsreg, sdegzer=sdegzer)
         if extra:
             g = _cover_faults(mi, g, keep, place={"poles": poles, "sdeg": sdeg, "smarg": smarg,
@@ -125,7 +125,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
             failures.append(f"row {i + 1} {row.tolist()} is not achievable: {why}")
             continue
         try:
-            members.append(design_row(row, basis, i))
+            members.append(design_row(row, i))
         except DesignError as exc:
             ignore = [nm for nm, s in zip(names, row) if s == 0]
             failures.append(f"row {i + 1} {row.tolist()} (decoupling {ignore or 'nothing'}): {exc}")

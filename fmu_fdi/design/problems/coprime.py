@@ -34,9 +34,6 @@ from ...lti import LTI
 from ...model import FDIModel
 from ..observers._observer import (as_matrix, filter_riccati, fmt_modes, observer_gain, observer_generator,
                                    output_observer, residual_names, unstable)
-# the stable factorisation of the internal form lives in the toolkit layer (analysis uses it too)
-from ..toolkit.stable_factor import (CANCEL_RTOL, MOVED_DAMPING, glcf, internal_form_realisation,  # noqa: F401
-                                    moved_pole_targets, stable_internal_form, stable_joint_factor)
 
 
 def factorized(model: FDIModel, poles=None, normalized: bool = False, post_filter=None, *,

@@ -57,13 +57,13 @@ def basis_rows(model: FDIModel, *, simple: bool, tol, atol, poles, sdeg, smarg):
     ``N_i`` of McMillan degree ``ν_i``, its left minimal index, ascending; Varga's ``glnull(simple = true)``,
     :func:`..toolkit.pencil.simple_rows`); ``orders`` the rows' degrees (simple) or None."""
     from ...lti import vstack
+    from ..toolkit._basis import no_residual_error
     from ..toolkit.pencil import pencil_basis, simple_rows
 
     pb = pencil_basis(model, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
     k = pb.N.p
     if k == 0:
-        raise DesignError(f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
-                          f"output direction (normal rank of Gd = {pb.rank_d} = number of outputs {model.ny})")
+        raise no_residual_error(model, pb.rank_d)
     if not simple or k == 1:
         return pb.N, pb, ([int(pb.degrees[0])] if simple else None)
     rows = simple_rows(pb, model.dt)

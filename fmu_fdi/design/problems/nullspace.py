@@ -32,7 +32,8 @@ from ...linalg import single_blas_thread
 from ...generator import ResidualGenerator
 from ...lti import LTI, frequency_grid, vstack
 from ...model import FDIModel
-from ..toolkit._basis import NullspaceBasis, check_poles, minimal_basis, normal_rank, pole_chooser, realize_rows
+from ..toolkit._basis import (NullspaceBasis, check_poles, minimal_basis, no_residual_error, normal_rank, pole_chooser,
+                              realize_rows)
 from ..toolkit._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
 from ..toolkit.approximate import gap_objective, noise_normalizer, with_nonstandard_options
 from ...margin import near_poles
@@ -290,7 +291,6 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
         if basis == "polynomial":
             raise DesignError("simple = True needs the state-space (pencil) basis: basis='polynomial' has no "
                               "simple form")
-        basis = "pencil"
     if basis == "polynomial":
         return _polynomial(req)
     return req.pencil() if req.exact_only else req.noise_pencil()
@@ -347,16 +347,16 @@ class _Request:
         return _noise_pencil(self.model, self.rdim, self.poles, self.sdeg, self.FDtol, self.FDGainTol, self.seed,
                              self.smarg, self.dec_tol, self.tol, self.atol, self.minimal, self.place)
 
-    def polynomial(self, rtol: float | None, target: float) -> ResidualGenerator:
+    def polynomial(self) -> ResidualGenerator:
         return _design(self.model, self.rdim, self.poles, self.sdeg, self.freqs, self.FDtol, self.FDGainTol,
-                       self.noise, rtol, self.atol, self.seed, self.smarg, target, self.minimal, self.place)
+                       self.noise, self.tol, self.atol, self.seed, self.smarg, self.dec_tol, self.minimal, self.place)
 
 
 def _polynomial(req: _Request) -> ResidualGenerator:
     """``basis='polynomial'``, an explicit choice only: the minimal polynomial (parity) basis
     (:mod:`..toolkit._basis`) at the rank tolerance ``tol``, judged by the same post-conditions; it
     raises where they fail (nothing falls back to it, and it falls back to nothing)."""
-    gen = req.polynomial(req.tol, req.dec_tol)
+    gen = req.polynomial()
     gen.info.update({"rank_rtol": req.tol, "basis": "polynomial", "decoupling_kind": EXACT})
     return gen
 
@@ -385,9 +385,7 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     N = pb.N
     k = N.p
     if k == 0:
-        raise DesignError(
-            f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
-            f"output direction (normal rank of Gd = {pb.rank_d} = number of outputs {model.ny})")
+        raise no_residual_error(model, pb.rank_d)
     if rdim != "all" and rdim > k:
         raise DesignError(f"rdim = {rdim} residuals requested but the null space of [Gu Gd; I 0] has only "
                           f"{k} basis vectors (p - rank Gd)")
@@ -418,12 +416,12 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
         sets = sorted((c for size in range(int(rdim), top + 1) for c in combinations(range(len(rows)), size)),
                       key=lambda c: (order(c), len(c)))
         for c in sets:
+            sub = vstack([Ns[i] for i in c])
             if model.faults and not np.all(seen[list(c)].max(axis=0)) and \
-                    not np.all(_span_gains(model, vstack([Ns[i] for i in c]), freqs) >= FDtol):
+                    not np.all(_span_gains(model, sub, freqs) >= FDtol):
                 continue  # some fault is seen by no combination of these rows
             if len(tried) >= 6:
                 break  # bounded search: the whole basis below
-            sub = vstack([Ns[i] for i in c])
             try:
                 gen = _pencil_combine(model, sub, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
                                       dict(base, simple_rows=[rows[i][1] for i in c],
@@ -547,14 +545,21 @@ def _span_gains(model, N: LTI, freqs) -> np.ndarray:
     sees it well. Points are left out only where ``||Gf_j||`` is below :data:`SPAN_FLOOR` of its median."""
     Gv, Nv = _grid_values(model, N, freqs)
     p = model.ny
-    U, S, _ = np.linalg.svd(Nv[:, :, :p], full_matrices=False)  # (K, k, r), (K, r)
-    S = np.maximum(S, 1e-8 * S[:, :1])
-    W = np.conj(np.swapaxes(U, 1, 2)) / np.where(S > 0, S, 1.0)[:, :, None]  # (K, r, k)
     out = np.zeros(len(model.faults))
-    for j, c in enumerate(fault_columns(model)):
-        resp = np.linalg.norm(np.einsum("kri,kiq,kqc->krc", W, Nv, Gv[:, :, c]), 2, axis=(1, 2))
+    for j, (c, resp) in enumerate(_span_responses(model, Nv, Gv)):
         out[j] = _cosine(resp, np.linalg.norm(Gv[:, :p, c], 2, axis=(1, 2)), floor=SPAN_FLOOR)
     return out
+
+
+def _span_responses(model, Nv: np.ndarray, Gv: np.ndarray):
+    """Per fault column block ``c``, ``(c, max_h ||h N Ge_c|| / ||h N_y||)`` at every point: ``||W N Ge_c||₂``
+    with ``W = S⁻¹ Uᴴ`` from ``N_y = U S Vᴴ`` (singular values floored at 1e-8 of the largest). ``Nv``, ``Gv``:
+    the rows and ``Ge`` at the points, arrays (K, ·, ·)."""
+    U, S, _ = np.linalg.svd(Nv[:, :, :model.ny], full_matrices=False)  # (K, k, r), (K, r)
+    S = np.maximum(S, 1e-8 * S[:, :1])
+    W = np.conj(np.swapaxes(U, 1, 2)) / np.where(S > 0, S, 1.0)[:, :, None]  # (K, r, k)
+    return [(c, np.linalg.norm(np.einsum("kri,kiq,kqc->krc", W, Nv, Gv[:, :, c]), 2, axis=(1, 2)))
+            for c in fault_columns(model)]
 
 
 #: a fault whose span cosine at a strong frequency (:func:`_refuse_unseen_at`) is at most this is absent
@@ -578,11 +583,7 @@ def _refuse_unseen_at(model, N: LTI, freqs) -> None:
     if not np.any(ok):
         return
     p = model.ny
-    U, S, _ = np.linalg.svd(Nv[ok][:, :, :p], full_matrices=False)
-    S = np.maximum(S, 1e-8 * S[:, :1])
-    W = np.conj(np.swapaxes(U, 1, 2)) / np.where(S > 0, S, 1.0)[:, :, None]
-    for j, c in enumerate(fault_columns(model)):
-        resp = np.linalg.norm(np.einsum("kri,kiq,kqc->krc", W, Nv[ok], Gs[ok][:, :, c]), 2, axis=(1, 2))
+    for j, (c, resp) in enumerate(_span_responses(model, Nv[ok], Gs[ok])):
         gf = np.linalg.norm(Gs[ok][:, :p, c], 2, axis=(1, 2))
         cos = np.where(gf > 0, resp / np.where(gf > 0, gf, 1.0), 0.0)
         if np.any(cos <= SPAN_ZERO):
@@ -621,10 +622,7 @@ def _pencil_combine(model, N: LTI, rdim, freqs, FDtol, FDGainTol, seed, smarg, d
 
     k = N.p
     Ge = model.augmented()
-    lam = _points(model, _grid(model, N.poles(), freqs))
-    Gv, Nv = _values(Ge, lam), _values(N, lam)
-    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Nv), axis=(1, 2))
-    Gv, Nv = Gv[ok], Nv[ok]
+    Gv, Nv = _grid_values(model, N, freqs)
     fcols = fault_columns(model)
     p = model.ny
     # _strong_points refuses freqs where the plant cannot be evaluated, whatever rdim is
@@ -652,10 +650,7 @@ def _design(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol,
             place: dict | None = None):
     basis = minimal_basis(model, tol, atol)
     if not basis.rows:
-        raise DesignError(
-            f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
-            f"output direction (normal rank of Gd = {basis.rank_d} = number of outputs {model.ny})"
-        )
+        raise no_residual_error(model, basis.rank_d)
     choose = pole_chooser(model, poles, sdeg, freqs)
     seen = detectability_by_rows(model, basis, FDtol)
     if model.faults and not np.all(seen.max(axis=0) >= FDtol):
@@ -1041,9 +1036,7 @@ def _approximate_pencil(model: FDIModel, rdim, poles, sdeg, FDtol, FDGainTol, se
         return gen
     pb = pencil_basis(model, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
     if pb.N.p == 0:
-        raise DesignError(
-            f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
-            f"output direction (normal rank of Gd = {pb.rank_d} = number of outputs {model.ny})")
+        raise no_residual_error(model, pb.rank_d)
     try:
         pb2 = pencil_basis(exact_w, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
         Q2 = pb2.N if pb2.N.p else None

@@ -2,7 +2,7 @@
 
 Minimal polynomial bases of the left null space (:mod:`._basis`) and the proper stable basis
 from the system pencil (:mod:`.pencil`); the choice of basis combinations (:mod:`._select`);
-least-order rows from frequency samples (:mod:`.sampled`); the stable left coprime factorisation
+the stable left coprime factorisation
 of the internal form (:mod:`.stable_factor`); the co-outer–co-inner factorisation and gap
 objective of approximate decoupling (:mod:`.approximate`); the numerator refinement
 (:mod:`.refine`); and the one judge of every design, the post-conditions on the normalised

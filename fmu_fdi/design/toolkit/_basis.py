@@ -201,6 +201,12 @@ class ParityData:
         return PolyRow(s, coef)
 
 
+def no_residual_error(model: FDIModel, rank_d: int) -> DesignError:
+    """The refusal when the left null space of ``[Gu Gd; I 0]`` is empty (every basis: polynomial or pencil)."""
+    return DesignError(f"no residual generator exists for model '{model.name}': the unknown inputs d span every "
+                       f"output direction (normal rank of Gd = {rank_d} = number of outputs {model.ny})")
+
+
 def minimal_basis(model: FDIModel, rtol: float | None = None, atol: float = 0.0) -> NullspaceBasis:
     """Minimal polynomial basis of the left null space of ``[Gu Gd; I 0]``.
 

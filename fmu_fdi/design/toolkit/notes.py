@@ -16,19 +16,18 @@ import warnings
 from contextlib import contextmanager
 from contextvars import ContextVar
 
-_COLLECTORS: ContextVar[tuple[list[str], ...]] = ContextVar("fmu_fdi_design_notes", default=())
+#: the notes of the design in progress (None: no design in progress); nesting is by re-noting on return
+_COLLECTOR: ContextVar[list[str] | None] = ContextVar("fmu_fdi_design_notes", default=None)
 
 
 def note(message: str) -> None:
-    """Record ``message`` for the design in progress (every enclosing design collects it);
-    a ``UserWarning`` when no design is in progress."""
-    stack = _COLLECTORS.get()
-    if not stack:
+    """Record ``message`` for the design in progress (an enclosing design gets it when that one returns,
+    :func:`keeps_notes`); a ``UserWarning`` when no design is in progress."""
+    notes = _COLLECTOR.get()
+    if notes is None:
         warnings.warn(message, UserWarning, stacklevel=3)
-        return
-    for notes in stack:
-        if message not in notes:
-            notes.append(message)
+    elif message not in notes:
+        notes.append(message)
 
 
 def keeps_notes(design):
@@ -39,14 +38,14 @@ def keeps_notes(design):
     @functools.wraps(design)
     def wrapper(*args, **kwargs):
         notes: list[str] = []
-        token = _COLLECTORS.set((notes,))  # this call's own: a call that fails leaves no notes behind
+        token = _COLLECTOR.set(notes)  # this call's own: a call that fails leaves no notes behind
         try:
             out = design(*args, **kwargs)
         finally:
-            _COLLECTORS.reset(token)
+            _COLLECTOR.reset(token)
         attach(out, notes)
-        for text in notes:  # an enclosing design (a bank of rows) keeps them too
-            if _COLLECTORS.get():
+        if _COLLECTOR.get() is not None:  # an enclosing design (a bank of rows) keeps them too
+            for text in notes:
                 note(text)
         return out
 
@@ -66,8 +65,8 @@ def attach(out, notes: list[str]) -> None:
 def silenced():
     """Within: :func:`note` records and warns nothing (a remark that is no news to the caller, e.g. the pole
     choice for an internal denominator)."""
-    token = _COLLECTORS.set(([],))
+    token = _COLLECTOR.set([])
     try:
         yield
     finally:
-        _COLLECTORS.reset(token)
+        _COLLECTOR.reset(token)

@@ -53,7 +53,7 @@ def refine_decoupling(Q: LTI, lam: np.ndarray, Ge_ud: np.ndarray, residues=()) -
     lam = np.asarray(lam, complex)
     ok = np.all(np.isfinite(Ge_ud), axis=(1, 2))
     lam, G = lam[ok], Ge_ud[ok]
-    pr, q, n = Q.p, Q.m, Q.n
+    pr, n = Q.p, Q.n
     if not lam.size or not G.shape[2]:
         return Q, 0.0, 0.0
     lj = np.array([complex(r[0]) for r in residues], complex)

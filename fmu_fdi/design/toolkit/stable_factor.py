@@ -1,11 +1,10 @@
 """Stable left coprime factorisation of a filter's internal form ``[Q R] = M⁻¹ [N_Q N_R]``.
 
 The state-space toolkit piece every null-space design ends with (Varga 2017, Procedure EFD step 3;
-FaultDetectionTools.jl ``glcf``) and the strong-detectability tests judge on
-(:func:`fmu_fdi.design.problems.achievable.achievable_structure` at a pole on the stability boundary): an ordered
+FaultDetectionTools.jl ``glcf``), so also what the strong listing of
+:func:`fmu_fdi.design.problems.achievable.achievable_structure` judges through the designs: an ordered
 real Schur form moves only the poles that violate the margin, to targets chosen by
-:func:`moved_pole_targets`. :mod:`fmu_fdi.design.problems.coprime` (the factorised residual form) re-exports
-these names.
+:func:`moved_pole_targets`.
 """
 from __future__ import annotations
 
