@@ -52,8 +52,9 @@ def check_signal_name(name, what: str) -> str:
 
 def identifier_of(name: str) -> str:
     """An identifier made of a signal name, for names derived from it: ``y[2]`` → ``y_2``,
-    ``A[1,2]`` → ``A_1_2`` (a fault name ``sensor_y_2``); an identifier is returned as it is."""
-    return re.sub(r"[^A-Za-z0-9_]+", "_", name).rstrip("_")
+    ``A[1,2]`` → ``A_1_2`` (a fault name ``sensor_y_2``); an identifier is returned as it is (``y_`` stays
+    ``y_``: only the closing bracket is dropped, not an identifier's own trailing underscores)."""
+    return re.sub(r"[^A-Za-z0-9_]+", "_", name.removesuffix("]"))
 
 
 @dataclass

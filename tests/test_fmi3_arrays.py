@@ -246,3 +246,13 @@ def test_declared_types_reach_the_diagnostic_fmu(tmp_path):
         assert validate_fmu(str(fmu)) == [], (target, fmi)
         md = read_model_description(str(fmu), validate=True)
         assert {v.name: v.declaredType.name for v in md.modelVariables if v.declaredType} == types
+
+
+@pytest.mark.parametrize("name, ident", [("y[2]", "y_2"), ("A[1,2]", "A_1_2"), ("plant.y[2]", "plant_y_2"),
+                                         ("y", "y"), ("y_", "y_"), ("_y__", "_y__")])
+def test_derived_names_keep_identifiers_as_they_are(name, ident):
+    # fault names are made from signal names: 'y' and 'y_' are two signals and must give two faults
+    # (an identifier's own trailing underscores were stripped, so both gave 'sensor_y')
+    from fmu_fdi.faults import identifier_of
+
+    assert identifier_of(name) == ident
