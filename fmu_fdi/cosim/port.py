@@ -68,7 +68,7 @@ class Group:
         self.names = list(names)
         variables = [fmu.variable(v) for v in self.names]
         if any(isinstance(v, Element) for v in variables):  # FMI 3 array elements: whole arrays per call
-            self._packed(fmu, variables, ctype)
+            self._packed(fmu, variables, ctype, memory)
             return
         vrs = [v.valueReference for v in variables]
         self.ctype, self.n = ctype, len(vrs)
@@ -92,18 +92,23 @@ class Group:
         else:
             self.bound = _bind(f, c_void_p(component(fmu)), self.vrs, n, self.values, n)
 
-    def _packed(self, fmu, variables, ctype):
+    def _packed(self, fmu, variables, ctype, memory=None):
         """The group's call on whole arrays (:class:`~fmu_fdi.cosim.elements.Packed`: one value
-        reference, N values each); ``view`` holds the group's own elements, copied to or from the
-        call's values by :attr:`bound`, the elements not set keeping their values in the
-        instance's store (``fmu._array_values``, shared with :class:`~fmu_fdi.cosim.instance.Accessor`)."""
+        reference, N values each); ``view`` holds the group's own elements (the caller's ``memory`` when
+        given, as for scalars), copied to or from the call's values by :attr:`bound`, the elements not set
+        keeping their values in the instance's store (``fmu._array_values``, shared with
+        :class:`~fmu_fdi.cosim.instance.Accessor`)."""
         packed = Packed(variables, store=fmu._array_values)
         self.ctype, self.n = ctype, len(variables)
         self.vrs = (c_uint * len(packed.vrs))(*packed.vrs)
         raw = (ctype * packed.n_values)()
         flat = np.ctypeslib.as_array(raw) if ctype is not c_bool else np.frombuffer(raw, dtype=np.bool_)
-        self.values, self._memory = raw, False
-        self.view = np.zeros(self.n, flat.dtype)
+        self.values = raw
+        if memory is not None:  # a slice of the caller's array: the elements land there directly
+            assert memory.dtype == flat.dtype and memory.size == self.n
+            self.view, self._memory = memory, True
+        else:
+            self.view, self._memory = np.zeros(self.n, flat.dtype), False
         self.name = f"fmi3{self.direction.capitalize()}{self.call}"
         call = _bind(c_function(fmu, self.name), c_void_p(component(fmu)), self.vrs, c_size_t(len(packed.vrs)), raw,
                      c_size_t(packed.n_values))
@@ -113,7 +118,7 @@ class Group:
         if self.direction == "get":
             def bound():
                 st = call()
-                view[:] = flat[index]
+                np.take(flat, index, out=view)
                 return st
         else:
             def bound():
