@@ -37,8 +37,9 @@ Two estimators:
   ``χ²_1(2γ − 1)`` (one-sided level γ). Unlike a percentile bootstrap around the fitted
   parameters, the profile bound follows the likelihood's asymmetry in ξ — the one that
   decides an extrapolation ζ/rate of tens to hundreds — and widens as the excesses grow
-  few. ξ is kept ≥ −1/2 (below it the likelihood is irregular, Smith 1985; a bounded tail
-  so short is no evaluation's). The GPD is a *limit* law: fitted to a tail not yet in its
+  few. ξ is kept ≥ 0 (:data:`XI_MIN`): an evaluation of Gaussian-driven residuals is unbounded, so
+  its tail has no negative shape — a fitted ξ < 0 put the bound below the true quantile on white
+  noise (and below −1/2 the likelihood is irregular, Smith 1985). The GPD is a *limit* law: fitted to a tail not yet in its
   asymptotic regime (u low in a light, Gaussian-like tail) it underestimates the far
   quantile whatever the confidence bound, so u is held at the ``1 − tail_fraction``
   quantile with at least ``MIN_EXCESSES`` excesses, which sets the fewest effective

@@ -301,7 +301,7 @@ def _estimated(ident, check, sig, y_names, ts, order, max_order):
     elif order is None:
         sub, rep = _order_by_cross_validation(
             moesp(du, dy, ts, None, max_order=max_order, feedthrough=False, candidates=True)
-            + [static_model(du, dy, ts)], du_val, dy_val, check.t, y_names)[:2]
+            + [static_model(du, dy, ts)], du_val, dy_val, check.t, y_names)
     elif order == 0:
         sub = static_model(du, dy, ts)
         rep = validate(sub, du_val, dy_val, check.t, np.zeros(0), y_names)
@@ -326,7 +326,7 @@ def _refined(sub, rep, ident, check, y_names, max_order):
 
     if sub.order < 1 or sub.info.get("static") is not None or rep.kind != "simulation":
         return sub, rep, None
-    lam = np.abs(np.linalg.eigvals(sub.to_continuous()[0]))
+    lam = np.abs(rep.poles_continuous)  # the simulation report of sub carries its continuous poles
     if lam.min() <= 0 or lam.max() / lam.min() <= STIFF_RATIO:
         return sub, rep, None
     du, dy = ident.u - ident.u0, ident.y - ident.y0
@@ -338,14 +338,9 @@ def _refined(sub, rep, ident, check, y_names, max_order):
     except IdentificationError:
         return sub, rep, None
     new_rep = validate(new, check.u - check.u0, check.y - check.y0, check.t, np.linalg.eigvals(A), y_names)
-
-    def error(r):
-        y, yh = r.y, r.y_hat
-        return float(np.mean(np.sum((y - yh) ** 2, axis=0) / np.maximum(np.sum((y - y.mean(0)) ** 2, axis=0),
-                                                                         np.finfo(float).tiny)))
-    if new_rep.kind != "simulation" or not error(new_rep) < error(rep):
+    if new_rep.kind != "simulation" or not _simulation_error(new_rep) < _simulation_error(rep):
         return sub, rep, None
-    info.update(validation_error_before=error(rep), validation_error_after=error(new_rep))
+    info.update(validation_error_before=_simulation_error(rep), validation_error_after=_simulation_error(new_rep))
     return new, new_rep, info
 
 
@@ -502,6 +497,14 @@ def _experiments(path, md, sig, y_names, *, at, params, ts, excite, excitation, 
     return (*runs, exc, plan, ts)
 
 
+def _simulation_error(rep) -> float:
+    """The mean over outputs of the normalised squared simulation error ``||e_j||² / ||y_j − ȳ_j||²`` of a
+    validation report (the criterion of the order choice and of the output-error refinement)."""
+    y, yh = rep.y, rep.y_hat
+    return float(np.mean(np.sum((y - yh) ** 2, axis=0) / np.maximum(np.sum((y - y.mean(0)) ** 2, axis=0),
+                                                                    np.finfo(float).tiny)))
+
+
 def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
     """The order from the singular values, or a lower-error one on the validation run (Ljung 1999,
     sec. 16.4, cross-validation): among the stable candidates within 3 of it (and the static gain,
@@ -513,8 +516,7 @@ def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
     from .validation import validate
 
     def judged(sub):
-        A, B, C, D = sub.to_continuous()
-        return sub, validate(sub, du_val, dy_val, t, np.linalg.eigvals(A), y_names), A, B, C, D
+        return sub, validate(sub, du_val, dy_val, t, np.linalg.eigvals(sub.to_continuous()[0]), y_names)
 
     gap = cands[0]
     if np.any(np.abs(np.linalg.eigvals(gap.A)) >= 1.0):
@@ -527,10 +529,7 @@ def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
             res = judged(sub)
         except IdentificationError:
             continue
-        y, yh = res[1].y, res[1].y_hat
-        err = float(np.mean(np.sum((y - yh) ** 2, axis=0) / np.maximum(np.sum((y - y.mean(0)) ** 2, axis=0),
-                                                                        np.finfo(float).tiny)))
-        scored.append((err, sub.order, res))
+        scored.append((_simulation_error(res[1]), sub.order, res))
     if not scored:
         return judged(gap)
     best = min(e for e, _, _ in scored)

@@ -48,6 +48,7 @@ import scipy.linalg as sla
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
+from ..lti import LTI
 from .errors import IdentificationError
 
 #: a conjugate pair is a pole with |Im λ| above this fraction of |λ|
@@ -175,12 +176,8 @@ def refine_output_error(sub, u, y, sigma, *, max_nfev: int = 200):
     fit = least_squares(residual, theta0, method="lm", x_scale="jac", max_nfev=max_nfev)
     modal.set(fit.x)
     Ac, Bc, Cc = modal.realisation()
-    n, m = Bc.shape
-    M = np.zeros((n + m, n + m))
-    M[:n, :n], M[:n, n:] = Ac * ts, Bc * ts
-    E = sla.expm(M)
-    out = replace(sub, A=E[:n, :n], B=E[:n, n:], C=Cc, D=np.zeros_like(sub.D),
-                  info=dict(sub.info, refined="output error"))
+    zoh = LTI(Ac, Bc, Cc, np.zeros((Cc.shape[0], Bc.shape[1])), 0.0).to_discrete(ts)
+    out = replace(sub, A=zoh.A, B=zoh.B, C=Cc, D=np.zeros_like(sub.D), info=dict(sub.info, refined="output error"))
     offset = (y - modal.simulate(u, ts)).mean(axis=0)
     return out, {"cost_before": cost0, "cost_after": float(fit.cost), "evaluations": int(fit.nfev),
                  "status": fit.message, "offset": offset}
