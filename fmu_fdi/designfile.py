@@ -113,12 +113,10 @@ def save_design(d: dict, path) -> Path:
     d = _clean(d)
     validate_design(d, str(path))
     path = check_output_path(path, (".json",), "design file", error=DesignFileError)
-    side = sidecar.sidecar_path(path)
     d, arrays = _split(d)
-    if arrays:
-        d["model"]["arrays"] = sidecar.write(side, arrays)
-    elif side.is_file():
-        side.unlink()
+    table = sidecar.store(path, arrays)
+    if table is not None:
+        d["model"]["arrays"] = table
     text = json_text(d)
     return write_atomically(path, lambda part: part.write_text(text, encoding="utf-8"))
 
@@ -160,6 +158,7 @@ def design_resources(d: dict) -> dict[str, bytes]:
     d = _clean(d)
     files = {}
     if arrays:
-        files["design.json.npz"] = sidecar.encode(arrays)
-        d["model"]["arrays"] = sidecar.table("design.json.npz", files["design.json.npz"])
+        side = sidecar.sidecar_path("design.json").name
+        files[side] = sidecar.encode(arrays)
+        d["model"]["arrays"] = sidecar.table(side, files[side])
     return {"design.json": json.dumps(d, sort_keys=True, allow_nan=False).encode("utf-8"), **files}

@@ -559,11 +559,10 @@ class FDIModel:
             sidecar = entries > _sidecar.SIDECAR_MIN_ENTRIES
         arrays: dict | None = {} if sidecar else None
         d = self.to_dict(arrays)
-        if arrays is not None:
+        table = _sidecar.store(path, arrays)
+        if table is not None:
             d["format"] = FORMAT_SIDECAR
-            d["arrays"] = _sidecar.write(_sidecar.sidecar_path(path), arrays)
-        elif _sidecar.sidecar_path(path).is_file():  # an earlier save's: it would describe another model
-            _sidecar.sidecar_path(path).unlink()
+            d["arrays"] = table
         if suffix == ".json":
             text = json.dumps(d, indent=2)
         elif suffix == ".toml":

@@ -15,7 +15,6 @@ member designs (each an ordinary ``fmu-fdi-design/1``) and the schedule.
 from __future__ import annotations
 
 import copy
-import json
 import time
 from pathlib import Path
 
@@ -233,7 +232,7 @@ def design_of(obj):
     """The validated scheduled design of a ScheduledDiagnoser, scheduled design dict or file; None
     for anything else (``build_fmu``'s hook)."""
     if isinstance(obj, ScheduledDiagnoser):
-        return validate_scheduled_design(json.loads(json.dumps(_clean(obj.design))), "scheduled diagnoser")
+        return validate_scheduled_design(_clean(obj.design), "scheduled diagnoser")  # _clean: a fresh JSON-ready copy
     if isinstance(obj, dict):
         return validate_scheduled_design(obj) if is_scheduled(obj) else None
     if isinstance(obj, Diagnoser):

@@ -80,6 +80,17 @@ def write(path, arrays: dict[str, np.ndarray]) -> dict:
     return table(path.name, data)
 
 
+def store(file_path, arrays: dict[str, np.ndarray] | None) -> dict | None:
+    """The sidecar of the model or design file ``file_path``: ``arrays`` written beside it (:func:`write`)
+    and its ``[arrays]`` table returned; with ``None``, a sidecar an earlier save left under that name
+    (it would describe another model) is removed and None returned."""
+    side = sidecar_path(file_path)
+    if arrays is not None:
+        return write(side, arrays)
+    side.unlink(missing_ok=True)
+    return None
+
+
 def reference(name: str, value: np.ndarray) -> dict:
     """The model file's entry for a matrix stored in the sidecar under ``name``."""
     return {"array": name, "shape": [int(s) for s in np.shape(value)]}
