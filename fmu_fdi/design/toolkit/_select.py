@@ -55,25 +55,53 @@ def maximize_on_sphere(objective: Callable[[np.ndarray], float], k: int, seed: i
     return best, best_val
 
 
+class _RowResponses:
+    """The responses ``h P_j`` of a combination ``h`` to every fault j at once: the per-fault blocks
+    ``P_j`` (points, rows, cols_j) stacked as one (rows, points·cols) matrix, so that one product
+    ``h @ M`` and one segment sum give ``||h P_j(λ_k)||`` for every k and j (the objectives below run
+    inside Nelder–Mead: thousands of evaluations, where per-fault ``einsum``/``norm`` calls cost more
+    than the arithmetic)."""
+
+    def __init__(self, P: list[np.ndarray]):
+        self.points = P[0].shape[0] if P else 0
+        cols = [Pj.shape[2] for Pj in P]
+        self.starts = np.cumsum([0] + cols[:-1])
+        self.M = (np.concatenate([Pj.transpose(1, 0, 2) for Pj in P], axis=2).reshape(P[0].shape[1], -1)
+                  if P else None)
+        self.width = int(sum(cols))
+
+    def norms(self, h: np.ndarray) -> np.ndarray:
+        """(points, faults): ``||h P_j(λ_k)||``."""
+        hp = (h @ self.M).reshape(self.points, self.width)
+        return np.sqrt(np.add.reduceat(hp.real ** 2 + hp.imag ** 2, self.starts, axis=1))
+
+
 def sensitivity_objective(P: list[np.ndarray], strong: list[np.ndarray] | None = None):
     """Fault sensitivity condition of a combination ``h`` of rows.
 
     ``P[j]`` has shape (points, rows, cols_j): the responses of every row to fault j on
     a frequency grid; ``strong[j]`` the same at the strong-detectability frequencies.
     """
+    grid = _RowResponses(P)
+    at = _RowResponses(strong) if strong else None
 
     def objective(h: np.ndarray) -> float:
-        peaks = np.array([np.max(np.linalg.norm(np.einsum("r,krc->kc", h, Pj), axis=1)) for Pj in P])
-        top = peaks.max()
-        if top <= 0:
-            return 0.0
-        worst = peaks.min()
-        if strong is not None:
-            lows = [np.min(np.linalg.norm(np.einsum("r,krc->kc", h, Sj), axis=1)) for Sj in strong]
-            worst = min(worst, min(lows))
-        return float(worst / top)
+        return _condition(grid.norms(h), at.norms(h) if at is not None else None)
 
     return objective
+
+
+def _condition(resp: np.ndarray, lows: np.ndarray | None) -> float:
+    """Smallest fault peak (and strong-frequency gain) over the largest fault peak; ``resp`` and
+    ``lows`` are (points, faults) gains on the grid and at the strong frequencies."""
+    peaks = resp.max(axis=0)
+    top = peaks.max()
+    if top <= 0:
+        return 0.0
+    worst = peaks.min()
+    if lows is not None:
+        worst = min(worst, lows.min())
+    return float(worst / top)
 
 
 def visibility_gated(P: list[np.ndarray], Y: np.ndarray, G: np.ndarray, fcols: list, gate: float,
@@ -86,34 +114,32 @@ def visibility_gated(P: list[np.ndarray], Y: np.ndarray, G: np.ndarray, fcols: l
     ``γ_j(h) = max_λ ||h P_j(λ)|| / (||h Y(λ)|| ||Gf_j(λ)||)`` (``Y``: the rows' y-part,
     (points, rows, p); ``Gf_j = G[:, :p, fcols[j]]``: the plant's values on the same points,
     :func:`.postconditions._cosine`) must reach ``gate`` (FDtol, inclusive as the judge); below it the value is
-    ``min_j γ_j - 1 < 0``, under every admissible one. Without ``strong`` the objective's value is
-    computed here from the same products.
+    ``min_j γ_j - 1 < 0``, under every admissible one. The objective's value is computed from the
+    same products.
     With ``strong`` (gains at given frequencies in the objective, whose ratio to the peak a
     near-degenerate combination also inflates) the value is ``min(objective, min_j γ_j)``, so the
     optimum stays away from the gate instead of sitting on it.
     """
-    objective = sensitivity_objective(P, strong)
-    gnorms = [np.linalg.norm(G[:, :Y.shape[2], c], 2, axis=(1, 2)) for c in fcols]  # ||Gf_j(λ)||
-    Pall = np.concatenate(P, axis=2) if P else np.zeros((Y.shape[0], Y.shape[1], 0))
-    starts = np.cumsum([0] + [Pj.shape[2] for Pj in P[:-1]])
-    Gn = np.stack(gnorms, axis=1) if gnorms else np.zeros((Y.shape[0], 0))  # (K, faults)
+    if not P:
+        return sensitivity_objective(P, strong)
+    grid = _RowResponses(P)
+    at = _RowResponses(strong) if strong else None
+    K, rows, p = Y.shape
+    Ym = Y.transpose(1, 0, 2).reshape(rows, K * p)
+    Gn = np.stack([np.linalg.norm(G[:, :p, c], 2, axis=(1, 2)) for c in fcols], axis=1)  # (K, faults): ||Gf_j(λ)||
 
     def gated(h: np.ndarray) -> float:
-        if not P:
-            return objective(h)
-        hp = np.einsum("r,krc->kc", h, Pall)
-        resp = np.sqrt(np.add.reduceat(np.abs(hp) ** 2, starts, axis=1))  # (K, faults): ||h P_j(λ)||
-        bound = np.linalg.norm(np.einsum("r,krc->kc", h, Y), axis=1)[:, None] * Gn
+        resp = grid.norms(h)  # (K, faults): ||h P_j(λ)||
+        hy = (h @ Ym).reshape(K, p)
+        bound = np.sqrt((hy.real ** 2 + hy.imag ** 2).sum(axis=1))[:, None] * Gn
         top = bound.max(axis=0)
         keep = bound >= 1e-6 * top  # as postconditions._cosine: zeros of Gf_j are left out
         ratio = np.where(keep, resp / np.where(keep, bound, 1.0), 0.0).max(axis=0)
         g = float(np.min(np.where(top > 0, ratio, 0.0)))
         if g < gate:  # inclusive, as the judge: γ_j = FDtol is visible
             return g - 1.0
-        if strong is not None:
-            return min(objective(h), g)
-        peaks = resp.max(axis=0)  # sensitivity_objective(P) without strong frequencies, from the same values
-        return float(peaks.min() / peaks.max()) if peaks.max() > 0 else 0.0
+        value = _condition(resp, at.norms(h) if at is not None else None)
+        return min(value, g) if at is not None else value
 
     return gated
 
