@@ -149,3 +149,19 @@ def test_weak_but_flat_fault_is_designable():
 def test_bad_arguments(kw, message):
     with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
         achievable_structure(xiong_saif_1(), **kw)
+
+
+@pytest.mark.parametrize("kw, message", [
+    ({"freqs": [-1.0]}, "finite non-negative"), ({"freqs": [np.inf]}, "finite non-negative"),
+    ({"freqs": []}, "finite non-negative"), ({"freqs": [0], "FDGainTol": 1.5}, "FDGainTol must be in (0, 1)"),
+])
+@pytest.mark.parametrize("design", ["nullspace_design", "structured_bank"])
+def test_bad_strong_options_refused_by_every_design(design, kw, message):
+    """One check (analysis.strong_frequencies / check_strong_options) behind every entry point that takes freqs."""
+    import fmu_fdi
+
+    m = xiong_saif_1()
+    call = {"nullspace_design": lambda: fmu_fdi.nullspace_design(m, **kw),
+            "structured_bank": lambda: fmu_fdi.structured_bank(m, [[1] * len(m.fault_names)], **kw)}[design]
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        call()

@@ -47,6 +47,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ...analysis import strong_frequencies
 from ...errors import DesignError
 from ...faults import component_fault
 from ...generator import ResidualBank, ResidualGenerator
@@ -269,15 +270,6 @@ def _gain(R: LTI, freqs=None, norm: str = "inf") -> float:
     return float(R.hinfnorm()[0])
 
 
-def _check_freqs(freqs):
-    if freqs is None:
-        return None
-    f = np.atleast_1d(np.asarray(freqs, float))
-    if f.ndim != 1 or f.size == 0 or np.any(f < 0) or not np.all(np.isfinite(f)):
-        raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {np.asarray(freqs).tolist()}")
-    return f
-
-
 def distance_mapping(bank, models: Sequence[FDIModel], *, freqs=None, norm: str = "inf") -> np.ndarray:
     """Distance-mapping performance ``MDperf[i, j] = ||Q_i [Gu_j; I]||`` (FaultDetectionTools.jl ``mdperf``).
 
@@ -300,7 +292,7 @@ def distance_mapping(bank, models: Sequence[FDIModel], *, freqs=None, norm: str 
     """
     if norm not in ("inf", "2"):
         raise DesignError(f"norm must be 'inf' or '2', got {norm!r}")
-    freqs = _check_freqs(freqs)
+    freqs = strong_frequencies(freqs)
     Qs = _filters(bank)
     maps = [_u_map(mj) for mj in models]
     return np.array([[_gain(Qi @ Gj, freqs, norm) for Gj in maps] for Qi in Qs])
@@ -341,7 +333,7 @@ def match_model(bank, model: FDIModel, *, freqs=None) -> tuple[np.ndarray, int]:
     """Distances of one model to every filter of the bank and the index of the smallest
     (FaultDetectionTools.jl ``mdmatch``): ``gains[i] = ||Q_i [Gu Gd Gw; I 0 0]||∞``.
     The filter with the smallest gain is the one whose model matches best."""
-    freqs = _check_freqs(freqs)
+    freqs = strong_frequencies(freqs)
     sl = model.group_slices()
     G = model.augmented()[:, np.arange(sl["u"].start, sl["w"].stop)]
     gains = np.array([_gain(Qi @ G, freqs) for Qi in _filters(bank)])
@@ -470,7 +462,7 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
     models = _check_set(models)
     if not (rdim == "all" or (isinstance(rdim, (int, np.integer)) and not isinstance(rdim, bool) and rdim >= 1)):
         raise DesignError(f"rdim must be a positive integer or 'all', got {rdim!r}")
-    freqs = _check_freqs(freqs)
+    freqs = strong_frequencies(freqs)
     _check_distinguishable(models, rtol=np.sqrt(np.finfo(float).eps))
     stripped = [mj._replace(faults=[]) for mj in models]
     bare = [mj._replace(Bw=np.zeros((mj.n, 0)), Dw=np.zeros((mj.ny, 0)), w_names=[]) for mj in stripped]

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...analysis import check_strong_options, strong_frequencies
 from ...errors import DesignError
 from ...linalg import single_blas_thread
 from ...generator import ResidualGenerator
@@ -330,8 +331,10 @@ class _Request:
             check_poles([sdeg], model.dt)
         if basis not in ("auto", "polynomial", "pencil"):
             raise DesignError(f"basis must be 'auto', 'polynomial' or 'pencil', got {basis!r}")
+        if freqs is not None:
+            check_strong_options(freqs, FDGainTol)
         place = {"poles": poles, "sdeg": sdeg, "smarg": smarg, "keep_stable_poles": bool(keep_stable_poles)}
-        return cls(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol,
+        return cls(model, rdim, poles, sdeg, strong_frequencies(freqs), FDtol, FDGainTol, noise, tol, atol, seed, smarg, dec_tol,
                    minimal, place)
 
     @property
@@ -389,9 +392,6 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
     if rdim != "all" and rdim > k:
         raise DesignError(f"rdim = {rdim} residuals requested but the null space of [Gu Gd; I 0] has only "
                           f"{k} basis vectors (p - rank Gd)")
-    freqs = None if freqs is None else np.atleast_1d(np.asarray(freqs, float))
-    if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
-        raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {freqs.tolist()}")
     full = rdim == "all" or rdim >= k
     rows = [] if full or k == 1 or not minimal else _common_poles(simple_rows(pb, model.dt), model.dt)
     base = {"basis": "pencil", "decoupling_kind": EXACT, "left_minimal_indices": pb.degrees, "pencil": pb.info}
@@ -725,9 +725,6 @@ def _exact(model, basis, seen, rdim, choose, freqs, FDGainTol, seed, minimal: bo
         return _finish(model, Q, basis, "nullspace", {"order": int(sum(degrees)), "rdim": len(rows)},
                        [r.degree for r in rows], place=place)
 
-    freqs = None if freqs is None else np.atleast_1d(np.asarray(freqs, float))
-    if freqs is not None and (np.any(freqs < 0) or not np.all(np.isfinite(freqs))):
-        raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {freqs.tolist()}")
     for nu in (sorted(set(degrees)) if minimal else [max(degrees)]):
         k = sum(1 for d in degrees if d <= nu)
         if k < rdim:
