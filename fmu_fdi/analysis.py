@@ -235,27 +235,6 @@ def isolability(model: FDIModel) -> dict:
     return {"faults": model.fault_names, "matrix": M, "fully_isolable": bool(full)}
 
 
-def strong_frequencies(freqs) -> np.ndarray | None:
-    """``freqs`` (rad/s, Varga's ``FDfreq``) as a 1-D array, or None; refused unless a non-empty list of
-    finite non-negative numbers. The one check of every design and analysis that takes ``freqs``."""
-    if freqs is None:
-        return None
-    omega = np.atleast_1d(np.asarray(freqs, float))
-    if omega.ndim != 1 or not omega.size or np.any(omega < 0) or not np.all(np.isfinite(omega)):
-        raise DesignError(f"freqs must be finite non-negative frequencies in rad/s, got {np.ravel(freqs).tolist()}")
-    return omega
-
-
-def check_strong_options(freqs, FDGainTol: float) -> None:
-    """Refuse ``freqs`` that are not finite non-negative rad/s (:func:`strong_frequencies`) and ``FDGainTol``
-    outside (0, 1): the strong options of :func:`~fmu_fdi.design.problems.achievable.achievable_structure`,
-    :func:`~fmu_fdi.design.problems.banks.structured_bank` and :func:`~fmu_fdi.design.nullspace_design`,
-    checked in one place."""
-    strong_frequencies(freqs)
-    if not np.isfinite(FDGainTol) or not 0 < FDGainTol < 1:
-        raise DesignError(f"FDGainTol must be in (0, 1), got {FDGainTol!r}")
-
-
 def row_test(model: FDIModel, names):
     """The weak test of a structure row, shared by :func:`~fmu_fdi.design.problems.achievable.achievable_structure` (which lists the
     rows it passes) and :func:`~fmu_fdi.design.problems.banks.structured_bank` (which refuses the rows

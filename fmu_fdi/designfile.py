@@ -136,10 +136,15 @@ def _split(d: dict) -> tuple[dict, dict | None]:
     return d, arrays
 
 
+def parse_design_file(path) -> dict:
+    """A design file's JSON, read as UTF-8 and parsed, NOT yet validated (single or scheduled: the
+    caller validates by its kind); unreadable or malformed text is a :class:`DesignFileError`."""
+    return parse(read_text(path, "design file", DesignFileError), "json", str(path), DesignFileError)
+
+
 def read_design(path):
     """Read and validate a design file: ``(design dict, embedded model or None)``."""
-    text = read_text(path, "design file", DesignFileError)
-    d = parse(text, "json", str(path), DesignFileError)
+    d = parse_design_file(path)
     return d, checked_design(d, str(path), base=Path(path).parent)
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .designfile import DesignFileError, _clean, checked_design, validate_design
+from .designfile import DesignFileError, _clean, checked_design, parse_design_file, validate_design
 from .diagnoser import Diagnoser, _version
 from .errors import DesignError
 from .runtime.design_check import DesignCheckError
@@ -153,7 +153,7 @@ class ScheduledDiagnoser(Diagnoser):
 
     @classmethod
     def load(cls, path) -> "ScheduledDiagnoser":
-        return cls.from_design(_read(path))
+        return cls.from_design(parse_design_file(path))
 
 
 def warm_gain(design: dict, k: int) -> list:
@@ -175,15 +175,9 @@ def warm_gain(design: dict, k: int) -> list:
     return np.linalg.solve(np.eye(n) - A, B).tolist()
 
 
-def _read(path) -> dict:
-    from ._schema import parse, read_text
-
-    return parse(read_text(path, "design file", DesignFileError), "json", str(path), DesignFileError)
-
-
 def load_diagnoser(path):
     """A design file of either format: a :class:`Diagnoser` or a :class:`ScheduledDiagnoser`."""
-    d = _read(path)
+    d = parse_design_file(path)
     if is_scheduled(d):
         return ScheduledDiagnoser.from_design(d)
     return Diagnoser._from_checked(d, checked_design(d, str(path), base=Path(path).parent))
@@ -238,7 +232,7 @@ def design_of(obj):
     if isinstance(obj, Diagnoser):
         return None
     try:
-        d = _read(obj)
+        d = parse_design_file(obj)
     except DesignFileError:
         return None  # the plain loader reports it
     return validate_scheduled_design(d, str(obj)) if is_scheduled(d) else None

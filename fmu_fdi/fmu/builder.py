@@ -28,8 +28,7 @@ import os
 import re
 from pathlib import Path
 
-from .._schema import parse, read_text
-from ..designfile import DesignFileError, checked_design, design_resources, validate_design
+from ..designfile import DesignFileError, checked_design, design_resources, parse_design_file, validate_design
 from ..designinfo import variable_descriptions, variable_type_attributes, variable_types, variable_units
 from ..outpath import _clean
 from ..runtime.engine import output_names
@@ -46,8 +45,7 @@ def _design_of(diagnoser_or_path) -> dict:
     if isinstance(diagnoser_or_path, (str, os.PathLike)):
         # a file, read once; the diagnoser classes (and the analysis and scipy they import, seconds
         # in a fresh 'fmu-fdi build') are not needed for it
-        d = parse(read_text(diagnoser_or_path, "design file", DesignFileError), "json", str(diagnoser_or_path),
-                  DesignFileError)
+        d = parse_design_file(diagnoser_or_path)
         if is_scheduled(d):
             from ..schedule import validate_scheduled_design
 

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...analysis import DEFAULT_GAIN_TOL, check_strong_options, row_test
+from ...analysis import DEFAULT_GAIN_TOL, row_test
 from ...errors import DesignError
 from ...linalg import single_blas_thread
 from ...model import FDIModel
 from .banks import structured_bank
+from ..toolkit._basis import check_strong_options
 
 
 @single_blas_thread  # as the designs: threaded BLAS on small matrices spin-waits (400x on a loaded machine)

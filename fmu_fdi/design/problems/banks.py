@@ -24,6 +24,7 @@ from ...linalg import single_blas_thread
 from ...generator import ResidualBank, ResidualGenerator
 from ...model import FDIModel
 from .nullspace import nullspace_design
+from ..toolkit._basis import check_strong_options
 from ..toolkit.stable_factor import stable_internal_form
 from ..toolkit.postconditions import DEC_TOL, check_generator
 from ..toolkit.notes import keeps_notes
@@ -112,7 +113,7 @@ def structured_bank(model: FDIModel, S, *, faults=None, poles=None, sdeg=None, n
                               freqs=freqs, FDtol=FDtol, FDGainTol=FDGainTol, smarg=smarg, dec_tol=dec_tol)
         return ResidualGenerator(g.Q, model, "structured", info=g.info)
 
-    from ...analysis import check_strong_options, row_test
+    from ...analysis import row_test
 
     if freqs is not None:
         check_strong_options(freqs, FDGainTol)

@@ -47,7 +47,6 @@ from typing import Sequence
 
 import numpy as np
 
-from ...analysis import strong_frequencies
 from ...errors import DesignError
 from ...faults import component_fault
 from ...generator import ResidualBank, ResidualGenerator
@@ -55,6 +54,7 @@ from ...linalg import single_blas_thread
 from ...lti import LTI
 from ...model import FDIModel
 from .nullspace import nullspace_design
+from ..toolkit._basis import strong_frequencies
 from ..toolkit.postconditions import DEC_TOL, check_generator
 from ..toolkit.approximate import with_nonstandard_options
 from ..toolkit.notes import keeps_notes

@@ -27,14 +27,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...analysis import check_strong_options, strong_frequencies
 from ...errors import DesignError
 from ...linalg import single_blas_thread
 from ...generator import ResidualGenerator
 from ...lti import LTI, frequency_grid, vstack
 from ...model import FDIModel
-from ..toolkit._basis import (NullspaceBasis, check_poles, minimal_basis, no_residual_error, normal_rank, pole_chooser,
-                              realize_rows)
+from ..toolkit._basis import (NullspaceBasis, check_poles, check_strong_options, minimal_basis, no_residual_error,
+                              normal_rank, pole_chooser, realize_rows, strong_frequencies)
 from ..toolkit._select import greedy_combinations, maximize_on_sphere, sensitivity_objective, visibility_gated
 from ..toolkit.approximate import gap_objective, noise_normalizer, with_nonstandard_options
 from ...margin import near_poles
