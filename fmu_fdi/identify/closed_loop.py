@@ -41,7 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import IdentificationError
-from .subspace import SubspaceModel, moesp
+from .subspace import SubspaceModel, least_order_near_best, moesp
 
 #: a channel's feedthrough below this fraction of its first Markov parameter is noise: delay 1
 DELAY_RATIO = 0.1
@@ -143,11 +143,9 @@ def identify_closed_loop(r, u, y, r_val, u_val, y_val, dt: float, own: list, ord
         den = np.maximum(np.sum((z_val - z_val.mean(0)) ** 2, axis=0), np.finfo(float).tiny)
         err = float(np.mean(np.sum((z_val - z_hat) ** 2, axis=0) / den))
         if np.isfinite(err):
-            scored.append((err, joint.order, plant, joint))
+            scored.append((err, joint.order, (plant, joint)))
     if not scored:  # the gap order's own refusal says why
         plant = open_loop(gap, own)
         plant.to_continuous()
         return plant, gap
-    best = min(e for e, *_ in scored)
-    _, _, plant, joint = min((c for c in scored if c[0] <= 1.02 * best + 1e-4), key=lambda c: c[1])
-    return plant, joint
+    return least_order_near_best(scored)

@@ -526,7 +526,7 @@ def _least_misfit_model(pre, pre_exc, dy, ts, max_order):
     values' gap gives can pair the slow mode with a spurious one (drive train at ts = 1 s:
     λ = −0.0070 and +0.0016 s⁻¹), whose simulation error gives it away (Ljung 1999, sec. 16.4).
     None when no candidate is stable."""
-    from .subspace import moesp
+    from .subspace import least_order_near_best, moesp
 
     names = list(pre.excited)
     dev = excitation_signals(pre_exc, names, [pre.excited[k] for k in names])
@@ -543,8 +543,7 @@ def _least_misfit_model(pre, pre_exc, dy, ts, max_order):
         scored.append((float(np.mean(res.var(axis=0) / var)), c.order, c))
     if not scored:
         return None
-    best = min(e for e, _, _ in scored)
-    return min(((o, c) for e, o, c in scored if e <= 1.02 * best + 1e-4), key=lambda t: t[0])[1]
+    return least_order_near_best(scored)
 
 
 def _slow_stages(path, sig, y_names, tau_max, sigma_settle, sigma, *, settle, seed_amp, notes, excite, at,

@@ -513,6 +513,7 @@ def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
     is within 2 % of the best plus 1e-4 (a 1 % NRMSE: on noise-free data a higher order only fits
     a nonlinearity a little better). The gap order stands when it is unstable (a plant in its own
     loop, judged by its one-step predictor instead)."""
+    from .subspace import least_order_near_best
     from .validation import validate
 
     def judged(sub):
@@ -532,8 +533,7 @@ def _order_by_cross_validation(cands, du_val, dy_val, t, y_names):
         scored.append((_simulation_error(res[1]), sub.order, res))
     if not scored:
         return judged(gap)
-    best = min(e for e, _, _ in scored)
-    return min(((o, r) for e, o, r in scored if e <= 1.02 * best + 1e-4), key=lambda t: t[0])[1]
+    return least_order_near_best(scored)
 
 
 def _fully_given(exc, excite, sig, ts, md) -> bool:

@@ -186,3 +186,17 @@ def static_model(u, y, dt: float) -> SubspaceModel:
     D = np.linalg.lstsq(u[:-1], y[1:], rcond=None)[0].T
     return SubspaceModel(np.zeros((m, m)), np.eye(m), D, np.zeros((y.shape[1], m)), float(dt), np.zeros(0), 0, 1,
                          info={"samples": N, "static": D})
+
+
+#: an order within this factor (plus a floor) of the best validation error counts as as good as the best
+PARSIMONY = (1.02, 1e-4)
+
+
+def least_order_near_best(scored):
+    """Parsimony in the order choice: among ``(error, order, candidate)`` triples, the candidate of
+    least order whose validation error is within ``1.02·best + 1e-4`` of the best (a 2 % relative and
+    1e-4 absolute allowance: a higher order that fits the validation data no better is over-fitting
+    noise; Ljung 1999, sec. 16.4, the parsimony principle). ``scored`` must not be empty."""
+    best = min(e for e, _, _ in scored)
+    factor, floor = PARSIMONY
+    return min((c for c in scored if c[0] <= factor * best + floor), key=lambda c: c[1])[2]
