@@ -329,6 +329,34 @@ def test_yuan_pole_assignment_keeps_its_remark_in_info_not_a_warning():
     assert any("not used: the filter has order 2" in n for n in gen.info["notes"])
 
 
+def test_notes_of_an_abandoned_attempt_are_dropped():
+    """notes.tentative: an attempt that raises (a refused set of rows) leaves no note in the returned
+    filter's info; one that completes keeps its notes; nothing is warned inside a design."""
+    from types import SimpleNamespace
+
+    from fmu_fdi.design.toolkit.notes import keeps_notes, note, tentative
+
+    @keeps_notes
+    def design():
+        try:
+            with tentative():
+                note("poles [-7] not used (abandoned attempt)")
+                raise DesignError("rows [0] refused")
+        except DesignError:
+            pass
+        with tentative():
+            note("poles [-8] not used (the returned filter)")
+        return SimpleNamespace(info={})
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = design()
+    assert out.info["notes"] == ["poles [-8] not used (the returned filter)"]
+    with pytest.warns(UserWarning, match="outside"):  # no design in progress: a kept note still warns
+        with tentative():
+            note("outside any design")
+
+
 def test_cli_design_prints_the_notes(tmp_path, capsys):
     from pathlib import Path
 

@@ -39,7 +39,7 @@ from ..toolkit.approximate import gap_objective, noise_normalizer, with_nonstand
 from ...margin import near_poles
 from ..toolkit.stable_factor import stable_internal_form, stable_joint_factor
 from ..toolkit.postconditions import DEC_TOL, NumericalDesignError, _cosine, _values, check_generator
-from ..toolkit.notes import keeps_notes
+from ..toolkit.notes import keeps_notes, tentative
 
 
 def _random_points(basis: NullspaceBasis, count: int = 4, seed: int = 1) -> np.ndarray:
@@ -422,9 +422,10 @@ def _pencil(model, rdim, poles, sdeg, freqs, FDtol, FDGainTol, seed, smarg, dec_
             if len(tried) >= 6:
                 break  # bounded search: the whole basis below
             try:
-                gen = _pencil_combine(model, sub, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
-                                      dict(base, simple_rows=[rows[i][1] for i in c],
-                                           cover_conditioning=max(rows[i][2] for i in c)), pb.degrees, place)
+                with tentative():
+                    gen = _pencil_combine(model, sub, rdim, freqs, FDtol, FDGainTol, seed, smarg, dec_tol,
+                                          dict(base, simple_rows=[rows[i][1] for i in c],
+                                               cover_conditioning=max(rows[i][2] for i in c)), pb.degrees, place)
             except DesignError as exc:
                 tried.append(f"rows {list(c)} (order {sub.n}): {exc}"[:200])
                 continue
@@ -1022,8 +1023,9 @@ def _approximate_pencil(model: FDIModel, rdim, poles, sdeg, FDtol, FDGainTol, se
 
     exact_w = model.with_disturbances(noise=True)
     try:
-        gen = _pencil(exact_w, rdim, poles, sdeg, None, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol, minimal,
-                      place)
+        with tentative():
+            gen = _pencil(exact_w, rdim, poles, sdeg, None, FDtol, FDGainTol, seed, smarg, dec_tol, tol, atol,
+                          minimal, place)
     except DesignError:
         gen = None
     if gen is not None:
@@ -1034,7 +1036,8 @@ def _approximate_pencil(model: FDIModel, rdim, poles, sdeg, FDtol, FDGainTol, se
     if pb.N.p == 0:
         raise no_residual_error(model, pb.rank_d)
     try:
-        pb2 = pencil_basis(exact_w, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
+        with tentative():
+            pb2 = pencil_basis(exact_w, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
         Q2 = pb2.N if pb2.N.p else None
     except DesignError:
         Q2 = None

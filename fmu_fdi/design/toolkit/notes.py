@@ -70,3 +70,18 @@ def silenced():
         yield
     finally:
         _COLLECTOR.reset(token)
+
+
+@contextmanager
+def tentative():
+    """Within: an attempt the design may abandon. Its notes reach the design in progress only if the
+    block completes; an attempt that raises (a refused set of rows, a basis the design does without)
+    says nothing — the notes of a filter are about the filter returned."""
+    notes: list[str] = []
+    token = _COLLECTOR.set(notes)
+    try:
+        yield
+    finally:
+        _COLLECTOR.reset(token)
+    for text in notes:
+        note(text)
