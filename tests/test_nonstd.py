@@ -227,3 +227,32 @@ def test_designs_with_each_nonstd_are_stable_decoupling_with_a_finite_gap(case, 
     GAPS[(case, job)] = gap
     if job is not None:
         assert f"nonstd = {job}" in gen.info["noise"] or (job == 1 and "quasi-co-outer" in gen.info["noise"])
+
+
+def _unnormalised_gap(model: FDIModel) -> float:
+    """The gap of the same residual space designed without the noise (no normaliser), judged with the noise."""
+    bare = FDIModel.from_matrices(model.A, model.Bu, model.C, model.Du, faults=model.faults, dt=model.dt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return _gap(nullspace_design(bare).Q, model)
+
+
+@pytest.mark.parametrize("case", ["b_axis", "c_unit_circle", "d_2x2"])
+@pytest.mark.parametrize("job, key, values", [(4, "sdegzer", None), (5, "epsreg", [0.3, 0.05, 0.01]),
+                                               (2, "epsreg", [0.3, 0.05, 0.01])])
+def test_gap_grows_as_the_boundary_zero_is_approached(case, job, key, values):
+    """Rw has a boundary zero where Rf does not vanish, so sup_ω ||Rf||/||Rw|| is unbounded: the zero shifted by
+    sdegzer (4) or the spectrum regularised by ε (2, 5) gives a normalised fault gain ~1/|sdegzer| (~1/ε) there
+    while the noise stays bounded — the gap grows as the parameter goes to the boundary, and beats the design
+    without a normaliser (the filter poles as the only weighting)."""
+    model = CASES[case]
+    if values is None:
+        values = [0.5, 0.9, 0.98] if model.dt else [-0.3, -0.05, -0.01]
+    gaps = []
+    for v in values:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            gen = nullspace_design(model, nonstd=job, **{key: v})
+        gaps.append(_gap(gen.Q, model))
+    assert gaps[0] < gaps[1] < gaps[2], gaps
+    assert gaps[2] > _unnormalised_gap(model), (gaps, _unnormalised_gap(model))
