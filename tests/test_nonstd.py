@@ -256,3 +256,21 @@ def test_gap_grows_as_the_boundary_zero_is_approached(case, job, key, values):
         gaps.append(_gap(gen.Q, model))
     assert gaps[0] < gaps[1] < gaps[2], gaps
     assert gaps[2] > _unnormalised_gap(model), (gaps, _unnormalised_gap(model))
+
+
+def test_discrete_zero_at_infinity_is_the_standard_case():
+    """Discrete time: a strictly proper Rw has its zeros at infinity outside the unit circle, not on the boundary
+    (the peer's ``goifac``/``gcrange`` count no infinite boundary zero in discrete time): the co-outer factor exists,
+    ``N Rw`` is co-inner (``|N Rw(e^{jθ})| = 1``), for every nonstd."""
+    zz = ct.tf([1.0, 0.0], [1.0], DT)
+    model = _model([[0.3 / (zz - 0.6)]], [[0.4 / (zz - 0.5)]], [[0.2 / (zz - 0.3)]], dt=DT)
+    Rw = _rw(model)
+    assert np.allclose(Rw.D, 0.0)
+    N, how = noise_normalizer(Rw, options=NonstandardOptions(3))
+    assert how == "co-outer normalised"
+    lam = _grid(DT)
+    np.testing.assert_allclose(np.abs((_fr(N, lam) @ _fr(Rw, lam))[:, 0, 0]), 1.0, rtol=1e-9)
+    for job in (None, 1, 2, 3, 4, 5):
+        gen = nullspace_design(model, nonstd=job)
+        assert gen.info["noise"] == "co-outer normalised"
+        assert judge(gen, model, [[1]], model.fault_names) == []

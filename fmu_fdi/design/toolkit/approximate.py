@@ -34,17 +34,21 @@ from ...lti import LTI, hstack
 
 def coouter_inverse(G: LTI) -> tuple[LTI, LTI] | None:
     """For stable ``G = Ro Ri``: return ``(Ro^{-1}, Ri)``, or None if the standard
-    conditions fail (feedthrough not of full row rank, zeros on the stability boundary)."""
+    conditions fail (continuous time: feedthrough not of full row rank; zeros on the stability
+    boundary). In discrete time a rank-deficient feedthrough (zeros at infinity, outside the unit
+    circle) is standard, as in the peer's ``goifac``: the DARE's ``DᵀD + BᵀXB`` must be invertible."""
     if G.n == 0:
         return None
     Gt = G.transpose()  # tall: inner–outer of Gt = Gi Go gives G = Go^T Gi^T
     A, B, C, D = Gt.A, Gt.B, Gt.C, Gt.D
-    if rank(D) < D.shape[1]:
+    if not G.is_discrete and rank(D) < D.shape[1]:
         return None
     try:
         if G.is_discrete:
             X = sla.solve_discrete_are(A, B, C.T @ C, D.T @ D, s=C.T @ D)
             Rk = D.T @ D + B.T @ X @ B
+            if rank(Rk) < Rk.shape[0]:
+                return None
             F = -np.linalg.solve(Rk, B.T @ X @ A + D.T @ C)
         else:
             X = sla.solve_continuous_are(A, B, C.T @ C, D.T @ D, s=C.T @ D)
