@@ -274,3 +274,46 @@ def test_discrete_zero_at_infinity_is_the_standard_case():
         gen = nullspace_design(model, nonstd=job)
         assert gen.info["noise"] == "co-outer normalised"
         assert judge(gen, model, [[1]], model.fault_names) == []
+
+
+def _more_cases():
+    zz = ct.tf([1.0, 0.0], [1.0], DT)
+    return {  # name: (model, boundary zeros, infinite zeros)
+        "double_axis_pair": (_model([[1 / (s + 2)]], [[(s ** 2 + 4) ** 2 / ((s + 1) ** 2 * (s + 3) ** 2)]],
+                                    [[1 / (s + 3)]]), [2j, -2j, 2j, -2j], 0),
+        "two_at_infinity_and_0": (_model([[1 / (s + 2)]], [[s / ((s + 1) ** 2 * (s + 4))]], [[1 / (s + 3)]]), [0.0], 2),
+        "fat_2x3_no_zero": (_model([[1 / (s + 2)], [1 / (s + 4)]], [[1 / (s + 1), s / (s + 2), 0 * s],
+                                                                    [0 * s, 1 / (s + 3), (s ** 2 + 1) / ((s + 2) * (s + 5))]],
+                                   [[1 / (s + 3)], [1 / (s + 6)]]), [], 0),
+        "discrete_2x2_at_1": (_model([[0.3 / (zz - 0.6)], [0.1 / (zz - 0.2)]],
+                                     [[(zz - 1) / (zz - 0.5), 0.2 / (zz - 0.1)], [0 * zz, (zz + 0.5) / (zz + 0.3)]],
+                                     [[0.2 / (zz - 0.3)], [0.1 / (zz - 0.4)]], dt=DT), [1.0], 0),
+    }
+
+
+MORE = _more_cases()
+
+
+@pytest.mark.parametrize("case", sorted(MORE))
+def test_split_on_multiple_zeros_fat_and_discrete_responses(case):
+    """A double pair on the axis, two zeros at infinity with one at 0, a fat 2 × 3 Rw without boundary zeros (the
+    split is trivial, ``Rwouz`` static) and a discrete 2 × 2 with a zero at 1: the spectrum identity of the split,
+    the zeros counted with multiplicity, and the designs of 3, 4, 5 judged."""
+    model, zb, n_inf = MORE[case]
+    Rw = _rw(model)
+    _, _, parts = wiener_hopf_normalizer(Rw, 3)
+    split = parts["split"]
+    lam = _grid(Rw.dt)
+    E, W, U = _fr(split.Rwoe_inv, lam), _fr(Rw, lam), _fr(split.Rwouz, lam)
+    H = lambda X: np.conj(np.swapaxes(X, 1, 2))  # noqa: E731
+    np.testing.assert_allclose(E @ W @ H(W) @ H(E), U @ H(U), atol=1e-8 * np.abs(U @ H(U)).max())
+    assert split.n_inf == n_inf
+    # a double zero is found ~sqrt(eps)-accurately (here real parts ±7.5e-9): compare rounded to 1e-6
+    np.testing.assert_allclose(np.sort_complex(np.round(split.boundary, 6)), np.sort_complex(np.asarray(zb, complex)),
+                               atol=1e-5)
+    for job in (3, 4, 5):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            gen = nullspace_design(model, nonstd=job)
+        assert judge(gen, model, [[1] * model.nf], model.fault_names) == []
+        assert 0 < _gap(gen.Q, model) < np.inf

@@ -395,6 +395,15 @@ def _left_zero_factor(G: LTI, targets: list, what: str) -> tuple[list[LTI], LTI,
                       f"(order {G.n}, {G.p} rows)")
 
 
+def coouter_inverse_or_static(G: LTI) -> tuple[LTI, LTI | None] | None:
+    """:func:`coouter_inverse`, and for a static ``G`` of full row rank ``Ro⁻¹ = (D Dᵀ)^{-1/2}``."""
+    if G.n:
+        return coouter_inverse(G)
+    if rank(G.D) < G.p:
+        return None
+    return LTI.static(inv_sqrtm_pd(G.D @ G.D.T), G.dt), None
+
+
 def _product(Ls: list[LTI], p: int, dt: float) -> LTI:
     out = LTI.static(np.eye(p), dt)
     for L in Ls:
@@ -440,8 +449,7 @@ def wiener_hopf_split(Rw: LTI, *, sdeg: float | None = None, what: str = "nonstd
         raise DesignError(f"{what}: the noise response must have full row rank (here {Rw.p} rows, {Rw.m} noise inputs, "
                           f"rank {rank(Rw.evalfr(lam)) if Rw.p <= Rw.m else Rw.m} at λ = {lam})")
     Lb, Rw1, _, _ = _left_zero_factor(Rw, targets, what)
-    fac = coouter_inverse(Rw1) if Rw1.n else (None if rank(Rw1.D) < Rw1.p else
-                                              (LTI.static(np.linalg.inv(sqrtm_psd(Rw1.D @ Rw1.D.T)), Rw.dt), None))
+    fac = coouter_inverse_or_static(Rw1)
     if fac is None:
         raise DesignError(f"{what}: the noise response without its boundary zeros has no co-outer factor (the "
                           f"Riccati equation has no stabilising solution; order {Rw1.n}, {Rw1.p} rows)")
@@ -514,7 +522,8 @@ def wiener_hopf_normalizer(Rw: LTI, job: int, opts: NonstandardOptions | None = 
                 {"split": split, "sdegzer": dz, "map": (a, b, c, d), "shifted": shifted})
     peak = split.Rwouz.hinfnorm()[0]
     eps = opts.epsreg * peak
-    reg = coouter_inverse(hstack([split.Rwouz, LTI.static(eps * np.eye(Rw.p), Rw.dt)])) if 0 < peak < np.inf else None
+    reg = coouter_inverse_or_static(hstack([split.Rwouz, LTI.static(eps * np.eye(Rw.p), Rw.dt)])) \
+        if 0 < peak < np.inf else None
     if reg is None:
         raise DesignError(f"{what}: the co-outer factor of [Rwouz  ε I] (ε = {eps:.3g}, ||Rwouz||∞ = {peak:.3g}) could "
                           f"not be computed")
