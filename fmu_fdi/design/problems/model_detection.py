@@ -340,15 +340,6 @@ def match_model(bank, model: FDIModel, *, freqs=None) -> tuple[np.ndarray, int]:
     return gains, int(np.argmin(gains))
 
 
-def _static_coouter_inverse(Rw: LTI) -> LTI | None:
-    from ...linalg import inv_sqrtm_pd, rank
-
-    D = Rw.D
-    if rank(D) < D.shape[0]:
-        return None
-    return LTI.static(inv_sqrtm_pd(D @ D.T), Rw.dt)
-
-
 def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
     """``Q_i = Ro^{-1} Q1`` with all rows of the (u, d) null-space basis ``Q1``: the optimal gap.
 
@@ -358,13 +349,13 @@ def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
     if it gives a larger measured gap than ``Q1`` itself."""
     from ...linalg import rank
     from ...lti import hstack
-    from ..toolkit.approximate import active_options, coouter_inverse, noise_normalizer
+    from ..toolkit.approximate import active_options, coouter_inverse, coouter_inverse_or_static, noise_normalizer
 
     g = nullspace_design(mi, rdim="all", noise="ignore", **design_kw)
     Q1 = g.Q
     Rw = (Q1 @ _w_map(mi)).minreal()
     info = dict(g.info)
-    Ro_inv = (coouter_inverse(Rw) or (None,))[0] if Rw.n else _static_coouter_inverse(Rw)
+    Ro_inv = (coouter_inverse_or_static(Rw) or (None,))[0]
     if Ro_inv is not None:
         info["noise"] = "co-outer normalised (optimal gap)"
         return (Ro_inv @ Q1).minreal(), info

@@ -1,0 +1,319 @@
+"""FaultDetectionTools.jl ``afdsyn``'s ``nonstd`` choices for noise responses with zeros at infinity or on the
+stability boundary (issue 17, Build 4), judged by independent numpy frequency responses.
+
+Four noise responses ``Rw``: (a) continuous, a zero at infinity; (b) continuous, zeros ±2j on the axis; (c)
+discrete, zeros ±j on the unit circle; (d) continuous 2 × 2 with a zero at 0 and one at infinity. For each
+``nonstd`` 1..5 the defining property of the normaliser ``N`` (``Q ← N·Q``) is checked on a grid, and the
+design through ``nullspace_design`` is stable, decouples u to the judge's tolerance and has a finite gap.
+"""
+from __future__ import annotations
+
+import warnings
+
+import control as ct
+import numpy as np
+import pytest
+
+from fmu_fdi import FDIModel
+from fmu_fdi.design import nullspace_design
+from fmu_fdi.design.toolkit.approximate import NonstandardOptions, noise_normalizer, wiener_hopf_normalizer
+from fmu_fdi.errors import DesignError
+from fmu_fdi.faults import component_fault
+from fmu_fdi.lti import LTI
+
+from test_synthesis_random import _extended, _freqresp, judge
+
+s = ct.tf("s")
+DT = 0.1
+
+
+def _model(u, w, f, dt=0.0) -> FDIModel:
+    """Plant ``y = Gu u + Gw w + Gf f`` from SISO transfer-function tables (rows: outputs)."""
+    p = len(u)
+    tab = [list(u[i]) + list(w[i]) + list(f[i]) for i in range(p)]
+    sys = ct.ss(ct.combine_tf(tab))
+    A, B, C, D = (np.asarray(X, float) for X in (sys.A, sys.B, sys.C, sys.D))
+    nu, nw = len(u[0]), len(w[0])
+    faults = [component_fault(f"f{j + 1}", B[:, [nu + nw + j]], D[:, [nu + nw + j]]) for j in range(len(f[0]))]
+    return FDIModel.from_matrices(A, B[:, :nu], C, D[:, :nu], Bw=B[:, nu:nu + nw], Dw=D[:, nu:nu + nw],
+                                  faults=faults, dt=dt, minimal=True)
+
+
+def _cases():
+    zz = ct.tf([1.0, 0.0], [1.0], DT)
+    return {
+        "a_infinity": _model([[1 / (s + 2)]], [[1 / (s + 1)]], [[1 / (s + 3)]]),
+        "b_axis": _model([[1 / (s + 2)]], [[(s ** 2 + 4) / ((s + 1) * (s + 3))]], [[1 / (s + 3)]]),
+        "c_unit_circle": _model([[0.3 / (zz - 0.6)]], [[0.5 * (zz ** 2 + 1) / ((zz - 0.5) * (zz + 0.4))]],
+                                [[0.2 / (zz - 0.3)]], dt=DT),
+        "d_2x2": _model([[1 / (s + 2)], [1 / (s + 4)]], [[1 / (s + 1), 1 / (s + 2)], [0 * s, s / (s + 5)]],
+                        [[1 / (s + 3), 0 * s], [1 / (s + 6), 1 / (s + 7)]]),
+    }
+
+
+CASES = _cases()
+#: the boundary zeros and the number of infinite zeros each Rw has (by construction of the cases)
+ZEROS = {"a_infinity": ([], 1), "b_axis": ([2j, -2j], 0), "c_unit_circle": ([1j, -1j], 0), "d_2x2": ([0.0], 1)}
+
+
+def _grid(dt: float) -> np.ndarray:
+    return np.exp(1j * np.linspace(1e-3, np.pi - 1e-3, 801)) if dt else 1j * np.logspace(-3, 3, 801)
+
+
+def _fr(G: LTI, lam) -> np.ndarray:
+    return _freqresp(G.A, G.B, G.C, G.D, np.atleast_1d(lam))
+
+
+def _rw(model: FDIModel) -> LTI:
+    return LTI(model.A, model.Bw, model.C, model.Dw, model.dt)
+
+
+def _stable(G: LTI) -> bool:
+    ev = np.linalg.eigvals(G.A) if G.n else np.zeros(0)
+    return bool(np.all(np.abs(ev) < 1 - 1e-9) if G.dt else np.all(ev.real < -1e-9 * np.maximum(1, np.abs(ev))))
+
+
+def _sigma(X):  # singular values per grid point, descending
+    return np.linalg.svd(X, compute_uv=False)
+
+
+# ------------------------------------------------------------------------- the factors' defining properties
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_wiener_hopf_split_factors_the_noise_spectrum(case):
+    """``Rwoe⁻¹ Rw Rw~ Rwoe⁻~ = Rwouz Rwouz~`` on the boundary (the split of the quasi-co-outer factor), ``Rwoe⁻¹``
+    stable, and ``Rwouz`` singular exactly at the stated boundary zeros (and at infinity, continuous)."""
+    Rw = _rw(CASES[case])
+    _, _, parts = wiener_hopf_normalizer(Rw, 3)
+    split = parts["split"]
+    lam = _grid(Rw.dt)
+    E, W, U = _fr(split.Rwoe_inv, lam), _fr(Rw, lam), _fr(split.Rwouz, lam)
+    lhs = E @ W @ np.conj(np.swapaxes(W, 1, 2)) @ np.conj(np.swapaxes(E, 1, 2))
+    rhs = U @ np.conj(np.swapaxes(U, 1, 2))
+    # both sides O(1); the factors come from a Riccati solution and Schur forms (errors ~1e-12 · condition)
+    np.testing.assert_allclose(lhs, rhs, atol=1e-8 * np.abs(rhs).max())
+    assert _stable(split.Rwoe_inv) and _stable(split.Rwouz)
+    zb, n_inf = ZEROS[case]
+    assert split.n_inf == n_inf and split.boundary.size == len(zb)
+    peak = _sigma(U)[:, 0].max()
+    for z0 in zb:  # a boundary zero: Rwouz(z0) loses rank (the zero is found to ZERO_BOUNDARY_RTOL = 1e-5)
+        assert _sigma(_fr(split.Rwouz, z0 * (1 + 1e-12)))[0, -1] <= 1e-6 * peak
+    if n_inf:  # a zero at infinity: σ_min(Rwouz(jω)) → 0 like 1/ω
+        assert _sigma(_fr(split.Rwouz, 1e7j))[0, -1] <= 1e-5 * peak
+    else:  # no other zeros: Rwouz is biproper where the case has no infinite zero
+        assert _sigma(_fr(split.Rwouz, 1e7j if not Rw.dt else -1.0))[0, -1] > 1e-3 * peak
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_nonstd_3_normalised_noise_has_unit_peak(case):
+    """3: ``N = Rwoe⁻¹/γ``, so ``N Rw = Rwouz Ri/γ`` — its peak gain is 1 (γ = ||Rwouz Ri||∞ = ||Rwouz||∞)."""
+    Rw = _rw(CASES[case])
+    N, how, parts = wiener_hopf_normalizer(Rw, 3)
+    assert _stable(N)
+    peak = _sigma(_fr(N, _grid(Rw.dt)) @ _fr(Rw, _grid(Rw.dt)))[:, 0].max()
+    # the grid's peak is below the true one by the grid's resolution (801 log points: < 1e-2 relative)
+    assert 0.99 <= peak <= 1.0 + 1e-9, (peak, how)
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_nonstd_4_shifted_factor_zeros_where_stated(case):
+    """4: ``N = Rwouz(g(λ))⁻¹ Rwoe⁻¹`` with the peer's map ``g`` — checked pointwise against an independent evaluation
+    of ``Rwouz`` at ``g(λ)``; the poles of N include ``g⁻¹`` of each boundary zero (``jω + σ`` …, ``1/σ`` for infinity,
+    ``σ z`` discrete)."""
+    Rw = _rw(CASES[case])
+    sdz = 0.9 if Rw.dt else -0.3
+    N, how, parts = wiener_hopf_normalizer(Rw, 4, NonstandardOptions(4, sdegzer=sdz))
+    split = parts["split"]
+    zb, n_inf = ZEROS[case]
+    if Rw.dt:
+        g, ginv = (lambda d: d / sdz), (lambda l: sdz * l)
+    elif zb and n_inf:
+        g, ginv = (lambda d: (d - sdz) / (1 - sdz * d)), (lambda l: (l + sdz) / (1 + sdz * l))
+    elif n_inf:
+        g, ginv = (lambda d: 1 / (1 - sdz * d)), None
+    else:
+        g, ginv = (lambda d: d - sdz), (lambda l: l + sdz)
+    lam = _grid(Rw.dt)[::20]
+    expect = np.linalg.solve(_fr(split.Rwouz, g(lam)), _fr(split.Rwoe_inv, lam))
+    np.testing.assert_allclose(_fr(N, lam), expect, rtol=1e-7, atol=1e-9 * np.abs(expect).max())
+    stated = [ginv(z0) for z0 in zb] + [1 / sdz] * (n_inf if not Rw.dt else 0)
+    poles = np.linalg.eigvals(N.A)
+    for t in stated:
+        assert np.min(np.abs(poles - t)) <= 1e-6 * max(1, abs(t)), (t, poles)
+    assert _stable(N)
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_nonstd_5_regularised_factor(case):
+    """5: ``N = Ro5⁻¹ Rwoe⁻¹`` with ``Ro5 Ro5~ = Rwouz Rwouz~ + ε² I``: with ``X = N·Rwoe`` (= Ro5⁻¹ pointwise),
+    ``X (U U* + ε² I) X* = I`` at every grid point."""
+    Rw = _rw(CASES[case])
+    N, how, parts = wiener_hopf_normalizer(Rw, 5, NonstandardOptions(5, epsreg=0.2))
+    split, eps = parts["split"], parts["eps"]
+    lam = _grid(Rw.dt)[::10]
+    E, U = _fr(split.Rwoe_inv, lam), _fr(split.Rwouz, lam)
+    X = _fr(N, lam) @ np.linalg.inv(E)
+    eye = np.eye(Rw.p)
+    M = X @ (U @ np.conj(np.swapaxes(U, 1, 2)) + eps ** 2 * eye) @ np.conj(np.swapaxes(X, 1, 2))
+    np.testing.assert_allclose(M, np.broadcast_to(eye, M.shape), atol=1e-8)
+    assert _stable(N) and "ε" in how
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_nonstd_2_regularised_co_outer(case):
+    """2: ``N = Ro⁻¹``, ``Ro Ro~ = Rw Rw~ + ε² I`` (ε = epsreg·||Rw||∞): ``N (W W* + ε² I) N* = I``."""
+    Rw = _rw(CASES[case])
+    N, how = noise_normalizer(Rw, options=NonstandardOptions(2, epsreg=0.1))
+    lam = _grid(Rw.dt)[::10]
+    W, Nv = _fr(Rw, lam), _fr(N, lam)
+    eps = 0.1 * Rw.hinfnorm()[0]
+    M = Nv @ (W @ np.conj(np.swapaxes(W, 1, 2)) + eps ** 2 * np.eye(Rw.p)) @ np.conj(np.swapaxes(Nv, 1, 2))
+    np.testing.assert_allclose(M, np.broadcast_to(np.eye(Rw.p), M.shape), atol=1e-8)
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_nonstd_1_quasi_co_outer_or_a_named_refusal(case):
+    """1: one continuous row — ``|N Rw|`` times the moved zeros' factors over the kept ones is flat (the zeros
+    at infinity and on the axis moved to sdeg = -4); several rows or discrete time — a DesignError naming it."""
+    Rw = _rw(CASES[case])
+    if Rw.p > 1 or Rw.dt:
+        with pytest.raises(DesignError, match=r"nonstd = 1 .*(2 rows|discrete)"):
+            noise_normalizer(Rw, sdeg=-4.0, options=NonstandardOptions(1))
+        return
+    N, how = noise_normalizer(Rw, sdeg=-4.0, options=NonstandardOptions(1))
+    lam = _grid(0.0)
+    zb, n_inf = ZEROS[case]
+    g = np.linalg.norm((_fr(N, lam) @ _fr(Rw, lam))[:, 0, :], axis=1)
+    moved = [complex(-4.0, z0.imag) for z0 in np.asarray(zb, complex)] + [-4.0] * n_inf  # sdeg + j·Im z_b; ∞ → sdeg
+    flat = g * np.prod([np.abs(lam - t) for t in moved], axis=0) / np.prod([np.abs(lam - z0) for z0 in zb] or [1.0],
+                                                                            axis=0)
+    # exact in theory; the scalar spectral factor's roots (degree ≤ 4) are accurate to ~1e-10 here
+    np.testing.assert_allclose(flat, flat[0], rtol=1e-6)
+
+
+# ------------------------------------------------------------------------------------- the designs they give
+def _gap(Q: LTI, model: FDIModel) -> float:
+    """min_j ||R_fj||∞ / ||R_w||∞ on a dense grid (numpy)."""
+    A, B, Ce, De = _extended(model)
+    lam = _grid(model.dt)
+    Gv = _freqresp(A, B, Ce, De, lam)
+    Rv = _freqresp(Q.A, Q.B, Q.C, Q.D, lam) @ Gv
+    w0 = model.nu + model.nd
+    Rw = Rv[:, :, w0:w0 + model.nw]
+    f0 = w0 + model.nw
+    fault = min(_sigma(Rv[:, :, f0 + j:f0 + j + 1])[:, 0].max() for j in range(model.nf))
+    return float(fault / _sigma(Rw)[:, 0].max())
+
+
+GAPS: dict = {}
+
+
+@pytest.mark.parametrize("job", [None, 1, 2, 3, 4, 5])
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_designs_with_each_nonstd_are_stable_decoupling_with_a_finite_gap(case, job):
+    """Every returned design passes the judge (stable R and Q, u decoupled to DEC_TOL on the normalised form, faults
+    visible); a refusal is a DesignError naming nonstd = 1 and the condition (several rows or discrete time)."""
+    model = CASES[case]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        try:
+            gen = nullspace_design(model, nonstd=job)
+        except DesignError as exc:
+            assert job == 1 and (model.ny > 1 or model.dt), exc
+            assert "nonstd = 1" in str(exc) and ("rows" in str(exc) or "discrete" in str(exc))
+            return
+    assert judge(gen, model, [[1] * model.nf], model.fault_names) == []
+    gap = _gap(gen.Q, model)
+    assert 0 < gap < np.inf
+    GAPS[(case, job)] = gap
+    if job is not None:
+        assert f"nonstd = {job}" in gen.info["noise"] or (job == 1 and "quasi-co-outer" in gen.info["noise"])
+
+
+def _unnormalised_gap(model: FDIModel) -> float:
+    """The gap of the same residual space designed without the noise (no normaliser), judged with the noise."""
+    bare = FDIModel.from_matrices(model.A, model.Bu, model.C, model.Du, faults=model.faults, dt=model.dt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return _gap(nullspace_design(bare).Q, model)
+
+
+@pytest.mark.parametrize("case", ["b_axis", "c_unit_circle", "d_2x2"])
+@pytest.mark.parametrize("job, key, values", [(4, "sdegzer", None), (5, "epsreg", [0.3, 0.05, 0.01]),
+                                               (2, "epsreg", [0.3, 0.05, 0.01])])
+def test_gap_grows_as_the_boundary_zero_is_approached(case, job, key, values):
+    """Rw has a boundary zero where Rf does not vanish, so sup_ω ||Rf||/||Rw|| is unbounded: the zero shifted by
+    sdegzer (4) or the spectrum regularised by ε (2, 5) gives a normalised fault gain ~1/|sdegzer| (~1/ε) there
+    while the noise stays bounded — the gap grows as the parameter goes to the boundary, and beats the design
+    without a normaliser (the filter poles as the only weighting)."""
+    model = CASES[case]
+    if values is None:
+        values = [0.5, 0.9, 0.98] if model.dt else [-0.3, -0.05, -0.01]
+    gaps = []
+    for v in values:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            gen = nullspace_design(model, nonstd=job, **{key: v})
+        gaps.append(_gap(gen.Q, model))
+    assert gaps[0] < gaps[1] < gaps[2], gaps
+    assert gaps[2] > _unnormalised_gap(model), (gaps, _unnormalised_gap(model))
+
+
+def test_discrete_zero_at_infinity_is_the_standard_case():
+    """Discrete time: a strictly proper Rw has its zeros at infinity outside the unit circle, not on the boundary
+    (the peer's ``goifac``/``gcrange`` count no infinite boundary zero in discrete time): the co-outer factor exists,
+    ``N Rw`` is co-inner (``|N Rw(e^{jθ})| = 1``), for every nonstd."""
+    zz = ct.tf([1.0, 0.0], [1.0], DT)
+    model = _model([[0.3 / (zz - 0.6)]], [[0.4 / (zz - 0.5)]], [[0.2 / (zz - 0.3)]], dt=DT)
+    Rw = _rw(model)
+    assert np.allclose(Rw.D, 0.0)
+    N, how = noise_normalizer(Rw, options=NonstandardOptions(3))
+    assert how == "co-outer normalised"
+    lam = _grid(DT)
+    np.testing.assert_allclose(np.abs((_fr(N, lam) @ _fr(Rw, lam))[:, 0, 0]), 1.0, rtol=1e-9)
+    for job in (None, 1, 2, 3, 4, 5):
+        gen = nullspace_design(model, nonstd=job)
+        assert gen.info["noise"] == "co-outer normalised"
+        assert judge(gen, model, [[1]], model.fault_names) == []
+
+
+def _more_cases():
+    zz = ct.tf([1.0, 0.0], [1.0], DT)
+    return {  # name: (model, boundary zeros, infinite zeros)
+        "double_axis_pair": (_model([[1 / (s + 2)]], [[(s ** 2 + 4) ** 2 / ((s + 1) ** 2 * (s + 3) ** 2)]],
+                                    [[1 / (s + 3)]]), [2j, -2j, 2j, -2j], 0),
+        "two_at_infinity_and_0": (_model([[1 / (s + 2)]], [[s / ((s + 1) ** 2 * (s + 4))]], [[1 / (s + 3)]]), [0.0], 2),
+        "fat_2x3_no_zero": (_model([[1 / (s + 2)], [1 / (s + 4)]], [[1 / (s + 1), s / (s + 2), 0 * s],
+                                                                    [0 * s, 1 / (s + 3), (s ** 2 + 1) / ((s + 2) * (s + 5))]],
+                                   [[1 / (s + 3)], [1 / (s + 6)]]), [], 0),
+        "discrete_2x2_at_1": (_model([[0.3 / (zz - 0.6)], [0.1 / (zz - 0.2)]],
+                                     [[(zz - 1) / (zz - 0.5), 0.2 / (zz - 0.1)], [0 * zz, (zz + 0.5) / (zz + 0.3)]],
+                                     [[0.2 / (zz - 0.3)], [0.1 / (zz - 0.4)]], dt=DT), [1.0], 0),
+    }
+
+
+MORE = _more_cases()
+
+
+@pytest.mark.parametrize("case", sorted(MORE))
+def test_split_on_multiple_zeros_fat_and_discrete_responses(case):
+    """A double pair on the axis, two zeros at infinity with one at 0, a fat 2 × 3 Rw without boundary zeros (the
+    split is trivial, ``Rwouz`` static) and a discrete 2 × 2 with a zero at 1: the spectrum identity of the split,
+    the zeros counted with multiplicity, and the designs of 3, 4, 5 judged."""
+    model, zb, n_inf = MORE[case]
+    Rw = _rw(model)
+    _, _, parts = wiener_hopf_normalizer(Rw, 3)
+    split = parts["split"]
+    lam = _grid(Rw.dt)
+    E, W, U = _fr(split.Rwoe_inv, lam), _fr(Rw, lam), _fr(split.Rwouz, lam)
+    H = lambda X: np.conj(np.swapaxes(X, 1, 2))  # noqa: E731
+    np.testing.assert_allclose(E @ W @ H(W) @ H(E), U @ H(U), atol=1e-8 * np.abs(U @ H(U)).max())
+    assert split.n_inf == n_inf
+    # a double zero is found ~sqrt(eps)-accurately (here real parts ±7.5e-9): compare rounded to 1e-6
+    np.testing.assert_allclose(np.sort_complex(np.round(split.boundary, 6)), np.sort_complex(np.asarray(zb, complex)),
+                               atol=1e-5)
+    for job in (3, 4, 5):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            gen = nullspace_design(model, nonstd=job)
+        assert judge(gen, model, [[1] * model.nf], model.fault_names) == []
+        assert 0 < _gap(gen.Q, model) < np.inf
