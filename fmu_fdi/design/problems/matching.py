@@ -66,6 +66,7 @@ from ..toolkit._basis import check_poles, pole_chooser
 from .approximate_matching import reference
 from ..toolkit.postconditions import DEC_TOL, _values, check_generator, default_smarg
 from ..toolkit.notes import keeps_notes, silenced
+from ..toolkit.least_solve import least_row
 
 
 @keeps_notes
@@ -136,14 +137,14 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
 
     margin = default_smarg(model.dt) if smarg is None else float(smarg)
     eq = _Equations(model, choose)
-    rows, ms, methods, degs = [], [], [], []
+    rows, ms, methods, degs, index_degrees = [], [], [], [], []
     for i in range(Mr.p):
         # each row is solved at unit peak gain (a row of gain 1e-8 next to rows of gain 1 would
         # otherwise lose its dynamics to the others' rank tolerance) and scaled back
         scale = _peak(model, Mr[i, :])
         if not scale > 0:
             raise DesignError(f"row {i + 1} of Mr is zero: the only match is the zero filter, which detects no fault")
-        Mi = _drop_cancelled(_minimal(Mr[i, :] * (1.0 / scale), atol), margin, max(atol, CANCEL_TOL))
+        Mi = _drop_cancelled(_minimal(Mr[i, :] * (1.0 / scale), atol), margin, max(atol, mm_tol))
         if not updating and not _stable(Mi, margin, model.dt):
             bad = Mi.poles()
             worst, what = (float(np.max(np.abs(bad))), "largest |pole|") if model.dt else \
@@ -152,7 +153,13 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
                               f"{margin:.3g}): the fault response Rf = Mr would be; pass updating=True (the "
                               f"updating factor M makes M Mr stable) or a stable reference")
         top = model.n + Mi.n + 1 if max_degree is None else int(max_degree)
-        Q0, low = _least_order_row(eq, Mi, top, mm_tol, atol)
+        lr = least_row(model, Mi, tol=mm_tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
+        if lr is None:
+            raise DesignError(f"row {i + 1} of Mr is not achievable without an updating factor, nor with one: no "
+                              f"filter that decouples u and d has a fault response proportional to it (every left "
+                              f"annihilator of [Gu Gd Gf; 0 0 Mr_{i + 1}; I 0 0] has a zero Mr-entry)")
+        index_degrees.append(lr.indices)
+        Q0 = lr.solution(atol) if lr.dz > 0 and lr.degree <= top else None
         if Q0 is not None and _stable(Q0, margin, model.dt) and _stable(Mi, margin, model.dt):
             rows.append(Q0), ms.append(LTI.static(np.ones((1, 1)), model.dt))
             methods.append("least order"), degs.append(0)
@@ -162,14 +169,18 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
             rows.append(Qi * (1.0 / sc)), ms.append(mi * (1.0 / sc))
             methods.append("coprime factor"), degs.append(int(mi.n))
         elif updating:
-            Qi, mi, nu = _updating_row(eq, Mi, top, mm_tol, i, low)
+            if lr.degree > top:
+                raise DesignError(f"residual {i + 1}: the least-degree Q_i with Q_i Ge = [0 0 m_i Mr_i] has degree "
+                                  f"{lr.degree} > max_degree = {top}: pass a larger max_degree")
+            Qi, mi = lr.pair(choose, atol)
             sc = _markov_gain(mi) if normalize == "gain" else mi.hinfnorm()[0] * np.sign(_markov_gain(mi))
-            rows.append(_minimal(Qi * (1.0 / sc), atol)), ms.append(mi * (1.0 / sc))
-            methods.append("updating"), degs.append(nu)
+            rows.append(Qi * (1.0 / sc)), ms.append(mi * (1.0 / sc))
+            methods.append("updating"), degs.append(int(mi.n))
         else:
             why = ("its least-order solution is unstable" if Q0 is not None else
-                   "it has no proper solution of degree ≤ %d" % top)
-            rows.append(_fixed_row(eq, Mi, top, mm_tol, margin, atol, i, why, low))
+                   "its least-degree solution (degree %d) is improper" % lr.degree if lr.degree <= top else
+                   "its least-order solution has degree %d > max_degree = %d" % (lr.degree, top))
+            rows.append(_fixed_row(eq, Mi, top, mm_tol, margin, atol, i, why))
             ms.append(LTI.static(np.ones((1, 1)), model.dt))
             methods.append("fixed denominator"), degs.append(0)
         rows[-1] = rows[-1] * scale
@@ -195,38 +206,48 @@ def _minimal(sys: LTI, atol: float) -> LTI:
     return sys.minreal(tol=atol if atol > 0 else None) if sys.n else sys
 
 
-#: Hankel size (on a reference row of unit peak gain) below which an unstable or marginal mode of
-#: the reference's realisation is a plant mode that the product Q·Ge cancels only to rounding
-#: (a residue ~1e-12 that SLICOT's rank tolerance ~1e-14 keeps), not a pole of the reference
-CANCEL_TOL = 1e-9
-
-
 def _drop_cancelled(sys: LTI, margin: float, tol: float) -> LTI:
-    """``sys`` without the modes outside the stability region whose contribution is negligible.
+    """``sys`` (a reference row of unit peak gain) without the modes whose contribution is at
+    rounding level: the modes of a product realisation that a filter cancels only to ~1e-12 (SLICOT's
+    rank tolerance ~1e-14 keeps them), which are no poles of the reference — a row must not pay an
+    order for them (the least order of :mod:`..toolkit.least_solve` is the order of the reference's
+    minimal realisation plus what the plant adds).
 
     Additive stable/unstable decomposition (Varga's ``gsdec``): an ordered real Schur form puts
     the modes inside the region first, a Sylvester equation ``A11 X − X A22 = −A12`` decouples the
-    blocks, and the unstable part ``(A22, B2, C2)`` is dropped when the largest singular value of
-    its Hankel matrix ``[C2 (A22/ρ)^k] [(A22/ρ)^k B2]`` (ρ = max(1, ||A22||)) is ≤ ``tol``.
+    blocks. The unstable part ``(A22, B2, C2)`` is dropped when the largest singular value of its
+    Hankel matrix ``[C2 (A22/ρ)^k] [(A22/ρ)^k B2]`` (ρ = max(1, ||A22||)) is ≤ ``tol``; the stable
+    part is truncated to its Hankel singular values above ``tol`` (square-root balance & truncate,
+    SLICOT AB09AD: the error is at most twice the sum of the dropped ones).
     """
     n = sys.n
-    if not n or _stable(sys, margin, sys.dt):
+    if not n:
         return sys
     good = (lambda re, im: np.hypot(re, im) < margin) if sys.dt else (lambda re, im: re < margin)
     T, Z, k = ordered_schur(sys.A, good)
-    if k == n:
-        return sys
     A11, A12, A22 = T[:k, :k], T[:k, k:], T[k:, k:]
-    X = sla.solve_sylvester(A11, -A22, -A12) if k else np.zeros((0, n - k))
+    X = sla.solve_sylvester(A11, -A22, -A12) if 0 < k < n else np.zeros((k, n - k))
     Bt, Ct = Z.T @ sys.B, sys.C @ Z
     B1, B2 = Bt[:k] - X @ Bt[k:], Bt[k:]
     C1, C2 = Ct[:, :k], Ct[:, :k] @ X + Ct[:, k:]
-    rho = max(1.0, float(np.linalg.norm(A22, 2)))
-    Ap = [np.linalg.matrix_power(A22 / rho, j) for j in range(n - k)]
-    H = np.vstack([C2 @ P for P in Ap]) @ np.hstack([P @ B2 for P in Ap])
-    if float(np.linalg.norm(H, 2)) > tol:
-        return sys
-    return LTI(A11, B1, C1, sys.D, sys.dt)
+    if k < n:
+        rho = max(1.0, float(np.linalg.norm(A22, 2)))
+        Ap = [np.linalg.matrix_power(A22 / rho, j) for j in range(n - k)]
+        H = np.vstack([C2 @ P for P in Ap]) @ np.hstack([P @ B2 for P in Ap])
+        if float(np.linalg.norm(H, 2)) <= tol:
+            A22, B2, C2 = A22[:0, :0], B2[:0], C2[:, :0]
+    if k:
+        import slycot
+
+        m, p = sys.m, sys.p
+        try:
+            nr, Ar, Br, Cr, _ = slycot.ab09ad("D" if sys.dt else "C", "B", "N", k, m, p, A11.copy(), B1.copy(),
+                                              C1.copy(), tol=tol)
+        except slycot.exceptions.SlycotError:
+            nr = k  # AB09AD refuses a mode too close to the boundary: keep the stable part as it is
+        if nr < k:
+            A11, B1, C1 = Ar[:nr, :nr], Br[:nr, :m], Cr[:p, :nr]
+    return LTI(sla.block_diag(A11, A22), np.vstack([B1, B2]), np.hstack([C1, C2]), sys.D, sys.dt)
 
 
 def _cancel_plant_modes(model: FDIModel, Q: LTI, margin: float, tol: float = 1e-6) -> LTI:
@@ -313,52 +334,7 @@ class _Equations:
         return A, C, lam, tgt, Phi, E
 
 
-def _null(L: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
-    """Null vectors of the complex equations ``L x = 0`` in real unknowns (columns scaled to unit
-    norm for the rank decision, the scaling undone): ``(Z, σ_min/σ_max)``."""
-    L = np.vstack([L.real, L.imag])
-    cn = np.linalg.norm(L, axis=0)
-    cn[cn == 0] = 1.0
-    # thin SVD of the tall system (only V is needed; a full U would be K·cols squared)
-    _, sv, Vt = np.linalg.svd(L / cn, full_matrices=L.shape[0] < L.shape[1])
-    sv = np.concatenate([sv, np.zeros(Vt.shape[0] - sv.size)])
-    Z = Vt[sv <= tol * sv[0]].T / cn[:, None] if sv[0] > 0 else Vt.T / cn[:, None]
-    return Z, float(sv[-1] / sv[0]) if sv[0] > 0 else 0.0
-
-
-def _least_order_row(eq: _Equations, Mi: LTI, top: int, mm_tol: float, atol: float):
-    """The least-degree row ``Q_i = n/d`` with ``Q_i Ge = [0 0 Mr_i]``: ``(Q_i, low)``, ``Q_i`` None when
-    no proper one of degree ≤ ``top`` exists (``low``: smallest relative singular value seen)."""
-    model, low = eq.model, np.inf
-    for delta in range(top + 1):
-        den = np.asarray(eq.choose(delta), complex) if delta else np.zeros(0, complex)
-        A, C, lam, tgt, Phi, E = eq.sample(Mi, den)
-        nb = Phi.shape[1]
-        Lm = -np.einsum("kj,kc->kcj", Phi, tgt)
-        L = np.concatenate([E.reshape(lam.size, eq.cols.size, -1), Lm], axis=2).reshape(lam.size * eq.cols.size, -1)
-        Z, s = _null(L, mm_tol)
-        low = min(low, s)
-        nq = nb * eq.q
-        if not Z.shape[1]:
-            continue
-        Zn = Z / np.linalg.norm(Z, axis=0)
-        if np.max(np.linalg.norm(Zn[nq:], axis=0), initial=0.0) <= 1e-6:
-            continue  # only annihilators of the whole Ge (m_i = 0): no match at this degree
-        # the null vector with the largest feedthrough d_m of m_i (a biproper m_i: a proper Q_i)
-        g = Zn[-1]
-        x = Zn @ g / max(np.linalg.norm(g), 1e-300)
-        X, xm = x[:nq].reshape(nb, eq.q), x[nq:]
-        dm = xm[-1]
-        if abs(dm) <= max(atol, 1e-8 * np.linalg.norm(xm)):
-            return None, low  # the least-degree solution is improper
-        bm = xm[:-1, None]
-        Q0 = LTI(A - bm @ C / dm, X[:-1] - bm @ X[-1:] / dm, C / dm, X[-1:] / dm, model.dt)
-        return _minimal(Q0, atol), low
-    return None, low
-
-
-def _fixed_row(eq: _Equations, Mi: LTI, top: int, mm_tol: float, margin: float, atol: float, i: int, why: str,
-               low: float) -> LTI:
+def _fixed_row(eq: _Equations, Mi: LTI, top: int, mm_tol: float, margin: float, atol: float, i: int, why: str) -> LTI:
     """A stable row with the fixed denominator: the stable poles of ``Mr_i`` and ν chosen ones."""
     model = eq.model
     mp = Mi.poles() if Mi.n else np.zeros(0, complex)
@@ -408,29 +384,6 @@ def _coprime_row(model: FDIModel, Q0: LTI, Mi: LTI, choose, margin: float, atol:
     full = LTI(At, row.B + Lg @ row.D, row.C, row.D, model.dt)
     q = Q0.m
     return _minimal(full[:, :q], atol), _minimal(LTI(At, Lg, row.C, np.ones((1, 1)), model.dt), atol)
-
-
-def _updating_row(eq: _Equations, Mi: LTI, top: int, mm_tol: float, i: int, low0: float):
-    """``(Q_i, m_i, ν)``: the least ν with ``Q_i Ge = m_i [0 0 Mr_i]``, both over ν chosen stable poles."""
-    model, low = eq.model, low0
-    for nu in range(top + 1):
-        den = np.asarray(eq.choose(nu), complex) if nu else np.zeros(0, complex)
-        A, C, lam, tgt, Phi, E = eq.sample(Mi, den)
-        nb, nq = Phi.shape[1], Phi.shape[1] * eq.q
-        Lm = -np.einsum("kj,kc->kcj", Phi, tgt)
-        L = np.concatenate([E.reshape(lam.size, eq.cols.size, -1), Lm], axis=2).reshape(lam.size * eq.cols.size, -1)
-        Z, s = _null(L, mm_tol)
-        low = min(low, s)
-        if Z.shape[1]:
-            Zn = Z / np.linalg.norm(Z, axis=0)
-            _, sm, Wt = np.linalg.svd(Zn[nq:], full_matrices=False)
-            if sm.size and sm[0] > 1e-6:  # the null vector with the largest m_i part (m_i = 0 is no solution)
-                x = Zn @ Wt[0]
-                X, xm = x[:nq].reshape(nb, eq.q), x[nq:]
-                return (LTI(A, X[:-1], C, X[-1:], model.dt), LTI(A, xm[:-1, None], C, xm[-1:, None], model.dt), nu)
-    raise DesignError(f"residual {i + 1}: no stable proper Q_i and m_i ≠ 0 with up to {top} poles give Q_i Ge = "
-                      f"[0 0 m_i Mr_i] (smallest relative residual {low:.3g} > mm_tol = {mm_tol:g}): the reference "
-                      f"row is not achievable (pass a larger max_degree)")
 
 
 def _grid_points(model: FDIModel, systems) -> np.ndarray:

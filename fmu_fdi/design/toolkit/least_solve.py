@@ -1,0 +1,150 @@
+"""Least-order rows of ``X(λ) Ge(λ) = [0 0 Mr_i(λ)]`` from the pencil null-space basis (Varga's ``glsol``, one row).
+
+With ``Ge = [Gu Gd Gf; I 0 0]`` (from ``[u; d; f]`` to ``[y; u]``) a row ``X`` solves
+
+    X Ge = [0  0  Mr_i]      iff      [X_y  −1  X_u]  [Gu Gd Gf; 0 0 Mr_i; I 0 0] = 0,
+
+i.e. ``[X_y, −1, X_u]`` is a left annihilator of the *augmented* system with outputs ``[y; z]``,
+``z = Mr_i f``, known inputs u and unknown inputs ``[d; f]`` — the null space
+:func:`.pencil.pencil_basis` computes (Varga 2017, sec. 7.9: the solution of a linear rational
+equation from the left null space of ``[G; F]``). Its simple basis (:func:`.pencil.simple_rows`:
+one row ``N_j`` per left minimal index ``ν_j``, each of McMillan degree ``ν_j``, by Type 1 minimum
+dynamic covers) has the *predictable degree property*: the numerators ``P_j`` of ``N_j = P_j/d_j``
+form a minimal polynomial basis (their degrees sum to the least total), so every polynomial null
+row of degree ≤ δ is ``Σ_j p_j P_j`` with ``deg p_j ≤ δ − ν_j``. A rational row ``X`` of McMillan
+degree δ is ``n/d`` with a polynomial null row ``n`` of degree ≤ δ whose z-entry is ``−d ≠ 0``;
+hence the least degree of a solution is
+
+    δ_min = min { ν_j : the z-entry of N_j is not identically zero },
+
+reached by ``X = −N_z^{-1} [N_y N_u]`` of that row (its denominator has degree ν_j). With the row's
+realisation ``N = (A, [b_y b_z b_u], c, [d_y d_z d_u])`` and a biproper ``N_z`` (``d_z ≠ 0``),
+
+    X = (A − b_z c/d_z,  [b_y b_u] − b_z [d_y d_u]/d_z,  −c/d_z,  −[d_y d_u]/d_z),      (order ν)
+
+whose poles are the zeros of ``N_z`` (the basis' own poles cancel). ``d_z = 0`` for every row of
+least degree: the least-degree solution is improper; a stable proper pair ``(X, m) = (N_yu, −N_z)``
+then solves ``X Ge = [0 0 m Mr_i]`` (Procedure EMM's updating factor), with the poles of ``N`` placed
+by output injection (a biproper left factor, which keeps ``N`` a null row).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...errors import DesignError
+from ...lti import LTI
+from ...model import FDIModel
+from .pencil import assign_poles, pencil_basis, simple_rows
+
+
+@dataclass
+class LeastRow:
+    """The least-degree null row of the augmented system with a nonzero z-entry."""
+
+    #: the null row ``[N_y N_z N_u]`` (1 × (p + 1 + m)), stable, proper, McMillan degree ``degree``
+    N: LTI
+    degree: int
+    #: z-entry feedthrough relative to the row's scale (0: the least-order solution is improper)
+    dz: float
+    #: left minimal indices of the augmented system and the cover conditions of the simple rows
+    indices: list
+    cond: float
+    p: int
+
+    def solution(self, atol: float = 0.0) -> LTI:
+        """``X = −N_z^{-1} [N_y N_u]`` (requires ``dz > 0``), minimal."""
+        N, p = self.N, self.p
+        b, d = N.B, N.D
+        bz, dz = b[:, [p]], float(d[0, p])
+        keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
+        byu, dyu = b[:, keep], d[:, keep]
+        X = LTI(N.A - bz @ N.C / dz, byu - bz @ dyu / dz, -N.C / dz, -dyu / dz, N.dt)
+        return X.minreal(tol=atol if atol > 0 else None) if X.n else X
+
+    def pair(self, choose, atol: float = 0.0) -> tuple[LTI, LTI]:
+        """``(X, m) = (N_yu, −N_z)`` with every pole of N at ``choose(ν)`` (output injection ``A + L c``,
+        Schur method on the dual pair: :func:`.pencil.assign_poles`), both minimal."""
+        N, p = self.N, self.p
+        A, B, C, D = N.A, N.B, N.C, N.D
+        if N.n:
+            F, _ = assign_poles(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
+            L = F.T
+            A, B = A + L @ C, B + L @ D
+        keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
+        X = LTI(A, B[:, keep], C, D[:, keep], N.dt)
+        m = LTI(A, -B[:, [p]], C, -D[:, [p]], N.dt)
+        tol = atol if atol > 0 else None
+        return (X.minreal(tol=tol) if X.n else X), (m.minreal(tol=tol) if m.n else m)
+
+
+def augmented_model(model: FDIModel, Mi: LTI) -> FDIModel:
+    """The model with the output ``z = Mr_i f`` appended and f turned into an unknown input:
+    states ``[x; x_M]``, outputs ``[y; z]``, known inputs u, unknown inputs ``[d; f]``."""
+    n, p, m = model.n, model.ny, model.nu
+    G = model.lti("u", "d", "f")
+    nM = Mi.n
+    Bu, Bdf = G.B[:, :m], G.B[:, m:]
+    Du, Ddf = G.D[:, :m], G.D[:, m:]
+    nd = model.nd
+    A = np.block([[model.A, np.zeros((n, nM))], [np.zeros((nM, n)), Mi.A]])
+    C = np.block([[model.C, np.zeros((p, nM))], [np.zeros((1, n)), Mi.C]])
+    Bua = np.vstack([Bu, np.zeros((nM, m))])
+    Dua = np.vstack([Du, np.zeros((1, m))])
+    Bda = np.block([[Bdf], [np.zeros((nM, nd)), Mi.B]])
+    Dda = np.block([[Ddf], [np.zeros((1, nd)), Mi.D]])
+    return FDIModel(A, Bua, C, Dua, Bd=Bda, Dd=Dda, dt=model.dt, name=f"{model.name}_Mr")
+
+
+def _markov_norm(N: LTI, cols) -> float:
+    """``||[D, C B/ρ, C A B/ρ², …]||`` of the columns ``cols`` (ρ = max(1, ||A||)): zero iff those
+    columns are identically zero (n Markov parameters decide a system of order n)."""
+    B, D = N.B[:, cols], N.D[:, cols]
+    out = [np.linalg.norm(D)]
+    if N.n:
+        rho = max(1.0, float(np.linalg.norm(N.A, 2)))
+        v = B / rho
+        for _ in range(N.n):
+            out.append(np.linalg.norm(N.C @ v))
+            v = N.A @ v / rho
+    return float(np.linalg.norm(out))
+
+
+def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=None, sdeg=None,
+              smarg=None) -> LeastRow | None:
+    """The least-degree row of the augmented null space whose z-entry is nonzero (relative size
+    above ``tol``), or None when every null row has a zero z-entry (``Mr_i`` is not a fault response
+    of any decoupling filter). Among the rows of that degree the one with the largest relative
+    z-feedthrough is taken (a biproper ``N_z``: a proper solution)."""
+    aug = augmented_model(model, Mi)
+    p = model.ny
+    try:
+        pb = pencil_basis(aug, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
+    except DesignError:
+        raise
+    if pb.N.p == 0:
+        return None
+    rows = simple_rows(pb, model.dt)
+    if len(rows) < pb.N.p:
+        from .postconditions import NumericalDesignError
+
+        raise NumericalDesignError(
+            f"model matching: the simple basis of the augmented null space has {len(rows)} of its {pb.N.p} rows "
+            f"(indices {pb.degrees}): a minimum dynamic cover was too ill-conditioned; the least order cannot be "
+            f"proven — pass other atol")
+    best = None
+    for N, nu, cond in sorted(rows, key=lambda r: r[1]):
+        if best is not None and nu > best[1]:
+            break
+        whole = _markov_norm(N, np.arange(N.m))
+        z = _markov_norm(N, [p])
+        if not whole > 0 or z <= tol * whole:
+            continue
+        dz = abs(float(N.D[0, p])) / whole
+        if best is None or dz > best[2]:
+            best = (N, nu, dz, cond)
+    if best is None:
+        return None
+    N, nu, dz, cond = best
+    return LeastRow(N, int(nu), dz if dz > tol else 0.0, list(pb.degrees), float(cond), p)
