@@ -8,47 +8,41 @@ Find a proper stable ``Q`` with
 decoupled and the fault-to-residual map equal to the reference ``Mr``.
 
 **Least order, row by row** (``emmsyn``'s default ``minimal = true``: ``glsol(…; mindeg =
-true)`` then a coprime factor per row). Each row ``Q_i`` of the solution is designed on its
-own, so its McMillan degree — the degree δ of the least common denominator of a row — is
-the least of any row solving ``Q_i Ge = [0 0 Mr_i]``. A row of degree ≤ δ is
-``Q_i = n(λ)/d(λ)`` with a polynomial row n and polynomial d of degree ≤ δ, and the matching
-equation ``n Ge = d [0 0 Mr_i]`` is *linear and homogeneous* in the pair ``(n, d)`` — the
-denominator is an unknown, not a guess (a reference's poles need not be the filter's:
-``Mr = Gf`` is matched by the static ``Q = [I 0]``). Both are written over a reference
-denominator e of degree δ with stable, well-separated roots,
-``Q̃_i = n/e = C (λI − A)^{-1} B + D`` and ``m_i = d/e`` (same ``(A, C)``, :func:`cascade`),
-so that the equation ``Q̃_i(λ_k) Ge(λ_k) − m_i(λ_k) [0 0 Mr_i(λ_k)] = 0`` at K grid points
-(K far above the degrees involved, so a rational identity holding there holds everywhere)
-is a linear system in ``(B, D, b_m, d_m)``. Its null space, read from an SVD with
-the relative threshold ``mm_tol``, is non-trivial with ``m_i ≠ 0`` first at the least
-degree δ; then ``Q_i = m_i^{-1} Q̃_i`` (biproper ``m_i``, ``d_m ≠ 0``) has the realisation
+true)`` then a coprime factor per row), on the one synthesis core (:mod:`..toolkit.pencil`).
+A row ``Q_i`` solves ``Q_i Ge = [0 0 Mr_i]`` iff ``[Q_i,y  −1  Q_i,u]`` is a left annihilator of
+the augmented system ``[Gu Gd Gf; 0 0 Mr_i; I 0 0]`` — the plant with the output ``z = Mr_i f``
+appended and f treated as an unknown input. The core's proper minimal basis of that null space,
+made simple by Type 1 minimum dynamic covers (one row ``N_j`` per left minimal index ``ν_j``),
+has the predictable degree property, so the least McMillan degree of a solution is the least
+``ν_j`` whose row has a nonzero z-entry, and ``Q_i = −N_z^{-1} [N_y N_u]`` of that row reaches it
+(:mod:`..toolkit.least_solve`; a reference's poles need not be the filter's: ``Mr = Gf`` is
+matched by the static ``Q = [I 0]``). Its poles are the zeros of ``N_z``. When this least-order
+row is unstable or improper:
 
-    Q_i = (A − b_m C / d_m,  B − b_m D / d_m,  C / d_m,  D / d_m)      (order δ),
-
-whose poles are the zeros of ``m_i``. When this least-order row is unstable or improper:
-
-- ``updating=False``: rows with a *fixed* stable denominator (the stable poles of ``Mr_i``
-  plus ν chosen poles, ν = 0, 1, …; the numerator from the same sampled equations, now
-  inhomogeneous) — a stable Q of higher order if one exists;
+- ``updating=False``: a stable proper solution exists iff the Mr-column ``N_z`` of the whole
+  basis (stable, proper, without zeros) has no zero outside the stability region and none at
+  infinity; then ``Q_i = −(Y N)_{y,u}`` with the observer-based stable left inverse Y of
+  ``N_z`` (:func:`..toolkit.least_solve.stable_solution`), otherwise a DesignError names the
+  zeros (every exact solution has them as poles);
 - ``updating=True`` (Procedure EMM step 3; ``emmsyn``'s ``info.M``): the reference is matched
   up to a diagonal updating factor, ``Q Ge = [0 0 M Mr]``. For an unstable but proper least
-  row, ``[Q_i  Mr_i] = m_i^{-1} [Q̃_i  R̃_i]`` is a stable left coprime factorisation of the
+  row, ``[Q_i  m_i Mr_i] = m_i [Q0  Mr_i]`` is a stable left coprime factorisation of the
   whole row (output injection moving only the poles outside the stability region, as
   ``glcf(…; mindeg = true)``; :func:`..toolkit.pencil.assign_poles`), so that both the filter and its
-  fault response ``m_i Mr_i`` are stable; for an improper one, the least ν for which
-  ``Q_i Ge = m_i [0 0 Mr_i]`` has a solution with both ``Q_i`` and ``m_i`` over ν chosen
-  stable poles. ``m_i`` is normalised to unit zpk gain (the first nonzero Markov parameter,
+  fault response ``m_i Mr_i`` are stable; for an improper one, the least-degree null row itself,
+  ``(Q_i, m_i) = ([N_y N_u], −N_z)``, with its ν poles placed by output injection at the chosen
+  poles. ``m_i`` is normalised to unit zpk gain (the first nonzero Markov parameter,
   ``normalize='gain'``, as in Varga's Example 5.13) or to unit H∞ norm (``'infnorm'``).
 
 Numerics. Each reference row is solved at unit peak gain and scaled back (a row of gain
-1e-8 beside rows of gain 1 keeps its own accuracy); unstable or marginal modes of its
-realisation with a Hankel size at rounding level (plant modes a product ``Q Ge`` cancels only
-to ~1e-12) are dropped (:func:`_drop_cancelled`); the plant modes outside the stability region
-are made to cancel exactly in ``R = Q Ge`` by a minimum-norm correction of Q's y-input part
-(:func:`_cancel_plant_modes`). Every returned row is verified on an independent grid: the
-relative matching error of each row must not exceed ``sqrt(mm_tol)`` and the post-conditions
-(:mod:`..toolkit.postconditions`) must hold. ``atol`` is the absolute rank tolerance of the minimal
-realisations and of the properness decision.
+1e-8 beside rows of gain 1 keeps its own accuracy); modes of its realisation with Hankel
+singular values at or below ``mm_tol`` (plant modes a product ``Q Ge`` cancels only to ~1e-12)
+are dropped (:func:`_drop_cancelled`), so that no row pays an order for them; the plant modes
+outside the stability region are made to cancel exactly in ``R = Q Ge`` by a minimum-norm
+correction of Q's y-input part (:func:`_cancel_plant_modes`). Every returned row is verified
+on an independent grid: the relative matching error of each row must not exceed
+``sqrt(mm_tol)`` and the post-conditions (:mod:`..toolkit.postconditions`) must hold. ``atol``
+is the absolute rank tolerance of the core's rank decisions and of the minimal realisations.
 
 The approximate problem (AMMP, H∞/H2 optimal) is :mod:`.approximate_matching`.
 """
@@ -66,7 +60,8 @@ from ..toolkit._basis import check_poles, pole_chooser
 from .approximate_matching import reference
 from ..toolkit.postconditions import DEC_TOL, _values, check_generator, default_smarg
 from ..toolkit.notes import keeps_notes, silenced
-from ..toolkit.least_solve import least_row
+from ..toolkit.least_solve import least_row, stable_solution
+from ...margin import margin_limit
 
 
 @keeps_notes
@@ -83,15 +78,18 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
         Reference fault-to-residual map: (residuals × fault columns). Stable unless
         ``updating=True`` (then the updating factor also stabilises ``M Mr``).
     poles, sdeg : optional
-        Poles given to the filter where they are free: the reference denominators of the
-        sampled equations, the fixed-denominator rows, and the poles moved by the updating
-        factor (as in :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`).
+        Poles given to the filter where they are free (as in
+        :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`): the core basis' poles, the
+        poles the stable left inverse assigns, and the poles moved by the updating factor. The
+        least-order row's poles are the zeros of its basis row's Mr-entry, not free.
     max_degree : int, optional
-        Largest row degree tried (default ``n + order(Mr_i) + 1``); for the fixed-denominator
-        rows, the largest number of poles added to those of ``Mr_i``.
+        Largest McMillan degree of a returned row (default: no bound); a row that needs more
+        is refused with a DesignError naming its least degree.
     mm_tol : float
-        Relative singular-value threshold of the sampled matching equations (the rank
-        decision); a returned row's relative matching error must be ≤ ``sqrt(mm_tol)``.
+        Relative threshold of the matching's rank decisions: a reference row's Hankel singular
+        values and a basis row's Mr-entry (Markov parameters, and its feedthrough for
+        properness) at or below ``mm_tol`` of the row's size are zero; a returned row's
+        relative matching error must be ≤ ``sqrt(mm_tol)``.
     smarg, dec_tol : float, optional
         Stability margin and decoupling tolerance of the post-conditions.
     updating : bool
@@ -102,22 +100,24 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
     atol : float
         Absolute rank tolerance (Varga's ``atol``): singular values of the model's and the
         reference's realisations below it are zero in the minimal realisations of ``Mr_i``
-        and of each row, and ``|d_m| ≤ atol`` makes a least-order row improper.
+        and of each row, and the rank decisions of the core's pencil basis (Varga's ``atol``).
 
     Returns
     -------
     ResidualGenerator
         ``info``: ``row_orders`` (McMillan degree of each row), ``degree`` (their largest),
-        ``order``, ``row_methods`` ('least order', 'fixed denominator', 'coprime factor',
-        'updating'), ``matching_error`` (grid peak of ``||Rf − M Mr||`` relative to
-        ``||M Mr||``), ``postconditions``, ``poles``; with ``updating=True`` ``M`` (LTI,
+        ``order``, ``row_methods`` ('least order', 'stable solution', 'coprime factor',
+        'updating'), ``left_minimal_indices`` (per row, of the augmented system),
+        ``matching_error`` (grid peak of ``||Rf − M Mr||`` relative to ``||M Mr||``), ``postconditions``, ``poles``; with ``updating=True`` ``M`` (LTI,
         diagonal), ``row_degrees`` (order of each ``m_i``) and ``M_zeros``.
 
     Raises
     ------
     DesignError
         Mr has the wrong shape, a zero row, or is unstable (without ``updating``), or no
-        stable proper row of degree ≤ ``max_degree`` matches a row of it.
+        stable proper row (of degree ≤ ``max_degree``) matches a row of it: the message names
+        the condition (no null row with a nonzero Mr-entry; the zeros that every exact
+        solution has as poles; an improper least solution).
     """
     if normalize not in ("gain", "infnorm"):
         raise DesignError(f"normalize must be 'gain' or 'infnorm', got {normalize!r}")
@@ -136,7 +136,8 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
             return chooser(count)
 
     margin = default_smarg(model.dt) if smarg is None else float(smarg)
-    eq = _Equations(model, choose)
+    lim = margin_limit(margin)  # the stability region, inclusive (Re λ ≤ smarg, |λ| ≤ smarg), as the peer's
+    good = (lambda re, im: np.hypot(re, im) <= lim) if model.dt else (lambda re, im: re <= lim)  # noqa: E731
     rows, ms, methods, degs, index_degrees = [], [], [], [], []
     for i in range(Mr.p):
         # each row is solved at unit peak gain (a row of gain 1e-8 next to rows of gain 1 would
@@ -152,37 +153,43 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
             raise DesignError(f"row {i + 1} of Mr is not stable ({what} = {worst:.6g}, stability margin "
                               f"{margin:.3g}): the fault response Rf = Mr would be; pass updating=True (the "
                               f"updating factor M makes M Mr stable) or a stable reference")
-        top = model.n + Mi.n + 1 if max_degree is None else int(max_degree)
-        lr = least_row(model, Mi, tol=mm_tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
+        top = np.inf if max_degree is None else int(max_degree)
+        lr = least_row(model, Mi, tol=mm_tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg, good=good)
         if lr is None:
             raise DesignError(f"row {i + 1} of Mr is not achievable without an updating factor, nor with one: no "
                               f"filter that decouples u and d has a fault response proportional to it (every left "
                               f"annihilator of [Gu Gd Gf; 0 0 Mr_{i + 1}; I 0 0] has a zero Mr-entry)")
         index_degrees.append(lr.indices)
-        Q0 = lr.solution(atol) if lr.dz > 0 and lr.degree <= top else None
+        if lr.degree > top:
+            raise DesignError(f"row {i + 1} of Mr: its least-order solution has degree {lr.degree} > max_degree = "
+                              f"{max_degree} (left minimal indices of [Gu Gd Gf; 0 0 Mr_{i + 1}; I 0 0]: "
+                              f"{lr.indices}); pass a larger max_degree")
+        Q0 = lr.solution(atol) if lr.dz > 0 else None
         if Q0 is not None and _stable(Q0, margin, model.dt) and _stable(Mi, margin, model.dt):
             rows.append(Q0), ms.append(LTI.static(np.ones((1, 1)), model.dt))
             methods.append("least order"), degs.append(0)
         elif updating and Q0 is not None:
-            Qi, mi = _coprime_row(model, Q0, Mi, choose, margin, atol)
+            Qi, mi = _coprime_row(model, Q0, Mi, choose, good, margin, atol)
             sc = _markov_gain(mi) if normalize == "gain" else mi.hinfnorm()[0] * np.sign(_markov_gain(mi))
             rows.append(Qi * (1.0 / sc)), ms.append(mi * (1.0 / sc))
             methods.append("coprime factor"), degs.append(int(mi.n))
         elif updating:
-            if lr.degree > top:
-                raise DesignError(f"residual {i + 1}: the least-degree Q_i with Q_i Ge = [0 0 m_i Mr_i] has degree "
-                                  f"{lr.degree} > max_degree = {top}: pass a larger max_degree")
             Qi, mi = lr.pair(choose, atol)
             sc = _markov_gain(mi) if normalize == "gain" else mi.hinfnorm()[0] * np.sign(_markov_gain(mi))
             rows.append(Qi * (1.0 / sc)), ms.append(mi * (1.0 / sc))
             methods.append("updating"), degs.append(int(mi.n))
         else:
-            why = ("its least-order solution is unstable" if Q0 is not None else
-                   "its least-degree solution (degree %d) is improper" % lr.degree if lr.degree <= top else
-                   "its least-order solution has degree %d > max_degree = %d" % (lr.degree, top))
-            rows.append(_fixed_row(eq, Mi, top, mm_tol, margin, atol, i, why))
-            ms.append(LTI.static(np.ones((1, 1)), model.dt))
-            methods.append("fixed denominator"), degs.append(0)
+            try:
+                Qi = stable_solution(lr, choose, good, mm_tol, atol)
+            except DesignError as exc:
+                why = ("its least-order solution is unstable" if Q0 is not None else
+                       "its least-degree solution (degree %d) is improper" % lr.degree)
+                raise DesignError(f"row {i + 1} of Mr: {why}, and {exc}") from None
+            if Qi.n > top:
+                raise DesignError(f"row {i + 1} of Mr: the stable solution has degree {Qi.n} > max_degree = "
+                                  f"{max_degree}: pass a larger max_degree, or updating=True")
+            rows.append(Qi), ms.append(LTI.static(np.ones((1, 1)), model.dt))
+            methods.append("stable solution"), degs.append(0)
         rows[-1] = rows[-1] * scale
     Q = _cancel_plant_modes(model, vstack(rows) if len(rows) > 1 else rows[0], margin)
     M = blockdiag(ms)
@@ -195,6 +202,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
                           f"accuracy; pass other poles/sdeg")
     gen.info.update({"row_orders": [int(r.n) for r in rows], "degree": int(max(r.n for r in rows)),
                      "order": int(Q.n), "row_methods": methods, "matching_error": err,
+                     "left_minimal_indices": index_degrees,
                      "poles": np.asarray(Q.poles()).tolist()})
     if updating:
         gen.info.update({"M": M, "row_degrees": degs, "M_zeros": [np.asarray(_zeros(m)).tolist() for m in ms]})
@@ -296,69 +304,15 @@ def _cancel_plant_modes(model: FDIModel, Q: LTI, margin: float, tol: float = 1e-
 
 
 def _stable(sys: LTI, margin: float, dt: float) -> bool:
+    """Every pole at or inside the margin (inclusive, as the peer's ``smarg``; :func:`~fmu_fdi.margin.margin_limit`)."""
     if not sys.n:
         return True
     p = sys.poles()
-    return bool(np.max(np.abs(p)) < margin if dt else np.max(p.real) < margin)
+    lim = margin_limit(margin)
+    return bool(np.max(np.abs(p)) <= lim if dt else np.max(p.real) <= lim)
 
 
-class _Equations:
-    """The sampled matching equations of one model: grid, values of ``Ge`` (u, d, f columns), the
-    per-point weights ``1/||Ge(λ_k)||`` and the basis values of a denominator, cached per pole set."""
-
-    def __init__(self, model: FDIModel, choose):
-        self.model, self.choose = model, choose
-        sl = model.group_slices()
-        self.ud = np.r_[np.arange(sl["u"].start, sl["u"].stop), np.arange(sl["d"].start, sl["d"].stop)]
-        self.cols = np.r_[self.ud, np.arange(sl["f"].start, sl["f"].stop)]
-        self.Ge = model.augmented()
-        self.q = model.ny + model.nu
-
-    def sample(self, Mi: LTI, den: np.ndarray):
-        """``(A, C, λ, Mr_i(λ) padded with zeros for u, d, w_k, Φ(λ), E)`` for the denominator roots
-        ``den``: ``E[k, c, j, a] = w_k Φ_k,j Ge_k[a, cols[c]]`` are the coefficients of ``Q̃ Ge``."""
-        model = self.model
-        A, C = cascade(den)
-        K = max(160, 3 * (model.n + Mi.n + den.size) + 40)
-        omega = frequency_grid([model.lti(), Mi], num=K, poles=den)
-        lam = np.exp(1j * omega * model.dt) if model.dt else 1j * omega
-        G, T = _values(self.Ge, lam)[:, :, self.cols], _values(Mi, lam)[:, 0, :]
-        ok = np.all(np.isfinite(G), axis=(1, 2)) & np.all(np.isfinite(T), axis=1)
-        G, T, lam = G[ok], T[ok], lam[ok]
-        if lam.size < 2 * (model.n + Mi.n + den.size) + 4:
-            raise DesignError(f"model matching: only {lam.size} grid points where the model and Mr are finite")
-        w = 1.0 / np.maximum(np.linalg.norm(G, 2, axis=(1, 2)), 1e-300)
-        tgt = np.concatenate([np.zeros((lam.size, self.ud.size)), T], axis=1) * w[:, None]
-        Phi = _basis_values(A, C, lam)
-        E = np.einsum("kj,kac->kcja", Phi * w[:, None], G)
-        return A, C, lam, tgt, Phi, E
-
-
-def _fixed_row(eq: _Equations, Mi: LTI, top: int, mm_tol: float, margin: float, atol: float, i: int, why: str) -> LTI:
-    """A stable row with the fixed denominator: the stable poles of ``Mr_i`` and ν chosen ones."""
-    model = eq.model
-    mp = Mi.poles() if Mi.n else np.zeros(0, complex)
-    mp = mp[np.abs(mp) < margin] if model.dt else mp[mp.real < margin]
-    best = np.inf
-    for nu in range(top + 1):
-        den = np.concatenate([mp, np.asarray(eq.choose(nu), complex) if nu else np.zeros(0, complex)])
-        A, C, lam, tgt, Phi, E = eq.sample(Mi, den)
-        L = E.reshape(lam.size * eq.cols.size, -1)
-        L = np.vstack([L.real, L.imag])
-        b = np.concatenate([tgt.real.ravel(), tgt.imag.ravel()])
-        x, *_ = sla.lstsq(L, b, lapack_driver="gelsy")
-        err = float(np.linalg.norm(L @ x - b) / max(np.linalg.norm(b), 1e-300))
-        best = min(best, err)
-        if err <= mm_tol:
-            X = x.reshape(Phi.shape[1], eq.q)
-            return _minimal(LTI(A, X[:-1], C, X[-1:], model.dt), atol)
-    raise DesignError(f"row {i + 1} of Mr: {why}, and no stable proper row with up to {top} poles added to the "
-                      f"stable poles of Mr_{i + 1} matches it (smallest relative matching residual {best:.3g} > "
-                      f"mm_tol = {mm_tol:g}): the reference is not achievable without an updating factor (pass "
-                      f"updating=True), or pass a larger max_degree")
-
-
-def _coprime_row(model: FDIModel, Q0: LTI, Mi: LTI, choose, margin: float, atol: float) -> tuple[LTI, LTI]:
+def _coprime_row(model: FDIModel, Q0: LTI, Mi: LTI, choose, good, margin: float, atol: float) -> tuple[LTI, LTI]:
     """``[Q_i  R_i] = m_i [Q0  Mr_i]`` stable: a left coprime factorisation of the row ``[Q0 Mr_i]``
     by output injection L moving the eigenvalues outside the region (``Re λ < margin``, ``|λ| <
     margin``), one Schur block at a time (:func:`..toolkit.pencil.assign_poles` on the dual pair):
@@ -367,10 +321,6 @@ def _coprime_row(model: FDIModel, Q0: LTI, Mi: LTI, choose, margin: float, atol:
 
     row = _minimal(LTI(sla.block_diag(Q0.A, Mi.A), sla.block_diag(Q0.B, Mi.B), np.hstack([Q0.C, Mi.C]),
                        np.hstack([Q0.D, Mi.D]), model.dt), atol)
-    if model.dt:
-        good = lambda re, im: np.hypot(re, im) < margin  # noqa: E731
-    else:
-        good = lambda re, im: re < margin  # noqa: E731
     F, _ = assign_poles(row.A.T, row.C.T, model.dt, lambda bad: choose(bad.size), good)
     Lg = F.T
     At = row.A + Lg @ row.C
@@ -443,58 +393,3 @@ def _zeros(m: LTI) -> np.ndarray:
     E = sla.block_diag(np.eye(n), np.zeros((1, 1)))
     z = sla.eigvals(P, E)
     return z[np.isfinite(z) & (np.abs(z) < 1e12)]
-
-
-def cascade(poles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(A_m, C_m)`` holding the poles exactly: real first-order sections (real poles) and
-    rotation blocks ``[a b; −b a]`` (pairs). Distinct poles: modal form, output the sum of
-    the sections' first states (observable as the poles differ). Repeated poles: a cascade,
-    each section driven by the previous section's first state, output the last section's
-    (observable when no section's zero cancels a later pole)."""
-    poles = np.asarray(poles, complex)
-    units, used = [], np.zeros(poles.size, bool)
-    for i, z in enumerate(poles):
-        if used[i]:
-            continue
-        used[i] = True
-        if abs(z.imag) > 1e-12 * max(1.0, abs(z)):
-            j = next((k for k in range(poles.size) if not used[k] and abs(poles[k] - np.conj(z)) <= 1e-9 * max(1.0, abs(z))), None)
-            if j is None:
-                raise DesignError(f"pole {z} has no conjugate: filter poles must be closed under conjugation")
-            used[j] = True
-            units.append(np.array([[z.real, abs(z.imag)], [-abs(z.imag), z.real]]))
-        else:
-            units.append(np.array([[z.real]]))
-    nu = sum(u.shape[0] for u in units)
-    A = np.zeros((nu, nu))
-    # distinct poles: a modal (partial-fraction) form, output the sum of the sections — its
-    # basis functions 1/(λ - p_i) are far better conditioned than the cascade's products
-    eig = np.array([complex(u[0, 0], u[0, 1] if u.shape[0] == 2 else 0.0) for u in units])
-    gaps = np.abs(eig[:, None] - eig[None, :])
-    np.fill_diagonal(gaps, np.inf)
-    modal = eig.size <= 1 or np.min(gaps) > 1e-6 * max(1.0, float(np.max(np.abs(eig))))
-    k, prev = 0, None
-    C = np.zeros((1, nu))
-    for u in units:
-        d = u.shape[0]
-        A[k:k + d, k:k + d] = u
-        if modal:
-            C[0, k] = 1.0
-        elif prev is not None:
-            A[k, prev] = 1.0  # input of this section = output (first state) of the previous one
-        prev = k
-        k += d
-    if nu and not modal:
-        C[0, prev] = 1.0
-    return A, C
-
-
-def _basis_values(A: np.ndarray, C: np.ndarray, lam: np.ndarray) -> np.ndarray:
-    """``[C (λI − A)^{-1}, 1]`` at every point: (K, ν + 1)."""
-    nu = A.shape[0]
-    out = np.ones((lam.size, nu + 1), complex)
-    if nu:
-        eye = np.eye(nu)
-        for k, l in enumerate(lam):
-            out[k, :nu] = sla.solve((l * eye - A).T, C.ravel().astype(complex))
-    return out

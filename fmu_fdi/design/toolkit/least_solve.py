@@ -36,7 +36,7 @@ import numpy as np
 from ...errors import DesignError
 from ...lti import LTI
 from ...model import FDIModel
-from .pencil import assign_poles, pencil_basis, simple_rows
+from .pencil import assign_poles, controllable_staircase, pencil_basis, simple_rows
 
 
 @dataclass
@@ -52,6 +52,9 @@ class LeastRow:
     indices: list
     cond: float
     p: int
+    #: the whole proper stable basis of the augmented null space (k × (p + 1 + m)) and its rank tolerance
+    basis: LTI | None = None
+    rank_tol: float = 0.0
 
     def solution(self, atol: float = 0.0) -> LTI:
         """``X = −N_z^{-1} [N_y N_u]`` (requires ``dz > 0``), minimal."""
@@ -112,11 +115,12 @@ def _markov_norm(N: LTI, cols) -> float:
 
 
 def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=None, sdeg=None,
-              smarg=None) -> LeastRow | None:
+              smarg=None, good=None) -> LeastRow | None:
     """The least-degree row of the augmented null space whose z-entry is nonzero (relative size
     above ``tol``), or None when every null row has a zero z-entry (``Mr_i`` is not a fault response
-    of any decoupling filter). Among the rows of that degree the one with the largest relative
-    z-feedthrough is taken (a biproper ``N_z``: a proper solution)."""
+    of any decoupling filter). Among the simple rows of that degree, one whose solution is proper
+    (biproper ``N_z``) and, with ``good(re, im)``, stable (the zeros of ``N_z`` in the region) is
+    preferred, then the largest relative z-feedthrough (the best conditioned division by ``d_z``)."""
     aug = augmented_model(model, Mi)
     p = model.ny
     try:
@@ -135,16 +139,73 @@ def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=
             f"proven — pass other atol")
     best = None
     for N, nu, cond in sorted(rows, key=lambda r: r[1]):
-        if best is not None and nu > best[1]:
+        if best is not None and nu > best[2]:
             break
         whole = _markov_norm(N, np.arange(N.m))
         z = _markov_norm(N, [p])
         if not whole > 0 or z <= tol * whole:
             continue
         dz = abs(float(N.D[0, p])) / whole
-        if best is None or dz > best[2]:
-            best = (N, nu, dz, cond)
+        stable = False
+        if dz > tol and good is not None:
+            zeros = np.linalg.eigvals(N.A - N.B[:, [p]] @ N.C / N.D[0, p]) if N.n else np.zeros(0)
+            stable = all(good(z.real, z.imag) for z in zeros)
+        key = (dz > tol, stable, dz)
+        if best is None or key > best[0]:
+            best = (key, N, nu, dz, cond)
     if best is None:
         return None
-    N, nu, dz, cond = best
-    return LeastRow(N, int(nu), dz if dz > tol else 0.0, list(pb.degrees), float(cond), p)
+    _, N, nu, dz, cond = best
+    return LeastRow(N, int(nu), dz if dz > tol else 0.0, list(pb.degrees), float(cond), p, pb.N, pb.rank_tol)
+
+
+def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) -> LTI:
+    """A stable proper ``X`` with ``X Ge = [0 0 Mr_i]`` (no updating factor), or a DesignError naming the
+    unstable or infinite zeros that forbid one.
+
+    Every null row of the augmented system is ``w = Y N`` with the core's basis ``N`` (k rows, stable,
+    proper, minimal: no finite or infinite zeros, so ``w`` stable proper iff ``Y`` is), and ``X`` solves
+    the equation iff ``Y N_z = −1``. A stable proper left inverse ``Y`` of the column ``N_z = (A, b, C, d)``
+    exists iff ``d ≠ 0`` (no zero at infinity) and the invariant zeros of ``N_z`` lie in the stability
+    region: with ``h = dᵀ/|d|²`` the observer-based left inverse
+
+        Y = (A − b h C − L (I − d h) C,  b h + L (I − d h),  −h C,  h),      Y N_z = 1,
+
+    has as poles the zeros of ``N_z`` (the unobservable eigenvalues of ``(A − b h C, (I − d h) C)``) and
+    the eigenvalues that L assigns (:func:`.pencil.assign_poles` on the observable part of the dual pair,
+    moving only those outside ``good``). Then ``X = −(Y N)_{y,u}``, minimal.
+    """
+    N, p = row.basis, row.p
+    Nz = LTI(N.A, N.B[:, [p]], N.C, N.D[:, [p]], N.dt)
+    Nz = Nz.minreal(tol=atol if atol > 0 else None) if Nz.n else Nz
+    A, b, C, d = Nz.A, Nz.B, Nz.C, Nz.D
+    scale = max(float(np.linalg.norm(np.block([[A, b], [C, d]]), 2)) if Nz.n else float(np.linalg.norm(d)), 1e-300)
+    if not np.linalg.norm(d) > tol * scale:
+        raise DesignError(f"no stable proper filter matches this row without an updating factor: the Mr-column "
+                          f"of the null-space basis of [Gu Gd Gf; 0 0 Mr_i; I 0 0] vanishes at infinity (feedthrough "
+                          f"{np.linalg.norm(d):.3g}), so every exact solution is improper; pass updating=True")
+    h = d.T / float(np.sum(d * d))
+    P = np.eye(d.shape[0]) - d @ h
+    Ah, Ch = A - b @ h @ C, P @ C
+    n = A.shape[0]
+    L = np.zeros((n, d.shape[0]))
+    if n:
+        T, taus = controllable_staircase(Ah.T, Ch.T, max(atol, row.rank_tol, 1e3 * np.finfo(float).eps * scale))
+        no = sum(taus)
+        at, bt = T.T @ Ah.T @ T, T.T @ Ch.T
+        zeros = np.linalg.eigvals(at[no:, no:]) if no < n else np.zeros(0, complex)
+        bad = [z for z in zeros if not good(z.real, z.imag)]
+        if bad:
+            raise DesignError(f"no stable proper filter matches this row without an updating factor: every exact "
+                              f"solution has the poles {np.round(np.asarray(bad, complex), 10).tolist()} (zeros of "
+                              f"the Mr-column of the null-space basis outside the stability region); pass "
+                              f"updating=True")
+        F1, _ = assign_poles(at[:no, :no], bt[:no], N.dt, lambda eig: choose(eig.size), good)
+        F = np.hstack([F1, np.zeros((F1.shape[0], n - no))]) @ T.T
+        L = -F.T
+    Y = LTI(Ah - L @ Ch, b @ h + L @ P, -h @ C, h, N.dt)
+    W = Y @ N
+    keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
+    X = LTI(W.A, W.B[:, keep], -W.C, -W.D[:, keep], N.dt)
+    return X.minreal(tol=atol if atol > 0 else None) if X.n else X
+
