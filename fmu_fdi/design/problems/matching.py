@@ -108,8 +108,9 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
         ``info``: ``row_orders`` (McMillan degree of each row), ``degree`` (their largest),
         ``order``, ``row_methods`` ('least order', 'stable solution', 'coprime factor',
         'updating'), ``left_minimal_indices`` (per row, of the augmented system),
-        ``matching_error`` (grid peak of ``||Rf − M Mr||`` relative to ``||M Mr||``), ``postconditions``, ``poles``; with ``updating=True`` ``M`` (LTI,
-        diagonal), ``row_degrees`` (order of each ``m_i``) and ``M_zeros``.
+        ``matching_error`` (grid peak of ``||Rf − M Mr||`` relative to ``||M Mr||``),
+        ``postconditions``, ``poles``; with ``updating=True`` ``M`` (LTI, diagonal),
+        ``row_degrees`` (order of each ``m_i``) and ``M_zeros``.
 
     Raises
     ------
