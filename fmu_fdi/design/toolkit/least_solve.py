@@ -82,22 +82,25 @@ class LeastRow:
         return (X.minreal(tol=tol) if X.n else X), (m.minreal(tol=tol) if m.n else m)
 
 
-def augmented_model(model: FDIModel, Mi: LTI) -> FDIModel:
+def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0.0) -> FDIModel:
     """The model with the output ``z = Mr_i f`` appended and f turned into an unknown input:
-    states ``[x; x_M]``, outputs ``[y; z]``, known inputs u, unknown inputs ``[d; f]``."""
-    n, p, m = model.n, model.ny, model.nu
+    outputs ``[y; z]``, known inputs u, unknown inputs ``[d; f]``; states ``[x; x_M]`` reduced to a
+    minimal realisation with the rank tolerance ``max(atol, rtol·||[A B; C D]||)`` (a reference
+    ``Q* Gf`` repeats plant modes that its product realisation cancels only to rounding: the block
+    diagonal realisation holds them twice, uncontrollable to ~1e-13)."""
+    n, p, m, nd = model.n, model.ny, model.nu, model.nd
     G = model.lti("u", "d", "f")
     nM = Mi.n
-    Bu, Bdf = G.B[:, :m], G.B[:, m:]
-    Du, Ddf = G.D[:, :m], G.D[:, m:]
-    nd = model.nd
     A = np.block([[model.A, np.zeros((n, nM))], [np.zeros((nM, n)), Mi.A]])
+    B = np.block([[G.B], [np.zeros((nM, m + nd)), Mi.B]])
     C = np.block([[model.C, np.zeros((p, nM))], [np.zeros((1, n)), Mi.C]])
-    Bua = np.vstack([Bu, np.zeros((nM, m))])
-    Dua = np.vstack([Du, np.zeros((1, m))])
-    Bda = np.block([[Bdf], [np.zeros((nM, nd)), Mi.B]])
-    Dda = np.block([[Ddf], [np.zeros((1, nd)), Mi.D]])
-    return FDIModel(A, Bua, C, Dua, Bd=Bda, Dd=Dda, dt=model.dt, name=f"{model.name}_Mr")
+    D = np.block([[G.D], [np.zeros((1, m + nd)), Mi.D]])
+    aug = LTI(A, B, C, D, model.dt)
+    if aug.n and rtol > 0:
+        norm = float(np.linalg.norm(np.block([[A, B], [C, D]]), 2))
+        aug = aug.minreal(tol=max(atol, rtol * norm))
+    return FDIModel(aug.A, aug.B[:, :m], aug.C, aug.D[:, :m], Bd=aug.B[:, m:], Dd=aug.D[:, m:], dt=model.dt,
+                    name=f"{model.name}_Mr")
 
 
 def _markov_norm(N: LTI, cols) -> float:
@@ -117,16 +120,14 @@ def _markov_norm(N: LTI, cols) -> float:
 def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=None, sdeg=None,
               smarg=None, good=None) -> LeastRow | None:
     """The least-degree row of the augmented null space whose z-entry is nonzero (relative size
-    above ``tol``), or None when every null row has a zero z-entry (``Mr_i`` is not a fault response
+    above ``tol``, also the relative rank tolerance of the core's decisions: a reference known to
+    ~1e-11, e.g. a product ``Q* Gf``, is matched by the null row it is an approximation of), or None when every null row has a zero z-entry (``Mr_i`` is not a fault response
     of any decoupling filter). Among the simple rows of that degree, one whose solution is proper
     (biproper ``N_z``) and, with ``good(re, im)``, stable (the zeros of ``N_z`` in the region) is
     preferred, then the largest relative z-feedthrough (the best conditioned division by ``d_z``)."""
-    aug = augmented_model(model, Mi)
+    aug = augmented_model(model, Mi, tol, atol)
     p = model.ny
-    try:
-        pb = pencil_basis(aug, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
-    except DesignError:
-        raise
+    pb = pencil_basis(aug, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
     if pb.N.p == 0:
         return None
     rows = simple_rows(pb, model.dt)
