@@ -121,7 +121,8 @@ def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=
               smarg=None, good=None) -> LeastRow | None:
     """The least-degree row of the augmented null space whose z-entry is nonzero (relative size
     above ``tol``, also the relative rank tolerance of the core's decisions: a reference known to
-    ~1e-11, e.g. a product ``Q* Gf``, is matched by the null row it is an approximation of), or None when every null row has a zero z-entry (``Mr_i`` is not a fault response
+    ~1e-11, e.g. a product ``Q* Gf``, is matched by the null row it is an approximation of), or None
+    when every null row has a zero z-entry (``Mr_i`` is not a fault response
     of any decoupling filter). Among the simple rows of that degree, one whose solution is proper
     (biproper ``N_z``) and, with ``good(re, im)``, stable (the zeros of ``N_z`` in the region) is
     preferred, then the largest relative z-feedthrough (the best conditioned division by ``d_z``)."""
