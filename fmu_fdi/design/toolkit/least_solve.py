@@ -6,10 +6,12 @@ With ``Ge = [Gu Gd Gf; I 0 0]`` (from ``[u; d; f]`` to ``[y; u]``) a row ``X`` s
 
 i.e. ``[X_y, −1, X_u]`` is a left annihilator of the *augmented* system with outputs ``[y; z]``,
 ``z = Mr_i f``, known inputs u and unknown inputs ``[d; f]`` — the null space
-:func:`.pencil.pencil_basis` computes (Varga 2017, sec. 7.9: the solution of a linear rational
-equation from the left null space of ``[G; F]``). Its simple basis (:func:`.pencil.simple_rows`:
-one row ``N_j`` per left minimal index ``ν_j``, each of McMillan degree ``ν_j``, by Type 1 minimum
-dynamic covers) has the *predictable degree property*: the numerators ``P_j`` of ``N_j = P_j/d_j``
+:func:`.pencil.pencil_basis` computes (the solution of a linear rational equation from the left
+null space of ``[G; F]``: A. Varga, "Computation of least order solutions of linear rational
+equations", MTNS 2004, the method of DescriptorSystems.jl ``glsol``). Its simple basis
+(:func:`.pencil.simple_rows`: one row ``N_j`` per left minimal index ``ν_j``, each of McMillan
+degree ``ν_j``, by Type 1 minimum dynamic covers) has the *predictable degree property* (Forney,
+SIAM J. Control 13, 1975): the numerators ``P_j`` of ``N_j = P_j/d_j``
 form a minimal polynomial basis (their degrees sum to the least total), so every polynomial null
 row of degree ≤ δ is ``Σ_j p_j P_j`` with ``deg p_j ≤ δ − ν_j``. A rational row ``X`` of McMillan
 degree δ is ``n/d`` with a polynomial null row ``n`` of degree ≤ δ whose z-entry is ``−d ≠ 0``;
@@ -26,6 +28,12 @@ whose poles are the zeros of ``N_z`` (the basis' own poles cancel). ``d_z = 0`` 
 least degree: the least-degree solution is improper; a stable proper pair ``(X, m) = (N_yu, −N_z)``
 then solves ``X Ge = [0 0 m Mr_i]`` (Procedure EMM's updating factor), with the poles of ``N`` placed
 by output injection (a biproper left factor, which keeps ``N`` a null row).
+
+Not done: rows of the least index are taken one at a time (the one whose solution is proper and
+stable, else the best conditioned), not combined — a combination of rows of equal index ν (their
+poles placed at common targets) could make a stable least-order row where no single one is, which
+:func:`stable_solution` then replaces by a stable row of higher order; and :func:`stable_solution`
+is a stable solution, not the least-order stable one (Varga's Type 2 cover).
 """
 from __future__ import annotations
 
