@@ -173,3 +173,26 @@ def test_reference_known_to_1e_9_keeps_its_least_order():
     ref = nullspace_design(model, rdim=1)
     gen = model_matching(model, ref.Rf, updating=True)
     assert gen.info["row_orders"][0] <= ref.Q.n == 3
+
+
+@pytest.mark.parametrize("kw, pole", [(dict(), -6.0), (dict(poles=[-9.0]), -9.0), (dict(sdeg=-7.0), -7.0)])
+def test_rows_of_equal_index_are_combined_into_a_stable_least_order_row(kw, pole):
+    """Faults only: ``Gf = [−s²; 5 − s²]/den``, ``Mr = (s² + 5s + 5)/den``, den = (s+6)(s+8), smarg = −5.
+    No static row matches (``X Gf = (−(a+b)s² + 5b)/den`` has no s-term), so the least order is ≥ 1.
+    The null rows of degree 1 are the combinations of ``P1 = [s+3, 1, s−1]`` and ``P2 = [1, s+2, s−2]``
+    (``[−s², 5 − s², s²+5s+5] = P1 × P2``): their last entry ``(α+β)s − (α+2β)`` can have any root,
+    so an order-1 row with any pole exists — the requested one (the plant's −6 without poles/sdeg).
+    The individual basis rows of this model have a pole right of the margin: the combination is needed.
+    Judged by numpy at off-axis points."""
+    s = ct.tf("s")
+    den = (s + 6) * (s + 8)
+    num = den.num[0][0]
+    Gf = ct.tf([[(-s**2 + 0 * s).num[0][0]], [(5 - s**2 + 0 * s).num[0][0]]], [[num], [num]])
+    model = FDIModel.from_control(ct.ss(Gf), f=[0])
+    Mr = LTI.from_control(ct.ss((s**2 + 5 * s + 5) / den))
+    gen = model_matching(model, Mr, smarg=-5.0, **kw)
+    assert gen.info["row_orders"] == [1] and gen.info["row_methods"] == ["least order"]
+    assert np.allclose(gen.Q.poles(), [pole], atol=1e-9)
+    R = residual_map(model, gen.Q, LAM_C)
+    want = fr(Mr.A, Mr.B, Mr.C, Mr.D, LAM_C)
+    assert np.abs(R - want).max() <= TOL * np.abs(want).max()

@@ -155,7 +155,8 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
                               f"{margin:.3g}): the fault response Rf = Mr would be; pass updating=True (the "
                               f"updating factor M makes M Mr stable) or a stable reference")
         top = np.inf if max_degree is None else int(max_degree)
-        lr = least_row(model, Mi, tol=mm_tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg, good=good)
+        lr = least_row(model, Mi, tol=mm_tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg, good=good,
+                       choose=choose)
         if lr is None:
             raise DesignError(f"row {i + 1} of Mr is not achievable without an updating factor, nor with one: no "
                               f"filter that decouples u and d has a fault response proportional to it (every left "

@@ -29,10 +29,11 @@ least degree: the least-degree solution is improper; a stable proper pair ``(X, 
 then solves ``X Ge = [0 0 m Mr_i]`` (Procedure EMM's updating factor), with the poles of ``N`` placed
 by output injection (a biproper left factor, which keeps ``N`` a null row).
 
-Not done: rows of the least index are taken one at a time (the one whose solution is proper and
-stable, else the best conditioned), not combined — a combination of rows of equal index ν (their
-poles placed at common targets) could make a stable least-order row where no single one is, which
-:func:`stable_solution` then replaces by a stable row of higher order; and :func:`stable_solution`
+Rows of the least index ν: a single one whose solution is proper and stable is taken; otherwise
+they are combined (poles placed at common targets, :func:`_combined_row`) into a row whose
+Mr-entry is a nonzero constant, so that the solution has the chosen poles. Not done: a combination
+with a dynamic Mr-entry whose zeros are stable (when no constant one exists), and the least-order
+stable solution when the least order admits none — :func:`stable_solution`
 is a stable solution, not the least-order stable one (Varga's Type 2 cover).
 """
 from __future__ import annotations
@@ -126,14 +127,17 @@ def _markov_norm(N: LTI, cols) -> float:
 
 
 def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=None, sdeg=None,
-              smarg=None, good=None) -> LeastRow | None:
+              smarg=None, good=None, choose=None) -> LeastRow | None:
     """The least-degree row of the augmented null space whose z-entry is nonzero (relative size
     above ``tol``, also the relative rank tolerance of the core's decisions: a reference known to
     ~1e-11, e.g. a product ``Q* Gf``, is matched by the null row it is an approximation of), or None
     when every null row has a zero z-entry (``Mr_i`` is not a fault response
     of any decoupling filter). Among the simple rows of that degree, one whose solution is proper
     (biproper ``N_z``) and, with ``good(re, im)``, stable (the zeros of ``N_z`` in the region) is
-    preferred, then the largest relative z-feedthrough (the best conditioned division by ``d_z``)."""
+    preferred, then the largest relative z-feedthrough (the best conditioned division by ``d_z``).
+    When no single row is both and ``choose`` is given, the rows of that degree are combined
+    (:func:`_combined_row`): a row whose z-entry is a nonzero constant, so that the solution has
+    the ``choose(ν)`` poles."""
     aug = augmented_model(model, Mi, tol, atol)
     p = model.ny
     pb = pencil_basis(aug, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
@@ -147,10 +151,11 @@ def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=
             f"model matching: the simple basis of the augmented null space has {len(rows)} of its {pb.N.p} rows "
             f"(indices {pb.degrees}): a minimum dynamic cover was too ill-conditioned; the least order cannot be "
             f"proven — pass other atol")
-    best = None
+    best, group = None, []
     for N, nu, cond in sorted(rows, key=lambda r: r[1]):
         if best is not None and nu > best[2]:
             break
+        group.append(N)
         whole = _markov_norm(N, np.arange(N.m))
         z = _markov_norm(N, [p])
         if not whole > 0 or z <= tol * whole:
@@ -165,8 +170,64 @@ def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=
             best = (key, N, nu, dz, cond)
     if best is None:
         return None
-    _, N, nu, dz, cond = best
+    (proper, stable, _), N, nu, dz, cond = best
+    if not (proper and stable) and choose is not None and good is not None and nu > 0 and len(group) > 1:
+        comb = _combined_row(group, p, choose, good, tol)
+        if comb is not None:
+            N, dz = comb, 1.0 / _markov_norm(comb, np.arange(comb.m))
     return LeastRow(N, int(nu), dz if dz > tol else 0.0, list(pb.degrees), float(cond), p, pb.N, pb.rank_tol)
+
+
+#: largest condition number of an observability matrix used to bring rows to common coordinates
+#: (the accuracy lost is about cond·eps: 1e8 keeps ~1e-8, the scale of mm_tol's decisions)
+OBS_COND = 1e8
+
+
+def _combined_row(group: list, p: int, choose, good, tol: float) -> LTI | None:
+    """A combination ``Σ h_j N_j`` of null rows of equal McMillan degree ν with a constant nonzero
+    z-entry, or None.
+
+    Every row's ν poles are placed at the same targets ``choose(ν)`` by output injection (a biproper
+    left factor: still a null row of degree ν, :func:`.pencil.assign_poles`); the rows, with one
+    characteristic polynomial and observable single-output pairs, are similar to the first one by
+    ``T_j = O_1^{-1} O_j`` (observability matrices), so in common coordinates ``(A, c)`` a combination
+    is ``(A, Σ h_j B_j, c, Σ h_j D_j)``, and its z-entry is the constant 1 iff
+    ``[B_z; D_z] h = [0; 1]`` — a linear system, solved in the least-squares sense and accepted when
+    its relative residual is ≤ ``tol``. The solution ``−[N_y N_u]`` then has the targets as poles."""
+    placed, rho = [], None
+    for N in group:
+        A, B, C, D = N.A, N.B, N.C, N.D / 1.0
+        F, _ = assign_poles(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
+        A, B = A + F.T @ C, B + F.T @ D
+        if not all(good(z.real, z.imag) for z in np.linalg.eigvals(A)):
+            return None
+        w = _markov_norm(LTI(A, B, C, D, N.dt), np.arange(N.m))  # each row at unit size: h measures conditioning
+        B, D = B / w, D / w
+        rho = max(1.0, float(np.linalg.norm(A, 2))) if rho is None else rho  # one scaling for every O_j
+        O = np.vstack([C @ np.linalg.matrix_power(A / rho, k) for k in range(A.shape[0])])
+        if np.linalg.cond(O) > OBS_COND:
+            return None
+        placed.append((A, B, C, D, O))
+    A1, _, C1, _, O1 = placed[0]
+    Bs, Ds = [], []
+    for A, B, C, D, O in placed:
+        T = np.linalg.solve(O1, O)  # x_1 = T x_j: T A_j = A_1 T, C_j = C_1 T
+        if np.linalg.norm(T @ A - A1 @ T) > 1e-8 * max(1.0, np.linalg.norm(A1)) * np.linalg.norm(T):
+            return None  # the placed poles differ (a defective target the placement spread): no common form
+        Bs.append(T @ B)
+        Ds.append(D)
+    Z = np.vstack([np.column_stack([B[:, p] for B in Bs]), [[D[0, p] for D in Ds]]])
+    rhs = np.zeros(Z.shape[0])
+    rhs[-1] = 1.0
+    h = np.linalg.lstsq(Z, rhs, rcond=None)[0]
+    # exact (to the rank tolerance) and not by cancellation of huge multiples of the rows
+    if not (np.linalg.norm(Z @ h - rhs) <= tol * np.linalg.norm(Z, 2) * np.linalg.norm(h)
+            and np.linalg.norm(h) <= 1.0 / np.sqrt(tol)):
+        return None
+    B = sum(hj * Bj for hj, Bj in zip(h, Bs))
+    D = sum(hj * Dj for hj, Dj in zip(h, Ds))
+    B[:, p] = 0.0  # zero to the residual's size: the z-entry is the constant 1
+    return LTI(A1, B, C1, D, group[0].dt)
 
 
 def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) -> LTI:
