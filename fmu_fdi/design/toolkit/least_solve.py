@@ -196,7 +196,7 @@ def _combined_row(group: list, p: int, choose, good, tol: float) -> LTI | None:
     its relative residual is ≤ ``tol``. The solution ``−[N_y N_u]`` then has the targets as poles."""
     placed, rho = [], None
     for N in group:
-        A, B, C, D = N.A, N.B, N.C, N.D / 1.0
+        A, B, C, D = N.A, N.B, N.C, N.D
         F, _ = assign_poles(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
         A, B = A + F.T @ C, B + F.T @ D
         if not all(good(z.real, z.imag) for z in np.linalg.eigvals(A)):
