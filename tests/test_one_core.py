@@ -10,7 +10,6 @@ import pytest
 
 import published as pub
 from fmu_fdi import nullspace_design
-from fmu_fdi.design.problems.matching import cascade
 
 
 @pytest.mark.parametrize("example, expect", [
@@ -27,15 +26,6 @@ def test_published_least_order_detectors(example, expect):
         e = np.array(expect(1j * w), complex)
         c = e[1] / q[1]
         assert np.allclose(c * q, e, atol=1e-6)
-
-
-def test_cascade_holds_poles_exactly():
-    """model_matching's reference denominators: the realisation holds the poles and is observable."""
-    poles = np.array([-1.0, -2 + 3j, -2 - 3j, -1.0, -0.5])
-    A, C = cascade(poles)
-    assert np.allclose(np.sort_complex(np.linalg.eigvals(A)), np.sort_complex(poles))
-    O = np.vstack([C @ np.linalg.matrix_power(A, k) for k in range(A.shape[0])])
-    assert np.linalg.matrix_rank(O) == A.shape[0]
 
 
 def test_given_poles_and_sdeg_on_a_basis_of_several_rows():

@@ -1,0 +1,282 @@
+"""Least-order rows of ``X(λ) Ge(λ) = [0 0 Mr_i(λ)]`` from the pencil null-space basis (Varga's ``glsol``, one row).
+
+With ``Ge = [Gu Gd Gf; I 0 0]`` (from ``[u; d; f]`` to ``[y; u]``) a row ``X`` solves
+
+    X Ge = [0  0  Mr_i]      iff      [X_y  −1  X_u]  [Gu Gd Gf; 0 0 Mr_i; I 0 0] = 0,
+
+i.e. ``[X_y, −1, X_u]`` is a left annihilator of the *augmented* system with outputs ``[y; z]``,
+``z = Mr_i f``, known inputs u and unknown inputs ``[d; f]`` — the null space
+:func:`.pencil.pencil_basis` computes (the solution of a linear rational equation from the left
+null space of ``[G; F]``: A. Varga, "Computation of least order solutions of linear rational
+equations", MTNS 2004, the method of DescriptorSystems.jl ``glsol``). Its simple basis
+(:func:`.pencil.simple_rows`: one row ``N_j`` per left minimal index ``ν_j``, each of McMillan
+degree ``ν_j``, by Type 1 minimum dynamic covers) has the *predictable degree property* (Forney,
+SIAM J. Control 13, 1975): the numerators ``P_j`` of ``N_j = P_j/d_j``
+form a minimal polynomial basis (their degrees sum to the least total), so every polynomial null
+row of degree ≤ δ is ``Σ_j p_j P_j`` with ``deg p_j ≤ δ − ν_j``. A rational row ``X`` of McMillan
+degree δ is ``n/d`` with a polynomial null row ``n`` of degree ≤ δ whose z-entry is ``−d ≠ 0``;
+hence the least degree of a solution is
+
+    δ_min = min { ν_j : the z-entry of N_j is not identically zero },
+
+reached by ``X = −N_z^{-1} [N_y N_u]`` of that row (its denominator has degree ν_j). With the row's
+realisation ``N = (A, [b_y b_z b_u], c, [d_y d_z d_u])`` and a biproper ``N_z`` (``d_z ≠ 0``),
+
+    X = (A − b_z c/d_z,  [b_y b_u] − b_z [d_y d_u]/d_z,  −c/d_z,  −[d_y d_u]/d_z),      (order ν)
+
+whose poles are the zeros of ``N_z`` (the basis' own poles cancel). ``d_z = 0`` for every row of
+least degree: the least-degree solution is improper; a stable proper pair ``(X, m) = (N_yu, −N_z)``
+then solves ``X Ge = [0 0 m Mr_i]`` (Procedure EMM's updating factor), with the poles of ``N`` placed
+by output injection (a biproper left factor, which keeps ``N`` a null row).
+
+Rows of the least index ν: a single one whose solution is proper and stable is taken; otherwise
+they are combined (poles placed at common targets, :func:`_combined_row`) into a row whose
+Mr-entry is a nonzero constant, so that the solution has the chosen poles. Not done: a combination
+with a dynamic Mr-entry whose zeros are stable (when no constant one exists), and the least-order
+stable solution when the least order admits none — :func:`stable_solution`
+is a stable solution, not the least-order stable one (Varga's Type 2 cover).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...errors import DesignError
+from ...lti import LTI
+from ...model import FDIModel
+from .pencil import assign_poles, controllable_staircase, pencil_basis, simple_rows
+
+
+@dataclass
+class LeastRow:
+    """The least-degree null row of the augmented system with a nonzero z-entry."""
+
+    #: the null row ``[N_y N_z N_u]`` (1 × (p + 1 + m)), stable, proper, McMillan degree ``degree``
+    N: LTI
+    degree: int
+    #: z-entry feedthrough relative to the row's scale (0: the least-order solution is improper)
+    dz: float
+    #: left minimal indices of the augmented system and the cover conditions of the simple rows
+    indices: list
+    cond: float
+    p: int
+    #: the whole proper stable basis of the augmented null space (k × (p + 1 + m)) and its rank tolerance
+    basis: LTI | None = None
+    rank_tol: float = 0.0
+
+    def solution(self, atol: float = 0.0) -> LTI:
+        """``X = −N_z^{-1} [N_y N_u]`` (requires ``dz > 0``), minimal."""
+        N, p = self.N, self.p
+        b, d = N.B, N.D
+        bz, dz = b[:, [p]], float(d[0, p])
+        keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
+        byu, dyu = b[:, keep], d[:, keep]
+        X = LTI(N.A - bz @ N.C / dz, byu - bz @ dyu / dz, -N.C / dz, -dyu / dz, N.dt)
+        return X.minreal(tol=atol if atol > 0 else None) if X.n else X
+
+    def pair(self, choose, atol: float = 0.0) -> tuple[LTI, LTI]:
+        """``(X, m) = (N_yu, −N_z)`` with every pole of N at ``choose(ν)`` (output injection ``A + L c``,
+        Schur method on the dual pair: :func:`.pencil.assign_poles`), both minimal."""
+        N, p = self.N, self.p
+        A, B, C, D = N.A, N.B, N.C, N.D
+        if N.n:
+            F, _ = assign_poles(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
+            L = F.T
+            A, B = A + L @ C, B + L @ D
+        keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
+        X = LTI(A, B[:, keep], C, D[:, keep], N.dt)
+        m = LTI(A, -B[:, [p]], C, -D[:, [p]], N.dt)
+        tol = atol if atol > 0 else None
+        return (X.minreal(tol=tol) if X.n else X), (m.minreal(tol=tol) if m.n else m)
+
+
+def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0.0) -> FDIModel:
+    """The model with the output ``z = Mr_i f`` appended and f turned into an unknown input:
+    outputs ``[y; z]``, known inputs u, unknown inputs ``[d; f]``; states ``[x; x_M]`` reduced to a
+    minimal realisation with the rank tolerance ``max(atol, rtol·||[A B; C D]||)`` (a reference
+    ``Q* Gf`` repeats plant modes that its product realisation cancels only to rounding: the block
+    diagonal realisation holds them twice, uncontrollable to ~1e-13)."""
+    n, p, m, nd = model.n, model.ny, model.nu, model.nd
+    G = model.lti("u", "d", "f")
+    nM = Mi.n
+    A = np.block([[model.A, np.zeros((n, nM))], [np.zeros((nM, n)), Mi.A]])
+    B = np.block([[G.B], [np.zeros((nM, m + nd)), Mi.B]])
+    C = np.block([[model.C, np.zeros((p, nM))], [np.zeros((1, n)), Mi.C]])
+    D = np.block([[G.D], [np.zeros((1, m + nd)), Mi.D]])
+    aug = LTI(A, B, C, D, model.dt)
+    if aug.n and rtol > 0:
+        norm = float(np.linalg.norm(np.block([[A, B], [C, D]]), 2))
+        aug = aug.minreal(tol=max(atol, rtol * norm))
+    return FDIModel(aug.A, aug.B[:, :m], aug.C, aug.D[:, :m], Bd=aug.B[:, m:], Dd=aug.D[:, m:], dt=model.dt,
+                    name=f"{model.name}_Mr")
+
+
+def _markov_norm(N: LTI, cols) -> float:
+    """``||[D, C B/ρ, C A B/ρ², …]||`` of the columns ``cols`` (ρ = max(1, ||A||)): zero iff those
+    columns are identically zero (n Markov parameters decide a system of order n)."""
+    B, D = N.B[:, cols], N.D[:, cols]
+    out = [np.linalg.norm(D)]
+    if N.n:
+        rho = max(1.0, float(np.linalg.norm(N.A, 2)))
+        v = B / rho
+        for _ in range(N.n):
+            out.append(np.linalg.norm(N.C @ v))
+            v = N.A @ v / rho
+    return float(np.linalg.norm(out))
+
+
+def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=None, sdeg=None,
+              smarg=None, good=None, choose=None) -> LeastRow | None:
+    """The least-degree row of the augmented null space whose z-entry is nonzero (relative size
+    above ``tol``, also the relative rank tolerance of the core's decisions: a reference known to
+    ~1e-11, e.g. a product ``Q* Gf``, is matched by the null row it is an approximation of), or None
+    when every null row has a zero z-entry (``Mr_i`` is not a fault response
+    of any decoupling filter). Among the simple rows of that degree, one whose solution is proper
+    (biproper ``N_z``) and, with ``good(re, im)``, stable (the zeros of ``N_z`` in the region) is
+    preferred, then the largest relative z-feedthrough (the best conditioned division by ``d_z``).
+    When no single row is both and ``choose`` is given, the rows of that degree are combined
+    (:func:`_combined_row`): a row whose z-entry is a nonzero constant, so that the solution has
+    the ``choose(ν)`` poles."""
+    aug = augmented_model(model, Mi, tol, atol)
+    p = model.ny
+    pb = pencil_basis(aug, rtol=tol, atol=atol, poles=poles, sdeg=sdeg, smarg=smarg)
+    if pb.N.p == 0:
+        return None
+    rows = simple_rows(pb, model.dt)
+    if len(rows) < pb.N.p:
+        from .postconditions import NumericalDesignError
+
+        raise NumericalDesignError(
+            f"model matching: the simple basis of the augmented null space has {len(rows)} of its {pb.N.p} rows "
+            f"(indices {pb.degrees}): a minimum dynamic cover was too ill-conditioned; the least order cannot be "
+            f"proven — pass other atol")
+    best, group = None, []
+    for N, nu, cond in sorted(rows, key=lambda r: r[1]):
+        if best is not None and nu > best[2]:
+            break
+        group.append(N)
+        whole = _markov_norm(N, np.arange(N.m))
+        z = _markov_norm(N, [p])
+        if not whole > 0 or z <= tol * whole:
+            continue
+        dz = abs(float(N.D[0, p])) / whole
+        stable = False
+        if dz > tol and good is not None:
+            zeros = np.linalg.eigvals(N.A - N.B[:, [p]] @ N.C / N.D[0, p]) if N.n else np.zeros(0)
+            stable = all(good(z.real, z.imag) for z in zeros)
+        key = (dz > tol, stable, dz)
+        if best is None or key > best[0]:
+            best = (key, N, nu, dz, cond)
+    if best is None:
+        return None
+    (proper, stable, _), N, nu, dz, cond = best
+    if not (proper and stable) and choose is not None and good is not None and nu > 0 and len(group) > 1:
+        comb = _combined_row(group, p, choose, good, tol)
+        if comb is not None:
+            N, dz = comb, 1.0 / _markov_norm(comb, np.arange(comb.m))
+    return LeastRow(N, int(nu), dz if dz > tol else 0.0, list(pb.degrees), float(cond), p, pb.N, pb.rank_tol)
+
+
+#: largest condition number of an observability matrix used to bring rows to common coordinates
+#: (the accuracy lost is about cond·eps: 1e8 keeps ~1e-8, the scale of mm_tol's decisions)
+OBS_COND = 1e8
+
+
+def _combined_row(group: list, p: int, choose, good, tol: float) -> LTI | None:
+    """A combination ``Σ h_j N_j`` of null rows of equal McMillan degree ν with a constant nonzero
+    z-entry, or None.
+
+    Every row's ν poles are placed at the same targets ``choose(ν)`` by output injection (a biproper
+    left factor: still a null row of degree ν, :func:`.pencil.assign_poles`); the rows, with one
+    characteristic polynomial and observable single-output pairs, are similar to the first one by
+    ``T_j = O_1^{-1} O_j`` (observability matrices), so in common coordinates ``(A, c)`` a combination
+    is ``(A, Σ h_j B_j, c, Σ h_j D_j)``, and its z-entry is the constant 1 iff
+    ``[B_z; D_z] h = [0; 1]`` — a linear system, solved in the least-squares sense and accepted when
+    its relative residual is ≤ ``tol``. The solution ``−[N_y N_u]`` then has the targets as poles."""
+    placed, rho = [], None
+    for N in group:
+        A, B, C, D = N.A, N.B, N.C, N.D
+        F, _ = assign_poles(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
+        A, B = A + F.T @ C, B + F.T @ D
+        if not all(good(z.real, z.imag) for z in np.linalg.eigvals(A)):
+            return None
+        w = _markov_norm(LTI(A, B, C, D, N.dt), np.arange(N.m))  # each row at unit size: h measures conditioning
+        B, D = B / w, D / w
+        rho = max(1.0, float(np.linalg.norm(A, 2))) if rho is None else rho  # one scaling for every O_j
+        O = np.vstack([C @ np.linalg.matrix_power(A / rho, k) for k in range(A.shape[0])])
+        if np.linalg.cond(O) > OBS_COND:
+            return None
+        placed.append((A, B, C, D, O))
+    A1, _, C1, _, O1 = placed[0]
+    Bs, Ds = [], []
+    for A, B, C, D, O in placed:
+        T = np.linalg.solve(O1, O)  # x_1 = T x_j: T A_j = A_1 T, C_j = C_1 T
+        if np.linalg.norm(T @ A - A1 @ T) > 1e-8 * max(1.0, np.linalg.norm(A1)) * np.linalg.norm(T):
+            return None  # the placed poles differ (a defective target the placement spread): no common form
+        Bs.append(T @ B)
+        Ds.append(D)
+    Z = np.vstack([np.column_stack([B[:, p] for B in Bs]), [[D[0, p] for D in Ds]]])
+    rhs = np.zeros(Z.shape[0])
+    rhs[-1] = 1.0
+    h = np.linalg.lstsq(Z, rhs, rcond=None)[0]
+    # exact (to the rank tolerance) and not by cancellation of huge multiples of the rows
+    if not (np.linalg.norm(Z @ h - rhs) <= tol * np.linalg.norm(Z, 2) * np.linalg.norm(h)
+            and np.linalg.norm(h) <= 1.0 / np.sqrt(tol)):
+        return None
+    B = sum(hj * Bj for hj, Bj in zip(h, Bs))
+    D = sum(hj * Dj for hj, Dj in zip(h, Ds))
+    B[:, p] = 0.0  # zero to the residual's size: the z-entry is the constant 1
+    return LTI(A1, B, C1, D, group[0].dt)
+
+
+def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) -> LTI:
+    """A stable proper ``X`` with ``X Ge = [0 0 Mr_i]`` (no updating factor), or a DesignError naming the
+    unstable or infinite zeros that forbid one.
+
+    Every null row of the augmented system is ``w = Y N`` with the core's basis ``N`` (k rows, stable,
+    proper, minimal: no finite or infinite zeros, so ``w`` stable proper iff ``Y`` is), and ``X`` solves
+    the equation iff ``Y N_z = −1``. A stable proper left inverse ``Y`` of the column ``N_z = (A, b, C, d)``
+    exists iff ``d ≠ 0`` (no zero at infinity) and the invariant zeros of ``N_z`` lie in the stability
+    region: with ``h = dᵀ/|d|²`` the observer-based left inverse
+
+        Y = (A − b h C − L (I − d h) C,  b h + L (I − d h),  −h C,  h),      Y N_z = 1,
+
+    has as poles the zeros of ``N_z`` (the unobservable eigenvalues of ``(A − b h C, (I − d h) C)``) and
+    the eigenvalues that L assigns (:func:`.pencil.assign_poles` on the observable part of the dual pair,
+    moving only those outside ``good``). Then ``X = −(Y N)_{y,u}``, minimal.
+    """
+    N, p = row.basis, row.p
+    Nz = LTI(N.A, N.B[:, [p]], N.C, N.D[:, [p]], N.dt)
+    Nz = Nz.minreal(tol=atol if atol > 0 else None) if Nz.n else Nz
+    A, b, C, d = Nz.A, Nz.B, Nz.C, Nz.D
+    scale = max(float(np.linalg.norm(np.block([[A, b], [C, d]]), 2)) if Nz.n else float(np.linalg.norm(d)), 1e-300)
+    if not np.linalg.norm(d) > tol * scale:
+        raise DesignError(f"no stable proper filter matches this row without an updating factor: the Mr-column "
+                          f"of the null-space basis of [Gu Gd Gf; 0 0 Mr_i; I 0 0] vanishes at infinity (feedthrough "
+                          f"{np.linalg.norm(d):.3g}), so every exact solution is improper; pass updating=True")
+    h = d.T / float(np.sum(d * d))
+    P = np.eye(d.shape[0]) - d @ h
+    Ah, Ch = A - b @ h @ C, P @ C
+    n = A.shape[0]
+    L = np.zeros((n, d.shape[0]))
+    if n:
+        T, taus = controllable_staircase(Ah.T, Ch.T, max(atol, row.rank_tol, 1e3 * np.finfo(float).eps * scale))
+        no = sum(taus)
+        at, bt = T.T @ Ah.T @ T, T.T @ Ch.T
+        zeros = np.linalg.eigvals(at[no:, no:]) if no < n else np.zeros(0, complex)
+        bad = [z for z in zeros if not good(z.real, z.imag)]
+        if bad:
+            raise DesignError(f"no stable proper filter matches this row without an updating factor: every exact "
+                              f"solution has the poles {np.round(np.asarray(bad, complex), 10).tolist()} (zeros of "
+                              f"the Mr-column of the null-space basis outside the stability region); pass "
+                              f"updating=True")
+        F1, _ = assign_poles(at[:no, :no], bt[:no], N.dt, lambda eig: choose(eig.size), good)
+        F = np.hstack([F1, np.zeros((F1.shape[0], n - no))]) @ T.T
+        L = -F.T
+    Y = LTI(Ah - L @ Ch, b @ h + L @ P, -h @ C, h, N.dt)
+    W = Y @ N
+    keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
+    X = LTI(W.A, W.B[:, keep], -W.C, -W.D[:, keep], N.dt)
+    return X.minreal(tol=atol if atol > 0 else None) if X.n else X
+

@@ -1,0 +1,198 @@
+"""model_matching on the pencil core (design/toolkit/least_solve.py), judged independently.
+
+Every returned filter is evaluated here by numpy solves of ``(λI − A) x = B`` on the model's and the
+filter's own matrices — at points the design never sees: off the imaginary axis / unit circle
+(``λ = σ + jω`` with σ ≠ 0, where a rational identity cannot hold by accident of a frequency grid).
+Least order is argued independently of the code: by uniqueness of the solution (one output, no
+freedom) and a hand count of its denominator's degree, or by the polynomial null-space construction
+stated in the test.
+"""
+import control as ct
+import numpy as np
+import pytest
+
+from fmu_fdi import DesignError, FDIModel, component_fault
+from fmu_fdi.design.problems.matching import model_matching
+from fmu_fdi.lti import LTI
+
+# points off the stability boundary, none a pole or zero of the examples (continuous; discrete below)
+LAM_C = np.array([0.31 + 1.7j, -0.45 + 0.2j, 1.3 - 2.9j, 0.07 + 11.0j, -3.7 + 0.9j, 2.2 + 0.0j])
+LAM_D = np.array([0.3 + 0.8j, -0.55 + 0.1j, 1.2 - 0.4j, 0.05 + 0.3j, 0.9 + 0.0j])
+
+
+def fr(A, B, C, D, lam):
+    """``C (λI − A)^{-1} B + D`` by numpy solves: (K, p, m)."""
+    A, B, C, D = (np.atleast_2d(np.asarray(X, float)) for X in (A, B, C, D))
+    n = A.shape[0]
+    out = np.empty((lam.size, D.shape[0], D.shape[1]), complex)
+    for k, l in enumerate(lam):
+        out[k] = D + (C @ np.linalg.solve(l * np.eye(n) - A, B.reshape(n, -1)) if n else 0.0)
+    return out
+
+
+def residual_map(model, Q, lam):
+    """``Q [Gu Gd Gf; I 0 0]`` at the points, from the matrices: (K, rows, mu + md + mf)."""
+    B = np.hstack([model.Bu, model.Bd, model.Bf])
+    D = np.hstack([model.Du, model.Dd, model.Df])
+    G = fr(model.A, B, model.C, D, lam)
+    low = np.zeros((lam.size, model.nu, B.shape[1]))
+    low[:, :, :model.nu] = np.eye(model.nu)
+    return fr(Q.A, Q.B, Q.C, Q.D, lam) @ np.concatenate([G, low], axis=1)
+
+
+# rounding of order ≤ 3 realisations of O(1) data evaluated at O(1) points: eps · 1e3
+TOL = 1e-12 * 1e3
+
+
+def _siso_u_f(dt=0.0):
+    """y = Gu u + Gf f with Gu = 1/(λ − a), Gf = 1/(λ − b): (a, b) = (−1, −2), or (0.5, 0.2) discrete."""
+    a, b = (0.5, 0.2) if dt else (-1.0, -2.0)
+    return FDIModel.from_matrices(np.diag([a, b]), [[1.0], [0.0]], [[1.0, 1.0]],
+                                  faults=[component_fault("f", [[0.0], [1.0]], [[0.0]])], dt=dt), a, b
+
+
+@pytest.mark.parametrize("dt", [0.0, 0.1])
+def test_unique_solution_has_its_hand_counted_degree(dt):
+    """One output, one u, one f: ``[Gu Gf; 1 0]`` is square and invertible, so the solution of
+    ``Q Ge = [0 Mr]`` is unique: ``Q = Mr/Gf · [1, −Gu] = (λ−b)/(λ−c) · [1, −1/(λ−a)]`` for
+    ``Mr = 1/(λ − c)`` — denominator ``(λ−c)(λ−a)``, McMillan degree 2 (no cancellation: a, b, c
+    distinct). So the least order is 2 and the row is exactly this one."""
+    model, a, b = _siso_u_f(dt)
+    c = 0.7 if dt else -3.0
+    Mr = LTI([[c]], [[1.0]], [[1.0]], [[0.0]], dt)
+    gen = model_matching(model, Mr)
+    assert gen.info["row_orders"] == [2] and gen.Q.n == 2
+    lam = LAM_D if dt else LAM_C
+    want = np.stack([(lam - b) / (lam - c), -(lam - b) / ((lam - c) * (lam - a))], axis=1)[:, None, :]
+    Qv = fr(gen.Q.A, gen.Q.B, gen.Q.C, gen.Q.D, lam)
+    assert np.abs(Qv - want).max() <= TOL * np.abs(want).max()
+    R = residual_map(model, gen.Q, lam)
+    assert np.abs(R[:, :, 0]).max() <= TOL and np.allclose(R[:, 0, 1], 1 / (lam - c), rtol=TOL, atol=0)
+
+
+def _nonminimum_least_row():
+    """Faults only, two outputs: Gf = [−(s−1); −(s+2)(s²+3s+1)]/den, Mr = (s+2)/den, den = (s+1)(s+4)(s+5).
+
+    The column ``n = [−(s−1), −(s+2)(s²+3s+1), s+2]`` is the cross product of ``P1 = [s+2, 0, s−1]``
+    and ``P2 = [0, 1, s²+3s+1]``: ``{P1, P2}`` is a minimal polynomial basis of the null rows of ``n``
+    (row-reduced: leading rows [1 0 1], [0 0 1]; coprime entries), degrees 1 and 2. The only null rows
+    of degree ≤ 1 with a nonzero last entry are multiples of P1, so the least-order solution is unique,
+    ``Q = −[s+2, 0]/(s−1)`` — order 1, unstable. A stable one of order 2 exists:
+    ``(−(3/5)s − 7/5) P1 + (8/5) P2`` has last entry ``(s+1)(s+3)``."""
+    s = ct.tf("s")
+    den = (s + 1) * (s + 4) * (s + 5)
+    Gf = ct.tf([[(-(s - 1) / den).num[0][0]], [(-(s + 2) * (s**2 + 3 * s + 1) / den).num[0][0]]],
+               [[den.num[0][0]], [den.num[0][0]]])
+    model = FDIModel.from_control(ct.ss(Gf), f=[0])
+    return model, LTI.from_control(ct.ss((s + 2) / den))
+
+
+def test_unstable_least_order_row_gives_a_stable_row_of_the_next_order():
+    """Without updating the least-order row (pole +1) is not admissible: the stable solution of the
+    core (left inverse of the basis' Mr-column) has order 2 — the least stable order by the
+    construction above — and matches Mr exactly (numpy, off-axis points)."""
+    model, Mr = _nonminimum_least_row()
+    gen = model_matching(model, Mr)
+    assert gen.info["row_methods"] == ["stable solution"] and gen.Q.n == 2
+    assert gen.info["left_minimal_indices"] == [[1, 2]]
+    assert np.all(gen.Q.poles().real < 0)
+    R = residual_map(model, gen.Q, LAM_C)
+    want = fr(Mr.A, Mr.B, Mr.C, Mr.D, LAM_C)
+    assert np.abs(R - want).max() <= TOL * np.abs(want).max()
+
+
+def test_unstable_least_order_row_with_updating_factor():
+    """updating=True: ``[Q  m Mr] = m [Q0  Mr]`` with m moving only the pole +1 of the least row, to
+    sdeg = −2: ``m = (s−1)/(s+2)`` (unit zpk gain) and ``Q = m Q0 = −[s+2, 0]/(s+2) = −[1 0]``, static;
+    judged as ``Q Gf = m Mr`` and m itself, by numpy."""
+    model, Mr = _nonminimum_least_row()
+    gen = model_matching(model, Mr, updating=True, sdeg=-2.0)
+    M = gen.info["M"]
+    assert gen.info["row_orders"] == [0] and gen.info["row_degrees"] == [1]
+    assert np.allclose(gen.Q.D, [[-1.0, 0.0]], atol=TOL)
+    lam = LAM_C
+    m = fr(M.A, M.B, M.C, M.D, lam)[:, 0, 0]
+    assert np.allclose(m, (lam - 1) / (lam + 2), rtol=TOL, atol=0)
+    R = residual_map(model, gen.Q, lam)
+    assert np.allclose(R[:, 0, 0], m * fr(Mr.A, Mr.B, Mr.C, Mr.D, lam)[:, 0, 0], rtol=TOL, atol=0)
+
+
+def test_unstable_zero_of_the_fault_channel_is_refused_without_updating():
+    """One output: ``Gf = (s−1)/((s+1)(s+2))``, ``Mr = 1/(s+3)``. The unique solution
+    ``Mr/Gf = (s+1)(s+2)/((s−1)(s+3))`` has the pole 1: refused, naming it and the updating factor;
+    with updating=True, ``M`` carries the zero 1 and Q is stable."""
+    s = ct.tf("s")
+    model = FDIModel.from_control(ct.ss((s - 1) / ((s + 1) * (s + 2))), f=[0])
+    Mr = LTI.from_control(ct.ss(1 / (s + 3)))
+    with pytest.raises(DesignError, match=r"poles \[\(1(\.0+)?\+0j\)\].*updating"):
+        model_matching(model, Mr)
+    gen = model_matching(model, Mr, updating=True)
+    assert np.allclose(gen.info["M_zeros"][0], [1.0], atol=1e-9) and np.all(gen.Q.poles().real < 0)
+    M = gen.info["M"]
+    R = residual_map(model, gen.Q, LAM_C)
+    want = fr(M.A, M.B, M.C, M.D, LAM_C) * fr(Mr.A, Mr.B, Mr.C, Mr.D, LAM_C)
+    assert np.abs(R - want).max() <= TOL * np.abs(want).max()
+
+
+def test_improper_least_solution_gets_a_least_degree_updating_factor():
+    """``Gf = 1/(s+1)``, ``Mr = 1``: the unique solution ``s + 1`` is improper (refused without updating);
+    with updating every m has relative degree ≥ 1, so degree 1 is least: ``m = 1/(s+2)`` at sdeg = −2
+    (unit zpk gain) and ``Q = (s+1)/(s+2)``."""
+    model = FDIModel.from_matrices([[-1.0]], np.zeros((1, 0)), [[1.0]],
+                                   faults=[component_fault("f", [[1.0]], [[0.0]])])
+    with pytest.raises(DesignError, match="improper.*updating=True"):
+        model_matching(model, [[1.0]])
+    gen = model_matching(model, [[1.0]], updating=True, sdeg=-2.0)
+    assert gen.info["row_degrees"] == [1] and gen.Q.n == 1
+    lam = LAM_C
+    M = gen.info["M"]
+    assert np.allclose(fr(M.A, M.B, M.C, M.D, lam)[:, 0, 0], 1 / (lam + 2), rtol=TOL, atol=0)
+    assert np.allclose(fr(gen.Q.A, gen.Q.B, gen.Q.C, gen.Q.D, lam)[:, 0, 0], (lam + 1) / (lam + 2), rtol=TOL, atol=0)
+
+
+def test_max_degree_bounds_the_least_order():
+    """The unique solution of the first example has degree 2: max_degree = 1 refuses it, naming 2."""
+    model, _, _ = _siso_u_f()
+    with pytest.raises(DesignError, match="least-order solution has degree 2 > max_degree = 1"):
+        model_matching(model, LTI([[-3.0]], [[1.0]], [[1.0]], [[0.0]]), max_degree=1)
+
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "least order missed: Mr = Q*·Gf with the plant's unstable mode cancelled only to ~1e-9; the core's rank "
+    "decisions at rtol = mm_tol = 1e-9 see the order-3 null row as order 7 (order 3 at rtol 1e-8); the returned "
+    "order-7 row does match (test_synthesis_matching_order.py, seed 32 of the unstable family)"))
+def test_reference_known_to_1e_9_keeps_its_least_order():
+    """Seed 32 of the unstable family: the detection row Q* (order 3) matches its own fault response
+    with M = 1 up to the cancelled unstable mode; the least-order row has order ≤ 3."""
+    from test_synthesis_matching_order import _random_model
+
+    from fmu_fdi import nullspace_design
+
+    model = _random_model(32, unstable=True)
+    ref = nullspace_design(model, rdim=1)
+    gen = model_matching(model, ref.Rf, updating=True)
+    assert gen.info["row_orders"][0] <= ref.Q.n == 3
+
+
+@pytest.mark.parametrize("kw, pole", [(dict(), -6.0), (dict(poles=[-9.0]), -9.0), (dict(sdeg=-7.0), -7.0)])
+def test_rows_of_equal_index_are_combined_into_a_stable_least_order_row(kw, pole):
+    """Faults only: ``Gf = [−s²; 5 − s²]/den``, ``Mr = (s² + 5s + 5)/den``, den = (s+6)(s+8), smarg = −5.
+    No static row matches (``X Gf = (−(a+b)s² + 5b)/den`` has no s-term), so the least order is ≥ 1.
+    The null rows of degree 1 are the combinations of ``P1 = [s+3, 1, s−1]`` and ``P2 = [1, s+2, s−2]``
+    (``[−s², 5 − s², s²+5s+5] = P1 × P2``): their last entry ``(α+β)s − (α+2β)`` can have any root,
+    so an order-1 row with any pole exists — the requested one (the plant's −6 without poles/sdeg).
+    The individual basis rows of this model have a pole right of the margin: the combination is needed.
+    Judged by numpy at off-axis points."""
+    s = ct.tf("s")
+    den = (s + 6) * (s + 8)
+    num = den.num[0][0]
+    Gf = ct.tf([[(-s**2 + 0 * s).num[0][0]], [(5 - s**2 + 0 * s).num[0][0]]], [[num], [num]])
+    model = FDIModel.from_control(ct.ss(Gf), f=[0])
+    Mr = LTI.from_control(ct.ss((s**2 + 5 * s + 5) / den))
+    gen = model_matching(model, Mr, smarg=-5.0, **kw)
+    assert gen.info["row_orders"] == [1] and gen.info["row_methods"] == ["least order"]
+    assert np.allclose(gen.Q.poles(), [pole], atol=1e-9)
+    R = residual_map(model, gen.Q, LAM_C)
+    want = fr(Mr.A, Mr.B, Mr.C, Mr.D, LAM_C)
+    assert np.abs(R - want).max() <= TOL * np.abs(want).max()
