@@ -55,6 +55,23 @@ with near-cancelling modes, lost every digit on nearly exact matches); a differe
 1e-6 of the data's size is refused. ``error``/``gamma_sub`` are the H∞ peak of that
 response on a refined grid (H2: Gauss–Legendre quadrature).
 
+**Least order** (``mindeg=True``, as ``ammsyn(…; mindeg = true)``, which solves the approximate
+equation with ``glasol(…; mindeg = true)``). The error depends on Q only through
+``R = Q [Gu Gd Gf Gw; I 0 0 0] = [0 0 Rf Rw]``: every filter of the affine set
+``Q + Z Nl`` (``Nl`` a left null-space basis of the whole ``Ge = [Gu Gd Gf Gw; I 0 0 0]``) has the
+same error. After the optimal Q is found, each row is replaced by the least-order stable proper
+solution ``Q_i'`` of the linear rational equation
+
+    Q_i'(λ) Ge(λ) = [0  0  Rf_i(λ)  Rw_i(λ)],                                              (2)
+
+the minimum-degree solution of ``glsol``/``glasol`` (Varga 2017, sec. 5.7, Procedure AMMS with
+the least-order option; sec. 7.9 and 10.4.2 for the least-order solution of (2) by minimum dynamic
+covers) computed by :func:`~fmu_fdi.design.problems.matching.model_matching` on the model whose
+"faults" are ``[f w]`` (its least-order rows: the minimum degree of a row solving (2)). A row keeps
+its minimal realisation when that is no larger; the returned error is measured again and the
+least-order filter is returned only if it is no worse than the optimal one within ``reltol``
+(``info['mindeg']`` says what was done, and why not when the order cannot be lowered).
+
 Not covered: zeros of ``G1`` on the imaginary axis / unit circle (the optimum is not
 attained by a stable filter): refused with a :class:`~fmu_fdi.errors.DesignError` that
 names them.
@@ -78,7 +95,7 @@ from slycot.exceptions import SlycotError
 from ...errors import DesignError
 from ...generator import ResidualGenerator
 from ...linalg import EPS, single_blas_thread
-from ...lti import LTI, blockdiag, frequency_grid, hstack
+from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
 from ..toolkit.notes import keeps_notes
@@ -88,7 +105,7 @@ from ..toolkit.notes import keeps_notes
 @single_blas_thread
 def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: float | None = None,
                                normalize: str = "dcgain", reltol: float = 1e-4, smarg: float | None = None,
-                               dec_tol: float = DEC_TOL, atol: float = 0.0) -> ResidualGenerator:
+                               dec_tol: float = DEC_TOL, atol: float = 0.0, mindeg: bool = False) -> ResidualGenerator:
     """H∞ or H2 optimal approximate model matching: ``min ||Q [Gf Gw; 0 0] − [Mr 0]||`` with ``Q [Gu Gd; I 0] = 0``.
 
     Parameters
@@ -114,6 +131,14 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         Absolute rank tolerance (Varga's ``atol``), passed to the null-space basis
         (:func:`~fmu_fdi.design.problems.nullspace.nullspace_design`) and to the minimal realisations of
         Mr, of the reduced system and of the filter (SLICOT's default when 0).
+    mindeg : bool
+        Least-order synthesis (FaultDetectionTools.jl ``ammsyn``'s ``mindeg``): each row of the
+        optimal filter is replaced by the least-order stable proper solution of
+        ``Q_i Ge = [0 0 Rf_i Rw_i]`` (equation (2) of the module docstring), which has the same
+        error; the McMillan degree of every row is then the least among the filters with this
+        fault and noise response. Kept only if the error measured on the returned filter is the
+        optimal one within ``reltol``. The total order can exceed that of the default filter when
+        its rows share poles that the least-order rows do not.
 
     Returns
     -------
@@ -125,8 +150,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``gamma_bracket`` (H∞: the bisection's last infeasible and feasible levels),
         ``standard``, ``M`` (LTI, the identity if standard), ``interactor_steps`` (K),
         ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``reference_lowpass``
-        (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``poles``,
-        ``postconditions``.
+        (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``row_orders``
+        (McMillan degree of each row), ``poles``, ``postconditions``; with ``mindeg=True``,
+        ``mindeg``: ``{'lowered', 'reason', 'row_orders_before', 'row_orders', 'order_before',
+        'order', 'error_before', 'error', 'row_methods'}``.
 
     Raises
     ------
@@ -180,12 +207,12 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol)
     gen = ResidualGenerator(Q, model, "approximate_model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
-    if norm == "inf":
-        err = _refined_peak(lambda L: np.einsum("kij,kjl->kil", _values(Q, L), _values(fnm, L)) - _values(MF, L),
-                            lam, dt)
-    else:
-        err = _h2_quad(lambda L: np.einsum("kij,kjl->kil", _values(Q, L), _values(fnm, L)) - _values(MF, L),
-                       [model.lti(), Y, Mr], dt)
+    err = _shipped_error(model, Q, fnm, MF, lam, norm, [model.lti(), Y, Mr])
+    least = None
+    if mindeg:
+        gen, least = _least_order(model, gen, fnm, MF, lam, norm, [model.lti(), Y, Mr], err, reltol, smarg,
+                                  dec_tol, atol)
+        Q, err = gen.Q, least["error"]
     if K == 0:  # (with Kb = 1 the problem solved is the one with M Mr already)
         gamma_opt = gamma_opt0
     else:
@@ -195,13 +222,124 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     gen.info.update({
         "norm": norm, "standard": bool(standard), "gamma_opt": float(gamma_opt), "gamma_opt0": float(gamma_opt0),
         "gamma_sub": float(err), "error": float(err), "M": M, "interactor_steps": int(K),
-        "order": int(Q.n), "poles": np.asarray(Q.poles()).tolist(), "reduced_rows": int(G1.p),
+        "order": int(Q.n), "row_orders": least["row_orders"] if least else row_orders(Q, atol),
+        "poles": np.asarray(Q.poles()).tolist(),
+        "reduced_rows": int(G1.p),
         "dropped_rows": int(dropped), "regularised_rows": int(left), "regularisation_eps": eps,
         "reference_lowpass": bool(Kb),
     })
     if "bracket" in info:
         gen.info["gamma_bracket"] = [float(x) for x in info["bracket"]]
+    if least is not None:
+        gen.info["mindeg"] = least
     return gen
+
+
+def _shipped_error(model, Q, fnm, MF, lam, norm, systems) -> float:
+    """Stage of :func:`approximate_model_matching`: the H∞ (refined grid peak) or H2 (quadrature) norm of
+    ``Q [Gf Gw; 0 0] − M [Mr 0]`` from the returned filter's own values."""
+    def values(L):
+        return np.einsum("kij,kjl->kil", _values(Q, L), _values(fnm, L)) - _values(MF, L)
+
+    if norm == "inf":
+        return _refined_peak(values, lam, model.dt)
+    return _h2_quad(values, systems, model.dt)
+
+
+def row_orders(Q: LTI, atol: float = 0.0) -> list[int]:
+    """McMillan degree of each row of Q (the order of its minimal realisation, :func:`_minimal_row`)."""
+    return [int(_minimal_row(Q[i, :], atol).n) for i in range(Q.p)]
+
+
+def _minimal_row(Qi: LTI, atol: float = 0.0) -> LTI:
+    """Minimal realisation of one row: the observable part first (for a row of a stacked realisation
+    the other rows' states are exactly unobservable), then the controllable part. SLICOT TB01PD's
+    ``job='M'`` (controllable part first) kept one state too many on a row of two stacked order-2 rows
+    sharing a pole (Example 5.16): the controllability staircase mixed the rows' states."""
+    if Qi.n == 0:
+        return Qi
+    tol = atol if atol > 0 else None
+    Qo = Qi.minreal(tol, job="O")
+    return Qo.minreal(tol, job="C") if Qo.n else Qo
+
+
+def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol):
+    """Stage of :func:`approximate_model_matching` with ``mindeg=True``: ``(generator, info['mindeg'])``.
+
+    Row i of the optimal Q is replaced by the least-order stable proper solution of
+    ``Q_i' Ge = [0 0 Rf_i Rw_i]`` (the module docstring's (2)) — exact model matching of the row's own
+    fault and noise response on the model whose faults are ``[f w]`` (:func:`.matching.model_matching`,
+    least order per row) — when its degree is below that of the row's minimal realisation. The
+    result is kept only if its post-conditions hold and its measured error is within ``reltol`` of
+    the optimal filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable references);
+    otherwise, and when no row can be lowered, the optimal filter is returned unchanged and
+    ``reason`` says why."""
+    from .matching import model_matching
+
+    Q, dt = gen.Q, model.dt
+    before = row_orders(Q, atol)
+    out = {"lowered": False, "row_orders_before": before, "row_orders": before, "order_before": int(Q.n),
+           "order": int(Q.n), "error_before": float(err), "error": float(err), "row_methods": ["kept"] * Q.p}
+    if not any(before):
+        out["reason"] = "every row is static (order 0): already least order"
+        return gen, out
+    aug = _faults_and_noise_as_faults(model)
+    rows, methods, why = [], [], []
+    for i in range(Q.p):
+        Qi = _minimal_row(Q[i, :], atol)
+        rows.append(Qi), methods.append("kept")
+        if Qi.n == 0:
+            continue
+        Ri = Qi @ fnm  # [Rf_i Rw_i]: the right-hand side of (2)
+        try:
+            sol = model_matching(aug, Ri, smarg=smarg, dec_tol=dec_tol, atol=atol)
+        except DesignError as exc:
+            why.append(f"row {i + 1}: the least-order solve of Q_i Ge = [0 0 Rf_i Rw_i] failed ({exc})")
+            continue
+        if sol.Q.n < Qi.n:
+            rows[-1], methods[-1] = sol.Q, f"least order ({sol.info['row_methods'][0]})"
+        else:
+            why.append(f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order "
+                       f"(the least-order solution of (2) has order {sol.Q.n})")
+    if all(m == "kept" for m in methods):
+        out["reason"] = "; ".join(why) or "no row can be lowered"
+        return gen, out
+    stacked = vstack(rows) if len(rows) > 1 else rows[0]
+    Qm = stacked.minreal(atol if atol > 0 else None) if stacked.n else stacked
+    cand = ResidualGenerator(Qm, model, "approximate_model_matching")
+    try:
+        check_generator(cand, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
+    except DesignError as exc:
+        out["reason"] = f"the least-order filter fails its post-conditions ({exc}): the optimal filter is returned"
+        return gen, out
+    # both filters measured on one grid (the optimal one's points and the new filter's poles)
+    lam2 = np.concatenate([lam, _points([Qm], dt, 100)])
+    ref = max(err, _shipped_error(model, Q, fnm, MF, lam2, norm, systems + [Qm]))
+    err2 = _shipped_error(model, Qm, fnm, MF, lam2, norm, systems + [Qm])
+    # the same response realised twice: H∞ within the bisection's reltol, H2 to the quadrature's 1e-6;
+    # the absolute floor serves exactly matchable references (errors at rounding level, ~1e-12)
+    floor = 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)))), 1e-300)
+    if not err2 <= ref * (1 + reltol) + floor:
+        out["reason"] = (f"the least-order filter's error {err2:.6g} exceeds the optimal filter's {err:.6g} by more "
+                         f"than reltol = {reltol:g}: the optimal filter is returned")
+        return gen, out
+    # each row's order as designed (a minimal realisation of its own); the rows of the jointly minimal Qm
+    # mix the rows' states, and a staircase on one of its rows can keep a nearly unobservable one
+    now = [int(r.n) for r in rows]
+    out.update({"lowered": True, "row_orders": now, "order": int(Qm.n), "error": float(err2), "row_methods": methods,
+                "reason": "; ".join(why) if why else "every non-static row lowered to the least order of (2)"})
+    return cand, out
+
+
+def _faults_and_noise_as_faults(model: FDIModel) -> FDIModel:
+    """The model with one component fault whose columns are ``[Bf Bw; Df Dw]`` and no noise: the
+    exact matching of ``[Rf_i Rw_i]`` on it solves equation (2)."""
+    from ...faults import FaultSpec
+
+    spec = FaultSpec(name="fault_and_noise", kind="component", Bf=np.hstack([model.Bf, model.Bw]),
+                     Df=np.hstack([model.Df, model.Dw]))
+    return FDIModel(model.A, model.Bu, model.C, model.Du, Bd=model.Bd, Dd=model.Dd, faults=[spec], dt=model.dt,
+                    u_names=model.u_names, y_names=model.y_names, d_names=model.d_names)
 
 
 def _check_options(norm, normalize, reltol, atol) -> None:
