@@ -297,7 +297,8 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
             why.append(f"row {i + 1}: the least-order solve of Q_i Ge = [0 0 Rf_i Rw_i] failed ({exc})")
             continue
         if sol.Q.n < Qi.n:
-            rows[-1], methods[-1] = sol.Q, f"least order ({sol.info['row_methods'][0]})"
+            how = sol.info["row_methods"][0]
+            rows[-1], methods[-1] = sol.Q, "least order" if how == "least order" else f"least order ({how})"
         else:
             why.append(f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order "
                        f"(the least-order solution of (2) has order {sol.Q.n})")
