@@ -7,7 +7,7 @@ realisation), the matching error by the numpy frequency responses of test_synthe
 its own grid (1200 log points from 1e-5, refined at the peak — not the design's grid), decoupling by
 test_synthesis_ammp.decoupling, stability by the eigenvalues of Q's A. Cases: Varga (2017) Examples
 5.11, 5.14, 5.15, 5.16, 5.17 (FDT Ex5_1*.jl), Niemann's model, the seeded random models of
-test_synthesis_ammp.
+test_synthesis_ammp, and discrete-time versions of Ex. 5.16 and Niemann's model.
 """
 import types
 
@@ -16,6 +16,7 @@ import published as pub
 import pytest
 import scipy.linalg as sla
 from test_synthesis_ammp import MR14, MR17, _random_case, decoupling, error_norm, ex5_14, ex5_16, static
+from test_synthesis_published import niemann
 
 from fmu_fdi import approximate_model_matching
 from fmu_fdi.lti import LTI
@@ -54,13 +55,16 @@ CASES = {
     "5.16": (ex5_16, static(np.eye(2)), dict(sdeg=-10, reltol=5e-4)),
     "5.17": (ex5_16, MR17, dict(norm="2", sdeg=-10)),
     "seed14": (lambda: _random_case(14)[0], _random_case(14)[1], dict(reltol=1e-6)),
+    # discrete time (ZOH, the model's own discretize): Ex. 5.16 at 0.1 s and Niemann's model (d present) at 1 ms
+    "5.16d": (lambda: ex5_16().discretize(0.1), static(np.eye(2)), dict(reltol=1e-5)),
+    "niemann_d": (lambda: niemann().discretize(0.001), static([[1.0, 0.0]]), dict(reltol=1e-5)),
 }
 #: the optimal filter's rows carry modes the least-order rows do not: as states of its realisation (every case
 #: but seed 14's noise-free exact match has them only as near-cancellations, Hankel singular values 1e-11 … 2e-7
 #: of the row's largest, which the γ-iteration's central controller leaves), and as modes of Hankel size above
 #: 1e-7 (seed 14: 8 such modes in a 23-state row, the least-order row has 2)
-STRICT_STATES = {"5.11", "5.14", "5.15", "5.16", "5.17", "seed14"}
-STRICT_HANKEL = {"seed14"}
+STRICT_STATES = {"5.11", "5.14", "5.15", "5.16", "5.17", "seed14", "5.16d", "niemann_d"}
+STRICT_HANKEL = {"seed14", "niemann_d"}
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
@@ -103,8 +107,6 @@ def test_least_order_rows_with_the_optimal_error(name):
 def test_niemann_exact_match_at_least_order():
     """Niemann's model (d present; full minimal basis), Mr = [1 0]: matched exactly (FDT test_ammsyn.jl,
     fdimmperf < 1e-7) and, with mindeg, by a first-order filter (emmsyn's least-order rows are order 1)."""
-    from test_synthesis_published import niemann
-
     model, Mr = niemann(), static([[1.0, 0.0]])
     g0 = approximate_model_matching(model, Mr, sdeg=-5, reltol=1e-5)
     g1 = approximate_model_matching(model, Mr, sdeg=-5, reltol=1e-5, mindeg=True)
@@ -128,6 +130,13 @@ def test_cannot_lower_returns_the_same_filter_and_says_why():
     info = g1.info["mindeg"]
     assert not info["lowered"] and info["reason"]
     assert np.array_equal(g1.Q.A, g0.Q.A) and g1.info["error"] == g0.info["error"]
+
+
+def test_mindeg_must_be_a_bool():
+    from fmu_fdi import DesignError
+
+    with pytest.raises(DesignError, match="mindeg must be True or False"):
+        approximate_model_matching(ex5_14(), MR14, mindeg="yes")
 
 
 def test_a_worse_least_order_filter_is_not_returned(monkeypatch):

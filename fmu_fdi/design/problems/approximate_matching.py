@@ -164,7 +164,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         response is not the designed one (realisation accuracy) or that fails its
         post-conditions.
     """
-    _check_options(norm, normalize, reltol, atol)
+    _check_options(norm, normalize, reltol, atol, mindeg)
     Mr = reference(model, Mr, atol=atol)
     dt = model.dt
     sdeg = -1.0 if sdeg is None else float(sdeg)
@@ -343,8 +343,10 @@ def _faults_and_noise_as_faults(model: FDIModel) -> FDIModel:
                     u_names=model.u_names, y_names=model.y_names, d_names=model.d_names)
 
 
-def _check_options(norm, normalize, reltol, atol) -> None:
+def _check_options(norm, normalize, reltol, atol, mindeg=False) -> None:
     """Stage of :func:`approximate_model_matching`: the options' values."""
+    if not isinstance(mindeg, (bool, np.bool_)):
+        raise DesignError(f"mindeg must be True or False, got {mindeg!r}")
     if norm not in ("inf", "2"):
         raise DesignError(f"norm must be 'inf' or '2', got {norm!r}")
     if normalize not in ("dcgain", "gain"):
