@@ -153,7 +153,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``row_orders``
         (McMillan degree of each row), ``poles``, ``postconditions``; with ``mindeg=True``,
         ``mindeg``: ``{'lowered', 'reason', 'row_orders_before', 'row_orders', 'order_before',
-        'order', 'error_before', 'error', 'row_methods'}``.
+        'order', 'error_before', 'error', 'error_limit', 'row_methods'}`` (``error_before``: the
+        optimal filter's measured error, itself within ``reltol`` of ``gamma_opt`` in the standard
+        H∞ case; ``error_limit``: ``(1 + reltol)`` times it, plus 1e-9 ``||M Mr||∞`` for exactly
+        matchable references — the least-order filter is returned only if its error is below it).
 
     Raises
     ------
@@ -297,7 +300,7 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
             why.append(f"row {i + 1}: the least-order solve of Q_i Ge = [0 0 Rf_i Rw_i] failed ({exc})")
             continue
         if sol.Q.n < Qi.n:
-            how = sol.info["row_methods"][0]
+            how = sol.info.get("row_methods", ["least order"])[0]
             rows[-1], methods[-1] = sol.Q, "least order" if how == "least order" else f"least order ({how})"
         else:
             why.append(f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order "
@@ -320,8 +323,9 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     # the same response realised twice: H∞ within the bisection's reltol, H2 to the quadrature's 1e-6;
     # the absolute floor serves exactly matchable references (errors at rounding level, ~1e-12)
     floor = 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)))), 1e-300)
-    if not err2 <= ref * (1 + reltol) + floor:
-        out["reason"] = (f"the least-order filter's error {err2:.6g} exceeds the optimal filter's {err:.6g} by more "
+    out["error_limit"] = float(ref * (1 + reltol) + floor)
+    if not err2 <= out["error_limit"]:
+        out["reason"] = (f"the least-order filter's error {err2:.6g} exceeds the optimal filter's {ref:.6g} by more "
                          f"than reltol = {reltol:g}: the optimal filter is returned")
         return gen, out
     # each row's order as designed (a minimal realisation of its own); the rows of the jointly minimal Qm
