@@ -64,10 +64,11 @@ solution ``Q_i'`` of the linear rational equation
 
     Q_i'(λ) Ge(λ) = [0  0  Rf_i(λ)  Rw_i(λ)],                                              (2)
 
-the minimum-degree solution of ``glsol``/``glasol`` (Varga 2017, sec. 5.7, Procedure AMMS with
-the least-order option; sec. 7.9 and 10.4.2 for the least-order solution of (2) by minimum dynamic
-covers) computed by :func:`~fmu_fdi.design.problems.matching.model_matching` on the model whose
-"faults" are ``[f w]`` (its least-order rows: the minimum degree of a row solving (2)). A row keeps
+the minimum-degree solution of ``glasol``/``glsol`` with ``mindeg = true`` (Varga 2017, sec. 5.7,
+Procedure AMMS with the least-order option; the peer finds it as ``X0 + Z XN``, ``XN`` a left
+null-space basis of Ge, by a Type 2 minimum dynamic cover, sec. 7.9 and 10.4.2). Here it is the
+least-order row of exact model matching, :func:`~fmu_fdi.design.problems.matching.model_matching`,
+on the model whose "faults" are ``[f w]`` (the least degree of a row solving (2)). A row keeps
 its minimal realisation when that is no larger; the returned error is measured again and the
 least-order filter is returned only if it is no worse than the optimal one within ``reltol``
 (``info['mindeg']`` says what was done, and why not when the order cannot be lowered).
@@ -83,6 +84,8 @@ Examples 5.14–5.17. A. Varga, Integrated computational algorithm for solving H
 FDI problems, IFAC World Congress 2011. K. Glover and J. C. Doyle, State-space formulae for
 all stabilizing controllers that satisfy an H∞-norm bound, Systems & Control Letters 11,
 1988. K. Zhou, J. C. Doyle and K. Glover, *Robust and Optimal Control*, 1996, chs. 14, 17.
+A. Varga, Reliable algorithms for computing minimal dynamic covers, IEEE CDC 2003 (least order,
+``mindeg``); DescriptorSystems.jl ``glasol``/``glsol`` and FaultDetectionTools.jl ``ammsyn``.
 """
 from __future__ import annotations
 
