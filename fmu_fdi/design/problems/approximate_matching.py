@@ -101,7 +101,7 @@ from ...linalg import EPS, single_blas_thread
 from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
-from ..toolkit.notes import keeps_notes
+from ..toolkit.notes import keeps_notes, note, silenced
 from .reference import reference
 
 
@@ -291,21 +291,23 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
         out["reason"] = "every row is static (order 0): already least order"
         return gen, out
     aug = _faults_and_noise_as_faults(model)
-    rows, methods, why = [], [], []
+    rows, methods, why, sub_notes = [], [], [], []
     for i in range(Q.p):
         Qi = _minimal_row(Q[i, :], atol)
         rows.append(Qi), methods.append("kept")
         if Qi.n == 0:
             continue
         Ri = Qi @ fnm  # [Rf_i Rw_i]: the right-hand side of (2)
-        try:
-            sol = model_matching(aug, Ri, smarg=smarg, dec_tol=dec_tol, atol=atol)
+        try:  # its notes join this design's only if its row is kept (below)
+            with silenced():
+                sol = model_matching(aug, Ri, smarg=smarg, dec_tol=dec_tol, atol=atol)
         except DesignError as exc:
             why.append(f"row {i + 1}: the least-order solve of Q_i Ge = [0 0 Rf_i Rw_i] failed ({exc})")
             continue
         if sol.Q.n < Qi.n:
             how = sol.info.get("row_methods", ["least order"])[0]
             rows[-1], methods[-1] = sol.Q, "least order" if how == "least order" else f"least order ({how})"
+            sub_notes += [f"mindeg, row {i + 1}: {text}" for text in sol.info.get("notes", [])]
         else:
             why.append(f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order "
                        f"(the least-order solution of (2) has order {sol.Q.n})")
@@ -335,6 +337,8 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     # each row's order as designed (a minimal realisation of its own); the rows of the jointly minimal Qm
     # mix the rows' states, and a staircase on one of its rows can keep a nearly unobservable one
     now = [int(r.n) for r in rows]
+    for text in sub_notes:
+        note(text)
     out.update({"lowered": True, "row_orders": now, "order": int(Qm.n), "error": float(err2), "row_methods": methods,
                 "reason": "; ".join(why) if why else "every non-static row lowered to the least order of (2)"})
     return cand, out
