@@ -59,10 +59,11 @@ CASES = {
     "5.16d": (lambda: ex5_16().discretize(0.1), static(np.eye(2)), dict(reltol=1e-5)),
     "niemann_d": (lambda: niemann().discretize(0.001), static([[1.0, 0.0]]), dict(reltol=1e-5)),
 }
-#: the optimal filter's rows carry modes the least-order rows do not: as states of its realisation (every case
-#: but seed 14's noise-free exact match has them only as near-cancellations, Hankel singular values 1e-11 … 2e-7
-#: of the row's largest, which the γ-iteration's central controller leaves), and as modes of Hankel size above
-#: 1e-7 (seed 14: 8 such modes in a 23-state row, the least-order row has 2)
+#: the optimal filter's rows carry modes the least-order rows do not: as states of their minimal realisations
+#: (in 5.11, 5.14, 5.15, 5.16 and 5.16d only as near-cancellations, Hankel singular values 1e-11 … 1e-8 of the
+#: row's largest, which the γ-iteration's central controller leaves), and as modes of Hankel size above 1e-7
+#: (seed 14: 8 of them in a 23-state row, the least-order row has 2; Niemann at 1 ms: 4 → 1; Niemann's
+#: continuous model, below: 3 → 1)
 STRICT_STATES = {"5.11", "5.14", "5.15", "5.16", "5.17", "seed14", "5.16d", "niemann_d"}
 STRICT_HANKEL = {"seed14", "niemann_d"}
 
