@@ -55,6 +55,24 @@ with near-cancelling modes, lost every digit on nearly exact matches); a differe
 1e-6 of the data's size is refused. ``error``/``gamma_sub`` are the H∞ peak of that
 response on a refined grid (H2: Gauss–Legendre quadrature).
 
+**Least order** (``mindeg=True``, as ``ammsyn(…; mindeg = true)``, which solves the approximate
+equation with ``glasol(…; mindeg = true)``). The error depends on Q only through
+``R = Q [Gu Gd Gf Gw; I 0 0 0] = [0 0 Rf Rw]``: every filter of the affine set
+``Q + Z Nl`` (``Nl`` a left null-space basis of the whole ``Ge = [Gu Gd Gf Gw; I 0 0 0]``) has the
+same error. After the optimal Q is found, each row is replaced by the least-order stable proper
+solution ``Q_i'`` of the linear rational equation
+
+    Q_i'(λ) Ge(λ) = [0  0  Rf_i(λ)  Rw_i(λ)],                                              (2)
+
+the minimum-degree solution of ``glasol``/``glsol`` with ``mindeg = true`` (Varga 2017, sec. 5.7,
+Procedure AMMS with the least-order option; the peer finds it as ``X0 + Z XN``, ``XN`` a left
+null-space basis of Ge, by a Type 2 minimum dynamic cover, sec. 7.9 and 10.4.2). Here it is the
+least-order row of exact model matching, :func:`~fmu_fdi.design.problems.matching.model_matching`,
+on the model whose "faults" are ``[f w]`` (the least degree of a row solving (2)). A row keeps
+its minimal realisation when that is no larger; the returned error is measured again and the
+least-order filter is returned only if it is no worse than the optimal one within ``reltol``
+(``info['mindeg']`` says what was done, and why not when the order cannot be lowered).
+
 Not covered: zeros of ``G1`` on the imaginary axis / unit circle (the optimum is not
 attained by a stable filter): refused with a :class:`~fmu_fdi.errors.DesignError` that
 names them.
@@ -66,6 +84,8 @@ Examples 5.14–5.17. A. Varga, Integrated computational algorithm for solving H
 FDI problems, IFAC World Congress 2011. K. Glover and J. C. Doyle, State-space formulae for
 all stabilizing controllers that satisfy an H∞-norm bound, Systems & Control Letters 11,
 1988. K. Zhou, J. C. Doyle and K. Glover, *Robust and Optimal Control*, 1996, chs. 14, 17.
+A. Varga, Reliable algorithms for computing minimal dynamic covers, IEEE CDC 2003 (least order,
+``mindeg``); DescriptorSystems.jl ``glasol``/``glsol`` and FaultDetectionTools.jl ``ammsyn``.
 """
 from __future__ import annotations
 
@@ -78,17 +98,18 @@ from slycot.exceptions import SlycotError
 from ...errors import DesignError
 from ...generator import ResidualGenerator
 from ...linalg import EPS, single_blas_thread
-from ...lti import LTI, blockdiag, frequency_grid, hstack
+from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
-from ..toolkit.notes import keeps_notes
+from ..toolkit.notes import keeps_notes, note, silenced
+from .reference import reference
 
 
 @keeps_notes
 @single_blas_thread
 def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: float | None = None,
                                normalize: str = "dcgain", reltol: float = 1e-4, smarg: float | None = None,
-                               dec_tol: float = DEC_TOL, atol: float = 0.0) -> ResidualGenerator:
+                               dec_tol: float = DEC_TOL, atol: float = 0.0, mindeg: bool = False) -> ResidualGenerator:
     """H∞ or H2 optimal approximate model matching: ``min ||Q [Gf Gw; 0 0] − [Mr 0]||`` with ``Q [Gu Gd; I 0] = 0``.
 
     Parameters
@@ -114,6 +135,14 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         Absolute rank tolerance (Varga's ``atol``), passed to the null-space basis
         (:func:`~fmu_fdi.design.problems.nullspace.nullspace_design`) and to the minimal realisations of
         Mr, of the reduced system and of the filter (SLICOT's default when 0).
+    mindeg : bool
+        Least-order synthesis (FaultDetectionTools.jl ``ammsyn``'s ``mindeg``): each row of the
+        optimal filter is replaced by the least-order stable proper solution of
+        ``Q_i Ge = [0 0 Rf_i Rw_i]`` (equation (2) of the module docstring), which has the same
+        error; the McMillan degree of every row is then the least among the filters with this
+        fault and noise response. Kept only if the error measured on the returned filter is the
+        optimal one within ``reltol``. The total order can exceed that of the default filter when
+        its rows share poles that the least-order rows do not.
 
     Returns
     -------
@@ -125,8 +154,13 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``gamma_bracket`` (H∞: the bisection's last infeasible and feasible levels),
         ``standard``, ``M`` (LTI, the identity if standard), ``interactor_steps`` (K),
         ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``reference_lowpass``
-        (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``poles``,
-        ``postconditions``.
+        (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``row_orders``
+        (McMillan degree of each row), ``poles``, ``postconditions``; with ``mindeg=True``,
+        ``mindeg``: ``{'lowered', 'reason', 'row_orders_before', 'row_orders', 'order_before',
+        'order', 'error_before', 'error', 'error_limit', 'row_methods'}`` (``error_before``: the
+        optimal filter's measured error, itself within ``reltol`` of ``gamma_opt`` in the standard
+        H∞ case; ``error_limit``: ``(1 + reltol)`` times it, plus 1e-9 ``||M Mr||∞`` for exactly
+        matchable references — the least-order filter is returned only if its error is below it).
 
     Raises
     ------
@@ -137,7 +171,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         response is not the designed one (realisation accuracy) or that fails its
         post-conditions.
     """
-    _check_options(norm, normalize, reltol, atol)
+    _check_options(norm, normalize, reltol, atol, mindeg)
     Mr = reference(model, Mr, atol=atol)
     dt = model.dt
     sdeg = -1.0 if sdeg is None else float(sdeg)
@@ -180,12 +214,12 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol)
     gen = ResidualGenerator(Q, model, "approximate_model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
-    if norm == "inf":
-        err = _refined_peak(lambda L: np.einsum("kij,kjl->kil", _values(Q, L), _values(fnm, L)) - _values(MF, L),
-                            lam, dt)
-    else:
-        err = _h2_quad(lambda L: np.einsum("kij,kjl->kil", _values(Q, L), _values(fnm, L)) - _values(MF, L),
-                       [model.lti(), Y, Mr], dt)
+    err = _shipped_error(model, Q, fnm, MF, lam, norm, [model.lti(), Y, Mr])
+    least = None
+    if mindeg:
+        gen, least = _least_order(model, gen, fnm, MF, lam, norm, [model.lti(), Y, Mr], err, reltol, smarg,
+                                  dec_tol, atol)
+        Q, err = gen.Q, least["error"]
     if K == 0:  # (with Kb = 1 the problem solved is the one with M Mr already)
         gamma_opt = gamma_opt0
     else:
@@ -195,17 +229,136 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     gen.info.update({
         "norm": norm, "standard": bool(standard), "gamma_opt": float(gamma_opt), "gamma_opt0": float(gamma_opt0),
         "gamma_sub": float(err), "error": float(err), "M": M, "interactor_steps": int(K),
-        "order": int(Q.n), "poles": np.asarray(Q.poles()).tolist(), "reduced_rows": int(G1.p),
+        "order": int(Q.n), "row_orders": least["row_orders"] if least else row_orders(Q, atol),
+        "poles": np.asarray(Q.poles()).tolist(),
+        "reduced_rows": int(G1.p),
         "dropped_rows": int(dropped), "regularised_rows": int(left), "regularisation_eps": eps,
         "reference_lowpass": bool(Kb),
     })
     if "bracket" in info:
         gen.info["gamma_bracket"] = [float(x) for x in info["bracket"]]
+    if least is not None:
+        gen.info["mindeg"] = least
     return gen
 
 
-def _check_options(norm, normalize, reltol, atol) -> None:
+def _shipped_error(model, Q, fnm, MF, lam, norm, systems) -> float:
+    """Stage of :func:`approximate_model_matching`: the H∞ (refined grid peak) or H2 (quadrature) norm of
+    ``Q [Gf Gw; 0 0] − M [Mr 0]`` from the returned filter's own values."""
+    def values(L):
+        return np.einsum("kij,kjl->kil", _values(Q, L), _values(fnm, L)) - _values(MF, L)
+
+    if norm == "inf":
+        return _refined_peak(values, lam, model.dt)
+    return _h2_quad(values, systems, model.dt)
+
+
+def row_orders(Q: LTI, atol: float = 0.0) -> list[int]:
+    """McMillan degree of each row of Q (the order of its minimal realisation, :func:`_minimal_row`)."""
+    return [int(_minimal_row(Q[i, :], atol).n) for i in range(Q.p)]
+
+
+def _minimal_row(Qi: LTI, atol: float = 0.0) -> LTI:
+    """Minimal realisation of one row: the observable part first (for a row of a stacked realisation
+    the other rows' states are exactly unobservable), then the controllable part. SLICOT TB01PD's
+    ``job='M'`` (controllable part first) kept one state too many on a row of two stacked order-2 rows
+    sharing a pole (Example 5.16): the controllability staircase mixed the rows' states."""
+    if Qi.n == 0:
+        return Qi
+    tol = atol if atol > 0 else None
+    Qo = Qi.minreal(tol, job="O")
+    return Qo.minreal(tol, job="C") if Qo.n else Qo
+
+
+def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol):
+    """Stage of :func:`approximate_model_matching` with ``mindeg=True``: ``(generator, info['mindeg'])``.
+
+    Row i of the optimal Q is replaced by the least-order stable proper solution of
+    ``Q_i' Ge = [0 0 Rf_i Rw_i]`` (the module docstring's (2)) — exact model matching of the row's own
+    fault and noise response on the model whose faults are ``[f w]`` (:func:`.matching.model_matching`,
+    least order per row) — when its degree is below that of the row's minimal realisation. The
+    result is kept only if its post-conditions hold and its measured error is within ``reltol`` of
+    the optimal filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable references);
+    otherwise, and when no row can be lowered, the optimal filter is returned unchanged and
+    ``reason`` says why."""
+    from .matching import model_matching
+
+    Q, dt = gen.Q, model.dt
+    before = row_orders(Q, atol)
+    out = {"lowered": False, "row_orders_before": before, "row_orders": before, "order_before": int(Q.n),
+           "order": int(Q.n), "error_before": float(err), "error": float(err), "row_methods": ["kept"] * Q.p}
+    if not any(before):
+        out["reason"] = "every row is static (order 0): already least order"
+        return gen, out
+    aug = _faults_and_noise_as_faults(model)
+    rows, methods, why, sub_notes = [], [], [], []
+    for i in range(Q.p):
+        Qi = _minimal_row(Q[i, :], atol)
+        rows.append(Qi), methods.append("kept")
+        if Qi.n == 0:
+            continue
+        Ri = Qi @ fnm  # [Rf_i Rw_i]: the right-hand side of (2)
+        try:  # its notes join this design's only if its row is kept (below)
+            with silenced():
+                sol = model_matching(aug, Ri, smarg=smarg, dec_tol=dec_tol, atol=atol)
+        except DesignError as exc:
+            why.append(f"row {i + 1}: the least-order solve of Q_i Ge = [0 0 Rf_i Rw_i] failed ({exc})")
+            continue
+        if sol.Q.n < Qi.n:
+            how = sol.info.get("row_methods", ["least order"])[0]
+            rows[-1], methods[-1] = sol.Q, "least order" if how == "least order" else f"least order ({how})"
+            sub_notes += [f"mindeg, row {i + 1}: {text}" for text in sol.info.get("notes", [])]
+        else:
+            why.append(f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order "
+                       f"(the least-order solution of (2) has order {sol.Q.n})")
+    if all(m == "kept" for m in methods):
+        out["reason"] = "; ".join(why) or "no row can be lowered"
+        return gen, out
+    stacked = vstack(rows) if len(rows) > 1 else rows[0]
+    Qm = stacked.minreal(atol if atol > 0 else None) if stacked.n else stacked
+    cand = ResidualGenerator(Qm, model, "approximate_model_matching")
+    try:
+        check_generator(cand, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
+    except DesignError as exc:
+        out["reason"] = f"the least-order filter fails its post-conditions ({exc}): the optimal filter is returned"
+        return gen, out
+    # both filters measured on one grid (the optimal one's points and the new filter's poles)
+    lam2 = np.concatenate([lam, _points([Qm], dt, 100)])
+    ref = max(err, _shipped_error(model, Q, fnm, MF, lam2, norm, systems + [Qm]))
+    err2 = _shipped_error(model, Qm, fnm, MF, lam2, norm, systems + [Qm])
+    # the same response realised twice: H∞ within the bisection's reltol, H2 to the quadrature's 1e-6;
+    # the absolute floor serves exactly matchable references (errors at rounding level, ~1e-12)
+    floor = 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)))), 1e-300)
+    out["error_limit"] = float(ref * (1 + reltol) + floor)
+    if not err2 <= out["error_limit"]:
+        out["reason"] = (f"the least-order filter's error {err2:.6g} exceeds the optimal filter's {ref:.6g} by more "
+                         f"than reltol = {reltol:g}: the optimal filter is returned")
+        return gen, out
+    # each row's order as designed (a minimal realisation of its own); the rows of the jointly minimal Qm
+    # mix the rows' states, and a staircase on one of its rows can keep a nearly unobservable one
+    now = [int(r.n) for r in rows]
+    for text in sub_notes:
+        note(text)
+    out.update({"lowered": True, "row_orders": now, "order": int(Qm.n), "error": float(err2), "row_methods": methods,
+                "reason": "; ".join(why) if why else "every non-static row lowered to the least order of (2)"})
+    return cand, out
+
+
+def _faults_and_noise_as_faults(model: FDIModel) -> FDIModel:
+    """The model with one component fault whose columns are ``[Bf Bw; Df Dw]`` and no noise: the
+    exact matching of ``[Rf_i Rw_i]`` on it solves equation (2)."""
+    from ...faults import FaultSpec
+
+    spec = FaultSpec(name="fault_and_noise", kind="component", Bf=np.hstack([model.Bf, model.Bw]),
+                     Df=np.hstack([model.Df, model.Dw]))
+    return FDIModel(model.A, model.Bu, model.C, model.Du, Bd=model.Bd, Dd=model.Dd, faults=[spec], dt=model.dt,
+                    u_names=model.u_names, y_names=model.y_names, d_names=model.d_names)
+
+
+def _check_options(norm, normalize, reltol, atol, mindeg=False) -> None:
     """Stage of :func:`approximate_model_matching`: the options' values."""
+    if not isinstance(mindeg, (bool, np.bool_)):
+        raise DesignError(f"mindeg must be True or False, got {mindeg!r}")
     if norm not in ("inf", "2"):
         raise DesignError(f"norm must be 'inf' or '2', got {norm!r}")
     if normalize not in ("dcgain", "gain"):
@@ -261,38 +414,6 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol):
 
 
 # ----------------------------------------------------------------------------- inputs
-def reference(model: FDIModel, Mr, stable: bool = True, minimal: bool = True, atol: float = 0.0) -> LTI:
-    """Mr as an LTI in the model's time base, validated (shape, proper, and stable unless
-    ``stable=False``), minimal unless ``minimal=False``; a matrix is a constant reference."""
-    if isinstance(Mr, (np.ndarray, list, tuple, int, float)):
-        D = np.atleast_2d(np.asarray(Mr, dtype=float))
-        if D.ndim != 2 or not np.all(np.isfinite(D)):
-            raise DesignError(f"a constant Mr must be a finite matrix, got shape {np.shape(Mr)}")
-        Mr = LTI.static(D, model.dt)
-    if not isinstance(Mr, LTI):
-        try:
-            Mr = LTI.from_control(Mr)
-        except ValueError as exc:
-            raise DesignError(f"Mr must be a proper system: {exc}") from None
-        except TypeError as exc:
-            raise DesignError(f"Mr: {exc}") from None
-    if Mr.m != model.nf:
-        raise DesignError(f"Mr must have {model.nf} inputs (the fault columns {model.fault_names}), got {Mr.m}")
-    if Mr.p < 1:
-        raise DesignError("Mr must have at least one output (residual)")
-    if Mr.n and abs(Mr.dt - model.dt) > 1e-12 * max(1.0, model.dt):
-        raise DesignError(f"Mr has sample time {Mr.dt} but the model has {model.dt}")
-    Mr = LTI(Mr.A, Mr.B, Mr.C, Mr.D, model.dt)
-    if Mr.n and minimal:
-        Mr = Mr.minreal(atol if atol > 0 else None)
-        if stable and not Mr.is_stable():
-            bad = Mr.poles()
-            worst = float(np.max(np.abs(bad))) if model.dt else float(np.max(bad.real))
-            what = "largest |pole|" if model.dt else "largest Re(pole)"
-            raise DesignError(f"Mr must be stable ({what} = {worst:.6g}): every filter's fault response Q Gf is")
-    return Mr
-
-
 def fault_noise_map(model: FDIModel) -> LTI:
     """``[Gf Gw; 0 0]``: from [f; w] to [y; u] (the columns of F = [Mr 0])."""
     Ge = model.augmented()

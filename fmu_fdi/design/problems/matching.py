@@ -57,7 +57,7 @@ from ...linalg import ordered_schur, single_blas_thread
 from ...lti import LTI, blockdiag, frequency_grid, vstack
 from ...model import FDIModel
 from ..toolkit._basis import check_poles, pole_chooser
-from .approximate_matching import reference
+from .reference import reference
 from ..toolkit.postconditions import DEC_TOL, _values, check_generator, default_smarg
 from ..toolkit.notes import keeps_notes, silenced
 from ..toolkit.least_solve import least_row, stable_solution
