@@ -292,8 +292,13 @@ class LTI:
         B[:, :m] = self.B
         C = np.zeros((mp, n))
         C[:p, :] = self.C
-        Ar, Br, Cr, nr = slycot.tb01pd(n, m, p, self.A.copy(), B, C, job=job, equil=equil,
-                                       tol=0.0 if tol is None else tol)
+        A = self.A.copy()
+        if equil == "S":
+            # TB01PD's own balancing (TB01ID, MAXRED = 100) done first, then TB01PD without it: the same
+            # numbers bit for bit, but slycot's TB01PD with equil='S' and tol > 1 dies in LAPACK (DORMQR
+            # "parameter 5 illegal", then a segmentation fault) — a tolerance that large means rank 0.
+            _, A, B, C = slycot.tb01id(n, mp, mp, 100.0, A, B, C, job="A")[:4]
+        Ar, Br, Cr, nr = slycot.tb01pd(n, m, p, A, B, C, job=job, equil="N", tol=0.0 if tol is None else tol)
         return LTI(Ar[:nr, :nr], Br[:nr, :m], Cr[:p, :nr], self.D, self.dt)
 
     def to_discrete(self, Ts: float) -> "LTI":

@@ -68,7 +68,17 @@ STRICT_STATES = {"5.11", "5.14", "5.15", "5.16", "5.17", "seed14", "5.16d", "nie
 STRICT_HANKEL = {"seed14", "niemann_d"}
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+#: seed 14's rows were lowered 23 -> 2 while model_matching solved sampled equations; on the pencil core
+#: (least_solve) the least-order solve of Q_i Ge = [0 0 Rf_i Rw_i] is refused by its own post-condition
+#: (u+d leak 19.4 x the weakest fault gain at mm_tol = 1e-9; at 1e-8 and 1e-7 the solution is the zero row):
+#: the reference Q_i·[Gf Gw] of the order-23 optimal row is known only to ~1e-9, as seed 32 in
+#: test_synthesis_matching_core.py. mindeg then keeps the optimal row (correct, not lowered).
+_LOWERED_BY_THE_SAMPLED_SOLVER_ONLY = {"seed14"}
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="least-order solve on the core refused (see above)"))
+    if n in _LOWERED_BY_THE_SAMPLED_SOLVER_ONLY else n for n in sorted(CASES)])
 def test_least_order_rows_with_the_optimal_error(name):
     make, Mr, kw = CASES[name]
     model = make()
