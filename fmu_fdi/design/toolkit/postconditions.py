@@ -166,30 +166,70 @@ def _values(sys: LTI, lam: np.ndarray) -> np.ndarray:
         return transfer_values(sys.A, sys.B, sys.C, sys.D, lam)
 
 
-#: a boundary mode of the plant counts as cancelled in a row when ``||Q_i(p) c_p||`` is at most this many times
-#: the rounding of its eigen-direction, ``δ = eps·||A||/sep_p · ||Q_i(p)|| ||Ce||`` (:func:`_without_cancelled_modes`).
-#: Measured: random seed 33's rows that decouple fc (mode z = 1) cancel it to 0.0006 … 65 δ (the rows that
-#: need fc: 1e10 … 3e12 δ); the leak ε = 1e-12 of tests/test_synthesis_random.py is 1.6e3 δ. 300 sits between
-#: (a factor ~5 from either side): the constant of the first-order bound and the design's own steps.
-CANCEL_ROUNDING = 300.0
+#: GVL's constant in the non-asymptotic eigenvector bound ``||δv|| ≤ 4 ||E|| / sep`` (valid for ``||E|| ≤ sep/5``;
+#: Golub & Van Loan, *Matrix Computations*, 4th ed., Thm. 7.2.4); :func:`_without_cancelled_modes`
+EIGVEC_BOUND = 4.0
 
 
-def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarray) -> list:
+def _row_system(Q: LTI, g) -> LTI:
+    """Row group ``g`` of Q on the states it sees (its C's nonzero columns, closed under A's coupling): inside a
+    stacked bank, that row's own member filter."""
+    if not Q.n:
+        return LTI(Q.A, Q.B, Q.C[g, :], Q.D[g, :], Q.dt)
+    seen = np.any(Q.C[g, :] != 0, axis=0)
+    while True:
+        more = seen | np.any(Q.A[seen, :] != 0, axis=0)
+        if np.array_equal(more, seen):
+            break
+        seen = more
+    st = np.flatnonzero(seen)
+    return LTI(Q.A[np.ix_(st, st)], Q.B[st, :], Q.C[np.ix_(g, st)], Q.D[g, :], Q.dt)
+
+
+def _values_by_row(Q: LTI, groups, lam: np.ndarray) -> np.ndarray:
+    """Q's values at ``lam`` with each row group read from its own states (:func:`_row_system`). A bank stacks
+    members that share poles (the plant's, the placed ones); one Schur form of the stack mixes their states
+    within each cluster, so a row would read the rounding of a member 1e3 times its gain (random seed 33's
+    15-row bank: row [1 0 1 0] read ``|Q_i(1) c| = 5.5e-8`` stacked, 1.4e-13 alone)."""
+    out = _values(Q, lam)
+    if Q.n:
+        for g in groups:
+            sub = _row_system(Q, g)
+            if sub.n < Q.n:
+                out[:, g, :] = _values(sub, lam)
+    return out
+
+
+def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarray, Qv: np.ndarray) -> list:
     """``R = Q·Ge`` at the points ``lam`` with, in each row group i, the plant's boundary modes that Q_i
-    cancels to the rounding of their eigen-direction removed: the values of the minimal realisation of
-    ``R_i``, as the peer toolbox (FaultDetectionTools.jl) reduces with ``gminreal`` before it evaluates.
+    cancels to the rounding of the design removed: the values of the minimal realisation of ``R_i``, as the
+    peer toolbox (FaultDetectionTools.jl) reduces with ``gminreal`` before it evaluates. ``Qv``: Q at ``lam``.
 
     A simple pole ``p`` of the balanced ``Ge = (A, B, Ce, De)`` on or beyond the stability boundary (those the
     grid keeps ``BOUNDARY_GAP`` from) with unit eigenvector ``v_p`` is unobservable in ``R_i`` iff
-    ``Q_i(p) c_p = 0``, ``c_p = Ce v_p``. The computed ``v_p`` is accurate to ``eps·||A||/sep_p`` (``sep_p`` the
-    distance to the nearest other eigenvalue; Golub & Van Loan, 4th ed., sec. 7.2.4), so the zero of a row is
-    decidable only to ``δ_i = eps·||A||/sep_p · ||Q_i(p)|| ||Ce||``: random seed 33's rows cancel z = 1, 3.9e-3
-    from the plant pole 0.9961, to ~1e-13 of the fault gain (read ``residue/|z − 1|`` beside the gap: up to
-    1.8e-7 > dec_tol, on a grid that depends on the bank). With ``||Q_i(p) c_p|| ≤`` :data:`CANCEL_ROUNDING`
-    ``· δ_i`` the mode is removed (a residue above it is a real leak and stays: ``r = (y1 − (1 + ε) y2)/(s + 1)``
-    with ε = 1e-12 has ``|Q(0) c| = 1e-12 = 1.6e3 δ``, tests/test_synthesis_random.py). With an ordered Schur form
-    ``A = U T Uᴴ``, the removed modes first (``T11``; the orthogonal basis, not the ill-conditioned
-    eigenvectors), ``Ge = C1 (λI − T11)⁻¹ S(λ) + Ge'(λ)``, ``S = B1 + T12 (λI − T22)⁻¹ B2``,
+    ``Q_i(p) c_p = 0``, ``c_p = Ce v_p``. A design computed in floating point with backward-stable steps
+    (balancing, orthogonal staircases, Schur forms, Sylvester equations) on a realisation of order
+    ``N = n + n_q,i`` (the plant and the row's own filter) is the exact design of data perturbed by
+    ``||E|| ≤ N·eps·||A||`` (the usual ``p(N) = N`` of Householder-based algorithms; Higham, *Accuracy and
+    Stability of Numerical Algorithms*, 2nd ed., ch. 19), so it places its zero on an eigen-direction of
+    ``A + E``. That direction differs from ``v_p`` by ``||δv|| ≤ 4||E||/sep_p`` (:data:`EIGVEC_BOUND`;
+    ``sep_p = σ_min(T22 − p I)``, the separation of p from the rest of the ordered Schur form ``[p t; 0 T22]``,
+    which is the distance to the nearest other eigenvalue when A is normal and smaller when it is not), and
+    the row's value ``Q_i(p)`` carries its own rounding ``N·eps·max_λ ||Q_i(λ)||``. So the zero of a row is
+    decidable only to
+
+        δ_i = N·eps·( 4·||A||/sep_p · ||Q_i(p)|| ||Ce||  +  max_λ ||Q_i(λ)|| · ||c_p|| ),
+
+    and a mode with ``||Q_i(p) c_p|| ≤ δ_i`` is removed from row i: it is unobservable in ``R_i`` as far as the
+    data can tell. Scale-free: a row scaling, a time scaling ``A → αA`` and the state scaling balancing undoes
+    change both sides alike. Where the bound is void (``N·eps·||A|| > sep_p/5``: a repeated or clustered pole)
+    nothing is removed. Measured (report of issue 17, judge33): random seed 33's rows that decouple fc (mode
+    z = 1, 3.9e-3 from the plant pole 0.9961, n = 18, rows of order 8 … 17) cancel it to 0.002 … 0.5 δ_i (7 …
+    65 in units of eps·||A||/sep·||Q_i(p)|| ||Ce||); the leak ε = 1e-12 of tests/test_synthesis_random.py is
+    ~1e2 δ_i and stays, with ε ≥ 1e-14 on the same 3-state realisation.
+
+    With the ordered Schur form ``A = U T Uᴴ``, the removed modes first (``T11``; the orthogonal basis, not the
+    ill-conditioned eigenvectors), ``Ge = C1 (λI − T11)⁻¹ S(λ) + Ge'(λ)``, ``S = B1 + T12 (λI − T22)⁻¹ B2``,
     ``Ge' = C2 (λI − T22)⁻¹ B2 + De``; with Y solving ``A_q Y − Y T11 + B_q C1 = 0``,
 
         Q_i C1 (λI − T11)⁻¹ = (D_q,i C1 + C_q,i Y)(λI − T11)⁻¹ − C_q,i (λI − A_q)⁻¹ Y,
@@ -209,26 +249,31 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
     if not cand.size:
         return done
     nA, nC = max(1.0, float(np.linalg.norm(A, 2))), float(np.linalg.norm(Ce, 2))
+    near = lambda x, y: bool(abs(x - y) <= 1e-8 * max(1.0, abs(y)))  # noqa: E731
     poles, dirs, seps = [], [], []
     for j in cand:
-        d = np.abs(ev - ev[j])
-        d[j] = np.inf
-        sep = float(np.min(d)) if ev.size > 1 else nA
-        if sep <= 1e-8 * max(1.0, abs(ev[j])):
-            continue  # repeated: a Jordan block, not decided here
+        T, _, k = sla.schur(A.astype(complex), output="complex", sort=lambda x: near(x, ev[j]))
+        if k != 1:
+            continue  # repeated (a Jordan block, or a cluster within 1e-8): not decided here
+        sep = float(np.linalg.svd(T[1:, 1:] - ev[j] * np.eye(A.shape[0] - 1), compute_uv=False)[-1]) if k < A.shape[0] else nA
         poles.append(ev[j]); dirs.append(Ce @ V[:, j] / np.linalg.norm(V[:, j])); seps.append(sep)
     if not poles:
         return done
     poles = np.array(poles)
-    Qv_p = _values(Q, poles)
-    if not np.all(np.isfinite(Qv_p)):
-        return done
-    Qb = Q.balanced()[0] if Q.n and Q.m and Q.p else Q
     for i, g in enumerate(groups):
+        Qi = _row_system(Q, g)  # the row's own filter: a bank's other members add nothing but their rounding
+        Qv_p = _values(Qi, poles)
+        if not np.all(np.isfinite(Qv_p)):
+            continue
+        N = model.n + Qi.n
+        qpk = float(np.max(_nrm(Qv[:, g, :])))
         keep = []
         for k, p in enumerate(poles):
-            Qg = Qv_p[k][g, :]
-            tol = CANCEL_ROUNDING * EPS * nA / seps[k] * float(np.linalg.norm(Qg, 2)) * nC
+            if N * EPS * nA > seps[k] / 5:
+                continue  # the perturbation bound does not hold: nothing is decidable
+            Qg = Qv_p[k]
+            tol = N * EPS * (EIGVEC_BOUND * nA / seps[k] * float(np.linalg.norm(Qg, 2)) * nC
+                             + qpk * float(np.linalg.norm(dirs[k])))
             if float(np.linalg.norm(Qg @ dirs[k])) <= tol:
                 keep.append(p)
         if not keep:
@@ -245,13 +290,12 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
         X2 = np.linalg.solve(lam[:, None, None] * I2 - T22, np.broadcast_to(B2, (lam.size,) + B2.shape))
         Ge_r = C2 @ X2 + De                       # Ge' at the points
         S = B1 + T12 @ X2                         # (K, kk, m)
-        Qg = _values(Q, lam)[:, g, :]
-        Ri = Qg @ Ge_r
-        if Qb.n:
+        Ri = Qv[:, g, :] @ Ge_r
+        if Qi.n:
+            Qb = Qi.balanced()[0]
             Y = sla.solve_sylvester(Qb.A.astype(complex), -T11, -(Qb.B @ C1))
-            Iq = np.eye(Qb.n)
-            Z = np.linalg.solve(lam[:, None, None] * Iq - Qb.A, np.broadcast_to(Y, (lam.size,) + Y.shape))
-            Ri = Ri - Qb.C[g, :] @ Z @ S
+            Z = np.linalg.solve(lam[:, None, None] * np.eye(Qb.n) - Qb.A, np.broadcast_to(Y, (lam.size,) + Y.shape))
+            Ri = Ri - Qb.C @ Z @ S
         if np.all(np.isfinite(Ri)):
             R[:, g, :] = Ri
             done.append(i)
@@ -347,7 +391,7 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
         return out
     omega, lam = _eval_points(model, Q)
     Ge = _values(model.augmented(), lam)
-    Qv = _values(Q, lam)
+    Qv = _values_by_row(Q, groups, lam)
     ok = np.all(np.isfinite(Ge), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))
     if not np.any(ok):
         out["finite"] = False
@@ -358,7 +402,7 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     fsl = sl["f"]
     fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
     R = np.einsum("kiq,kqc->kic", Qv, Ge)
-    _without_cancelled_modes(model, Q, groups, lam[ok], R)
+    _without_cancelled_modes(model, Q, groups, lam[ok], R, Qv)
     Gf_n = [_nrm(Ge[:, :p, c]) for c in fcols]
     nGe = _nrm(Ge)
     for i, g in enumerate(groups):
