@@ -532,6 +532,30 @@ def test_library_judge_gap_hides_no_inexact_cancellation(eps, leaks):
         assert bool(judge(type("G", (), {"Q": Q, "groups": [[0]]}), model, [[1]], ["f"])) == leaks
 
 
+@pytest.mark.parametrize("dt", [0.0, 0.1])
+@pytest.mark.parametrize("eps, leaks", [(0.0, False), (1e-15, False), (1e-11, True)])
+def test_library_judge_reads_an_undamped_pair_beside_its_gap(dt, eps, leaks):
+    """As above with d exciting an undamped pair (±2j; discrete e^{±0.5j}, 0.5 rad per sample): y1 = d·Gm + u/(s + 2) + f, y2 = d·Gm + u/(s + 2), r = (y1 − (1 + ε) y2)·F. The log-spaced grid
+    steps 10 % past the pair, so a kept residue ρ read only ~ρ/0.2 (ε = 1e-11: 7.8e-11, passed); the judge now reads
+    two gaps beside it (ρ/(2·gap), gap = 1e-6·||A||): ε = 1e-11 (residue 4.5e-12 of the unit fault gain, a resonant
+    input's response growing 4.5e-12·t) reads ~1e-6 > dec_tol and is refused, while ε = 1e-15 (0.09 of the design's
+    rounding δ_i, removed as cancelled) and the exact row pass."""
+    from fmu_fdi.design.toolkit.postconditions import check_generator
+    from fmu_fdi.generator import ResidualGenerator
+    from fmu_fdi.lti import LTI
+
+    c, s_ = (np.cos(0.5), np.sin(0.5)) if dt else (0.0, 2.0)
+    A = sla.block_diag([[c, s_], [-s_, c]], [[0.5 if dt else -2.0]])
+    model = FDIModel.from_matrices(A, [[0.0], [0.0], [1.0]], np.ones((2, 3)), Bd=[[1.0], [0.0], [0.0]],
+                                   faults=[sensor_fault("f", "y1")], dt=dt)
+    Q = LTI(np.array([[0.3 if dt else -1.0]]), np.array([[1.0, -(1.0 + eps), 0.0]]), np.array([[1.0]]),
+            np.zeros((1, 3)), dt)
+    fig = check_generator(ResidualGenerator(Q, model, "test"), raise_error=False)
+    assert bool(fig.get("failures")) == leaks, fig
+    if leaks:
+        assert any("leak" in f for f in fig["failures"]), fig["failures"]
+
+
 @pytest.mark.parametrize("eps, removed", [(0.0, True), (2.0 ** -50, True), (1e-13, False), (1e-12, False)])
 def test_judge_reads_the_minimal_realisation_of_a_cancelled_boundary_mode(eps, removed):
     """The plant of the test above; a residue ε of the integrator at rounding level is removed as the minimal

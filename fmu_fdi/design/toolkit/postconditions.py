@@ -6,8 +6,8 @@ A residual generator ``Q`` acting on ``[y; u]`` has the internal form
 
 the transfer from every plant input to the residual the user sees. Every figure below is a
 peak over one frequency grid Λ (:func:`_eval_points`: log-spaced two decades beyond every
-pole scale of the plant and the filter, plus 0, the resonances of lightly damped poles and,
-discrete, Nyquist; without points below
+pole scale of the plant and the filter, plus 0, the resonances of lightly damped poles, two gaps
+beside every pole on the stability boundary (:func:`_beside_boundary_freqs`) and, discrete, Nyquist; without points below
 1e-9 of its top, within 1e-9, relative, of a pole of either realisation, or within
 ``BOUNDARY_GAP·||A||`` of one on the stability boundary: :func:`_beside_boundary_poles`) of values computed
 point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no general minimal realisation or
@@ -102,6 +102,7 @@ def _resonances(poles: np.ndarray, dt: float) -> np.ndarray:
 def _eval_points(model, Q: LTI, freqs=None) -> tuple[np.ndarray, np.ndarray]:
     extra = [] if freqs is None else [np.atleast_1d(np.asarray(freqs, float))]
     extra.append(_resonances(np.concatenate([model.lti().poles(), Q.poles()]), model.dt))
+    extra.append(_beside_boundary_freqs([model.lti(), Q], model.dt))
     omega = frequency_grid([model.lti(), Q] if Q.n else [model.lti()], num=120, extra=np.concatenate(extra))
     omega = omega[np.isfinite(omega)]
     # no points below 1e-9 of the top (1e-7 of the largest pole scale): a pole at 1e-17 (an
@@ -137,22 +138,47 @@ def _beside_boundary_poles(lam: np.ndarray, systems, dt: float) -> np.ndarray:
     floor next to an integrator computed at 1e-17) that is 1e-7 … 1e-6: random seeds 10 and 26 were refused
     for it, and the value seed 10 read depended on the solver (a dense LU solve passed, the Schur-form solve
     of larger models failed). At δ ≥ 1e-6·||A|| such a residue reads ≤ 1e-8, while a cancellation off by
-    1e-12 of the fault gain still reads ≥ 1e-6 > dec_tol (tests/test_synthesis_random.py); a coupling above
+    1e-12 of the fault gain still reads ≥ 2.5e-7 > dec_tol two gaps beside it, where the grid has points
+    (:func:`_beside_boundary_freqs`; tests/test_synthesis_random.py); a coupling above
     ``R_POLE_TOL`` is refused as a pole of R (:func:`_r_poles`) whatever the grid.
     """
     mask = np.zeros(lam.size, bool)
-    smarg = default_smarg(dt)
+    for p, gap in _boundary_poles(systems, dt):
+        mask |= np.min(np.abs(lam[:, None] - p[None, :]), axis=1) <= gap
+    return mask
+
+
+def _boundary_poles(systems, dt: float) -> list:
+    """``(poles outside the default margin, BOUNDARY_GAP·max(1, ||A_bal||))`` of each of ``systems`` that has any."""
+    out = []
     for S in systems:
         if not S.n:
             continue
         p = S.poles()
-        p = p[outside_margin(p, dt, smarg)]
-        if not p.size:
-            continue
-        bal = S.balanced()[0] if S.m and S.p else S
-        gap = BOUNDARY_GAP * max(1.0, float(np.linalg.norm(bal.A, 2)))
-        mask |= np.min(np.abs(lam[:, None] - p[None, :]), axis=1) <= gap
-    return mask
+        p = p[outside_margin(p, dt, default_smarg(dt))]
+        if p.size:
+            bal = S.balanced()[0] if S.m and S.p else S
+            out.append((p, BOUNDARY_GAP * max(1.0, float(np.linalg.norm(bal.A, 2)))))
+    return out
+
+
+def _beside_boundary_freqs(systems, dt: float) -> np.ndarray:
+    """Frequencies two gaps beside every pole on the stability boundary (``ω0 ± 2·gap``, discrete ``(θ0 ± 2·gap)/dt``;
+    :func:`_beside_boundary_poles`): the judge reads every boundary mode a row keeps at the same distance, so a
+    residue ρ of a mode the row does not cancel to rounding (:func:`_without_cancelled_modes`) reads ``ρ/(2·gap)``
+    at s = 0 and z = 1 as at an undamped pair or e^{jθ}, whose neighbourhood a log-spaced grid (10 % steps) never
+    reaches (ε = 1e-11 at ±2j read 7.8e-11 and passed)."""
+    out = []
+    for p, gap in _boundary_poles(systems, dt):
+        if dt:
+            on = p[np.abs(np.abs(p) - 1.0) <= gap]
+            w0, off = np.abs(np.angle(on)) / dt, 2.0 * gap / dt
+        else:
+            on = p[np.abs(p.real) <= gap]
+            w0, off = np.abs(on.imag), 2.0 * gap
+        out.append(np.concatenate([w0 - off, w0 + off]))
+    w = np.concatenate(out) if out else np.zeros(0)
+    return w[(w > 0) & (w <= np.pi / dt)] if dt else w[w > 0]
 
 
 def _values(sys: LTI, lam: np.ndarray) -> np.ndarray:
