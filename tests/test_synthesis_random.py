@@ -579,7 +579,7 @@ def test_judge_reads_the_minimal_realisation_of_a_cancelled_boundary_mode(eps, r
     Ge = np.stack([np.stack([1 / (lam + 2), 1 / lam, zero], -1), np.stack([1 / (lam + 2), 1 / lam, one], -1),
                    np.stack([one, zero, zero], -1)], 1)               # inputs u, d, f; outputs y0, y1, u
     R = Qv @ Ge
-    assert _without_cancelled_modes(model, Q, [[0]], lam, R, Qv) == ([0] if removed else [])
+    assert _without_cancelled_modes(model, Q, [[0]], lam, R, Qv, Ge) == ([0] if removed else [])
     if removed:
         want = np.stack([-eps / ((lam + 1) * (lam + 2)), eps / (lam + 1), -1 / (lam + 1)], axis=1)
         # the removal subtracts the pole part from R as given: R keeps its own rounding, that of Q·Ge with

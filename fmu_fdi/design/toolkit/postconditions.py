@@ -226,10 +226,12 @@ def _values_by_row(Q: LTI, groups, lam: np.ndarray) -> np.ndarray:
     return out
 
 
-def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarray, Qv: np.ndarray) -> list:
+def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarray, Qv: np.ndarray,
+                             Ge: np.ndarray) -> list:
     """``R = Q·Ge`` at the points ``lam`` with, in each row group i, the plant's boundary modes that Q_i
     cancels to the rounding of the design removed: the values of the minimal realisation of ``R_i``, as the
-    peer toolbox (FaultDetectionTools.jl) reduces with ``gminreal`` before it evaluates. ``Qv``: Q at ``lam``.
+    peer toolbox (FaultDetectionTools.jl) reduces with ``gminreal`` before it evaluates. ``Qv``, ``Ge``: Q and
+    Ge at ``lam`` (R = Qv·Ge).
 
     A simple pole ``p`` of the balanced ``Ge = (A, B, Ce, De)`` on or beyond the stability boundary (those the
     grid keeps ``BOUNDARY_GAP`` from) with unit eigenvector ``v_p`` is unobservable in ``R_i`` iff
@@ -262,9 +264,14 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
         Q_i C1 (λI − T11)⁻¹ = K (λI − T11)⁻¹ − C_q,i (λI − A_q)⁻¹ Y,   K = D_q,i C1 + C_q,i Y,
 
     whose first term is the pole part (for one mode ``K = Q_i(p) c_p``, the residue tested). The minimal
-    realisation drops it: ``R_i' = R_i − K (λI − T11)⁻¹ S(λ)``, a correction of the size of the residue, so
-    ``R_i'`` keeps the accuracy of ``R_i`` (forming ``Q_i Ge' − C_q,i (λI − A_q)⁻¹ Y S`` instead cancelled two
-    large terms: random seed 51's e^{±0.2j} read a u leak 3.9e-6 for 1.2e-9). Returns the row groups (indices)
+    realisation drops it: ``R_i' = R_i − K (λI − T11)⁻¹ S(λ)`` = ``Q_i Ge' − C_q,i (λI − A_q)⁻¹ Y S``. The two
+    forms are equal in exact arithmetic and round differently. Beside p the subtracted pole part is known only to
+    the eigen-direction's rounding (δ_i itself, over ``|λ − p|``), so there the second form, which never forms the
+    pole, is used (random seed 33's row [0 1 0 0]: fc read 8.8e-7 at |z − 1| = 1e-6 by the first, 3.6e-9 by the
+    second); away from p the pole part is small and smooth and the first form keeps R's own accuracy, while the
+    second carries the rounding of another Schur form's ``Ge'`` and of ``Y ~ 1/sep(A_q, T11)`` (random seed 51's
+    e^{±0.2j}: u read 3.9e-6 beside the plant's poles near z = 1, 1.2e-9 by the first). A point takes the second
+    form where it is nearer to a removed mode than to any other eigenvalue of A. Returns the row groups (indices)
     whose values were replaced; R is changed in place.
     """
     done = []
@@ -316,12 +323,24 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
         X2 = np.linalg.solve(lam[:, None, None] * np.eye(T.shape[0] - kk) - T[kk:, kk:],
                              np.broadcast_to(Bt[kk:], (lam.size,) + Bt[kk:].shape))
         S = Bt[:kk] + T[:kk, kk:] @ X2                               # (K, kk, m)
-        K = Qi.D @ C1                                                # Q_i(T11) C1: Q_i(p) c_p for one mode
+        Qg = Qv[:, g, :]
+        Ge_r = Ce @ U[:, kk:] @ X2 + De                              # Ge' at the points
         if Qi.n:
             Qb = Qi.balanced()[0]
-            K = K + Qb.C @ sla.solve_sylvester(Qb.A.astype(complex), -T[:kk, :kk], -(Qb.B @ C1))
-        W = np.linalg.solve(lam[:, None, None] * np.eye(kk) - T[:kk, :kk], S)
-        Ri = R[:, g, :] - K @ W
+            Y = sla.solve_sylvester(Qb.A.astype(complex), -T[:kk, :kk], -(Qb.B @ C1))
+            K = Qi.D @ C1 + Qb.C @ Y                                 # Q_i(p) c_p for one mode
+            W = np.linalg.solve(lam[:, None, None] * np.eye(kk) - T[:kk, :kk], S)
+            Ri = R[:, g, :] - K @ W                                  # R minus its pole part
+            Z = Qb.C @ np.linalg.solve(lam[:, None, None] * np.eye(Qb.n) - Qb.A, np.broadcast_to(Y, (lam.size,) + Y.shape))
+            R_syl = Qg @ Ge_r - Z @ S                                # the same, from the realisation without the pole
+            # the realisation without the pole in the removed modes' own neighbourhood (nearer to one of them than to
+            # any other eigenvalue of A, where their pole part dominates Ge), R less its pole part elsewhere
+            other = ev[~np.array([sel(x) for x in ev])]
+            d_keep = np.min(np.abs(lam[:, None] - keep[None, :]), axis=1)
+            d_other = np.min(np.abs(lam[:, None] - other[None, :]), axis=1) if other.size else np.full(lam.size, np.inf)
+            Ri = np.where((d_keep < d_other)[:, None, None], R_syl, Ri)
+        else:
+            Ri = Qg @ Ge_r                                           # a static row: Q_i Ge' exactly
         if np.all(np.isfinite(Ri)):
             R[:, g, :] = Ri
             done.append(i)
@@ -428,7 +447,7 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     fsl = sl["f"]
     fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
     R = np.einsum("kiq,kqc->kic", Qv, Ge)
-    _without_cancelled_modes(model, Q, groups, lam[ok], R, Qv)
+    _without_cancelled_modes(model, Q, groups, lam[ok], R, Qv, Ge)
     Gf_n = [_nrm(Ge[:, :p, c]) for c in fcols]
     nGe = _nrm(Ge)
     for i, g in enumerate(groups):
