@@ -284,14 +284,15 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
     cand = np.flatnonzero(outside_margin(ev, model.dt, default_smarg(model.dt)))
     if not cand.size:
         return done
-    nA, nC = max(1.0, float(np.linalg.norm(A, 2))), float(np.linalg.norm(Ce, 2))
+    nA, nC = float(np.linalg.norm(A, 2)), float(np.linalg.norm(Ce, 2))  # ||A||, not max(1, ·): scale-free
     near = lambda x, y: bool(abs(x - y) <= 1e-8 * max(1.0, abs(y)))  # noqa: E731
     poles, dirs, seps = [], [], []
     for j in cand:
         T, U, k = sla.schur(A.astype(complex), output="complex", sort=lambda x: near(x, ev[j]))
         if k != 1:
             continue  # repeated (a Jordan block, or a cluster within 1e-8): not decided here
-        sep = float(np.linalg.svd(T[1:, 1:] - ev[j] * np.eye(A.shape[0] - 1), compute_uv=False)[-1]) if k < A.shape[0] else nA
+        # n = 1: the eigen-direction is exact (sep = ∞, the first term of δ_i vanishes)
+        sep = float(np.linalg.svd(T[1:, 1:] - ev[j] * np.eye(A.shape[0] - 1), compute_uv=False)[-1]) if k < A.shape[0] else np.inf
         poles.append(ev[j]); dirs.append(Ce @ U[:, 0]); seps.append(sep)  # U[:, 0]: the unit eigenvector v_p
     if not poles:
         return done
