@@ -343,7 +343,14 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
         else:
             Ri = Qg @ Ge_r                                           # a static row: Q_i Ge' exactly
         if np.all(np.isfinite(Ri)):
-            R[:, g, :] = Ri
+            # Both are readings of R_i' (R_i and R_i' differ by the pole part, below δ_i: the mode is removed), each
+            # with its own rounding; the mode-free forms carry Y ~ 1/sep(A_q, T11) and S, which a non-normal plant
+            # makes large (VTOL at 0.01 s: an unstable pair 5e-3 from a stable pole, eigenvector condition ~4e8 —
+            # the mode-free form read a u leak 3.9e-7 where R_i itself reads 6.6e-12 on a dense grid). A true leak
+            # that is not the pole part is in both readings, so per point and column the smaller one is kept.
+            Rg = R[:, g, :]
+            smaller = np.linalg.norm(Ri, axis=1) <= np.linalg.norm(Rg, axis=1)   # (K, columns)
+            R[:, g, :] = np.where(smaller[:, None, :], Ri, Rg)
             done.append(i)
     return done
 
