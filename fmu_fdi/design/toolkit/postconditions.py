@@ -6,12 +6,14 @@ A residual generator ``Q`` acting on ``[y; u]`` has the internal form
 
 the transfer from every plant input to the residual the user sees. Every figure below is a
 peak over one frequency grid Λ (:func:`_eval_points`: log-spaced two decades beyond every
-pole scale of the plant and the filter, plus 0, the resonances of lightly damped poles and,
-discrete, Nyquist; without points below
+pole scale of the plant and the filter, plus 0, the resonances of lightly damped poles, two gaps
+beside every pole on the stability boundary (:func:`_beside_boundary_freqs`) and, discrete, Nyquist; without points below
 1e-9 of its top, within 1e-9, relative, of a pole of either realisation, or within
 ``BOUNDARY_GAP·||A||`` of one on the stability boundary: :func:`_beside_boundary_poles`) of values computed
-point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no minimal realisation, no
-rank decision). :func:`internal_figures` computes them once; ``leakage()``,
+point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no general minimal realisation or
+rank decision; one exception: a plant mode on the stability boundary that a row cancels to the rounding of
+its eigen-direction is removed from that row, :func:`_without_cancelled_modes`). :func:`internal_figures`
+computes them once; ``leakage()``,
 ``structure_matrix()`` (:mod:`fmu_fdi.analysis`) and :func:`check_generator` all read them,
 so ``gen.info['postconditions']`` is what ``leakage(gen)`` and ``structure_matrix(gen)``
 report for the returned object.
@@ -51,6 +53,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import scipy.linalg as sla
 
 from ...errors import DesignError
 from ...freqresp import transfer_values
@@ -99,6 +102,7 @@ def _resonances(poles: np.ndarray, dt: float) -> np.ndarray:
 def _eval_points(model, Q: LTI, freqs=None) -> tuple[np.ndarray, np.ndarray]:
     extra = [] if freqs is None else [np.atleast_1d(np.asarray(freqs, float))]
     extra.append(_resonances(np.concatenate([model.lti().poles(), Q.poles()]), model.dt))
+    extra.append(_beside_boundary_freqs([model.lti(), Q], model.dt))
     omega = frequency_grid([model.lti(), Q] if Q.n else [model.lti()], num=120, extra=np.concatenate(extra))
     omega = omega[np.isfinite(omega)]
     # no points below 1e-9 of the top (1e-7 of the largest pole scale): a pole at 1e-17 (an
@@ -134,22 +138,47 @@ def _beside_boundary_poles(lam: np.ndarray, systems, dt: float) -> np.ndarray:
     floor next to an integrator computed at 1e-17) that is 1e-7 … 1e-6: random seeds 10 and 26 were refused
     for it, and the value seed 10 read depended on the solver (a dense LU solve passed, the Schur-form solve
     of larger models failed). At δ ≥ 1e-6·||A|| such a residue reads ≤ 1e-8, while a cancellation off by
-    1e-12 of the fault gain still reads ≥ 1e-6 > dec_tol (tests/test_synthesis_random.py); a coupling above
+    1e-12 of the fault gain still reads ≥ 2.5e-7 > dec_tol two gaps beside it, where the grid has points
+    (:func:`_beside_boundary_freqs`; tests/test_synthesis_random.py); a coupling above
     ``R_POLE_TOL`` is refused as a pole of R (:func:`_r_poles`) whatever the grid.
     """
     mask = np.zeros(lam.size, bool)
-    smarg = default_smarg(dt)
+    for p, gap in _boundary_poles(systems, dt):
+        mask |= np.min(np.abs(lam[:, None] - p[None, :]), axis=1) <= gap
+    return mask
+
+
+def _boundary_poles(systems, dt: float) -> list:
+    """``(poles outside the default margin, BOUNDARY_GAP·max(1, ||A_bal||))`` of each of ``systems`` that has any."""
+    out = []
     for S in systems:
         if not S.n:
             continue
         p = S.poles()
-        p = p[outside_margin(p, dt, smarg)]
-        if not p.size:
-            continue
-        bal = S.balanced()[0] if S.m and S.p else S
-        gap = BOUNDARY_GAP * max(1.0, float(np.linalg.norm(bal.A, 2)))
-        mask |= np.min(np.abs(lam[:, None] - p[None, :]), axis=1) <= gap
-    return mask
+        p = p[outside_margin(p, dt, default_smarg(dt))]
+        if p.size:
+            bal = S.balanced()[0] if S.m and S.p else S
+            out.append((p, BOUNDARY_GAP * max(1.0, float(np.linalg.norm(bal.A, 2)))))
+    return out
+
+
+def _beside_boundary_freqs(systems, dt: float) -> np.ndarray:
+    """Frequencies two gaps beside every pole on the stability boundary (``ω0 ± 2·gap``, discrete ``(θ0 ± 2·gap)/dt``;
+    :func:`_beside_boundary_poles`): the judge reads every boundary mode a row keeps at the same distance, so a
+    residue ρ of a mode the row does not cancel to rounding (:func:`_without_cancelled_modes`) reads ``ρ/(2·gap)``
+    at s = 0 and z = 1 as at an undamped pair or e^{jθ}, whose neighbourhood a log-spaced grid (10 % steps) never
+    reaches (ε = 1e-11 at ±2j read 7.8e-11 and passed)."""
+    out = []
+    for p, gap in _boundary_poles(systems, dt):
+        if dt:
+            on = p[np.abs(np.abs(p) - 1.0) <= gap]
+            w0, off = np.abs(np.angle(on)) / dt, 2.0 * gap / dt
+        else:
+            on = p[np.abs(p.real) <= gap]
+            w0, off = np.abs(on.imag), 2.0 * gap
+        out.append(np.concatenate([w0 - off, w0 + off]))
+    w = np.concatenate(out) if out else np.zeros(0)
+    return w[(w > 0) & (w <= np.pi / dt)] if dt else w[w > 0]
 
 
 def _values(sys: LTI, lam: np.ndarray) -> np.ndarray:
@@ -161,6 +190,169 @@ def _values(sys: LTI, lam: np.ndarray) -> np.ndarray:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return transfer_values(sys.A, sys.B, sys.C, sys.D, lam)
+
+
+#: GVL's constant in the non-asymptotic eigenvector bound ``||δv|| ≤ 4 ||E|| / sep`` (valid for ``||E|| ≤ sep/5``;
+#: Golub & Van Loan, *Matrix Computations*, 4th ed., Thm. 7.2.4); :func:`_without_cancelled_modes`
+EIGVEC_BOUND = 4.0
+
+
+def _row_system(Q: LTI, g) -> LTI:
+    """Row group ``g`` of Q on the states it sees (its C's nonzero columns, closed under A's coupling): inside a
+    stacked bank, that row's own member filter."""
+    if not Q.n:
+        return LTI(Q.A, Q.B, Q.C[g, :], Q.D[g, :], Q.dt)
+    seen = np.any(Q.C[g, :] != 0, axis=0)
+    while True:
+        more = seen | np.any(Q.A[seen, :] != 0, axis=0)
+        if np.array_equal(more, seen):
+            break
+        seen = more
+    st = np.flatnonzero(seen)
+    return LTI(Q.A[np.ix_(st, st)], Q.B[st, :], Q.C[np.ix_(g, st)], Q.D[g, :], Q.dt)
+
+
+def _values_by_row(Q: LTI, groups, lam: np.ndarray) -> np.ndarray:
+    """Q's values at ``lam`` with each row group read from its own states (:func:`_row_system`). A bank stacks
+    members that share poles (the plant's, the placed ones); one Schur form of the stack mixes their states
+    within each cluster, so a row would read the rounding of a member 1e3 times its gain (random seed 33's
+    15-row bank: row [1 0 1 0] read ``|Q_i(1) c| = 5.5e-8`` stacked, 1.4e-13 alone)."""
+    out = _values(Q, lam)
+    if Q.n:
+        for g in groups:
+            sub = _row_system(Q, g)
+            if sub.n < Q.n:
+                out[:, g, :] = _values(sub, lam)
+    return out
+
+
+def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarray, Qv: np.ndarray,
+                             Ge: np.ndarray) -> list:
+    """``R = Q·Ge`` at the points ``lam`` with, in each row group i, the plant's boundary modes that Q_i
+    cancels to the rounding of the design removed: the values of the minimal realisation of ``R_i``, as the
+    peer toolbox (FaultDetectionTools.jl) reduces with ``gminreal`` before it evaluates. ``Qv``, ``Ge``: Q and
+    Ge at ``lam`` (R = Qv·Ge).
+
+    A simple pole ``p`` of the balanced ``Ge = (A, B, Ce, De)`` on or beyond the stability boundary (those the
+    grid keeps ``BOUNDARY_GAP`` from) with unit eigenvector ``v_p`` is unobservable in ``R_i`` iff
+    ``Q_i(p) c_p = 0``, ``c_p = Ce v_p``. A design computed in floating point with backward-stable steps
+    (balancing, orthogonal staircases, Schur forms, Sylvester equations) on a realisation of order
+    ``N = n + n_q,i`` (the plant and the row's own filter) is the exact design of data perturbed by
+    ``||E|| ≤ N·eps·||A||`` (the usual ``p(N) = N`` of Householder-based algorithms; Higham, *Accuracy and
+    Stability of Numerical Algorithms*, 2nd ed., ch. 19), so it places its zero on an eigen-direction of
+    ``A + E``. That direction differs from ``v_p`` by ``||δv|| ≤ 4||E||/sep_p`` (:data:`EIGVEC_BOUND`;
+    ``sep_p = σ_min(T22 − p I)``, the separation of p from the rest of the ordered Schur form ``[p t; 0 T22]``,
+    which is the distance to the nearest other eigenvalue when A is normal and smaller when it is not), and
+    the row's value ``Q_i(p)`` carries its own rounding ``N·eps·max_λ ||Q_i(λ)||``. So the zero of a row is
+    decidable only to
+
+        δ_i = N·eps·( 4·||A||/sep_p · ||Q_i(p)|| ||Ce||  +  max_λ ||Q_i(λ)|| · ||c_p|| ),
+
+    and a mode with ``||Q_i(p) c_p|| ≤ δ_i`` is removed from row i: it is unobservable in ``R_i`` as far as the
+    data can tell. Scale-free: a row scaling, a time scaling ``A → αA`` and the state scaling balancing undoes
+    change both sides alike. Where the bound is void (``N·eps·||A|| > sep_p/5``: a repeated or clustered pole)
+    nothing is removed. Measured (issue 17): the rows of random seed 33's 15-row bank that decouple fc (mode
+    z = 1, 3.9e-3 from the plant pole 0.9961, n = 18, rows of order 8 … 17) cancel it to 3e-5 … 0.11 δ_i
+    (``|Q_i(1) c| / (||Q_i(1)|| ||c||)`` = 1e-16 … 3e-12); the leaks ε = 1e-13 and 1e-12 of
+    tests/test_synthesis_random.py are 11 and 113 δ_i and stay (ε ≤ 1e-15 is removed, 1e-14 sits at 0.5 … 1.3
+    δ_i at s = 0, ±2j, z = ±1, e^{±0.5j}).
+
+    The removal: with the ordered Schur form ``A = U T Uᴴ``, the removed modes first (``T11``; the orthogonal
+    basis, not the eigenvector matrix), ``Ge = C1 (λI − T11)⁻¹ S(λ) + Ge'(λ)``, ``S = B1 + T12 (λI − T22)⁻¹ B2``,
+    ``Ge' = C2 (λI − T22)⁻¹ B2 + De``; with Y solving ``A_q Y − Y T11 + B_q C1 = 0``,
+
+        Q_i C1 (λI − T11)⁻¹ = K (λI − T11)⁻¹ − C_q,i (λI − A_q)⁻¹ Y,   K = D_q,i C1 + C_q,i Y,
+
+    whose first term is the pole part (for one mode ``K = Q_i(p) c_p``, the residue tested). The minimal
+    realisation drops it: ``R_i' = R_i − K (λI − T11)⁻¹ S(λ)`` = ``Q_i Ge' − C_q,i (λI − A_q)⁻¹ Y S``. The two
+    forms are equal in exact arithmetic and round differently. Beside p the subtracted pole part is known only to
+    the eigen-direction's rounding (δ_i itself, over ``|λ − p|``), so there the second form, which never forms the
+    pole, is used (random seed 33's row [0 1 0 0]: fc read 8.8e-7 at |z − 1| = 1e-6 by the first, 3.6e-9 by the
+    second); away from p the pole part is small and smooth and the first form keeps R's own accuracy, while the
+    second carries the rounding of another Schur form's ``Ge'`` and of ``Y ~ 1/sep(A_q, T11)`` (random seed 51's
+    e^{±0.2j}: u read 3.9e-6 beside the plant's poles near z = 1, 1.2e-9 by the first). A point takes the second
+    form where it is nearer to a removed mode than to any other eigenvalue of A. Returns the row groups (indices)
+    whose values were replaced; R is changed in place.
+    """
+    done = []
+    if not model.n or not lam.size:
+        return done
+    G = model.augmented()
+    bal = G.balanced()[0] if G.m and G.p else G
+    A, Bp, Ce, De = bal.A, bal.B, bal.C, bal.D
+    ev = np.linalg.eigvals(A)
+    cand = np.flatnonzero(outside_margin(ev, model.dt, default_smarg(model.dt)))
+    if not cand.size:
+        return done
+    nA, nC = float(np.linalg.norm(A, 2)), float(np.linalg.norm(Ce, 2))  # ||A||, not max(1, ·): scale-free
+    near = lambda x, y: bool(abs(x - y) <= 1e-8 * max(1.0, abs(y)))  # noqa: E731
+    poles, dirs, seps = [], [], []
+    for j in cand:
+        T, U, k = sla.schur(A.astype(complex), output="complex", sort=lambda x: near(x, ev[j]))
+        if k != 1:
+            continue  # repeated (a Jordan block, or a cluster within 1e-8): not decided here
+        # n = 1: the eigen-direction is exact (sep = ∞, the first term of δ_i vanishes)
+        sep = float(np.linalg.svd(T[1:, 1:] - ev[j] * np.eye(A.shape[0] - 1), compute_uv=False)[-1]) if k < A.shape[0] else np.inf
+        poles.append(ev[j]); dirs.append(Ce @ U[:, 0]); seps.append(sep)  # U[:, 0]: the unit eigenvector v_p
+    if not poles:
+        return done
+    poles = np.array(poles)
+    for i, g in enumerate(groups):
+        Qi = _row_system(Q, g)  # the row's own filter: a bank's other members add nothing but their rounding
+        Qv_p = _values(Qi, poles)
+        if not np.all(np.isfinite(Qv_p)):
+            continue
+        N = model.n + Qi.n
+        qpk = float(np.max(_nrm(Qv[:, g, :])))
+        keep = []
+        for k, p in enumerate(poles):
+            if N * EPS * nA > seps[k] / 5:
+                continue  # the perturbation bound does not hold: nothing is decidable
+            Qg = Qv_p[k]
+            tol = N * EPS * (EIGVEC_BOUND * nA / seps[k] * float(np.linalg.norm(Qg, 2)) * nC
+                             + qpk * float(np.linalg.norm(dirs[k])))
+            if float(np.linalg.norm(Qg @ dirs[k])) <= tol:
+                keep.append(p)
+        if not keep:
+            continue
+        keep = np.array(keep)
+        sel = lambda x: bool(np.min(np.abs(keep - x)) <= 1e-8 * max(1.0, abs(x)))  # noqa: E731
+        T, U, kk = sla.schur(A.astype(complex), output="complex", sort=sel)
+        if kk != keep.size:
+            continue
+        Bt, C1 = U.conj().T @ Bp, Ce @ U[:, :kk]
+        X2 = np.linalg.solve(lam[:, None, None] * np.eye(T.shape[0] - kk) - T[kk:, kk:],
+                             np.broadcast_to(Bt[kk:], (lam.size,) + Bt[kk:].shape))
+        S = Bt[:kk] + T[:kk, kk:] @ X2                               # (K, kk, m)
+        Qg = Qv[:, g, :]
+        Ge_r = Ce @ U[:, kk:] @ X2 + De                              # Ge' at the points
+        if Qi.n:
+            Qb = Qi.balanced()[0]
+            Y = sla.solve_sylvester(Qb.A.astype(complex), -T[:kk, :kk], -(Qb.B @ C1))
+            K = Qi.D @ C1 + Qb.C @ Y                                 # Q_i(p) c_p for one mode
+            W = np.linalg.solve(lam[:, None, None] * np.eye(kk) - T[:kk, :kk], S)
+            Ri = R[:, g, :] - K @ W                                  # R minus its pole part
+            Z = Qb.C @ np.linalg.solve(lam[:, None, None] * np.eye(Qb.n) - Qb.A, np.broadcast_to(Y, (lam.size,) + Y.shape))
+            R_syl = Qg @ Ge_r - Z @ S                                # the same, from the realisation without the pole
+            # the realisation without the pole in the removed modes' own neighbourhood (nearer to one of them than to
+            # any other eigenvalue of A, where their pole part dominates Ge), R less its pole part elsewhere
+            other = ev[~np.array([sel(x) for x in ev])]
+            d_keep = np.min(np.abs(lam[:, None] - keep[None, :]), axis=1)
+            d_other = np.min(np.abs(lam[:, None] - other[None, :]), axis=1) if other.size else np.full(lam.size, np.inf)
+            Ri = np.where((d_keep < d_other)[:, None, None], R_syl, Ri)
+        else:
+            Ri = Qg @ Ge_r                                           # a static row: Q_i Ge' exactly
+        if np.all(np.isfinite(Ri)):
+            # Both are readings of R_i' (R_i and R_i' differ by the pole part, below δ_i: the mode is removed), each
+            # with its own rounding; the mode-free forms carry Y ~ 1/sep(A_q, T11) and S, which a non-normal plant
+            # makes large (VTOL at 0.01 s: an unstable pair 5e-3 from a stable pole, eigenvector condition ~4e8 —
+            # the mode-free form read a u leak 3.9e-7 where R_i itself reads 6.6e-12 on a dense grid). A true leak
+            # that is not the pole part is in both readings, so per point and column the smaller one is kept.
+            Rg = R[:, g, :]
+            smaller = np.linalg.norm(Ri, axis=1) <= np.linalg.norm(Rg, axis=1)   # (K, columns)
+            R[:, g, :] = np.where(smaller[:, None, :], Ri, Rg)
+            done.append(i)
+    return done
 
 
 def _nrm(X: np.ndarray) -> np.ndarray:
@@ -252,7 +444,7 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
         return out
     omega, lam = _eval_points(model, Q)
     Ge = _values(model.augmented(), lam)
-    Qv = _values(Q, lam)
+    Qv = _values_by_row(Q, groups, lam)
     ok = np.all(np.isfinite(Ge), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))
     if not np.any(ok):
         out["finite"] = False
@@ -263,6 +455,7 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     fsl = sl["f"]
     fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
     R = np.einsum("kiq,kqc->kic", Qv, Ge)
+    _without_cancelled_modes(model, Q, groups, lam[ok], R, Qv, Ge)
     Gf_n = [_nrm(Ge[:, :p, c]) for c in fcols]
     nGe = _nrm(Ge)
     for i, g in enumerate(groups):
