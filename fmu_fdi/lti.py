@@ -274,7 +274,7 @@ class LTI:
 
         The orthogonal staircase keeps the computation backward stable; ``tol`` is the
         rank tolerance of the staircase (SLICOT's default ``n*n*eps*||[A B; C 0]||`` when
-        None). The triplet is balanced first (SLICOT TB01ID, ``equil="S"``): without it the
+        None or ≤ 0, so an ``atol`` of 0 can be passed as it is). A static system is returned as it is. The triplet is balanced first (SLICOT TB01ID, ``equil="S"``): without it the
         rank decisions failed on badly scaled rows, e.g. the sampled row of three identical
         pitch systems kept two unobservable states. ``equil="N"`` skips the balancing (the
         decisions are then those of the coordinates given, as :func:`.model.minimal_realisation`

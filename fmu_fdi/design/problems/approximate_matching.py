@@ -263,11 +263,7 @@ def _minimal_row(Qi: LTI, atol: float = 0.0) -> LTI:
     the other rows' states are exactly unobservable), then the controllable part. SLICOT TB01PD's
     ``job='M'`` (controllable part first) kept one state too many on a row of two stacked order-2 rows
     sharing a pole (Example 5.16): the controllability staircase mixed the rows' states."""
-    if Qi.n == 0:
-        return Qi
-    tol = atol if atol > 0 else None
-    Qo = Qi.minreal(tol, job="O")
-    return Qo.minreal(tol, job="C") if Qo.n else Qo
+    return Qi.minreal(atol, job="O").minreal(atol, job="C")
 
 
 def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol):
@@ -315,7 +311,7 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
         out["reason"] = "; ".join(why) or "no row can be lowered"
         return gen, out
     stacked = vstack(rows) if len(rows) > 1 else rows[0]
-    Qm = stacked.minreal(atol if atol > 0 else None) if stacked.n else stacked
+    Qm = stacked.minreal(atol)
     cand = ResidualGenerator(Qm, model, "approximate_model_matching")
     try:
         check_generator(cand, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
@@ -398,7 +394,7 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol):
         * (scale * _mk(lam, a, K, dt))[:, None, None]
     fv, mfv = _values(fnm, lam), _values(MF, lam)
     size = max(float(np.nanmax(_nrm(mfv))), float(np.nanmax(_nrm(designed))), 1e-300)
-    for Q in (Qfull.minreal(atol if atol > 0 else None), Qfull):
+    for Q in (Qfull.minreal(atol), Qfull):
         shipped = np.einsum("kij,kjl->kil", _values(Q, lam), fv) - mfv
         ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
         gap = float(np.max(_nrm(shipped[ok] - designed[ok])))
@@ -484,7 +480,7 @@ def interactor(G1: LTI, a: float, atol: float = 0.0) -> tuple[LTI, LTI, int, int
     the interactor of W. A. Wolovich and P. L. Falb, SIAM J. Control 14, 1976.
     """
     dt = G1.dt
-    G = G1.minreal(atol if atol > 0 else None, job="C") if G1.n else G1
+    G = G1.minreal(atol, job="C")
     if G.n:
         G, _ = G.balanced()
     w0 = 1.0 / np.maximum(np.linalg.norm(np.hstack([G.C, G.D]), axis=1), 1e-300)

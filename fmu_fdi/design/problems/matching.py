@@ -146,7 +146,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
         scale = _peak(model, Mr[i, :])
         if not scale > 0:
             raise DesignError(f"row {i + 1} of Mr is zero: the only match is the zero filter, which detects no fault")
-        Mi = _drop_cancelled(_minimal(Mr[i, :] * (1.0 / scale), atol), margin, max(atol, mm_tol))
+        Mi = _drop_cancelled((Mr[i, :] * (1.0 / scale)).minreal(atol), margin, max(atol, mm_tol))
         if not updating and not _stable(Mi, margin, model.dt):
             bad = Mi.poles()
             worst, what = (float(np.max(np.abs(bad))), "largest |pole|") if model.dt else \
@@ -209,11 +209,6 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
     if updating:
         gen.info.update({"M": M, "row_degrees": degs, "M_zeros": [np.asarray(_zeros(m)).tolist() for m in ms]})
     return gen
-
-
-def _minimal(sys: LTI, atol: float) -> LTI:
-    """Minimal realisation with the absolute rank tolerance ``atol`` (SLICOT's default when 0)."""
-    return sys.minreal(tol=atol if atol > 0 else None) if sys.n else sys
 
 
 def _drop_cancelled(sys: LTI, margin: float, tol: float) -> LTI:
@@ -321,8 +316,8 @@ def _coprime_row(model: FDIModel, Q0: LTI, Mi: LTI, choose, good, margin: float,
     ``Ã = A + L C``, ``[Q_i R_i] = (Ã, B + L D, C, D)``, ``m_i = (Ã, L, C, 1)``."""
     from ..toolkit.pencil import assign_poles
 
-    row = _minimal(LTI(sla.block_diag(Q0.A, Mi.A), sla.block_diag(Q0.B, Mi.B), np.hstack([Q0.C, Mi.C]),
-                       np.hstack([Q0.D, Mi.D]), model.dt), atol)
+    row = LTI(sla.block_diag(Q0.A, Mi.A), sla.block_diag(Q0.B, Mi.B), np.hstack([Q0.C, Mi.C]),
+              np.hstack([Q0.D, Mi.D]), model.dt).minreal(atol)
     F, _ = assign_poles(row.A.T, row.C.T, model.dt, lambda bad: choose(bad.size), good)
     Lg = F.T
     At = row.A + Lg @ row.C
@@ -335,7 +330,7 @@ def _coprime_row(model: FDIModel, Q0: LTI, Mi: LTI, choose, good, margin: float,
                           f"an unobservable unstable mode)")
     full = LTI(At, row.B + Lg @ row.D, row.C, row.D, model.dt)
     q = Q0.m
-    return _minimal(full[:, :q], atol), _minimal(LTI(At, Lg, row.C, np.ones((1, 1)), model.dt), atol)
+    return full[:, :q].minreal(atol), LTI(At, Lg, row.C, np.ones((1, 1)), model.dt).minreal(atol)
 
 
 def _grid_points(model: FDIModel, systems) -> np.ndarray:

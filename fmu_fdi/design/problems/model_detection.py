@@ -70,7 +70,7 @@ def _with_model_faults(models: Sequence[FDIModel], i: int, atol: float = 0.0) ->
             continue
         diff = LTI(np.block([[base.A, np.zeros((n0, mj.n))], [np.zeros((mj.n, n0)), mj.A]]),
                    np.vstack([-base.Bu, mj.Bu]), np.hstack([base.C, mj.C]), mj.Du - base.Du,
-                   base.dt).minreal(atol if atol > 0 else None)
+                   base.dt).minreal(atol)
         blocks_A.append(diff.A)
         blocks_C.append(diff.C)
         blocks_B.append((k, diff))

@@ -37,7 +37,7 @@ def reference(model: FDIModel, Mr, stable: bool = True, minimal: bool = True, at
         raise DesignError(f"Mr has sample time {Mr.dt} but the model has {model.dt}")
     Mr = LTI(Mr.A, Mr.B, Mr.C, Mr.D, model.dt)
     if Mr.n and minimal:
-        Mr = Mr.minreal(atol if atol > 0 else None)
+        Mr = Mr.minreal(atol)
         if stable and not Mr.is_stable():
             bad = Mr.poles()
             worst = float(np.max(np.abs(bad))) if model.dt else float(np.max(bad.real))

@@ -73,7 +73,7 @@ class LeastRow:
         keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
         byu, dyu = b[:, keep], d[:, keep]
         X = LTI(N.A - bz @ N.C / dz, byu - bz @ dyu / dz, -N.C / dz, -dyu / dz, N.dt)
-        return X.minreal(tol=atol if atol > 0 else None) if X.n else X
+        return X.minreal(atol)
 
     def pair(self, choose, atol: float = 0.0) -> tuple[LTI, LTI]:
         """``(X, m) = (N_yu, −N_z)`` with every pole of N at ``choose(ν)`` (output injection ``A + L c``,
@@ -87,8 +87,7 @@ class LeastRow:
         keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
         X = LTI(A, B[:, keep], C, D[:, keep], N.dt)
         m = LTI(A, -B[:, [p]], C, -D[:, [p]], N.dt)
-        tol = atol if atol > 0 else None
-        return (X.minreal(tol=tol) if X.n else X), (m.minreal(tol=tol) if m.n else m)
+        return X.minreal(atol), m.minreal(atol)
 
 
 def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0.0) -> FDIModel:
@@ -248,7 +247,7 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
     """
     N, p = row.basis, row.p
     Nz = LTI(N.A, N.B[:, [p]], N.C, N.D[:, [p]], N.dt)
-    Nz = Nz.minreal(tol=atol if atol > 0 else None) if Nz.n else Nz
+    Nz = Nz.minreal(atol)
     A, b, C, d = Nz.A, Nz.B, Nz.C, Nz.D
     scale = max(float(np.linalg.norm(np.block([[A, b], [C, d]]), 2)) if Nz.n else float(np.linalg.norm(d)), 1e-300)
     if not np.linalg.norm(d) > tol * scale:
@@ -278,5 +277,5 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
     W = Y @ N
     keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
     X = LTI(W.A, W.B[:, keep], -W.C, -W.D[:, keep], N.dt)
-    return X.minreal(tol=atol if atol > 0 else None) if X.n else X
+    return X.minreal(atol)
 
