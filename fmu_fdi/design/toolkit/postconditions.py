@@ -217,12 +217,15 @@ def _values_by_row(Q: LTI, groups, lam: np.ndarray) -> np.ndarray:
     members that share poles (the plant's, the placed ones); one Schur form of the stack mixes their states
     within each cluster, so a row would read the rounding of a member 1e3 times its gain (random seed 33's
     15-row bank: row [1 0 1 0] read ``|Q_i(1) c| = 5.5e-8`` stacked, 1.4e-13 alone)."""
-    out = _values(Q, lam)
-    if Q.n:
-        for g in groups:
-            sub = _row_system(Q, g)
-            if sub.n < Q.n:
-                out[:, g, :] = _values(sub, lam)
+    subs = [(g, _row_system(Q, g)) for g in groups] if Q.n else []
+    covered = sorted(i for g, sub in subs if sub.n < Q.n for i in np.atleast_1d(np.arange(Q.p)[g]))
+    if not Q.n or covered != list(range(Q.p)):  # some row reads the whole realisation
+        out = _values(Q, lam)
+    else:  # every row group has its own states: the stacked bank need not be evaluated as well
+        out = np.empty((lam.size, Q.p, Q.m), complex)
+    for g, sub in subs:
+        if sub.n < Q.n:
+            out[:, g, :] = _values(sub, lam)
     return out
 
 
