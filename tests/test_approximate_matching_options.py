@@ -122,6 +122,18 @@ def test_hdesign_ex5_6c_rows_in_the_span_of_h():
     assert err <= 0.7385533646476293
 
 
+def test_hdesign_ex5_6c_with_mindeg_as_the_peer_calls_it():
+    """The peer's call has ``mindeg = true``. Here ``Ge = [Gu Gf Gw; I 0 0]`` (3×4) has full row rank, so
+    R determines Q: the least-order stage cannot leave the span of H, and the error stays 1/√2."""
+    model, Mr = pub.a5a_model(), static([[1.0, 1.0]])
+    gen = approximate_model_matching(model, Mr, HDesign=[[1.0, 1.0]], nullspace=False, sdeg=-3, reltol=1e-6,
+                                     mindeg=True)
+    Qy = resp(gen.Q, points())[:, 0, :2]
+    assert np.max(np.abs(Qy[:, 0] - Qy[:, 1])) <= 1e-9 * np.max(np.abs(Qy))
+    err = judged(gen, Mr)
+    assert err == pytest.approx(np.sqrt(0.5), rel=1e-5) and err <= 0.7385533646476293
+
+
 def test_hdesign_restricts_the_optimum():
     """H = [1 0] on Ex. 5.6c's model uses y1 only: fault f2 (which only y2 sees) is invisible, so the
     error's f2 column is −1 at every frequency and γ ≥ 1 > 1/√2 (the unrestricted optimum)."""
@@ -218,6 +230,22 @@ def test_nullspace_choices_reach_the_same_optimum(make, Mr, kinds):
     for g in gens.values():
         assert g.info["gamma_opt0"] == pytest.approx(g0, rel=2e-5)
         assert g.info["gamma_sub"] == pytest.approx(gens[None].info["gamma_sub"], rel=2e-5)
+
+
+def test_unstable_plant_with_d():
+    """d and an unstable plant mode (+0.5) that the minimal basis cancels: the reduced system must not
+    keep that mode (to rounding it did, and SLICOT refused every H∞ level: "H∞ synthesis failed even at
+    γ = 1.01"). The optimum reaches the pointwise lower bound (numpy SVDs of the model's values)."""
+    A = np.array([[0.5, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -2.0]])
+    model = FDIModel.from_matrices(A, np.array([[0.0], [1.0], [0.0]]), np.eye(3), Bw=np.array([[0.0], [0.3], [0.0]]),
+                                   Bd=np.array([[0.0], [0.0], [1.0]]), u_names=["u"], y_names=["y1", "y2", "y3"],
+                                   w_names=["w"], d_names=["d"], faults=[actuator_fault("fa", "u")], name="unstable_d")
+    for nullspace in (None, True):
+        gen = approximate_model_matching(model, static([[1.0]]), nullspace=nullspace, reltol=1e-6)
+        assert gen.info["basis"] == "minimal"
+        lb = pointwise_bound(model, static([[1.0]]))
+        assert lb * (1 - 1e-9) <= gen.info["gamma_opt0"] <= lb * (1 + 1e-5)
+        judged(gen, static([[1.0]]))
 
 
 def test_ex5_16c_and_5_17_with_nullspace_false():

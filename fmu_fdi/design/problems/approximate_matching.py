@@ -11,7 +11,8 @@ in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetection
    ``[I  −Gu]`` when Gu is stable (``Q = [X  −X Gu]`` is stable iff X is) and the left
    coprime factor ``[M̂  −N̂]`` of an observer otherwise (every admissible Q is then
    ``Y Q0`` with ``Y ∈ RH∞``); with d, the full minimal basis of
-   :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`; the reduced system is
+   :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` (the options ``nullspace``,
+   ``simple`` and ``HDesign`` choose another basis, or ``H·Q0``); the reduced system is
    ``G1 = Q0 [Gf Gw; 0 0]`` and (1) becomes ``min_{Y ∈ RH∞} ||Y G1 − F||``, ``F = [Mr 0]``;
 2. zeros of ``G1`` at infinity (a strictly proper plant gives them) make (1) *non-standard*:
    its infimum is approached only by improper Y. Silverman's structure algorithm
@@ -23,7 +24,8 @@ in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetection
    ``Q = Ŷ Φ Q0`` then matches the updated reference ``M Mr`` with the diagonal updating
    factor ``M = m^K I`` (Varga's ``M``, normalised to unit DC gain, or to unit zpk gain with
    ``normalize='gain'``; in discrete time M is the all-pass delay ``z^{−K}``, so
-   ``γsub = γopt0`` in H∞): ``Q G1 − M F = M (Ŷ Ĝ − F)``, whose norm is ``γsub`` (Varga's
+   ``γsub = γopt0`` in H∞; with ``poles`` or a discrete ``sdeg`` M has those poles,
+   :func:`placed_factor`): ``Q G1 − M F = M (Ŷ Ĝ − F)``, whose norm is ``γsub`` (Varga's
    ``gammasub``); ``γopt = min_Ŷ ||Ŷ Ĝ − M F||`` is the optimum of the updated problem
    (``gammaopt``, a lower bound of ``γsub``). Rows of ``Q0`` that see neither faults nor
    noise (``G1`` of normal rank ρ below its rows, e.g. more basis rows than fault and noise
@@ -208,6 +210,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``gamma_sub`` and ``error`` (the error norm measured on the returned filter against
         ``M Mr``; equal to ``gamma_opt0`` in the standard case, within ``reltol`` for H∞),
         ``gamma_bracket`` (H∞: the bisection's last infeasible and feasible levels),
+        ``updating_poles`` (the poles of M: K of the interactor, placed by ``poles``/``sdeg``, then
+        the H2 low-pass's), ``basis`` (``'identity'``, ``'[I -Gu]'``, ``'observer'``, ``'minimal'``
+        or ``'simple'``), ``nullspace_basis`` (``Q0``, LTI; ``H·Q0`` with ``HDesign``), ``HDesign``
+        and ``basis_row_orders`` (with ``simple``),
         ``standard``, ``M`` (LTI, the identity if standard), ``interactor_steps`` (K),
         ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``reference_lowpass``
         (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``row_orders``
