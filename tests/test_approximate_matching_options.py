@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import published as pub
 import pytest
-from test_synthesis_ammp import MR14, MR17, check_contract, ex5_14, ex5_16, pointwise_bound, static
+from test_synthesis_ammp import MR14, MR17, check_contract, error_norm, ex5_14, ex5_16, pointwise_bound, static
 
 from fmu_fdi import DesignError, FDIModel, actuator_fault, approximate_model_matching, sensor_fault
 from fmu_fdi.design import nullspace_design
@@ -395,3 +395,76 @@ def test_default_basis_and_updating_pole_recorded():
     lam = points()
     assert np.allclose(resp(gen.info["M"], lam)[:, 0, 0], 1.0 / (lam + 1.0), rtol=1e-9)
     judged(gen, MR14)
+
+
+# ------------------------------------------------------------------ seeded random family
+def ud_leak(gen) -> float:
+    """``max_ω ||Q [Gu Gd; I 0]||`` on the grid of :func:`points` (numpy)."""
+    model = gen.model
+    lam = points(model.dt)
+    G = resp(LTI(model.A, np.hstack([model.Bu, model.Bd]), model.C, np.hstack([model.Du, model.Dd]), model.dt), lam)
+    Ge = np.concatenate([G, np.broadcast_to(np.eye(model.nu, G.shape[2]), (lam.size, model.nu, G.shape[2]))], axis=1)
+    R = resp(gen.Q, lam) @ Ge
+    ok = np.all(np.isfinite(R), axis=(1, 2))
+    return float(np.max(np.linalg.norm(R[ok], 2, axis=(1, 2)), initial=0.0))
+
+
+def _random_model(seed: int) -> FDIModel:
+    """n 2–4, p 2–3, u 0–1, d 0–1 (p = 3), f 1–2, one noise; eigenvalues shifted stable, about 30 %
+    shifted back unstable; every fourth seed discrete (Euler-free: expm at dt = 0.1)."""
+    import scipy.linalg as sla
+
+    rng = np.random.default_rng(seed)
+    n, p, mu = int(rng.integers(2, 5)), int(rng.integers(2, 4)), int(rng.integers(0, 2))
+    md = int(rng.integers(0, 2)) if p > 2 else 0
+    mf = int(rng.integers(1, 3))
+    A = rng.standard_normal((n, n))
+    A = A - (np.linalg.eigvals(A).real.max() + rng.uniform(0.3, 1.5)) * np.eye(n)
+    if rng.uniform() < 0.3:
+        A = A + (np.abs(np.linalg.eigvals(A).real).min() + 0.3) * np.eye(n)
+    dt = 0.1 if seed % 4 == 3 else 0.0
+    A = sla.expm(A * dt) if dt else A
+    C = rng.standard_normal((p, n))
+    Df = np.zeros((p, mf)) if rng.uniform() < 0.6 else rng.standard_normal((p, mf))
+    Bu, Bd, Bw = (rng.standard_normal((n, k)) for k in (mu, md, 1))
+    return FDIModel.from_matrices(A, Bu, C, Bd=Bd if md else None, Bw=Bw, dt=dt,
+                                  faults=[FaultSpec(name=f"f{j}", kind="component", Bf=rng.standard_normal((n, 1)),
+                                                    Df=Df[:, j:j + 1]) for j in range(mf)])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", list(range(24, 32)) + [pytest.param(32, marks=pytest.mark.xfail(
+    strict=True, reason="judge under-reads (issue 17 item 1, toolkit/postconditions.py): nullspace=True's filter (the "
+                        "minimal basis of nullspace_design cancelling the unstable plant poles 0.3±0.78j) has "
+                        "||Q [Gu; I]|| = 1.54e-7 at ω ≈ 0.94 by numpy (|Q||G| ≈ 3.6, no rounding issue); "
+                        "info['postconditions']['decoupling'] says 7.97e-8 ≤ dec_tol and the filter is returned"))]
+    + list(range(33, 40)))
+def test_random_models_every_basis_and_pole_choice_agrees(seed):
+    """Seeded family: the default, nullspace True/False (False only without d), simple and placed poles
+    either refuse with a DesignError or return a filter that meets the checks every design meets
+    (numpy: u/d leak within dec_tol, measured error = gamma_sub) with the same optimum γopt0 —
+    within 2e-4 relative (H∞ bisection at reltol 1e-5 on differently conditioned bases), or 1e-5
+    absolute for exactly matchable references (||Mr||∞ = √mf: the bases' rounding, ~1e-6)."""
+    model = _random_model(seed)
+    Mr = static(np.ones((1, model.nf)))
+    choices = [{}, {"nullspace": True}, {"simple": True},
+               {"poles": [0.2 + 0.1j, 0.2 - 0.1j] if model.dt else [-2 + 1j, -2 - 1j]}]
+    if not model.nd:
+        choices.append({"nullspace": False})
+    gammas = []
+    for kw in choices:
+        try:
+            gen = approximate_model_matching(model, Mr, reltol=1e-5, **kw)
+        except DesignError:
+            continue
+        pc = gen.info["postconditions"]
+        assert pc["decoupling"] <= pc["dec_tol"] and pc.get("pole_extreme", -np.inf) <= pc["smarg"]
+        assert gen.Q.is_stable()
+        # the judge's contract read by numpy: the row's scale is the reference's (no fault is required,
+        # pc['scales'] = [1]), so ||Q [Gu Gd; I 0]||∞ ≤ dec_tol = 1e-7 absolute
+        assert pc["scales"] == [1.0] and ud_leak(gen) <= 1e-7
+        # measured error (numpy grid, refined) = gamma_sub: both peaks of one response, 1e-5
+        assert error_norm(gen, Mr, gen.info["M"], "inf") == pytest.approx(gen.info["gamma_sub"], rel=1e-5, abs=1e-9)
+        gammas.append(gen.info["gamma_opt0"])
+    if gammas:
+        assert max(gammas) - min(gammas) <= 2e-4 * max(gammas) + 1e-5

@@ -231,7 +231,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         and d; zeros of the reduced system on the stability boundary; SLICOT's Riccati
         solvers failing at every level/regularisation; a returned filter whose error
         response is not the designed one (realisation accuracy) or that fails its
-        post-conditions.
+        post-conditions; an option's bad value, each naming it: ``HDesign`` (shape, rank,
+        finiteness), ``nullspace = False`` with d, ``simple`` with ``nullspace = False``,
+        ``poles``/``sdeg`` outside the stability region (``poles`` also outside ``smarg``).
     """
     _check_options(norm, normalize, reltol, atol, mindeg, nullspace, simple)
     Mr = reference(model, Mr, atol=atol)
@@ -267,7 +269,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     MF = scale * lowpass_power(a, K, Mr.p, dt) @ F if K else scale * F  # = M [Mr 0]
     factor, placed = None, [complex(-a if not dt else 0.0)] * K
     if K and (poles is not None or (dt and sdeg != 0.0)):  # M's poles placed: M = μ I
-        M, Qfull, MF, factor, placed = placed_factor(Y @ Phi @ Q0, F, K, Kb, a, poles, sdeg, normalize, dt)
+        Qs = Y @ Phi @ Q0
+        M, Qfull, MF, factor, placed = placed_factor(Qs.minreal(atol), F, K, Kb, a, poles, sdeg, normalize, dt)
+        Qfull = (Qfull, placed_factor(Qs, F, K, Kb, a, poles, sdeg, normalize, dt)[1])  # (the last resort)
     elif poles is not None:
         note(f"poles {np.atleast_1d(poles).tolist()} not used: the problem is standard (no zeros at infinity), "
              f"the optimal filter has no freely placed pole")
@@ -462,19 +466,26 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol, fact
     """Stage of :func:`approximate_model_matching`: the realisation of ``Q = Y Φ Q0`` whose error
     response is the designed one (the minimal one if it passes, else the non-minimal one);
     returns ``(Q, the comparison points)``. ``factor``: the scalar ``μ`` of placed poles
-    (:func:`placed_factor`) that multiplies ``Y Ĝ − F``, instead of ``scale m^K``."""
+    (:func:`placed_factor`) that multiplies ``Y Ĝ − F``, instead of ``scale m^K``; then ``Qfull`` is
+    the pair (``μ/m^K`` times the minimal realisation of ``Y Φ Q0``, times ``Y Φ Q0`` itself), the
+    second tried last."""
     dt = model.dt
+    Qfull, last = Qfull if isinstance(Qfull, tuple) else (Qfull, None)
     lam = _points([model.lti(), Y, Mr] + ([factor] if factor is not None else []), dt)
     mk = scale * _mk(lam, a, K, dt) if factor is None else _values(factor, lam)[:, 0, 0]
     designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) * mk[:, None, None]
     fv, mfv = _values(fnm, lam), _values(MF, lam)
     size = max(float(np.nanmax(_nrm(mfv))), float(np.nanmax(_nrm(designed))), 1e-300)
-    cands = (Qfull.minreal(atol), Qfull)
+    cands = (Qfull.minreal(atol), Qfull) + ((last,) if last is not None else ())
     if factor is not None and Qfull.n:
         # μ/m^K cancels the K-fold poles of m^K (at 0 in discrete time: nilpotent, its cancellation moves
-        # them by ~√eps); a staircase at √eps of the data's size is tried first, the same check deciding
+        # them by ~√eps); a staircase at √eps of the data's size is tried first, kept only if it is the
+        # same filter to 1e-9 of its peak (its u/d response too — the error check below sees only f, w)
         loose = np.sqrt(EPS) * max(float(np.linalg.norm(X, 2)) for X in (Qfull.A, Qfull.B, Qfull.C))
-        cands = (Qfull.minreal(max(atol, loose)),) + cands
+        Ql, qv = Qfull.minreal(max(atol, loose)), _values(Qfull, lam)
+        fin = np.all(np.isfinite(qv), axis=(1, 2))
+        if np.max(_nrm(_values(Ql, lam)[fin] - qv[fin])) <= 1e-9 * max(float(np.max(_nrm(qv[fin]))), 1e-300):
+            cands = (Ql,) + cands
     for Q in cands:
         shipped = np.einsum("kij,kjl->kil", _values(Q, lam), fv) - mfv
         ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
@@ -549,7 +560,9 @@ def reduced_system(model: FDIModel, atol: float = 0.0, *, nullspace: bool | None
         basis = nullspace_design(model, rdim="all" if Hm is None else 1, HDesign=Hm, simple=bool(simple),
                                  noise="ignore", FDtol=0.0, atol=atol)
     except DesignError as exc:
-        raise DesignError(f"approximate_model_matching: no residual decouples u and d: {exc}") from None
+        what = "no residual decouples u and d" if not simple and Hm is None else \
+            f"the {'simple ' if simple else ''}basis{' times HDesign' if Hm is not None else ''} fails"
+        raise DesignError(f"approximate_model_matching: {what}: {exc}") from None
     Q0 = basis.Q
     info.update(basis="simple" if simple else "minimal", nullspace_basis=Q0)
     if Hm is not None:
