@@ -150,20 +150,6 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     reltol : float
         Relative accuracy of the H∞ γ-iteration (Varga's ``reltol``): the bisection stops when
         its feasible level is within ``1 + reltol`` of its infeasible one.
-    smarg, dec_tol : float, optional
-        Stability margin and decoupling tolerance of the post-conditions (:mod:`..toolkit.postconditions`).
-    atol : float
-        Absolute rank tolerance (Varga's ``atol``), passed to the null-space basis
-        (:func:`~fmu_fdi.design.problems.nullspace.nullspace_design`) and to the minimal realisations of
-        Mr, of the reduced system and of the filter (SLICOT's default when 0).
-    mindeg : bool
-        Least-order synthesis (FaultDetectionTools.jl ``ammsyn``'s ``mindeg``): each row of the
-        optimal filter is replaced by the least-order stable proper solution of
-        ``Q_i Ge = [0 0 Rf_i Rw_i]`` (equation (2) of the module docstring), which has the same
-        error; the McMillan degree of every row is then the least among the filters with this
-        fault and noise response. Kept only if the error measured on the returned filter is the
-        optimal one within ``reltol``. The total order can exceed that of the default filter when
-        its rows share poles that the least-order rows do not.
     nullspace : bool, optional
         The left null-space basis ``Q0`` of step 1 (FaultDetectionTools.jl ``ammsyn``'s
         ``nullspace``). None (default): chosen as the module docstring says — without d the
@@ -190,17 +176,20 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``HDesign`` (:mod:`.hdesign`), so one ``H`` means the same in both. A restriction: the
         error is at least the optimum without it (equal for a square invertible H). Validated by
         :func:`~fmu_fdi.design.problems.hdesign.design_matrix`; ``info['HDesign']`` is the (padded) H.
-
-    Options of ``ammsyn`` not taken, and why: ``regmin`` — the peer first compresses the basis to
-    ``rdim`` rows (a least-order selection by minimum dynamic covers with ``regmin = true``, plain
-    rows without) and optimises only over their combinations; here ``Y`` acts on every basis row
-    (rank-deficient rows dropped or regularised, step 2), so no selection is made, the optimum is
-    over all admissible filters, and least order comes after the optimum from ``mindeg``. ``freq``
-    (the random test frequency of that selection's admissibility check) has no selection to
-    check; our solvability tests use fixed points. ``tcond`` only warns about the peer's
-    non-orthogonal transformations (ours are orthogonal, :func:`interactor`), ``offset`` is our
-    ``smarg`` default, ``fast`` (QR or SVD rank decisions) is always SVD here, ``atol1..3``/``rtol``
-    are ``atol``; ``H2syn`` is ``norm='2'``.
+    smarg, dec_tol : float, optional
+        Stability margin and decoupling tolerance of the post-conditions (:mod:`..toolkit.postconditions`).
+    atol : float
+        Absolute rank tolerance (Varga's ``atol``), passed to the null-space basis
+        (:func:`~fmu_fdi.design.problems.nullspace.nullspace_design`) and to the minimal realisations of
+        Mr, of the reduced system and of the filter (SLICOT's default when 0).
+    mindeg : bool
+        Least-order synthesis (FaultDetectionTools.jl ``ammsyn``'s ``mindeg``): each row of the
+        optimal filter is replaced by the least-order stable proper solution of
+        ``Q_i Ge = [0 0 Rf_i Rw_i]`` (equation (2) of the module docstring), which has the same
+        error; the McMillan degree of every row is then the least among the filters with this
+        fault and noise response. Kept only if the error measured on the returned filter is the
+        optimal one within ``reltol``. The total order can exceed that of the default filter when
+        its rows share poles that the least-order rows do not.
 
     Returns
     -------
@@ -234,8 +223,22 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         post-conditions; an option's bad value, each naming it: ``HDesign`` (shape, rank,
         finiteness), ``nullspace = False`` with d, ``simple`` with ``nullspace = False``,
         ``poles``/``sdeg`` outside the stability region (``poles`` also outside ``smarg``).
+
+    Notes
+    -----
+    Options of ``ammsyn`` not taken, and why: ``regmin`` — the peer first compresses the basis to
+    ``rdim`` rows (a least-order selection by minimum dynamic covers with ``regmin = true``, plain
+    rows without) and optimises only over their combinations; here ``Y`` acts on every basis row
+    (rank-deficient rows dropped or regularised, step 2), so no selection is made, the optimum is
+    over all admissible filters, and least order comes after the optimum from ``mindeg``. ``freq``
+    (the random test frequency of that selection's admissibility check) has no selection to
+    check; our solvability tests use fixed points. ``tcond`` only warns about the peer's
+    non-orthogonal transformations (ours are orthogonal, :func:`interactor`), ``offset`` is our
+    ``smarg`` default, ``fast`` (QR or SVD rank decisions) is always SVD here, ``atol1..3``/``rtol``
+    are ``atol``; ``H2syn`` is ``norm='2'``.
     """
-    _check_options(norm, normalize, reltol, atol, mindeg, nullspace, simple)
+    _check_options(norm, normalize, reltol, atol, mindeg)
+    _check_basis_options(nullspace, simple)
     Mr = reference(model, Mr, atol=atol)
     dt = model.dt
     sdeg = _check_placement(poles, sdeg, dt, smarg)
@@ -423,16 +426,10 @@ def _faults_and_noise_as_faults(model: FDIModel) -> FDIModel:
                     u_names=model.u_names, y_names=model.y_names, d_names=model.d_names)
 
 
-def _check_options(norm, normalize, reltol, atol, mindeg=False, nullspace=None, simple=False) -> None:
+def _check_options(norm, normalize, reltol, atol, mindeg=False) -> None:
     """Stage of :func:`approximate_model_matching`: the options' values."""
-    for name, value in (("mindeg", mindeg), ("simple", simple)):
-        if not isinstance(value, (bool, np.bool_)):
-            raise DesignError(f"{name} must be True or False, got {value!r}")
-    if not (nullspace is None or isinstance(nullspace, (bool, np.bool_))):
-        raise DesignError(f"nullspace must be True, False or None (automatic), got {nullspace!r}")
-    if simple and nullspace is False:
-        raise DesignError("simple = True asks for a simple minimal basis, nullspace = False for the full-order "
-                          "observer-based one (which has no simple form): choose one")
+    if not isinstance(mindeg, (bool, np.bool_)):
+        raise DesignError(f"mindeg must be True or False, got {mindeg!r}")
     if norm not in ("inf", "2"):
         raise DesignError(f"norm must be 'inf' or '2', got {norm!r}")
     if normalize not in ("dcgain", "gain", "infnorm"):
@@ -508,6 +505,18 @@ def fault_noise_map(model: FDIModel) -> LTI:
     sl = model.group_slices()
     cols = np.r_[np.arange(sl["f"].start, sl["f"].stop), np.arange(sl["w"].start, sl["w"].stop)]
     return Ge[:, cols]
+
+
+def _check_basis_options(nullspace, simple) -> None:
+    """Stage of :func:`approximate_model_matching`: ``nullspace`` (None, True, False) and ``simple`` (bool),
+    and not both ``simple`` and ``nullspace = False``."""
+    if not isinstance(simple, (bool, np.bool_)):
+        raise DesignError(f"simple must be True or False, got {simple!r}")
+    if not (nullspace is None or isinstance(nullspace, (bool, np.bool_))):
+        raise DesignError(f"nullspace must be True, False or None (automatic), got {nullspace!r}")
+    if simple and nullspace is False:
+        raise DesignError("simple = True asks for a simple minimal basis, nullspace = False for the full-order "
+                          "observer-based one (which has no simple form): choose one")
 
 
 def reduced_system(model: FDIModel, atol: float = 0.0, *, nullspace: bool | None = None, simple: bool = False,
