@@ -11,7 +11,8 @@ in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetection
    ``[I  −Gu]`` when Gu is stable (``Q = [X  −X Gu]`` is stable iff X is) and the left
    coprime factor ``[M̂  −N̂]`` of an observer otherwise (every admissible Q is then
    ``Y Q0`` with ``Y ∈ RH∞``); with d, the full minimal basis of
-   :func:`~fmu_fdi.design.problems.nullspace.nullspace_design`; the reduced system is
+   :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` (the options ``nullspace``,
+   ``simple`` and ``HDesign`` choose another basis, or ``H·Q0``); the reduced system is
    ``G1 = Q0 [Gf Gw; 0 0]`` and (1) becomes ``min_{Y ∈ RH∞} ||Y G1 − F||``, ``F = [Mr 0]``;
 2. zeros of ``G1`` at infinity (a strictly proper plant gives them) make (1) *non-standard*:
    its infimum is approached only by improper Y. Silverman's structure algorithm
@@ -23,7 +24,8 @@ in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetection
    ``Q = Ŷ Φ Q0`` then matches the updated reference ``M Mr`` with the diagonal updating
    factor ``M = m^K I`` (Varga's ``M``, normalised to unit DC gain, or to unit zpk gain with
    ``normalize='gain'``; in discrete time M is the all-pass delay ``z^{−K}``, so
-   ``γsub = γopt0`` in H∞): ``Q G1 − M F = M (Ŷ Ĝ − F)``, whose norm is ``γsub`` (Varga's
+   ``γsub = γopt0`` in H∞; with ``poles`` or a discrete ``sdeg`` M has those poles,
+   :func:`placed_factor`): ``Q G1 − M F = M (Ŷ Ĝ − F)``, whose norm is ``γsub`` (Varga's
    ``gammasub``); ``γopt = min_Ŷ ||Ŷ Ĝ − M F||`` is the optimum of the updated problem
    (``gammaopt``, a lower bound of ``γsub``). Rows of ``Q0`` that see neither faults nor
    noise (``G1`` of normal rank ρ below its rows, e.g. more basis rows than fault and noise
@@ -97,9 +99,10 @@ from slycot.exceptions import SlycotError
 
 from ...errors import DesignError
 from ...generator import ResidualGenerator
-from ...linalg import EPS, single_blas_thread
+from ...linalg import EPS, ordered_schur, single_blas_thread
 from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
+from ..toolkit._basis import check_poles, pick_poles
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
 from ..toolkit.notes import keeps_notes, note, silenced
 from .reference import reference
@@ -109,7 +112,9 @@ from .reference import reference
 @single_blas_thread
 def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: float | None = None,
                                normalize: str = "dcgain", reltol: float = 1e-4, smarg: float | None = None,
-                               dec_tol: float = DEC_TOL, atol: float = 0.0, mindeg: bool = False) -> ResidualGenerator:
+                               dec_tol: float = DEC_TOL, atol: float = 0.0, mindeg: bool = False, poles=None,
+                               HDesign=None, simple: bool = False,
+                               nullspace: bool | None = None) -> ResidualGenerator:
     """H∞ or H2 optimal approximate model matching: ``min ||Q [Gf Gw; 0 0] − [Mr 0]||`` with ``Q [Gu Gd; I 0] = 0``.
 
     Parameters
@@ -121,14 +126,56 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     norm : {'inf', '2'}
         H∞ (default) or H2 norm of the model-matching error (noise response included).
     sdeg : float, optional
-        Pole ``−a`` of the updating factor ``M = (a/(s + a))^k I`` used when the reduced
-        system has zeros at infinity (default −1).
-    normalize : {'dcgain', 'gain'}
-        ``M(0) = I`` (default; then also ``||M||∞ = 1``) or unit zpk gain ``1/(s + a)^k``
-        (Varga's ``normalize = "gain"``).
+        Pole of the updating factor ``M`` used when the reduced system has zeros at infinity
+        (the filter's freely placed poles; FaultDetectionTools.jl ``ammsyn``'s ``sdeg``, which its
+        ``glcf`` step assigns to the poles that replace the optimal filter's infinite ones):
+        continuous time ``M = (a/(s + a))^K I``, ``sdeg = −a < 0`` (default −1); discrete time
+        ``M = ((1 − ρ)/(z − ρ))^K I``, ``sdeg = ρ`` with ``|ρ| < 1`` (default 0: the delay
+        ``z^{−K}``, all-pass, so ``γsub = γopt0`` in H∞). Also the pole of the H2 reference
+        low-pass (``info['reference_lowpass']``), as the peer's ``Mib``. Refused (DesignError)
+        outside the stability region.
+    poles : array_like, optional
+        Poles of the updating factor ``M`` (a conjugate-closed set in the stability region, within
+        ``smarg``; FaultDetectionTools.jl ``ammsyn``'s ``poles``): its ``K`` poles are the given
+        ones first (a complex pole with its conjugate), the rest at ``sdeg``
+        (:func:`..toolkit._basis.pick_poles`); ``M = μ I``, ``μ = c/∏(λ − p_j)``. The filter is
+        ``Q = μ Q∞``, ``Q∞`` the (improper) optimal filter, so its poles include every placed
+        one; ``info['updating_poles']`` lists them. A standard problem (``K = 0``) has no free
+        pole: the poles are then not used and a note says so, as are given poles beyond ``K``.
+    normalize : {'dcgain', 'gain', 'infnorm'}
+        ``M(0) = I`` (default; ``M(1) = I`` in discrete time; for real poles also ``||M||∞ = 1``),
+        unit zpk gain ``1/∏(λ − p_j)`` (Varga's ``normalize = "gain"``) or ``||M||∞ = 1``
+        (``"infnorm"``, the peer's default; it differs from ``"dcgain"`` only for complex or, in
+        discrete time, negative poles).
     reltol : float
         Relative accuracy of the H∞ γ-iteration (Varga's ``reltol``): the bisection stops when
         its feasible level is within ``1 + reltol`` of its infeasible one.
+    nullspace : bool, optional
+        The left null-space basis ``Q0`` of step 1 (FaultDetectionTools.jl ``ammsyn``'s
+        ``nullspace``). None (default): chosen as the module docstring says — without d the
+        full-order ``[I  −Gu]`` (Gu stable) or the observer-based ``[M̂  −N̂]``, with d the minimal
+        proper basis. True: the minimal proper basis of
+        :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` (the peer's default) also
+        without d. False: the full-order observer-based basis (the peer's ``nullspace = false``);
+        it exists only without disturbance inputs (refused with d). Every choice spans all
+        admissible filters, so the optimum is the same; the order and realisation of Q differ.
+        ``info['nullspace_basis']`` is the basis used (LTI), ``info['basis']`` its kind.
+    simple : bool
+        A simple minimal basis (FaultDetectionTools.jl ``glnull(…; simple = true)``): basis row i of
+        McMillan degree its left minimal index ν_i
+        (:func:`~fmu_fdi.design.problems.hdesign.basis_rows`; ``info['basis_row_orders']``). It is a
+        minimal basis too (no zeros), so the optimum does not change. Implies the minimal-basis
+        path; refused with ``nullspace=False`` (an observer-based basis has no simple form).
+    HDesign : array_like, optional
+        A full-row-rank design matrix ``H`` with as many rows as Mr (the residuals) and at most
+        ``k = p − rank Gd`` columns (fewer: the leading basis rows, as the peer): ``H·Q0`` is the
+        annihilator instead of ``Q0`` (FaultDetectionTools.jl ``ammsyn``'s ``HDesign``), so every
+        returned row lies in the span of the rows of ``H·Q0``: ``Q = Y H Q0`` with a square stable
+        ``Y``. ``Q0`` is the basis ``nullspace``/``simple`` select; on the minimal-basis path it is
+        the one :func:`~fmu_fdi.design.problems.nullspace.nullspace_design` multiplies by its own
+        ``HDesign`` (:mod:`.hdesign`), so one ``H`` means the same in both. A restriction: the
+        error is at least the optimum without it (equal for a square invertible H). Validated by
+        :func:`~fmu_fdi.design.problems.hdesign.design_matrix`; ``info['HDesign']`` is the (padded) H.
     smarg, dec_tol : float, optional
         Stability margin and decoupling tolerance of the post-conditions (:mod:`..toolkit.postconditions`).
     atol : float
@@ -152,6 +199,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``gamma_sub`` and ``error`` (the error norm measured on the returned filter against
         ``M Mr``; equal to ``gamma_opt0`` in the standard case, within ``reltol`` for H∞),
         ``gamma_bracket`` (H∞: the bisection's last infeasible and feasible levels),
+        ``updating_poles`` (the poles of M: K of the interactor, placed by ``poles``/``sdeg``, then
+        the H2 low-pass's), ``basis`` (``'identity'``, ``'[I -Gu]'``, ``'observer'``, ``'minimal'``
+        or ``'simple'``), ``nullspace_basis`` (``Q0``, LTI; ``H·Q0`` with ``HDesign``), ``HDesign``
+        and ``basis_row_orders`` (with ``simple``),
         ``standard``, ``M`` (LTI, the identity if standard), ``interactor_steps`` (K),
         ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``reference_lowpass``
         (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``row_orders``
@@ -169,17 +220,31 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         and d; zeros of the reduced system on the stability boundary; SLICOT's Riccati
         solvers failing at every level/regularisation; a returned filter whose error
         response is not the designed one (realisation accuracy) or that fails its
-        post-conditions.
+        post-conditions; an option's bad value, each naming it: ``HDesign`` (shape, rank,
+        finiteness), ``nullspace = False`` with d, ``simple`` with ``nullspace = False``,
+        ``poles``/``sdeg`` outside the stability region (``poles`` also outside ``smarg``).
+
+    Notes
+    -----
+    Options of ``ammsyn`` not taken, and why: ``regmin`` — the peer first compresses the basis to
+    ``rdim`` rows (a least-order selection by minimum dynamic covers with ``regmin = true``, plain
+    rows without) and optimises only over their combinations; here ``Y`` acts on every basis row
+    (rank-deficient rows dropped or regularised, step 2), so no selection is made, the optimum is
+    over all admissible filters, and least order comes after the optimum from ``mindeg``. ``freq``
+    (the random test frequency of that selection's admissibility check) has no selection to
+    check; our solvability tests use fixed points. ``tcond`` only warns about the peer's
+    non-orthogonal transformations (ours are orthogonal, :func:`interactor`), ``offset`` is our
+    ``smarg`` default, ``fast`` (QR or SVD rank decisions) is always SVD here, ``atol1..3``/``rtol``
+    are ``atol``; ``H2syn`` is ``norm='2'``.
     """
     _check_options(norm, normalize, reltol, atol, mindeg)
+    _check_basis_options(nullspace, simple)
     Mr = reference(model, Mr, atol=atol)
     dt = model.dt
-    sdeg = -1.0 if sdeg is None else float(sdeg)
-    if not dt and not (np.isfinite(sdeg) and sdeg < 0):
-        raise DesignError(f"sdeg must be negative (the pole of the updating factor M), got {sdeg!r}")
-    Q0, G1 = reduced_system(model, atol)
+    sdeg = _check_placement(poles, sdeg, dt, smarg)
+    Q0, G1, basis = reduced_system(model, atol, nullspace=nullspace, simple=simple, HDesign=HDesign, rows=Mr.p)
     F = hstack([Mr, LTI.zero(Mr.p, model.nw, dt)]) if model.nw else Mr
-    a = -float(sdeg)
+    a = 1.0 if dt else -sdeg  # (discrete time: the interactor's shift is 1/z, M's pole sdeg is placed below)
     Gh, Phi, K, dropped, left = interactor(G1, a, atol)
     # continuous H2 with an error feedthrough no filter cancels (D_F outside the row space of
     # Ĝ's feedthrough): every error has infinite H2 norm. As Varga's ammsyn does, the reference
@@ -205,13 +270,21 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     M = scale * lowpass_power(a, K + Kb, Mr.p, dt)
     Qfull = scale * (Y @ Phi @ Q0)
     MF = scale * lowpass_power(a, K, Mr.p, dt) @ F if K else scale * F  # = M [Mr 0]
+    factor, placed = None, [complex(-a if not dt else 0.0)] * K
+    if K and (poles is not None or (dt and sdeg != 0.0)):  # M's poles placed: M = μ I
+        Qs = Y @ Phi @ Q0
+        M, Qfull, MF, factor, placed = placed_factor(Qs.minreal(atol), F, K, Kb, a, poles, sdeg, normalize, dt)
+        Qfull = (Qfull, placed_factor(Qs, F, K, Kb, a, poles, sdeg, normalize, dt)[1])  # (the last resort)
+    elif poles is not None:
+        note(f"poles {np.atleast_1d(poles).tolist()} not used: the problem is standard (no zeros at infinity), "
+             f"the optimal filter has no freely placed pole")
     fnm = fault_noise_map(model)
     # the error as shipped, Q(λ) [Gf Gw; 0 0](λ) − M(λ) [Mr 0](λ), must be the designed one,
     # scale m(λ)^K (Y(λ) Ĝ(λ) − F(λ)), compared factor by factor at the same points (each
     # factor from a balanced realisation): the minimal realisation of Q is kept only if it
     # passes (with a large gain of Y, near-cancelling modes that SLICOT's staircase removes
     # can matter), else the non-minimal Y Φ Q0 is returned
-    Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol)
+    Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol, factor)
     gen = ResidualGenerator(Q, model, "approximate_model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
     err = _shipped_error(model, Q, fnm, MF, lam, norm, [model.lti(), Y, Mr])
@@ -234,6 +307,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         "reduced_rows": int(G1.p),
         "dropped_rows": int(dropped), "regularised_rows": int(left), "regularisation_eps": eps,
         "reference_lowpass": bool(Kb),
+        "updating_poles": [complex(x) if complex(x).imag else float(complex(x).real) for x in placed + [-a] * Kb],
+        **basis,
     })
     if "bracket" in info:
         gen.info["gamma_bracket"] = [float(x) for x in info["bracket"]]
@@ -357,8 +432,8 @@ def _check_options(norm, normalize, reltol, atol, mindeg=False) -> None:
         raise DesignError(f"mindeg must be True or False, got {mindeg!r}")
     if norm not in ("inf", "2"):
         raise DesignError(f"norm must be 'inf' or '2', got {norm!r}")
-    if normalize not in ("dcgain", "gain"):
-        raise DesignError(f"normalize must be 'dcgain' or 'gain', got {normalize!r}")
+    if normalize not in ("dcgain", "gain", "infnorm"):
+        raise DesignError(f"normalize must be 'dcgain', 'gain' or 'infnorm', got {normalize!r}")
     if not (0 < reltol < 1):
         raise DesignError(f"reltol must lie in (0, 1), got {reltol!r}")
     if not (np.isfinite(atol) and atol >= 0):
@@ -384,17 +459,31 @@ def _solve_regularised(Gh, F, left, norm, reltol):
     return Y, info, eps
 
 
-def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol):
+def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol, factor=None):
     """Stage of :func:`approximate_model_matching`: the realisation of ``Q = Y Φ Q0`` whose error
     response is the designed one (the minimal one if it passes, else the non-minimal one);
-    returns ``(Q, the comparison points)``."""
+    returns ``(Q, the comparison points)``. ``factor``: the scalar ``μ`` of placed poles
+    (:func:`placed_factor`) that multiplies ``Y Ĝ − F``, instead of ``scale m^K``; then ``Qfull`` is
+    the pair (``μ/m^K`` times the minimal realisation of ``Y Φ Q0``, times ``Y Φ Q0`` itself), the
+    second tried last."""
     dt = model.dt
-    lam = _points([model.lti(), Y, Mr], dt)
-    designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) \
-        * (scale * _mk(lam, a, K, dt))[:, None, None]
+    Qfull, last = Qfull if isinstance(Qfull, tuple) else (Qfull, None)
+    lam = _points([model.lti(), Y, Mr] + ([factor] if factor is not None else []), dt)
+    mk = scale * _mk(lam, a, K, dt) if factor is None else _values(factor, lam)[:, 0, 0]
+    designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) * mk[:, None, None]
     fv, mfv = _values(fnm, lam), _values(MF, lam)
     size = max(float(np.nanmax(_nrm(mfv))), float(np.nanmax(_nrm(designed))), 1e-300)
-    for Q in (Qfull.minreal(atol), Qfull):
+    cands = (Qfull.minreal(atol), Qfull) + ((last,) if last is not None else ())
+    if factor is not None and Qfull.n:
+        # μ/m^K cancels the K-fold poles of m^K (at 0 in discrete time: nilpotent, its cancellation moves
+        # them by ~√eps); a staircase at √eps of the data's size is tried first, kept only if it is the
+        # same filter to 1e-9 of its peak (its u/d response too — the error check below sees only f, w)
+        loose = np.sqrt(EPS) * max(float(np.linalg.norm(X, 2)) for X in (Qfull.A, Qfull.B, Qfull.C))
+        Ql, qv = Qfull.minreal(max(atol, loose)), _values(Qfull, lam)
+        fin = np.all(np.isfinite(qv), axis=(1, 2))
+        if np.max(_nrm(_values(Ql, lam)[fin] - qv[fin])) <= 1e-9 * max(float(np.max(_nrm(qv[fin]))), 1e-300):
+            cands = (Ql,) + cands
+    for Q in cands:
         shipped = np.einsum("kij,kjl->kil", _values(Q, lam), fv) - mfv
         ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
         gap = float(np.max(_nrm(shipped[ok] - designed[ok])))
@@ -418,40 +507,115 @@ def fault_noise_map(model: FDIModel) -> LTI:
     return Ge[:, cols]
 
 
-def reduced_system(model: FDIModel, atol: float = 0.0) -> tuple[LTI, LTI]:
-    """``(Q0, G1)``: a proper stable left null-space basis of ``[Gu Gd; I 0]`` and ``Q0 [Gf Gw; 0 0]``."""
-    dt = model.dt
-    if model.nd == 0 and (model.nu == 0 or model.lti("u").is_stable()):
-        # Gu stable: Q0 = [I  −Gu] (Q = [X  −X Gu] is stable iff X is), the identity without u
-        if model.nu == 0:
-            Q0 = LTI.static(np.eye(model.ny), dt)
-        else:
-            Q0 = hstack([LTI.static(np.eye(model.ny), dt), -model.lti("u")])
-        return Q0, model.lti("f", "w")
-    if model.nd == 0:
-        from .coprime import _factor_filter
+def _check_basis_options(nullspace, simple) -> None:
+    """Stage of :func:`approximate_model_matching`: ``nullspace`` (None, True, False) and ``simple`` (bool),
+    and not both ``simple`` and ``nullspace = False``."""
+    if not isinstance(simple, (bool, np.bool_)):
+        raise DesignError(f"simple must be True or False, got {simple!r}")
+    if not (nullspace is None or isinstance(nullspace, (bool, np.bool_))):
+        raise DesignError(f"nullspace must be True, False or None (automatic), got {nullspace!r}")
+    if simple and nullspace is False:
+        raise DesignError("simple = True asks for a simple minimal basis, nullspace = False for the full-order "
+                          "observer-based one (which has no simple form): choose one")
 
-        try:
-            Q0, _ = _factor_filter(model, None, False)
-        except DesignError as exc:
-            raise DesignError(f"approximate_model_matching: no observer-based basis: {exc}") from None
-        # output error e = x − x̂ of the observer: G1 = (A − LC, [Bf − L Df, Bw − L Dw], C, [Df Dw])
-        L = Q0.B[:, :model.ny]
-        B = np.hstack([model.Bf, model.Bw])
-        D = np.hstack([model.Df, model.Dw])
-        return Q0, LTI(Q0.A, B - L @ D, model.C, D, dt)
+
+def reduced_system(model: FDIModel, atol: float = 0.0, *, nullspace: bool | None = None, simple: bool = False,
+                   HDesign=None, rows: int | None = None) -> tuple[LTI, LTI, dict]:
+    """``(Q0, G1, info)``: a proper stable left null-space basis of ``[Gu Gd; I 0]``, ``Q0 [Gf Gw; 0 0]``
+    and the ``info`` entries that describe the basis (``basis``, ``nullspace_basis``, ``HDesign``,
+    ``basis_row_orders``). ``nullspace``, ``simple``, ``HDesign`` as in :func:`approximate_model_matching`
+    (``rows``: the residuals, Mr's rows, that H must have)."""
+    from .hdesign import design_matrix
+
+    dt = model.dt
+    if nullspace is False and model.nd:
+        raise DesignError(f"nullspace = False (a full-order observer-based basis) needs a model without "
+                          f"disturbance inputs: this one has {model.nd}; use nullspace = True or None")
+    Hm = None
+    if HDesign is not None:  # one validation of H (rows = Mr's, at most p − rank Gd columns, full row rank)
+        from ..toolkit._basis import normal_rank
+
+        k = model.ny - (normal_rank(model.lti("d"), atol=atol) if model.nd else 0)
+        Hm = design_matrix(HDesign, k, rows=rows)
+    info: dict = {}
+    if model.nd == 0 and not simple and nullspace is not True:
+        if model.nu == 0 or model.lti("u").is_stable():
+            # Gu stable: Q0 = [I  −Gu] (Q = [X  −X Gu] is stable iff X is), the identity without u
+            if model.nu == 0:
+                Q0 = LTI.static(np.eye(model.ny), dt)
+            else:
+                Q0 = hstack([LTI.static(np.eye(model.ny), dt), -model.lti("u")])
+            G1, kind = model.lti("f", "w"), "[I -Gu]" if model.nu else "identity"
+        else:
+            from .coprime import _factor_filter
+
+            try:
+                Q0, _ = _factor_filter(model, None, False)
+            except DesignError as exc:
+                raise DesignError(f"approximate_model_matching: no observer-based basis: {exc}") from None
+            # output error e = x − x̂ of the observer: G1 = (A − LC, [Bf − L Df, Bw − L Dw], C, [Df Dw])
+            L = Q0.B[:, :model.ny]
+            B = np.hstack([model.Bf, model.Bw])
+            D = np.hstack([model.Df, model.Dw])
+            G1, kind = LTI(Q0.A, B - L @ D, model.C, D, dt), "observer"
+        if Hm is not None:
+            Q0, G1 = Hm @ Q0, Hm @ G1
+            info["HDesign"] = Hm.tolist()
+        info.update(basis=kind, nullspace_basis=Q0)
+        return Q0, G1, info
     from .nullspace import nullspace_design
 
-    try:
-        basis = nullspace_design(model, rdim="all", noise="ignore", FDtol=0.0, atol=atol)
+    try:  # with H: M·H·N on the basis N nullspace_design's HDesign multiplies (.hdesign.basis_rows)
+        basis = nullspace_design(model, rdim="all" if Hm is None else 1, HDesign=Hm, simple=bool(simple),
+                                 noise="ignore", FDtol=0.0, atol=atol)
     except DesignError as exc:
-        raise DesignError(f"approximate_model_matching: no residual decouples u and d: {exc}") from None
+        what = "no residual decouples u and d" if not simple and Hm is None else \
+            f"the {'simple ' if simple else ''}basis{' times HDesign' if Hm is not None else ''} fails"
+        raise DesignError(f"approximate_model_matching: {what}: {exc}") from None
     Q0 = basis.Q
+    info.update(basis="simple" if simple else "minimal", nullspace_basis=Q0)
+    if Hm is not None:
+        info["HDesign"] = basis.info.get("HDesign", Hm.tolist())
+    if simple:
+        info["basis_row_orders"] = basis.info.get("simple_orders")
     # no minimal realisation here: the basis cancels plant modes only to its own accuracy
     # (~1e-7), and removing them would make G1 differ from Q0 [Gf Gw] by that much divided
     # by the distance of those poles to the boundary; the interactor keeps only the
-    # controllable part, which is exact
-    return Q0, Q0 @ fault_noise_map(model)
+    # controllable part, which is exact. The plant modes outside the stability region, which the
+    # basis cancels too (its internal form is stable), are the exception: kept, G1 is unstable
+    # and no stable Y exists (SLICOT refuses every level)
+    return Q0, _without_cancelled_unstable_modes(Q0 @ fault_noise_map(model)), info
+
+
+def _without_cancelled_unstable_modes(G: LTI, rel: float = 1e-6) -> LTI:
+    """``G`` without its modes outside the open stability region when their part is negligible.
+
+    The real Schur form with those modes first (:func:`~fmu_fdi.linalg.ordered_schur`), decoupled by
+    the Sylvester equation ``T11 X − X T22 = −T12``, splits ``G = C1 (λI − T11)⁻¹ B1' + G_s``; the
+    first term is dropped when ``||C1|| ||B1'||`` is below ``rel`` times ``||C|| ||B||`` (the basis
+    ``Q0`` cancels the plant's unstable modes to its rounding: they remain as residues ~1e-9 …
+    1e-7), and ``G`` is returned unchanged otherwise."""
+    if G.n == 0:
+        return G
+    dt = G.dt
+    margin = np.sqrt(EPS)
+    if dt:
+        def outside(re, im):
+            return np.hypot(re, im) >= 1.0 - margin
+    else:
+        def outside(re, im):
+            return re >= -margin * max(1.0, np.hypot(re, im))
+    T, Z, k = ordered_schur(G.A, outside)
+    if k == 0:
+        return G
+    B, C = Z.T @ G.B, G.C @ Z
+    T11, T12, T22 = T[:k, :k], T[:k, k:], T[k:, k:]
+    X = sla.solve_sylvester(T11, -T22, -T12) if k < G.n else np.zeros((k, 0))
+    B1 = B[:k] - X @ B[k:]
+    size = float(np.linalg.norm(G.C, 2) * np.linalg.norm(G.B, 2))
+    if float(np.linalg.norm(C[:, :k], 2) * np.linalg.norm(B1, 2)) > rel * max(size, 1e-300):
+        return G
+    return LTI(T22, B[k:], C[:, :k] @ X + C[:, k:], G.D, dt)
 
 
 # ------------------------------------------------------------------- regularisation
@@ -574,6 +738,75 @@ def lowpass_power(a: float, k: int, size: int, dt: float = 0.0) -> LTI:
     c[0, -1] = 1.0
     m = LTI(A, b, c, np.zeros((1, 1)), dt)
     return blockdiag([m] * size)
+
+
+def _check_placement(poles, sdeg, dt: float, smarg: float | None) -> float:
+    """Stage of :func:`approximate_model_matching`: ``sdeg`` (default −1, or 0 — the delay — in discrete
+    time) as a float, refused outside the stability region, and ``poles`` refused unless stable and within
+    ``smarg`` (:func:`..toolkit._basis.check_poles`, the check every design's ``poles`` passes)."""
+    if sdeg is None:
+        sdeg = 0.0 if dt else -1.0
+    try:
+        sdeg = float(sdeg)
+        check_poles([sdeg], dt)
+    except (TypeError, ValueError, DesignError) as exc:
+        region = "a real number of modulus below 1" if dt else "a negative real number"
+        raise DesignError(f"sdeg (the pole of the updating factor M) must be {region}, got {sdeg!r}"
+                          f"{f' ({exc})' if isinstance(exc, DesignError) else ''}") from None
+    if poles is not None:
+        try:
+            np.atleast_1d(np.asarray(poles, complex))
+        except (TypeError, ValueError):
+            raise DesignError(f"poles must be numbers (the poles of the updating factor M), got {poles!r}") from None
+        check_poles(poles, dt, smarg)
+    return sdeg
+
+
+def placed_factor(Qs: LTI, F: LTI, K: int, Kb: int, a: float, poles, sdeg: float, normalize: str, dt: float):
+    """``(M, Q, M F, μ, placed)``: the updating factor with placed poles, ``M = μ m^Kb I``.
+
+    The optimal filter of the non-standard problem is the improper ``Q∞ = Y Φ Q0 / m^K``
+    (``Qs = Y Φ Q0``, ``m = a/(s + a)`` or ``1/z``, :func:`interactor`); any stable scalar ``μ``
+    of relative degree K makes ``μ Q∞`` stable and proper, with the error
+    ``μ Q∞ G1 − μ F = μ (Y Ĝ − F)``. Here ``μ = c/∏(λ − p_j)`` with the K poles ``p_j``
+    (``poles`` first, the rest at ``sdeg``: :func:`..toolkit._basis.pick_poles`), as the peer's
+    ``glcf(…; evals = poles, sdeg)`` gives the rows of its improper optimum; ``c`` by ``normalize``
+    (``μ(0) = 1``, ``μ(1) = 1`` in discrete time; 1; ``||μ||∞ = 1``). ``Q = (μ/m^K) Qs``, with
+    ``μ/m^K = c a^{−K} ∏ (λ − ζ)/(λ − p_j)`` (ζ = −a, or 0 and no ``a^{−K}`` in discrete time) realised
+    as a chain of first- and second-order biproper sections; ``F`` carries the H2 low-pass ``m^Kb``
+    already (its gain ``a^{−Kb}`` with ``normalize='gain'``)."""
+    placed = pick_poles(poles, sdeg, K)
+    zeta = 0.0 if dt else -a
+    mus, ratios, i = [], [], 0
+    while i < len(placed):
+        z = complex(placed[i])
+        if abs(z.imag) > 0:  # a conjugate pair: 1/(λ² − 2σλ + r²) and (λ − ζ)²/(λ² − 2σλ + r²)
+            sig, r2 = z.real, abs(z) ** 2
+            A = np.array([[0.0, 1.0], [-r2, 2 * sig]])
+            B = np.array([[0.0], [1.0]])
+            mus.append(LTI(A, B, np.array([[1.0, 0.0]]), np.zeros((1, 1)), dt))
+            ratios.append(LTI(A, B, np.array([[zeta ** 2 - r2, 2 * sig - 2 * zeta]]), np.ones((1, 1)), dt))
+            i += 2
+        else:  # 1/(λ − p) and (λ − ζ)/(λ − p) = 1 + (p − ζ)/(λ − p)
+            pr = z.real
+            mus.append(LTI(np.array([[pr]]), np.ones((1, 1)), np.ones((1, 1)), np.zeros((1, 1)), dt))
+            ratios.append(LTI(np.array([[pr]]), np.ones((1, 1)), np.array([[pr - zeta]]), np.ones((1, 1)), dt))
+            i += 1
+    mu, ratio = mus[0], ratios[0]
+    for x, y in zip(mus[1:], ratios[1:]):
+        mu, ratio = x @ mu, y @ ratio
+    if normalize == "gain":
+        c = 1.0
+    elif normalize == "infnorm":
+        c = 1.0 / float(mu.hinfnorm()[0])
+    else:  # unit DC gain: 1/∏(−p_j), or 1/∏(1 − p_j) in discrete time (positive: conjugate-closed, stable)
+        c = float(np.real(np.prod((1.0 if dt else 0.0) - np.asarray(placed))))
+    mu = c * mu
+    ratio = (c * (1.0 if dt else a ** -K)) * ratio
+    sb = a ** -Kb if normalize == "gain" and not dt else 1.0
+    p = F.p
+    M = blockdiag([mu] * p) @ (sb * lowpass_power(a, Kb, p, dt))
+    return M, blockdiag([ratio] * Qs.p) @ (sb * Qs), blockdiag([mu] * p) @ (sb * F), sb * mu, list(placed)
 
 
 def _check_boundary_zeros(Gh: LTI) -> None:
