@@ -66,12 +66,15 @@ solution ``Q_i'`` of the linear rational equation
 
 the minimum-degree solution of ``glasol``/``glsol`` with ``mindeg = true`` (Varga 2017, sec. 5.7,
 Procedure AMMS with the least-order option; the peer finds it as ``X0 + Z XN``, ``XN`` a left
-null-space basis of Ge, by a Type 2 minimum dynamic cover, sec. 7.9 and 10.4.2). Here it is the
-least-order row of exact model matching, :func:`~fmu_fdi.design.problems.matching.model_matching`,
-on the model whose "faults" are ``[f w]`` (the least degree of a row solving (2)). A row keeps
-its minimal realisation when that is no larger; the returned error is measured again and the
-least-order filter is returned only if it is no worse than the optimal one within ``reltol``
-(``info['mindeg']`` says what was done, and why not when the order cannot be lowered).
+null-space basis of Ge, by a Type 2 minimum dynamic cover, sec. 7.9 and 10.4.2). So here: ``Q_i' =
+Q_i + Y N`` with ``N`` the pencil basis of the whole Ge and Y from a Type 2 minimum dynamic cover
+(:func:`~fmu_fdi.design.toolkit.covers.left_cover2`) — the same fault and noise response by
+construction, without forming the reference ``Q_i [Gf Gw]``. The optimal rows carry modes that cancel
+only to the filter's accuracy, so covers at a few relative rank tolerances (``MINDEG_RTOLS``) are
+candidates, their numerators refitted to ``Q_i Ge`` on the design's points; a stable candidate is
+taken, lowest order first, only if the filter passes its post-conditions and its re-measured error is
+no worse than the optimal one within ``reltol`` (``info['mindeg']`` says what was done, and why not
+when a row cannot be lowered: already least order, an unstable least-order row, a refused candidate).
 
 Not covered: zeros of ``G1`` on the imaginary axis / unit circle (the optimum is not
 attained by a stable filter): refused with a :class:`~fmu_fdi.errors.DesignError` that
@@ -101,7 +104,7 @@ from ...linalg import EPS, single_blas_thread
 from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
-from ..toolkit.notes import keeps_notes, note, silenced
+from ..toolkit.notes import keeps_notes
 from .reference import reference
 
 
@@ -269,15 +272,21 @@ def _minimal_row(Qi: LTI, atol: float = 0.0) -> LTI:
 def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol):
     """Stage of :func:`approximate_model_matching` with ``mindeg=True``: ``(generator, info['mindeg'])``.
 
-    Row i of the optimal Q is replaced by the least-order stable proper solution of
-    ``Q_i' Ge = [0 0 Rf_i Rw_i]`` (the module docstring's (2)) — exact model matching of the row's own
-    fault and noise response on the model whose faults are ``[f w]`` (:func:`.matching.model_matching`,
-    least order per row) — when its degree is below that of the row's minimal realisation. The
-    result is kept only if its post-conditions hold and its measured error is within ``reltol`` of
-    the optimal filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable references);
-    otherwise, and when no row can be lowered, the optimal filter is returned unchanged and
-    ``reason`` says why."""
-    from .matching import model_matching
+    Row i of the optimal Q is replaced by the least-order ``Q_i' = Q_i + Y N`` (the module docstring's (2)),
+    ``N`` the proper stable left null-space basis of the whole ``Ge = [Gu Gd Gf Gw; I 0 0 0]``
+    (:func:`..toolkit.pencil.pencil_basis` of the model whose unknown inputs are ``[d f w]``), by a Type 2
+    minimum dynamic cover (:func:`..toolkit.covers.left_cover2`): ``Q_i' Ge = Q_i Ge`` by construction, the
+    reference ``[Rf_i Rw_i]`` is never formed (a product ``Q_i [Gf Gw]`` is known only to the rounding of
+    Q_i's realisation, which a least-order solve of (2) on the augmented system cannot tell from a
+    different reference). The least-order row is taken when its degree is below that of the row's minimal
+    realisation and its poles lie in the stability region (``smarg``); an unstable least-order row is not
+    taken (its poles are fixed by the cover when the least-degree solution is unique) and ``reason`` says
+    so. The result is kept only if its post-conditions hold and its measured error is within ``reltol``
+    of the optimal filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable references);
+    otherwise, and when no row can be lowered, the optimal filter is returned unchanged and ``reason``
+    says why."""
+    from ...margin import margin_limit
+    from ..toolkit.postconditions import default_smarg
 
     Q, dt = gen.Q, model.dt
     before = row_orders(Q, atol)
@@ -286,38 +295,161 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     if not any(before):
         out["reason"] = "every row is static (order 0): already least order"
         return gen, out
-    aug = _faults_and_noise_as_faults(model)
-    rows, methods, why, sub_notes = [], [], [], []
-    for i in range(Q.p):
-        Qi = _minimal_row(Q[i, :], atol)
-        rows.append(Qi), methods.append("kept")
+    N = _whole_null_basis(model, smarg, atol)
+    lim = margin_limit(default_smarg(dt) if smarg is None else float(smarg))
+    rows = [_minimal_row(Q[i, :], atol) for i in range(Q.p)]
+    methods, why, best = ["kept"] * Q.p, [], None
+    Ge = _values(model.augmented(), lam)
+    ok = np.all(np.isfinite(Ge), axis=(1, 2))
+    pts, Ge = lam[ok], Ge[ok]
+    for i, Qi in enumerate(rows):
         if Qi.n == 0:
             continue
-        Ri = Qi @ fnm  # [Rf_i Rw_i]: the right-hand side of (2)
-        try:  # its notes join this design's only if its row is kept (below)
-            with silenced():
-                sol = model_matching(aug, Ri, smarg=smarg, dec_tol=dec_tol, atol=atol)
-        except DesignError as exc:
-            why.append(f"row {i + 1}: the least-order solve of Q_i Ge = [0 0 Rf_i Rw_i] failed ({exc})")
-            continue
-        if sol.Q.n < Qi.n:
-            how = sol.info.get("row_methods", ["least order"])[0]
-            rows[-1], methods[-1] = sol.Q, "least order" if how == "least order" else f"least order ({how})"
-            sub_notes += [f"mindeg, row {i + 1}: {text}" for text in sol.info.get("notes", [])]
+        cands, notes = _row_candidates(Qi, N, lim, dt, atol)
+        target = np.einsum("kij,kjl->kil", _values(Qi, pts), Ge)  # Q_i Ge on the points
+        for rtol, Xi in cands:  # lowest order first; the first whose filter passes the guard is taken
+            Xi = _refit_numerator(Xi, Qi, target, Ge, pts)
+            trial = rows[:i] + [Xi] + rows[i + 1:]
+            cand, verdict = _verified(model, gen, trial, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol,
+                                      atol)
+            if cand is not None:
+                rows, methods[i], best = trial, "least order", (cand, verdict)
+                break
+            notes.append(f"row {i + 1}: the order-{Xi.n} cover (rtol {rtol}) is refused: {verdict['reason']}")
         else:
-            why.append(f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order "
-                       f"(the least-order solution of (2) has order {sol.Q.n})")
-    if all(m == "kept" for m in methods):
+            why += notes or [f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order"]
+    if best is None:
         out["reason"] = "; ".join(why) or "no row can be lowered"
         return gen, out
+    cand, verdict = best
+    out.update({"lowered": True, "row_orders": [int(r.n) for r in rows], "order": int(cand.Q.n),
+                "row_methods": methods, **verdict,
+                "reason": "; ".join(why) if why else "every non-static row lowered to the least order of (2)"})
+    return cand, out
+
+
+#: relative rank tolerances of the covers tried by ``mindeg`` (working precision first): the optimal filter's
+#: rows carry modes that cancel only to its accuracy (Hankel singular values 1e-11 … 1e-8 of the row's largest,
+#: left by the γ-iteration's central controller; the fault/noise response decides, not Q's own scale), which
+#: the working-precision tolerance counts as states. Every candidate is verified (post-conditions, error
+#: within reltol of the optimum) and the lowest-order one that passes is taken
+MINDEG_RTOLS = (None, 1e-11, 1e-10, 1e-9, 1e-8, 1e-7, 1e-6)
+
+
+#: a pole of the cover within this relative distance of a pole of the row it lowers is that pole: the cover's
+#: rank decisions at rtol move a pole by about cond·rtol (Niemann's model: −5.00000004 for M's −5 at rtol 1e-9)
+SNAP_RTOL = 1e-6
+
+
+def _snapped(X: LTI, Qi: LTI) -> LTI:
+    """``X`` in real modal coordinates with each pole within ``SNAP_RTOL`` of a pole of ``Q_i`` replaced by it
+    (``X`` unchanged when its A is defective, ill-conditioned modal basis, or no pole is that close). The
+    numerator is refitted afterwards (:func:`_refit_numerator`); the guard judges the result."""
+    n = X.n
+    if not n or not Qi.n:
+        return X
+    ev, V = np.linalg.eig(X.A)
+    if np.linalg.cond(V) > 1e8:
+        return X
+    ref = Qi.poles()
+    A, cols, done = np.zeros((n, n)), [], np.zeros(n, bool)
+    k = 0
+    for j in np.argsort(-ev.imag):  # a pair's member with positive imaginary part first
+        if done[j]:
+            continue
+        lam = ev[j]
+        d = np.abs(ref - lam)
+        near = ref[np.argmin(d)] if d.size and d.min() <= SNAP_RTOL * max(1.0, abs(lam)) else lam
+        if abs(lam.imag) > 1e-12 * max(1.0, abs(lam)):
+            dist = np.where(done | (np.arange(n) == j), np.inf, np.abs(ev - np.conj(lam)))
+            mate = int(np.argmin(dist))
+            if not np.isfinite(dist[mate]) or k + 2 > n:
+                return X
+            done[[j, mate]] = True
+            v = V[:, j]
+            cols += [v.real, v.imag]
+            a, b = near.real, abs(near.imag)
+            A[k:k + 2, k:k + 2] = [[a, b], [-b, a]]  # A [Re v, Im v] = [Re v, Im v] [[a, b], [-b, a]]
+            k += 2
+        else:
+            if k + 1 > n:
+                return X
+            done[j] = True
+            cols.append(V[:, j].real)
+            A[k, k] = near.real
+            k += 1
+    T = np.column_stack(cols)
+    if k != n or np.linalg.cond(T) > 1e8:
+        return X
+    return LTI(A, np.linalg.solve(T, X.B), X.C @ T, X.D, X.dt)
+
+
+def _refit_numerator(X: LTI, Qi: LTI, target: np.ndarray, Ge: np.ndarray, pts: np.ndarray) -> LTI:
+    """Of ``X`` and its numerator refits (with the cover's poles, and with those :func:`_snapped` to ``Q_i``'s),
+    the one with the least largest mismatch ``||X(λ_k) Ge(λ_k) − Q_i(λ_k) Ge(λ_k)||`` (``target``) on the points.
+
+    The cover's rank decisions are relative to the compound ``[Q_i; N]``, whose gain can exceed the fault
+    gain by 1e4 (Niemann's model at 1 ms): its rounding, small for Q_i, is not small for ``R = Q_i Ge``. With
+    ``(A, C)`` fixed, ``X(λ) = K(λ) Θ`` with ``K = [C (λI − A)^{-1}  1]`` and ``Θ = [B; D]`` is linear in Θ:
+    ``(Ge(λ_k)ᵀ ⊗ K(λ_k)) vec Θ = vec(target_k)``, stacked over the points (real and imaginary parts), solved
+    in the least-squares sense."""
+    def refit(S):
+        n = S.n
+        K = _values(LTI(S.A, np.eye(n), S.C, np.zeros((1, n)), S.dt), pts) if n else np.zeros((pts.size, 1, 0))
+        K = np.concatenate([K, np.ones((pts.size, 1, 1))], axis=2)
+        Phi = np.concatenate([np.kron(Ge[k].T, K[k]) for k in range(pts.size)])
+        rhs = np.concatenate([target[k].T.reshape(-1) for k in range(pts.size)])
+        theta = np.linalg.lstsq(np.vstack([Phi.real, Phi.imag]), np.concatenate([rhs.real, rhs.imag]),
+                                rcond=None)[0]
+        Theta = theta.reshape((n + 1, -1), order="F")
+        return LTI(S.A, Theta[:n], S.C, Theta[n:], S.dt)
+
+    def mismatch(S):
+        return float(np.max(np.linalg.norm(np.einsum("kij,kjl->kil", _values(S, pts), Ge) - target, axis=(1, 2))))
+
+    snapped = _snapped(X, Qi)
+    options = [X, refit(X)] + ([refit(snapped)] if snapped is not X else [])
+    return min(options, key=mismatch)
+
+
+def _row_candidates(Qi: LTI, N: LTI, lim: float, dt: float, atol: float):
+    """The distinct lower orders of ``Q_i + Y N`` (:func:`..toolkit.covers.left_cover2` at each of
+    ``MINDEG_RTOLS``), stable ones only (poles at or inside ``lim``), lowest order first:
+    ``([(rtol, X_i)], notes)`` — the notes say why a cover was not a candidate."""
+    from ..toolkit.covers import left_cover2
+
+    found, notes = {}, []
+    for rtol in MINDEG_RTOLS:
+        try:
+            Xi = left_cover2(Qi, N, rtol=rtol, atol=atol).X
+        except (np.linalg.LinAlgError, DesignError, SlycotError) as exc:
+            notes.append(f"the minimum dynamic cover at rtol {rtol} failed ({exc})")
+            continue
+        if Xi.n >= Qi.n or Xi.n in found:
+            continue
+        poles = Xi.poles()
+        worst = float(np.max(np.abs(poles)) if dt else np.max(poles.real)) if Xi.n else -np.inf
+        if worst > lim:
+            notes.append(f"its least-order solution of (2) at rtol {rtol} (order {Xi.n}) is unstable (largest "
+                         f"{'|pole|' if dt else 'Re(pole)'} {worst:.6g})")
+            continue
+        found[Xi.n] = (rtol, Xi)
+    return [found[k] for k in sorted(found)], notes
+
+
+def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol):
+    """The filter of the lowered ``rows`` if its post-conditions hold and its measured error is within
+    ``reltol`` of the optimal filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable
+    references): ``(generator or None, {'error', 'error_limit', 'reason'})``."""
+    Q, dt = gen.Q, model.dt
     stacked = vstack(rows) if len(rows) > 1 else rows[0]
     Qm = stacked.minreal(atol)
     cand = ResidualGenerator(Qm, model, "approximate_model_matching")
     try:
         check_generator(cand, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
     except DesignError as exc:
-        out["reason"] = f"the least-order filter fails its post-conditions ({exc}): the optimal filter is returned"
-        return gen, out
+        return None, {"reason": f"the least-order filter fails its post-conditions ({exc}): the optimal filter "
+                                f"is returned"}
     # both filters measured on one grid (the optimal one's points and the new filter's poles)
     lam2 = np.concatenate([lam, _points([Qm], dt, 100)])
     ref = max(err, _shipped_error(model, Q, fnm, MF, lam2, norm, systems + [Qm]))
@@ -325,30 +457,23 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     # the same response realised twice: H∞ within the bisection's reltol, H2 to the quadrature's 1e-6;
     # the absolute floor serves exactly matchable references (errors at rounding level, ~1e-12)
     floor = 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)))), 1e-300)
-    out["error_limit"] = float(ref * (1 + reltol) + floor)
-    if not err2 <= out["error_limit"]:
-        out["reason"] = (f"the least-order filter's error {err2:.6g} exceeds the optimal filter's {ref:.6g} by more "
-                         f"than reltol = {reltol:g}: the optimal filter is returned")
-        return gen, out
-    # each row's order as designed (a minimal realisation of its own); the rows of the jointly minimal Qm
-    # mix the rows' states, and a staircase on one of its rows can keep a nearly unobservable one
-    now = [int(r.n) for r in rows]
-    for text in sub_notes:
-        note(text)
-    out.update({"lowered": True, "row_orders": now, "order": int(Qm.n), "error": float(err2), "row_methods": methods,
-                "reason": "; ".join(why) if why else "every non-static row lowered to the least order of (2)"})
-    return cand, out
+    limit = float(ref * (1 + reltol) + floor)
+    if not err2 <= limit:
+        return None, {"error_limit": limit,
+                      "reason": f"the least-order filter's error {err2:.6g} exceeds the optimal filter's {ref:.6g} "
+                                f"by more than reltol = {reltol:g}: the optimal filter is returned"}
+    return cand, {"error": float(err2), "error_limit": limit}
 
 
-def _faults_and_noise_as_faults(model: FDIModel) -> FDIModel:
-    """The model with one component fault whose columns are ``[Bf Bw; Df Dw]`` and no noise: the
-    exact matching of ``[Rf_i Rw_i]`` on it solves equation (2)."""
-    from ...faults import FaultSpec
+def _whole_null_basis(model: FDIModel, smarg, atol: float) -> LTI:
+    """The proper stable left null-space basis of ``[Gu Gd Gf Gw; I 0 0 0]`` (acting on ``[y; u]``): the
+    pencil basis of the model whose unknown inputs are ``[d f w]``."""
+    from ..toolkit.pencil import pencil_basis
 
-    spec = FaultSpec(name="fault_and_noise", kind="component", Bf=np.hstack([model.Bf, model.Bw]),
-                     Df=np.hstack([model.Df, model.Dw]))
-    return FDIModel(model.A, model.Bu, model.C, model.Du, Bd=model.Bd, Dd=model.Dd, faults=[spec], dt=model.dt,
-                    u_names=model.u_names, y_names=model.y_names, d_names=model.d_names)
+    Bd = np.hstack([model.Bd, model.Bf, model.Bw])
+    Dd = np.hstack([model.Dd, model.Df, model.Dw])
+    whole = FDIModel(model.A, model.Bu, model.C, model.Du, Bd=Bd, Dd=Dd, dt=model.dt, name=f"{model.name}_dfw")
+    return pencil_basis(whole, atol=atol, smarg=smarg).N
 
 
 def _check_options(norm, normalize, reltol, atol, mindeg=False) -> None:

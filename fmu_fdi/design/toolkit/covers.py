@@ -127,10 +127,12 @@ def right_cover2(a: np.ndarray, b1: np.ndarray, b2: np.ndarray, c: np.ndarray, d
 def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.0) -> Cover:
     """Type 2 minimum dynamic cover ``X = X1 + Y X2`` of least McMillan degree (equation (1)).
 
-    ``X1`` (p1 × m) and ``X2`` (p2 × m) are proper, of one sampling time. Their compound ``[X1; X2]`` is brought
-    to a minimal realisation (SLICOT TB01PD after TB01ID balancing); rank decisions use the threshold
-    ``max(atol, rtol·||[A B; C D]||_2)`` of the balanced compound realisation (default ``rtol = (n + 1)·1e3·eps``,
-    as the pencil basis).
+    ``X1`` (p1 × m) and ``X2`` (p2 × m, possibly p2 = 0) are proper, of one sampling time. Their compound
+    ``[X1; X2]`` is balanced (SLICOT TB01ID) and every rank decision — its minimal realisation (TB01PD on the
+    balanced coordinates), the deflation and the staircase — uses the threshold ``tol = max(atol,
+    rtol·||[A B; C D]||_2)`` of that balanced realisation (default ``rtol = (n + 1)·1e3·eps``, as the pencil
+    basis; a larger ``rtol`` treats data known to that relative accuracy, e.g. modes an optimal filter
+    cancels only to 1e-9, as exact).
 
     Two steps. (i) The cover's least order is reached only on a realisation that no output injection
     through ``X2`` makes less controllable ("maximally controllable", Varga 2003): the states that one
@@ -147,14 +149,14 @@ def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.
         raise ValueError(f"left_cover2: X1 ({X1.p}×{X1.m}, dt={X1.dt}) and X2 ({X2.p}×{X2.m}, dt={X2.dt}) must "
                          f"have the same inputs and sampling time")
     p1, p2, dt = X1.p, X2.p, X1.dt
-    S = vstack([X1, X2])
-    if S.n:
-        S = S.minreal(atol if atol > 0 else None)
-    if S.n:
+    S = vstack([X1, X2]) if p2 else X1
+    if S.n:  # balanced first, then every rank decision (the minimal realisation's too) relative to it
         S, _ = S.balanced()
+    norm = float(np.linalg.norm(np.block([[S.A, S.B], [S.C, S.D]]), 2)) if S.n else float(np.linalg.norm(S.D, 2))
+    tol = max(atol, ((S.n + 1) * 1e3 * EPS if rtol is None else rtol) * norm)
+    if S.n:
+        S = S.minreal(tol, equil="N")
     n = S.n
-    norm = float(np.linalg.norm(np.block([[S.A, S.B], [S.C, S.D]]), 2)) if n else float(np.linalg.norm(S.D, 2))
-    tol = max(atol, ((n + 1) * 1e3 * EPS if rtol is None else rtol) * norm)
     A, B, C1, C2, D1, D2 = S.A, S.B, S.C[:p1], S.C[p1:], S.D[:p1], S.D[p1:]
     Y0 = LTI.zero(p1, p2, dt)
     M = LTI.static(np.eye(p2), dt)
@@ -172,9 +174,9 @@ def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.
     X = LTI(ar.T, cr.T, br.T, dr.T, dt)
     Y = LTI(ar.T, f.T, br.T, g.T, dt)
     if Y0.n:
-        Y = (Y0 + Y @ M).minreal(atol if atol > 0 else None)
+        Y = (Y0 + Y @ M).minreal(tol)
     if X.n:
-        Xm = X.minreal(atol if atol > 0 else None)
+        Xm = X.minreal(tol)
         if Xm.n < X.n:  # (a cancellation the staircase did not see)
             X = Xm
     return Cover(X, Y, n, tol, max(cond, c2))
