@@ -93,7 +93,8 @@ class LeastRow:
 def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0.0) -> FDIModel:
     """The model with the output ``z = Mr_i f`` appended and f turned into an unknown input:
     outputs ``[y; z]``, known inputs u, unknown inputs ``[d; f]``; states ``[x; x_M]`` reduced to a
-    minimal realisation with the rank tolerance ``max(atol, rtol·||[A B; C D]||)`` (a reference
+    minimal realisation with the rank tolerance ``max(atol, rtol·||[A B; C D]||)`` of the balanced
+    realisation (TB01ID, then TB01PD on those coordinates; a reference
     ``Q* Gf`` repeats plant modes that its product realisation cancels only to rounding: the block
     diagonal realisation holds them twice, uncontrollable to ~1e-13)."""
     n, p, m, nd = model.n, model.ny, model.nu, model.nd
@@ -105,8 +106,13 @@ def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0
     D = np.block([[G.D], [np.zeros((1, m + nd)), Mi.D]])
     aug = LTI(A, B, C, D, model.dt)
     if aug.n and rtol > 0:
-        norm = float(np.linalg.norm(np.block([[A, B], [C, D]]), 2))
-        aug = aug.minreal(tol=max(atol, rtol * norm))
+        # balanced first (SLICOT TB01ID) and the tolerance relative to the balanced data, on which TB01PD then
+        # decides without balancing again: LTI.minreal balances internally, so a threshold from the unbalanced
+        # norm (here up to 1e4 larger: seed 14's reference at mm_tol 1e-8) judged rescaled matrices and
+        # removed every state of the reference (the zero row)
+        aug, _ = aug.balanced()
+        norm = float(np.linalg.norm(np.block([[aug.A, aug.B], [aug.C, aug.D]]), 2))
+        aug = aug.minreal(tol=max(atol, rtol * norm), equil="N")
     return FDIModel(aug.A, aug.B[:, :m], aug.C, aug.D[:, :m], Bd=aug.B[:, m:], Dd=aug.D[:, m:], dt=model.dt,
                     name=f"{model.name}_Mr")
 
