@@ -80,3 +80,30 @@ def test_least_degree_and_identity(seed, k, ny0, dt):
         lhs = value(cv.X, lam)
         rhs = value(X1, lam) + value(cv.Y, lam) @ value(X2, lam)
         assert np.linalg.norm(lhs - rhs) <= 1e-10 * max(1.0, np.linalg.norm(rhs))
+
+
+def test_stable_cover_refuses_when_every_solution_keeps_an_unstable_pole():
+    """``X1 = x [0 I] P`` with x of order 1 and pole +1: every ``X = X1 + Y X2`` has ``X K = x`` (K the constant
+    annihilator of X2), so the pole +1 is in every X: no stable cover exists and None is returned."""
+    from fmu_fdi.design.toolkit.covers import stable_left_cover
+
+    _, X2, K, _ = case(21, 1, 0)
+    x = LTI([[1.0]], [[1.0, 2.0]], [[1.0]], [[0.5, 0.0]])
+    Xu = x @ LTI.static(K.T, 0.0)  # x [0 I] P = x Kᵀ (K = Pᵀ [0; I])
+    assert np.allclose(value(Xu, 0.3j) @ K, value(x, 0.3j))
+    got = stable_left_cover(Xu, X2, lambda re, im: re < 0, lambda k: [-1.0] * k)
+    assert got is None
+
+
+def test_stable_cover_places_free_poles():
+    """``X1 = x Kᵀ + Y0 X2`` with x static and Y0 unstable (pole +2): ``X = x Kᵀ`` (order 0) is reached by
+    ``Y = −Y0``; the stable cover returns order 0 — a stable row with the fault response of X1 (X K = x)."""
+    from fmu_fdi.design.toolkit.covers import stable_left_cover
+
+    _, X2, K, _ = case(22, 0, 0)
+    x = LTI.static([[1.0, -0.5]])
+    Y0 = LTI([[2.0]], [[1.0, 1.0]], [[1.0]], [[0.0, 0.0]])
+    X1 = block_sum(x @ LTI.static(K.T), Y0 @ X2)
+    cv = stable_left_cover(X1, X2, lambda re, im: re < 0, lambda k: [-3.0] * k)
+    assert cv is not None and cv.X.n == 0
+    assert np.allclose(cv.X.D @ K, x.D, atol=1e-10)

@@ -101,6 +101,25 @@ def test_unstable_least_order_row_gives_a_stable_row_of_the_next_order():
     assert np.abs(R - want).max() <= TOL * np.abs(want).max()
 
 
+@pytest.mark.parametrize("kw, poles", [(dict(sdeg=-2.0), [-2.0, -2.0]), (dict(sdeg=-3.0), [-3.0, -3.0]),
+                                       (dict(poles=[-2.0, -3.0]), [-3.0, -2.0])])
+def test_least_stable_order_with_the_requested_poles(kw, poles):
+    """The same example with poles/sdeg: by the construction above every order-2 null row
+    ``p1 P1 + c2 P2`` (deg p1 ≤ 1) has last entry ``(a + c2) s² + (b − a + 3 c2) s + (c2 − b)`` — an invertible
+    linear map of (a, b, c2), so any degree-2 denominator, i.e. any two poles: the least stable order is 2 and
+    its poles are free. The core's stable left inverse gave order 4 here (a pole −0.41 kept from the basis'
+    Mr-column); the stable cover of the least-order row by the null-space basis of Gf gives order 2 with the
+    requested poles. Judged by numpy at off-axis points (exact match) and the poles."""
+    model, Mr = _nonminimum_least_row()
+    gen = model_matching(model, Mr, **kw)
+    assert gen.Q.n == 2 and gen.info["row_methods"] == ["least stable order"]
+    # a double pole is computed to ~sqrt(eps) (its eigenvalues split by ±sqrt(eps·||A||)): 1e-6
+    assert np.allclose(np.sort(gen.Q.poles().real), np.sort(poles), atol=1e-6)
+    R = residual_map(model, gen.Q, LAM_C)
+    want = fr(Mr.A, Mr.B, Mr.C, Mr.D, LAM_C)
+    assert np.abs(R - want).max() <= TOL * np.abs(want).max()
+
+
 def test_unstable_least_order_row_with_updating_factor():
     """updating=True: ``[Q  m Mr] = m [Q0  Mr]`` with m moving only the pole +1 of the least row, to
     sdeg = −2: ``m = (s−1)/(s+2)`` (unit zpk gain) and ``Q = m Q0 = −[s+2, 0]/(s+2) = −[1 0]``, static;

@@ -466,14 +466,10 @@ def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg,
 
 
 def _whole_null_basis(model: FDIModel, smarg, atol: float) -> LTI:
-    """The proper stable left null-space basis of ``[Gu Gd Gf Gw; I 0 0 0]`` (acting on ``[y; u]``): the
-    pencil basis of the model whose unknown inputs are ``[d f w]``."""
-    from ..toolkit.pencil import pencil_basis
+    """The proper stable left null-space basis of ``[Gu Gd Gf Gw; I 0 0 0]`` (acting on ``[y; u]``)."""
+    from ..toolkit.least_solve import solution_basis
 
-    Bd = np.hstack([model.Bd, model.Bf, model.Bw])
-    Dd = np.hstack([model.Dd, model.Df, model.Dw])
-    whole = FDIModel(model.A, model.Bu, model.C, model.Du, Bd=Bd, Dd=Dd, dt=model.dt, name=f"{model.name}_dfw")
-    return pencil_basis(whole, atol=atol, smarg=smarg).N
+    return solution_basis(model, noise=True, atol=atol, smarg=smarg)
 
 
 def _check_options(norm, normalize, reltol, atol, mindeg=False) -> None:

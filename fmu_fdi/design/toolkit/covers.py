@@ -124,25 +124,11 @@ def right_cover2(a: np.ndarray, b1: np.ndarray, b2: np.ndarray, c: np.ndarray, d
     return ar, br, cr, dr, f, g, cond
 
 
-def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.0) -> Cover:
-    """Type 2 minimum dynamic cover ``X = X1 + Y X2`` of least McMillan degree (equation (1)).
-
-    ``X1`` (p1 × m) and ``X2`` (p2 × m, possibly p2 = 0) are proper, of one sampling time. Their compound
-    ``[X1; X2]`` is balanced (SLICOT TB01ID) and every rank decision — its minimal realisation (TB01PD on the
-    balanced coordinates), the deflation and the staircase — uses the threshold ``tol = max(atol,
-    rtol·||[A B; C D]||_2)`` of that balanced realisation (default ``rtol = (n + 1)·1e3·eps``, as the pencil
-    basis; a larger ``rtol`` treats data known to that relative accuracy, e.g. modes an optimal filter
-    cancels only to 1e-9, as exact).
-
-    Two steps. (i) The cover's least order is reached only on a realisation that no output injection
-    through ``X2`` makes less controllable ("maximally controllable", Varga 2003): the states that one
-    injection ``K0`` makes uncontrollable — on the dual, the output-nulling subspace ``V*`` of
-    ``(Aᵀ, C2ᵀ, Bᵀ, D2ᵀ)`` (:func:`.pencil._output_nulling`, orthogonal deflation), e.g. the states of a
-    dynamic combination ``Y0 X2`` inside ``X1`` — are removed first: ``X1' = (A + K0 C2, B + K0 D2, C1, D1)
-    = X1 + Y0' X2`` on ``V*⊥``, with ``X2' = M X2`` (``M = (A + K0 C2, K0, C2, I)``, biproper with a proper
-    inverse: the same row space). (ii) :func:`right_cover2` on the dual of ``[X1'; X2']``.
-    Returns the :class:`Cover` with ``Y = Y0' + Y'' M`` and ``X`` minimal.
-    """
+def _compound(X1: LTI, X2: LTI, rtol, atol: float):
+    """Step (i) of :func:`left_cover2`: the balanced minimal compound ``[X1; X2]`` with the states one output
+    injection through X2 makes uncontrollable removed: ``(A, B, C1, C2, D1, D2, Y0, M, tol, cond, n)`` —
+    ``(A, B, C1, D1)`` realises ``X1' = X1 + Y0 X2`` and ``(A, B, C2, D2)`` realises ``M X2``; ``n`` is the
+    compound's minimal order before the removal."""
     from .pencil import _output_nulling
 
     if X1.m != X2.m or X1.dt != X2.dt:
@@ -170,6 +156,30 @@ def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.
             Y0, M = LTI(Ak, K0, C1, np.zeros((p1, p2)), dt), LTI(Ak, K0, C2, np.eye(p2), dt)
             W = sla.null_space(P.T)  # V*⊥: (A + K0 C2)-invariant and holding Im(B + K0 D2)
             A, B, C1, C2 = W.T @ Ak @ W, W.T @ Bk, C1 @ W, C2 @ W
+    return A, B, C1, C2, D1, D2, Y0, M, tol, cond, n
+
+
+def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.0) -> Cover:
+    """Type 2 minimum dynamic cover ``X = X1 + Y X2`` of least McMillan degree (equation (1)).
+
+    ``X1`` (p1 × m) and ``X2`` (p2 × m, possibly p2 = 0) are proper, of one sampling time. Their compound
+    ``[X1; X2]`` is balanced (SLICOT TB01ID) and every rank decision — its minimal realisation (TB01PD on the
+    balanced coordinates), the deflation and the staircase — uses the threshold ``tol = max(atol,
+    rtol·||[A B; C D]||_2)`` of that balanced realisation (default ``rtol = (n + 1)·1e3·eps``, as the pencil
+    basis; a larger ``rtol`` treats data known to that relative accuracy, e.g. modes an optimal filter
+    cancels only to 1e-9, as exact).
+
+    Two steps. (i) The cover's least order is reached only on a realisation that no output injection
+    through ``X2`` makes less controllable ("maximally controllable", Varga 2003): the states that one
+    injection ``K0`` makes uncontrollable — on the dual, the output-nulling subspace ``V*`` of
+    ``(Aᵀ, C2ᵀ, Bᵀ, D2ᵀ)`` (:func:`.pencil._output_nulling`, orthogonal deflation), e.g. the states of a
+    dynamic combination ``Y0 X2`` inside ``X1`` — are removed first: ``X1' = (A + K0 C2, B + K0 D2, C1, D1)
+    = X1 + Y0' X2`` on ``V*⊥``, with ``X2' = M X2`` (``M = (A + K0 C2, K0, C2, I)``, biproper with a proper
+    inverse: the same row space). (ii) :func:`right_cover2` on the dual of ``[X1'; X2']``.
+    Returns the :class:`Cover` with ``Y = Y0' + Y'' M`` and ``X`` minimal.
+    """
+    A, B, C1, C2, D1, D2, Y0, M, tol, cond, n = _compound(X1, X2, rtol, atol)
+    dt = X1.dt
     ar, br, cr, dr, f, g, c2 = right_cover2(A.T, C1.T, C2.T, B.T, D1.T, D2.T, tol)
     X = LTI(ar.T, cr.T, br.T, dr.T, dt)
     Y = LTI(ar.T, f.T, br.T, g.T, dt)
@@ -180,3 +190,129 @@ def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.
         if Xm.n < X.n:  # (a cancellation the staircase did not see)
             X = Xm
     return Cover(X, Y, n, tol, max(cond, c2))
+
+
+def stable_left_cover(X1: LTI, X2: LTI, good, choose, *, rtol: float | None = None, atol: float = 0.0,
+                      max_order: int | None = None) -> Cover | None:
+    """A stable ``X = X1 + Y X2`` (one row X1) of the least order this method decides, or None.
+
+    On the dual of the compound of :func:`_compound` (``a = Aᵀ``, ``b1 = C1ᵀ`` one column, ``b2 = C2ᵀ``), a
+    Type 2 cover of dimension k whose map ``a + b2 F`` restricted to it has the characteristic polynomial
+    ``α`` (monic, degree k) exists iff
+
+        α(a) b1 ∈ K_k = Im [b2, a b2, …, a^k b2]                                                    (2)
+
+    (the cover is spanned by ``v_0 = b1 + b2 g_0``, ``v_{j+1} = a v_j + b2 g_{j+1}``, and a relation
+    ``Σ α_j v_j = 0`` is (2) with the ``g`` read off K_k's coefficients by back substitution). (2) is linear in
+    α's coefficients: at each k the admissible α form an affine set ``α_p + Z t``. For k = 0, 1, … (up to
+    ``max_order``, default the compound's order) the first k is taken at which (i) the set is every monic
+    polynomial (Z of dimension k): α has the roots ``choose(k)``; (ii) the set is one point whose roots lie in
+    ``good``; or (iii) the point of the set nearest (least squares, coefficients) to the polynomial of
+    ``choose(k)`` has its roots in ``good``. Guaranteed: in cases (i)/(ii) at every k below, no stable X of that
+    order exists, so the order returned is the least among stable solutions; when a smaller k had a
+    proper affine subset (0 < dim Z < k) whose nearest point was unstable, a stable polynomial in that set may
+    have been missed (deciding it is a non-convex problem): the order is then an upper bound of the least.
+    Numerics: Krylov matrices of ``a/ρ`` (ρ = max(1, ||a||)), orthonormalised columns, ranks by SVD at the
+    compound's tolerance; meant for the low orders of exact-matching rows (a stable solution of order ≤ ~10).
+    X is minimal; Y is ``Y0' + Y'' M`` as in :func:`left_cover2`.
+    """
+    A, B, C1, C2, D1, D2, Y0, M, tol, cond, n0 = _compound(X1, X2, rtol, atol)
+    if X1.p != 1:
+        raise ValueError(f"stable_left_cover: X1 must be one row, got {X1.p}")
+    dt, n = X1.dt, A.shape[0]
+    a, b1, b2, c, d1, d2 = A.T, C1.T, C2.T, B.T, D1.T, D2.T
+    rho = max(1.0, float(np.linalg.norm(a, 2))) if n else 1.0
+    As = a / rho
+    rel = (n + 1) * 1e3 * EPS if rtol is None else float(rtol)  # relative rank threshold of (2)
+    top = n if max_order is None else min(n, int(max_order))
+    kry1 = [b1[:, 0]]
+    kry2 = [b2]
+    for k in range(top + 1):
+        if k:
+            kry1.append(As @ kry1[-1])
+            kry2.append(As @ kry2[-1])
+        Kk = np.hstack(kry2) if b2.shape[1] else np.zeros((n, 0))
+        if Kk.size:
+            U, sv, _ = np.linalg.svd(Kk, full_matrices=False)
+            U = U[:, sv > tol]  # (columns (a/ρ)^i C2ᵀ: of the compound's scale or below)
+        else:
+            U = np.zeros((n, 0))
+        proj = lambda v: v - U @ (U.T @ v)  # noqa: E731  (component outside K_k)
+        P = np.column_stack([proj(v) for v in kry1]) if n else np.zeros((0, k + 1))
+        scale = max(float(np.linalg.norm(np.column_stack(kry1))) if n else 0.0, 1e-300)
+        Pk, rhs = P[:, :k], -P[:, k]
+        if k:
+            sol, *_ = np.linalg.lstsq(Pk, rhs, rcond=None)
+            if np.linalg.norm(Pk @ sol - rhs) > rel * scale * max(1.0, np.linalg.norm(sol)):
+                continue
+            _, sv, Vt = np.linalg.svd(Pk, full_matrices=True)
+            rank = int(np.sum(sv > rel * scale))
+            Z = Vt[rank:].T
+        else:
+            if np.linalg.norm(rhs) > rel * scale:
+                continue
+            sol, Z = np.zeros(0), np.zeros((0, 0))
+        # α in the scaled variable μ = λ/ρ: coefficients α_0 … α_{k-1} (α_k = 1)
+        want = np.real(np.poly(np.asarray(choose(k), complex) / rho))[::-1][:k] if k else np.zeros(0)
+        if Z.shape[1] == k:
+            alpha = want
+        elif Z.shape[1] == 0:
+            alpha = sol
+        else:
+            alpha = sol + Z @ np.linalg.lstsq(Z, want - sol, rcond=None)[0]
+        roots = np.roots(np.r_[1.0, alpha[::-1]]) * rho if k else np.zeros(0)
+        if not all(good(z.real, z.imag) for z in roots):
+            continue
+        return _krylov_cover(As, rho, b1, b2, c, d1, d2, alpha, U, Y0, M, tol, cond, n0, dt)
+    return None
+
+
+def _krylov_cover(As, rho, b1, b2, c, d1, d2, alpha, U, Y0, M, tol, cond, n0, dt) -> Cover | None:
+    """The cover of :func:`stable_left_cover` for the admissible monic ``α`` (scaled variable): g from (2) by
+    back substitution, ``v_j``, and the reduced dual system in companion form, unscaled and transposed."""
+    k = alpha.size
+    n, m2 = As.shape[0], b2.shape[1]
+    al = np.r_[alpha, 1.0]
+    # α(As) b1 and its coefficients h_i on [b2, As b2, …, As^k b2]: α(As) b1 + Σ_i As^i b2 h_i = 0
+    v, target = b1[:, 0].copy(), np.zeros(n)
+    for j in range(k + 1):
+        target += al[j] * v
+        v = As @ v
+    cols = []
+    w = b2
+    for _ in range(k + 1):
+        cols.append(w)
+        w = As @ w
+    Kk = np.hstack(cols) if m2 else np.zeros((n, 0))
+    h = -np.linalg.lstsq(Kk, target, rcond=None)[0] if Kk.size else np.zeros((k + 1) * m2)
+    H = h.reshape(k + 1, m2) if m2 else np.zeros((k + 1, 0))
+    # h_i = Σ_{l=0}^{k-i} α_{i+l} g_l  ⇒  g_{k-i} = h_i − Σ_{l<k-i} α_{i+l} g_l  (i = k, k−1, …, 0)
+    g = np.zeros((k + 1, m2))
+    for i in range(k, -1, -1):
+        l_new = k - i
+        g[l_new] = H[i] - sum(al[i + l] * g[l] for l in range(l_new))
+    V = np.zeros((n, k + 1))
+    V[:, 0] = b1[:, 0] + b2 @ g[0]
+    for j in range(k):
+        V[:, j + 1] = As @ V[:, j] + b2 @ g[j + 1]
+    if np.linalg.norm(V @ al) > 1e6 * EPS * max(1.0, np.linalg.norm(V)) * max(1.0, np.linalg.norm(al)):
+        return None  # the relation (2) does not hold to working accuracy: no cover from this α
+    # scaled variable μ = λ/ρ: companion of α on [v_0 … v_{k-1}], then λ = ρ μ (A_r = ρ · companion, the
+    # feedback F v_j = g_{j+1} acts on the scaled pair (As, b2) and becomes ρ·F on (a, b2))
+    ar = np.zeros((k, k))
+    if k:
+        ar[1:, :-1] = np.eye(k - 1)
+        ar[:, -1] = -alpha
+    ar = rho * ar
+    br = np.zeros((k, 1))
+    if k:
+        br[0, 0] = 1.0
+    f = rho * g[1:].T if k else np.zeros((m2, 0))
+    cr = c @ V[:, :k] + d2 @ f
+    dr = d1 + d2 @ g[:1].T
+    X = LTI(ar.T, cr.T, br.T, dr.T, dt)
+    Y = LTI(ar.T, f.T, br.T, g[:1], dt)
+    if Y0.n:
+        Y = (Y0 + Y @ M).minreal(tol)
+    X = X.minreal(tol) if X.n else X
+    return Cover(X, Y, n0, tol, cond)
