@@ -299,25 +299,39 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     lim = margin_limit(default_smarg(dt) if smarg is None else float(smarg))
     rows = [_minimal_row(Q[i, :], atol) for i in range(Q.p)]
     methods, why, best = ["kept"] * Q.p, [], None
-    Ge = _values(model.augmented(), lam)
+    # the numerator refit's points: the design's grid, thinned to REFIT_POINTS (a few unknowns per row)
+    pts = lam[np.unique(np.linspace(0, lam.size - 1, min(lam.size, REFIT_POINTS)).round().astype(int))]
+    Ge = _values(model.augmented(), pts)
     ok = np.all(np.isfinite(Ge), axis=(1, 2))
-    pts, Ge = lam[ok], Ge[ok]
+    pts, Ge = pts[ok], Ge[ok]
+    cands, notes = [], []
     for i, Qi in enumerate(rows):
-        if Qi.n == 0:
-            continue
-        cands, notes = _row_candidates(Qi, N, lim, dt, atol)
+        cs, ns = _row_candidates(Qi, N, lim, dt, atol) if Qi.n else ([], [])
         target = np.einsum("kij,kjl->kil", _values(Qi, pts), Ge)  # Q_i Ge on the points
-        for rtol, Xi in cands:  # lowest order first; the first whose filter passes the guard is taken
-            Xi = _refit_numerator(Xi, Qi, target, Ge, pts)
+        cands.append([(rtol, _refit_numerator(Xi, Qi, target, Ge, pts)) for rtol, Xi in cs])
+        notes.append(ns)
+    # every row at its lowest candidate, verified once; otherwise row by row, lowest order first
+    if sum(1 for c in cands if c) > 1:
+        trial = [c[0][1] if c else r for c, r in zip(cands, rows)]
+        cand, verdict = _verified(model, gen, trial, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol)
+        if cand is not None:
+            rows, best = trial, (cand, verdict)
+            methods = ["least order" if c else "kept" for c in cands]
+            cands = [[] for _ in cands]
+    for i, Qi in enumerate(rows):
+        if Qi.n == 0 or methods[i] != "kept":
+            continue
+        for rtol, Xi in cands[i]:  # lowest order first; the first whose filter passes the guard is taken
             trial = rows[:i] + [Xi] + rows[i + 1:]
             cand, verdict = _verified(model, gen, trial, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol,
                                       atol)
             if cand is not None:
                 rows, methods[i], best = trial, "least order", (cand, verdict)
                 break
-            notes.append(f"row {i + 1}: the order-{Xi.n} cover (rtol {rtol}) is refused: {verdict['reason']}")
+            notes[i].append(f"row {i + 1}: the order-{Xi.n} cover (rtol {rtol}) is refused: {verdict['reason']}")
         else:
-            why += notes or [f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order"]
+            why += [f"row {i + 1}: {t}" if not t.startswith("row ") else t for t in notes[i]] or \
+                [f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order"]
     if best is None:
         out["reason"] = "; ".join(why) or "no row can be lowered"
         return gen, out
@@ -334,6 +348,8 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
 #: the working-precision tolerance counts as states. Every candidate is verified (post-conditions, error
 #: within reltol of the optimum) and the lowest-order one that passes is taken
 MINDEG_RTOLS = (None, 1e-11, 1e-10, 1e-9, 1e-8, 1e-7, 1e-6)
+#: points of the numerator refit (:func:`_refit_numerator`): unknowns (order + 1)·(p + m), a few dozen at most
+REFIT_POINTS = 120
 
 
 #: a pole of the cover within this relative distance of a pole of the row it lowers is that pole: the cover's
