@@ -11,8 +11,6 @@ two alternating ``R`` times, best kept) and their ratio, the row orders (optimal
 the geometric mean of the stage ratios.
 Run: python benchmarks/mindeg_time.py [R] [REV]
 """
-import importlib.util
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -21,24 +19,15 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from matching_time import baseline  # noqa: E402
 from test_mindeg import CASES, static  # noqa: E402
 from test_synthesis_ammp import _random_case  # noqa: E402
 from test_synthesis_published import niemann  # noqa: E402
 
 from fmu_fdi.design.problems import approximate_matching as new  # noqa: E402
 from fmu_fdi.linalg import single_blas_thread  # noqa: E402
-
-
-def baseline(rev: str):
-    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:fmu_fdi/design/problems/approximate_matching.py"],
-                         check=True, capture_output=True, text=True).stdout
-    name = "fmu_fdi.design.problems._approximate_matching_baseline"
-    spec = importlib.util.spec_from_loader(name, loader=None)
-    mod = importlib.util.module_from_spec(spec)
-    mod.__package__ = "fmu_fdi.design.problems"
-    exec(compile(src, f"{rev}:approximate_matching.py", "exec"), mod.__dict__)
-    return mod
 
 
 def best(fn, reps):
@@ -53,7 +42,7 @@ def best(fn, reps):
 def main():
     reps = int(sys.argv[1]) if len(sys.argv) > 1 else 3
     rev = sys.argv[2] if len(sys.argv) > 2 else "19b534a"
-    old = baseline(rev)
+    old = baseline(rev, "approximate_matching")
     cases = dict(CASES)
     cases["niemann"] = (niemann, static([[1.0, 0.0]]), dict(sdeg=-5, reltol=1e-5))
     cases["seed6"] = (lambda: _random_case(6)[0], _random_case(6)[1], {})
