@@ -252,3 +252,40 @@ def _ref_realisation(model, Q1):
             np.vstack([Dfw, np.zeros((model.nu, Bfw.shape[1]))]), model.dt)
     P = Q1 @ G
     return P.A, P.B, P.C, P.D, P.dt
+
+
+def _faults_only_random(seed):
+    """Seeded model: n = 3..5 stable states, 2..3 outputs, 0..1 input, one fault; Mr = 1/(s+2)."""
+    rng = np.random.default_rng(seed)
+    n, p, mu = 3 + seed % 3, 2 + seed % 2, seed % 2
+    A = rng.standard_normal((n, n))
+    A -= (np.max(np.linalg.eigvals(A).real) + 0.5) * np.eye(n)
+    model = FDIModel.from_matrices(A, rng.standard_normal((n, mu)), rng.standard_normal((p, n)),
+                                   faults=[component_fault("f", rng.standard_normal((n, 1)), np.zeros((p, 1)))])
+    return model, LTI([[-2.0]], [[1.0]], [[1.0]], [[0.0]])
+
+
+@pytest.mark.parametrize("seed, sdeg", [(10, None), (26, None), (26, -2.0), (32, -2.0), (40, None)])
+def test_stable_solution_is_lowered(seed, sdeg):
+    """Seeded models whose least-order row is unstable (without updating): the returned stable row has fewer
+    states than the core's stable left inverse of the basis' Mr-column (least_solve.stable_solution, measured
+    on the same least row: orders 4-10 here), matches Mr exactly (numpy, off-axis points: eps·1e3 of the
+    reference's size), decouples u exactly, is stable, and with sdeg has every pole at or left of sdeg."""
+    from fmu_fdi.design.problems.matching import _drop_cancelled, pole_chooser
+    from fmu_fdi.design.toolkit.least_solve import least_row, stable_solution
+
+    model, Mr = _faults_only_random(seed)
+    kw = {} if sdeg is None else dict(sdeg=sdeg)
+    gen = model_matching(model, Mr, **kw)
+    assert gen.info["row_methods"] == ["least stable order"]
+    choose = pole_chooser(model, None, sdeg)
+    good = lambda re, im: re <= -1e-7  # noqa: E731
+    lr = least_row(model, _drop_cancelled(Mr, -1e-7, 1e-9), tol=1e-9, good=good, choose=choose, sdeg=sdeg)
+    assert gen.Q.n < stable_solution(lr, choose, good, 1e-9).n
+    R = residual_map(model, gen.Q, LAM_C)
+    want = fr(Mr.A, Mr.B, Mr.C, Mr.D, LAM_C)
+    assert np.abs(R[:, :, model.nu:] - want).max() <= TOL * np.abs(want).max()
+    assert np.abs(R[:, :, :model.nu]).max(initial=0.0) <= TOL * np.abs(want).max()
+    # a k-fold pole at sdeg (every free pole goes there) is computed to ~(eps·||A||)^(1/k): 5.6e-5 for k = 3
+    top = -1e-7 if sdeg is None else sdeg + 1e-3
+    assert np.all(gen.Q.poles().real <= top)
