@@ -295,7 +295,13 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     if not any(before):
         out["reason"] = "every row is static (order 0): already least order"
         return gen, out
-    N = _whole_null_basis(model, smarg, atol)
+    try:
+        N = _whole_null_basis(model, smarg, atol)
+        basis_note = []
+    except DesignError as exc:  # the rows are then lowered only by their near-cancellations (N empty)
+        N = LTI.zero(0, Q.m, dt)
+        basis_note = [f"the null-space basis of [Gu Gd Gf Gw; I 0 0 0] failed ({exc}): rows lowered by their "
+                      f"near-cancelled modes only"]
     lim = margin_limit(default_smarg(dt) if smarg is None else float(smarg))
     rows = [_minimal_row(Q[i, :], atol) for i in range(Q.p)]
     methods, why, best = ["kept"] * Q.p, [], None
@@ -332,6 +338,7 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
         else:
             why += [f"row {i + 1}: {t}" if not t.startswith("row ") else t for t in notes[i]] or \
                 [f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order"]
+    why = basis_note + why
     if best is None:
         out["reason"] = "; ".join(why) or "no row can be lowered"
         return gen, out
@@ -438,7 +445,7 @@ def _row_candidates(Qi: LTI, N: LTI, lim: float, dt: float, atol: float):
     for rtol in MINDEG_RTOLS:
         try:
             Xi = left_cover2(Qi, N, rtol=rtol, atol=atol).X
-        except (np.linalg.LinAlgError, DesignError, SlycotError) as exc:
+        except (np.linalg.LinAlgError, DesignError, SlycotError, ValueError) as exc:
             notes.append(f"the minimum dynamic cover at rtol {rtol} failed ({exc})")
             continue
         if Xi.n >= Qi.n or Xi.n in found:

@@ -45,7 +45,8 @@ from ...lti import LTI, vstack
 
 @dataclass
 class Cover:
-    """``X = X1 + Y X2`` of least order: ``X`` and ``Y`` share ``(A, K)``-part of their realisations."""
+    """``X = X1 + Y X2`` of least order (X minimal; Y proper, of the cover's order plus that of the removed
+    injection part)."""
 
     X: LTI
     Y: LTI
@@ -216,9 +217,9 @@ def stable_left_cover(X1: LTI, X2: LTI, good, choose, *, rtol: float | None = No
     compound's tolerance; meant for the low orders of exact-matching rows (a stable solution of order ≤ ~10).
     X is minimal; Y is ``Y0' + Y'' M`` as in :func:`left_cover2`.
     """
-    A, B, C1, C2, D1, D2, Y0, M, tol, cond, n0 = _compound(X1, X2, rtol, atol)
     if X1.p != 1:
         raise ValueError(f"stable_left_cover: X1 must be one row, got {X1.p}")
+    A, B, C1, C2, D1, D2, Y0, M, tol, cond, n0 = _compound(X1, X2, rtol, atol)
     dt, n = X1.dt, A.shape[0]
     a, b1, b2, c, d1, d2 = A.T, C1.T, C2.T, B.T, D1.T, D2.T
     rho = max(1.0, float(np.linalg.norm(a, 2))) if n else 1.0
