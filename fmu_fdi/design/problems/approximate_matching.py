@@ -66,15 +66,20 @@ solution ``Q_i'`` of the linear rational equation
 
 the minimum-degree solution of ``glasol``/``glsol`` with ``mindeg = true`` (Varga 2017, sec. 5.7,
 Procedure AMMS with the least-order option; the peer finds it as ``X0 + Z XN``, ``XN`` a left
-null-space basis of Ge, by a Type 2 minimum dynamic cover, sec. 7.9 and 10.4.2). So here: ``Q_i' =
-Q_i + Y N`` with ``N`` the pencil basis of the whole Ge and Y from a Type 2 minimum dynamic cover
+null-space basis of Ge, by a Type 2 minimum dynamic cover, sec. 7.9 and 10.4.2). Candidates per row:
+``Q_i + Y N`` with ``N`` the pencil basis of the whole Ge and Y from Type 2 minimum dynamic covers
 (:func:`~fmu_fdi.design.toolkit.covers.left_cover2`) — the same fault and noise response by
-construction, without forming the reference ``Q_i [Gf Gw]``. The optimal rows carry modes that cancel
-only to the filter's accuracy, so covers at a few relative rank tolerances (``MINDEG_RTOLS``) are
-candidates, their numerators refitted to ``Q_i Ge`` on the design's points; a stable candidate is
-taken, lowest order first, only if the filter passes its post-conditions and its re-measured error is
-no worse than the optimal one within ``reltol`` (``info['mindeg']`` says what was done, and why not
-when a row cannot be lowered: already least order, an unstable least-order row, a refused candidate).
+construction, without forming a reference — at a few relative rank tolerances (``MINDEG_RTOLS``: the
+optimal rows carry modes that cancel only to the filter's accuracy), and the least-order exact solve
+of (2) from the reference ``Q_i [Gf Gw]`` (:func:`~fmu_fdi.design.problems.matching.model_matching`
+on the model whose faults are ``[f w]``: it reaches rows built on another basis than N, which the
+compound ``[Q_i; N]`` does not). Each candidate's numerator is refitted to ``Q_i Ge`` on the design's
+points, its near-cancelled modes (Hankel singular values below ``HANKEL_RTOL`` of its largest) are
+truncated as a further candidate, and a candidate with more significant modes than the row is
+dropped. Stable candidates are taken, lowest order first (all rows at once, then row by row), only if
+the filter passes its post-conditions and its re-measured error is no worse than the optimal one
+within ``reltol`` (``info['mindeg']`` says what was done, and why not when a row cannot be lowered:
+already least order, an unstable least-order row, a refused candidate).
 
 Not covered: zeros of ``G1`` on the imaginary axis / unit circle (the optimum is not
 attained by a stable filter): refused with a :class:`~fmu_fdi.errors.DesignError` that
@@ -93,6 +98,7 @@ A. Varga, Reliable algorithms for computing minimal dynamic covers, IEEE CDC 200
 from __future__ import annotations
 
 from itertools import pairwise
+import warnings
 
 import numpy as np
 import scipy.linalg as sla
@@ -104,7 +110,7 @@ from ...linalg import EPS, single_blas_thread
 from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
-from ..toolkit.notes import keeps_notes
+from ..toolkit.notes import keeps_notes, silenced
 from .reference import reference
 
 
@@ -272,19 +278,14 @@ def _minimal_row(Qi: LTI, atol: float = 0.0) -> LTI:
 def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol):
     """Stage of :func:`approximate_model_matching` with ``mindeg=True``: ``(generator, info['mindeg'])``.
 
-    Row i of the optimal Q is replaced by the least-order ``Q_i' = Q_i + Y N`` (the module docstring's (2)),
-    ``N`` the proper stable left null-space basis of the whole ``Ge = [Gu Gd Gf Gw; I 0 0 0]``
-    (:func:`..toolkit.pencil.pencil_basis` of the model whose unknown inputs are ``[d f w]``), by a Type 2
-    minimum dynamic cover (:func:`..toolkit.covers.left_cover2`): ``Q_i' Ge = Q_i Ge`` by construction, the
-    reference ``[Rf_i Rw_i]`` is never formed (a product ``Q_i [Gf Gw]`` is known only to the rounding of
-    Q_i's realisation, which a least-order solve of (2) on the augmented system cannot tell from a
-    different reference). The least-order row is taken when its degree is below that of the row's minimal
-    realisation and its poles lie in the stability region (``smarg``); an unstable least-order row is not
-    taken (its poles are fixed by the cover when the least-degree solution is unique) and ``reason`` says
-    so. The result is kept only if its post-conditions hold and its measured error is within ``reltol``
-    of the optimal filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable references);
-    otherwise, and when no row can be lowered, the optimal filter is returned unchanged and ``reason``
-    says why."""
+    Row i of the optimal Q is replaced by a lower-order solution of (2) (the module docstring): candidates
+    ``Q_i + Y N`` from Type 2 minimum dynamic covers (:func:`..toolkit.covers.left_cover2`; ``N`` the proper
+    stable left null-space basis of the whole ``Ge = [Gu Gd Gf Gw; I 0 0 0]``) at ``MINDEG_RTOLS`` and the
+    re-solve of (2) from its reference (:func:`_resolved_row`), stable ones only (an unstable least-order row
+    is not taken and ``reason`` says so), numerators refitted, near-cancelled modes truncated. The result is
+    kept only if its post-conditions hold and its measured error is within ``reltol`` of the optimal
+    filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable references); otherwise, and when
+    no row can be lowered, the optimal filter is returned unchanged and ``reason`` says why."""
     from ...margin import margin_limit
     from ..toolkit.postconditions import default_smarg
 
@@ -311,21 +312,48 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     ok = np.all(np.isfinite(Ge), axis=(1, 2))
     pts, Ge = pts[ok], Ge[ok]
     cands, notes = [], []
+    fw = _faults_and_noise_as_faults(model)
     for i, Qi in enumerate(rows):
         cs, ns = _row_candidates(Qi, N, lim, dt, atol) if Qi.n else ([], [])
+        if Qi.n:
+            Xr, why_r = _resolved_row(fw, Qi, fnm, smarg, dec_tol, atol)
+            if Xr is not None and Xr.n < Qi.n and all(Xr.n != X.n for _, X in cs):
+                cs = sorted(cs + [("re-solve", Xr)], key=lambda c: c[1].n)
+            elif why_r:
+                ns.append(why_r)
         target = np.einsum("kij,kjl->kil", _values(Qi, pts), Ge)  # Q_i Ge on the points
-        cands.append([(rtol, _refit_numerator(Xi, Qi, target, Ge, pts)) for rtol, Xi in cs])
+        h0, kept = _hankel_order(Qi) if cs else 0, []
+        for rtol, Xi in cs:
+            Xi = _refit_numerator(Xi, Qi, target, Ge, pts)
+            h = _hankel_order(Xi)
+            if h > h0:  # fewer states, more significant modes: not lower
+                ns.append(f"its order-{Xi.n} solution of (2) ({rtol if isinstance(rtol, str) else f'rtol {rtol}'}) "
+                          f"has {h} Hankel singular values above {HANKEL_RTOL:g} of its largest, the optimal row {h0}")
+                continue
+            if h < Xi.n:  # its near-cancelled modes truncated (then refitted) first, the row itself next
+                Xt = _truncated(Xi, h)
+                if Xt is not None:
+                    kept.append((rtol, _refit_numerator(Xt, Qi, target, Ge, pts)))
+            kept.append((rtol, Xi))
+        cands.append(sorted(kept, key=lambda c: c[1].n))
         notes.append(ns)
-    # every row at its lowest candidate, verified once; otherwise row by row, lowest order first
+    # every row at its j-th lowest candidate (j = 0, 1, …), verified jointly; the first that passes is kept, and
+    # the rows then go one by one, lowest order first (the error of the whole filter decides, not each row's)
     if sum(1 for c in cands if c) > 1:
-        trial = [c[0][1] if c else r for c, r in zip(cands, rows)]
-        cand, verdict = _verified(model, gen, trial, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol)
-        if cand is not None:
-            rows, best = trial, (cand, verdict)
-            methods = ["least order" if c else "kept" for c in cands]
-            cands = [[] for _ in cands]
+        for j in range(max(len(c) for c in cands)):
+            trial = [c[min(j, len(c) - 1)][1] if c else r for c, r in zip(cands, rows)]
+            cand, verdict = _verified(model, gen, trial, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol,
+                                      atol)
+            if cand is not None:
+                rows, best = trial, (cand, verdict)
+                methods = ["least order" if c else "kept" for c in cands]
+                cands = [[x for x in c[:min(j, len(c) - 1)]] for c in cands]  # the lower ones, tried one by one
+                break
     for i, Qi in enumerate(rows):
-        if Qi.n == 0 or methods[i] != "kept":
+        if not cands[i]:
+            if methods[i] == "kept" and Qi.n:
+                why += [f"row {i + 1}: {t}" for t in notes[i]] or \
+                    [f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order"]
             continue
         for rtol, Xi in cands[i]:  # lowest order first; the first whose filter passes the guard is taken
             trial = rows[:i] + [Xi] + rows[i + 1:]
@@ -334,10 +362,11 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
             if cand is not None:
                 rows, methods[i], best = trial, "least order", (cand, verdict)
                 break
-            notes[i].append(f"row {i + 1}: the order-{Xi.n} cover (rtol {rtol}) is refused: {verdict['reason']}")
+            src = rtol if isinstance(rtol, str) else f"cover at rtol {rtol}"
+            notes[i].append(f"row {i + 1}: the order-{Xi.n} candidate ({src}) is refused: {verdict['reason']}")
         else:
-            why += [f"row {i + 1}: {t}" if not t.startswith("row ") else t for t in notes[i]] or \
-                [f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order"]
+            if methods[i] == "kept":
+                why += [f"row {i + 1}: {t}" if not t.startswith("row ") else t for t in notes[i]]
     why = basis_note + why
     if best is None:
         out["reason"] = "; ".join(why) or "no row can be lowered"
@@ -460,6 +489,46 @@ def _row_candidates(Qi: LTI, N: LTI, lim: float, dt: float, atol: float):
     return [found[k] for k in sorted(found)], notes
 
 
+#: Hankel singular values above this fraction of the largest count as a row's significant modes
+HANKEL_RTOL = 1e-7
+
+
+def _truncated(S: LTI, order: int) -> LTI | None:
+    """``S`` (stable) balanced and truncated to ``order`` states (SLICOT AB09AD, square-root method; the error is
+    at most twice the sum of the dropped Hankel singular values, here below ``HANKEL_RTOL`` of the largest each),
+    or None when SLICOT refuses."""
+    import slycot
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            nr, Ar, Br, Cr, _ = slycot.ab09ad("D" if S.dt else "C", "B", "N", S.n, S.m, S.p, S.A.copy(), S.B.copy(),
+                                              S.C.copy(), nr=order)
+    except slycot.exceptions.SlycotError:
+        return None
+    return LTI(Ar[:nr, :nr], Br[:nr, :S.m], Cr[:S.p, :nr], S.D, S.dt)
+
+
+def _hankel_order(S: LTI) -> int:
+    """Number of Hankel singular values of the stable row ``S`` above ``HANKEL_RTOL`` of the largest (SLICOT
+    AB09AD's square-root method): a candidate with fewer states but more significant modes than the row it
+    replaces is not lower (a cover at a loose tolerance can trade cancelled modes for real ones); S.n when
+    the singular values cannot be computed."""
+    import slycot
+
+    if S.n == 0:
+        return 0
+    try:
+        with warnings.catch_warnings():  # (SLICOT's note that the order asked exceeds the minimal one)
+            warnings.simplefilter("ignore")
+            *_, hsv = slycot.ab09ad("D" if S.dt else "C", "B", "N", S.n, S.m, S.p, S.A.copy(), S.B.copy(),
+                                    S.C.copy(), nr=S.n)
+    except slycot.exceptions.SlycotError:
+        return S.n
+    hsv = np.asarray(hsv)
+    return int(np.sum(hsv > HANKEL_RTOL * hsv.max())) if hsv.size and hsv.max() > 0 else 0
+
+
 def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol):
     """The filter of the lowered ``rows`` if its post-conditions hold and its measured error is within
     ``reltol`` of the optimal filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable
@@ -486,6 +555,32 @@ def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg,
                       "reason": f"the least-order filter's error {err2:.6g} exceeds the optimal filter's {ref:.6g} "
                                 f"by more than reltol = {reltol:g}: the optimal filter is returned"}
     return cand, {"error": float(err2), "error_limit": limit}
+
+
+def _resolved_row(fw: FDIModel, Qi: LTI, fnm: LTI, smarg, dec_tol: float, atol: float):
+    """The least-order exact solution of (2) from the reference ``[Rf_i Rw_i] = Q_i [Gf Gw]`` (exact model
+    matching on the model whose faults are ``[f w]``, :func:`.matching.model_matching`; Varga's ``glsol`` on
+    the augmented system): ``(row or None, why)``. A second candidate beside the covers: the reference is
+    known only to Q_i's rounding, but the augmented pencil holds what the compound ``[Q_i; N]`` may not (an
+    optimal row built on another basis, whose poles are not N's: random seeds 5 and 9 of the AMMP family)."""
+    from .matching import model_matching
+
+    try:
+        with silenced():
+            return model_matching(fw, Qi @ fnm, smarg=smarg, dec_tol=dec_tol, atol=atol).Q, ""
+    except DesignError as exc:
+        return None, f"the least-order solve of Q_i Ge = [0 0 Rf_i Rw_i] failed ({exc})"
+
+
+def _faults_and_noise_as_faults(model: FDIModel) -> FDIModel:
+    """The model with one component fault whose columns are ``[Bf Bw; Df Dw]`` and no noise: the
+    exact matching of ``[Rf_i Rw_i]`` on it solves equation (2)."""
+    from ...faults import FaultSpec
+
+    spec = FaultSpec(name="fault_and_noise", kind="component", Bf=np.hstack([model.Bf, model.Bw]),
+                     Df=np.hstack([model.Df, model.Dw]))
+    return FDIModel(model.A, model.Bu, model.C, model.Du, Bd=model.Bd, Dd=model.Dd, faults=[spec], dt=model.dt,
+                    u_names=model.u_names, y_names=model.y_names, d_names=model.d_names)
 
 
 def _whole_null_basis(model: FDIModel, smarg, atol: float) -> LTI:
