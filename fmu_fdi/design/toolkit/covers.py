@@ -178,6 +178,12 @@ def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.
     = X1 + Y0' X2`` on ``V*⊥``, with ``X2' = M X2`` (``M = (A + K0 C2, K0, C2, I)``, biproper with a proper
     inverse: the same row space). (ii) :func:`right_cover2` on the dual of ``[X1'; X2']``.
     Returns the :class:`Cover` with ``Y = Y0' + Y'' M`` and ``X`` minimal.
+
+    Guaranteed: the least order over the X whose Y is realised on the compound's states (Y'' has the cover's
+    order). When the least-order X needs a Y with dynamics of its own that the compound does not hold — X1
+    built on a null-space basis with other poles than X2's (an H∞-optimal row and the pencil basis: AMMP
+    seeds 5 and 9), or X1 and the least X sharing an unstable pole Y must cancel — the order returned is an
+    upper bound; the caller compares with another method (``mindeg`` also re-solves (2) from the reference).
     """
     A, B, C1, C2, D1, D2, Y0, M, tol, cond, n = _compound(X1, X2, rtol, atol)
     dt = X1.dt
