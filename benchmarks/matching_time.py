@@ -27,14 +27,15 @@ from test_synthesis_matching_order import _faults_only, _random_model  # noqa: E
 from test_synthesis_published import niemann, xiong_saif_2  # noqa: E402
 
 
-def baseline(rev: str):
-    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:fmu_fdi/design/problems/matching.py"],
+def baseline(rev: str, module: str = "matching"):
+    """``fmu_fdi/design/problems/<module>.py`` as of ``rev``, as a sibling module of the current one."""
+    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:fmu_fdi/design/problems/{module}.py"],
                          check=True, capture_output=True, text=True).stdout
-    name = "fmu_fdi.design.problems._matching_baseline"
+    name = f"fmu_fdi.design.problems._{module}_baseline"
     spec = importlib.util.spec_from_loader(name, loader=None)
     mod = importlib.util.module_from_spec(spec)
     mod.__package__ = "fmu_fdi.design.problems"
-    exec(compile(src, f"{rev}:matching.py", "exec"), mod.__dict__)
+    exec(compile(src, f"{rev}:{module}.py", "exec"), mod.__dict__)
     return mod
 
 

@@ -68,12 +68,20 @@ solution ``Q_i'`` of the linear rational equation
 
 the minimum-degree solution of ``glasol``/``glsol`` with ``mindeg = true`` (Varga 2017, sec. 5.7,
 Procedure AMMS with the least-order option; the peer finds it as ``X0 + Z XN``, ``XN`` a left
-null-space basis of Ge, by a Type 2 minimum dynamic cover, sec. 7.9 and 10.4.2). Here it is the
-least-order row of exact model matching, :func:`~fmu_fdi.design.problems.matching.model_matching`,
-on the model whose "faults" are ``[f w]`` (the least degree of a row solving (2)). A row keeps
-its minimal realisation when that is no larger; the returned error is measured again and the
-least-order filter is returned only if it is no worse than the optimal one within ``reltol``
-(``info['mindeg']`` says what was done, and why not when the order cannot be lowered).
+null-space basis of Ge, by a Type 2 minimum dynamic cover, sec. 7.9 and 10.4.2). Candidates per row:
+``Q_i + Y N`` with ``N`` the pencil basis of the whole Ge and Y from Type 2 minimum dynamic covers
+(:func:`~fmu_fdi.design.toolkit.covers.left_cover2`) — the same fault and noise response by
+construction, without forming a reference — at a few relative rank tolerances (``MINDEG_RTOLS``: the
+optimal rows carry modes that cancel only to the filter's accuracy), and the least-order exact solve
+of (2) from the reference ``Q_i [Gf Gw]`` (:func:`~fmu_fdi.design.problems.matching.model_matching`
+on the model whose faults are ``[f w]``: it reaches rows built on another basis than N, which the
+compound ``[Q_i; N]`` does not). Each candidate's numerator is refitted to ``Q_i Ge`` on the design's
+points, its near-cancelled modes (Hankel singular values below ``HANKEL_RTOL`` of its largest) are
+truncated as a further candidate, and a candidate with more significant modes than the row is
+dropped. Stable candidates are taken, lowest order first (all rows at once, then row by row), only if
+the filter passes its post-conditions and its re-measured error is no worse than the optimal one
+within ``reltol`` (``info['mindeg']`` says what was done, and why not when a row cannot be lowered:
+already least order, an unstable least-order row, a refused candidate).
 
 Not covered: zeros of ``G1`` on the imaginary axis / unit circle (the optimum is not
 attained by a stable filter): refused with a :class:`~fmu_fdi.errors.DesignError` that
@@ -92,6 +100,7 @@ A. Varga, Reliable algorithms for computing minimal dynamic covers, IEEE CDC 200
 from __future__ import annotations
 
 from itertools import pairwise
+import warnings
 
 import numpy as np
 import scipy.linalg as sla
@@ -104,7 +113,7 @@ from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit._basis import check_poles, pick_poles
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
-from ..toolkit.notes import keeps_notes, note, silenced
+from ..toolkit.notes import keeps_notes, silenced
 from .reference import reference
 
 
@@ -344,15 +353,16 @@ def _minimal_row(Qi: LTI, atol: float = 0.0) -> LTI:
 def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol):
     """Stage of :func:`approximate_model_matching` with ``mindeg=True``: ``(generator, info['mindeg'])``.
 
-    Row i of the optimal Q is replaced by the least-order stable proper solution of
-    ``Q_i' Ge = [0 0 Rf_i Rw_i]`` (the module docstring's (2)) — exact model matching of the row's own
-    fault and noise response on the model whose faults are ``[f w]`` (:func:`.matching.model_matching`,
-    least order per row) — when its degree is below that of the row's minimal realisation. The
-    result is kept only if its post-conditions hold and its measured error is within ``reltol`` of
-    the optimal filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable references);
-    otherwise, and when no row can be lowered, the optimal filter is returned unchanged and
-    ``reason`` says why."""
-    from .matching import model_matching
+    Row i of the optimal Q is replaced by a lower-order solution of (2) (the module docstring): candidates
+    ``Q_i + Y N`` from Type 2 minimum dynamic covers (:func:`..toolkit.covers.left_cover2`; ``N`` the proper
+    stable left null-space basis of the whole ``Ge = [Gu Gd Gf Gw; I 0 0 0]``) at ``MINDEG_RTOLS`` and the
+    re-solve of (2) from its reference (:func:`_resolved_row`), stable ones only (an unstable least-order row
+    is not taken and ``reason`` says so), numerators refitted, near-cancelled modes truncated. The result is
+    kept only if its post-conditions hold and its measured error is within ``reltol`` of the optimal
+    filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable references); otherwise, and when
+    no row can be lowered, the optimal filter is returned unchanged and ``reason`` says why."""
+    from ...margin import margin_limit
+    from ..toolkit.postconditions import default_smarg
 
     Q, dt = gen.Q, model.dt
     before = row_orders(Q, atol)
@@ -361,38 +371,252 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     if not any(before):
         out["reason"] = "every row is static (order 0): already least order"
         return gen, out
-    aug = _faults_and_noise_as_faults(model)
-    rows, methods, why, sub_notes = [], [], [], []
-    for i in range(Q.p):
-        Qi = _minimal_row(Q[i, :], atol)
-        rows.append(Qi), methods.append("kept")
-        if Qi.n == 0:
+    try:
+        N = _whole_null_basis(model, smarg, atol)
+        basis_note = []
+    except DesignError as exc:  # the rows are then lowered only by their near-cancellations (N empty)
+        N = LTI.zero(0, Q.m, dt)
+        basis_note = [f"the null-space basis of [Gu Gd Gf Gw; I 0 0 0] failed ({exc}): rows lowered by their "
+                      f"near-cancelled modes only"]
+    lim = margin_limit(default_smarg(dt) if smarg is None else float(smarg))
+    rows = [_minimal_row(Q[i, :], atol) for i in range(Q.p)]
+    methods, why, best = ["kept"] * Q.p, [], None
+    # the numerator refit's points: the design's grid, thinned to REFIT_POINTS (a few unknowns per row)
+    pts = lam[np.unique(np.linspace(0, lam.size - 1, min(lam.size, REFIT_POINTS)).round().astype(int))]
+    Ge = _values(model.augmented(), pts)
+    ok = np.all(np.isfinite(Ge), axis=(1, 2))
+    pts, Ge = pts[ok], Ge[ok]
+    cands, notes = [], []
+    fw = _faults_and_noise_as_faults(model)
+    for i, Qi in enumerate(rows):
+        cs, ns = _row_candidates(Qi, N, lim, dt, atol) if Qi.n else ([], [])
+        if Qi.n:
+            Xr, why_r = _resolved_row(fw, Qi, fnm, smarg, dec_tol, atol)
+            if Xr is not None and Xr.n < Qi.n and all(Xr.n != X.n for _, X in cs):
+                cs = sorted(cs + [("re-solve", Xr)], key=lambda c: c[1].n)
+            elif why_r:
+                ns.append(why_r)
+        target = np.einsum("kij,kjl->kil", _values(Qi, pts), Ge)  # Q_i Ge on the points
+        h0, kept = _hankel_order(Qi) if cs else 0, []
+        for rtol, Xi in cs:
+            Xi = _refit_numerator(Xi, Qi, target, Ge, pts)
+            h = _hankel_order(Xi)
+            if h > h0:  # fewer states, more significant modes: not lower
+                ns.append(f"its order-{Xi.n} solution of (2) ({rtol if isinstance(rtol, str) else f'rtol {rtol}'}) "
+                          f"has {h} Hankel singular values above {HANKEL_RTOL:g} of its largest, the optimal row {h0}")
+                continue
+            if h < Xi.n:  # its near-cancelled modes truncated (then refitted) first, the row itself next
+                Xt = _truncated(Xi, h)
+                if Xt is not None:
+                    kept.append((rtol, _refit_numerator(Xt, Qi, target, Ge, pts)))
+            kept.append((rtol, Xi))
+        cands.append(sorted(kept, key=lambda c: c[1].n))
+        notes.append(ns)
+    # every row at its j-th lowest candidate (j = 0, 1, …), verified jointly; the first that passes is kept, and
+    # the rows then go one by one, lowest order first (the error of the whole filter decides, not each row's)
+    if sum(1 for c in cands if c) > 1:
+        for j in range(max(len(c) for c in cands)):
+            trial = [c[min(j, len(c) - 1)][1] if c else r for c, r in zip(cands, rows)]
+            cand, verdict = _verified(model, gen, trial, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol,
+                                      atol)
+            if cand is not None:
+                rows, best = trial, (cand, verdict)
+                methods = ["least order" if c else "kept" for c in cands]
+                cands = [[x for x in c[:min(j, len(c) - 1)]] for c in cands]  # the lower ones, tried one by one
+                break
+    for i, Qi in enumerate(rows):
+        if not cands[i]:
+            if methods[i] == "kept" and Qi.n:
+                why += [f"row {i + 1}: {t}" for t in notes[i]] or \
+                    [f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order"]
             continue
-        Ri = Qi @ fnm  # [Rf_i Rw_i]: the right-hand side of (2)
-        try:  # its notes join this design's only if its row is kept (below)
-            with silenced():
-                sol = model_matching(aug, Ri, smarg=smarg, dec_tol=dec_tol, atol=atol)
-        except DesignError as exc:
-            why.append(f"row {i + 1}: the least-order solve of Q_i Ge = [0 0 Rf_i Rw_i] failed ({exc})")
-            continue
-        if sol.Q.n < Qi.n:
-            how = sol.info.get("row_methods", ["least order"])[0]
-            rows[-1], methods[-1] = sol.Q, "least order" if how == "least order" else f"least order ({how})"
-            sub_notes += [f"mindeg, row {i + 1}: {text}" for text in sol.info.get("notes", [])]
+        for rtol, Xi in cands[i]:  # lowest order first; the first whose filter passes the guard is taken
+            trial = rows[:i] + [Xi] + rows[i + 1:]
+            cand, verdict = _verified(model, gen, trial, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol,
+                                      atol)
+            if cand is not None:
+                rows, methods[i], best = trial, "least order", (cand, verdict)
+                break
+            src = rtol if isinstance(rtol, str) else f"cover at rtol {rtol}"
+            notes[i].append(f"row {i + 1}: the order-{Xi.n} candidate ({src}) is refused: {verdict['reason']}")
         else:
-            why.append(f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order "
-                       f"(the least-order solution of (2) has order {sol.Q.n})")
-    if all(m == "kept" for m in methods):
+            if methods[i] == "kept":
+                why += [f"row {i + 1}: {t}" if not t.startswith("row ") else t for t in notes[i]]
+    why = basis_note + why
+    if best is None:
         out["reason"] = "; ".join(why) or "no row can be lowered"
         return gen, out
+    cand, verdict = best
+    out.update({"lowered": True, "row_orders": [int(r.n) for r in rows], "order": int(cand.Q.n),
+                "row_methods": methods, **verdict,
+                "reason": "; ".join(why) if why else "every non-static row lowered to the least order of (2)"})
+    return cand, out
+
+
+#: relative rank tolerances of the covers tried by ``mindeg`` (working precision first): the optimal filter's
+#: rows carry modes that cancel only to its accuracy (Hankel singular values 1e-11 … 1e-8 of the row's largest,
+#: left by the γ-iteration's central controller; the fault/noise response decides, not Q's own scale), which
+#: the working-precision tolerance counts as states. Every candidate is verified (post-conditions, error
+#: within reltol of the optimum) and the lowest-order one that passes is taken
+MINDEG_RTOLS = (None, 1e-11, 1e-10, 1e-9, 1e-8, 1e-7, 1e-6)
+#: points of the numerator refit (:func:`_refit_numerator`): unknowns (order + 1)·(p + m), a few dozen at most
+REFIT_POINTS = 120
+
+
+#: a pole of the cover within this relative distance of a pole of the row it lowers is that pole: the cover's
+#: rank decisions at rtol move a pole by about cond·rtol (Niemann's model: −5.00000004 for M's −5 at rtol 1e-9)
+SNAP_RTOL = 1e-6
+
+
+def _snapped(X: LTI, Qi: LTI) -> LTI:
+    """``X`` in real modal coordinates with each pole within ``SNAP_RTOL`` of a pole of ``Q_i`` replaced by it
+    (``X`` unchanged when its A is defective, ill-conditioned modal basis, or no pole is that close). The
+    numerator is refitted afterwards (:func:`_refit_numerator`); the guard judges the result."""
+    n = X.n
+    if not n or not Qi.n:
+        return X
+    ev, V = np.linalg.eig(X.A)
+    if np.linalg.cond(V) > 1e8:
+        return X
+    ref = Qi.poles()
+    A, cols, done = np.zeros((n, n)), [], np.zeros(n, bool)
+    k = 0
+    for j in np.argsort(-ev.imag):  # a pair's member with positive imaginary part first
+        if done[j]:
+            continue
+        lam = ev[j]
+        d = np.abs(ref - lam)
+        near = ref[np.argmin(d)] if d.size and d.min() <= SNAP_RTOL * max(1.0, abs(lam)) else lam
+        if abs(lam.imag) > 1e-12 * max(1.0, abs(lam)):
+            dist = np.where(done | (np.arange(n) == j), np.inf, np.abs(ev - np.conj(lam)))
+            mate = int(np.argmin(dist))
+            if not np.isfinite(dist[mate]) or k + 2 > n:
+                return X
+            done[[j, mate]] = True
+            v = V[:, j]
+            cols += [v.real, v.imag]
+            a, b = near.real, abs(near.imag)
+            A[k:k + 2, k:k + 2] = [[a, b], [-b, a]]  # A [Re v, Im v] = [Re v, Im v] [[a, b], [-b, a]]
+            k += 2
+        else:
+            if k + 1 > n:
+                return X
+            done[j] = True
+            cols.append(V[:, j].real)
+            A[k, k] = near.real
+            k += 1
+    T = np.column_stack(cols)
+    if k != n or np.linalg.cond(T) > 1e8:
+        return X
+    return LTI(A, np.linalg.solve(T, X.B), X.C @ T, X.D, X.dt)
+
+
+def _refit_numerator(X: LTI, Qi: LTI, target: np.ndarray, Ge: np.ndarray, pts: np.ndarray) -> LTI:
+    """Of ``X`` and its numerator refits (with the cover's poles, and with those :func:`_snapped` to ``Q_i``'s),
+    the one with the least largest mismatch ``||X(λ_k) Ge(λ_k) − Q_i(λ_k) Ge(λ_k)||`` (``target``) on the points.
+
+    The cover's rank decisions are relative to the compound ``[Q_i; N]``, whose gain can exceed the fault
+    gain by 1e4 (Niemann's model at 1 ms): its rounding, small for Q_i, is not small for ``R = Q_i Ge``. With
+    ``(A, C)`` fixed, ``X(λ) = K(λ) Θ`` with ``K = [C (λI − A)^{-1}  1]`` and ``Θ = [B; D]`` is linear in Θ:
+    ``(Ge(λ_k)ᵀ ⊗ K(λ_k)) vec Θ = vec(target_k)``, stacked over the points (real and imaginary parts), solved
+    in the least-squares sense."""
+    def refit(S):
+        n = S.n
+        K = _values(LTI(S.A, np.eye(n), S.C, np.zeros((1, n)), S.dt), pts) if n else np.zeros((pts.size, 1, 0))
+        K = np.concatenate([K, np.ones((pts.size, 1, 1))], axis=2)
+        Phi = np.concatenate([np.kron(Ge[k].T, K[k]) for k in range(pts.size)])
+        rhs = np.concatenate([target[k].T.reshape(-1) for k in range(pts.size)])
+        theta = np.linalg.lstsq(np.vstack([Phi.real, Phi.imag]), np.concatenate([rhs.real, rhs.imag]),
+                                rcond=None)[0]
+        Theta = theta.reshape((n + 1, -1), order="F")
+        return LTI(S.A, Theta[:n], S.C, Theta[n:], S.dt)
+
+    def mismatch(S):
+        return float(np.max(np.linalg.norm(np.einsum("kij,kjl->kil", _values(S, pts), Ge) - target, axis=(1, 2))))
+
+    snapped = _snapped(X, Qi)
+    options = [X, refit(X)] + ([refit(snapped)] if snapped is not X else [])
+    return min(options, key=mismatch)
+
+
+def _row_candidates(Qi: LTI, N: LTI, lim: float, dt: float, atol: float):
+    """The distinct lower orders of ``Q_i + Y N`` (:func:`..toolkit.covers.left_cover2` at each of
+    ``MINDEG_RTOLS``), stable ones only (poles at or inside ``lim``), lowest order first:
+    ``([(rtol, X_i)], notes)`` — the notes say why a cover was not a candidate."""
+    from ..toolkit.covers import left_cover2
+
+    found, notes = {}, []
+    for rtol in MINDEG_RTOLS:
+        try:
+            Xi = left_cover2(Qi, N, rtol=rtol, atol=atol).X
+        except (np.linalg.LinAlgError, DesignError, SlycotError, ValueError) as exc:
+            notes.append(f"the minimum dynamic cover at rtol {rtol} failed ({exc})")
+            continue
+        if Xi.n >= Qi.n or Xi.n in found:
+            continue
+        poles = Xi.poles()
+        worst = float(np.max(np.abs(poles)) if dt else np.max(poles.real)) if Xi.n else -np.inf
+        if worst > lim:
+            notes.append(f"its least-order solution of (2) at rtol {rtol} (order {Xi.n}) is unstable (largest "
+                         f"{'|pole|' if dt else 'Re(pole)'} {worst:.6g})")
+            continue
+        found[Xi.n] = (rtol, Xi)
+    return [found[k] for k in sorted(found)], notes
+
+
+#: Hankel singular values above this fraction of the largest count as a row's significant modes
+HANKEL_RTOL = 1e-7
+
+
+def _truncated(S: LTI, order: int) -> LTI | None:
+    """``S`` (stable) balanced and truncated to ``order`` states (SLICOT AB09AD, square-root method; the error is
+    at most twice the sum of the dropped Hankel singular values, here below ``HANKEL_RTOL`` of the largest each),
+    or None when SLICOT refuses."""
+    import slycot
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            nr, Ar, Br, Cr, _ = slycot.ab09ad("D" if S.dt else "C", "B", "N", S.n, S.m, S.p, S.A.copy(), S.B.copy(),
+                                              S.C.copy(), nr=order)
+    except slycot.exceptions.SlycotError:
+        return None
+    return LTI(Ar[:nr, :nr], Br[:nr, :S.m], Cr[:S.p, :nr], S.D, S.dt)
+
+
+def _hankel_order(S: LTI) -> int:
+    """Number of Hankel singular values of the stable row ``S`` above ``HANKEL_RTOL`` of the largest (SLICOT
+    AB09AD's square-root method): a candidate with fewer states but more significant modes than the row it
+    replaces is not lower (a cover at a loose tolerance can trade cancelled modes for real ones); S.n when
+    the singular values cannot be computed."""
+    import slycot
+
+    if S.n == 0:
+        return 0
+    try:
+        with warnings.catch_warnings():  # (SLICOT's note that the order asked exceeds the minimal one)
+            warnings.simplefilter("ignore")
+            *_, hsv = slycot.ab09ad("D" if S.dt else "C", "B", "N", S.n, S.m, S.p, S.A.copy(), S.B.copy(),
+                                    S.C.copy(), nr=S.n)
+    except slycot.exceptions.SlycotError:
+        return S.n
+    hsv = np.asarray(hsv)
+    return int(np.sum(hsv > HANKEL_RTOL * hsv.max())) if hsv.size and hsv.max() > 0 else 0
+
+
+def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol):
+    """The filter of the lowered ``rows`` if its post-conditions hold and its measured error is within
+    ``reltol`` of the optimal filter's (an absolute floor of 1e-9 ``||M Mr||`` for exactly matchable
+    references): ``(generator or None, {'error', 'error_limit', 'reason'})``."""
+    Q, dt = gen.Q, model.dt
     stacked = vstack(rows) if len(rows) > 1 else rows[0]
     Qm = stacked.minreal(atol)
     cand = ResidualGenerator(Qm, model, "approximate_model_matching")
     try:
         check_generator(cand, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
     except DesignError as exc:
-        out["reason"] = f"the least-order filter fails its post-conditions ({exc}): the optimal filter is returned"
-        return gen, out
+        return None, {"reason": f"the least-order filter fails its post-conditions ({exc}): the optimal filter "
+                                f"is returned"}
     # both filters measured on one grid (the optimal one's points and the new filter's poles)
     lam2 = np.concatenate([lam, _points([Qm], dt, 100)])
     ref = max(err, _shipped_error(model, Q, fnm, MF, lam2, norm, systems + [Qm]))
@@ -400,19 +624,27 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     # the same response realised twice: H∞ within the bisection's reltol, H2 to the quadrature's 1e-6;
     # the absolute floor serves exactly matchable references (errors at rounding level, ~1e-12)
     floor = 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)))), 1e-300)
-    out["error_limit"] = float(ref * (1 + reltol) + floor)
-    if not err2 <= out["error_limit"]:
-        out["reason"] = (f"the least-order filter's error {err2:.6g} exceeds the optimal filter's {ref:.6g} by more "
-                         f"than reltol = {reltol:g}: the optimal filter is returned")
-        return gen, out
-    # each row's order as designed (a minimal realisation of its own); the rows of the jointly minimal Qm
-    # mix the rows' states, and a staircase on one of its rows can keep a nearly unobservable one
-    now = [int(r.n) for r in rows]
-    for text in sub_notes:
-        note(text)
-    out.update({"lowered": True, "row_orders": now, "order": int(Qm.n), "error": float(err2), "row_methods": methods,
-                "reason": "; ".join(why) if why else "every non-static row lowered to the least order of (2)"})
-    return cand, out
+    limit = float(ref * (1 + reltol) + floor)
+    if not err2 <= limit:
+        return None, {"error_limit": limit,
+                      "reason": f"the least-order filter's error {err2:.6g} exceeds the optimal filter's {ref:.6g} "
+                                f"by more than reltol = {reltol:g}: the optimal filter is returned"}
+    return cand, {"error": float(err2), "error_limit": limit}
+
+
+def _resolved_row(fw: FDIModel, Qi: LTI, fnm: LTI, smarg, dec_tol: float, atol: float):
+    """The least-order exact solution of (2) from the reference ``[Rf_i Rw_i] = Q_i [Gf Gw]`` (exact model
+    matching on the model whose faults are ``[f w]``, :func:`.matching.model_matching`; Varga's ``glsol`` on
+    the augmented system): ``(row or None, why)``. A second candidate beside the covers: the reference is
+    known only to Q_i's rounding, but the augmented pencil holds what the compound ``[Q_i; N]`` may not (an
+    optimal row built on another basis, whose poles are not N's: random seeds 5 and 9 of the AMMP family)."""
+    from .matching import model_matching
+
+    try:
+        with silenced():
+            return model_matching(fw, Qi @ fnm, smarg=smarg, dec_tol=dec_tol, atol=atol).Q, ""
+    except DesignError as exc:
+        return None, f"the least-order solve of Q_i Ge = [0 0 Rf_i Rw_i] failed ({exc})"
 
 
 def _faults_and_noise_as_faults(model: FDIModel) -> FDIModel:
@@ -424,6 +656,13 @@ def _faults_and_noise_as_faults(model: FDIModel) -> FDIModel:
                      Df=np.hstack([model.Df, model.Dw]))
     return FDIModel(model.A, model.Bu, model.C, model.Du, Bd=model.Bd, Dd=model.Dd, faults=[spec], dt=model.dt,
                     u_names=model.u_names, y_names=model.y_names, d_names=model.d_names)
+
+
+def _whole_null_basis(model: FDIModel, smarg, atol: float) -> LTI:
+    """The proper stable left null-space basis of ``[Gu Gd Gf Gw; I 0 0 0]`` (acting on ``[y; u]``)."""
+    from ..toolkit.least_solve import solution_basis
+
+    return solution_basis(model, noise=True, atol=atol, smarg=smarg)
 
 
 def _check_options(norm, normalize, reltol, atol, mindeg=False) -> None:

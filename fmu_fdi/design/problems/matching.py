@@ -23,7 +23,14 @@ row is unstable or improper:
   basis (stable, proper, without zeros) has no zero outside the stability region and none at
   infinity; then ``Q_i = −(Y N)_{y,u}`` with the observer-based stable left inverse Y of
   ``N_z`` (:func:`..toolkit.least_solve.stable_solution`), otherwise a DesignError names the
-  zeros (every exact solution has them as poles);
+  zeros (every exact solution has them as poles). That stable row is then lowered where it can
+  be (``row_methods`` 'least stable order'): ``Q_i' = X1 + Y N_b`` with ``N_b`` the null-space basis
+  of ``[Gu Gd Gf; I 0 0]`` and X1 the least-order (unstable) row when it is proper, else the stable
+  one, by a stable minimum dynamic cover (:func:`..toolkit.covers.stable_left_cover`: the least k
+  whose admissible closed-loop characteristic polynomials contain a stable one, the free poles at
+  ``poles``/``sdeg``); a lowered row is taken only if its ``R = Q Ge`` agrees with the stable
+  solution's to ``mm_tol`` on a grid. What is guaranteed is stated there: least among stable
+  solutions when the admissible set at each lower order is one polynomial or all of them;
 - ``updating=True`` (Procedure EMM step 3; ``emmsyn``'s ``info.M``): the reference is matched
   up to a diagonal updating factor, ``Q Ge = [0 0 M Mr]``. For an unstable but proper least
   row, ``[Q_i  m_i Mr_i] = m_i [Q0  Mr_i]`` is a stable left coprime factorisation of the
@@ -106,8 +113,8 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
     -------
     ResidualGenerator
         ``info``: ``row_orders`` (McMillan degree of each row), ``degree`` (their largest),
-        ``order``, ``row_methods`` ('least order', 'stable solution', 'coprime factor',
-        'updating'), ``left_minimal_indices`` (per row, of the augmented system),
+        ``order``, ``row_methods`` ('least order', 'stable solution', 'least stable order',
+        'coprime factor', 'updating'), ``left_minimal_indices`` (per row, of the augmented system),
         ``matching_error`` (grid peak of ``||Rf − M Mr||`` relative to ``||M Mr||``),
         ``postconditions``, ``poles``; with ``updating=True`` ``M`` (LTI, diagonal),
         ``row_degrees`` (order of each ``m_i``) and ``M_zeros``.
@@ -187,11 +194,15 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
                 why = ("its least-order solution is unstable" if Q0 is not None else
                        "its least-degree solution (degree %d) is improper" % lr.degree)
                 raise DesignError(f"row {i + 1} of Mr: {why}, and {exc}") from None
+            how = "stable solution"
+            low = _lowered_stable(model, [Q0, Qi], Qi, good, choose, atol, mm_tol, smarg)
+            if low is not None:
+                Qi, how = low, "least stable order"
             if Qi.n > top:
                 raise DesignError(f"row {i + 1} of Mr: the stable solution has degree {Qi.n} > max_degree = "
                                   f"{max_degree}: pass a larger max_degree, or updating=True")
             rows.append(Qi), ms.append(LTI.static(np.ones((1, 1)), model.dt))
-            methods.append("stable solution"), degs.append(0)
+            methods.append(how), degs.append(0)
         rows[-1] = rows[-1] * scale
     Q = _cancel_plant_modes(model, vstack(rows) if len(rows) > 1 else rows[0], margin)
     M = blockdiag(ms)
@@ -209,6 +220,29 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
     if updating:
         gen.info.update({"M": M, "row_degrees": degs, "M_zeros": [np.asarray(_zeros(m)).tolist() for m in ms]})
     return gen
+
+
+def _lowered_stable(model: FDIModel, starts, Qs: LTI, good, choose, atol: float, mm_tol: float, smarg):
+    """The lowest-order stable row ``X = X1 + Y N`` below the stable solution ``Qs``'s order
+    (:func:`..toolkit.least_solve.lowered_stable_rows`) whose internal form agrees with ``Qs``'s on a grid,
+    ``max ||(X − Qs) [Gu Gd Gf; I 0 0]|| ≤ mm_tol · max ||Qs [Gu Gd Gf; I 0 0]||``; None when there is none."""
+    from ..toolkit.least_solve import lowered_stable_rows
+
+    if not Qs.n:
+        return None
+    G = model.lti("u", "d", "f")
+    low = np.zeros((model.nu, G.m))
+    low[:, :model.nu] = np.eye(model.nu)
+    Ge = LTI(G.A, G.B, np.vstack([G.C, np.zeros((model.nu, G.n))]), np.vstack([G.D, low]), model.dt)
+    for X in lowered_stable_rows(model, starts, Qs.n, good, choose, atol, smarg):
+        lam = _grid_points(model, [Qs, X])
+        Gv = _values(Ge, lam)
+        ref = np.einsum("kij,kjl->kil", _values(Qs, lam), Gv)
+        dev = np.einsum("kij,kjl->kil", _values(X, lam), Gv) - ref
+        ok = np.all(np.isfinite(dev), axis=(1, 2)) & np.all(np.isfinite(ref), axis=(1, 2))
+        if ok.any() and np.max(np.abs(dev[ok])) <= mm_tol * max(float(np.max(np.abs(ref[ok]))), 1e-300):
+            return X
+    return None
 
 
 def _drop_cancelled(sys: LTI, margin: float, tol: float) -> LTI:

@@ -31,10 +31,16 @@ by output injection (a biproper left factor, which keeps ``N`` a null row).
 
 Rows of the least index ν: a single one whose solution is proper and stable is taken; otherwise
 they are combined (poles placed at common targets, :func:`_combined_row`) into a row whose
-Mr-entry is a nonzero constant, so that the solution has the chosen poles. Not done: a combination
-with a dynamic Mr-entry whose zeros are stable (when no constant one exists), and the least-order
-stable solution when the least order admits none — :func:`stable_solution`
-is a stable solution, not the least-order stable one (Varga's Type 2 cover).
+Mr-entry is a nonzero constant, so that the solution has the chosen poles. When no single row or
+constant combination gives a stable solution, :func:`stable_solution` gives a stable one (not of least
+order) and :func:`lowered_stable_rows` lowers it: every solution is ``X1 + Y N_b`` (``N_b`` the basis of
+:func:`solution_basis`), and a stable minimum dynamic cover (:func:`.covers.stable_left_cover`) of the
+least-order row (when proper) or of the stable one finds the least k whose admissible characteristic
+polynomials hold a stable one — this includes a combination of equal-index rows with a dynamic
+Mr-entry whose zeros are stable. Guaranteed least among stable solutions when, at every lower order,
+the admissible polynomials form a single point or all monic polynomials; otherwise (a proper affine
+subset, whose stable members are not searched beyond its point nearest the requested poles) the order
+is an upper bound of the least.
 """
 from __future__ import annotations
 
@@ -93,7 +99,8 @@ class LeastRow:
 def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0.0) -> FDIModel:
     """The model with the output ``z = Mr_i f`` appended and f turned into an unknown input:
     outputs ``[y; z]``, known inputs u, unknown inputs ``[d; f]``; states ``[x; x_M]`` reduced to a
-    minimal realisation with the rank tolerance ``max(atol, rtol·||[A B; C D]||)`` (a reference
+    minimal realisation with the rank tolerance ``max(atol, rtol·||[A B; C D]||)`` of the balanced
+    realisation (TB01ID, then TB01PD on those coordinates; a reference
     ``Q* Gf`` repeats plant modes that its product realisation cancels only to rounding: the block
     diagonal realisation holds them twice, uncontrollable to ~1e-13)."""
     n, p, m, nd = model.n, model.ny, model.nu, model.nd
@@ -105,8 +112,13 @@ def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0
     D = np.block([[G.D], [np.zeros((1, m + nd)), Mi.D]])
     aug = LTI(A, B, C, D, model.dt)
     if aug.n and rtol > 0:
-        norm = float(np.linalg.norm(np.block([[A, B], [C, D]]), 2))
-        aug = aug.minreal(tol=max(atol, rtol * norm))
+        # balanced first (SLICOT TB01ID) and the tolerance relative to the balanced data, on which TB01PD then
+        # decides without balancing again: LTI.minreal balances internally, so a threshold from the unbalanced
+        # norm (here up to 1e4 larger: seed 14's reference at mm_tol 1e-8) judged rescaled matrices and
+        # removed every state of the reference (the zero row)
+        aug, _ = aug.balanced()
+        norm = float(np.linalg.norm(np.block([[aug.A, aug.B], [aug.C, aug.D]]), 2))
+        aug = aug.minreal(tol=max(atol, rtol * norm), equil="N")
     return FDIModel(aug.A, aug.B[:, :m], aug.C, aug.D[:, :m], Bd=aug.B[:, m:], Dd=aug.D[:, m:], dt=model.dt,
                     name=f"{model.name}_Mr")
 
@@ -279,3 +291,40 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
     X = LTI(W.A, W.B[:, keep], -W.C, -W.D[:, keep], N.dt)
     return X.minreal(atol)
 
+
+
+def solution_basis(model: FDIModel, *, noise: bool = False, atol: float = 0.0, smarg=None) -> LTI:
+    """The proper stable left null-space basis ``N`` of ``[Gu Gd Gf; I 0 0]`` (with ``noise``: of
+    ``[Gu Gd Gf Gw; I 0 0 0]``), acting on ``[y; u]``: the pencil basis of the model whose unknown inputs are
+    ``[d f]`` (``[d f w]``). Two rows ``X``, ``X'`` have one fault (and noise) response and decouple u, d alike
+    iff ``X' = X + Y N`` — the freedom a minimum dynamic cover (:mod:`.covers`) uses."""
+    Bd = [model.Bd, model.Bf] + ([model.Bw] if noise else [])
+    Dd = [model.Dd, model.Df] + ([model.Dw] if noise else [])
+    whole = FDIModel(model.A, model.Bu, model.C, model.Du, Bd=np.hstack(Bd), Dd=np.hstack(Dd), dt=model.dt,
+                     name=f"{model.name}_df" + ("w" if noise else ""))
+    return pencil_basis(whole, atol=atol, smarg=smarg).N
+
+
+def lowered_stable_rows(model: FDIModel, starts: list, top: int, good, choose, atol: float = 0.0,
+                        smarg=None) -> list[LTI]:
+    """Stable rows ``X = X1 + Y N`` of order below ``top`` from each proper solution ``X1`` in ``starts`` (the
+    least-order, unstable solution first when it is proper; the stable solution of :func:`stable_solution`),
+    ``N`` = :func:`solution_basis`, by :func:`.covers.stable_left_cover` (its poles where free at ``choose``),
+    lowest order first. Each has the fault response of its start, to the covers' rounding (the caller
+    verifies)."""
+    from .covers import stable_left_cover
+
+    if not starts:
+        return []
+    N = solution_basis(model, atol=atol, smarg=smarg)
+    out = []
+    for X1 in starts:
+        if X1 is None or N.p == 0:
+            continue
+        try:
+            cv = stable_left_cover(X1, N, good, choose, atol=atol, max_order=top - 1)
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+        if cv is not None and cv.X.n < top:
+            out.append(cv.X)
+    return sorted(out, key=lambda X: X.n)
