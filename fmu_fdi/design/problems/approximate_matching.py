@@ -113,7 +113,7 @@ from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit._basis import check_poles, pick_poles
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
-from ..toolkit.notes import keeps_notes, silenced
+from ..toolkit.notes import keeps_notes, note, silenced
 from .reference import reference
 
 
