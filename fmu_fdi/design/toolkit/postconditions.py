@@ -11,8 +11,9 @@ beside every pole on the stability boundary (:func:`_beside_boundary_freqs`) and
 1e-9 of its top, within 1e-9, relative, of a pole of either realisation, or within
 ``BOUNDARY_GAP·||A||`` of one on the stability boundary: :func:`_beside_boundary_poles`) of values computed
 point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no general minimal realisation or
-rank decision; one exception: a plant mode on the stability boundary that a row cancels to the rounding of
-its eigen-direction is removed from that row, :func:`_without_cancelled_modes`). :func:`internal_figures`
+rank decision; one exception: a plant mode on the stability boundary that a row cancels, or an input column does
+not excite, to the rounding of its eigen-direction is removed from that row and column, and the value kept there is
+the largest lower bound of three readings with derived error bounds, :func:`_without_cancelled_modes`). :func:`internal_figures`
 computes them once; ``leakage()``,
 ``structure_matrix()`` (:mod:`fmu_fdi.analysis`) and :func:`check_generator` all read them,
 so ``gen.info['postconditions']`` is what ``leakage(gen)`` and ``structure_matrix(gen)``
