@@ -369,8 +369,11 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
     residue tested), and R_i' is read three ways, each with a bound e on its distance to R_i', per point and
     column (2-norm over the group's rows; γ = N·eps):
 
-    - R_i itself: ``e = (||K|| + e_K) ||W_c||`` — the pole part it still holds;
-    - ``R_i − K W``: ``e = e_K ||W_c|| + ||K|| ||(λI − T11)⁻¹|| e_B̃1``;
+    - R_i itself: ``e = ||(λI − T11)⁻¹|| (||K|| + d_K)(||B̃1_c|| + d_B)`` — the pole part it still holds;
+    - ``R_i − K W``: ``e = ||(λI − T11)⁻¹|| (d_K (||B̃1_c|| + d_B) + ||K|| d_B)`` — R_i's pole part, as its own
+      evaluation forms it, is known only to the rounding of the row's zero and of the column's coupling, so
+      ``d_K = max(e_K, δ_i)`` and ``d_B = e_B̃1 + δ_c ||[1 z]||`` (the removal tests' bounds; random seed 73: the
+      subtracted reading read 1.1e-6 beside z = 1 with e_K, e_B̃1 alone ~1e-15, the mode-free one 1.4e-9);
     - the mode-free realisation ``Q_i Ge' − Φ Y B̃1`` (no pole at p is formed):
       ``e = γ(||Q_i|| ||Ge'_c|| + ||Φ|| ||Y|| ||B̃1_c||) + ||Q_i|| e_Ge' + ||Φ|| (e_Y ||B̃1_c|| + ||Y|| e_B̃1)``,
 
