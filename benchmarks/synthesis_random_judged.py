@@ -8,7 +8,15 @@ request the rank test says is not achievable), "broken" (a returned design that 
 an achievable request refused, another exception than DesignError, or a model that cannot be
 built). Prints the totals per call kind, the kinds of breakage, and the design time per model.
 
-Run: python benchmarks/synthesis_random_judged.py [N] [first_seed] [-v]
+With ``--matching`` it audits instead the seeded model-matching families of
+tests/test_synthesis_matching_order.py (a least-order detection row's fault response as the
+reference, on stable plants and, with updating, on unstable ones), judged by that file's numpy
+judge: "ok" (matched exactly at no higher order, stable Q and M), "refused" (DesignError where no
+reference row exists), "broken" (a reference that cannot be built although a row is achievable, a
+refused or failing match, another exception).
+
+Run: python benchmarks/synthesis_random_judged.py [N] [first_seed] [-v] [--matching]
+(seeds first_seed … first_seed + N − 1; default 40 models from seed 0)
 """
 import re
 import sys
@@ -59,6 +67,60 @@ def run(N: int = 40, first: int = 0, verbose: bool = False):
     return allc
 
 
+def _matching_case(seed: int, unstable: bool) -> tuple[str, str]:
+    """One model of the matching families: (status, detail)."""
+    import numpy as np
+
+    from fmu_fdi.design.problems.matching import model_matching
+    from fmu_fdi.errors import DesignError
+    from test_synthesis_matching_order import TOL, _detection_reference, _points, judge, plant_fr, sys_fr
+
+    try:
+        model, ref = _detection_reference(seed, unstable)
+    except DesignError as exc:
+        return "refused", str(exc)[:200]
+    except Exception as exc:  # noqa: BLE001 - an assertion (a listed row refused) or a crash
+        return "broken", f"reference: {type(exc).__name__}: {str(exc)[:200]}"
+    lam = _points(model)
+    _, Gf = plant_fr(model, lam)
+    try:
+        gen = model_matching(model, ref.Rf, updating=unstable)
+    except DesignError as exc:
+        return "broken", f"achievable reference refused: {str(exc)[:200]}"
+    except Exception as exc:  # noqa: BLE001
+        return "broken", f"{type(exc).__name__} instead of DesignError: {str(exc)[:200]}"
+    vals = sys_fr(ref.Q, lam) @ Gf
+    bad = []
+    if unstable:
+        M = gen.info["M"]
+        vals = sys_fr(M, lam) @ vals
+        if not (gen.Q.is_stable() and M.is_stable()):
+            bad.append("Q or M unstable")
+    elif gen.info["row_orders"][0] > ref.Q.n:
+        bad.append(f"row order {gen.info['row_orders'][0]} > reference order {ref.Q.n}")
+    dec, err = judge(model, gen, vals, lam)
+    if not (dec < TOL and np.all(err < TOL)):
+        bad.append(f"decoupling {dec:.2e}, matching error {np.max(err):.2e} (tol {TOL:g})")
+    return ("broken", "; ".join(bad)) if bad else ("ok", "")
+
+
+def run_matching(N: int = 40, first: int = 0, verbose: bool = False):
+    totals = {name: Counter() for name in ("matching (stable)", "matching (unstable, updating)")}
+    t0 = time.perf_counter()
+    for seed in range(first, first + N):
+        for unstable, name in ((False, "matching (stable)"), (True, "matching (unstable, updating)")):
+            status, detail = _matching_case(seed, unstable)
+            totals[name][status] += 1
+            if verbose or status == "broken":
+                print(f"seed {seed:3d} {name:30s} {status:8s} {detail[:200]}")
+    print("\ncounts per family (ok / refused / broken):")
+    for key, c in totals.items():
+        print(f"  {key:30s} {c['ok']:4d} {c['refused']:4d} {c['broken']:4d}")
+    print(f"total {time.perf_counter() - t0:.1f} s")
+    return totals
+
+
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a != "-v"]
-    run(int(args[0]) if args else 40, int(args[1]) if len(args) > 1 else 0, "-v" in sys.argv)
+    args = [a for a in sys.argv[1:] if a not in ("-v", "--matching")]
+    n_models, first_seed = (int(args[0]) if args else 40), (int(args[1]) if len(args) > 1 else 0)
+    (run_matching if "--matching" in sys.argv else run)(n_models, first_seed, "-v" in sys.argv)

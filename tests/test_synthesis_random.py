@@ -199,15 +199,22 @@ def _grid(model: FDIModel, extra_poles=()) -> np.ndarray:
     return lam
 
 
-def _pbh_poles(A, B, C, dt: float) -> np.ndarray:
+def _pbh_poles(A, B, C, dt: float, D=None) -> np.ndarray:
     """Unstable or marginal poles of a minimal realisation of (A, B, C): the eigenvalues outside
-    the open stability region that pass both PBH rank tests (controllable and observable)."""
+    the open stability region that pass both PBH rank tests (controllable and observable).
+
+    With ``D``, B and C are scaled by ``max(||B||, ||D||)`` and ``max(||C||, ||D||)`` instead of their own norms:
+    a mode's residue is then judged against the size of the whole transfer function. (A static row that
+    annihilates every state, ``Q_y C ≈ 1e-16``, has a series ``C_R`` of rounding only; scaled to unit norm that
+    rounding read as full observability — random seed 129's rows [0 1 1 1 0]: "R has the pole 1.105", its residue
+    1.9e-16 of a unit fault gain.)"""
     n = A.shape[0]
     if n == 0:
         return np.zeros(0, complex)
     A, B, C = _balanced(A, B, C)
-    B = B / max(np.linalg.norm(B, 2), 1e-300)
-    C = C / max(np.linalg.norm(C, 2), 1e-300)
+    nD = 0.0 if D is None else float(np.linalg.norm(np.asarray(D, float), 2)) if np.size(D) else 0.0
+    B = B / max(np.linalg.norm(B, 2), nD, 1e-300)
+    C = C / max(np.linalg.norm(C, 2), nD, 1e-300)
     ev = np.linalg.eigvals(A)
     bad = np.abs(ev) >= 1 - STAB_TOL if dt else ev.real >= -STAB_TOL * np.maximum(1.0, np.abs(ev))
     scale = max(1.0, np.linalg.norm(A, 2))
@@ -222,13 +229,13 @@ def _pbh_poles(A, B, C, dt: float) -> np.ndarray:
 
 
 def _series(Q, model: FDIModel):
-    """State-space data of ``R = Q·Ge`` (series connection, states [x_Q; x_G])."""
+    """State-space data of ``R = Q·Ge`` (series connection, states [x_Q; x_G]) and its feedthrough."""
     A, B, Ce, De = _extended(model)
     nq, n = Q.A.shape[0], A.shape[0]
     AR = np.block([[Q.A, Q.B @ Ce], [np.zeros((n, nq)), A]])
     BR = np.vstack([Q.B @ De, B])
     CR = np.hstack([Q.C, Q.D @ Ce])
-    return AR, BR, CR
+    return AR, BR, CR, Q.D @ De
 
 
 def judge(gen, model: FDIModel, S, names, w_decoupled: bool = False) -> list[str]:
@@ -283,7 +290,8 @@ def judge(gen, model: FDIModel, S, names, w_decoupled: bool = False) -> list[str
             if leak > DEC_TOL:
                 out.append(f"group {i}: ‖R_{what}‖ = {leak:.2e} on the normalised form (> {DEC_TOL:g})")
         Qsub = type("Qsub", (), {"A": Qall.A, "B": Qall.B, "C": Qall.C[g], "D": Qall.D[g]})
-        for p_ in _pbh_poles(*_series(Qsub, model), model.dt):
+        AR, BR, CR, DR = _series(Qsub, model)
+        for p_ in _pbh_poles(AR, BR, CR, model.dt, DR):
             out.append(f"group {i}: R = Q·Ge has the unstable/marginal pole {p_:.4g}")
     return out
 
@@ -579,13 +587,127 @@ def test_judge_reads_the_minimal_realisation_of_a_cancelled_boundary_mode(eps, r
     Ge = np.stack([np.stack([1 / (lam + 2), 1 / lam, zero], -1), np.stack([1 / (lam + 2), 1 / lam, one], -1),
                    np.stack([one, zero, zero], -1)], 1)               # inputs u, d, f; outputs y0, y1, u
     R = Qv @ Ge
-    assert _without_cancelled_modes(model, Q, [[0]], lam, R, Qv, Ge) == ([0] if removed else [])
+    removals = _without_cancelled_modes(model, Q, [[0]], lam, R, Qv, Ge)
+    # the integrator is removed from R_d where the row cancels it (d excites it: column 1 of Ge's inputs u, d, f)
+    assert any(abs(p) < 1e-12 and mask[0, 1] for p, mask in removals) == removed, removals
     if removed:
         want = np.stack([-eps / ((lam + 1) * (lam + 2)), eps / (lam + 1), -1 / (lam + 1)], axis=1)
         # the removal subtracts the pole part from R as given: R keeps its own rounding, that of Q·Ge with
         # ||Ge|| ~ 1/|λ| (2 eps per entry of the product, |Q| ≤ √2, two terms: ≤ 6 eps/|λ|), plus 1e-15 absolute
         err = np.abs(R[:, 0, :] - want)
         assert np.all(err <= 1e-15 + 6 * np.finfo(float).eps / np.abs(lam)[:, None]), np.max(err * np.abs(lam)[:, None])
+
+
+def _exact_sylvester(A, B, C) -> np.ndarray:
+    """The exact solution of ``A X − X B = C`` for the floating-point data given (rational Gauss–Jordan on the
+    Kronecker system ``(I ⊗ A − Bᵀ ⊗ I) vec X = vec C``, Python fractions), rounded once to float."""
+    from fractions import Fraction
+
+    n, k = A.shape[0], B.shape[0]
+    K = np.kron(np.eye(k), A) - np.kron(B.T, np.eye(n))  # entries a_ij or a_ii − b_jj: exact only if that difference is
+    K = [[Fraction(float(v)) for v in row] for row in K]
+    for j in range(k):                                    # ... so the diagonal blocks are rebuilt exactly
+        for i in range(n):
+            for r in range(n):
+                K[j * n + i][j * n + r] = Fraction(float(A[i, r])) - (Fraction(float(B[j, j])) if i == r else 0)
+    M = [row + [Fraction(float(c))] for row, c in zip(K, C.T.reshape(-1))]
+    N = n * k
+    for i in range(N):
+        piv = max(range(i, N), key=lambda r: abs(M[r][i]))
+        M[i], M[piv] = M[piv], M[i]
+        for r in range(N):
+            if r != i and M[r][i] != 0:
+                f = M[r][i] / M[i][i]
+                M[r] = [x - f * y for x, y in zip(M[r], M[i])]
+    return np.array([float(M[i][N] / M[i][i]) for i in range(N)]).reshape(k, n).T
+
+
+@pytest.mark.parametrize("k", [10, 20])
+def test_sylvester_forward_error_bound_holds_on_an_ill_conditioned_equation(k):
+    """postconditions._sylvester's bound (Higham ch. 16: the computed residual over sep, plus the residual's own
+    rounding) holds on non-normal, ill-separated equations: A = [[1, 2^k], [0, 1]] + 0.1·noise against a B with
+    eigenvalues 0.05 … 0.2 from A's (sep 0.025 at k = 10, 8e-3 at 20), seeded; the reference is the exact solution
+    for the same floating-point data (:func:`_exact_sylvester`). The bound must hold and say something (below
+    ||X||); it is pessimistic, as norm-wise bounds on non-normal operators are (measured 1e5 … 1e9 times the error)."""
+    from fmu_fdi.design.toolkit.postconditions import _sylvester
+
+    eps = np.finfo(float).eps
+    rng = np.random.default_rng(5 + k)
+    A = np.array([[1.0, 2.0 ** k], [0.0, 1.0]]) + 0.1 * rng.standard_normal((2, 2))
+    for B in (np.array([[1.1]]), np.array([[1.05, 0.7], [0.0, 0.9]]) + 0.01 * rng.standard_normal((2, 2))):
+        C = rng.standard_normal((2, B.shape[0]))
+        X = _exact_sylvester(A, B, C)
+        Xh, bound = _sylvester(A.astype(complex), B.astype(complex), C.astype(complex), 4 * eps)
+        err = float(np.linalg.norm(Xh - X))
+        assert 0 <= err <= bound < np.linalg.norm(X), (err, bound)
+
+
+def _non_normal_plant(eta: float, dt: float):
+    """y = M [c; c] x + (sensor fault f on y1): d excites an undamped pair (±2j, discrete e^{±0.2j}) and a stable
+    pole (−0.05) through the basis ``T = [[1, 0, 1], [0, 1, 1], [0, 0, η]]`` (eigenvector condition ~3/η: 2.8e6 at
+    η = 1e-6, 2.8e8 at 1e-8, VTOL's ~4e8), u a pole −2 of its own; M mixes the outputs, so the decoupling row
+    ``[1 −(1 + ε)] M⁻¹`` is inexact in floating point even for ε = 0. Returns the model and (J, T, M, Bd) for the
+    closed forms."""
+    J = sla.block_diag([[0.0, 2.0], [-2.0, 0.0]], [[-0.05]])
+    T = np.array([[1.0, 0.0, 1.0], [0.0, 1.0, 1.0], [0.0, 0.0, eta]])
+    Jd = sla.expm(J * dt) if dt else J
+    A = sla.block_diag(T @ Jd @ np.linalg.inv(T), [[np.exp(-2 * dt) if dt else -2.0]])
+    M = np.array([[0.7, 0.2], [-0.3, 1.1]])
+    C = M @ np.array([[1.0, 0.3, 0.0, 1.0], [1.0, 0.3, 0.0, 1.0]])
+    Bd = np.array([[0.0], [1.0], [1.0], [0.0]])
+    model = FDIModel.from_matrices(A, [[0.0], [0.0], [0.0], [1.0]], C, Bd=Bd, faults=[sensor_fault("f", "y1")], dt=dt)
+    return model, (Jd, T, M, Bd)
+
+
+@pytest.mark.parametrize("dt", [0.0, 0.1])
+@pytest.mark.parametrize("eta", [1e-6, 1e-8])
+def test_judge_on_a_non_normal_plant_refuses_leaks_not_rounding(eta, dt):
+    """The VTOL-like case (issue 17: the DOS sensor bank was refused for the rounding of the mode-free reading,
+    ``Y ~ 1/sep``): an undamped pair a row cancels, next to a stable pole, in a basis of eigenvector condition
+    up to 2.8e8. The row ``r = F·[1 −(1 + ε)] M⁻¹ y``, F = 1/(λ + 1) (discrete 1/(z − 0.3)), has, in closed form
+    (modal coordinates, numpy, not the library's evaluation): R_u = 0 exactly for every ε and
+    ``R_d = −ε F(λ) c T (λI − J)⁻¹ T⁻¹ b_d`` (c = [1 0.3 0], the pair's and the stable pole's part). The exact
+    row (ε = 0) must pass — the judge may not read its own rounding as a leak; ε = 1e-12 is a true leak whose
+    closed-form peak on the numpy judge's grid (≥ 1e-3 away from the poles) already exceeds dec_tol 25 … 2e5
+    times, and must be refused."""
+    from fmu_fdi.design.toolkit.postconditions import DEC_TOL as LIB_DEC_TOL, check_generator
+    from fmu_fdi.generator import ResidualGenerator
+    from fmu_fdi.lti import LTI
+
+    model, (Jd, T, M, Bd) = _non_normal_plant(eta, dt)
+    a_f = 0.3 if dt else -1.0
+    lam = _grid(model)
+    F = 1.0 / (lam - a_f)
+    Ti_b = np.linalg.solve(T, Bd[:3, 0])                      # T⁻¹ b_d: T is triangular with entries 1, η
+    cT = np.array([1.0, 0.3, 0.0]) @ T
+    modal = np.array([cT @ np.linalg.solve(x * np.eye(3) - Jd, Ti_b) for x in lam])
+    gain = np.abs(F * (np.linalg.inv(M)[0, 0]))             # |R_f|: the sensor fault on y1 through the row
+    for eps, leaks in ((0.0, False), (1e-12, True)):
+        q = np.array([[1.0, -(1.0 + eps)]]) @ np.linalg.inv(M)
+        Q = LTI(np.array([[a_f]]), np.hstack([q, [[0.0]]]), np.array([[1.0]]), np.zeros((1, 3)), dt)
+        true_leak = float(np.max(np.abs(eps * F * modal)) / np.max(gain))
+        assert (true_leak > 25 * LIB_DEC_TOL) == leaks, true_leak
+        fig = check_generator(ResidualGenerator(Q, model, "test"), raise_error=False)
+        assert bool(fig.get("failures")) == leaks, (eps, fig.get("failures"), fig["decoupling"])
+        if leaks:
+            assert any("leak" in f for f in fig["failures"]), fig["failures"]
+        else:
+            assert fig["decoupling"] <= LIB_DEC_TOL and fig["fault_gain"] == pytest.approx(1.0, rel=1e-6)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 17, synthesis core (nullspace/stable factorisation, not the judge): "
+                   "random seed 149's listed row [1 0 0 1 1] is refused: its candidate keeps z = 1 (fc's mode, 5.1e-3 "
+                   "from the plant pole 0.9949, n = 25, discrete) with residue ||Q(1) c|| = 2.2e-7 of the unit fault "
+                   "gain against the design's rounding delta_i = 4.3e-12 (||Q(1)|| = 7.5e-5: a zero placed near, not at, z = 1)")
+def test_seed149_listed_row_is_designed():
+    """Audit of seeds 60-159 (benchmarks/synthesis_random_judged.py 100 60): the one achievable row the corrected
+    judge still refuses, and rightly — the candidate's R_fc drifts (a marginal pole with a residue 5e4 times the
+    rounding). Designable iff achievable asks the core for a row that cancels z = 1."""
+    model = random_case(149)
+    row = [[1, 0, 0, 1, 1]]
+    assert row[0] in np.asarray(achievable_structure(model)).tolist()
+    gen = structured_bank(model, row)
+    assert judge(gen, model, row, model.fault_names) == []
 
 
 def _minimal_order(A, B, C) -> int:

@@ -57,7 +57,6 @@ def unified_observer(model: FDIModel, poles=None, *, atol: float = 0.0) -> Resid
     """
     if not (np.isfinite(atol) and atol >= 0):
         raise DesignError(f"atol must be a finite non-negative number, got {atol!r}")
-    tol = atol if atol > 0 else None
     if not model.nw:
         raise DesignError("the unified solution trades fault sensitivity against noise: the model has no noise "
                           "inputs w")
@@ -66,13 +65,13 @@ def unified_observer(model: FDIModel, poles=None, *, atol: float = 0.0) -> Resid
                           f"model without d (or treat d as noise with with_disturbances)")
     Q0 = factorized(model, poles).Q
     sl = model.group_slices()
-    Rw0 = (Q0 @ model.augmented())[:, sl["w"]].minreal(tol)
+    Rw0 = (Q0 @ model.augmented())[:, sl["w"]].minreal(atol)
     fac = coouter_inverse(Rw0)
     if fac is None:
         raise DesignError("the noise response M̂⁻¹-factor N̂w has no invertible co-outer factor: its feedthrough "
                           "must have full row rank (measurement noise on every output, Dw of full row rank) and "
                           "no zeros on the stability boundary")
-    Q = (fac[0] @ Q0).minreal(tol)
+    Q = (fac[0] @ Q0).minreal(atol)
     gen = ResidualGenerator(Q, model, "unified")
     check_generator(gen, decouple=("u",), faults=[], block=True)
     Rw = gen.Rw
