@@ -291,9 +291,6 @@ def test_static_plant():
 
 # The audit of new seeds (benchmarks/synthesis_random_judged.py 200 36 --matching: 199 / 0 / 1 in each family)
 # found these two; both are in the matching core (design/problems/matching.py), not in the reference or the judge.
-@pytest.mark.xfail(strict=True, reason="issue 17, matching core: seed 197 (continuous, n = 6, p = 4, two u, two d, two "
-                   "faults): the reference Q*·[Gf; 0] of a stable order-2 detection row is refused ('every exact solution "
-                   "has the poles [3.16]; pass updating=True') although Q* itself is a stable exact solution")
 def test_seed197_reference_of_a_stable_row_is_matched():
     model, ref = _detection_reference(197)
     assert ref.Q.is_stable()  # the reference row is itself a stable exact solution
