@@ -302,10 +302,6 @@ def test_seed197_reference_of_a_stable_row_is_matched():
     assert dec < TOL and np.all(err < TOL), (dec, err)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 17, matching core: seed 156 unstable (discrete, n = 6, poles 1.0000856 and "
-                   "1.0797, one fault, no u/d; Q* of order 2 with the mirrored pole 0.99991): updating=True returns M = 1 "
-                   "and a Q matching Mr only to 4.2e-7 of its peak (3.6e-8 absolute at z = e^{0.01j}), while "
-                   "max|Q*||Gf| / max|Q* Gf| = 1.4: not a conditioning limit")
 def test_seed156_unstable_reference_is_matched_to_tolerance():
     model, ref = _detection_reference(156, unstable=True)
     gen = model_matching(model, ref.Rf, updating=True)

@@ -105,11 +105,14 @@ def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0
     diagonal realisation holds them twice, uncontrollable to ~1e-13)."""
     n, p, m, nd = model.n, model.ny, model.nu, model.nd
     G = model.lti("u", "d", "f")
-    nM = Mi.n
-    A = np.block([[model.A, np.zeros((n, nM))], [np.zeros((nM, n)), Mi.A]])
-    B = np.block([[G.B], [np.zeros((nM, m + nd)), Mi.B]])
-    C = np.block([[model.C, np.zeros((p, nM))], [np.zeros((1, n)), Mi.C]])
-    D = np.block([[G.D], [np.zeros((1, m + nd)), Mi.D]])
+    Cx, Mo = _on_plant_states(model, Mi, rtol) if rtol > 0 else (None, None)
+    if Mo is None:
+        Cx, Mo = np.zeros((1, n)), Mi
+    nM = Mo.n
+    A = np.block([[model.A, np.zeros((n, nM))], [np.zeros((nM, n)), Mo.A]])
+    B = np.block([[G.B], [np.zeros((nM, m + nd)), Mo.B]])
+    C = np.block([[model.C, np.zeros((p, nM))], [Cx, Mo.C]])
+    D = np.block([[G.D], [np.zeros((1, m + nd)), Mo.D]])
     aug = LTI(A, B, C, D, model.dt)
     if aug.n and rtol > 0:
         # balanced first (SLICOT TB01ID) and the tolerance relative to the balanced data, on which TB01PD then
@@ -121,6 +124,73 @@ def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0
         aug = aug.minreal(tol=max(atol, rtol * norm), equil="N")
     return FDIModel(aug.A, aug.B[:, :m], aug.C, aug.D[:, :m], Bd=aug.B[:, m:], Dd=aug.D[:, m:], dt=model.dt,
                     name=f"{model.name}_Mr")
+
+
+def _on_plant_states(model: FDIModel, Mi: LTI, tol: float):
+    """``(C_x, M_o)`` with ``Mr_i = C_x (λI − A)^{-1} B_f + M_o`` (and ``C_x (λI − A)^{-1} [B_u B_d] = 0``):
+    the modes of the reference that are plant modes read from the plant's own states, ``M_o`` the rest; or
+    ``(None, None)`` when that representation does not reproduce ``Mr_i`` to ``tol`` of its peak on a grid.
+
+    A reference ``Q* Gf`` repeats plant modes. Realised beside the plant and reduced jointly, the copies are
+    uncontrollable only to the accuracy of their eigenvalues in the reference (a mode of residue 1e-4 known
+    to 1e-12 in value is ~1e-8 off in position), and removing them perturbs the *plant's* rows of the
+    augmented model by the truncation — amplified near a plant pole at the stability boundary (random seed
+    156 unstable, discrete: pole 1.0000856, plant rows off by 1e-7 of their peak, a matched row off by 7e-8,
+    where the plant data are exact). Here the plant's realisation stays exact: with the reference's modes
+    near the plant's spectrum (relative distance ≤ ``sqrt(tol)``) ordered first and decoupled (Sylvester
+    ``A11 X − X A22 = −A12``, as :func:`...problems.matching._drop_cancelled`), ``T`` solves
+    ``T A − A11 T = 0``, ``T [B_u B_d B_f] = [0 0 B1]`` (least squares), so that ``x1 − T x`` is
+    uncontrollable and ``C1 x1 = C1 T x`` on the trajectories: ``C_x = C1 T``."""
+    import scipy.linalg as sla
+
+    from ...linalg import ordered_schur
+    from ...lti import frequency_grid
+    from .postconditions import _values
+
+    n = model.n
+    if not (n and Mi.n):
+        return None, None
+    lam_p = np.linalg.eigvals(model.A)
+    near = np.sqrt(tol)
+
+    def close(re, im):
+        z = complex(re, im)
+        return bool(np.min(np.abs(lam_p - z)) <= near * max(1.0, abs(z)))
+
+    T_, Z, k = ordered_schur(Mi.A, close)
+    if k == 0:
+        return None, None
+    nM = Mi.n
+    A11, A12, A22 = T_[:k, :k], T_[:k, k:], T_[k:, k:]
+    X = sla.solve_sylvester(A11, -A22, -A12) if k < nM else np.zeros((k, 0))
+    Bt, Ct = Z.T @ Mi.B, Mi.C @ Z
+    B1, B2 = Bt[:k] - X @ Bt[k:], Bt[k:]
+    C1, C2 = Ct[:, :k], Ct[:, :k] @ X + Ct[:, k:]
+    G = model.lti("u", "d", "f")
+    nf = Mi.m
+    rhs_B = np.hstack([np.zeros((k, G.m - nf)), B1])
+    # vec(T A − A11 T) = (Aᵀ ⊗ I − I ⊗ A11) vec T, vec(T B) = (Bᵀ ⊗ I) vec T (column-major vec)
+    Ik = np.eye(k)
+    L = np.vstack([np.kron(model.A.T, Ik) - np.kron(np.eye(n), A11), np.kron(G.B.T, Ik)])
+    r = np.concatenate([np.zeros(k * n), rhs_B.ravel(order="F")])
+    T = np.linalg.lstsq(L, r, rcond=None)[0].reshape((k, n), order="F")
+    Cx = C1 @ T
+    Mo = LTI(A22, B2, C2, Mi.D, Mi.dt)
+    # verification: z = C_x (λI − A)^{-1} B_f + M_o reproduces Mr_i, and C_x sees no u, d
+    w = frequency_grid([Mi, G], num=200)
+    lam = np.exp(1j * w * Mi.dt) if Mi.dt else 1j * w
+    poles = np.r_[lam_p, np.asarray(Mi.poles(), complex)]
+    lam = lam[np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) > 1e-6 * np.maximum(1.0, np.abs(lam))]
+    ref = _values(Mi, lam)
+    rows = LTI(G.A, G.B, Cx, np.zeros((1, G.m)), G.dt)
+    got = _values(rows, lam)
+    got[:, :, G.m - nf:] += _values(Mo, lam)
+    want = np.concatenate([np.zeros((lam.size, 1, G.m - nf)), ref], axis=2)
+    ok = np.all(np.isfinite(got), axis=(1, 2)) & np.all(np.isfinite(want), axis=(1, 2))
+    top = float(np.max(np.abs(ref[ok]), initial=0.0))
+    if not (ok.any() and top > 0 and float(np.max(np.abs(got[ok] - want[ok]))) <= tol * top):
+        return None, None
+    return Cx, Mo
 
 
 def _markov_norm(N: LTI, cols) -> float:
