@@ -102,7 +102,9 @@ def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0
     minimal realisation with the rank tolerance ``max(atol, rtol·||[A B; C D]||)`` of the balanced
     realisation (TB01ID, then TB01PD on those coordinates; a reference
     ``Q* Gf`` repeats plant modes that its product realisation cancels only to rounding: the block
-    diagonal realisation holds them twice, uncontrollable to ~1e-13)."""
+    diagonal realisation holds them twice, uncontrollable to ~1e-13). The reference's modes that repeat
+    plant modes are first read from the plant's own states (:func:`_on_plant_states`), so that this
+    reduction has no copies to remove and the plant's rows stay exact."""
     n, p, m, nd = model.n, model.ny, model.nu, model.nd
     G = model.lti("u", "d", "f")
     Cx, Mo = _on_plant_states(model, Mi, rtol) if rtol > 0 else (None, None)
