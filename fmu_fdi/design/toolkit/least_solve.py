@@ -259,7 +259,9 @@ def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=
         comb = _combined_row(group, p, choose, good, tol)
         if comb is not None:
             N, dz = comb, 1.0 / _markov_norm(comb, np.arange(comb.m))
-    return LeastRow(N, int(nu), dz if dz > tol else 0.0, list(pb.degrees), float(cond), p, pb.N, pb.rank_tol)
+    # the indices with those of the rows whose exact solution has a lower degree (:func:`_least_degree_row`)
+    return LeastRow(N, int(nu), dz if dz > tol else 0.0, sorted(int(r[1]) for r in rows), float(cond), p, pb.N,
+                    pb.rank_tol)
 
 
 def _least_degree_row(N: LTI, nu: int, cond: float, p: int, tol: float, atol: float) -> tuple:
