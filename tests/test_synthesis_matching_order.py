@@ -290,11 +290,10 @@ def test_static_plant():
 
 
 # The audit of new seeds (benchmarks/synthesis_random_judged.py 200 36 --matching: 199 / 0 / 1 in each family)
-# found these two; both are in the matching core (design/problems/matching.py), not in the reference or the judge.
-@pytest.mark.xfail(strict=True, reason="issue 17, matching core: seed 197 (continuous, n = 6, p = 4, two u, two d, two "
-                   "faults): the reference Q*·[Gf; 0] of a stable order-2 detection row is refused ('every exact solution "
-                   "has the poles [3.16]; pass updating=True') although Q* itself is a stable exact solution")
+# found these two; both were in the matching core (design/toolkit/least_solve.py), not in the reference or the judge.
 def test_seed197_reference_of_a_stable_row_is_matched():
+    """Seed 197 (continuous, n = 6, p = 4, two u, two d, two faults): Q* [Gf; 0] of a stable order-2 row is
+    matched at order ≤ 2 by a stable Q (the pencil had computed index 6 for 2, with four spurious zeros)."""
     model, ref = _detection_reference(197)
     assert ref.Q.is_stable()  # the reference row is itself a stable exact solution
     gen = model_matching(model, ref.Rf)
@@ -305,11 +304,9 @@ def test_seed197_reference_of_a_stable_row_is_matched():
     assert dec < TOL and np.all(err < TOL), (dec, err)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 17, matching core: seed 156 unstable (discrete, n = 6, poles 1.0000856 and "
-                   "1.0797, one fault, no u/d; Q* of order 2 with the mirrored pole 0.99991): updating=True returns M = 1 "
-                   "and a Q matching Mr only to 4.2e-7 of its peak (3.6e-8 absolute at z = e^{0.01j}), while "
-                   "max|Q*||Gf| / max|Q* Gf| = 1.4: not a conditioning limit")
 def test_seed156_unstable_reference_is_matched_to_tolerance():
+    """Seed 156 unstable (discrete, plant poles 1.0000856 and 1.0797, one fault): with updating, Q [Gf; 0] =
+    M Mr to 1e-7 of the peak (the joint reduction of the augmented model had perturbed the plant rows)."""
     model, ref = _detection_reference(156, unstable=True)
     gen = model_matching(model, ref.Rf, updating=True)
     lam = _points(model)

@@ -102,14 +102,19 @@ def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0
     minimal realisation with the rank tolerance ``max(atol, rtol·||[A B; C D]||)`` of the balanced
     realisation (TB01ID, then TB01PD on those coordinates; a reference
     ``Q* Gf`` repeats plant modes that its product realisation cancels only to rounding: the block
-    diagonal realisation holds them twice, uncontrollable to ~1e-13)."""
+    diagonal realisation holds them twice, uncontrollable to ~1e-13). The reference's modes that repeat
+    plant modes are first read from the plant's own states (:func:`_on_plant_states`), so that this
+    reduction has no copies to remove and the plant's rows stay exact."""
     n, p, m, nd = model.n, model.ny, model.nu, model.nd
     G = model.lti("u", "d", "f")
-    nM = Mi.n
-    A = np.block([[model.A, np.zeros((n, nM))], [np.zeros((nM, n)), Mi.A]])
-    B = np.block([[G.B], [np.zeros((nM, m + nd)), Mi.B]])
-    C = np.block([[model.C, np.zeros((p, nM))], [np.zeros((1, n)), Mi.C]])
-    D = np.block([[G.D], [np.zeros((1, m + nd)), Mi.D]])
+    Cx, Mo = _on_plant_states(model, Mi, rtol) if rtol > 0 else (None, None)
+    if Mo is None:
+        Cx, Mo = np.zeros((1, n)), Mi
+    nM = Mo.n
+    A = np.block([[model.A, np.zeros((n, nM))], [np.zeros((nM, n)), Mo.A]])
+    B = np.block([[G.B], [np.zeros((nM, m + nd)), Mo.B]])
+    C = np.block([[model.C, np.zeros((p, nM))], [Cx, Mo.C]])
+    D = np.block([[G.D], [np.zeros((1, m + nd)), Mo.D]])
     aug = LTI(A, B, C, D, model.dt)
     if aug.n and rtol > 0:
         # balanced first (SLICOT TB01ID) and the tolerance relative to the balanced data, on which TB01PD then
@@ -121,6 +126,73 @@ def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0
         aug = aug.minreal(tol=max(atol, rtol * norm), equil="N")
     return FDIModel(aug.A, aug.B[:, :m], aug.C, aug.D[:, :m], Bd=aug.B[:, m:], Dd=aug.D[:, m:], dt=model.dt,
                     name=f"{model.name}_Mr")
+
+
+def _on_plant_states(model: FDIModel, Mi: LTI, tol: float):
+    """``(C_x, M_o)`` with ``Mr_i = C_x (λI − A)^{-1} B_f + M_o`` (and ``C_x (λI − A)^{-1} [B_u B_d] = 0``):
+    the modes of the reference that are plant modes read from the plant's own states, ``M_o`` the rest; or
+    ``(None, None)`` when that representation does not reproduce ``Mr_i`` to ``tol`` of its peak on a grid.
+
+    A reference ``Q* Gf`` repeats plant modes. Realised beside the plant and reduced jointly, the copies are
+    uncontrollable only to the accuracy of their eigenvalues in the reference (a mode of residue 1e-4 known
+    to 1e-12 in value is ~1e-8 off in position), and removing them perturbs the *plant's* rows of the
+    augmented model by the truncation — amplified near a plant pole at the stability boundary (random seed
+    156 unstable, discrete: pole 1.0000856, plant rows off by 1e-7 of their peak, a matched row off by 7e-8,
+    where the plant data are exact). Here the plant's realisation stays exact: with the reference's modes
+    near the plant's spectrum (relative distance ≤ ``sqrt(tol)``) ordered first and decoupled (Sylvester
+    ``A11 X − X A22 = −A12``, as :func:`...problems.matching._drop_cancelled`), ``T`` solves
+    ``T A − A11 T = 0``, ``T [B_u B_d B_f] = [0 0 B1]`` (least squares), so that ``x1 − T x`` is
+    uncontrollable and ``C1 x1 = C1 T x`` on the trajectories: ``C_x = C1 T``."""
+    import scipy.linalg as sla
+
+    from ...linalg import ordered_schur
+    from ...lti import frequency_grid
+    from .postconditions import _values
+
+    n = model.n
+    if not (n and Mi.n):
+        return None, None
+    lam_p = np.linalg.eigvals(model.A)
+    near = np.sqrt(tol)
+
+    def close(re, im):
+        z = complex(re, im)
+        return bool(np.min(np.abs(lam_p - z)) <= near * max(1.0, abs(z)))
+
+    T_, Z, k = ordered_schur(Mi.A, close)
+    if k == 0:
+        return None, None
+    nM = Mi.n
+    A11, A12, A22 = T_[:k, :k], T_[:k, k:], T_[k:, k:]
+    X = sla.solve_sylvester(A11, -A22, -A12) if k < nM else np.zeros((k, 0))
+    Bt, Ct = Z.T @ Mi.B, Mi.C @ Z
+    B1, B2 = Bt[:k] - X @ Bt[k:], Bt[k:]
+    C1, C2 = Ct[:, :k], Ct[:, :k] @ X + Ct[:, k:]
+    G = model.lti("u", "d", "f")
+    nf = Mi.m
+    rhs_B = np.hstack([np.zeros((k, G.m - nf)), B1])
+    # vec(T A − A11 T) = (Aᵀ ⊗ I − I ⊗ A11) vec T, vec(T B) = (Bᵀ ⊗ I) vec T (column-major vec)
+    Ik = np.eye(k)
+    L = np.vstack([np.kron(model.A.T, Ik) - np.kron(np.eye(n), A11), np.kron(G.B.T, Ik)])
+    r = np.concatenate([np.zeros(k * n), rhs_B.ravel(order="F")])
+    T = np.linalg.lstsq(L, r, rcond=None)[0].reshape((k, n), order="F")
+    Cx = C1 @ T
+    Mo = LTI(A22, B2, C2, Mi.D, Mi.dt)
+    # verification: z = C_x (λI − A)^{-1} B_f + M_o reproduces Mr_i, and C_x sees no u, d
+    w = frequency_grid([Mi, G], num=200)
+    lam = np.exp(1j * w * Mi.dt) if Mi.dt else 1j * w
+    poles = np.r_[lam_p, np.asarray(Mi.poles(), complex)]
+    lam = lam[np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) > 1e-6 * np.maximum(1.0, np.abs(lam))]
+    ref = _values(Mi, lam)
+    rows = LTI(G.A, G.B, Cx, np.zeros((1, G.m)), G.dt)
+    got = _values(rows, lam)
+    got[:, :, G.m - nf:] += _values(Mo, lam)
+    want = np.concatenate([np.zeros((lam.size, 1, G.m - nf)), ref], axis=2)
+    ok = np.all(np.isfinite(got), axis=(1, 2)) & np.all(np.isfinite(want), axis=(1, 2))
+    top = float(np.max(np.abs(ref[ok]), initial=0.0))
+    if not (ok.any() and top > 0 and float(np.max(np.abs(got[ok] - want[ok]))) <= tol * top):
+        return None, None
+    return Cx, Mo
 
 
 def _markov_norm(N: LTI, cols) -> float:
@@ -162,6 +234,7 @@ def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=
             f"model matching: the simple basis of the augmented null space has {len(rows)} of its {pb.N.p} rows "
             f"(indices {pb.degrees}): a minimum dynamic cover was too ill-conditioned; the least order cannot be "
             f"proven — pass other atol")
+    rows = [_least_degree_row(N, nu, cond, p, tol, atol) for N, nu, cond in rows]
     best, group = None, []
     for N, nu, cond in sorted(rows, key=lambda r: r[1]):
         if best is not None and nu > best[2]:
@@ -186,7 +259,86 @@ def least_row(model: FDIModel, Mi: LTI, *, tol: float, atol: float = 0.0, poles=
         comb = _combined_row(group, p, choose, good, tol)
         if comb is not None:
             N, dz = comb, 1.0 / _markov_norm(comb, np.arange(comb.m))
-    return LeastRow(N, int(nu), dz if dz > tol else 0.0, list(pb.degrees), float(cond), p, pb.N, pb.rank_tol)
+    # the indices with those of the rows whose exact solution has a lower degree (:func:`_least_degree_row`)
+    return LeastRow(N, int(nu), dz if dz > tol else 0.0, sorted(int(r[1]) for r in rows), float(cond), p, pb.N,
+                    pb.rank_tol)
+
+
+def _least_degree_row(N: LTI, nu: int, cond: float, p: int, tol: float, atol: float) -> tuple:
+    """``(N, ν, cond)`` of a simple row, or the row ``[X_y  −1  X_u]`` of lower degree when its solution
+    ``X = −N_z^{-1} [N_y N_u]`` (``N_z`` biproper) has a realisation of lower order.
+
+    A minimal basis has no zeros, so its row of index ν gives a solution of McMillan degree ν. The
+    pencil's staircase decides the indices after an output-nulling deflation whose feedback (norm
+    ``fnorm``) amplifies the data's rounding by about ``fnorm²``: a reference ``Q* Gf`` known to ~1e-12
+    gives a sub-diagonal entry of ~1e-7 where the exact structure has 0 (random seed 197: fnorm 790,
+    index 6 computed for 2), so the row carries near-common zeros of all its entries (there 3.16) —
+    poles of no solution, which every solution from this row would appear to have. The solution is
+    reduced at the core's relative tolerance (balanced, TB01PD) and, since that truncation moves the
+    kept poles by about the dropped entry, refitted: ``A`` by Gauss–Newton (variable projection:
+    ``B, D`` linear least squares for each ``A``, ``C`` kept) to the unreduced solution's values on a
+    grid; the lower degree is taken only when the refit matches them to ``tol`` of their peak."""
+    if not nu or not N.n:
+        return N, nu, cond
+    whole = _markov_norm(N, np.arange(N.m))
+    dz = float(N.D[0, p])
+    if not (whole > 0 and abs(dz) > tol * whole):
+        return N, nu, cond
+    X = LeastRow(N, nu, abs(dz) / whole, [], cond, p).solution()
+    X = _refitted(X, tol, atol)
+    if X is None or X.n >= nu:
+        return N, nu, cond
+    B = np.hstack([X.B[:, :p], np.zeros((X.n, 1)), X.B[:, p:]])
+    D = np.hstack([X.D[:, :p], -np.ones((1, 1)), X.D[:, p:]])
+    return LTI(X.A, B, X.C, D, N.dt), int(X.n), cond
+
+
+def _refitted(X: LTI, tol: float, atol: float) -> LTI | None:
+    """A realisation of the row ``X`` of lower order that matches ``X``'s values on a grid to ``tol`` of their
+    peak (see :func:`_least_degree_row`), or None."""
+    from scipy.optimize import least_squares
+
+    from ...lti import frequency_grid
+    from .postconditions import _values
+
+    if not X.n or X.p != 1:
+        return None
+    Xb, _ = X.balanced()
+    norm = float(np.linalg.norm(np.block([[Xb.A, Xb.B], [Xb.C, Xb.D]]), 2))
+    Xr = Xb.minreal(tol=max(atol, tol * norm), equil="N")
+    if Xr.n >= X.n:
+        return None
+    w = frequency_grid([X], num=200)
+    lam = np.exp(1j * w * X.dt) if X.dt else 1j * w
+    poles = np.asarray(X.poles(), complex)
+    lam = lam[np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) > 1e-6 * np.maximum(1.0, np.abs(lam))]
+    V = _values(X, lam)[:, 0, :]
+    ok = np.all(np.isfinite(V), axis=1)
+    lam, V = lam[ok], V[ok]
+    R = np.vstack([V.real, V.imag])
+    top = float(np.max(np.abs(R), initial=0.0))
+    n, c = Xr.n, Xr.C[0]
+    if not top > 0 or R.shape[0] < 2 * (n + 1) + n * n:
+        return None
+
+    def fit(a):
+        A = a.reshape(n, n)
+        Phi = np.array([np.r_[np.linalg.solve((l * np.eye(n) - A).T, c), 1.0] for l in lam]) if n else \
+            np.ones((lam.size, 1), complex)
+        P = np.vstack([Phi.real, Phi.imag])
+        th = np.linalg.lstsq(P, R, rcond=None)[0]
+        return th, (P @ th - R) / top
+
+    a = Xr.A.ravel()
+    if n:
+        try:
+            a = least_squares(lambda v: fit(v)[1].ravel(), a, xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm").x
+        except (np.linalg.LinAlgError, ValueError):
+            return None
+    th, res = fit(a)
+    if not float(np.max(np.abs(res))) <= tol:
+        return None
+    return LTI(a.reshape(n, n), th[:n], Xr.C, th[n:], X.dt)
 
 
 #: largest condition number of an observability matrix used to bring rows to common coordinates

@@ -173,16 +173,19 @@ def _place(a: np.ndarray, b: np.ndarray, targets: np.ndarray) -> np.ndarray:
     for z in t:
         if z.imag > 1e-12 * max(1.0, abs(z)):
             out += [z, np.conj(z)]
+    # a rank-deficient b (two input columns, one direction: random seed 237's augmented null space) is
+    # placed on its rank-rb column space b V1 (SVD), F = V1 F1: scipy's KNV/YT needs full column rank
+    V1 = np.linalg.svd(b)[2][:rb].T if rb < b.shape[1] else np.eye(b.shape[1])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
-            res = place_poles(a, b, np.array(out[: a.shape[0]]), method="YT")
+            res = place_poles(a, b @ V1, np.array(out[: a.shape[0]]), method="YT")
         except ValueError as exc:
             from .postconditions import NumericalDesignError
 
             raise NumericalDesignError(f"pencil null space: the poles cannot be assigned ({exc}); pass other "
                                        f"poles/sdeg") from None
-    return -res.gain_matrix
+    return -V1 @ res.gain_matrix
 
 
 def _place_double(a: np.ndarray, b: np.ndarray, target: float) -> np.ndarray:
