@@ -460,3 +460,30 @@ def test_boeing747_detection_of_every_fault_is_designed():
             col = fc.start + j
             gains[j] = max(gains[j], abs(R[0, col]) / (np.linalg.norm(Qv[:, :p]) * np.linalg.norm(Gv[:p, col])))
     assert np.all(gains > 1e-3), gains
+
+
+def test_moved_mode_is_the_plants_own_pole():
+    """Random seed 149's row [1 0 0 1 1] (tests/test_synthesis_random.py; discrete, n = 25): the component
+    fault's z = 1 sits 5.1e-3 from the plant pole 0.9949, and the decoupling row's Q (order 24) has a pole at
+    0.999. The stable factorisation must cancel R_fc's pole at the plant's z = 1 itself: the moved pole is the
+    plant's eigenvalue (numpy's, on the model's own A) to rounding, and Q ← M·Q has the zero ``Q(1)·Ge v = 0``
+    in the mode's direction v. Read here with numpy: ``||Q(1) Ge v|| / (max_θ ||Q(e^{jθ})|| ||Ge v||)``. A zero
+    computed to rounding leaves ~N·eps·cond of the Q evaluation (measured 8.5e-15); the zero the series
+    realisation gave (z = 1 read as 1 − 1.85e-10 there) left 6.0e-10. 1e-12 lies between."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_synthesis_random import random_case
+
+    model = random_case(149).with_disturbances(["fs2", "fa1"])
+    gen = nullspace_design(model)
+    ev, V = np.linalg.eig(model.A)
+    j = int(np.argmin(np.abs(ev - 1.0)))
+    moved = np.asarray(gen.info["internal_form"]["moved_poles"])
+    assert moved.size == 1 and abs(moved[0] - ev[j]) <= 1e-12
+    gv = _Ge(model)[2] @ V[:, j]  # Ge's output direction of the mode
+    A, B, C, D = _Q(gen)
+    q1 = _tf_value((A, B, C, D), 1.0)
+    peak = max(np.linalg.norm(_tf_value((A, B, C, D), np.exp(1j * w)), 2) for w in np.linspace(1e-3, np.pi, 2000))
+    assert np.linalg.norm(q1 @ gv) <= 1e-12 * peak * np.linalg.norm(gv)
