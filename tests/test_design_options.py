@@ -248,18 +248,24 @@ def test_nonstd_regularised_and_refused_choices():
         nullspace_design(model, nonstd=2, epsreg=-1.0)
 
 
-def test_nonstd_1_on_two_noise_facing_rows_is_refused_and_the_default_falls_back_saying_so():
-    """Two outputs, two strictly proper noise channels: Rw is 2 × 2 with zeros at infinity; nonstd = 1 is
-    exact for one row only here."""
-    model = tf_model({"u": [[1 / (s + 2), 1 / (s + 4)]], "w": [[1 / (s + 1), 0], [0, 1 / (s + 5)]],
-                      "f": [[1 / (s + 3), 1 / (s + 6)]]})
+def test_nonstd_1_on_two_noise_facing_rows_moves_both_zeros_at_infinity():
+    """Two outputs, two strictly proper noise channels: Rw is 2 × 2 with a zero at infinity in each direction;
+    nonstd = 1 (also the default) moves both to sdeg = -5 (the peer's glcf after Rwo⁻¹): ``|det R_w(jω)|·|jω + 5|²`` is
+    flat (R_w = M·Ri, det M = κ/(s + 5)², Ri co-inner; numpy on the returned filter)."""
+    model = tf_model({"w": [[1 / (s + 1), 0], [0, 1 / (s + 5)]], "f": [[1 / (s + 3), 1 / (s + 6)], [1 / (s + 7), 2 / (s + 8)]]})
     assert model.ny == 2 and model.nw == 2
-    with pytest.raises(DesignError, match="nonstd = 1 .*cannot handle .*2 rows"):
-        nullspace_design(model, nonstd=1)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        gen = nullspace_design(model)
-    assert "nonstd = 2" in gen.info["noise"] and "nonstd = 1 (the default) does not apply" in gen.info["noise"]
+    A, B, Ce, De = _extended(model)
+    Gw = _freqresp(A, B, Ce, De, LAM)[:, :, model.nu + model.nd: model.nu + model.nd + model.nw]
+    for job in (1, None):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            gen = nullspace_design(model, nonstd=job, sdeg=-5.0, rdim=2)
+        assert gen.info["noise"].startswith("quasi-co-outer normalised (nonstd = 1)"), gen.info["noise"]
+        assert judge(gen, model, [[1, 1]] * len(gen.groups), model.fault_names) == []
+        Rw = _values(gen.Q) @ Gw
+        assert Rw.shape[1] == 2  # both residuals kept (rdim = 2: the whole 2 × 2 noise response)
+        flat = np.abs(np.linalg.det(Rw)) * np.abs(LAM + 5.0) ** 2
+        np.testing.assert_allclose(flat, flat[0], rtol=1e-6)
 
 
 def test_amdsyn_nonstd_quasi_co_outer_flattens_each_filters_noise():

@@ -13,9 +13,9 @@ Varga's Procedure AFD we
 
 The factorisation is the transpose of the inner–outer factorisation of Zhou, Doyle and
 Glover (*Robust and Optimal Control*, Thm. 13.34; discrete analogue via the DARE). It
-needs a full-row-rank feedthrough and no zeros on the stability boundary; otherwise
-step 2 is skipped (the filter poles then set the frequency weighting, as in Varga's
-Example 5.11 with its poles at −3).
+needs a full-row-rank feedthrough (continuous time) and no zeros on the stability boundary;
+otherwise the peer's ``nonstd`` choices apply (:func:`noise_normalizer`; default: the
+quasi-co-outer factor followed by a stable left coprime factor, ``nonstd = 1``).
 """
 from __future__ import annotations
 
@@ -157,12 +157,13 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
     inverse (:func:`coouter_inverse`). Non-standard (zeros of ``Rw`` at infinity or on the stability
     boundary, where ``Ro⁻¹`` would be improper or marginally stable), as FaultDetectionTools.jl ``afdsyn``:
 
-    - ``nonstd = 1`` (default): the quasi-co-outer factor ``Ro`` (zeros in the closed stability region) and
-      the stable left factor the peer's ``glcf`` applies after it, in one: ``Ro_m⁻¹`` with
-      ``Ro_m = Ro ∏(λ−t_b)/(λ−z_b) ∏(λ−t_∞)``, every boundary zero ``z_b`` replaced by a stable ``t_b`` and
-      every zero at infinity by a stable ``t_∞`` (from ``poles`` first, then ``sdeg``, else ``-0.7|z_b|``,
-      and for ``λ = 0`` and infinity the speed of ``Rw``'s poles). Exact for one noise-facing row in
-      continuous time (a scalar spectral factor).
+    - ``nonstd = 1`` (default): the quasi-co-outer factor ``Rwo`` (``Rw = Rwo Ri``, zeros in the closed stability
+      region) followed by the stable left coprime factor the peer's ``glcf`` applies after ``Rwo⁻¹``: with the
+      Wiener–Hopf split ``Rwo = Rwoe·Rwouz`` (:func:`wiener_hopf_split`), ``Rwouz`` holding exactly the zeros of
+      ``Rwo`` on the boundary, outside the margin ``smarg`` and (continuous time) at infinity, and its poles placed
+      at the targets of :func:`moved_zero_targets` (``poles``, then ``sdeg`` as the peer's ``eigselect``, else the
+      speed of the zero), ``Ro⁻¹ = Rwoe⁻¹ = Rwouz·Rwo⁻¹`` — stable and proper, its poles the kept zeros of ``Rwo``
+      and the targets, and ``Ro⁻¹Rw = Rwouz·Ri``. Any number of noise-facing rows, continuous or discrete time.
     - ``nonstd = 2``: the co-outer factor of ``[Rw  ε I]``, ``ε = epsreg·||Rw||∞`` (relative, so that the
       choice does not depend on the scaling of the basis rows; the peer's ε is absolute on its rows),
       ``Ro Ro~ = Rw Rw~ + ε² I``.
@@ -174,9 +175,11 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
       ``Ro⁻¹ = Ro5⁻¹·Rwoe⁻¹``, ``Ro5`` the co-outer factor of ``[Rwouz  ε I]``, ``ε = epsreg·||Rwouz||∞``
       (``Ro5 Ro5~ = Rwouz Rwouz~ + ε² I``). Any number of noise-facing rows, continuous or discrete time.
 
-    Without ``nonstd`` (None): 1 where it applies, else 2, else no normalisation (the filter poles weight
-    the noise), the fallback said in ``how`` (``info['noise']``). A chosen option that cannot handle the case raises
-    a DesignError naming it.
+    Without ``nonstd`` (None): 1, falling back to 2 — said in ``how`` (``info['noise']``) with the reason — only
+    where 1 cannot be computed: ``Rw`` without full row rank (more noise-facing rows than independent noise
+    directions), a Riccati equation without a stabilising solution, zeros too close to the boundary to separate
+    (unstable Wiener–Hopf factors) or a normaliser whose poles break the margin; if 2 fails too, no normalisation
+    (the filter poles weight the noise). A chosen option that cannot handle the case raises a DesignError naming it.
     """
     from ...margin import default_smarg
 
@@ -188,24 +191,14 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
     if fac is not None and _clear_of_boundary(fac[0].poles(), Rw.dt, margin):
         return fac[0], "co-outer normalised"
     job = opts.nonstd if opts.nonstd is not None else 1
-    if job in (3, 4, 5):
-        return wiener_hopf_normalizer(Rw, job, opts, sdeg)[:2]
-    if job == 1:
-        why = None if (Rw.p == 1 and not Rw.dt) else (
-            f"it is implemented for one noise-facing residual row in continuous time (here {Rw.p} rows, "
-            f"{'discrete' if Rw.dt else 'continuous'} time)")
-        if why is None:
-            try:
-                inv, text = _scalar_shifted_inverse(Rw, job, poles=poles, sdeg=sdeg)
-                return inv, f"quasi-co-outer normalised (nonstd = {job}): {text}"
-            except (np.linalg.LinAlgError, ValueError, DesignError) as exc:
-                why = f"the scalar spectral factor failed: {exc}"
-        if opts.nonstd is not None:
-            raise DesignError(f"nonstd = {job} ({NONSTD[job]}) cannot handle this non-standard noise response: {why}; "
-                              f"use nonstd = 2")
-        fallback = f"; nonstd = 1 (the default) does not apply ({why})"
-    else:
-        fallback = ""
+    fallback = ""
+    if job != 2:
+        try:
+            return wiener_hopf_normalizer(Rw, job, opts, sdeg, poles=poles, smarg=margin)[:2]
+        except DesignError as exc:
+            if opts.nonstd is not None:
+                raise
+            fallback = f"; nonstd = 1 (the default) does not apply: {exc}"
     peak = Rw.hinfnorm()[0]
     eps = opts.epsreg * peak
     reg = coouter_inverse(hstack([Rw, LTI.static(eps * np.eye(Rw.p), Rw.dt)])) if 0 < peak < np.inf else None
@@ -229,60 +222,6 @@ def _clear_of_boundary(poles: np.ndarray, dt: float, margin: float) -> bool:
     if dt:
         return bool(np.all(np.abs(poles) <= min(margin, 1.0 - BOUNDARY_RTOL)))
     return bool(np.all(poles.real <= np.minimum(margin, -BOUNDARY_RTOL * np.maximum(1.0, np.abs(poles)))))
-
-
-def _scalar_shifted_inverse(Rw: LTI, job: int, *, poles, sdeg) -> tuple[LTI, str]:
-    """``Ro_m⁻¹`` of :func:`noise_normalizer` for a stable one-row continuous ``Rw = [n_1 … n_m]/a``:
-    the spectral numerator ``P(s) = Σ_j n_j(s) n_j(−s)`` (even) has its roots in pairs ``±r``; ``Ro`` takes
-    the stable one of each pair, one of each double boundary root, ``c = sqrt|lead P|``, and ``deg a − deg P/2``
-    zeros at infinity (Youla's scalar spectral factorisation)."""
-    import scipy.signal as ssig
-
-    A, B, C, D = Rw.A, Rw.B, Rw.C, Rw.D
-    a = np.real(np.poly(np.linalg.eigvals(A)))
-    P = np.zeros(1)
-    for j in range(Rw.m):  # n_j = C adj(sI − A) B_j + D_j a = det(sI − A + B_j C) − a + D_j a
-        nj = np.real(np.poly(np.linalg.eigvals(A - np.outer(B[:, j], C[0])))) - a + D[0, j] * a
-        nj = np.trim_zeros(np.where(np.abs(nj) > 1e-13 * np.max(np.abs(nj), initial=0.0), nj, 0.0), "f")
-        if nj.size:
-            mirror_nj = nj * (-1.0) ** np.arange(nj.size - 1, -1, -1)
-            P = np.polyadd(P, np.polymul(nj, mirror_nj))
-    P = np.trim_zeros(P, "f")
-    if P.size == 0:
-        raise DesignError("the noise response Rw is identically zero: nothing to normalise")
-    roots = np.roots(P)
-    scale = np.maximum(1.0, np.abs(roots))
-    on = np.abs(roots.real) <= ZERO_BOUNDARY_RTOL * scale  # a double boundary root splits ~sqrt(eps) apart
-    stable = roots[(~on) & (roots.real < 0)]
-    bnd = roots[on][np.argsort(roots[on].imag)]
-    if bnd.size % 2 or stable.size + bnd.size // 2 != (P.size - 1) // 2:
-        raise DesignError(f"nonstd = {job}: the spectral numerator of the noise response has roots {roots.tolist()} "
-                          f"that do not pair as ±r (numerically ill-conditioned factorisation); use nonstd = 2")
-    bnd = np.array([complex(0.0, 0.5 * (bnd[i].imag + bnd[i + 1].imag)) for i in range(0, bnd.size, 2)])
-    n_inf = (a.size - 1) - (P.size - 1) // 2
-    ref = float(np.median(np.abs(np.linalg.eigvals(A)))) if A.size else 1.0
-    ref = ref if ref > 0 else 1.0
-    given = list(np.atleast_1d(np.asarray(poles, complex))) if poles is not None else []
-
-    def target(z):
-        if given:
-            return given.pop(0)
-        if sdeg is not None:
-            return complex(sdeg, z.imag if np.isfinite(z) else 0.0)
-        if not np.isfinite(z) or abs(z) == 0:
-            return complex(-ref)
-        return complex(-0.7 * abs(z), z.imag)
-
-    moved = [target(z) for z in bnd] + [target(complex(np.inf)) for _ in range(n_inf)]
-    if any(t.real >= 0 for t in moved):
-        raise DesignError(f"nonstd = {job}: the replacement zeros {moved} of the noise factor are not stable "
-                          f"(sdeg must be negative)")
-    c = np.sqrt(abs(P[0]))
-    den = c * np.real(np.poly(np.concatenate([stable, np.array(moved, complex)])))
-    Ai, Bi, Ci, Di = ssig.tf2ss(a, den)
-    text = (f"{bnd.size} zero(s) on the boundary {np.round(bnd, 6).tolist()} and {n_inf} at infinity replaced by "
-            f"{np.round(np.array(moved), 6).tolist()}")
-    return LTI(Ai, Bi, Ci, Di, 0.0), text
 
 
 # ------------------------------------------------------------ the Wiener–Hopf split (nonstd = 3, 4, 5)
@@ -315,32 +254,36 @@ def _on_boundary(z: np.ndarray, dt: float) -> np.ndarray:
     return np.abs(np.abs(z) - 1.0) <= ZERO_BOUNDARY_RTOL if dt else np.abs(z.real) <= ZERO_BOUNDARY_RTOL * scale
 
 
-def _left_infinite_step(G: LTI, t: float, tol: float) -> tuple[LTI, LTI] | None:
+def _left_infinite_step(G: LTI, choose, tol: float) -> tuple[LTI, LTI] | None:
     """One step of the extraction of zeros at infinity: ``G = L·G'`` with ``V`` an orthonormal basis of the
-    left null space of ``D`` (``VᵀG`` strictly proper), ``L = (I − VVᵀ) + V·c/(s − t)·Vᵀ`` and
-    ``G' = (I − VVᵀ)G + VVᵀG·(s − t)/c`` = ``(A, B, (I−VVᵀ)C + V Vᵀ(CA − tC)/c, (I−VVᵀ)D + VVᵀCB/c)`` —
-    the same states, no cancellation. None when ``D`` has full row rank."""
+    left null space of ``D`` (``VᵀG`` strictly proper), ``T = diag(t_i) = choose(∞, …, ∞)`` (stable, real),
+    ``c_i = |t_i|``, ``L = (I − VVᵀ) + V·c(sI − T)⁻¹·Vᵀ`` and ``G' = (I − VVᵀ)G + V·c⁻¹(s − T)·VᵀG`` =
+    ``(A, B, (I−VVᵀ)C + V c⁻¹(VᵀCA − T VᵀC), (I−VVᵀ)D + V c⁻¹VᵀCB)`` — the same states, no cancellation.
+    None when ``D`` has full row rank."""
     U, sv, _ = np.linalg.svd(G.D) if G.D.size else (np.eye(G.p), np.zeros(0), None)
     r = int(np.sum(sv > tol))
     if r == G.p:
         return None
     V = U[:, r:]
-    c = abs(t)
-    P = np.eye(G.p) - V @ V.T
-    C2 = P @ G.C + V @ (V.T @ (G.C @ G.A - t * G.C)) / c
-    D2 = P @ G.D + V @ (V.T @ (G.C @ G.B)) / c
     k = V.shape[1]
-    L = LTI(t * np.eye(k), V.T, c * V, P, G.dt)
+    t = np.real(np.asarray(choose(np.full(k, np.inf, complex)), complex))[:k]
+    c = np.abs(t)
+    P = np.eye(G.p) - V @ V.T
+    VtC = V.T @ G.C
+    C2 = P @ G.C + V @ ((VtC @ G.A - t[:, None] * VtC) / c[:, None])
+    D2 = P @ G.D + V @ ((VtC @ G.B) / c[:, None])
+    L = LTI(np.diag(t), V.T, V * c, P, G.dt)
     return L, LTI(G.A, G.B, C2, D2, G.dt)
 
 
-def _left_boundary_step(G: LTI, targets, tol: float) -> tuple[LTI, LTI, np.ndarray] | None:
+def _left_boundary_step(G: LTI, choose, tol: float, bad=None) -> tuple[LTI, LTI, np.ndarray] | None:
     """One step of the extraction of finite boundary zeros (``D`` of full row rank): the left zeros of
     ``[A − λI  B; C  D]`` are the uncontrollable modes of ``(A − B D⁺C, B·D_⊥)`` (orthogonal staircase, then an
     ordered real Schur form puts one boundary eigenvalue block ``Λ`` first): ``WᵀA + VᵀC = ΛWᵀ``, ``WᵀB + VᵀD = 0``
     with ``Vᵀ = −WᵀB D⁺``. Then ``L⁻¹ = I + X(λI − Λ)⁻¹Vᵀ`` gives ``G' = L⁻¹G = (A, B, C − XWᵀ, D)`` (the same
     states) and ``L = (Λ − VᵀX, Vᵀ, −X, I)``: zeros ``eig Λ`` (on the boundary), poles ``eig(Λ − VᵀX)`` = targets.
-    Returns ``(L, G', eig Λ)`` or None when ``G`` has no boundary zero."""
+    ``bad`` (a mask of an array of zeros; default :func:`_on_boundary`) says which zeros are extracted; the
+    targets are ``choose(eig Λ)``. Returns ``(L, G', eig Λ)`` or None when ``G`` has no such zero."""
     from .pencil import _place, controllable_staircase
 
     A, B, C, D = G.A, G.B, G.C, G.D
@@ -354,7 +297,8 @@ def _left_boundary_step(G: LTI, targets, tol: float) -> tuple[LTI, LTI, np.ndarr
         return None
     Tu = T[:, nc:]
     A22 = Tu.T @ A0 @ Tu
-    inside = (lambda re, im: _on_boundary(np.array([re + 1j * im]), G.dt)[0])
+    bad = bad or (lambda z: _on_boundary(z, G.dt))
+    inside = (lambda re, im: bool(bad(np.array([re + 1j * im]))[0]))
     S, Us, k = sla.schur(A22.T, output="real", sort=lambda re, im: bool(inside(re, im)))
     if k == 0:
         return None
@@ -362,30 +306,27 @@ def _left_boundary_step(G: LTI, targets, tol: float) -> tuple[LTI, LTI, np.ndarr
     Lam = S[:k, :k].T
     Wt = Us[:, :k].T @ Tu.T
     Vt = -Wt @ B @ Dp
-    X = -_place(Lam, Vt, np.asarray(targets[:k], complex))  # eig(Λ + Vᵀ(−X)) = targets
+    zeros = np.linalg.eigvals(Lam)
+    X = -_place(Lam, Vt, np.asarray(choose(zeros), complex)[:k])  # eig(Λ + Vᵀ(−X)) = targets
     L = LTI(Lam - Vt @ X, Vt, -X, np.eye(G.p), G.dt)
-    return L, LTI(A, B, C - X @ Wt, D, G.dt), np.linalg.eigvals(Lam)
+    return L, LTI(A, B, C - X @ Wt, D, G.dt), zeros
 
 
-def _left_zero_factor(G: LTI, targets: list, what: str) -> tuple[list[LTI], LTI, list, int]:
-    """``G = L₁⋯L_k·G'`` (stable full-row-rank ``G``): the ``L_i`` hold the zeros of ``G`` at infinity (continuous
-    time) and on the stability boundary; ``G'`` has neither (its new zeros are the ``L_i``'s poles, at ``targets``).
-    Returns ``(Ls, G', boundary zeros, number of infinite zeros)``."""
+def _left_zero_factor(G: LTI, choose, what: str, bad=None) -> tuple[list[LTI], LTI, list, int]:
+    """``G = L₁⋯L_k·G'`` (stable full-row-rank continuous-time ``G``): the ``L_i`` hold the zeros of ``G`` at
+    infinity and the finite ones ``bad`` marks (default: on the imaginary axis); ``G'`` has neither (its new zeros
+    are the ``L_i``'s poles, ``choose(zeros)`` — :func:`_left_infinite_step`, :func:`_left_boundary_step`).
+    Returns ``(Ls, G', the finite zeros extracted, number of infinite zeros)``."""
     Ls, found, n_inf = [], [], 0
     tol = _rank_tol(np.block([[G.A, G.B], [G.C, G.D]]))
     for _ in range(2 * (G.n + G.p) + 2):
-        if not G.dt:
-            step = _left_infinite_step(G, targets[0].real, tol)
-            if step is not None:
-                Ls.append(step[0])
-                n_inf += step[0].n
-                G = step[1]
-                continue
-        elif rank(G.D) < G.p:
-            raise DesignError(f"{what}: the discrete noise response has a feedthrough of row rank {rank(G.D)} < {G.p} "
-                              f"together with zeros on the unit circle; this Wiener–Hopf split needs a full row rank "
-                              f"feedthrough in discrete time")
-        step = _left_boundary_step(G, targets, tol)
+        step = _left_infinite_step(G, choose, tol)
+        if step is not None:
+            Ls.append(step[0])
+            n_inf += step[0].n
+            G = step[1]
+            continue
+        step = _left_boundary_step(G, choose, tol, bad)
         if step is None:
             return Ls, G, found, n_inf
         Ls.append(step[0])
@@ -412,50 +353,93 @@ def _product(Ls: list[LTI], p: int, dt: float) -> LTI:
 
 
 def _biproper_inverse(G: LTI, what: str) -> LTI:
-    """``G⁻¹ = (A − B D⁻¹C, B D⁻¹, −D⁻¹C, D⁻¹)`` of a square biproper ``G``; a DesignError if ``D`` is singular."""
+    """``G⁻¹ = (A − B D⁻¹C, B D⁻¹, −D⁻¹C, D⁻¹)`` of a square biproper ``G``; a DesignError if ``D`` is singular.
+    ``D⁻¹`` is applied through ``D = QR`` (triangular solves; ``B D⁻¹ = (Q R⁻ᵀ Bᵀ)ᵀ``), never formed by ``inv``."""
     sv = np.linalg.svd(G.D, compute_uv=False)
     if sv.size == 0 or sv[-1] <= 1e-12 * max(1.0, sv[0]):
         raise DesignError(f"{what}: the factor to invert is not biproper (feedthrough singular values "
                           f"{np.round(sv, 14).tolist()})")
-    Di = np.linalg.inv(G.D)
-    return LTI(G.A - G.B @ Di @ G.C, G.B @ Di, -Di @ G.C, Di, G.dt)
+    Qd, Rd = np.linalg.qr(G.D)
+    DiC = sla.solve_triangular(Rd, Qd.T @ G.C)
+    BDi = (Qd @ sla.solve_triangular(Rd, G.B.T, trans="T")).T
+    Di = sla.solve_triangular(Rd, Qd.T)
+    return LTI(G.A - G.B @ DiC, BDi, -DiC, Di, G.dt)
 
 
-def _split_targets(Rw: LTI, sdeg) -> list:
-    """Stable poles for the extraction factors: ``sdeg`` if given, else the speed of Rw's poles (continuous), or
-    0.5 (discrete); distinct values so that a complex pair gets two."""
-    if Rw.dt:
-        base = 0.5
-        return [complex(base), complex(0.9 * base)]
+def _split_targets(Rw: LTI, sdeg):
+    """``choose`` of the extraction factors of :func:`wiener_hopf_split` (continuous time): every zero to ``sdeg``
+    if given, else to the speed of Rw's poles, a complex pair to two distinct values."""
     if sdeg is not None and sdeg < 0:
         base = float(sdeg)
     else:
         eig = np.abs(np.linalg.eigvals(Rw.A)) if Rw.n else np.ones(1)
         base = -max(float(np.median(eig)), 1e-3)
-    return [complex(base), complex(1.1 * base)]
+
+    def choose(zeros):
+        zeros = np.asarray(zeros, complex)
+        if zeros.size == 2 and np.isfinite(zeros[0]) and abs(zeros[0].imag) > 0:
+            return np.array([base, 1.1 * base], complex)  # a complex pair: two distinct real values
+        return np.full(zeros.size, base, complex)
+
+    return choose
 
 
-def wiener_hopf_split(Rw: LTI, *, sdeg: float | None = None, what: str = "nonstd") -> WienerHopfSplit:
+#: the Cayley map between the unit disc and the left half plane (z = −1 ↔ s = ∞), with its inverse
+CAYLEY_TO_S = (1.0, -1.0, 1.0, 1.0)   # s = (z − 1)/(z + 1), as (a, b, c, d) of bilinear_substitution: z = g(s)
+CAYLEY_TO_Z = (1.0, 1.0, -1.0, 1.0)   # z = (1 + s)/(1 − s)
+
+
+def _z_of_s(s) -> np.ndarray:
+    s = np.asarray(s, complex)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.isinf(s), -1.0 + 0j, (1.0 + s) / (1.0 - s))
+
+
+def _s_of_z(z) -> np.ndarray:
+    z = np.asarray(z, complex)
+    return (z - 1.0) / (z + 1.0)
+
+
+def wiener_hopf_split(Rw: LTI, *, sdeg: float | None = None, what: str = "nonstd", choose=None,
+                      bad=None) -> WienerHopfSplit:
     """The Wiener–Hopf split :class:`WienerHopfSplit` of a stable ``Rw`` of full row rank.
 
     1. ``Rw = L_b·Rw'`` (:func:`_left_zero_factor`): ``L_b`` holds the boundary and infinite zeros, ``Rw'`` has a
        full-row-rank feedthrough and no boundary zero, so its co-outer factor ``Ro'`` exists (:func:`coouter_inverse`,
-       Riccati); ``Rwo = L_b·Ro'`` is the quasi-co-outer factor (``Rw Rw~ = Rwo Rwo~``).
-    2. The same extraction on ``Rwoᵀ`` gives the right factor: ``Rwoᵀ = Rwouzᵀ·Rwoeᵀ``.
+       Riccati); ``Rwo = L_b·Ro'`` is the quasi-co-outer factor (``Rw Rw~ = Rwo Rwo~``; the poles of ``L_b`` cancel).
+    2. The same extraction on ``Rwoᵀ`` gives the right factor: ``Rwoᵀ = Rwouzᵀ·Rwoeᵀ``; the poles of ``Rwouz`` —
+       the zeros of ``Rwoe`` that replace the extracted ones — are ``choose(zeros)`` (default
+       :func:`_split_targets`), and ``bad`` (a mask of an array of zeros) says which finite zeros of ``Rwo`` go to
+       ``Rwouz`` (default: those on the boundary, :func:`_on_boundary`).
+
+    Discrete time: steps 1–2 on the continuous-time image ``Rw((1 + s)/(1 − s))`` (the Cayley map takes the unit
+    circle to the imaginary axis and the disc to the left half plane, so co-inner, co-outer and stable factors
+    stay so), the factors mapped back with ``s = (z − 1)/(z + 1)``: a rank-deficient feedthrough (zeros at
+    ``z = ∞``, outside the disc) needs no special case, and a zero at ``z = −1`` is the image's zero at infinity
+    (reported among ``boundary``; ``n_inf = 0``). ``choose`` and ``bad`` then act on ``z``.
     """
-    targets = _split_targets(Rw, sdeg)
     lam = 0.37 + 0.91j if not Rw.dt else 0.3 + 0.4j  # a point off the boundary and away from typical zeros
     if Rw.p > Rw.m or rank(Rw.evalfr(lam)) < Rw.p:
         raise DesignError(f"{what}: the noise response must have full row rank (here {Rw.p} rows, {Rw.m} noise inputs, "
                           f"rank {rank(Rw.evalfr(lam)) if Rw.p <= Rw.m else Rw.m} at λ = {lam})")
-    Lb, Rw1, _, _ = _left_zero_factor(Rw, targets, what)
+    if Rw.dt:
+        image = bilinear_substitution(Rw, *CAYLEY_TO_Z)
+        image = LTI(image.A, image.B, image.C, image.D, 0.0)
+        ch = None if choose is None else (lambda s: _s_of_z(choose(_z_of_s(s))))
+        bd = None if bad is None else (lambda s: _on_boundary(s, 0.0) | np.asarray(bad(_z_of_s(s)), bool))
+        sp = wiener_hopf_split(image, what=what, choose=ch, bad=bd)
+        back = [bilinear_substitution(LTI(X.A, X.B, X.C, X.D, Rw.dt), *CAYLEY_TO_S) for X in (sp.Rwoe_inv, sp.Rwouz)]
+        zb = np.concatenate([_z_of_s(sp.boundary), -np.ones(sp.n_inf, complex)])
+        return WienerHopfSplit(back[0], back[1], zb, 0)
+    internal = _split_targets(Rw, sdeg)
+    Lb, Rw1, _, _ = _left_zero_factor(Rw, internal, what)
     fac = coouter_inverse_or_static(Rw1)
     if fac is None:
         raise DesignError(f"{what}: the noise response without its boundary zeros has no co-outer factor (the "
                           f"Riccati equation has no stabilising solution; order {Rw1.n}, {Rw1.p} rows)")
     Ro1 = _biproper_inverse(fac[0], what)
     Rwo = (_product(Lb, Rw.p, Rw.dt) @ Ro1).minreal()
-    Lt, Et, zb, n_inf = _left_zero_factor(Rwo.transpose(), targets, what)
+    Lt, Et, zb, n_inf = _left_zero_factor(Rwo.transpose(), choose or internal, what, bad)
     Rwouz = _product(Lt, Rw.p, Rw.dt).transpose()
     Rwoe_inv = _biproper_inverse(Et.transpose(), what)
     if not Rwoe_inv.is_stable(margin=0.0) or not Rwouz.is_stable(margin=0.0):
@@ -491,14 +475,109 @@ def zero_shift_map(dt: float, sdegzer: float, finite: bool, infinite: bool) -> t
     return 1.0, -sdegzer, 0.0, 1.0
 
 
-def wiener_hopf_normalizer(Rw: LTI, job: int, opts: NonstandardOptions | None = None,
-                           sdeg: float | None = None) -> tuple[LTI, str, dict]:
-    """``(N, how, parts)`` for ``nonstd = job`` in (3, 4, 5) (see :func:`noise_normalizer`): the normaliser ``N``
+def moved_zero_targets(Rw: LTI, *, poles=None, sdeg: float | None = None, smarg: float | None = None):
+    """``choose(zeros) ↦ targets`` of ``nonstd = 1``: where the stable left coprime factor after ``Rwo⁻¹`` puts the
+    poles that ``Rwo``'s boundary, margin-violating and (continuous time) infinite zeros give ``Rwo⁻¹`` — the
+    rule of the peer's ``glcf`` (DescriptorSystems.jl ``eigselect1``/``eigselect2``). ``zeros``: one real zero,
+    one complex pair, or ``k`` zeros at infinity (``inf``).
+
+    - ``poles`` given: the nearest unused one of them (a real one for a real or infinite zero — the reference
+      for infinity is ``sdeg`` —, a conjugate pair for a pair), as long as any is left;
+    - ``sdeg`` given: a real or infinite zero to ``sdeg``, a pair to ``sdeg ± j·Im z`` (continuous) or to
+      ``sdeg·z/|z|`` (discrete);
+    - neither: the speed of the zero — ``-max(|Re z|, ζ|z|) + j Im z`` with ``ζ =`` :data:`.stable_factor.MOVED_DAMPING`
+      (continuous; in discrete time through ``s = ln(z)/dt``), and for ``z = 0``, ``z = 1`` and infinity the median
+      speed of Rw's poles, a target outside the margin moved onto ``smarg`` less 1e-3 — the rule the project's own
+      :func:`.stable_factor.moved_pole_targets` applies without ``sdeg``. The peer's default is its ``sdeg = -0.05``
+      (``0.95`` discrete), which puts a lightly damped pole ``-0.05 ± j·Im z`` in the filter whatever the plant's
+      speed; pass ``sdeg=-0.05`` for it (it trades that ringing for a larger gap when ``Rw`` has axis zeros).
+
+    A given ``poles``/``sdeg`` target outside the margin is a DesignError naming it.
+    """
+    from ...margin import default_smarg, outside_margin
+    from .stable_factor import MOVED_DAMPING
+
+    dt = float(Rw.dt)
+    margin = default_smarg(dt) if smarg is None else float(smarg)
+    pool = list(np.atleast_1d(np.asarray(poles, complex))) if poles is not None else []
+    bad_given = [p for p in pool if outside_margin(np.array([p]), dt, margin)[0]]
+    if bad_given or (sdeg is not None and outside_margin(np.array([sdeg]), dt, margin)[0]):
+        raise DesignError(f"nonstd = 1: the targets of the moved zeros of the noise factor (poles {bad_given}, sdeg = "
+                          f"{sdeg}) must lie inside the stability margin smarg = {margin:g}")
+    eig = np.linalg.eigvals(Rw.A).astype(complex) if Rw.n else np.zeros(0, complex)
+    speeds = np.abs(np.log(eig[np.abs(eig) > 0]) / dt) if dt else np.abs(eig)
+    speeds = speeds[speeds > 1e-6 * max(1.0, float(np.max(speeds, initial=0.0)))]
+    ref = float(np.median(speeds)) if speeds.size else 1.0
+    beta = margin * (1 - 1e-3) if dt else margin - 1e-3 * max(1.0, abs(margin))
+
+    def speed_rule(z: complex) -> complex:  # continuous-time s
+        if not np.isfinite(z) or abs(z) <= 1e-9 * ref:
+            return complex(-ref)
+        return complex(-max(abs(z.real), MOVED_DAMPING * abs(z)), z.imag)
+
+    def rule(z: complex) -> complex:
+        if sdeg is not None:
+            if dt:
+                return complex(sdeg) if z.imag == 0 else complex(sdeg * z / abs(z))
+            return complex(sdeg, 0.0 if not np.isfinite(z) else z.imag)
+        if not dt:
+            t = speed_rule(z)
+            return complex(min(t.real, beta), t.imag)
+        st = speed_rule(complex(np.log(complex(z))) / dt)
+        t = complex(np.sign(z.real) * np.exp(st.real * dt)) if z.imag == 0 else complex(np.exp(st * dt))
+        return t if abs(t) <= beta else t * beta / abs(t)
+
+    def nearest(ref_point: complex, real: bool):
+        cands = [i for i, p in enumerate(pool) if (p.imag == 0) == real and (real or p.imag > 0)]
+        if not cands:
+            return None
+        i = min(cands, key=lambda j: abs(pool[j] - ref_point))
+        t = pool.pop(i)
+        if not real:
+            pool.pop(min((j for j, p in enumerate(pool) if p.imag < 0), key=lambda j: abs(pool[j] - np.conj(t))))
+        return t
+
+    def choose(zeros) -> np.ndarray:
+        zeros = np.asarray(zeros, complex)
+        if zeros.size == 2 and np.isfinite(zeros[0]) and abs(zeros[0].imag) > 0:
+            z = zeros[0] if zeros[0].imag > 0 else zeros[1]
+            t = nearest(z, real=False)
+            t = rule(z) if t is None else t
+            return np.array([t, np.conj(t)] if zeros[0].imag > 0 else [np.conj(t), t], complex)
+        out = []
+        for z in zeros:
+            z = complex(z)
+            t = nearest(z.real if np.isfinite(z) else rule(z), real=True)
+            out.append(rule(z) if t is None else t)
+        return np.array(out, complex)
+
+    return choose
+
+
+def wiener_hopf_normalizer(Rw: LTI, job: int, opts: NonstandardOptions | None = None, sdeg: float | None = None,
+                           *, poles=None, smarg: float | None = None) -> tuple[LTI, str, dict]:
+    """``(N, how, parts)`` for ``nonstd = job`` in (1, 3, 4, 5) (see :func:`noise_normalizer`): the normaliser ``N``
     (``Q ← N·Q``), the text for ``info['noise']`` and the pieces it is made of — ``split``
-    (:class:`WienerHopfSplit`) and ``gamma`` (3), ``sdegzer``, ``map`` ``(a, b, c, d)`` and ``shifted`` (4),
-    ``eps`` (5) — so that a caller can check the defining property of each choice."""
+    (:class:`WienerHopfSplit`; for 1 with ``Rwouz``'s poles at :func:`moved_zero_targets`, ``targets``), ``gamma``
+    (3), ``sdegzer``, ``map`` ``(a, b, c, d)`` and ``shifted`` (4), ``eps`` (5) — so that a caller can check the
+    defining property of each choice."""
+    from ...margin import default_smarg, outside_margin
+
     opts = opts or NonstandardOptions(nonstd=job)
     what = f"nonstd = {job} ({NONSTD[job]})"
+    if job == 1:
+        margin = default_smarg(Rw.dt) if smarg is None else float(smarg)
+        split = wiener_hopf_split(Rw, sdeg=sdeg, what=what,
+                                  choose=moved_zero_targets(Rw, poles=poles, sdeg=sdeg, smarg=margin),
+                                  bad=lambda z: _on_boundary(z, Rw.dt) | outside_margin(z, Rw.dt, margin))
+        N, moved = split.Rwoe_inv, np.sort_complex(split.Rwouz.poles())
+        if not _clear_of_boundary(N.poles(), Rw.dt, margin):
+            raise DesignError(f"{what}: the normaliser's poles {np.round(N.poles(), 6).tolist()} break the margin "
+                              f"smarg = {margin:g}")
+        where = (f"{split.boundary.size} zero(s) on or beyond the margin {np.round(split.boundary, 6).tolist()}"
+                 + (f" and {split.n_inf} at infinity" if split.n_inf else ""))
+        return N, (f"quasi-co-outer normalised (nonstd = 1): {where} replaced by {np.round(moved, 6).tolist()}"), \
+            {"split": split, "targets": moved}
     split = wiener_hopf_split(Rw, sdeg=sdeg, what=what)
     where = (f"{split.boundary.size} zero(s) on the boundary {np.round(split.boundary, 6).tolist()}"
              + (f" and {split.n_inf} at infinity" if split.n_inf else ""))
