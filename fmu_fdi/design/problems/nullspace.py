@@ -229,9 +229,10 @@ def nullspace_design(model: FDIModel, *, rdim: int | str = 1, poles=None, sdeg: 
     nonstd, epsreg, sdegzer
         With noise to optimise, how a noise response without an invertible co-outer factor (zeros at
         infinity — Gw strictly proper — or on the stability boundary) is normalised, as FaultDetectionTools.jl
-        ``afdsyn``: 1 the quasi-co-outer factor with its boundary/infinite zeros moved (default), 2 the
-        factor of ``[Rw  epsreg·||Rw||∞·I]``, 4 the zeros shifted by ``sdegzer``; 3 and 5 are refused in that
-        case (:func:`..toolkit.approximate.noise_normalizer`). ``info['noise']`` says what was done.
+        ``afdsyn``: 1 the quasi-co-outer factor with its boundary/infinite zeros moved to ``poles``/``sdeg``
+        (default), 2 the factor of ``[Rw  epsreg·||Rw||∞·I]``, 3, 4, 5 the Wiener–Hopf choices (4: the zeros
+        shifted by ``sdegzer``) — any number of noise rows, continuous or discrete time
+        (:func:`..toolkit.approximate.noise_normalizer`). ``info['noise']`` says what was done.
     dec_tol : float
         Largest relative leakage of u and d (and w when it is decoupled) the returned filter
         may show (:mod:`..toolkit.postconditions`).
