@@ -347,11 +347,11 @@ def _unnormalised_gap(model: FDIModel) -> float:
 
 @pytest.mark.parametrize("case", ["b_axis", "c_unit_circle", "d_2x2"])
 @pytest.mark.parametrize("job, key, values", [(4, "sdegzer", None), (5, "epsreg", [0.3, 0.05, 0.01]),
-                                               (2, "epsreg", [0.3, 0.05, 0.01])])
+                                               (2, "epsreg", [0.3, 0.05, 0.01]), (1, "sdeg", None)])
 def test_gap_grows_as_the_boundary_zero_is_approached(case, job, key, values):
     """Rw has a boundary zero where Rf does not vanish, so sup_ω ||Rf||/||Rw|| is unbounded: the zero shifted by
-    sdegzer (4) or the spectrum regularised by ε (2, 5) gives a normalised fault gain ~1/|sdegzer| (~1/ε) there
-    while the noise stays bounded — the gap grows as the parameter goes to the boundary, and beats the design
+    sdegzer (4), moved to sdeg ± j·Im z by the stable left factor (1, the peer's glcf), or the spectrum regularised
+    by ε (2, 5) gives a normalised fault gain ~1/|sdegzer| (~1/|sdeg|, ~1/ε) there while the noise stays bounded — the gap grows as the parameter goes to the boundary, and beats the design
     without a normaliser (the filter poles as the only weighting)."""
     model = CASES[case]
     if values is None:
