@@ -197,8 +197,7 @@ def _check_nonstd_1(Rw: LTI, zb, n_inf, lam=None):
     corrected determinant is flat on the boundary; ``N Rw`` keeps the boundary zeros (singular there) and N is finite
     there (no pole moved onto the boundary)."""
     dt = Rw.dt
-    N, how, parts = noise_normalizer(Rw, sdeg=SDEG1[dt], options=NonstandardOptions(1)), None, None
-    N, how = N
+    N, how = noise_normalizer(Rw, sdeg=SDEG1[dt], options=NonstandardOptions(1))
     assert how.startswith("quasi-co-outer normalised (nonstd = 1)"), how
     assert _stable(N)
     targets = [_peer_target(z0, dt) for z0 in zb] + [complex(SDEG1[dt])] * n_inf
