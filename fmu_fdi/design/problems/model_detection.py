@@ -26,7 +26,7 @@ left null space ``Q1`` of ``[Gu_i Gd_i; I 0]``; step 2 the co-outer–co-inner f
 ``h Q_i`` has ``||h R_ii^w||∞ = |h|``. Keeping all rows (``rdim='all'``) is then optimal: for any
 other admissible filter ``Q4 Q_i``, ``||Q4 X||∞ ≤ ||Q4||∞ ||X||∞ = ||Q4 Ri||∞ ||X||∞``, so no filter
 has a larger gap (when ``Q1 [Gw_i; 0]`` has zeros at infinity or on the stability boundary the
-factor does not exist; a regularised factor is tried, see :func:`_full_order`). With ``rdim = 1``
+factor does not exist; the normaliser of the peer's ``nonstd`` choice is tried, see :func:`_full_order`). With ``rdim = 1``
 the gap-maximising combination of the normalised rows is
 chosen on a grid, as in Procedure AFD (:func:`~fmu_fdi.design.problems.nullspace.nullspace_design`).
 Each filter is finally scaled so that ``β_i = 1`` (``amdsyn``'s default): the rows of
@@ -345,11 +345,11 @@ def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
 
     When ``Rw = Q1 [Gw; 0]`` has full normal row rank but no invertible co-outer factor (zeros
     at infinity, i.e. a feedthrough without full row rank, or on the stability boundary), the
-    factor of the regularised ``[Rw  ε||Rw||∞ I]`` (ε = 1e-3; Varga's ``nonstd = 2``) is used
-    if it gives a larger measured gap than ``Q1`` itself."""
+    normaliser of the peer's ``nonstd`` choice is used (:func:`..toolkit.approximate.noise_normalizer`;
+    without ``nonstd``, 1 and then 2, as ``amdsyn``'s default): a chosen ``nonstd`` always, the
+    default only if it gives a larger measured gap than ``Q1`` itself."""
     from ...linalg import rank
-    from ...lti import hstack
-    from ..toolkit.approximate import active_options, coouter_inverse, coouter_inverse_or_static, noise_normalizer
+    from ..toolkit.approximate import active_options, coouter_inverse_or_static, noise_normalizer
 
     g = nullspace_design(mi, rdim="all", noise="ignore", **design_kw)
     Q1 = g.Q
@@ -366,22 +366,17 @@ def _full_order(mi: FDIModel, design_kw: dict, gap_of) -> tuple[LTI, dict]:
                          f"combination decouples w exactly — rdim=1 finds it (gap ∞)")
         return Q1, info
     opts = active_options()
-    if opts is not None and opts.nonstd is not None:  # the user's choice of the peer's nonstd
-        Ro_inv, how = noise_normalizer(Rw, smarg=design_kw.get("smarg"), poles=design_kw.get("poles"),
-                                       sdeg=design_kw.get("sdeg"))
-        if Ro_inv is not None:
+    chosen = opts is not None and opts.nonstd is not None  # the user's choice of the peer's nonstd
+    Ro_inv, how = noise_normalizer(Rw, smarg=design_kw.get("smarg"), poles=design_kw.get("poles"),
+                                   sdeg=design_kw.get("sdeg"))
+    if Ro_inv is not None:
+        Qr = (Ro_inv @ Q1).minreal()
+        if chosen or gap_of(Qr) > gap_of(Q1):
             info["noise"] = how
-            return (Ro_inv @ Q1).minreal(), info
-    eps = 1e-3 * _gain(Rw)
-    reg = coouter_inverse(hstack([Rw, LTI.static(eps * np.eye(Rw.p), Rw.dt)]))
-    if reg is not None:
-        Qr = (reg[0] @ Q1).minreal()
-        if gap_of(Qr) > gap_of(Q1):
-            info["noise"] = ("regularised co-outer normalised: Q1 [Gw; 0] has zeros at infinity or on the stability "
-                             f"boundary; factor of [Rw  {eps:.3g} I]")
             return Qr, info
+        how = f"{how} — not kept: its gap is not larger than the basis' own"
     info["noise"] = ("weighted by the filter poles: Q1 [Gw; 0] has zeros at infinity or on the stability boundary "
-                     "(no invertible co-outer factor)")
+                     f"(no invertible co-outer factor; {how})")
     return Q1, info
 
 
