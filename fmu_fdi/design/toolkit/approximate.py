@@ -186,6 +186,7 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
     opts = options or _OPTIONS.get() or NonstandardOptions()
     if Rw.n == 0:
         return None, "weighted by the filter poles (static noise response)"
+    Rw = drop_hidden_unstable_modes(Rw)
     fac = coouter_inverse(Rw)
     margin = default_smarg(Rw.dt) if smarg is None else smarg
     if fac is not None and _clear_of_boundary(fac[0].poles(), Rw.dt, margin):
@@ -222,6 +223,34 @@ def _clear_of_boundary(poles: np.ndarray, dt: float, margin: float) -> bool:
     if dt:
         return bool(np.all(np.abs(poles) <= min(margin, 1.0 - BOUNDARY_RTOL)))
     return bool(np.all(poles.real <= np.minimum(margin, -BOUNDARY_RTOL * np.maximum(1.0, np.abs(poles)))))
+
+
+def drop_hidden_unstable_modes(G: LTI) -> LTI:
+    """``G`` without the modes on or beyond the stability boundary that its transfer function does not have:
+    an ordered real Schur form puts them last, ``A = [A₁₁ A₁₂; 0 A₂₂]``, and they go when ``‖B₂‖ ≤ tol``
+    (uncontrollable: ``x₂`` is never excited, ``G = (A₁₁, B₁, C₁, D)`` exactly); else first, and they go when
+    ``‖C₁‖ ≤ tol`` (unobservable). ``tol`` is the split's rank tolerance (1e-10·‖[A B; C D]‖). Such a mode —
+    a marginal plant mode the noise does not excite, kept by a minimal realisation whose single-input staircase
+    cannot see it — made the Riccati solution of :func:`coouter_inverse` non-stabilising and was taken for a zero
+    on the boundary (an input decoupling zero) by the split (random_case(22): ±2j, PBH σ_min 1e-15)."""
+    if not G.n:
+        return G
+    tol = _rank_tol(np.block([[G.A, G.B], [G.C, G.D]]))
+    if G.dt:
+        hidden = lambda re, im: bool(np.hypot(re, im) >= 1.0 - BOUNDARY_RTOL)  # noqa: E731
+    else:
+        hidden = lambda re, im: bool(re >= -BOUNDARY_RTOL * max(1.0, np.hypot(re, im)))  # noqa: E731
+    S, U, k = sla.schur(G.A, output="real", sort=lambda re, im: not hidden(re, im))
+    if k == G.n:
+        return G
+    B, C = U.T @ G.B, G.C @ U
+    if np.linalg.norm(B[k:]) <= tol:
+        return LTI(S[:k, :k], B[:k], C[:, :k], G.D, G.dt)
+    S, U, j = sla.schur(G.A, output="real", sort=hidden)
+    B, C = U.T @ G.B, G.C @ U
+    if np.linalg.norm(C[:, :j]) <= tol:
+        return LTI(S[j:, j:], B[j:], C[:, j:], G.D, G.dt)
+    return G
 
 
 # ------------------------------------------------------------ the Wiener–Hopf split (nonstd = 3, 4, 5)
@@ -283,7 +312,11 @@ def _left_boundary_step(G: LTI, choose, tol: float, bad=None) -> tuple[LTI, LTI,
     with ``Vᵀ = −WᵀB D⁺``. Then ``L⁻¹ = I + X(λI − Λ)⁻¹Vᵀ`` gives ``G' = L⁻¹G = (A, B, C − XWᵀ, D)`` (the same
     states) and ``L = (Λ − VᵀX, Vᵀ, −X, I)``: zeros ``eig Λ`` (on the boundary), poles ``eig(Λ − VᵀX)`` = targets.
     ``bad`` (a mask of an array of zeros; default :func:`_on_boundary`) says which zeros are extracted; the
-    targets are ``choose(eig Λ)``. Returns ``(L, G', eig Λ)`` or None when ``G`` has no such zero."""
+    targets are ``choose(eig Λ)``. An uncontrollable mode of ``(A, B)`` (``σ_min[A − λI  B] ≤ tol``, PBH) is a
+    left zero too (an input decoupling zero, ``Vᵀ = 0``) but no zero of the transfer function, and no output
+    injection moves it: it is never extracted (it was, again at every step, with ``L = I`` and a growing ``C − XWᵀ``,
+    and the factors picked up spurious zeros near ``±5·10⁶j`` — random_case(22)'s marginal plant mode ±2j that
+    the noise does not excite). Returns ``(L, G', eig Λ)`` or None when ``G`` has no such zero."""
     from .pencil import _place, controllable_staircase
 
     A, B, C, D = G.A, G.B, G.C, G.D
@@ -298,7 +331,12 @@ def _left_boundary_step(G: LTI, choose, tol: float, bad=None) -> tuple[LTI, LTI,
     Tu = T[:, nc:]
     A22 = Tu.T @ A0 @ Tu
     bad = bad or (lambda z: _on_boundary(z, G.dt))
-    inside = (lambda re, im: bool(bad(np.array([re + 1j * im]))[0]))
+    AB = np.hstack([A, B])
+
+    def transmission(lam: complex) -> bool:  # not an uncontrollable mode of (A, B): PBH, rank at tol
+        return bool(np.linalg.svd(AB - lam * np.eye(G.n, G.n + G.m), compute_uv=False)[-1] > tol)
+
+    inside = (lambda re, im: bool(bad(np.array([re + 1j * im]))[0]) and transmission(re + 1j * im))
     S, Us, k = sla.schur(A22.T, output="real", sort=lambda re, im: bool(inside(re, im)))
     if k == 0:
         return None
