@@ -180,6 +180,9 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
     directions), a Riccati equation without a stabilising solution, zeros too close to the boundary to separate
     (unstable Wiener–Hopf factors) or a normaliser whose poles break the margin; if 2 fails too, no normalisation
     (the filter poles weight the noise). A chosen option that cannot handle the case raises a DesignError naming it.
+    First the modes of ``Rw``'s realisation on or beyond the boundary that its transfer function does not have
+    (uncontrollable or unobservable: a plant mode the noise does not excite) are dropped
+    (:func:`drop_hidden_unstable_modes`); every factor above is of that realisation.
     """
     from ...margin import default_smarg
 
@@ -603,6 +606,7 @@ def wiener_hopf_normalizer(Rw: LTI, job: int, opts: NonstandardOptions | None = 
 
     opts = opts or NonstandardOptions(nonstd=job)
     what = f"nonstd = {job} ({NONSTD[job]})"
+    Rw = drop_hidden_unstable_modes(Rw)  # (idempotent; noise_normalizer has done it already)
     if job == 1:
         margin = default_smarg(Rw.dt) if smarg is None else float(smarg)
         split = wiener_hopf_split(Rw, sdeg=sdeg, what=what,
