@@ -472,12 +472,18 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
                 masks[np.ix_(np.flatnonzero(pattern), [i], cols)] = False
                 continue
             size = np.linalg.norm(readings, axis=2)                                 # (3, K, cols)
-            low = np.maximum(size - errs, 0.0)
-            best = np.argmax(low, axis=0)                                          # (K, cols)
+            # the most accurate reading (smallest e), raised to the largest proven lower bound, never lowered
+            # below its own size: a value every reading of which is dominated by its bound stays what the most
+            # accurate reading says (docstring, "The value kept")
+            low = np.max(np.maximum(size - errs, 0.0), axis=0)                     # (K, cols)
+            best = np.argmin(errs, axis=0)                                         # (K, cols)
+            zero = (np.take_along_axis(size, best[None], axis=0)[0] == 0) & (low > 0)
+            best[zero] = np.argmax(size - errs, axis=0)[zero]                      # a zero cannot carry the bound
             pick = np.take_along_axis(readings, best[None, :, None, :], axis=0)[0]
             psize = np.take_along_axis(size, best[None], axis=0)[0]
-            plow = np.take_along_axis(low, best[None], axis=0)[0]
-            factor = np.divide(plow, psize, out=np.zeros_like(plow), where=psize > 0)
+            high = np.min(size + errs, axis=0)                                     # R_i' ≤ every ||r|| + e
+            kept = np.minimum(np.maximum(low, np.minimum(psize, high)), size[0])  # never above R_i as it runs
+            factor = np.divide(kept, psize, out=np.ones_like(psize), where=psize > 0)
             vals = R[:, g, :]
             vals[:, :, cols] = pick * factor[:, None, :]
             R[:, g, :] = vals
