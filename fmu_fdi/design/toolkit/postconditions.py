@@ -13,7 +13,8 @@ beside every pole on the stability boundary (:func:`_beside_boundary_freqs`) and
 point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no general minimal realisation or
 rank decision; one exception: a plant mode on the stability boundary that a row cancels, or an input column does
 not excite, to the rounding of its eigen-direction is removed from that row and column, and the value kept there is
-the largest lower bound of three readings with derived error bounds, :func:`_without_cancelled_modes`). :func:`internal_figures`
+the most accurate of three readings with derived error bounds, clipped to their enclosure and never above R_i itself,
+:func:`_without_cancelled_modes`). :func:`internal_figures`
 computes them once; ``leakage()``,
 ``structure_matrix()`` (:mod:`fmu_fdi.analysis`) and :func:`check_generator` all read them,
 so ``gen.info['postconditions']`` is what ``leakage(gen)`` and ``structure_matrix(gen)``
@@ -384,14 +385,27 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
     that cancel in each sum round to γ times their sizes). Not in e: the rounding every value of the judge
     carries, that of the Schur forms and solves of the realisation itself (R_i's own, accepted everywhere else).
 
-    **The value kept** at a point and column is the largest of the readings' lower bounds ``||r|| − e`` (≥ 0),
-    the reading r scaled to it: every reading encloses R_i', so R_i' is at least that large, and a leak is
-    refused only where some reading exceeds ``dec_tol`` by more than its own error bound. It replaces the rule
-    "the smaller of two readings", which had no bound behind it (a reading with a large rounding could only be
-    outvoted by an accidentally small one): beside p the pole part makes the first two readings' bounds large and
-    the mode-free one is kept; where the mode-free reading carries ``Y ~ 1/sep`` and cancellation (VTOL at
-    0.01 s: an unstable pair 5e-3 from a stable pole, eigenvector condition ~4e8; its u leak read 3.9e-7 there,
-    6.6e-12 by R_i itself) its bound is large and R_i itself, whose bound is the small pole part, decides.
+    **The value kept** at a point and column. Every reading r with its bound e encloses R_i':
+    ``L = max_r (||r|| − e) ≤ ||R_i'|| ≤ U = min_r (||r|| + e)``. The value kept is the most accurate reading (the
+    smallest e), clipped into ``[L, U]`` and never above R_i itself (the reading scaled to that size):
+
+    - the smallest-e reading, not a bound: where every reading's e exceeds its size the enclosure does not decide
+      the value, and an undecided value may neither certify decoupling nor erase a fault gain. The previous rule
+      (the largest lower bound, 0 there) did both: Boeing 747's row [0 0 0 0 1] candidate (filter peak 5.2e5,
+      cancelling the pole 3.1e-5 only to δ_i = 2.3e-5: bounds 0.27 beside it) was returned with ``decoupling`` 0
+      and a u leak numpy reads at 5.5e-7; random seed 149's row [1 1 0 0 1] read its fault fc, R_u and R_d as 0
+      and was refused as numerically zero (numpy: fc 3.2e-2); the non-normal plant of tests/test_synthesis_random.py
+      read the true leak of a floating-point "exact" row, 4.7e-9 … 4.7e-6 (q·C formed exactly), as 2e-16 … 0;
+    - raised to L: a reading proven larger than the most accurate one says is at least that large (a leak
+      beside p that the mode-free reading shows and R_i's pole part hides);
+    - lowered to U and never above R_i as it runs: the removal discounts the pole part of a mode the row cancels
+      to rounding; it may not *add* a leak to the residual the user sees. VTOL's DOS bank at 0.01 s (its two
+      poles at z ≈ 1, δ_i = 5.6 against a residue ||K|| = 0.08: "cancelled" only because δ_i is void) read its
+      mode-free R_u at 21 ± 2e-8 where R_i, what the FMU computes, reads 8e-12: R_i − R_i' is that pole part,
+      not rounding.
+
+    Where the mode-free reading carries ``Y ~ 1/sep`` and cancellation (VTOL: u leak 3.9e-7 by it, 6.6e-12 by
+    R_i) its bound is large and R_i, whose bound is the small pole part, is the most accurate.
 
     Returns the removals: ``[(p, mask)]``, mask (groups × input columns of Ge) marking where p was removed (read by
     :func:`_r_poles`); R is changed in place.
@@ -472,9 +486,9 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
                 masks[np.ix_(np.flatnonzero(pattern), [i], cols)] = False
                 continue
             size = np.linalg.norm(readings, axis=2)                                 # (3, K, cols)
-            # the most accurate reading (smallest e), raised to the largest proven lower bound, never lowered
-            # below its own size: a value every reading of which is dominated by its bound stays what the most
-            # accurate reading says (docstring, "The value kept")
+            # the most accurate reading (smallest e) clipped to the enclosure [L, U] of all readings and never
+            # above R_i as it runs: an undecided value (every reading dominated by its e) stays what the most
+            # accurate reading says, not 0 (docstring, "The value kept")
             low = np.max(np.maximum(size - errs, 0.0), axis=0)                     # (K, cols)
             best = np.argmin(errs, axis=0)                                         # (K, cols)
             zero = (np.take_along_axis(size, best[None], axis=0)[0] == 0) & (low > 0)
