@@ -8,7 +8,7 @@ the transfer from every plant input to the residual the user sees. Every figure 
 peak over one frequency grid Λ (:func:`_eval_points`: log-spaced two decades beyond every
 pole scale of the plant and the filter, plus 0, the resonances of lightly damped poles, two gaps
 beside every pole on the stability boundary (:func:`_beside_boundary_freqs`) and, discrete, Nyquist; without points below
-1e-9 of its top, within 1e-9, relative, of a pole of either realisation, or within
+1e-9 of its top (capped at 1e-2 of the slowest pole scale that is no rounding of s = 0 / z = 1), within 1e-9, relative, of a pole of either realisation, or within
 ``BOUNDARY_GAP·||A||`` of one on the stability boundary: :func:`_beside_boundary_poles`) of values computed
 point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no general minimal realisation or
 rank decision; one exception: a plant mode on the stability boundary that a row cancels, or an input column does
