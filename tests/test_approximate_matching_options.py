@@ -433,12 +433,7 @@ def _random_model(seed: int) -> FDIModel:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", list(range(24, 32)) + [pytest.param(32, marks=pytest.mark.xfail(
-    strict=True, reason="judge under-reads (issue 17 item 1, toolkit/postconditions.py): nullspace=True's filter (the "
-                        "minimal basis of nullspace_design cancelling the unstable plant poles 0.3±0.78j) has "
-                        "||Q [Gu; I]|| = 1.54e-7 at ω ≈ 0.94 by numpy (|Q||G| ≈ 3.6, no rounding issue); "
-                        "info['postconditions']['decoupling'] says 7.97e-8 ≤ dec_tol and the filter is returned"))]
-    + list(range(33, 40)))
+@pytest.mark.parametrize("seed", range(24, 40))
 def test_random_models_every_basis_and_pole_choice_agrees(seed):
     """Seeded family: the default, nullspace True/False (False only without d), simple and placed poles
     either refuse with a DesignError or return a filter that meets the checks every design meets

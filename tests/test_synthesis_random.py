@@ -587,13 +587,59 @@ def test_judge_reads_the_minimal_realisation_of_a_cancelled_boundary_mode(eps, r
     Ge = np.stack([np.stack([1 / (lam + 2), 1 / lam, zero], -1), np.stack([1 / (lam + 2), 1 / lam, one], -1),
                    np.stack([one, zero, zero], -1)], 1)               # inputs u, d, f; outputs y0, y1, u
     R = Qv @ Ge
-    assert _without_cancelled_modes(model, Q, [[0]], lam, R, Qv, Ge) == ([0] if removed else [])
+    removals = _without_cancelled_modes(model, Q, [[0]], lam, R, Qv, Ge)
+    # the integrator is removed from R_d where the row cancels it (d excites it: column 1 of Ge's inputs u, d, f)
+    assert any(abs(p) < 1e-12 and mask[0, 1] for p, mask in removals) == removed, removals
     if removed:
         want = np.stack([-eps / ((lam + 1) * (lam + 2)), eps / (lam + 1), -1 / (lam + 1)], axis=1)
         # the removal subtracts the pole part from R as given: R keeps its own rounding, that of Q·Ge with
         # ||Ge|| ~ 1/|λ| (2 eps per entry of the product, |Q| ≤ √2, two terms: ≤ 6 eps/|λ|), plus 1e-15 absolute
         err = np.abs(R[:, 0, :] - want)
         assert np.all(err <= 1e-15 + 6 * np.finfo(float).eps / np.abs(lam)[:, None]), np.max(err * np.abs(lam)[:, None])
+
+
+def _exact_sylvester(A, B, C) -> np.ndarray:
+    """The exact solution of ``A X − X B = C`` for the floating-point data given (rational Gauss–Jordan on the
+    Kronecker system ``(I ⊗ A − Bᵀ ⊗ I) vec X = vec C``, Python fractions), rounded once to float."""
+    from fractions import Fraction
+
+    n, k = A.shape[0], B.shape[0]
+    K = np.kron(np.eye(k), A) - np.kron(B.T, np.eye(n))  # entries a_ij or a_ii − b_jj: exact only if that difference is
+    K = [[Fraction(float(v)) for v in row] for row in K]
+    for j in range(k):                                    # ... so the diagonal blocks are rebuilt exactly
+        for i in range(n):
+            for r in range(n):
+                K[j * n + i][j * n + r] = Fraction(float(A[i, r])) - (Fraction(float(B[j, j])) if i == r else 0)
+    M = [row + [Fraction(float(c))] for row, c in zip(K, C.T.reshape(-1))]
+    N = n * k
+    for i in range(N):
+        piv = max(range(i, N), key=lambda r: abs(M[r][i]))
+        M[i], M[piv] = M[piv], M[i]
+        for r in range(N):
+            if r != i and M[r][i] != 0:
+                f = M[r][i] / M[i][i]
+                M[r] = [x - f * y for x, y in zip(M[r], M[i])]
+    return np.array([float(M[i][N] / M[i][i]) for i in range(N)]).reshape(k, n).T
+
+
+@pytest.mark.parametrize("k", [10, 20])
+def test_sylvester_forward_error_bound_holds_on_an_ill_conditioned_equation(k):
+    """postconditions._sylvester's bound (Higham ch. 16: the computed residual over sep, plus the residual's own
+    rounding) holds on non-normal, ill-separated equations: A = [[1, 2^k], [0, 1]] + 0.1·noise against a B with
+    eigenvalues 0.05 … 0.2 from A's (sep 0.025 at k = 10, 8e-3 at 20), seeded; the reference is the exact solution
+    for the same floating-point data (:func:`_exact_sylvester`). The bound must hold and say something (below
+    ||X||); it is pessimistic, as norm-wise bounds on non-normal operators are (measured 1e5 … 1e9 times the error)."""
+    from fmu_fdi.design.toolkit.postconditions import _sylvester
+
+    eps = np.finfo(float).eps
+    rng = np.random.default_rng(5 + k)
+    A = np.array([[1.0, 2.0 ** k], [0.0, 1.0]]) + 0.1 * rng.standard_normal((2, 2))
+    for B in (np.array([[1.1]]), np.array([[1.05, 0.7], [0.0, 0.9]]) + 0.01 * rng.standard_normal((2, 2))):
+        C = rng.standard_normal((2, B.shape[0]))
+        X = _exact_sylvester(A, B, C)
+        Xh, bound = _sylvester(A.astype(complex), B.astype(complex), C.astype(complex), 4 * eps)
+        err = float(np.linalg.norm(Xh - X))
+        assert 0 <= err <= bound < np.linalg.norm(X), (err, bound)
 
 
 def _non_normal_plant(eta: float, dt: float):
@@ -613,21 +659,42 @@ def _non_normal_plant(eta: float, dt: float):
     return model, (Jd, T, M, Bd)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 17, judge: on a plant of eigenvector condition 2.8e6 … 2.8e8 the exact row "
-                   "(closed form: no leak) is read as a u+d leak 1e-7 … 1e-5 by the mode-free reading; a derived bound for "
-                   "that reading (branch judgeb) passed this case but read a true leak and a visible fault as 0 elsewhere "
-                   "(Boeing 747 row [0 0 0 0 1], random seed 149 row [1 1 0 0 1]) and was not landed")
-@pytest.mark.parametrize("dt", [0.0, 0.1])
-@pytest.mark.parametrize("eta", [1e-6, 1e-8])
-def test_judge_on_a_non_normal_plant_refuses_leaks_not_rounding(eta, dt):
+def _exact_row_through_the_stable_mode(q: np.ndarray, C: np.ndarray, T: np.ndarray, Jd: np.ndarray, Bd: np.ndarray,
+                                       lam: np.ndarray) -> np.ndarray:
+    """``|c_row t_s · (T⁻¹ b_d)_s / (λ − λ_s)|`` with ``c_row = q·C`` formed exactly (Fractions, from the floating-point
+    q and C the filter and the model hold): the part of R_d through the plant's stable pole λ_s = J[2, 2], which no
+    removal of boundary modes may discount (the pair is the only boundary mode). ``(T⁻¹ b_d)_s = 1/η`` (T
+    triangular, b_d = [0 1 1]) is what makes a rounding-size c_row·t_s a visible leak."""
+    from fractions import Fraction
+
+    c_row = np.array([float(sum(Fraction(float(q[0, k])) * Fraction(float(C[k, j])) for k in range(C.shape[0])))
+                      for j in range(C.shape[1])])
+    return np.abs(float(c_row[:3] @ T[:, 2]) * np.linalg.solve(T, Bd[:3, 0])[2] / (lam - Jd[2, 2]))
+
+
+@pytest.mark.parametrize("eta, dt, exact_row_leaks", [
+    (1e-5, 0.1, False), (1e-6, 0.0, False), (1e-8, 0.0, True), (1e-8, 0.1, True)])
+def test_judge_on_a_non_normal_plant_refuses_leaks_not_rounding(eta, dt, exact_row_leaks):
     """The VTOL-like case (issue 17: the DOS sensor bank was refused for the rounding of the mode-free reading,
     ``Y ~ 1/sep``): an undamped pair a row cancels, next to a stable pole, in a basis of eigenvector condition
     up to 2.8e8. The row ``r = F·[1 −(1 + ε)] M⁻¹ y``, F = 1/(λ + 1) (discrete 1/(z − 0.3)), has, in closed form
-    (modal coordinates, numpy, not the library's evaluation): R_u = 0 exactly for every ε and
-    ``R_d = −ε F(λ) c T (λI − J)⁻¹ T⁻¹ b_d`` (c = [1 0.3 0], the pair's and the stable pole's part). The exact
-    row (ε = 0) must pass — the judge may not read its own rounding as a leak; ε = 1e-12 is a true leak whose
+    (modal coordinates, numpy, not the library's evaluation): R_u = 0 and
+    ``R_d = −ε F(λ) c T (λI − J)⁻¹ T⁻¹ b_d`` (c = [1 0.3 0]) for the exact M⁻¹. ε = 1e-12 is a true leak whose
     closed-form peak on the numpy judge's grid (≥ 1e-3 away from the poles) already exceeds dec_tol 25 … 2e5
-    times, and must be refused."""
+    times, and must be refused.
+
+    ε = 0 is exact only in exact arithmetic: the floating-point row ``q = [1 −1]·inv(M)`` against the floating-point
+    ``C = M·[c; c]`` leaves ``q·C`` of 3e-16, which the stable pole's ``(T⁻¹ b_d)_s = 1/η`` turns into a true leak
+    (:func:`_exact_row_through_the_stable_mode`, q·C formed exactly): 4.7e-9 (η = 1e-6, continuous), 4.7e-9
+    (1e-5, discrete), 4.7e-7 and 4.7e-6 (1e-8) of the fault gain. The judge must pass the first two — its own
+    rounding (the mode-free reading's, of bound up to 1e-5 here) may not be read as a leak — and refuse the last
+    two: the previous reading (largest lower bound, kept at 0 where every reading's bound exceeded its size)
+    accepted them with ``decoupling`` 0. Measured figures: 9.3e-10 … 8.2e-6, 1.4 … 2.0 times the exact stable-mode
+    part. (η = 1e-6 discrete, 4.7e-8 exact, reads 1.19e-7, the evaluation's own rounding ``eps·|q|·|Ge_d|`` there
+    being ~1e-7 of the fault gain: not asserted either way.) Whatever the verdict, the judge's figure may not read
+    below the exact stable-mode part: both grids hold λ = 0 (z = 1), where that part peaks (|λ − λ_s| smallest),
+    and the rest of R_d (the pair, cancelled to q·C ~ 3e-16 and removed by the judge; R_u through the pole −2 at
+    3e-16) cannot take away more than half of it at 4.7e-9 and above."""
     from fmu_fdi.design.toolkit.postconditions import DEC_TOL as LIB_DEC_TOL, check_generator
     from fmu_fdi.generator import ResidualGenerator
     from fmu_fdi.lti import LTI
@@ -640,17 +707,53 @@ def test_judge_on_a_non_normal_plant_refuses_leaks_not_rounding(eta, dt):
     cT = np.array([1.0, 0.3, 0.0]) @ T
     modal = np.array([cT @ np.linalg.solve(x * np.eye(3) - Jd, Ti_b) for x in lam])
     gain = np.abs(F * (np.linalg.inv(M)[0, 0]))             # |R_f|: the sensor fault on y1 through the row
-    for eps, leaks in ((0.0, False), (1e-12, True)):
+    Cy = model.augmented().C[: model.ny]
+    for eps in (0.0, 1e-12):
         q = np.array([[1.0, -(1.0 + eps)]]) @ np.linalg.inv(M)
         Q = LTI(np.array([[a_f]]), np.hstack([q, [[0.0]]]), np.array([[1.0]]), np.zeros((1, 3)), dt)
         true_leak = float(np.max(np.abs(eps * F * modal)) / np.max(gain))
-        assert (true_leak > 25 * LIB_DEC_TOL) == leaks, true_leak
+        stable = float(np.max(np.abs(F) * _exact_row_through_the_stable_mode(q, Cy, T, Jd, Bd, lam)) / np.max(gain))
+        leaks = exact_row_leaks if eps == 0 else True
+        if eps:
+            assert true_leak > 25 * LIB_DEC_TOL, true_leak
+        else:  # the parametrisation's verdict, from the exact figure with a factor 2 either way
+            assert (stable > 2 * LIB_DEC_TOL) if leaks else (stable < LIB_DEC_TOL / 2), stable
         fig = check_generator(ResidualGenerator(Q, model, "test"), raise_error=False)
-        assert bool(fig.get("failures")) == leaks, (eps, fig.get("failures"), fig["decoupling"])
+        assert bool(fig.get("failures")) == leaks, (eps, fig.get("failures"), fig["decoupling"], stable)
         if leaks:
             assert any("leak" in f for f in fig["failures"]), fig["failures"]
         else:
             assert fig["decoupling"] <= LIB_DEC_TOL and fig["fault_gain"] == pytest.approx(1.0, rel=1e-6)
+        if not eps:
+            assert fig["decoupling"] >= 0.5 * stable, (fig["decoupling"], stable)
+
+
+def test_boeing747_unstable_row_is_judged_by_its_leak_not_by_an_undecided_reading():
+    """Boeing 747 (plant pole 3.1e-5, just unstable), row [0 0 0 0 1]: the first candidate (filter peak 5.2e5,
+    |Q|·|Gf| 1.87e10) cancels the pole only to δ_i = 2.3e-5, and every reading of its mode-free R_u had an error
+    bound above its size (0.27 beside the pole against 8e-8 … 2e-5). The largest-lower-bound reading kept 0 there
+    and returned that candidate with ``decoupling`` 0.0 while numpy reads a u leak 5.5e-7 > dec_tol; the judge must
+    refuse it and the design return a row the independent numpy judge passes (measured: the order-1 row, peak 447,
+    ``decoupling`` 1.6e-12)."""
+    from test_synthesis_published import boeing747
+
+    model = boeing747()
+    row = [[0, 0, 0, 0, 1]]
+    gen = structured_bank(model, row, faults=model.fault_names)
+    assert judge(gen, model, row, model.fault_names) == []
+    assert gen.info["postconditions"]["decoupling"] <= DEC_TOL
+
+
+def test_seed149_row_with_an_undecided_reading_is_designed():
+    """Random seed 149, row [1 1 0 0 1] (listed achievable): the largest-lower-bound reading read fc's peak, R_u and
+    R_d as exactly 0 (every reading dominated by its bound) and refused the row as numerically zero, where numpy
+    reads u/d 2e-14 and fault peaks 6.1e-4, 6.8e-4, 3.2e-2. A value whose readings are all undecided is kept as the
+    most accurate reading says: the row is designed and passes the independent numpy judge."""
+    model = random_case(149)
+    row = [[1, 1, 0, 0, 1]]
+    assert row[0] in np.asarray(achievable_structure(model)).tolist()
+    gen = structured_bank(model, row)
+    assert judge(gen, model, row, model.fault_names) == []
 
 
 def test_seed149_listed_row_is_designed():
@@ -748,3 +851,33 @@ if __name__ == "__main__":  # quick manual run: python tests/test_synthesis_rand
         for r in check_case(s):
             print(s, f"{time.perf_counter() - t:5.1f}s", *r)
     print(f"{time.perf_counter() - t0:.1f} s")
+
+
+def test_judge_grid_reaches_the_plant_beside_a_fast_filter_pole():
+    """The judge's grid floor (no points below 1e-9 of the top, against an integrator computed at 1e-17) may not
+    rise above the plant's dynamics: approximate matching's order-3 row of random seed 32 (filter pole 1.4e7,
+    grid top 1.4e9) was judged without a point below 1.6 rad/s, and its u leak read 8e-8 where numpy reads 1.5e-7
+    at 0.94 rad/s. Here, in closed form: y = u/(s + 1) + f, ``q_y = P/(s + P)`` (P = 1e7), ``q_u = −q_y/(s + 1) +
+    ε s/(s² + 0.02 s + 0.01)``, so ``R_f = q_y`` (peak 1 at s = 0) and ``R_u = ε s/(s² + 0.02 s + 0.01)``, whose
+    peak 50 ε = 5e-7 sits at 0.1 rad/s and which is below 1.1e-8 (= ε/(ω·|1 − 0.01/ω²|)) from 1 rad/s up: a grid
+    floored at 1.4 rad/s would pass it (measured: 4.7e-7 read, refused)."""
+    from fmu_fdi.design.toolkit.postconditions import check_generator
+    from fmu_fdi.generator import ResidualGenerator
+    from fmu_fdi.lti import LTI
+
+    P, eps = 1e7, 1e-8
+    model = FDIModel.from_matrices([[-1.0]], [[1.0]], [[1.0]], faults=[sensor_fault("f", "y0")])
+    qy = LTI([[-P]], [[P]], [[1.0]], [[0.0]])
+    lag = LTI([[-1.0]], [[1.0]], [[1.0]], [[0.0]])
+    res = LTI([[0.0, 1.0], [-0.01, -0.02]], [[0.0], [1.0]], [[0.0, eps]], [[0.0]])   # ε s/(s² + 0.02 s + 0.01)
+    qu = res - qy @ lag
+    A = sla.block_diag(qy.A, qu.A)
+    Q = LTI(A, sla.block_diag(qy.B, qu.B), np.hstack([qy.C, qu.C]), np.hstack([qy.D, qu.D]))
+    w = np.logspace(-3, 3, 2001)
+    numpy_leak = float(np.max(np.abs(eps * 1j * w / ((1j * w) ** 2 + 0.02j * w + 0.01))))
+    assert numpy_leak == pytest.approx(50 * eps, rel=1e-3)
+    fig = check_generator(ResidualGenerator(Q, model, "test"), raise_error=False)
+    assert fig["fault_gain"] == pytest.approx(1.0, rel=1e-6)
+    # the judge's log grid (~10 % steps) against a resonance of half-power width 20 %: at least half the peak
+    assert 0.5 * numpy_leak <= fig["decoupling"] <= 1.01 * numpy_leak, (fig["decoupling"], numpy_leak)
+    assert any("leak" in f for f in fig["failures"]), fig.get("failures")
