@@ -100,7 +100,6 @@ A. Varga, Reliable algorithms for computing minimal dynamic covers, IEEE CDC 200
 from __future__ import annotations
 
 from itertools import pairwise
-import warnings
 
 import numpy as np
 import scipy.linalg as sla
@@ -569,38 +568,26 @@ HANKEL_RTOL = 1e-7
 
 
 def _truncated(S: LTI, order: int) -> LTI | None:
-    """``S`` (stable) balanced and truncated to ``order`` states (SLICOT AB09AD, square-root method; the error is
+    """``S`` (stable) balanced and truncated to ``order`` states (:meth:`LTI.balanced_truncation`; the error is
     at most twice the sum of the dropped Hankel singular values, here below ``HANKEL_RTOL`` of the largest each),
     or None when SLICOT refuses."""
-    import slycot
-
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            nr, Ar, Br, Cr, _ = slycot.ab09ad("D" if S.dt else "C", "B", "N", S.n, S.m, S.p, S.A.copy(), S.B.copy(),
-                                              S.C.copy(), nr=order)
-    except slycot.exceptions.SlycotError:
+        return S.balanced_truncation(order)[0]
+    except SlycotError:
         return None
-    return LTI(Ar[:nr, :nr], Br[:nr, :S.m], Cr[:S.p, :nr], S.D, S.dt)
 
 
 def _hankel_order(S: LTI) -> int:
-    """Number of Hankel singular values of the stable row ``S`` above ``HANKEL_RTOL`` of the largest (SLICOT
-    AB09AD's square-root method): a candidate with fewer states but more significant modes than the row it
+    """Number of Hankel singular values of the stable row ``S`` above ``HANKEL_RTOL`` of the largest
+    (:meth:`LTI.balanced_truncation`): a candidate with fewer states but more significant modes than the row it
     replaces is not lower (a cover at a loose tolerance can trade cancelled modes for real ones); S.n when
     the singular values cannot be computed."""
-    import slycot
-
     if S.n == 0:
         return 0
     try:
-        with warnings.catch_warnings():  # (SLICOT's note that the order asked exceeds the minimal one)
-            warnings.simplefilter("ignore")
-            *_, hsv = slycot.ab09ad("D" if S.dt else "C", "B", "N", S.n, S.m, S.p, S.A.copy(), S.B.copy(),
-                                    S.C.copy(), nr=S.n)
-    except slycot.exceptions.SlycotError:
+        hsv = S.balanced_truncation(S.n)[1]
+    except SlycotError:
         return S.n
-    hsv = np.asarray(hsv)
     return int(np.sum(hsv > HANKEL_RTOL * hsv.max())) if hsv.size and hsv.max() > 0 else 0
 
 

@@ -226,17 +226,11 @@ def conditioned_realisation(model: FDIModel, Q: LTI) -> LTI:
         return Q
     import warnings
 
-    import slycot
-
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # AB09AD's note that the minimal order is below n
-            nr, Ar, Br, Cr, _ = slycot.ab09ad("D" if dt else "C", "B", "S", Q.n, Q.m, Q.p, Q.A.copy(), Q.B.copy(),
-                                              Q.C.copy(), nr=Q.n)
+        Qb = Q.balanced_truncation(Q.n, equil="S")[0]
     except Exception:  # noqa: BLE001 - slycot raises its own error types; the given realisation stays
         return Q
-    Qb = LTI(Ar[:nr, :nr], Br[:nr, :], Cr[:, :nr], Q.D, Q.dt)
-    if not nr or amplification(Qb.A) >= before:
+    if not Qb.n or amplification(Qb.A) >= before:
         return Q
     # the same transfer function (the old realisation's values next to ep are the unreliable ones)
     ang = np.linspace(0.2, 3.0, 8)
