@@ -518,17 +518,13 @@ def _refit_numerator(X: LTI, Qi: LTI, target: np.ndarray, Ge: np.ndarray, pts: n
     gain by 1e4 (Niemann's model at 1 ms): its rounding, small for Q_i, is not small for ``R = Q_i Ge``. With
     ``(A, C)`` fixed, ``X(λ) = K(λ) Θ`` with ``K = [C (λI − A)^{-1}  1]`` and ``Θ = [B; D]`` is linear in Θ:
     ``(Ge(λ_k)ᵀ ⊗ K(λ_k)) vec Θ = vec(target_k)``, stacked over the points (real and imaginary parts), solved
-    in the least-squares sense."""
+    in the least-squares sense (:func:`..toolkit.least_solve.numerator_fit`, the step the exact matching's
+    refit shares)."""
+    from ..toolkit.least_solve import numerator_fit
+
     def refit(S):
-        n = S.n
-        K = _values(LTI(S.A, np.eye(n), S.C, np.zeros((1, n)), S.dt), pts) if n else np.zeros((pts.size, 1, 0))
-        K = np.concatenate([K, np.ones((pts.size, 1, 1))], axis=2)
-        Phi = np.concatenate([np.kron(Ge[k].T, K[k]) for k in range(pts.size)])
-        rhs = np.concatenate([target[k].T.reshape(-1) for k in range(pts.size)])
-        theta = np.linalg.lstsq(np.vstack([Phi.real, Phi.imag]), np.concatenate([rhs.real, rhs.imag]),
-                                rcond=None)[0]
-        Theta = theta.reshape((n + 1, -1), order="F")
-        return LTI(S.A, Theta[:n], S.C, Theta[n:], S.dt)
+        Theta = numerator_fit(S.A, S.C, S.dt, pts, target, Ge)[0]
+        return LTI(S.A, Theta[:S.n], S.C, Theta[S.n:], S.dt)
 
     def mismatch(S):
         return float(np.max(np.linalg.norm(np.einsum("kij,kjl->kil", _values(S, pts), Ge) - target, axis=(1, 2))))

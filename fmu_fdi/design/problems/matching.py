@@ -204,8 +204,8 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
             rows.append(Qi), ms.append(LTI.static(np.ones((1, 1)), model.dt))
             methods.append(how), degs.append(0)
         rows[-1] = rows[-1] * scale
-    Q = _cancel_plant_modes(model, vstack(rows) if len(rows) > 1 else rows[0], margin)
     M = blockdiag(ms)
+    Q, cancel_note = _cancel_plant_modes(model, vstack(rows) if len(rows) > 1 else rows[0], margin, M @ Mr, mm_tol)
     gen = ResidualGenerator(Q, model, "model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
     err = _matching_error(model, gen, M @ Mr)
@@ -215,7 +215,7 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
                           f"accuracy; pass other poles/sdeg")
     gen.info.update({"row_orders": [int(r.n) for r in rows], "degree": int(max(r.n for r in rows)),
                      "order": int(Q.n), "row_methods": methods, "matching_error": err,
-                     "left_minimal_indices": index_degrees,
+                     "left_minimal_indices": index_degrees, "plant_mode_cancellation": cancel_note,
                      "poles": np.asarray(Q.poles()).tolist()})
     if updating:
         gen.info.update({"M": M, "row_degrees": degs, "M_zeros": [np.asarray(_zeros(m)).tolist() for m in ms]})
@@ -230,10 +230,7 @@ def _lowered_stable(model: FDIModel, starts, Qs: LTI, good, choose, atol: float,
 
     if not Qs.n:
         return None
-    G = model.lti("u", "d", "f")
-    low = np.zeros((model.nu, G.m))
-    low[:, :model.nu] = np.eye(model.nu)
-    Ge = LTI(G.A, G.B, np.vstack([G.C, np.zeros((model.nu, G.n))]), np.vstack([G.D, low]), model.dt)
+    Ge = _internal_form(model)
     for X in lowered_stable_rows(model, starts, Qs.n, good, choose, atol, smarg):
         lam = _grid_points(model, [Qs, X])
         Gv = _values(Ge, lam)
@@ -243,6 +240,27 @@ def _lowered_stable(model: FDIModel, starts, Qs: LTI, good, choose, atol: float,
         if ok.any() and np.max(np.abs(dev[ok])) <= mm_tol * max(float(np.max(np.abs(ref[ok]))), 1e-300):
             return X
     return None
+
+
+def _internal_form(model: FDIModel) -> LTI:
+    """``Ge = [Gu Gd Gf; I 0 0]`` (from ``[u; d; f]`` to ``[y; u]``), on the plant's states."""
+    G = model.lti("u", "d", "f")
+    low = np.zeros((model.nu, G.m))
+    low[:, :model.nu] = np.eye(model.nu)
+    return LTI(G.A, G.B, np.vstack([G.C, np.zeros((model.nu, G.n))]), np.vstack([G.D, low]), model.dt)
+
+
+def _internal_error(model: FDIModel, Q: LTI, MMr: LTI) -> float:
+    """Largest over the rows of the grid peak of ``||Q_i Ge − [0 0 (M Mr)_i]||`` relative to the peak of
+    ``||(M Mr)_i||`` (:func:`_grid_points` of the model, Q and M Mr): decoupling and matching in one number."""
+    lam = _grid_points(model, [MMr, Q])
+    T = _values(MMr, lam)
+    R = np.einsum("kij,kjl->kil", _values(Q, lam), _values(_internal_form(model), lam))
+    R[:, :, R.shape[2] - T.shape[2]:] -= T
+    ok = np.all(np.isfinite(R), axis=(1, 2)) & np.all(np.isfinite(T), axis=(1, 2))
+    num = np.max(np.linalg.norm(R[ok], axis=2), axis=0, initial=0.0)
+    top = np.max(np.linalg.norm(T[ok], axis=2), axis=0, initial=0.0)
+    return float(np.max(num / np.maximum(top, 1e-300)))
 
 
 def _drop_cancelled(sys: LTI, margin: float, tol: float) -> LTI:
@@ -287,9 +305,10 @@ def _drop_cancelled(sys: LTI, margin: float, tol: float) -> LTI:
     return LTI(sla.block_diag(A11, A22), np.vstack([B1, B2]), np.hstack([C1, C2]), sys.D, sys.dt)
 
 
-def _cancel_plant_modes(model: FDIModel, Q: LTI, margin: float, tol: float = 1e-6) -> LTI:
-    """Q with its y-input part corrected (least squares, relative size ≤ ``tol``) so that the plant
-    modes outside the stability region cancel *exactly* in ``R = Q Ge``.
+def _cancel_plant_modes(model: FDIModel, Q: LTI, margin: float, MMr: LTI, mm_tol: float,
+                        tol: float = 1e-6) -> tuple[LTI, dict]:
+    """``(Q', note)``: Q with its y-input part corrected (least squares, relative size ≤ ``tol``) so that the plant
+    modes outside the stability region cancel *exactly* in ``R = Q Ge``, when that does not worsen the match.
 
     A plant mode with invariant subspace ``V_u`` (``A V_u = V_u A_u``, ordered real Schur form)
     is not a pole of R iff ``Q_y(A_u) C V_u = 0``, i.e. ``Cq Y + Dq_y C V_u = 0`` with
@@ -299,14 +318,22 @@ def _cancel_plant_modes(model: FDIModel, Q: LTI, margin: float, tol: float = 1e-
     that size. The minimum-norm correction makes the cancellation exact; a correction above
     ``tol`` means the condition does not hold for this Q (then Q is returned unchanged and the
     post-conditions judge it).
-    """
+
+    The correction is minimal in the parameters, not in the response: where the mode is weakly observable
+    (``||C V_u||`` small) a parameter change of 1e-6 can move ``Q Ge`` by far more than the residue it
+    removes. So the match :func:`_internal_error` (decoupling and ``M Mr`` together, relative per row) is
+    measured before and after, and the corrected Q is kept only if its error is at most ``mm_tol`` or no
+    larger than before — otherwise the given Q (the better match) is returned. ``note`` (``info
+    ['plant_mode_cancellation']``) records ``corrected``, ``error_before``/``error_after``, the relative
+    ``correction`` and the ``reason``."""
     n, p = model.n, model.ny
+    note = {"corrected": False, "error_before": None, "error_after": None, "correction": 0.0}
     if not n or not p:
-        return Q
+        return Q, {**note, "reason": "no plant states or outputs"}
     good = (lambda re, im: np.hypot(re, im) < margin) if model.dt else (lambda re, im: re < margin)
     T, Z, k = ordered_schur(model.A, lambda re, im: not good(re, im))
     if k == 0:
-        return Q
+        return Q, {**note, "reason": "no plant mode outside the stability region"}
     CV, Au = model.C @ Z[:, :k], T[:k, :k]
     nq, r = Q.n, Q.p
 
@@ -324,12 +351,21 @@ def _cancel_plant_modes(model: FDIModel, Q: LTI, margin: float, tol: float = 1e-
         L[:, j] = condition(e[:nq * p].reshape(nq, p), e[nq * p:].reshape(r, p))
     x = np.concatenate([Q.B[:, :p].ravel(), Q.D[:, :p].ravel()])
     dx = -np.linalg.lstsq(L, L @ x, rcond=None)[0]
-    if not np.linalg.norm(dx) <= tol * max(np.linalg.norm(x), 1e-300):
-        return Q
+    rel = float(np.linalg.norm(dx) / max(np.linalg.norm(x), 1e-300))
+    note["correction"] = rel
+    if not rel <= tol:
+        return Q, {**note, "reason": f"the correction ({rel:.3g} relative) exceeds {tol:g}: the condition does not "
+                                     f"hold for this Q; left to the post-conditions"}
     x = x + dx
     B, D = Q.B.copy(), Q.D.copy()
     B[:, :p], D[:, :p] = x[:nq * p].reshape(nq, p), x[nq * p:].reshape(r, p)
-    return LTI(Q.A, B, Q.C, D, Q.dt)
+    Qc = LTI(Q.A, B, Q.C, D, Q.dt)
+    before, after = _internal_error(model, Q, MMr), _internal_error(model, Qc, MMr)
+    note.update({"error_before": before, "error_after": after})
+    if after <= mm_tol or after <= before:
+        return Qc, {**note, "corrected": True, "reason": "the plant modes outside the region cancel exactly in R"}
+    return Q, {**note, "reason": f"the exact cancellation would worsen the match from {before:.3g} to {after:.3g} "
+                                 f"(> mm_tol = {mm_tol:g}): Q kept as designed"}
 
 
 def _stable(sys: LTI, margin: float, dt: float) -> bool:

@@ -117,15 +117,21 @@ def augmented_model(model: FDIModel, Mi: LTI, rtol: float = 0.0, atol: float = 0
     D = np.block([[G.D], [np.zeros((1, m + nd)), Mo.D]])
     aug = LTI(A, B, C, D, model.dt)
     if aug.n and rtol > 0:
-        # balanced first (SLICOT TB01ID) and the tolerance relative to the balanced data, on which TB01PD then
-        # decides without balancing again: LTI.minreal balances internally, so a threshold from the unbalanced
-        # norm (here up to 1e4 larger: seed 14's reference at mm_tol 1e-8) judged rescaled matrices and
-        # removed every state of the reference (the zero row)
-        aug, _ = aug.balanced()
-        norm = float(np.linalg.norm(np.block([[aug.A, aug.B], [aug.C, aug.D]]), 2))
-        aug = aug.minreal(tol=max(atol, rtol * norm), equil="N")
+        aug = relative_minreal(aug, rtol, atol)
     return FDIModel(aug.A, aug.B[:, :m], aug.C, aug.D[:, :m], Bd=aug.B[:, m:], Dd=aug.D[:, m:], dt=model.dt,
                     name=f"{model.name}_Mr")
+
+
+def relative_minreal(S: LTI, rtol: float, atol: float = 0.0) -> LTI:
+    """``S`` balanced (SLICOT TB01ID) and reduced to a minimal realisation (TB01PD, without balancing again) with the
+    rank tolerance ``max(atol, rtol·||[A B; C D]||)`` of the *balanced* data — the core's relative decision.
+    LTI.minreal balances internally, so a threshold from the unbalanced norm (up to 1e4 larger: matching seed
+    14's reference at mm_tol 1e-8) judged rescaled matrices and removed every state of the reference."""
+    if not S.n:
+        return S
+    Sb, _ = S.balanced()
+    norm = float(np.linalg.norm(np.block([[Sb.A, Sb.B], [Sb.C, Sb.D]]), 2))
+    return Sb.minreal(tol=max(atol, rtol * norm), equil="N")
 
 
 def _on_plant_states(model: FDIModel, Mi: LTI, tol: float):
@@ -293,52 +299,82 @@ def _least_degree_row(N: LTI, nu: int, cond: float, p: int, tol: float, atol: fl
     return LTI(X.A, B, X.C, D, N.dt), int(X.n), cond
 
 
-def _refitted(X: LTI, tol: float, atol: float) -> LTI | None:
-    """A realisation of the row ``X`` of lower order that matches ``X``'s values on a grid to ``tol`` of their
-    peak (see :func:`_least_degree_row`), or None."""
+def numerator_fit(A: np.ndarray, C: np.ndarray, dt: float, lam: np.ndarray, target: np.ndarray,
+                  Ge: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The numerator ``Θ = [B; D]`` of ``X = (A, B, C, D)`` (k outputs) fitted on points, with ``(A, C)`` fixed:
+    ``(Θ, residual)``, Θ minimising ``Σ_j ||X(λ_j) Ge(λ_j) − target_j||_F²`` (``Ge`` None: the identity), the
+    residual ``X(λ_j) Ge(λ_j) − target_j`` (points × k × columns).
+
+    ``X(λ) = K(λ) Θ`` with ``K = [C (λI − A)^{-1}  I_k]`` is linear in Θ (Gustavsen & Semlyen's pole-fixed step
+    of vector fitting), so ``(Ge(λ_j)ᵀ ⊗ K(λ_j)) vec Θ = vec(target_j)``, stacked over the points, real and
+    imaginary parts, is solved in the least-squares sense (QR-based ``lstsq``; without ``Ge`` one
+    ``K``-matrix with ``target``'s columns as right-hand sides). Used by the refit of a reduced row to its own
+    values (:func:`_refitted`) and of a cover's numerator to the row's response ``Q_i Ge``
+    (:func:`...problems.approximate_matching._refit_numerator`)."""
+    from .postconditions import _values
+
+    n, k = A.shape[0], C.shape[0]
+    K = _values(LTI(A, np.eye(n), C, np.zeros((k, n)), dt), lam) if n else np.zeros((lam.size, k, 0))
+    K = np.concatenate([K, np.broadcast_to(np.eye(k), (lam.size, k, k))], axis=2)
+    if Ge is None:
+        P, R = K.reshape(-1, n + k), target.reshape(-1, target.shape[2])
+        Theta = np.linalg.lstsq(np.vstack([P.real, P.imag]), np.vstack([R.real, R.imag]), rcond=None)[0]
+        return Theta, (P @ Theta - R).reshape(target.shape)
+    Phi = np.concatenate([np.kron(Ge[j].T, K[j]) for j in range(lam.size)])
+    rhs = np.concatenate([target[j].T.reshape(-1) for j in range(lam.size)])
+    theta = np.linalg.lstsq(np.vstack([Phi.real, Phi.imag]), np.concatenate([rhs.real, rhs.imag]), rcond=None)[0]
+    Theta = theta.reshape((n + k, -1), order="F")
+    return Theta, np.einsum("kij,kjl->kil", np.einsum("kij,jl->kil", K, Theta), Ge) - target
+
+
+#: largest order refitted by Gauss–Newton on A (n² unknowns): above it only the reduced A is tried
+REFIT_MAX_ORDER = 12
+
+
+def _refitted(X: LTI, tol: float, atol: float, polish: bool = True) -> LTI | None:
+    """A realisation of ``X`` (any number of rows) of lower order that matches ``X``'s values on a grid to ``tol`` of
+    their peak (see :func:`_least_degree_row`), or None: :func:`relative_minreal` at ``tol``, then ``A`` by
+    Gauss–Newton (variable projection: ``[B; D]`` by :func:`numerator_fit` for each ``A``, ``C`` kept; only up
+    to ``REFIT_MAX_ORDER``). With ``polish=False`` the reduced ``A`` is kept when its numerator fit already
+    matches."""
     from scipy.optimize import least_squares
 
     from ...lti import frequency_grid
     from .postconditions import _values
 
-    if not X.n or X.p != 1:
+    if not X.n:
         return None
-    Xb, _ = X.balanced()
-    norm = float(np.linalg.norm(np.block([[Xb.A, Xb.B], [Xb.C, Xb.D]]), 2))
-    Xr = Xb.minreal(tol=max(atol, tol * norm), equil="N")
+    Xr = relative_minreal(X, tol, atol)
     if Xr.n >= X.n:
         return None
     w = frequency_grid([X], num=200)
     lam = np.exp(1j * w * X.dt) if X.dt else 1j * w
     poles = np.asarray(X.poles(), complex)
     lam = lam[np.min(np.abs(lam[:, None] - poles[None, :]), axis=1) > 1e-6 * np.maximum(1.0, np.abs(lam))]
-    V = _values(X, lam)[:, 0, :]
-    ok = np.all(np.isfinite(V), axis=1)
+    V = _values(X, lam)
+    ok = np.all(np.isfinite(V), axis=(1, 2))
     lam, V = lam[ok], V[ok]
-    R = np.vstack([V.real, V.imag])
-    top = float(np.max(np.abs(R), initial=0.0))
-    n, c = Xr.n, Xr.C[0]
-    if not top > 0 or R.shape[0] < 2 * (n + 1) + n * n:
+    top = float(np.max(np.abs(np.concatenate([V.real.ravel(), V.imag.ravel()])), initial=0.0))
+    n, C = Xr.n, Xr.C
+    if not top > 0 or 2 * lam.size * X.p < 2 * (n + X.p) + n * n:
         return None
 
     def fit(a):
-        A = a.reshape(n, n)
-        Phi = np.array([np.r_[np.linalg.solve((l * np.eye(n) - A).T, c), 1.0] for l in lam]) if n else \
-            np.ones((lam.size, 1), complex)
-        P = np.vstack([Phi.real, Phi.imag])
-        th = np.linalg.lstsq(P, R, rcond=None)[0]
-        return th, (P @ th - R) / top
+        th, res = numerator_fit(a.reshape(n, n), C, X.dt, lam, V)
+        return th, np.concatenate([res.real.ravel(), res.imag.ravel()]) / top
 
     a = Xr.A.ravel()
-    if n:
+    if n and (polish or not float(np.max(np.abs(fit(a)[1]))) <= tol):
+        if n > REFIT_MAX_ORDER:
+            return None
         try:
-            a = least_squares(lambda v: fit(v)[1].ravel(), a, xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm").x
+            a = least_squares(lambda v: fit(v)[1], a, xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm").x
         except (np.linalg.LinAlgError, ValueError):
             return None
     th, res = fit(a)
     if not float(np.max(np.abs(res))) <= tol:
         return None
-    return LTI(a.reshape(n, n), th[:n], Xr.C, th[n:], X.dt)
+    return LTI(a.reshape(n, n), th[:n], C, th[n:], X.dt)
 
 
 #: largest condition number of an observability matrix used to bring rows to common coordinates
@@ -408,10 +444,21 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
     has as poles the zeros of ``N_z`` (the unobservable eigenvalues of ``(A − b h C, (I − d h) C)``) and
     the eigenvalues that L assigns (:func:`.pencil.assign_poles` on the observable part of the dual pair,
     moving only those outside ``good``). Then ``X = −(Y N)_{y,u}``, minimal.
+
+    The zeros are decided on the basis *reduced at the core's relative tolerance* ``tol``
+    (:func:`reduced_basis`; ``N_z`` likewise, :func:`relative_minreal`), not on the pencil's realisation: its
+    output-nulling deflation can leave modes unobservable only to rounding (matching seed 197: a feedback of
+    norm 790, four modes with ``|C v| ~ 1e-13``, one at +3.16), which an absolute minimal realisation keeps
+    and which then appear as unstable zeros of ``N_z`` that no solution has. Each zero still outside the
+    region is then checked to be a zero of ``N_z`` alone: if the whole basis nearly loses rank there
+    (``σ_min(N(z)) ≤ sqrt(tol)`` of the basis' size, the accuracy a returned row is held to) the zero is a
+    rounding artefact that cannot be decided, and a NumericalDesignError says so instead of a claim about
+    every exact solution.
     """
-    N, p = row.basis, row.p
-    Nz = LTI(N.A, N.B[:, [p]], N.C, N.D[:, [p]], N.dt)
-    Nz = Nz.minreal(atol)
+    from .postconditions import NumericalDesignError, _values
+
+    N, p = reduced_basis(row.basis, tol, atol), row.p
+    Nz = relative_minreal(LTI(N.A, N.B[:, [p]], N.C, N.D[:, [p]], N.dt), tol, atol)
     A, b, C, d = Nz.A, Nz.B, Nz.C, Nz.D
     scale = max(float(np.linalg.norm(np.block([[A, b], [C, d]]), 2)) if Nz.n else float(np.linalg.norm(d)), 1e-300)
     if not np.linalg.norm(d) > tol * scale:
@@ -429,6 +476,16 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
         at, bt = T.T @ Ah.T @ T, T.T @ Ch.T
         zeros = np.linalg.eigvals(at[no:, no:]) if no < n else np.zeros(0, complex)
         bad = [z for z in zeros if not good(z.real, z.imag)]
+        size = max(_markov_norm(N, np.arange(N.m)), 1e-300)
+        for z in bad:  # a zero of N_z must leave the basis itself of full row rank
+            sv = np.linalg.svd(_values(N, np.array([z]))[0], compute_uv=False)
+            if not sv[-1] > np.sqrt(tol) * size:
+                raise NumericalDesignError(
+                    f"no stable proper filter matches this row without an updating factor, or none can be decided: "
+                    f"the Mr-column of the null-space basis of [Gu Gd Gf; 0 0 Mr_i; I 0 0] vanishes at "
+                    f"{complex(z):.6g} outside the stability region, where the whole basis nearly loses rank too "
+                    f"(σ_min {sv[-1]:.3g} ≤ sqrt(mm_tol) × its size {size:.3g}): a zero of the basis' rounding, not "
+                    f"of the problem; pass another atol or mm_tol")
         if bad:
             raise DesignError(f"no stable proper filter matches this row without an updating factor: every exact "
                               f"solution has the poles {np.round(np.asarray(bad, complex), 10).tolist()} (zeros of "
@@ -443,6 +500,14 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
     X = LTI(W.A, W.B[:, keep], -W.C, -W.D[:, keep], N.dt)
     return X.minreal(atol)
 
+
+def reduced_basis(N: LTI, tol: float, atol: float = 0.0) -> LTI:
+    """The null-space basis ``N`` at the core's relative tolerance: :func:`relative_minreal` at ``tol``, kept when
+    its values (numerator refitted, or ``A`` refitted by Gauss–Newton, :func:`_refitted`) match ``N``'s to
+    ``tol`` of their peak on a grid — still a basis of the null space to that accuracy, without the modes that
+    the pencil's realisation holds only to rounding; otherwise ``N`` itself."""
+    R = _refitted(N, tol, atol, polish=False)
+    return N if R is None else R
 
 
 def solution_basis(model: FDIModel, *, noise: bool = False, atol: float = 0.0, smarg=None) -> LTI:
