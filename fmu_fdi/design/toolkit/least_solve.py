@@ -311,10 +311,14 @@ def numerator_fit(A: np.ndarray, C: np.ndarray, dt: float, lam: np.ndarray, targ
     ``K``-matrix with ``target``'s columns as right-hand sides). Used by the refit of a reduced row to its own
     values (:func:`_refitted`) and of a cover's numerator to the row's response ``Q_i Ge``
     (:func:`...problems.approximate_matching._refit_numerator`)."""
-    from .postconditions import _values
-
     n, k = A.shape[0], C.shape[0]
-    K = _values(LTI(A, np.eye(n), C, np.zeros((k, n)), dt), lam) if n else np.zeros((lam.size, k, 0))
+    if n:  # K = C (λI − A)^{-1} on the TB01ID-balanced triple (A, I, C): A_b = S⁻¹ A S, C_b = C S, I_b = S⁻¹
+        bal, sc = LTI(A, np.eye(n), C, np.zeros((k, n)), dt).balanced()
+        M = lam[:, None, None] * np.eye(n) - bal.A
+        K = np.swapaxes(np.linalg.solve(np.swapaxes(M, 1, 2), np.broadcast_to(bal.C.T, (lam.size, n, k))), 1, 2)
+        K = K / sc[None, None, :]
+    else:
+        K = np.zeros((lam.size, k, 0))
     K = np.concatenate([K, np.broadcast_to(np.eye(k), (lam.size, k, k))], axis=2)
     if Ge is None:
         P, R = K.reshape(-1, n + k), target.reshape(-1, target.shape[2])
@@ -327,16 +331,23 @@ def numerator_fit(A: np.ndarray, C: np.ndarray, dt: float, lam: np.ndarray, targ
     return Theta, np.einsum("kij,kjl->kil", np.einsum("kij,jl->kil", K, Theta), Ge) - target
 
 
-#: largest order refitted by Gauss–Newton on A (n² unknowns): above it only the reduced A is tried
-REFIT_MAX_ORDER = 12
+#: largest n²·k (order n, k rows) refitted by Gauss–Newton on A (a finite-difference Jacobian of n² columns, each an
+#: (n + k)-unknown fit on 2·k·L equations): above it only the reduced A with its numerator fit is tried. Unbounded,
+#: the re-solve of mindeg's random seed 16 spent 174 s in one refit (the whole stage now 2 s)
+REFIT_MAX_UNKNOWNS = 144
+#: Gauss–Newton budget, in finite-difference Jacobians (scipy counts the residual calls of MINPACK, about two per
+#: Jacobian: max_nfev = 2·this): the refits that succeed converge in a few (seed 197), and a
+#: refit that cannot match (mindeg's random seed 6: 60 Jacobians, 10 s, then refused) stops early
+REFIT_JACOBIANS = 10
 
 
-def _refitted(X: LTI, tol: float, atol: float, polish: bool = True) -> LTI | None:
+def _refitted(X: LTI, tol: float, atol: float, polish: bool = True, reduce_rtol: float | None = None) -> LTI | None:
     """A realisation of ``X`` (any number of rows) of lower order that matches ``X``'s values on a grid to ``tol`` of
     their peak (see :func:`_least_degree_row`), or None: :func:`relative_minreal` at ``tol``, then ``A`` by
     Gauss–Newton (variable projection: ``[B; D]`` by :func:`numerator_fit` for each ``A``, ``C`` kept; only up
-    to ``REFIT_MAX_ORDER``). With ``polish=False`` the reduced ``A`` is kept when its numerator fit already
-    matches."""
+    to ``REFIT_MAX_UNKNOWNS``; above it the reduced ``A`` as it is). With ``polish=False`` the reduced ``A`` is kept
+    when its numerator fit already matches. ``reduce_rtol``
+    (default ``tol``) is the relative tolerance of the reduction alone."""
     from scipy.optimize import least_squares
 
     from ...lti import frequency_grid
@@ -344,7 +355,7 @@ def _refitted(X: LTI, tol: float, atol: float, polish: bool = True) -> LTI | Non
 
     if not X.n:
         return None
-    Xr = relative_minreal(X, tol, atol)
+    Xr = relative_minreal(X, tol if reduce_rtol is None else reduce_rtol, atol)
     if Xr.n >= X.n:
         return None
     w = frequency_grid([X], num=200)
@@ -364,11 +375,10 @@ def _refitted(X: LTI, tol: float, atol: float, polish: bool = True) -> LTI | Non
         return th, np.concatenate([res.real.ravel(), res.imag.ravel()]) / top
 
     a = Xr.A.ravel()
-    if n and (polish or not float(np.max(np.abs(fit(a)[1]))) <= tol):
-        if n > REFIT_MAX_ORDER:
-            return None
+    if n and n * n * X.p <= REFIT_MAX_UNKNOWNS and (polish or not float(np.max(np.abs(fit(a)[1]))) <= tol):
         try:
-            a = least_squares(lambda v: fit(v)[1], a, xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm").x
+            a = least_squares(lambda v: fit(v)[1], a, xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm",
+                              max_nfev=2 * REFIT_JACOBIANS).x
         except (np.linalg.LinAlgError, ValueError):
             return None
     th, res = fit(a)
@@ -445,8 +455,8 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
     the eigenvalues that L assigns (:func:`.pencil.assign_poles` on the observable part of the dual pair,
     moving only those outside ``good``). Then ``X = −(Y N)_{y,u}``, minimal.
 
-    The zeros are decided on the basis *reduced at the core's relative tolerance* ``tol``
-    (:func:`reduced_basis`; ``N_z`` likewise, :func:`relative_minreal`), not on the pencil's realisation: its
+    The zeros are decided on the basis *reduced at the core's rank tolerance* (the pencil's, on balanced data:
+    :func:`reduced_basis`; ``N_z`` and X likewise, :func:`relative_minreal`), not on the pencil's realisation: its
     output-nulling deflation can leave modes unobservable only to rounding (matching seed 197: a feedback of
     norm 790, four modes with ``|C v| ~ 1e-13``, one at +3.16), which an absolute minimal realisation keeps
     and which then appear as unstable zeros of ``N_z`` that no solution has. Each zero still outside the
@@ -457,8 +467,9 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
     """
     from .postconditions import NumericalDesignError, _values
 
-    N, p = reduced_basis(row.basis, tol, atol), row.p
-    Nz = relative_minreal(LTI(N.A, N.B[:, [p]], N.C, N.D[:, [p]], N.dt), tol, atol)
+    N, p = reduced_basis(row.basis, tol, row.rank_tol, atol), row.p
+    core_tol = max(atol, row.rank_tol)  # the pencil's rank tolerance, on balanced data
+    Nz = relative_minreal(LTI(N.A, N.B[:, [p]], N.C, N.D[:, [p]], N.dt), 0.0, core_tol)
     A, b, C, d = Nz.A, Nz.B, Nz.C, Nz.D
     scale = max(float(np.linalg.norm(np.block([[A, b], [C, d]]), 2)) if Nz.n else float(np.linalg.norm(d)), 1e-300)
     if not np.linalg.norm(d) > tol * scale:
@@ -498,15 +509,20 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
     W = Y @ N
     keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
     X = LTI(W.A, W.B[:, keep], -W.C, -W.D[:, keep], N.dt)
-    return X.minreal(atol)
+    # minimal at the same tolerance: where the basis could not be reduced (its numerator fit missed tol), its
+    # rounding-unobservable modes are unobservable in Y N too and go here
+    return relative_minreal(X, 0.0, core_tol)
 
 
-def reduced_basis(N: LTI, tol: float, atol: float = 0.0) -> LTI:
-    """The null-space basis ``N`` at the core's relative tolerance: :func:`relative_minreal` at ``tol``, kept when
-    its values (numerator refitted, or ``A`` refitted by Gauss–Newton, :func:`_refitted`) match ``N``'s to
-    ``tol`` of their peak on a grid — still a basis of the null space to that accuracy, without the modes that
-    the pencil's realisation holds only to rounding; otherwise ``N`` itself."""
-    R = _refitted(N, tol, atol, polish=False)
+def reduced_basis(N: LTI, tol: float, rank_tol: float, atol: float = 0.0) -> LTI:
+    """The null-space basis ``N`` without the modes its realisation holds only to rounding: :func:`relative_minreal`
+    with the pencil's own rank tolerance ``rank_tol`` (absolute, on the balanced data), kept when its values
+    (numerator refitted, :func:`_refitted`) match ``N``'s to ``tol`` of their peak on a grid — still a basis of
+    the null space to that accuracy; otherwise ``N`` itself. The reduction at ``tol`` relative (2e-6 absolute on
+    seed 197's basis) would move the kept poles by ~1e-7; the pencil's tolerance (6.8e-9 there) removes the
+    rounding modes (``|C v| ~ 1e-13``), but still moves the kept poles by ~1e-7 there, so ``A`` is refitted by
+    Gauss–Newton where the numerator fit alone misses ``tol`` (within ``REFIT_MAX_UNKNOWNS``)."""
+    R = _refitted(N, tol, max(atol, rank_tol), polish=False, reduce_rtol=0.0)
     return N if R is None else R
 
 
