@@ -146,7 +146,10 @@ def test_random_rows_lowered_with_the_optimal_error(seed, kw):
     assert all(a <= b for a, b in zip(row_degrees(g1.Q), row_degrees(g0.Q)))
     e0, e1 = error_norm(g0, Mr, g0.info["M"], "inf"), error_norm(g1, Mr, g1.info["M"], "inf")
     rel = kw.get("reltol", 1e-4)
-    assert e1 <= e0 * (1 + rel) + 1e-9
+    # the guard's contract: within reltol of the optimum plus 1e-9 ||M Mr||∞ (seed 3's optimum is ~1e-7, an
+    # exactly matchable reference at rounding level, where two realisations differ by ~1e-9 of ||M Mr||)
+    floor = 1e-9 * max(1.0, (g1.info["M"] @ Mr).hinfnorm()[0])
+    assert e1 <= e0 * (1 + rel) + floor
     assert decoupling(g1) < 1e-9 and stable(g1.Q)
 
 
