@@ -116,7 +116,10 @@ def model_matching(model: FDIModel, Mr, *, poles=None, sdeg: float | None = None
         ``order``, ``row_methods`` ('least order', 'stable solution', 'least stable order',
         'coprime factor', 'updating'), ``left_minimal_indices`` (per row, of the augmented system),
         ``matching_error`` (grid peak of ``||Rf − M Mr||`` relative to ``||M Mr||``),
-        ``postconditions``, ``poles``; with ``updating=True`` ``M`` (LTI, diagonal),
+        ``postconditions``, ``poles``, ``plant_mode_cancellation`` (whether the exact cancellation of the
+        plant's unstable modes in R was applied — only when it keeps the match within ``mm_tol`` or improves
+        it — with the errors before and after, :func:`_cancel_plant_modes`); with ``updating=True`` ``M``
+        (LTI, diagonal),
         ``row_degrees`` (order of each ``m_i``) and ``M_zeros``.
 
     Raises

@@ -331,8 +331,8 @@ def numerator_fit(A: np.ndarray, C: np.ndarray, dt: float, lam: np.ndarray, targ
     return Theta, np.einsum("kij,kjl->kil", np.einsum("kij,jl->kil", K, Theta), Ge) - target
 
 
-#: largest n²·k (order n, k rows) refitted by Gauss–Newton on A (a finite-difference Jacobian of n² columns, each an
-#: (n + k)-unknown fit on 2·k·L equations): above it only the reduced A with its numerator fit is tried. Unbounded,
+#: largest n²·k (order n, k rows) refitted by Gauss–Newton on A (a finite-difference Jacobian of n² columns, each
+#: an (n + k)-unknown fit on 2·k·L equations): above it only the reduced A with its numerator fit is tried. Unbounded,
 #: the re-solve of mindeg's random seed 16 spent 174 s in one refit (the whole stage now 2 s)
 REFIT_MAX_UNKNOWNS = 144
 #: Gauss–Newton budget, in finite-difference Jacobians (scipy counts the residual calls of MINPACK, about two per
