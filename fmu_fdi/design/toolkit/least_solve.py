@@ -348,8 +348,6 @@ def _refitted(X: LTI, tol: float, atol: float, polish: bool = True, reduce_rtol:
     to ``REFIT_MAX_UNKNOWNS``; above it the reduced ``A`` as it is). With ``polish=False`` the reduced ``A`` is kept
     when its numerator fit already matches. ``reduce_rtol``
     (default ``tol``) is the relative tolerance of the reduction alone."""
-    from scipy.optimize import least_squares
-
     from ...lti import frequency_grid
     from .postconditions import _values
 
@@ -370,21 +368,42 @@ def _refitted(X: LTI, tol: float, atol: float, polish: bool = True, reduce_rtol:
     if not top > 0 or 2 * lam.size * X.p < 2 * (n + X.p) + n * n:
         return None
 
-    def fit(a):
-        th, res = numerator_fit(a.reshape(n, n), C, X.dt, lam, V)
-        return th, np.concatenate([res.real.ravel(), res.imag.ravel()]) / top
-
-    a = Xr.A.ravel()
-    if n and n * n * X.p <= REFIT_MAX_UNKNOWNS and (polish or not float(np.max(np.abs(fit(a)[1]))) <= tol):
-        try:
-            a = least_squares(lambda v: fit(v)[1], a, xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm",
-                              max_nfev=2 * REFIT_JACOBIANS).x
-        except (np.linalg.LinAlgError, ValueError):
+    A, th, res = Xr.A, *numerator_fit(Xr.A, C, X.dt, lam, V)
+    if n and n * n * X.p <= REFIT_MAX_UNKNOWNS and (polish or not float(np.max(np.abs(res))) <= tol * top):
+        refit = pole_refit(Xr.A, C, X.dt, lam, V)
+        if refit is None:
             return None
-    th, res = fit(a)
-    if not float(np.max(np.abs(res))) <= tol:
+        A, th, res = refit
+    if not float(np.max(np.abs(res))) <= tol * top:
         return None
-    return LTI(a.reshape(n, n), th[:n], C, th[n:], X.dt)
+    return LTI(A, th[:n], C, th[n:], X.dt)
+
+
+def pole_refit(A0: np.ndarray, C: np.ndarray, dt: float, lam: np.ndarray, target: np.ndarray,
+               Ge: np.ndarray | None = None):
+    """``(A, Θ, residual)``: ``A`` (``C`` fixed) by Gauss–Newton from ``A0`` on the residual of :func:`numerator_fit`
+    (variable projection, Golub & Pereyra: ``Θ = [B; D]`` eliminated by its linear least squares for each A;
+    Levenberg–Marquardt, at most ``REFIT_JACOBIANS`` Jacobians), scaled by the target's largest entry; None when
+    the iteration fails. Used where a reduction or a cover's rank decisions moved the kept poles by about their
+    tolerance: the reduced exact-matching row (:func:`_refitted`) and mindeg's cover candidates
+    (:func:`...problems.approximate_matching._refit_numerator`)."""
+    from scipy.optimize import least_squares
+
+    n = A0.shape[0]
+    top = max(float(np.max(np.abs(np.concatenate([target.real.ravel(), target.imag.ravel()])), initial=0.0)),
+              1e-300)
+
+    def residual(a):
+        res = numerator_fit(a.reshape(n, n), C, dt, lam, target, Ge)[1]
+        return np.concatenate([res.real.ravel(), res.imag.ravel()]) / top
+
+    try:
+        a = least_squares(residual, A0.ravel(), xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm",
+                          max_nfev=2 * REFIT_JACOBIANS).x
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    A = a.reshape(n, n)
+    return (A, *numerator_fit(A, C, dt, lam, target, Ge))
 
 
 #: largest condition number of an observability matrix used to bring rows to common coordinates
