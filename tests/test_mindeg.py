@@ -198,9 +198,10 @@ def test_covers_alone_lower_a_row_built_on_another_realisation(monkeypatch):
     """Random seed 9 (discrete, two 33-state optimal rows; least order 3): the optimal rows' realisations hold
     18 states with Hankel singular values ≤ 1e-13 of the largest, which the cover's minimal realisation of the
     compound [Q_i; N] keeps at every tolerance, so the cover of the row as realised lowers nothing. With the
-    re-solve of (2) switched off, the covers of the balanced minimal row must still lower row 2 to order ≤ 3
-    (Hankel singular values from scipy's Lyapunov solvers), with the optimal error (numpy responses, the test's
-    grid, reltol 1e-6), decoupled and stable."""
+    re-solve of (2) switched off, the covers of the balanced minimal rows (row 1's poles refitted: its order-3
+    cover misses the optimal error 1e-11 by 4.7e-9 before) must still lower both rows to order ≤ 3 (Hankel
+    singular values from scipy's Lyapunov solvers), with the optimal error (numpy responses, the test's grid,
+    reltol 1e-6, plus the guard's floor 1e-9 ||M Mr||∞), decoupled and stable."""
     import fmu_fdi.design.problems.approximate_matching as am
 
     monkeypatch.setattr(am, "_resolved_row", lambda *a, **k: (None, ""))
@@ -208,7 +209,7 @@ def test_covers_alone_lower_a_row_built_on_another_realisation(monkeypatch):
     g0 = approximate_model_matching(model, Mr, reltol=1e-6)
     g1 = approximate_model_matching(model, Mr, reltol=1e-6, mindeg=True)
     d0, d1 = row_degrees(g0.Q), row_degrees(g1.Q)
-    assert g1.info["mindeg"]["lowered"] and d1[1] <= 3 < d0[1] and all(a <= b for a, b in zip(d1, d0))
+    assert g1.info["mindeg"]["lowered"] and max(d1) <= 3 < min(d0)
     e0, e1 = error_norm(g0, Mr, g0.info["M"], "inf"), error_norm(g1, Mr, g1.info["M"], "inf")
-    assert e1 <= e0 * (1 + 1e-6) + 1e-9
+    assert e1 <= e0 * (1 + 1e-6) + 1e-9 * max(1.0, (g1.info["M"] @ Mr).hinfnorm()[0])
     assert decoupling(g1) < 1e-9 and stable(g1.Q)
