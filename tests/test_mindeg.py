@@ -55,7 +55,7 @@ CASES = {
     "5.16": (ex5_16, static(np.eye(2)), dict(sdeg=-10, reltol=5e-4)),
     "5.17": (ex5_16, MR17, dict(norm="2", sdeg=-10)),
     "seed14": (lambda: _random_case(14)[0], _random_case(14)[1], dict(reltol=1e-6)),
-    # seed 9 (discrete, 33-state rows → 3: from the re-solve of (2), which the cover does not reach)
+    # seed 9 (discrete, 33-state rows → 3: the covers of the balanced minimal rows reach it too, see below)
     "seed9": (lambda: _random_case(9)[0], _random_case(9)[1], dict(reltol=1e-6)),
     # discrete time (ZOH, the model's own discretize): Ex. 5.16 at 0.1 s and Niemann's model (d present) at 1 ms
     "5.16d": (lambda: ex5_16().discretize(0.1), static(np.eye(2)), dict(reltol=1e-5)),

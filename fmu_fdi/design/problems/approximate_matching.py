@@ -672,11 +672,11 @@ def _resolved_row(fw: FDIModel, Qi: LTI, fnm: LTI, smarg, dec_tol: float, atol: 
     the augmented system): ``(row or None, why)``. A second candidate beside the covers: the reference is
     known only to Q_i's rounding, but the augmented pencil works on the plant's and the reference's minimal
     states, where the covers' rank decisions on the compound ``[Q_i; N]`` (its orders jump with the tolerance:
-    seed 9's balanced compound 5, 7, 5, 3, 15, 15, 3 at ``MINDEG_RTOLS``) miss the least order. Random H∞ family,
-    seeds 0-29 at reltol 1e-6 (``benchmarks/mindeg_time.py --seeds``): it still lowers further than the covers on
-    seeds 5 ([7, 7] vs [21, 21]), 9 (row 1: 3 vs 33), 13 (row 2: 13 vs 25), 17 (row 1: 5 vs 52), 21 ([5, 5] vs
-    [10, 10]), 26 (13 vs 25) and 28 (8 vs 19), so it is kept (stage time covers alone / both: 0.87, geometric
-    mean)."""
+    seed 9's balanced compound 5, 7, 5, 3, 15, 15, 3 at ``MINDEG_RTOLS``) can miss the least order: no cover
+    candidate of the re-solve's order appears at all. Random H∞ family, seeds 0-29 at reltol 1e-6
+    (``benchmarks/mindeg_time.py --seeds``): it still lowers further than the covers on seeds 5 ([7, 7] vs
+    [21, 21]), 13 (row 2: 13 vs 25), 17 (row 1: 5 vs 52), 26 (13 vs 25) and 28 (8 vs 19), so it is kept (stage
+    time covers alone / both: 0.79, geometric mean)."""
     from .matching import model_matching
 
     try:
