@@ -387,6 +387,9 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     pts, Ge = pts[ok], Ge[ok]
     cands, notes = [], []
     fw = _faults_and_noise_as_faults(model)
+    # half the guard's allowance (:func:`_verified`): a candidate whose response is already that close to the row's
+    # needs no pole refit
+    slack = 0.5 * (reltol * float(err) + 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)))), 1e-300))
     for i, Qi in enumerate(rows):
         cs, ns = _row_candidates(Qi, N, lim, dt, atol) if Qi.n else ([], [])
         if Qi.n:
@@ -398,7 +401,7 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
         target = np.einsum("kij,kjl->kil", _values(Qi, pts), Ge)  # Q_i Ge on the points
         h0, kept = _hankel_order(Qi) if cs else 0, []
         for rtol, Xi in cs:
-            Xi = _refit_numerator(Xi, Qi, target, Ge, pts)
+            Xi = _refit_numerator(Xi, Qi, target, Ge, pts, slack)
             h = _hankel_order(Xi)
             if h > h0:  # fewer states, more significant modes: not lower
                 ns.append(f"its order-{Xi.n} solution of (2) ({rtol if isinstance(rtol, str) else f'rtol {rtol}'}) "
@@ -407,7 +410,7 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
             if h < Xi.n:  # its near-cancelled modes truncated (then refitted) first, the row itself next
                 Xt = _truncated(Xi, h)
                 if Xt is not None:
-                    kept.append((rtol, _refit_numerator(Xt, Qi, target, Ge, pts)))
+                    kept.append((rtol, _refit_numerator(Xt, Qi, target, Ge, pts, slack)))
             kept.append((rtol, Xi))
         cands.append(sorted(kept, key=lambda c: c[1].n))
         notes.append(ns)
@@ -510,7 +513,8 @@ def _snapped(X: LTI, Qi: LTI) -> LTI:
     return LTI(A, np.linalg.solve(T, X.B), X.C @ T, X.D, X.dt)
 
 
-def _refit_numerator(X: LTI, Qi: LTI, target: np.ndarray, Ge: np.ndarray, pts: np.ndarray) -> LTI:
+def _refit_numerator(X: LTI, Qi: LTI, target: np.ndarray, Ge: np.ndarray, pts: np.ndarray,
+                     slack: float = 0.0) -> LTI:
     """Of ``X`` and its numerator refits (with the cover's poles, and with those :func:`_snapped` to ``Q_i``'s),
     the one with the least largest mismatch ``||X(λ_k) Ge(λ_k) − Q_i(λ_k) Ge(λ_k)||`` (``target``) on the points.
 
@@ -522,7 +526,8 @@ def _refit_numerator(X: LTI, Qi: LTI, target: np.ndarray, Ge: np.ndarray, pts: n
     refit shares). The cover's rank decisions also move its poles by about their tolerance (random seed 9, row 1:
     the order-3 cover at rtol 1e-9 has the least row's poles to ~1e-9 and misses the optimal error 1e-11 by
     4.7e-9), so for a small order (``n² ≤ REFIT_POLES_MAX``) whose best refit is not exact to ``REFIT_EXACT`` of the
-    target, ``A`` is refitted too (:func:`..toolkit.least_solve.pole_refit`, the exact matching's step)."""
+    target, nor within ``slack`` (half the guard's allowance), ``A`` is refitted too
+    (:func:`..toolkit.least_solve.pole_refit`, the exact matching's step)."""
     from ..toolkit.least_solve import numerator_fit, pole_refit
 
     def refit(S):
@@ -536,7 +541,7 @@ def _refit_numerator(X: LTI, Qi: LTI, target: np.ndarray, Ge: np.ndarray, pts: n
     options = [X, refit(X)] + ([refit(snapped)] if snapped is not X else [])
     best = min(options, key=mismatch)
     top = float(np.max(np.linalg.norm(target, axis=(1, 2)), initial=0.0))
-    if 0 < best.n and best.n ** 2 <= REFIT_POLES_MAX and not mismatch(best) <= REFIT_EXACT * top:
+    if 0 < best.n and best.n ** 2 <= REFIT_POLES_MAX and not mismatch(best) <= max(REFIT_EXACT * top, slack):
         out = pole_refit(best.A, best.C, best.dt, pts, target, Ge)
         if out is not None and np.all(np.isfinite(out[1])):
             A, Theta, _ = out
