@@ -14,6 +14,7 @@ import warnings
 import control as ct
 import numpy as np
 import pytest
+import scipy.linalg as sla
 
 from fmu_fdi import FDIModel
 from fmu_fdi.design import nullspace_design
@@ -550,3 +551,40 @@ def test_spectral_riccati_of_a_square_minimum_phase_factor_is_zero():
     K = X @ B + S
     res = A.T @ X + X @ A - K @ np.linalg.solve(R, K.T) + Q
     assert np.linalg.norm(res) <= 1e-10 * np.linalg.norm(Q)
+
+
+@pytest.mark.parametrize("dt", [0.0, DT])
+@pytest.mark.parametrize("coupling, dropped", [("input", True), ("output", True), (1e-9, True), (1e-4, False)])
+def test_negligible_unstable_modes_are_dropped_by_their_residue(dt, coupling, dropped):
+    """One test for the modes on the boundary that a noise response or a matching basis leaves behind
+    (:func:`drop_negligible_unstable_modes`: residue ``||C₁||·||B₁'||`` against 1e-6·``||C||·||B||``): a mode the
+    input does not excite, or that does not reach the output, is dropped; so is one coupled at 1e-9 into both B and
+    C (residue ~1e-18 of the whole: cancelled to rounding); one coupled at 1e-4 into B and at 1 into C (residue
+    ~1e-4, above the tolerance) is kept. Judged by numpy: the order, and the frequency response 1e-2 off the mode
+    unchanged to 1e-10 relative (exact hidden modes: the rounding of the Schur/Sylvester step, ~1e-13; coupling
+    1e-9: residue 1e-18 over distance 1e-2; kept: identical)."""
+    from fmu_fdi.design.toolkit.approximate import drop_negligible_unstable_modes
+
+    if dt:
+        z = ct.tf([1.0, 0.0], [1.0], dt)
+        base = _rw(_model([[0.3 / (z - 0.6)]], [[(z + 0.2) / ((z - 0.5) * (z + 0.4))]], [[0.2 / (z - 0.3)]], dt=dt))
+        mode = np.exp(0.5j)
+    else:
+        base = _rw(_model([[1 / (s + 2)]], [[(s + 2) * (s + 5) / ((s + 1) * (s + 3))]], [[1 / (s + 3)]]))
+        mode = 2j
+    if isinstance(coupling, str):
+        G = _with_hidden_mode(base, mode, coupling, seed=5)
+    else:  # the mode coupled at `coupling` into B and (1 if kept else coupling) into C, in seeded coordinates
+        rng = np.random.default_rng(5)
+        a, b = mode.real, mode.imag
+        A = sla.block_diag(base.A, np.array([[a, b], [-b, a]]))
+        Bm = np.vstack([base.B, coupling * rng.standard_normal((2, base.m))])
+        Cm = np.hstack([base.C, (coupling if dropped else 1.0) * rng.standard_normal((base.p, 2))])
+        T, _ = np.linalg.qr(rng.standard_normal((base.n + 2, base.n + 2)))
+        G = LTI(T.T @ A @ T, T.T @ Bm, Cm @ T, base.D, dt)
+    out = drop_negligible_unstable_modes(G)
+    assert out.n == (base.n if dropped else G.n)
+    lam = _grid(dt)
+    lam = lam[np.min(np.abs(lam[:, None] - np.array([mode, np.conj(mode)])[None, :]), axis=1) > 1e-2]
+    diff = np.abs(_fr(out, lam) - _fr(G, lam)).max()
+    assert diff <= 1e-10 * np.abs(_fr(G, lam)).max(), diff

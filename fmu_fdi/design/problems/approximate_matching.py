@@ -107,10 +107,11 @@ from slycot.exceptions import SlycotError
 
 from ...errors import DesignError
 from ...generator import ResidualGenerator
-from ...linalg import EPS, ordered_schur, single_blas_thread
+from ...linalg import EPS, single_blas_thread
 from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit._basis import check_poles, pick_poles
+from ..toolkit.approximate import drop_negligible_unstable_modes
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
 from ..toolkit.notes import keeps_notes, note, silenced
 from .reference import reference
@@ -810,38 +811,7 @@ def reduced_system(model: FDIModel, atol: float = 0.0, *, nullspace: bool | None
     # controllable part, which is exact. The plant modes outside the stability region, which the
     # basis cancels too (its internal form is stable), are the exception: kept, G1 is unstable
     # and no stable Y exists (SLICOT refuses every level)
-    return Q0, _without_cancelled_unstable_modes(Q0 @ fault_noise_map(model)), info
-
-
-def _without_cancelled_unstable_modes(G: LTI, rel: float = 1e-6) -> LTI:
-    """``G`` without its modes outside the open stability region when their part is negligible.
-
-    The real Schur form with those modes first (:func:`~fmu_fdi.linalg.ordered_schur`), decoupled by
-    the Sylvester equation ``T11 X − X T22 = −T12``, splits ``G = C1 (λI − T11)⁻¹ B1' + G_s``; the
-    first term is dropped when ``||C1|| ||B1'||`` is below ``rel`` times ``||C|| ||B||`` (the basis
-    ``Q0`` cancels the plant's unstable modes to its rounding: they remain as residues ~1e-9 …
-    1e-7), and ``G`` is returned unchanged otherwise."""
-    if G.n == 0:
-        return G
-    dt = G.dt
-    margin = np.sqrt(EPS)
-    if dt:
-        def outside(re, im):
-            return np.hypot(re, im) >= 1.0 - margin
-    else:
-        def outside(re, im):
-            return re >= -margin * max(1.0, np.hypot(re, im))
-    T, Z, k = ordered_schur(G.A, outside)
-    if k == 0:
-        return G
-    B, C = Z.T @ G.B, G.C @ Z
-    T11, T12, T22 = T[:k, :k], T[:k, k:], T[k:, k:]
-    X = sla.solve_sylvester(T11, -T22, -T12) if k < G.n else np.zeros((k, 0))
-    B1 = B[:k] - X @ B[k:]
-    size = float(np.linalg.norm(G.C, 2) * np.linalg.norm(G.B, 2))
-    if float(np.linalg.norm(C[:, :k], 2) * np.linalg.norm(B1, 2)) > rel * max(size, 1e-300):
-        return G
-    return LTI(T22, B[k:], C[:, :k] @ X + C[:, k:], G.D, dt)
+    return Q0, drop_negligible_unstable_modes(Q0 @ fault_noise_map(model)), info
 
 
 # ------------------------------------------------------------------- regularisation

@@ -28,7 +28,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ...errors import DesignError
-from ...linalg import inv_sqrtm_pd, rank, sqrtm_psd
+from ...linalg import inv_sqrtm_pd, ordered_schur, rank, sqrtm_psd
 from ...lti import LTI, hstack
 
 
@@ -246,15 +246,15 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
     (unstable Wiener–Hopf factors) or a normaliser whose poles break the margin; if 2 fails too, no normalisation
     (the filter poles weight the noise). A chosen option that cannot handle the case raises a DesignError naming it.
     First the modes of ``Rw``'s realisation on or beyond the boundary that its transfer function does not have
-    (uncontrollable or unobservable: a plant mode the noise does not excite) are dropped
-    (:func:`drop_hidden_unstable_modes`); every factor above is of that realisation.
+    (uncontrollable, unobservable or cancelled to rounding: a plant mode the noise does not excite) are dropped
+    (:func:`drop_negligible_unstable_modes`); every factor above is of that realisation.
     """
     from ...margin import default_smarg
 
     opts = options or _OPTIONS.get() or NonstandardOptions()
     if Rw.n == 0:
         return None, "weighted by the filter poles (static noise response)"
-    Rw = drop_hidden_unstable_modes(Rw)
+    Rw = drop_negligible_unstable_modes(Rw)
     fac = coouter_inverse(Rw)
     margin = default_smarg(Rw.dt) if smarg is None else smarg
     if fac is not None and _clear_of_boundary(fac[0].poles(), Rw.dt, margin):
@@ -293,32 +293,46 @@ def _clear_of_boundary(poles: np.ndarray, dt: float, margin: float) -> bool:
     return bool(np.all(poles.real <= np.minimum(margin, -BOUNDARY_RTOL * np.maximum(1.0, np.abs(poles)))))
 
 
-def drop_hidden_unstable_modes(G: LTI) -> LTI:
-    """``G`` without the modes on or beyond the stability boundary that its transfer function does not have:
-    an ordered real Schur form puts them last, ``A = [A₁₁ A₁₂; 0 A₂₂]``, and they go when ``‖B₂‖ ≤ tol``
-    (uncontrollable: ``x₂`` is never excited, ``G = (A₁₁, B₁, C₁, D)`` exactly); else first, and they go when
-    ``‖C₁‖ ≤ tol`` (unobservable). ``tol`` is the split's rank tolerance (1e-10·‖[A B; C D]‖). Such a mode —
-    a marginal plant mode the noise does not excite, kept by a minimal realisation whose single-input staircase
-    cannot see it — made the Riccati solution of :func:`coouter_inverse` non-stabilising and was taken for a zero
-    on the boundary (an input decoupling zero) by the split (random_case(22): ±2j, PBH σ_min 1e-15)."""
-    if not G.n:
+#: a group of modes outside the stability region is negligible when its residue ``||C₁||·||B₁'||`` is within this
+#: fraction of ``||C||·||B||`` (the balanced realisation's): see :func:`drop_negligible_unstable_modes`
+NEGLIGIBLE_RESIDUE_RTOL = 1e-6
+
+
+def drop_negligible_unstable_modes(G: LTI, rtol: float = NEGLIGIBLE_RESIDUE_RTOL) -> LTI:
+    """``G`` without its modes on or beyond the stability boundary when their part of ``G`` is negligible.
+
+    The realisation is balanced (SLICOT TB01ID) and the modes on or beyond the boundary (real part
+    ``≥ −BOUNDARY_RTOL·max(1, |λ|)``; discrete ``|λ| ≥ 1 − BOUNDARY_RTOL``) put first by an ordered real Schur
+    form (:func:`~fmu_fdi.linalg.ordered_schur`), then decoupled by the Sylvester equation
+    ``T₁₁X − XT₂₂ = −T₁₂`` (the similarity ``[I X; 0 I]``): ``G = C₁(λI − T₁₁)⁻¹B₁' + G_s`` with ``B₁' = B₁ − XB₂``
+    and ``G_s = (T₂₂, B₂, C₁X + C₂, D)``. The first term goes when its residue bound ``||C₁||·||B₁'||`` is at most
+    ``rtol·||C||·||B||`` — one test for a mode the input does not excite (``B₁' = 0``: a marginal plant mode the
+    noise does not reach, random_case(22)'s ±2j) and for one that does not reach the output (``C₁ = 0``), and for a
+    mode cancelled to rounding (both small). Otherwise ``G`` is returned as it is.
+
+    Why ``rtol = 1e-6``: these modes are cancelled by the design, exactly in theory, to the accuracy of the
+    computed zeros that cancel them — the backward error ``eps·||data||`` times the zeros' condition; a zero of
+    condition up to ``1/sqrt(eps)`` (beyond it no zero is computable in double precision) leaves a residue up to
+    ``sqrt(eps) ≈ 1.5e-8`` of the system's scale, and the null-space bases of approximate model matching leave
+    1e-9 … 1e-7 (measured). 1e-6 is ten times the largest measured; a mode that is really there is coupled at the
+    scale of the data (a residue ≥ 1e-6 of it makes ``G`` unstable in any sense that matters, and is kept)."""
+    if not G.n or not G.m or not G.p:
         return G
-    tol = _rank_tol(np.block([[G.A, G.B], [G.C, G.D]]))
+    bal, _ = G.balanced()
     if G.dt:
-        hidden = lambda re, im: bool(np.hypot(re, im) >= 1.0 - BOUNDARY_RTOL)  # noqa: E731
+        outside = lambda re, im: bool(np.hypot(re, im) >= 1.0 - BOUNDARY_RTOL)  # noqa: E731
     else:
-        hidden = lambda re, im: bool(re >= -BOUNDARY_RTOL * max(1.0, np.hypot(re, im)))  # noqa: E731
-    S, U, k = sla.schur(G.A, output="real", sort=lambda re, im: not hidden(re, im))
-    if k == G.n:
+        outside = lambda re, im: bool(re >= -BOUNDARY_RTOL * max(1.0, np.hypot(re, im)))  # noqa: E731
+    T, Z, k = ordered_schur(bal.A, outside)
+    if k == 0:
         return G
-    B, C = U.T @ G.B, G.C @ U
-    if np.linalg.norm(B[k:]) <= tol:
-        return LTI(S[:k, :k], B[:k], C[:, :k], G.D, G.dt)
-    S, U, j = sla.schur(G.A, output="real", sort=hidden)
-    B, C = U.T @ G.B, G.C @ U
-    if np.linalg.norm(C[:, :j]) <= tol:
-        return LTI(S[j:, j:], B[j:], C[:, j:], G.D, G.dt)
-    return G
+    B, C = Z.T @ bal.B, bal.C @ Z
+    X = sla.solve_sylvester(T[:k, :k], -T[k:, k:], -T[:k, k:]) if k < G.n else np.zeros((k, 0))
+    B1 = B[:k] - X @ B[k:]
+    size = float(np.linalg.norm(bal.C, 2) * np.linalg.norm(bal.B, 2))
+    if float(np.linalg.norm(C[:, :k], 2) * np.linalg.norm(B1, 2)) > rtol * max(size, np.finfo(float).tiny):
+        return G
+    return LTI(T[k:, k:], B[k:], C[:, :k] @ X + C[:, k:], G.D, G.dt)
 
 
 # ------------------------------------------------------------ the Wiener–Hopf split (nonstd = 3, 4, 5)
@@ -671,7 +685,7 @@ def wiener_hopf_normalizer(Rw: LTI, job: int, opts: NonstandardOptions | None = 
 
     opts = opts or NonstandardOptions(nonstd=job)
     what = f"nonstd = {job} ({NONSTD[job]})"
-    Rw = drop_hidden_unstable_modes(Rw)  # (idempotent; noise_normalizer has done it already)
+    Rw = drop_negligible_unstable_modes(Rw)  # (idempotent; noise_normalizer has done it already)
     if job == 1:
         margin = default_smarg(Rw.dt) if smarg is None else float(smarg)
         split = wiener_hopf_split(Rw, sdeg=sdeg, what=what,
