@@ -459,19 +459,23 @@ def test_nonstd_1_ignores_a_hidden_boundary_mode(hidden):
     assert np.abs(np.linalg.eigvals(N.A)).max() < 1e3, how
 
 
+def _standard_rw_and_boundary_mode(dt: float):
+    """A stable one-row ``Rw`` with a full-row-rank feedthrough and no boundary zero, and a point on the boundary
+    (±2j; discrete e^{0.5j}) to put a hidden mode at."""
+    if dt:
+        z = ct.tf([1.0, 0.0], [1.0], dt)
+        base = _rw(_model([[0.3 / (z - 0.6)]], [[(z + 0.2) / ((z - 0.5) * (z + 0.4))]], [[0.2 / (z - 0.3)]], dt=dt))
+        return base, np.exp(0.5j)
+    return _rw(_model([[1 / (s + 2)]], [[(s + 2) * (s + 5) / ((s + 1) * (s + 3))]], [[1 / (s + 3)]])), 2j
+
+
 @pytest.mark.parametrize("dt, hidden", [(0.0, "input"), (DT, "output")])
 def test_standard_noise_response_with_a_hidden_boundary_mode_is_co_outer_normalised(dt, hidden):
     """``Rw`` stable, of full row rank feedthrough and without boundary zeros, realised with an extra uncontrollable
     (unobservable) mode on the boundary (±2j; discrete e^{±0.5j}): the standard case. The co-outer normaliser makes
     ``N Rw`` co-inner — for one row ``|N Rw(λ)| = 1`` on the boundary (numpy; the Riccati solution is accurate to
     ~1e-12 on this well-conditioned data, 1e-8 leaves ample room) — with N stable."""
-    if dt:
-        z = ct.tf([1.0, 0.0], [1.0], dt)
-        base = _rw(_model([[0.3 / (z - 0.6)]], [[(z + 0.2) / ((z - 0.5) * (z + 0.4))]], [[0.2 / (z - 0.3)]], dt=dt))
-        mode = np.exp(0.5j)
-    else:
-        base = _rw(_model([[1 / (s + 2)]], [[(s + 2) * (s + 5) / ((s + 1) * (s + 3))]], [[1 / (s + 3)]]))
-        mode = 2j
+    base, mode = _standard_rw_and_boundary_mode(dt)
     Rw = _with_hidden_mode(base, mode, hidden, seed=11)
     N, how = noise_normalizer(Rw)
     assert how == "co-outer normalised", how
@@ -565,13 +569,7 @@ def test_negligible_unstable_modes_are_dropped_by_their_residue(dt, coupling, dr
     1e-9: residue 1e-18 over distance 1e-2; kept: identical)."""
     from fmu_fdi.design.toolkit.approximate import drop_negligible_unstable_modes
 
-    if dt:
-        z = ct.tf([1.0, 0.0], [1.0], dt)
-        base = _rw(_model([[0.3 / (z - 0.6)]], [[(z + 0.2) / ((z - 0.5) * (z + 0.4))]], [[0.2 / (z - 0.3)]], dt=dt))
-        mode = np.exp(0.5j)
-    else:
-        base = _rw(_model([[1 / (s + 2)]], [[(s + 2) * (s + 5) / ((s + 1) * (s + 3))]], [[1 / (s + 3)]]))
-        mode = 2j
+    base, mode = _standard_rw_and_boundary_mode(dt)
     if isinstance(coupling, str):
         G = _with_hidden_mode(base, mode, coupling, seed=5)
     else:  # the mode coupled at `coupling` into B and (1 if kept else coupling) into C, in seeded coordinates
