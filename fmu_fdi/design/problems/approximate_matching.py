@@ -113,7 +113,7 @@ from ...linalg import EPS, single_blas_thread
 from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit._basis import check_poles, pick_poles
-from ..toolkit.approximate import drop_negligible_unstable_modes
+from ..toolkit.approximate import drop_negligible_unstable_modes, transmission_zeros
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
 from ..toolkit.notes import keeps_notes, note, silenced
 from .reference import reference
@@ -1097,21 +1097,7 @@ def _per_row_factors(Qs: LTI, F: LTI, shifts: list[int], Kb: int, a: float, pole
 def _check_boundary_zeros(Gh: LTI) -> None:
     """Refuse transmission zeros of Ĝ on the stability boundary (SLICOT AB08ND); its zeros at
     infinity are gone (:func:`interactor` gives a full-row-rank feedthrough)."""
-    q = Gh.p
-    if Gh.n == 0:
-        return
-    import slycot
-
-    n, m = Gh.n, Gh.m
-    # workspace of SLICOT AB08ND's documentation (slycot's default is too small for some shapes)
-    ldwork = max(1, min(q, m) + max(3 * m - 1, n), min(q, n) + max(3 * q - 1, n + q, n + m),
-                 min(m, n) + max(3 * m - 1, n + m)) * 4
-    out = slycot.ab08nd(n, m, q, Gh.A.copy(), Gh.B.copy(), Gh.C.copy(), Gh.D.copy(), equil="S", ldwork=ldwork)
-    nu, Af, Bf = out[0], out[-2], out[-1]
-    if nu == 0:
-        return
-    z = sla.eigvals(Af[:nu, :nu], Bf[:nu, :nu])
-    z = z[np.isfinite(z)]
+    z = transmission_zeros(Gh)
     dist = np.abs(np.abs(z) - 1.0) if Gh.dt else np.abs(z.real)
     bad = z[dist < 1e-7 * max(1.0, float(np.max(np.abs(z), initial=0.0)))]
     if bad.size:

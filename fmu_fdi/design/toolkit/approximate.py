@@ -255,8 +255,11 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
     if Rw.n == 0:
         return None, "weighted by the filter poles (static noise response)"
     Rw = drop_negligible_unstable_modes(Rw)
-    fac = coouter_inverse(Rw)
     margin = default_smarg(Rw.dt) if smarg is None else smarg
+    # the standard case only without zeros on the boundary, decided on Rw's own zeros: a zero of multiplicity k
+    # is computed to ~eps^(1/k), the Riccati closed loop's (a 2k-fold Hamiltonian eigenvalue) only to
+    # ~eps^(1/2k) — a double axis pair came back 1e-4 off the axis and passed as a stable co-outer inverse
+    fac = None if np.any(_on_boundary(transmission_zeros(Rw), Rw.dt)) else coouter_inverse(Rw)
     if fac is not None and _clear_of_boundary(fac[0].poles(), Rw.dt, margin):
         return fac[0], "co-outer normalised"
     job = opts.nonstd if opts.nonstd is not None else 1
@@ -278,6 +281,25 @@ def noise_normalizer(Rw: LTI, *, smarg: float | None = None, poles=None, sdeg: f
         raise DesignError(f"nonstd = 2: the co-outer factor of [Rw  ε I] (ε = {eps:.3g}) could not be computed "
                           f"(the Riccati equation has no stabilising solution)")
     return reg[0], f"regularised co-outer normalised (nonstd = 2, ε = {eps:.3g} = epsreg·||Rw||∞){fallback}"
+
+
+def transmission_zeros(G: LTI) -> np.ndarray:
+    """The finite invariant zeros of ``G`` (SLICOT AB08ND on the scaled system pencil ``[A − λI  B; C  D]``: the
+    eigenvalues of the reduced regular pencil)."""
+    if G.n == 0 or G.m == 0 or G.p == 0:
+        return np.zeros(0, complex)
+    import slycot
+
+    n, m, q = G.n, G.m, G.p
+    # workspace of SLICOT AB08ND's documentation (slycot's default is too small for some shapes)
+    ldwork = max(1, min(q, m) + max(3 * m - 1, n), min(q, n) + max(3 * q - 1, n + q, n + m),
+                 min(m, n) + max(3 * m - 1, n + m)) * 4
+    out = slycot.ab08nd(n, m, q, G.A.copy(), G.B.copy(), G.C.copy(), G.D.copy(), equil="S", ldwork=ldwork)
+    nu, Af, Bf = out[0], out[-2], out[-1]
+    if nu == 0:
+        return np.zeros(0, complex)
+    z = sla.eigvals(Af[:nu, :nu], Bf[:nu, :nu])
+    return z[np.isfinite(z)]
 
 
 #: a co-outer inverse pole within this relative distance of the stability boundary counts as on it
