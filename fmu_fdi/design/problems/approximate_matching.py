@@ -22,7 +22,9 @@ in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetection
    ``Φ G1 = m^K Ĝ`` with ``Φ = Π diag(m I, I) T_j`` stable and proper and ``Ĝ`` standard,
    and ``γopt0 = min_Ŷ ||Ŷ Ĝ − F||`` is the infimum of (1). The stable proper filter
    ``Q = Ŷ Φ Q0`` then matches the updated reference ``M Mr`` with the diagonal updating
-   factor ``M = m^K I`` (Varga's ``M``, normalised to unit DC gain, or to unit zpk gain with
+   factor ``M = m^K I`` — or, where the rows of the improper optimum ``Ŷ Φ Q0 / m^K`` have different
+   orders of infinite poles ``k_i``, ``M = diag(m^{k_i})``, each row's least (:func:`row_shifts`; the
+   peer builds M from the ``glcf`` of each row) — (Varga's ``M``, normalised to unit DC gain, or to unit zpk gain with
    ``normalize='gain'``; in discrete time M is the all-pass delay ``z^{−K}``, so
    ``γsub = γopt0`` in H∞; with ``poles`` or a discrete ``sdeg`` M has those poles,
    :func:`placed_factor`): ``Q G1 − M F = M (Ŷ Ĝ − F)``, whose norm is ``γsub`` (Varga's
@@ -107,10 +109,11 @@ from slycot.exceptions import SlycotError
 
 from ...errors import DesignError
 from ...generator import ResidualGenerator
-from ...linalg import EPS, ordered_schur, single_blas_thread
+from ...linalg import EPS, single_blas_thread
 from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit._basis import check_poles, pick_poles
+from ..toolkit.approximate import drop_negligible_unstable_modes, transmission_zeros
 from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
 from ..toolkit.notes import keeps_notes, note, silenced
 from .reference import reference
@@ -208,7 +211,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``M Mr``; equal to ``gamma_opt0`` in the standard case, within ``reltol`` for H∞),
         ``gamma_bracket`` (H∞: the bisection's last infeasible and feasible levels),
         ``updating_poles`` (the poles of M: K of the interactor, placed by ``poles``/``sdeg``, then
-        the H2 low-pass's), ``basis`` (``'identity'``, ``'[I -Gu]'``, ``'observer'``, ``'minimal'``
+        the H2 low-pass's; of the row with most shifts), ``row_shifts`` (each row's k_i, all K unless
+        the rows differ) and ``row_updating_poles`` (the poles of each M_i), ``basis`` (``'identity'``, ``'[I -Gu]'``, ``'observer'``, ``'minimal'``
         or ``'simple'``), ``nullspace_basis`` (``Q0``, LTI; ``H·Q0`` with ``HDesign``), ``HDesign``
         and ``basis_row_orders`` (with ``simple``),
         ``standard``, ``M`` (LTI, the identity if standard), ``interactor_steps`` (K),
@@ -274,16 +278,28 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
             _refined_peak(lambda L: _values(E0, L), _points([Gh, Y, F], dt), dt)
     else:
         gamma_opt0 = info["gamma"]
-    scale = a ** -(K + Kb) if normalize == "gain" and not dt else 1.0
-    M = scale * lowpass_power(a, K + Kb, Mr.p, dt)
-    Qfull = scale * (Y @ Phi @ Q0)
-    MF = scale * lowpass_power(a, K, Mr.p, dt) @ F if K else scale * F  # = M [Mr 0]
-    factor, placed = None, [complex(-a if not dt else 0.0)] * K
-    if K and (poles is not None or (dt and sdeg != 0.0)):  # M's poles placed: M = μ I
-        Qs = Y @ Phi @ Q0
-        M, Qfull, MF, factor, placed = placed_factor(Qs.minreal(atol), F, K, Kb, a, poles, sdeg, normalize, dt)
-        Qfull = (Qfull, placed_factor(Qs, F, K, Kb, a, poles, sdeg, normalize, dt)[1])  # (the last resort)
-    elif poles is not None:
+    # each row's own number of shifts (the peer's glcf of each row of the improper optimum): row i of
+    # Q∞ = Y Φ Q0 / m^K needs k_i = K − d_i, d_i the factors m its row of Y Φ Q0 already has
+    Qs = Y @ Phi @ Q0
+    Qr, shifts = row_shifts(Qs, K, a, dt)
+    placing = K and (poles is not None or (dt and sdeg != 0.0))
+    if len(set(shifts)) > 1:  # M = diag(M_i), each the least that makes its row proper
+        M, Qfull, MF, factor, placed, row_poles = _per_row_factors(Qr, F, shifts, Kb, a, poles, sdeg, normalize, dt,
+                                                                  placing, atol)
+        scale = factor if factor is not None else np.array([a ** -(k + Kb) if normalize == "gain" and not dt
+                                                            else 1.0 for k in shifts])
+    else:  # one factor for every row: M = m^K I (as before; also where every row could take fewer shifts)
+        shifts = [K] * Mr.p
+        scale = a ** -(K + Kb) if normalize == "gain" and not dt else 1.0
+        M = scale * lowpass_power(a, K + Kb, Mr.p, dt)
+        Qfull = scale * Qs
+        MF = scale * lowpass_power(a, K, Mr.p, dt) @ F if K else scale * F  # = M [Mr 0]
+        factor, placed = None, [complex(-a if not dt else 0.0)] * K
+        if placing:  # M's poles placed: M = μ I
+            M, Qfull, MF, factor, placed = placed_factor(Qs.minreal(atol), F, K, Kb, a, poles, sdeg, normalize, dt)
+            Qfull = (Qfull, placed_factor(Qs, F, K, Kb, a, poles, sdeg, normalize, dt)[1])  # (the last resort)
+        row_poles = [list(placed) + [complex(-a)] * Kb] * Mr.p
+    if poles is not None and not K:
         note(f"poles {np.atleast_1d(poles).tolist()} not used: the problem is standard (no zeros at infinity), "
              f"the optimal filter has no freely placed pole")
     fnm = fault_noise_map(model)
@@ -292,7 +308,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     # factor from a balanced realisation): the minimal realisation of Q is kept only if it
     # passes (with a large gain of Y, near-cancelling modes that SLICOT's staircase removes
     # can matter), else the non-minimal Y Φ Q0 is returned
-    Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol, factor)
+    Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor)
     gen = ResidualGenerator(Q, model, "approximate_model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
     err = _shipped_error(model, Q, fnm, MF, lam, norm, [model.lti(), Y, Mr])
@@ -310,6 +326,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     gen.info.update({
         "norm": norm, "standard": bool(standard), "gamma_opt": float(gamma_opt), "gamma_opt0": float(gamma_opt0),
         "gamma_sub": float(err), "error": float(err), "M": M, "interactor_steps": int(K),
+        "row_shifts": [int(k) for k in shifts],
+        "row_updating_poles": [[complex(x) if complex(x).imag else float(complex(x).real) for x in r]
+                               for r in row_poles],
         "order": int(Q.n), "row_orders": least["row_orders"] if least else row_orders(Q, atol),
         "poles": np.asarray(Q.poles()).tolist(),
         "reduced_rows": int(G1.p),
@@ -747,18 +766,26 @@ def _solve_regularised(Gh, F, left, norm, reltol):
     return Y, info, eps
 
 
-def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, K, atol, factor=None):
+def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor=None):
     """Stage of :func:`approximate_model_matching`: the realisation of ``Q = Y Φ Q0`` whose error
     response is the designed one (the minimal one if it passes, else the non-minimal one);
-    returns ``(Q, the comparison points)``. ``factor``: the scalar ``μ`` of placed poles
-    (:func:`placed_factor`) that multiplies ``Y Ĝ − F``, instead of ``scale m^K``; then ``Qfull`` is
+    returns ``(Q, the comparison points)``. Row i of ``Y Ĝ − F`` is multiplied by ``scale_i m^{k_i}``
+    (``shifts`` = the k_i; ``scale`` a number or one per row). ``factor``: the scalar ``μ`` of placed poles
+    (:func:`placed_factor`; a list, one per row, when the rows' shifts differ) that multiplies ``Y Ĝ − F``,
+    instead of ``scale m^K``; then ``Qfull`` is
     the pair (``μ/m^K`` times the minimal realisation of ``Y Φ Q0``, times ``Y Φ Q0`` itself), the
     second tried last."""
     dt = model.dt
     Qfull, last = Qfull if isinstance(Qfull, tuple) else (Qfull, None)
-    lam = _points([model.lti(), Y, Mr] + ([factor] if factor is not None else []), dt)
-    mk = scale * _mk(lam, a, K, dt) if factor is None else _values(factor, lam)[:, 0, 0]
-    designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) * mk[:, None, None]
+    lam = _points([model.lti(), Y, Mr] + (list(factor) if isinstance(factor, list) else [factor] if factor is not None
+                                          else []), dt)
+    # each row's factor (:func:`row_shifts`): s_i m(λ)^{k_i}, or the placed μ_i(λ)
+    if factor is None:
+        mk = np.stack([sc * _mk(lam, a, k, dt) for sc, k in zip(np.broadcast_to(scale, len(shifts)), shifts)], 1)
+    else:
+        mk = np.stack([_values(f, lam)[:, 0, 0] for f in (factor if isinstance(factor, list) else
+                                                          [factor] * len(shifts))], 1)
+    designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) * mk[:, :, None]
     fv, mfv = _values(fnm, lam), _values(MF, lam)
     size = max(float(np.nanmax(_nrm(mfv))), float(np.nanmax(_nrm(designed))), 1e-300)
     cands = (Qfull.minreal(atol), Qfull) + ((last,) if last is not None else ())
@@ -872,38 +899,7 @@ def reduced_system(model: FDIModel, atol: float = 0.0, *, nullspace: bool | None
     # controllable part, which is exact. The plant modes outside the stability region, which the
     # basis cancels too (its internal form is stable), are the exception: kept, G1 is unstable
     # and no stable Y exists (SLICOT refuses every level)
-    return Q0, _without_cancelled_unstable_modes(Q0 @ fault_noise_map(model)), info
-
-
-def _without_cancelled_unstable_modes(G: LTI, rel: float = 1e-6) -> LTI:
-    """``G`` without its modes outside the open stability region when their part is negligible.
-
-    The real Schur form with those modes first (:func:`~fmu_fdi.linalg.ordered_schur`), decoupled by
-    the Sylvester equation ``T11 X − X T22 = −T12``, splits ``G = C1 (λI − T11)⁻¹ B1' + G_s``; the
-    first term is dropped when ``||C1|| ||B1'||`` is below ``rel`` times ``||C|| ||B||`` (the basis
-    ``Q0`` cancels the plant's unstable modes to its rounding: they remain as residues ~1e-9 …
-    1e-7), and ``G`` is returned unchanged otherwise."""
-    if G.n == 0:
-        return G
-    dt = G.dt
-    margin = np.sqrt(EPS)
-    if dt:
-        def outside(re, im):
-            return np.hypot(re, im) >= 1.0 - margin
-    else:
-        def outside(re, im):
-            return re >= -margin * max(1.0, np.hypot(re, im))
-    T, Z, k = ordered_schur(G.A, outside)
-    if k == 0:
-        return G
-    B, C = Z.T @ G.B, G.C @ Z
-    T11, T12, T22 = T[:k, :k], T[:k, k:], T[k:, k:]
-    X = sla.solve_sylvester(T11, -T22, -T12) if k < G.n else np.zeros((k, 0))
-    B1 = B[:k] - X @ B[k:]
-    size = float(np.linalg.norm(G.C, 2) * np.linalg.norm(G.B, 2))
-    if float(np.linalg.norm(C[:, :k], 2) * np.linalg.norm(B1, 2)) > rel * max(size, 1e-300):
-        return G
-    return LTI(T22, B[k:], C[:, :k] @ X + C[:, k:], G.D, dt)
+    return Q0, drop_negligible_unstable_modes(Q0 @ fault_noise_map(model)), info
 
 
 # ------------------------------------------------------------------- regularisation
@@ -1097,24 +1093,73 @@ def placed_factor(Qs: LTI, F: LTI, K: int, Kb: int, a: float, poles, sdeg: float
     return M, blockdiag([ratio] * Qs.p) @ (sb * Qs), blockdiag([mu] * p) @ (sb * F), sb * mu, list(placed)
 
 
+def row_shifts(Qs: LTI, K: int, a: float, dt: float) -> tuple[LTI, list[int]]:
+    """``(Q', [k_i])``: the least number of shifts ``k_i`` each row of the improper optimum ``Q∞ = Qs/m^K``
+    needs (``Qs = Y Φ Q0``, :func:`interactor`; ``m = a/(s + a)`` or ``1/z``), and ``Q' = diag(m^{k_i − K}) Qs``.
+
+    Row i of ``Qs`` is ``m^{d_i}`` times a proper row when its first ``d_i`` Markov parameters in ``n = 1/m`` vanish:
+    with the row ``(A, B, c, d)`` of the balanced realisation scaled to ``||[c d]|| = 1``, ``d`` counts as zero below
+    ``1e-9·max(||B||, 1)`` (the interactor's own test), and then ``n·(A, B, c, 0) = (A, B, (cA + ac)/a, cB/a)``
+    (discrete ``(A, B, cA, cB)``) is again a proper row on the same states; ``d_i`` (at most K) such steps give
+    ``k_i = K − d_i``, the order of the infinite poles of row i of ``Q∞`` (in discrete time the delays it lacks) —
+    the degree of the peer's ``glcf(…; mininf = true)`` factor of that row. ``Q'`` shares ``Qs``'s states; when no
+    row divides (every ``k_i = K``) ``Qs`` is returned as it is."""
+    if K == 0 or Qs.n == 0:
+        return Qs, [K] * Qs.p
+    bal, _ = Qs.balanced()
+    A, B = bal.A, bal.B
+    tol = 1e-9 * max(float(np.linalg.norm(B, 2)), 1.0)
+    C, D = bal.C.copy(), bal.D.copy()
+    shifts = []
+    for i in range(Qs.p):
+        c, d = C[i], D[i]
+        k = K
+        while k > 0:
+            w = float(np.linalg.norm(np.r_[c, d]))
+            if w == 0.0 or np.linalg.norm(d) > tol * w:
+                break
+            c, d = (c @ A, c @ B) if dt else ((c @ A + a * c) / a, (c @ B) / a)
+            k -= 1
+        C[i], D[i] = c, d
+        shifts.append(k)
+    if all(k == K for k in shifts):
+        return Qs, shifts
+    return LTI(A, B, C, D, Qs.dt), shifts
+
+
+def _per_row_factors(Qs: LTI, F: LTI, shifts: list[int], Kb: int, a: float, poles, sdeg: float, normalize: str,
+                     dt: float, placing: bool, atol: float):
+    """Stage of :func:`approximate_model_matching` when the rows' shifts differ (:func:`row_shifts`): the diagonal
+    updating factor ``M = diag(M_i)``, ``M_i = s_i m^{k_i + Kb}`` (``s_i = a^{−k_i−Kb}`` with ``normalize='gain'``,
+    else 1), or with placed poles ``M_i = μ_i m^Kb`` of relative degree ``k_i`` (:func:`placed_factor` on the row),
+    ``M_i = 1`` where ``k_i = 0`` — as the peer's ``ammsyn`` builds ``M`` from the ``glcf`` of each row.
+    Returns ``(M, Q, M F, [μ_i] or None, the poles of the row with most shifts, [the poles of each M_i])``."""
+    rows, Ms, MFs, mus, row_poles = [], [], [], [], []
+    for i, k in enumerate(shifts):
+        Qi, Fi = Qs[[i], :], F[[i], :]
+        if placing and k:
+            Mi, Qi, MFi, mu, placed = placed_factor(Qi.minreal(atol), Fi, k, Kb, a, poles, sdeg, normalize, dt)
+        else:
+            si = a ** -(k + Kb) if normalize == "gain" and not dt else 1.0
+            Mi, Qi = si * lowpass_power(a, k + Kb, 1, dt), si * Qi
+            MFi = si * lowpass_power(a, k, 1, dt) @ Fi
+            placed, mu = [complex(-a if not dt else 0.0)] * k, LTI.static(np.array([[si]]), dt)
+        rows.append(Qi)
+        Ms.append(Mi)
+        MFs.append(MFi)
+        mus.append(mu)
+        row_poles.append(list(placed) + [complex(-a)] * Kb)
+    # without placed poles every row is its row of Qs scaled: one realisation on Qs's states (stacking the rows
+    # would repeat them, and the staircase does not always find the repeats again)
+    Q = vstack(rows) if placing else LTI(Qs.A, Qs.B, np.vstack([r.C for r in rows]), np.vstack([r.D for r in rows]),
+                                         dt)
+    return blockdiag(Ms), Q, vstack(MFs), mus if placing else None, row_poles[int(np.argmax(shifts))], row_poles
+
+
 def _check_boundary_zeros(Gh: LTI) -> None:
     """Refuse transmission zeros of Ĝ on the stability boundary (SLICOT AB08ND); its zeros at
     infinity are gone (:func:`interactor` gives a full-row-rank feedthrough)."""
-    q = Gh.p
-    if Gh.n == 0:
-        return
-    import slycot
-
-    n, m = Gh.n, Gh.m
-    # workspace of SLICOT AB08ND's documentation (slycot's default is too small for some shapes)
-    ldwork = max(1, min(q, m) + max(3 * m - 1, n), min(q, n) + max(3 * q - 1, n + q, n + m),
-                 min(m, n) + max(3 * m - 1, n + m)) * 4
-    out = slycot.ab08nd(n, m, q, Gh.A.copy(), Gh.B.copy(), Gh.C.copy(), Gh.D.copy(), equil="S", ldwork=ldwork)
-    nu, Af, Bf = out[0], out[-2], out[-1]
-    if nu == 0:
-        return
-    z = sla.eigvals(Af[:nu, :nu], Bf[:nu, :nu])
-    z = z[np.isfinite(z)]
+    z = transmission_zeros(Gh)
     dist = np.abs(np.abs(z) - 1.0) if Gh.dt else np.abs(z.real)
     bad = z[dist < 1e-7 * max(1.0, float(np.max(np.abs(z), initial=0.0)))]
     if bad.size:
