@@ -35,8 +35,11 @@ i.e. the gain used is the grid estimate of ``||R_fj,i||∞`` (peak over Λ of th
   residual moved with u 2.5e-3 times as much as with a fault);
 - stability of every block of R with the margin ``smarg`` (inclusive, as the peer toolbox:
   ``Re p ≤ smarg`` continuous, ``|p| ≤ smarg`` discrete): the eigenvalues of Q's realisation
-  (the filter that runs) and the poles of R, i.e. the modes of the series realisation
-  ``Q·Ge`` outside the margin that are both controllable and observable (:func:`_r_poles`);
+  (the filter that runs) and the poles of R (:func:`_r_poles`): a plant mode on or beyond the stability
+  boundary is a pole of ``R_i``'s column c unless its residue is within its derived rounding bound —
+  ``||Q_i(p) c_p|| ≤ δ_i`` or ``|y_pᴴ b_c| ≤ δ_c``, the grid's own decision (:func:`_mode_decisions`) — and
+  the other margin-violating modes are those of the series realisation ``Q·Ge`` that are both controllable
+  and observable;
 - a required fault is no rounding noise in its row: the cosine
   ``γ_j = max_λ ||R_fj(λ)|| / (||Q_y(λ)|| ||Gf_j(λ)||) ≥ FDtol`` (scale free, over the points
   where the bound is at least 1e-6 of its median, away from zeros of ``Gf_j``), and the row
@@ -62,6 +65,7 @@ from ...freqresp import transfer_values
 from ...linalg import EPS
 from ...lti import LTI, _pole_scales, frequency_grid
 from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
+from .plant_modes import EIGVEC_BOUND, boundary_mode_table as _boundary_modes, leading_schur
 
 class NumericalDesignError(DesignError):
     """A design broke a numerical post-condition (decoupling, basis rank, stability of the
@@ -151,8 +155,8 @@ def _beside_boundary_poles(lam: np.ndarray, systems, dt: float) -> np.ndarray:
     for it, and the value seed 10 read depended on the solver (a dense LU solve passed, the Schur-form solve
     of larger models failed). At δ ≥ 1e-6·||A|| such a residue reads ≤ 1e-8, while a cancellation off by
     1e-12 of the fault gain still reads ≥ 2.5e-7 > dec_tol two gaps beside it, where the grid has points
-    (:func:`_beside_boundary_freqs`; tests/test_synthesis_random.py); a coupling above
-    ``R_POLE_TOL`` is refused as a pole of R (:func:`_r_poles`) whatever the grid.
+    (:func:`_beside_boundary_freqs`; tests/test_synthesis_random.py); a residue above its rounding bound δ_i is
+    refused as a pole of R (:func:`_r_poles`) whatever the grid.
     """
     mask = np.zeros(lam.size, bool)
     for p, gap in _boundary_poles(systems, dt):
@@ -202,11 +206,6 @@ def _values(sys: LTI, lam: np.ndarray) -> np.ndarray:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return transfer_values(sys.A, sys.B, sys.C, sys.D, lam)
-
-
-#: GVL's constant in the non-asymptotic eigenvector bound ``||δv|| ≤ 4 ||E|| / sep`` (valid for ``||E|| ≤ sep/5``;
-#: Golub & Van Loan, *Matrix Computations*, 4th ed., Thm. 7.2.4); :func:`_without_cancelled_modes`
-EIGVEC_BOUND = 4.0
 
 
 def _row_system(Q: LTI, g) -> LTI:
@@ -265,58 +264,6 @@ def _sylvester(A: np.ndarray, B: np.ndarray, C: np.ndarray, gamma: float) -> tup
     nf = np.linalg.norm
     res = float(nf(C - (A @ X - X @ B)))
     return X, (res + gamma * (float(nf(A)) * float(nf(X)) + float(nf(X)) * float(nf(B)) + float(nf(C)))) / _sep(A, B)
-
-
-def _boundary_modes(model) -> dict | None:
-    """The simple plant modes on or beyond the stability boundary whose cancellation the judge can decide, with
-    what :func:`_without_cancelled_modes` tests them by (None when there are none).
-
-    Balanced ``Ge = (A, B, Ce, De)``; for each simple eigenvalue p outside the default margin with ``sep_p =
-    σ_min(T22 − pI)`` of the ordered Schur form ``[p t; 0 T22]``: ``dir`` ``c_p = Ce v_p`` (unit right
-    eigenvector), ``sep``, and per input column c of Ge whether the column *excites* p: with the unit left
-    eigenvector ``y_p`` (``[1 z]`` in Schur coordinates, ``p z − z T22 = t``), the coupling ``|y_pᴴ b_c|`` against
-    its rounding ``δ_c = n·eps·(4||A||/sep_p + 1)·||b_c||`` — the perturbation theorem of the row test
-    (:data:`EIGVEC_BOUND`) applied to the left eigenvector of ``A + E``, ``||E|| ≤ n·eps·||A||``, plus the rounding
-    of the product. A column at or below ``δ_c`` does not excite p as far as the data can tell (the u, d and w
-    of the random set's fault-only modes: 1e-14 … 1e-13 of ``||b_c||`` against ``δ_c`` ≈ 4e-12; random seeds 73
-    and 111 read a leak 7.9e-7 and a pole of R from that rounding), and p is removed from that column of R.
-    Where the bound is void (``n·eps·||A|| > sep_p/5``) the mode is left alone."""
-    if not model.n:
-        return None
-    G = model.augmented()
-    bal = G.balanced()[0] if G.m and G.p else G
-    A, Bp, Ce, De = bal.A, bal.B, bal.C, bal.D
-    n = A.shape[0]
-    ev = np.linalg.eigvals(A)
-    cand = np.flatnonzero(outside_margin(ev, model.dt, default_smarg(model.dt)))
-    if not cand.size:
-        return None
-    nA, nC = float(np.linalg.norm(A, 2)), float(np.linalg.norm(Ce, 2))  # ||A||, not max(1, ·): scale-free
-    near = lambda x, y: bool(abs(x - y) <= 1e-8 * max(1.0, abs(y)))  # noqa: E731
-    nb = np.linalg.norm(Bp, axis=0)
-    poles, dirs, seps, unexcited, delta_c, couplings, coupling_tol, conds = [], [], [], [], [], [], [], []
-    for j in cand:
-        T, U, k = sla.schur(A.astype(complex), output="complex", sort=lambda x: near(x, ev[j]))
-        if k != 1:
-            continue  # repeated (a Jordan block, or a cluster within 1e-8): not decided here
-        # n = 1: the eigen-directions are exact (sep = ∞, the first terms of δ_i and δ_c vanish)
-        sep = float(np.linalg.svd(T[1:, 1:] - ev[j] * np.eye(n - 1), compute_uv=False)[-1]) if n > 1 else np.inf
-        if n * EPS * nA > sep / 5:
-            continue
-        z = np.linalg.solve((ev[j] * np.eye(n - 1) - T[1:, 1:]).T, T[0, 1:]) if n > 1 else np.zeros(0)
-        Bt = U.conj().T @ Bp
-        coupling = np.abs(Bt[0] + z @ Bt[1:]) / np.sqrt(1.0 + float(np.linalg.norm(z)) ** 2)
-        d_c = n * EPS * (EIGVEC_BOUND * nA / sep + 1.0) * nb
-        unexcited.append(coupling <= d_c)
-        couplings.append(coupling); coupling_tol.append(d_c); conds.append(np.sqrt(1.0 + float(np.linalg.norm(z)) ** 2))
-        # δ_c on the unnormalised left vector [1 z] (the coupling B̃1 of _without_cancelled_modes' pole part)
-        delta_c.append(d_c * np.sqrt(1.0 + float(np.linalg.norm(z)) ** 2))
-        poles.append(ev[j]); dirs.append(Ce @ U[:, 0]); seps.append(sep)  # U[:, 0]: the unit eigenvector v_p
-    if not poles:
-        return None
-    return {"A": A, "B": Bp, "Ce": Ce, "De": De, "nA": nA, "nC": nC, "poles": np.array(poles), "dirs": dirs,
-            "seps": seps, "unexcited": np.array(unexcited), "delta_c": np.array(delta_c), "coupled": nb > 0,
-            "coupling": np.array(couplings), "coupling_tol": np.array(coupling_tol), "conds": np.array(conds)}
 
 
 def _row_cancels(modes: dict, Qi: LTI, qpk: float, N: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -511,7 +458,7 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
             cols = np.flatnonzero(np.all(rem.T == np.array(pattern), axis=1))
             keep = poles[np.array(pattern)]
             sel = lambda x: bool(np.min(np.abs(keep - x)) <= 1e-8 * max(1.0, abs(x)))  # noqa: E731
-            T, U, kk = sla.schur(A.astype(complex), output="complex", sort=sel)
+            T, U, kk = leading_schur(A, sel)
             if kk != keep.size:
                 masks[np.ix_(np.flatnonzero(pattern), [i], cols)] = False  # not removed: R_i keeps its values
                 continue
@@ -943,7 +890,8 @@ def _stability(model, Q, smarg, fig, failures, decisions=None) -> None:
     fig["R_poles"] = [complex(z) for z in rp]
     if rp.size:
         failures.append(("R stability", f"R = Q·Ge keeps the plant pole(s) {_fmt(rp)} ({what} = {worst_of(rp):.6g} "
-                                        f"> smarg = {smarg:.6g})" + (": " + "; ".join(why) if why else "")))
+                                        f"> smarg = {smarg:.6g})" + (": " + "; ".join(why[:3]) if why else "")
+                                        + (f"; … {len(why) - 3} more" if len(why) > 3 else "")))
 
 
 def _decoupling(model, fj, judged, names, col, S, decouple, dec_tol, fig, failures) -> None:

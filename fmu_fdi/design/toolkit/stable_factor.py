@@ -445,8 +445,9 @@ MODAL_COND_MAX = 1e8
 def _plant_violating_part(model: FDIModel, Q: LTI, kept: np.ndarray) -> LTI | None:
     """``(A_b, 0, C_b', 0)``: the violating modes ``kept`` of ``[Q R]`` on the plant's own states.
 
-    The ordered real Schur form of the balanced plant (``Ge``'s w and f columns, the internal form's blocks)
-    puts the eigenvalues matched to ``kept`` (:data:`PLANT_MATCH_RTOL`) first, ``A_b = T_11``, ``C_b = C Z_1``:
+    The ordered real Schur form of the balanced plant (:mod:`.plant_modes`: the realisation of the judge's table,
+    so that M's zeros are the eigenvalues the judge tests) puts the eigenvalues matched to ``kept``
+    (:data:`PLANT_MATCH_RTOL`) first, ``A_b = T_11``, ``C_b = C Z_1``:
     the plant's part ``Ge_b = (A_b, B_b, C_b)`` after the block-diagonalising Sylvester similarity, whose
     output matrix is ``C Z_1`` unchanged. ``Q·Ge_b``'s modes at ``A_b`` are observed through
     ``C_b' = D_q C_b + C_q Y`` with ``Y A_b − A_q Y = B_q C_b``, i.e. ``C_b' v = Q(p) C_b v`` for each eigenvector
@@ -457,20 +458,17 @@ def _plant_violating_part(model: FDIModel, Q: LTI, kept: np.ndarray) -> LTI | No
     """
     import scipy.linalg as sla
 
-    from ...linalg import ordered_schur
+    from .plant_modes import balanced_plant, leading_schur
     from .postconditions import _values
 
     if not model.n or not kept.size:
         return None
-    sl = model.group_slices()
-    Ge = model.augmented()[:, np.arange(sl["w"].start, sl["f"].stop)]
-    bal = Ge.balanced()[0] if Ge.m and Ge.p else Ge
+    bal = balanced_plant(model)
 
-    def matched(re, im):
-        z = complex(re, im)
+    def matched(z: complex) -> bool:
         return bool(np.min(np.abs(np.concatenate([kept - z, kept - z.conjugate()]))) <= PLANT_MATCH_RTOL * max(1.0, abs(z)))
 
-    T, Z, k = ordered_schur(bal.A, matched)
+    T, Z, k = leading_schur(bal.A, matched, real=True)
     if k != kept.size:
         return None
     Ab, Cb = T[:k, :k], bal.C @ Z[:, :k]
@@ -480,7 +478,8 @@ def _plant_violating_part(model: FDIModel, Q: LTI, kept: np.ndarray) -> LTI | No
         if not np.all(np.isfinite(Qp)):
             return None
         CV = Cb @ V
-        Cq = (np.stack([Qp[i] @ CV[:, i] for i in range(k)], axis=1) @ np.linalg.inv(V)).real
+        W = np.stack([Qp[i] @ CV[:, i] for i in range(k)], axis=1)  # Q(p_i) C_b v_i
+        Cq = np.linalg.solve(V.T, W.T).T.real                        # W V⁻¹
     elif Q.n:
         Cq = Q.D @ Cb + Q.C @ sla.solve_sylvester(-Q.A, Ab, Q.B @ Cb)
     else:
