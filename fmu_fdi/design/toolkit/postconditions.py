@@ -359,8 +359,9 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
     which is the distance to the nearest other eigenvalue when A is normal and smaller when it is not); its
     eigenvalue, where the row puts its zero, differs from p by ``|δp| ≤ cond_p ||E||`` (``cond_p = 1/|y_pᴴ v_p|
     = ||[1 z]||``, the eigenvalue's condition; Golub & Van Loan, 4th ed., sec. 7.2.2), which the row's slope
-    ``||Q_i'(p) c_p||`` turns into a residue (random seed 3's bank row [1 1 0 1 1]: its zero at the factoriser's
-    z = 1.1051709180756502, the judge's p 3.8e-15 away, slope 87: residue 3.3e-13). And the row's value ``Q_i(p)``
+    ``||Q_i'(p) c_p||`` turns into a residue (two balancings of random seed 3's plant put z = e^0.1 at
+    1.1051709180756502 and …464, 3.8e-15 apart against cond_p·N·eps·||A|| = 6.5e-15; the factoriser now places its
+    zeros at the judge's own eigenvalues, :mod:`.plant_modes`). And the row's value ``Q_i(p)``
     carries its own rounding ``N·eps·max_λ ||Q_i(λ)||`` and that of its realisation's data, ``N·eps·κ_i(p)``
     (:func:`_row_sensitivity`: the componentwise condition of ``Q_i(p) c_p``, large when the zero is a cancellation
     of terms larger than the gain). So the zero of a row is decidable only to
