@@ -489,11 +489,6 @@ KNOWN_BROKEN: dict[int, str] = {
     # gain; the judge reads the minimal realisation of R (postconditions._without_cancelled_modes: ≤ 0.11 of the
     # design's rounding δ_i = N·eps·(4||A||/sep·||Q_i(p)|| ||Ce|| + max||Q_i|| ||c_p||)), a residue above it stays
     # (ε = 1e-13: 11 δ_i, 1e-12: 113 δ_i), and each bank row from its own states (stacked, one row read 5.5e-8)
-    13: "nullspace_design (noise pencil, nonstd = 1) keeps z = 1 in R_fc with the residue 4.05e-13 of the unit "
-        "fault gain, 4.5 δ_i (8.9e-14): the judge now decides R's boundary modes by δ_i (the staircase passed it). "
-        "The stored filter's exact residue (rational arithmetic) is 1.509e-13 before scaling: inherited from the "
-        "factorised row (order 7, residue 7.8e-13 within its own bound 9e-11, κ = 2.7e4) through the noise "
-        "combination, which keeps it in a well-conditioned realisation (κ = 3.4) — a design fix, not the judge's",
 }
 
 
