@@ -21,7 +21,7 @@ LAYERS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
     ("generator", "the residual generator Q and its internal form R = Q Ge",
      ("generator",)),
     ("judge", "post-conditions on the normalised internal form",
-     ("design.toolkit.postconditions",)),
+     ("design.toolkit.postconditions", "design.toolkit.plant_modes")),
     ("toolkit", "design/toolkit/: minimal bases, pencils, stable factors, co-outer",
      ("design.toolkit",)),
     ("analysis", "structure, gains, gaps, leakage; robustness",

@@ -108,8 +108,14 @@ def _assert_R_analytic_at(gen, poles):
     would grow |R| by the ratio of the δs (100); an analytic R changes by |R'|·δ ≤ 1e-5·|R'|. 1.5
     separates the two with room for |R'| up to 1e4·|R| (a zero of R next to p).
     The rounding of an exact cancellation (a decoupled column, ~1e-12 of |Q||Ge| — which itself grows
-    like 1/δ) is allowed on top: 1e-10·|Q(λ)||Ge_f(λ)| at the inner point."""
+    like 1/δ) is allowed on top: 1e-10·max(|Q(λ)|, |Q|_peak)·|Ge_f(λ)| at the inner point — the row's peak gain on
+    the boundary (200 points), not only |Q(λ)|: the rounding of Q's values is that of its terms, and where the stable
+    factor M put several zeros next to p (tiny seed 45's bank row: three moved poles 1.35 … 1.42) |Q(λ)| is far
+    below them (a residue 1.4e-16 of the unit fault gain read as a pole)."""
     fc = _fault_cols(gen.model)
+    dt = gen.model.dt
+    sweep = np.exp(1j * np.linspace(0.0, np.pi, 200)) if dt else 1j * np.concatenate([[0.0], np.logspace(-3, 3, 199)])
+    qpeak = max(np.linalg.norm(_tf_value(_Q(gen), z), 2) for z in sweep)
     for p in poles:
         steps = [1.237e-5, 1.237e-7]
         vals = []
@@ -117,7 +123,7 @@ def _assert_R_analytic_at(gen, poles):
             lam = p * (1 - d) if gen.model.dt else p - d * max(1.0, abs(p))
             Qv, Gv = _tf_value(_Q(gen), lam), _tf_value(_Ge(gen.model), lam)[:, fc]
             vals.append(np.linalg.norm(Qv @ Gv, 2))
-        floor = 1e-10 * np.linalg.norm(Qv, 2) * np.linalg.norm(Gv, 2)
+        floor = 1e-10 * max(np.linalg.norm(Qv, 2), qpeak) * np.linalg.norm(Gv, 2)
         assert np.isfinite(vals).all()
         assert vals[1] <= 1.5 * vals[0] + floor, f"R has a pole at {p}: |R| {vals[0]:.3g} -> {vals[1]:.3g}"
 
@@ -487,3 +493,40 @@ def test_moved_mode_is_the_plants_own_pole():
     q1 = _tf_value((A, B, C, D), 1.0)
     peak = max(np.linalg.norm(_tf_value((A, B, C, D), np.exp(1j * w)), 2) for w in np.linspace(1e-3, np.pi, 2000))
     assert np.linalg.norm(q1 @ gv) <= 1e-12 * peak * np.linalg.norm(gv)
+
+
+def test_moved_mode_is_the_judges_mode():
+    """One plant-mode table (design/toolkit/plant_modes.py): the factoriser moves the plant mode the judge then
+    tests, to the last bit. Random seed 3's bank row [1 1 0 1 1] (discrete, n = 10, unstable z = e^0.1 in Gfc):
+    with the factoriser balancing only Ge's w and f columns and the judge all of Ge, M's zero sat at
+    1.1051709180756502 and the judge's p at …464; the row's slope turned the 3.8e-15 into a residue 3.3e-13 of
+    the unit fault gain, 2.3 times the judge's rounding bound δ_i, and the achievable row was refused as keeping an
+    unstable pole of R. Read here with numpy: the moved pole is the table's, and the returned row's zero at the
+    plant's own pole (numpy's eigenvalue of the model's A) leaves ``||Q(p) Ge v|| / (max_θ ||Q(e^{jθ})|| ||Ge v||)``
+    at rounding — N·eps·cond of the evaluation (N = 19): 1e-12 as in the test above (measured 3.8e-16; with the
+    two balancings 1.3e-14)."""
+    import sys
+    from pathlib import Path
+
+    from fmu_fdi.design.toolkit.plant_modes import boundary_mode_table
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_synthesis_random import random_case
+
+    model = random_case(3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        bank = structured_bank(model, [[1, 1, 0, 1, 1]])
+    member = bank.members[0]
+    moved = np.asarray(member.info["internal_form"]["moved_poles"])
+    table = boundary_mode_table(model)["poles"]
+    assert moved.size == 1 and np.min(np.abs(table - moved[0])) == 0.0  # the same floating-point number
+    assert bank.info["postconditions"]["R_poles"] == []
+    ev, V = np.linalg.eig(model.A)
+    j = int(np.argmax(np.abs(ev)))
+    assert abs(ev[j] - np.exp(0.1)) <= 1e-12
+    gv = _Ge(model)[2] @ V[:, j]
+    A, B, C, D = _Q(member)
+    q = _tf_value((A, B, C, D), ev[j])
+    peak = max(np.linalg.norm(_tf_value((A, B, C, D), np.exp(1j * w)), 2) for w in np.linspace(1e-3, np.pi, 2000))
+    assert np.linalg.norm(q @ gv) <= 1e-12 * peak * np.linalg.norm(gv)

@@ -1,0 +1,103 @@
+"""The plant's modes on or beyond the stability boundary: one table for the judge and the factoriser (issue 17).
+
+The judge (:mod:`.postconditions`: which plant modes a row cancels, to what rounding, and which are poles of R) and
+the stable factoriser (:mod:`.stable_factor`: which plant modes of the internal form ``[Q R]`` to move, and where
+M's zeros go) locate the same modes — the eigenvalues of the plant ``Ge = [Gu Gd Gw Gf; I 0 0 0]`` outside the
+margin — in the ordered Schur form of one realisation, the balanced one (SLICOT TB01ID on the whole ``Ge``,
+:func:`balanced_plant`). Both read them here, so a mode the factoriser moves is, to the last bit, the mode the
+judge then tests: two balancings (the factoriser's of the w and f columns only, the judge's of all of Ge) put
+random seed 3's unstable mode at 1.1051709180756502 and …464, and M's zero 3.8e-15 from the judge's p read as a
+residue of 3.8e-15 times the row's slope.
+
+- :func:`balanced_plant`: the realisation ``(A, B, Ce, De)``;
+- :func:`leading_schur`: its ordered Schur form with chosen eigenvalues first (complex, or real as
+  :func:`fmu_fdi.linalg.ordered_schur`);
+- :func:`boundary_mode_table`: per simple mode outside the default margin, what the judge tests it by.
+
+Reference: A. Varga, *Solving Fault Diagnosis Problems*, Springer 2017, sec. 5.1 (the stability of the internal
+form) and 7.6 (the left coprime factorisation moving the plant's poles); Golub & Van Loan, *Matrix
+Computations*, 4th ed., sec. 7.2 (eigenvalue and eigenvector perturbation).
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+from ...linalg import EPS, ordered_schur
+from ...lti import LTI
+from ...margin import default_smarg, outside_margin
+
+#: GVL's constant in the non-asymptotic eigenvector bound ``||δv|| ≤ 4 ||E|| / sep`` (valid for ``||E|| ≤ sep/5``;
+#: Golub & Van Loan, *Matrix Computations*, 4th ed., Thm. 7.2.4); :func:`.postconditions._without_cancelled_modes`
+EIGVEC_BOUND = 4.0
+
+
+def balanced_plant(model) -> LTI:
+    """``Ge = [Gu Gd Gw Gf; I 0 0 0]`` (:meth:`FDIModel.augmented`) balanced by a diagonal similarity (TB01ID): the
+    one realisation whose eigenvalues and Schur vectors the judge and the factoriser use."""
+    G = model.augmented()
+    return G.balanced()[0] if G.n and G.m and G.p else G
+
+
+def leading_schur(A: np.ndarray, select, real: bool = False) -> tuple[np.ndarray, np.ndarray, int]:
+    """``(T, U, k)``: Schur form ``A = U T Uᴴ`` with the k eigenvalues ``select(λ)`` accepts leading.
+
+    Complex (LAPACK ``gees`` with its sort) by default; ``real=True`` the real form of
+    :func:`fmu_fdi.linalg.ordered_schur` (membership decided once, pairs kept together), ``select`` then called with
+    the complex eigenvalue of the block."""
+    if real:
+        return ordered_schur(A, lambda re, im: bool(select(complex(re, im))))
+    return sla.schur(np.asarray(A).astype(complex), output="complex", sort=select)
+
+
+def boundary_mode_table(model) -> dict | None:
+    """The simple plant modes on or beyond the stability boundary whose cancellation the judge can decide, with
+    what :func:`.postconditions._without_cancelled_modes` tests them by (None when there are none).
+
+    Balanced ``Ge = (A, B, Ce, De)`` (:func:`balanced_plant`); for each simple eigenvalue p outside the default
+    margin with ``sep_p = σ_min(T22 − pI)`` of the ordered Schur form ``[p t; 0 T22]`` (:func:`leading_schur`):
+    ``dirs`` ``c_p = Ce v_p`` (unit right eigenvector), ``seps``, ``conds`` (``||[1 z]|| = 1/|y_pᴴ v_p|``, the
+    eigenvalue's condition), and per input column c of Ge whether the column *excites* p: with the unit left
+    eigenvector ``y_p`` (``[1 z]`` in Schur coordinates, ``p z − z T22 = t``), the coupling ``|y_pᴴ b_c|``
+    (``coupling``) against its rounding ``δ_c = n·eps·(4||A||/sep_p + 1)·||b_c||`` (``coupling_tol``) — the
+    perturbation theorem of the row test (:data:`EIGVEC_BOUND`) applied to the left eigenvector of ``A + E``,
+    ``||E|| ≤ n·eps·||A||``, plus the rounding of the product. A column at or below ``δ_c`` does not excite p as far
+    as the data can tell (``unexcited``; the u, d and w of the random set's fault-only modes: 1e-14 … 1e-13 of
+    ``||b_c||`` against ``δ_c`` ≈ 4e-12; random seeds 73 and 111 read a leak 7.9e-7 and a pole of R from that
+    rounding), and p is removed from that column of R. Where the bound is void (``n·eps·||A|| > sep_p/5``) the mode
+    is left alone. ``delta_c``: δ_c on the unnormalised left vector ``[1 z]``."""
+    if not model.n:
+        return None
+    bal = balanced_plant(model)
+    A, Bp, Ce, De = bal.A, bal.B, bal.C, bal.D
+    n = A.shape[0]
+    ev = np.linalg.eigvals(A)
+    cand = np.flatnonzero(outside_margin(ev, model.dt, default_smarg(model.dt)))
+    if not cand.size:
+        return None
+    nA, nC = float(np.linalg.norm(A, 2)), float(np.linalg.norm(Ce, 2))  # ||A||, not max(1, ·): scale-free
+    near = lambda x, y: bool(abs(x - y) <= 1e-8 * max(1.0, abs(y)))  # noqa: E731
+    nb = np.linalg.norm(Bp, axis=0)
+    poles, dirs, seps, unexcited, delta_c, couplings, coupling_tol, conds = [], [], [], [], [], [], [], []
+    for j in cand:
+        T, U, k = leading_schur(A, lambda x: near(x, ev[j]))
+        if k != 1:
+            continue  # repeated (a Jordan block, or a cluster within 1e-8): not decided here
+        # n = 1: the eigen-directions are exact (sep = ∞, the first terms of δ_i and δ_c vanish)
+        sep = float(np.linalg.svd(T[1:, 1:] - ev[j] * np.eye(n - 1), compute_uv=False)[-1]) if n > 1 else np.inf
+        if n * EPS * nA > sep / 5:
+            continue
+        z = np.linalg.solve((ev[j] * np.eye(n - 1) - T[1:, 1:]).T, T[0, 1:]) if n > 1 else np.zeros(0)
+        Bt = U.conj().T @ Bp
+        cond = float(np.sqrt(1.0 + float(np.linalg.norm(z)) ** 2))
+        coupling = np.abs(Bt[0] + z @ Bt[1:]) / cond
+        d_c = n * EPS * (EIGVEC_BOUND * nA / sep + 1.0) * nb
+        unexcited.append(coupling <= d_c)
+        couplings.append(coupling); coupling_tol.append(d_c); conds.append(cond)
+        delta_c.append(d_c * cond)  # on [1 z]: the coupling B̃1 of _without_cancelled_modes' pole part
+        poles.append(ev[j]); dirs.append(Ce @ U[:, 0]); seps.append(sep)  # U[:, 0]: the unit eigenvector v_p
+    if not poles:
+        return None
+    return {"A": A, "B": Bp, "Ce": Ce, "De": De, "nA": nA, "nC": nC, "poles": np.array(poles), "dirs": dirs,
+            "seps": seps, "unexcited": np.array(unexcited), "delta_c": np.array(delta_c), "coupled": nb > 0,
+            "coupling": np.array(couplings), "coupling_tol": np.array(coupling_tol), "conds": np.array(conds)}
