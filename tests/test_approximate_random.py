@@ -327,9 +327,7 @@ def _detection_reference(model):
     if st != "ok":
         return None
     Q = ref.Q
-    Ge = model.augmented()
-    sl = model.group_slices()
-    Rf = (Q @ Ge)[:, sl["f"]]
+    Rf = ref.Rf  # the internal form's fault block as a user reads it (unstable cancelled modes removed)
     lam = _points(model, [Q])
     cw = _cols(model)["w"]
     noise = _refined_peak(lambda L: _freqresp(Q.A, Q.B, Q.C, Q.D, L) @ _ge_values(model, L)[:, :, cw], lam, model.dt)
