@@ -49,8 +49,7 @@ FIG_RTOL = 5e-2
 # the grid refinement's 1e-6, with margin for the realisation's rounding).
 ERR_RTOL = 1e-3
 
-N_FAST = 6
-N_SLOW = 20
+N_SLOW = 8  # benchmarks/approximate_random_judged.py runs any number (the audit: 40 and more)
 
 
 # ------------------------------------------------------------------------------------------ models
@@ -389,10 +388,27 @@ def check_case(seed: int, max_rows: int = 3, calls=("afd", "afdi", "amm_ref", "a
     return out
 
 
-def _assert_case(seed: int, **kw):
-    res = check_case(seed, **kw)
+def _assert_case(seed: int, calls):
+    res = check_case(seed, calls=calls)
     broken = [f"{what}: {detail}" for what, st, detail in res if st == "broken"]
     assert not broken, f"seed {seed}:\n" + "\n".join(broken)
+
+
+CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
+#: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
+KNOWN_BROKEN: dict[tuple[int, str], str] = {
+    (1, "amm_ref"): "approximate_matching (noisec): Mr = the exact detection row's Rf (order 8, a pole at 0.999) — "
+                    "'H∞ synthesis failed even at γ = 362.448 > ||Mr||∞ ... Riccati equations ill-conditioned', "
+                    "where the row itself is admissible with error ‖Q_ref Gw‖∞ = 61.0",
+    (10, "amm_ref"): "approximate_matching (noisec): Mr = the exact detection row's Rf (order 11) — 'the returned "
+                     "filter's error response differs from the designed one by 5.92e+04 (relative 1.88e+03)', peak "
+                     "gain of Y 2.08e+06: the realisation of Y·Φ·Q0 loses the optimum of a solvable problem",
+}
+
+
+def _params(seeds, calls=CALLS):
+    return [pytest.param(s, c, marks=pytest.mark.xfail(strict=True, reason="issue 17: " + KNOWN_BROKEN[(s, c)]))
+            if (s, c) in KNOWN_BROKEN else pytest.param(s, c) for s in seeds for c in calls]
 
 
 # -------------------------------------------------------------------------------------------- tests
@@ -440,12 +456,18 @@ def test_judges_can_fail():
     assert any("matching error: reported" in x for x in judge_amm(good, model, Mr, None))
 
 
-@pytest.mark.parametrize("seed", range(N_FAST))
-def test_approximate_designs_meet_the_judge(seed):
-    _assert_case(seed, calls=("afd", "amm_ref", "amd"))
+#: the default run: three small models (continuous n = 5; static; discrete n = 7), the calls that cost < 3 s each
+FAST = [(0, "afd"), (0, "amm_ref"), (4, "amd"), (4, "afdi"), (7, "amm_eye"), (7, "amd")]
+
+
+@pytest.mark.parametrize("seed, call", FAST)
+def test_approximate_designs_meet_the_judge(seed, call):
+    _assert_case(seed, (call,))
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", range(N_FAST, N_FAST + N_SLOW))
-def test_approximate_designs_meet_the_judge_slow(seed):
-    _assert_case(seed)
+@pytest.mark.parametrize("seed, call", [p for p in _params(range(N_SLOW)) if tuple(p.values) not in FAST]
+                         + [p for p in _params(sorted({s for s, _ in KNOWN_BROKEN if s >= N_SLOW}))
+                            if tuple(p.values) in KNOWN_BROKEN])
+def test_approximate_designs_meet_the_judge_slow(seed, call):
+    _assert_case(seed, (call,))
