@@ -397,13 +397,22 @@ def _assert_case(seed: int, calls):
 CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
 #: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
 KNOWN_BROKEN: dict[tuple[int, str], str] = {
-    (1, "amm_ref"): "approximate_matching (noisec): Mr = the exact detection row's Rf (order 8, a pole at 0.999) — "
-                    "'H∞ synthesis failed even at γ = 362.448 > ||Mr||∞ ... Riccati equations ill-conditioned', "
-                    "where the row itself is admissible with error ‖Q_ref Gw‖∞ = 61.0",
-    (10, "amm_ref"): "approximate_matching (noisec): Mr = the exact detection row's Rf (order 11) — 'the returned "
-                     "filter's error response differs from the designed one by 5.92e+04 (relative 1.88e+03)', peak "
-                     "gain of Y 2.08e+06: the realisation of Y·Φ·Q0 loses the optimum of a solvable problem",
+    (1, "amm_ref"): "approximate_matching (noisec): Mr = the exact detection row's Rf (order 8, a pole at 0.999; the "
+                    "plant has a fault-only pair on |z| = 1) — 'H∞ synthesis failed even at γ = 362.448 > ||Mr||∞ ... "
+                    "Riccati equations ill-conditioned', where the row itself is admissible with error ‖Q_ref Gw‖∞ = 61.0",
+    (21, "amm_ref"): "approximate_matching (noisec): as seed 1 (fault-only z = 1): 'H∞ synthesis failed even at "
+                     "γ = 74.3207 > ||Mr||∞'; with Mr = I too ('γ = 1.01')",
 }
+#: approximate_model_matching (noisec) refuses "the returned filter's error response differs from the designed one"
+#: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compares the two on points that
+#: include ω = 0 (z = 1), where [Gf Gw] is ~1/δ and Q·Gf (which cancels the mode) is rounding/δ. With the points
+#: 1e-6 off the plant's poles (a monkeypatch of approximate_matching._points) seeds 10, 13, 16, 18 are designed
+#: with Mr = I and pass this judge (error 1.00008, 1.00008, 1.00001, 1.00008)
+_SHIPPED = {10: "5.92e+04 (relative 1.88e+03)", 13: "3e+03 (relative 12.6)", 16: "11.4 (relative 0.685)",
+            18: "3.57 (relative 0.099)", 20: "4.45 (relative 0.0566)"}
+KNOWN_BROKEN.update({(s_, "amm_ref"): "approximate_matching._shipped_filter (noisec) reads the error at the plant's "
+                     f"fault-only integrator / z = 1: 'error response differs from the designed one by {d}' on a "
+                     "solvable problem (the exact detection row is admissible)" for s_, d in _SHIPPED.items()})
 
 
 def _params(seeds, calls=CALLS):
@@ -463,6 +472,11 @@ FAST = [(0, "afd"), (0, "amm_ref"), (4, "amd"), (4, "afdi"), (7, "amm_eye"), (7,
         (13, "afd")]
 
 
+#: found broken by the audit and fixed, beyond the slow range: (seed, call) → what was wrong
+FIXED = {(20, "afd"): "n = 30, a resonance at 7.8 rad/s: the AFD gap was reported from a 200-point grid, 0.488 "
+                      "for the filter's 1.87 (nullspace._noise_combination now reports fault_noise_gap's)"}
+
+
 @pytest.mark.parametrize("seed, call", FAST)
 def test_approximate_designs_meet_the_judge(seed, call):
     _assert_case(seed, (call,))
@@ -470,7 +484,7 @@ def test_approximate_designs_meet_the_judge(seed, call):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed, call", [p for p in _params(range(N_SLOW)) if tuple(p.values) not in FAST]
-                         + [p for p in _params(sorted({s for s, _ in KNOWN_BROKEN if s >= N_SLOW}))
-                            if tuple(p.values) in KNOWN_BROKEN])
+                         + [p for p in _params(sorted({s for s, _ in KNOWN_BROKEN} | {s for s, _ in FIXED}))
+                            if tuple(p.values) in set(KNOWN_BROKEN) | set(FIXED) and p.values[0] >= N_SLOW])
 def test_approximate_designs_meet_the_judge_slow(seed, call):
     _assert_case(seed, (call,))
