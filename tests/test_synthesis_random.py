@@ -827,6 +827,22 @@ def test_seed22_row_keeps_its_fault_pair_cancelled():
     assert r[1] <= 1.5 * r[0], r
 
 
+def test_seed173_row_keeps_its_unstable_fault_mode_cancelled():
+    """Audit of seeds 160-319: seed 173 (discrete, n = 28, noise w; fault fc alone excites z = 1.105), row
+    [1 1 1 0 1] (fa2 decoupled), listed by achievable_structure, was refused: "R = Q·Ge keeps the plant pole(s)
+    [1.105]". The stable factor had cancelled it (Q(1.105)·c = 0), and the numerator refinement of the u/d leak
+    that follows moved that zero: its residue constraints held only modes on the boundary, and the refinement
+    reads no point of R_f. Designable iff achievable: the row is designed and the independent judge (PBH poles
+    of the series realisation of R) passes it."""
+    model = random_case(173)
+    row = [[1, 1, 1, 0, 1]]
+    assert row[0] in np.asarray(achievable_structure(model)).tolist()
+    ev = np.linalg.eigvals(model.A)
+    assert np.any(np.abs(ev - np.exp(0.1)) < 1e-9)
+    gen = structured_bank(model, row)
+    assert judge(gen, model, row, model.fault_names) == []
+
+
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason=(
     "issue 17, judge (postconditions._values → freqresp.transfer_values, Schur path for n ≥ 64): the order-72 "
