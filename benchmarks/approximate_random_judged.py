@@ -11,7 +11,8 @@ approximate_model_detection_bank on a three-model set (stable plants only). "bro
 design failing the judge, another exception than DesignError, an achievable AFD/AFDI request refused
 (or a detection-row reference whose matching is refused: Q_ref itself is admissible).
 
-Run: python benchmarks/approximate_random_judged.py [N] [first_seed] [-v]
+Run: python benchmarks/approximate_random_judged.py [N] [first_seed] [-v] [--timeout=SECONDS]
+(a call that gives no answer within the timeout counts as "timeout", none by default)
 (seeds first_seed … first_seed + N − 1; default 20 models from seed 0)
 """
 import re
@@ -22,6 +23,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+import test_approximate_random  # noqa: E402
 from test_approximate_random import check_case, noisy_case  # noqa: E402
 
 
@@ -57,7 +59,8 @@ def run(N: int = 20, first: int = 0, verbose: bool = False):
                 print(f"seed {seed:3d} {desc:40s} {what:34s} {status:8s} {detail[:220]}", flush=True)
     print("\ncounts per call (ok / refused / broken):")
     for key, c in totals.items():
-        print(f"  {key:34s} {c['ok']:4d} {c['refused']:4d} {c['broken']:4d}")
+        print(f"  {key:34s} {c['ok']:4d} {c['refused']:4d} {c['broken']:4d}" + (f"  ({c['timeout']} timed out)"
+                                                                              if c['timeout'] else ""))
     allc = sum(totals.values(), Counter())
     print(f"  {'total':34s} {allc['ok']:4d} {allc['refused']:4d} {allc['broken']:4d}")
     print("breakage kinds:", dict(kinds))
@@ -67,5 +70,8 @@ def run(N: int = 20, first: int = 0, verbose: bool = False):
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a != "-v"]
+    args = [a for a in sys.argv[1:] if a != "-v" and not a.startswith("--timeout=")]
+    for a in sys.argv[1:]:
+        if a.startswith("--timeout="):
+            test_approximate_random.CALL_TIMEOUT = int(a.split("=", 1)[1])
     run(int(args[0]) if args else 20, int(args[1]) if len(args) > 1 else 0, "-v" in sys.argv)

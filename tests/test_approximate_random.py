@@ -308,15 +308,37 @@ def judge_amd(bank, models) -> list[str]:
 
 
 # ------------------------------------------------------------------------------------------ driver
+#: seconds per design call (0: none); the benchmark sets it (SIGALRM, main thread) to time-box the audit
+CALL_TIMEOUT = 0
+
+
+class CallTimeout(Exception):
+    """A design call that ran longer than :data:`CALL_TIMEOUT`."""
+
+
+def _alarm(signum, frame):
+    raise CallTimeout(f"no answer within {CALL_TIMEOUT} s")
+
+
 def _call(fn):
+    import signal
+
+    if CALL_TIMEOUT:
+        signal.signal(signal.SIGALRM, _alarm)
+        signal.alarm(int(CALL_TIMEOUT))
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             return "ok", fn()
+    except CallTimeout as exc:
+        return "timeout", exc
     except DesignError as exc:
         return "refused", exc
     except Exception as exc:  # noqa: BLE001 - any other exception type is the failure under test
         return "crash", exc
+    finally:
+        if CALL_TIMEOUT:
+            signal.alarm(0)
 
 
 def _detection_reference(model):
@@ -347,7 +369,9 @@ def check_case(seed: int, max_rows: int = 3, calls=("afd", "afdi", "amm_ref", "a
         out.append(("achievable_structure", "broken", f"{type(listed).__name__}"))
 
     def record(what, status, res, judge, achievable):
-        if status == "crash":
+        if status == "timeout":
+            out.append((what, "timeout", str(res)))
+        elif status == "crash":
             out.append((what, "broken", f"{type(res).__name__} instead of DesignError: {str(res)[:200]}"))
         elif status == "refused":
             out.append((what, "broken" if achievable else "refused",
