@@ -384,7 +384,8 @@ def check_case(seed: int, max_rows: int = 3, calls=("afd", "afdi", "amm_ref", "a
     listed_set = {tuple(r) for r in listed}
     if "afd" in calls and names:
         st, res = _call(lambda: nullspace_design(model))
-        record("nullspace_design(AFD)", st, res, lambda g: judge_afd(g, model, ones, names), tuple(ones[0]) in listed_set)
+        record("nullspace_design(AFD)", st, res, lambda g: judge_afd(g, model, ones, names),
+               tuple(ones[0]) in listed_set)
     if "afdi" in calls and len(listed):
         rng = np.random.default_rng(seed)
         rows = listed if len(listed) <= max_rows else listed[np.sort(rng.choice(len(listed), max_rows, False))]
@@ -422,8 +423,9 @@ CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
 #: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
 KNOWN_BROKEN: dict[tuple[int, str], str] = {
     (1, "amm_ref"): "approximate_matching (noisec): Mr = the exact detection row's Rf (order 8, a pole at 0.999; the "
-                    "plant has a fault-only pair on |z| = 1) — 'H∞ synthesis failed even at γ = 362.448 > ||Mr||∞ ... "
-                    "Riccati equations ill-conditioned', where the row itself is admissible with error ‖Q_ref Gw‖∞ = 61.0",
+                    "plant has a fault-only pair on |z| = 1) — 'H∞ synthesis failed even at γ = 362.448 > ||Mr||∞ "
+                    "... Riccati equations ill-conditioned', where the row itself is admissible with error "
+                    "‖Q_ref Gw‖∞ = 61.0",
     (21, "amm_ref"): "approximate_matching (noisec): as seed 1 (fault-only z = 1): 'H∞ synthesis failed even at "
                      "γ = 74.3207 > ||Mr||∞'; with Mr = I too ('γ = 1.01')",
 }
@@ -434,6 +436,12 @@ KNOWN_BROKEN: dict[tuple[int, str], str] = {
 #: with Mr = I and pass this judge (error 1.00008, 1.00008, 1.00001, 1.00008)
 _SHIPPED = {10: "5.92e+04 (relative 1.88e+03)", 13: "3e+03 (relative 12.6)", 16: "11.4 (relative 0.685)",
             18: "3.57 (relative 0.099)", 20: "4.45 (relative 0.0566)", 23: "3.85e+08 (relative 3.81e+06)"}
+#: seeds 30 (continuous, unstable fault-only mode +1) and 31 (discrete, 1.105): the same refusal with a small
+#: mismatch (relative 5.18e-05, 9.66e-05 of the error), no marginal mode to read it at: cause not diagnosed
+KNOWN_BROKEN.update({(s_, "amm_ref"): "approximate_matching._shipped_filter (noisec): 'error response differs from "
+                     f"the designed one by {d}' beside an unstable (not marginal) fault-only mode; the exact detection "
+                     "row is admissible" for s_, d in {30: "0.000734 (relative 5.18e-05)",
+                                                       31: "0.0873 (relative 9.66e-05)"}.items()})
 KNOWN_BROKEN.update({(s_, "amm_ref"): "approximate_matching._shipped_filter (noisec) reads the error at the plant's "
                      f"fault-only integrator / z = 1: 'error response differs from the designed one by {d}' on a "
                      "solvable problem (the exact detection row is admissible)" for s_, d in _SHIPPED.items()})

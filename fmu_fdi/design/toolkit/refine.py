@@ -129,11 +129,12 @@ def boundary_residues(model, every_input: bool = False) -> list[tuple[complex, n
         return []
     W = np.linalg.inv(V)  # rows: left eigenvectors (W V = I)
     Bud = bal.B if every_input else bal.B[:, :model.nu + model.nd]
-    scale, scale_ud = max(float(np.linalg.norm(Bud, 2)), 1e-300), float(np.linalg.norm(bal.B[:, :model.nu + model.nd], 2))
+    B_ud = bal.B[:, :model.nu + model.nd]
+    scale, scale_ud = max(float(np.linalg.norm(Bud, 2)), 1e-300), float(np.linalg.norm(B_ud, 2))
     out = []
     for j in bad:
         wj = W[j]
-        if not on[j] and np.linalg.norm(wj @ bal.B[:, :model.nu + model.nd]) > 1e-8 * np.linalg.norm(wj) * scale_ud:
+        if not on[j] and np.linalg.norm(wj @ B_ud) > 1e-8 * np.linalg.norm(wj) * scale_ud:
             continue  # beyond the boundary and excited by u or d: the points beside it constrain it (see above)
         if np.sum(np.abs(ev - ev[j]) <= 1e-8 * max(1.0, abs(ev[j]))) > 1:
             if not on[j]:
