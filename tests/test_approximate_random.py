@@ -1,0 +1,522 @@
+"""Seeded audit of the approximate designs over ill-scaled random models with noise (issue 17, "Show").
+
+The models are those of :func:`test_synthesis_random.random_case` (continuous and discrete, n = 0–30,
+m > p, unknown inputs d, unstable/marginal fault-only modes, eight decades of state scaling) with a
+noise input w added where the model has none (:func:`noisy_case`). Every approximate design call —
+
+* ``nullspace_design`` (Procedure AFD: u, d decoupled, fault-to-noise gap maximised),
+* ``afdi_bank`` on the rows ``achievable_structure`` lists (Procedure AFDI),
+* ``approximate_model_matching`` with the reference ``Mr`` = the fault response of an exact detection
+  row, and ``Mr = I`` on the faults (isolation of every fault),
+* ``approximate_model_detection_bank`` on a set of three models (stable plants only: the function's
+  contract) —
+
+is judged by an independent numpy computation (``test_synthesis_random``'s frequency responses and PBH
+tests, nothing of fmu_fdi's analysis): ``R = Q·[Gu Gd Gw Gf; I 0 0 0]`` on a dense grid, each row (group)
+normalised so that its required fault gain is 1, ``‖R_u‖, ‖R_d‖ ≤ 1e-7`` (and ``‖R_w‖`` when the design
+says w is decoupled exactly), R stable (PBH), Q not numerically zero, and the figure the function reports
+(the gap, the matching error, the model-detection gap) equal to numpy's within a stated tolerance. A
+matching error must also be at most that of the two filters any user has at hand: Q = 0 (error ‖M·Mr‖∞)
+and, for the detection-row reference, the exact row itself (error ‖Q_ref·Gw‖∞, when M = I).
+
+``benchmarks/approximate_random_judged.py`` prints the counts ok / refused / broken over any seed range.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+from fmu_fdi.design import (afdi_bank, approximate_model_detection_bank, approximate_model_matching,
+                            nullspace_design)
+from fmu_fdi.design.problems.achievable import achievable_structure
+from fmu_fdi.errors import DesignError
+from test_synthesis_random import (DEC_TOL, ZERO_Q, _extended, _freqresp, _grid, _pbh_poles, _series,
+                                   random_case)
+
+# A reported figure (gap, error) agrees with numpy's when their ratio is within 1 ± FIG_RTOL. The
+# library's figures are peaks read on its own grid (200–400 points, refined around the top for the
+# matching error); numpy's below are refined peaks (dense grid, then 3 rounds of local 21-point
+# refinement: the relative error of a refined peak of a resonance of damping ζ ≥ 1e-3 is below 1e-6).
+# A 200-point log grid over the plant's band steps 4.7 % in ω; at a resonance of damping ζ the peak read
+# on such a grid can be low by (Δω/ω)²/(8ζ²) — a few percent for ζ ≳ 0.1, so FIG_RTOL = 5e-2 lets a
+# grid estimate pass and catches a figure of another filter or another norm (factors, not percent).
+FIG_RTOL = 5e-2
+# The H∞ matching error of approximate_model_matching is refined and its γ-iteration stops within
+# reltol = 1e-4: the error measured on the returned filter must agree to ERR_RTOL (reltol plus
+# the grid refinement's 1e-6, with margin for the realisation's rounding).
+ERR_RTOL = 1e-3
+
+N_SLOW = 8  # benchmarks/approximate_random_judged.py runs any number (the audit: 40 and more)
+
+
+# ------------------------------------------------------------------------------------------ models
+def noisy_case(seed: int):
+    """``random_case(seed)`` with one noise input where it has none: ``Bw`` in the stable invariant
+    subspace of A (ordered real Schur form of the balanced A), so w, like u and d, does not excite the
+    fault-only unstable/marginal modes; ``Dw`` nonzero in half of the cases (always for a static plant)."""
+    model = random_case(seed)
+    if model.nw:
+        return model
+    rng = np.random.default_rng(20_000 + seed)
+    n, p = model.n, model.ny
+    Dw = rng.standard_normal((p, 1)) * (n == 0 or rng.random() < 0.5)
+    if n:
+        A = model.A
+        _, (scale, _) = sla.matrix_balance(A, permute=False, separate=True)
+        Ab = (A * scale[None, :]) / scale[:, None]
+        if model.dt:
+            T, Z, k = sla.schur(Ab, output="real", sort=lambda re, im: re * re + im * im < (1 - 1e-6) ** 2)
+        else:
+            T, Z, k = sla.schur(Ab, output="real", sort=lambda re, im: re < -1e-6)
+        Bw = (Z[:, :k] @ rng.standard_normal((k, 1))) * scale[:, None]  # back to the unbalanced state
+        Bw *= np.linalg.norm(model.Bu) / max(np.linalg.norm(Bw), 1e-300) if model.nu else 1.0
+    else:
+        Bw = np.zeros((0, 1))
+    return model._replace(Bw=Bw, Dw=Dw, w_names=["w1"])
+
+
+# ------------------------------------------------------------------------------------------- numpy
+def _points(model, filters=()) -> np.ndarray:
+    """Evaluation points on the stability boundary covering every pole scale of the plant and the
+    filters (continuous: ω from min(1e-4, |p|min/100) to max(1e4, 100|p|max)), plus points at relative
+    distances 1e-6 … 1e-1 beside every pole on or next to the boundary (an H∞ peak of a row that cancels
+    a marginal fault mode while keeping a stable pole at 0.999 lies there), keeping ≥ 1e-7 relative away
+    from every pole (a cancelled boundary pole is 0·∞ at the pole itself; at distance δ the product's
+    rounding is ~eps·‖Q‖‖Ge‖/δ — 1e-9 of the gains at δ = 1e-7 for the models' gains ≤ 1e4)."""
+    poles = [np.linalg.eigvals(model.A)] if model.n else []
+    poles += [np.linalg.eigvals(F.A) for F in filters if F.A.shape[0]]
+    allp = np.concatenate(poles) if poles else np.zeros(0)
+    near = np.logspace(-6, -1, 60)
+    if model.dt:
+        th = [np.linspace(0.0, np.pi, 1500)]
+        for p_ in allp[np.abs(np.abs(allp) - 1) < 0.1]:
+            a = abs(np.angle(p_))
+            th += [a + near, a - near]
+        th = np.concatenate(th)
+        lam = np.exp(1j * np.unique(th[(th >= 0) & (th <= np.pi)]))
+    else:
+        mags = np.abs(allp[np.abs(allp) > 1e-9]) if allp.size else np.zeros(0)
+        lo = min(1e-4, mags.min() / 100) if mags.size else 1e-4
+        hi = max(1e4, mags.max() * 100) if mags.size else 1e4
+        om = [np.r_[0.0, np.logspace(np.log10(lo), np.log10(hi), 1500)]]
+        for p_ in allp[np.abs(allp.real) < 0.1 * np.maximum(1.0, np.abs(allp))]:
+            b = abs(p_.imag)
+            om += [b + near * max(1.0, b), b - near * max(1.0, b)]
+        om = np.concatenate(om)
+        lam = 1j * np.unique(om[om >= 0])
+    if allp.size:
+        dist = np.min(np.abs(lam[:, None] - allp[None, :]), axis=1)
+        lam = lam[dist > 1e-7 * np.maximum(1.0, np.abs(lam))]
+    return lam
+
+
+def _away(model, lam: np.ndarray) -> np.ndarray:
+    """Mask of the points ≥ 1e-3 (relative) away from the plant's poles, where the decoupling is read
+    (as test_synthesis_random's judge reads it: nearer, the rounding of a cancelled boundary mode of the
+    plant, eps·‖Q‖‖Ge‖/δ, is no longer below DEC_TOL)."""
+    if not model.n:
+        return np.ones(lam.shape, bool)
+    ev = np.linalg.eigvals(model.A)
+    return np.min(np.abs(lam[:, None] - ev[None, :]), axis=1) > 1e-3 * np.maximum(1.0, np.abs(lam))
+
+
+def _refined_peak(fun, lam: np.ndarray, dt: float) -> float:
+    """The largest 2-norm of ``fun(points)`` (shape (k, p, m)) over the boundary: grid maximum, then
+    three rounds of 21 points between the neighbours of the best point (refined H∞ norm)."""
+    vals = np.linalg.norm(fun(lam), 2, axis=(1, 2))
+    best = float(vals.max(initial=0.0))
+    if not vals.size:
+        return 0.0
+    x = np.angle(lam) if dt else lam.imag
+    for k in np.argsort(vals)[-3:]:
+        a, b = x[max(k - 1, 0)], x[min(k + 1, len(x) - 1)]
+        for _ in range(3):
+            xs = np.linspace(a, b, 21)
+            pts = np.exp(1j * xs) if dt else 1j * xs
+            v = np.linalg.norm(fun(pts), 2, axis=(1, 2))
+            j = int(np.argmax(v))
+            best = max(best, float(v[j]))
+            a, b = xs[max(j - 1, 0)], xs[min(j + 1, 20)]
+    return best
+
+
+def _ge_values(model, lam):
+    A, B, Ce, De = _extended(model)
+    return _freqresp(A, B, Ce, De, lam)
+
+
+def _cols(model):
+    nu, nd, nw = model.nu, model.nd, model.nw
+    f0 = nu + nd + nw
+    return {"u": slice(0, nu), "d": slice(nu, nu + nd), "w": slice(nu + nd, f0),
+            **{f.name: f0 + np.arange(model.nf)[f.columns] for f in model.faults}}
+
+
+def _peak(X) -> float:
+    return float(np.linalg.norm(X, 2, axis=(1, 2)).max()) if X.size else 0.0
+
+
+def _row_checks(Q, rows, model, lam, Rv, Qv, scale: float, w_decoupled: bool, tag: str) -> list[str]:
+    """Decoupling (normalised by ``scale``), Q nonzero and R stable for the rows ``rows`` of Q."""
+    out = []
+    cols = _cols(model)
+    keep = _away(model, lam)
+    Rv, Qv = Rv[keep], Qv[keep]
+    if _peak(Qv[:, rows, :]) < ZERO_Q:
+        return [f"{tag}: Q is numerically zero (peak {_peak(Qv[:, rows, :]):.2e})"]
+    for what in ("u", "d") + (("w",) if w_decoupled else ()):
+        leak = scale * _peak(Rv[:, rows, cols[what]])
+        if leak > DEC_TOL:
+            out.append(f"{tag}: ‖R_{what}‖ = {leak:.2e} on the normalised form (> {DEC_TOL:g})")
+    Qsub = type("Qsub", (), {"A": Q.A, "B": Q.B, "C": Q.C[rows], "D": Q.D[rows]})
+    AR, BR, CR, DR = _series(Qsub, model)
+    for p_ in _pbh_poles(AR, BR, CR, model.dt, DR):
+        out.append(f"{tag}: R = Q·Ge has the unstable/marginal pole {p_:.4g}")
+    return out
+
+
+def _agree(what: str, reported: float, numpy_fig: float, rtol: float) -> list[str]:
+    if np.isinf(reported) and np.isinf(numpy_fig):
+        return []
+    if not (np.isfinite(reported) and abs(reported - numpy_fig) <= rtol * max(abs(numpy_fig), 1e-300)):
+        return [f"{what}: reported {reported:.6g}, numpy {numpy_fig:.6g} (rtol {rtol:g})"]
+    return []
+
+
+# ------------------------------------------------------------------------------------------ judges
+def judge_afd(gen, model, S, names) -> list[str]:
+    """An AFD generator or AFDI bank: per group, decoupling of u, d (w when exact) normalised by the
+    smallest required fault peak, R stable, Q nonzero, required faults visible, and the reported gap
+    ``min_{S_ij=1} ‖Rf_ij‖∞ / ‖Rw_i‖∞`` (``info['gap_estimate']`` of a generator, ``info['gaps']`` of a
+    bank) equal to numpy's within FIG_RTOL."""
+    S = np.atleast_2d(np.asarray(S, int))
+    members = getattr(gen, "members", [gen])
+    Q = gen.Q
+    lam = _points(model, [Q])
+    Gv = _ge_values(model, lam)
+    Qv = _freqresp(Q.A, Q.B, Q.C, Q.D, lam)
+    Rv = Qv @ Gv
+    cols = _cols(model)
+    out = [f"Q has the unstable/marginal pole {p:.4g}" for p in _pbh_poles(Q.A, Q.B, Q.C, model.dt)]
+    reported = gen.info.get("gaps") if hasattr(gen, "members") else [gen.info.get("gap_estimate")]
+    for i, g in enumerate(gen.groups):
+        exact_w = members[i].info.get("noise") == "decoupled exactly"
+        req = [nm for nm, s in zip(names, S[i]) if s]
+        fpk = {nm: _refined_peak(lambda L, nm=nm: _freqresp(Q.A, Q.B, Q.C[g], Q.D[g], L)
+                                 @ _ge_values(model, L)[:, :, cols[nm]], lam, model.dt) for nm in req}
+        gmin = min(fpk.values()) if fpk else 0.0
+        if gmin <= 0:
+            out.append(f"group {i}: a required fault is invisible ({fpk})")
+            continue
+        out += _row_checks(Q, g, model, lam, Rv, Qv, 1.0 / gmin, exact_w, f"group {i}")
+        excl = [nm for nm, s in zip(names, S[i]) if not s]
+        for nm in excl:
+            leak = _peak(Rv[_away(model, lam)][:, g][:, :, cols[nm]]) / gmin
+            if leak > DEC_TOL:
+                out.append(f"group {i}: ‖R_{nm}‖ = {leak:.2e} excluded fault (> {DEC_TOL:g})")
+        wpk = _refined_peak(lambda L: _freqresp(Q.A, Q.B, Q.C[g], Q.D[g], L) @ _ge_values(model, L)[:, :, cols["w"]],
+                            lam, model.dt)
+        gap = np.inf if wpk <= DEC_TOL * gmin else gmin / wpk
+        if exact_w and np.isfinite(gap):
+            out.append(f"group {i}: 'decoupled exactly' but ‖R_w‖/fault = {wpk / gmin:.2e}")
+        rep = reported[i] if reported is not None and i < len(reported) else None
+        if rep is None:
+            out.append(f"group {i}: no gap reported")
+        else:
+            out += _agree(f"group {i}: gap", float(rep), gap, FIG_RTOL)
+    return out
+
+
+def judge_amm(gen, model, Mr, ref_noise: float | None) -> list[str]:
+    """An approximate model-matching filter: u, d decoupled relative to ‖M·Mr‖∞, R and Q stable, Q
+    nonzero, the reported error ‖Q [Gf Gw; 0 0] − M [Mr 0]‖∞ equal to numpy's within ERR_RTOL, and no
+    worse than Q = 0 (‖M Mr‖∞) nor, when ``ref_noise`` is given and M = I, than the reference row itself."""
+    Q, M = gen.Q, gen.info["M"]
+    lam = _points(model, [Q, M, Mr])
+    Gv = _ge_values(model, lam)
+    Qv = _freqresp(Q.A, Q.B, Q.C, Q.D, lam)
+    Rv = Qv @ Gv
+    cols = _cols(model)
+    fcol = np.r_[[c for f in model.faults for c in cols[f.name]]].astype(int)
+
+    def target(L):
+        MMr = _freqresp(M.A, M.B, M.C, M.D, L) @ _freqresp(Mr.A, Mr.B, Mr.C, Mr.D, L)
+        return np.concatenate([MMr, np.zeros(MMr.shape[:2] + (model.nw,))], axis=2)
+
+    def error(L):
+        R = _freqresp(Q.A, Q.B, Q.C, Q.D, L) @ _ge_values(model, L)
+        return np.concatenate([R[:, :, fcol], R[:, :, cols["w"]]], axis=2) - target(L)
+
+    top = _refined_peak(target, lam, model.dt)
+    out = [f"Q has the unstable/marginal pole {p:.4g}" for p in _pbh_poles(Q.A, Q.B, Q.C, model.dt)]
+    if top <= 0:
+        return out + ["‖M·Mr‖ = 0"]
+    out += _row_checks(Q, list(range(Q.C.shape[0])), model, lam, Rv, Qv, 1.0 / top, False, "filter")
+    err = _refined_peak(error, lam, model.dt)
+    out += _agree("matching error", float(gen.info["error"]), err, ERR_RTOL)
+    if err > top * (1 + ERR_RTOL):
+        out.append(f"matching error {err:.6g} above that of Q = 0 ({top:.6g})")
+    M_is_I = M.A.shape[0] == 0 and np.allclose(M.D, np.eye(M.D.shape[0]))
+    if ref_noise is not None and M_is_I and err > ref_noise * (1 + ERR_RTOL) + 1e-9 * top:
+        out.append(f"matching error {err:.6g} above the reference row's own ‖Q_ref Gw‖∞ = {ref_noise:.6g}")
+    return out
+
+
+def model_set(model):
+    """Three models for approximate model detection: the plant without faults and with its first
+    known-input column moved by 30 % and 60 % of a random direction (same A, C, d, w)."""
+    rng = np.random.default_rng(30_000 + model.n)
+    base = model._replace(faults=[])
+    dB = rng.standard_normal(model.Bu.shape) * np.linalg.norm(model.Bu) / max(1.0, np.sqrt(model.Bu.size))
+    dD = rng.standard_normal(model.Du.shape) * (np.linalg.norm(model.Du) if np.any(model.Du) else 0.0)
+    return [base._replace(Bu=model.Bu + k * 0.3 * dB, Du=model.Du + k * 0.3 * dD, name=f"m{k}") for k in range(3)]
+
+
+def judge_amd(bank, models) -> list[str]:
+    """Filter i: exact for u and d of model i relative to β_i = min_{j≠i} ‖Q_i [Gu_j; I]‖∞ (which the
+    function scales to 1), R stable, Q nonzero, and the reported ``MDperf`` row and ``MDgap`` = β/γ
+    (γ = ‖Q_i [Gw_i; 0]‖∞) equal to numpy's within FIG_RTOL."""
+    out = []
+    for i, (member, mi) in enumerate(zip(bank.members, models)):
+        Q = member.Q
+        lam = _points(mi, [Q])
+        dist = []
+        for mj in models:
+            def Ruj(L, mj=mj):
+                Ge = _ge_values(mj, L)
+                return _freqresp(Q.A, Q.B, Q.C, Q.D, L) @ Ge[:, :, :mj.nu]
+            dist.append(_refined_peak(Ruj, lam, mi.dt))
+        beta = min(d for j, d in enumerate(dist) if j != i)
+        if not beta > 0:
+            out.append(f"filter {i}: β = 0")
+            continue
+        Gv = _ge_values(mi, lam)
+        Qv = _freqresp(Q.A, Q.B, Q.C, Q.D, lam)
+        exact_w = member.info.get("noise") in ("decoupled exactly", "no noise inputs")
+        out += _row_checks(Q, list(range(Q.C.shape[0])), mi, lam, Qv @ Gv, Qv, 1.0 / beta, exact_w and mi.nw,
+                           f"filter {i}")
+        for j, d in enumerate(dist):
+            out += _agree(f"filter {i}: MDperf[{j}]", float(bank.info["MDperf"][i][j]), d, FIG_RTOL) if j != i else []
+        cw = _cols(mi)["w"]
+        gam = _refined_peak(lambda L: _freqresp(Q.A, Q.B, Q.C, Q.D, L) @ _ge_values(mi, L)[:, :, cw], lam, mi.dt)
+        gap = np.inf if gam <= DEC_TOL * beta else beta / gam
+        out += _agree(f"filter {i}: MDgap", float(bank.info["MDgap"][i]), gap, FIG_RTOL)
+    return out
+
+
+# ------------------------------------------------------------------------------------------ driver
+#: seconds per design call (0: none); the benchmark sets it (SIGALRM, main thread) to time-box the audit
+CALL_TIMEOUT = 0
+
+
+class CallTimeout(Exception):
+    """A design call that ran longer than :data:`CALL_TIMEOUT`."""
+
+
+def _alarm(signum, frame):
+    raise CallTimeout(f"no answer within {CALL_TIMEOUT} s")
+
+
+def _call(fn):
+    import signal
+
+    if CALL_TIMEOUT:
+        signal.signal(signal.SIGALRM, _alarm)
+        signal.alarm(int(CALL_TIMEOUT))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return "ok", fn()
+    except CallTimeout as exc:
+        return "timeout", exc
+    except DesignError as exc:
+        return "refused", exc
+    except Exception as exc:  # noqa: BLE001 - any other exception type is the failure under test
+        return "crash", exc
+    finally:
+        if CALL_TIMEOUT:
+            signal.alarm(0)
+
+
+def _detection_reference(model):
+    """An exact detection row (noise ignored) and its fault response as an LTI (the reference Mr), and
+    ‖Q_ref·Gw‖∞ read by numpy — or None when no such row exists."""
+    st, ref = _call(lambda: nullspace_design(model, noise="ignore"))
+    if st != "ok":
+        return None
+    Q = ref.Q
+    Rf = ref.Rf  # the internal form's fault block as a user reads it (unstable cancelled modes removed)
+    lam = _points(model, [Q])
+    cw = _cols(model)["w"]
+    noise = _refined_peak(lambda L: _freqresp(Q.A, Q.B, Q.C, Q.D, L) @ _ge_values(model, L)[:, :, cw], lam, model.dt)
+    return Rf, noise
+
+
+def check_case(seed: int, max_rows: int = 3, calls=("afd", "afdi", "amm_ref", "amm_eye", "amd")):
+    """Every approximate design call on ``noisy_case(seed)``: (call, 'ok'|'refused'|'broken', detail).
+    'broken': a returned design that fails its judge, another exception than DesignError; a refusal of
+    AFD/AFDI where ``achievable_structure`` lists the row is broken too (w is noise, never decoupled
+    required, so exact achievability of (u, d) decoupling with the row's faults suffices)."""
+    out = []
+    model = noisy_case(seed)
+    names = model.fault_names
+    st, listed = _call(lambda: achievable_structure(model))
+    listed = np.asarray(listed, int).reshape(-1, len(names)) if st == "ok" else np.zeros((0, len(names)), int)
+    if st == "crash":
+        out.append(("achievable_structure", "broken", f"{type(listed).__name__}"))
+
+    def record(what, status, res, judge, achievable):
+        if status == "timeout":
+            out.append((what, "timeout", str(res)))
+        elif status == "crash":
+            out.append((what, "broken", f"{type(res).__name__} instead of DesignError: {str(res)[:200]}"))
+        elif status == "refused":
+            out.append((what, "broken" if achievable else "refused",
+                        ("achievable request refused: " if achievable else "") + str(res)[:300]))
+        else:
+            bad = judge(res)
+            out.append((what, "broken" if bad else "ok", "; ".join(bad[:4])))
+
+    ones = np.ones((1, len(names)), int)
+    listed_set = {tuple(r) for r in listed}
+    if "afd" in calls and names:
+        st, res = _call(lambda: nullspace_design(model))
+        record("nullspace_design(AFD)", st, res, lambda g: judge_afd(g, model, ones, names),
+               tuple(ones[0]) in listed_set)
+    if "afdi" in calls and len(listed):
+        rng = np.random.default_rng(seed)
+        rows = listed if len(listed) <= max_rows else listed[np.sort(rng.choice(len(listed), max_rows, False))]
+        st, res = _call(lambda: afdi_bank(model, rows))
+        record("afdi_bank", st, res, lambda g: judge_afd(g, model, rows, names), True)
+    if "amm_ref" in calls and names:
+        ref = _detection_reference(model)
+        if ref is not None:
+            Mr, noise = ref
+            st, res = _call(lambda: approximate_model_matching(model, Mr))
+            record("amm(Mr=detection row)", st, res, lambda g: judge_amm(g, model, Mr, noise), True)
+    if "amm_eye" in calls and names:
+        from fmu_fdi.lti import LTI
+
+        Mr = LTI.static(np.eye(model.nf), model.dt)
+        st, res = _call(lambda: approximate_model_matching(model, Mr))
+        record("amm(Mr=I)", st, res, lambda g: judge_amm(g, model, Mr, None), False)
+    if "amd" in calls and model.nu:
+        ev = np.linalg.eigvals(model.A) if model.n else np.zeros(0)
+        stable = np.all(np.abs(ev) < 1 - 1e-6) if model.dt else np.all(ev.real < -1e-6)
+        if stable:
+            models = model_set(model)
+            st, res = _call(lambda: approximate_model_detection_bank(models))
+            record("approximate_model_detection_bank", st, res, lambda b: judge_amd(b, models), False)
+    return out
+
+
+def _assert_case(seed: int, calls):
+    res = check_case(seed, calls=calls)
+    broken = [f"{what}: {detail}" for what, st, detail in res if st == "broken"]
+    assert not broken, f"seed {seed}:\n" + "\n".join(broken)
+
+
+CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
+#: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
+KNOWN_BROKEN: dict[tuple[int, str], str] = {
+    (1, "amm_ref"): "approximate_matching (noisec): Mr = the exact detection row's Rf (order 8, a pole at 0.999; the "
+                    "plant has a fault-only pair on |z| = 1) — 'H∞ synthesis failed even at γ = 362.448 > ||Mr||∞ "
+                    "... Riccati equations ill-conditioned', where the row itself is admissible with error "
+                    "‖Q_ref Gw‖∞ = 61.0",
+    (21, "amm_ref"): "approximate_matching (noisec): as seed 1 (fault-only z = 1): 'H∞ synthesis failed even at "
+                     "γ = 74.3207 > ||Mr||∞'; with Mr = I too ('γ = 1.01')",
+}
+#: approximate_model_matching (noisec) refuses "the returned filter's error response differs from the designed one"
+#: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compares the two on points that
+#: include ω = 0 (z = 1), where [Gf Gw] is ~1/δ and Q·Gf (which cancels the mode) is rounding/δ. With the points
+#: 1e-6 off the plant's poles (a monkeypatch of approximate_matching._points) seeds 10, 13, 16, 18 are designed
+#: with Mr = I and pass this judge (error 1.00008, 1.00008, 1.00001, 1.00008)
+_SHIPPED = {10: "5.92e+04 (relative 1.88e+03)", 13: "3e+03 (relative 12.6)", 16: "11.4 (relative 0.685)",
+            18: "3.57 (relative 0.099)", 20: "4.45 (relative 0.0566)", 23: "3.85e+08 (relative 3.81e+06)"}
+#: seeds 30 (continuous, unstable fault-only mode +1) and 31 (discrete, 1.105): the same refusal with a small
+#: mismatch (relative 5.18e-05, 9.66e-05 of the error), no marginal mode to read it at: cause not diagnosed
+KNOWN_BROKEN.update({(s_, "amm_ref"): "approximate_matching._shipped_filter (noisec): 'error response differs from "
+                     f"the designed one by {d}' beside an unstable (not marginal) fault-only mode; the exact detection "
+                     "row is admissible" for s_, d in {30: "0.000734 (relative 5.18e-05)",
+                                                       31: "0.0873 (relative 9.66e-05)"}.items()})
+KNOWN_BROKEN.update({(s_, "amm_ref"): "approximate_matching._shipped_filter (noisec) reads the error at the plant's "
+                     f"fault-only integrator / z = 1: 'error response differs from the designed one by {d}' on a "
+                     "solvable problem (the exact detection row is admissible)" for s_, d in _SHIPPED.items()})
+
+
+def _params(seeds, calls=CALLS):
+    return [pytest.param(s, c, marks=pytest.mark.xfail(strict=True, reason="issue 17: " + KNOWN_BROKEN[(s, c)]))
+            if (s, c) in KNOWN_BROKEN else pytest.param(s, c) for s in seeds for c in calls]
+
+
+# -------------------------------------------------------------------------------------------- tests
+def test_noisy_models_have_noise_that_spares_the_fault_only_modes():
+    """Every model has a noise input; w (like u and d) does not excite the unstable/marginal
+    fault-only modes: PBH controllability of those modes from w is at rounding level."""
+    for seed in range(12):
+        m = noisy_case(seed)
+        assert m.nw >= 1
+        if not m.n:
+            continue
+        for lam in np.linalg.eigvals(m.A):
+            if (abs(lam) >= 1 - 1e-6) if m.dt else lam.real >= -1e-6:
+                M = np.hstack([lam * np.eye(m.n) - m.A, m.Bw / np.linalg.norm(m.Bw)])
+                # the balanced data of the PBH test of test_synthesis_random: a rounding-level singular value
+                assert _pbh_poles(m.A, m.Bw, np.eye(m.n), m.dt).size == 0 or np.linalg.svd(
+                    M, compute_uv=False)[-1] < 1e-6 * max(1.0, np.linalg.norm(m.A))
+
+
+def test_judges_can_fail():
+    """The judges refuse a wrong gap, a wrong error, a filter worse than Q = 0 and a leaking filter."""
+    from fmu_fdi import FDIModel, sensor_fault
+    from fmu_fdi.lti import LTI
+
+    # y = u/(s+1) + w/(s+2) + f: the exact row r = y − u/(s+1) has Rf = 1, Rw = 1/(s+2): gap 2
+    model = FDIModel.from_matrices(np.diag([-1.0, -2.0]), [[1.0], [0.0]], [[1.0, 1.0]], Bw=[[0.0], [1.0]],
+                                   faults=[sensor_fault("f", "y1")], y_names=["y1"], u_names=["u1"])
+    Q = LTI(np.array([[-1.0]]), np.array([[0.0, -1.0]]), np.array([[1.0]]), np.array([[1.0, 0.0]]))
+
+    g = type("G", (), {"Q": Q, "groups": [[0]], "info": {"gap_estimate": 2.0, "noise": "co-outer"}})()
+    assert judge_afd(g, model, [[1]], ["f"]) == []
+    g.info["gap_estimate"] = 2.3
+    assert any("gap" in x for x in judge_afd(g, model, [[1]], ["f"]))
+    leaky = type("G", (), {"Q": LTI.static(np.array([[1.0, 0.0]])), "groups": [[0]],
+                           "info": {"gap_estimate": 2.0}})()
+    assert any("R_u" in x for x in judge_afd(leaky, model, [[1]], ["f"]))
+    # matching Mr = 1: Q as above has error ‖[0  1/(s+2)]‖ = 0.5; Q = 2·(row) has error ‖[1 2/(s+2)]‖ = √2
+    Mr = LTI.static(np.eye(1))
+    good = type("G", (), {"Q": Q, "info": {"M": LTI.static(np.eye(1)), "error": 0.5}})()
+    assert judge_amm(good, model, Mr, 0.5) == []
+    bad = type("G", (), {"Q": 2.0 * Q, "info": {"M": LTI.static(np.eye(1)), "error": np.sqrt(2.0)}})()
+    msgs = judge_amm(bad, model, Mr, 0.5)
+    assert any("Q = 0" in x for x in msgs) and any("reference row" in x for x in msgs)
+    good.info["error"] = 0.6
+    assert any("matching error: reported" in x for x in judge_amm(good, model, Mr, None))
+
+
+#: the default run: three small models (continuous n = 5; static; discrete n = 7), the calls that cost < 3 s each
+FAST = [(0, "afd"), (0, "amm_ref"), (4, "amd"), (4, "afdi"), (7, "amm_eye"), (7, "amd"),
+        # the AFD gap estimate read R_fc at z = 1, the fault-only mode's pole (rounding/δ: 1.2e5 for its peak 1.0),
+        # and reported 1.28 for the true gap 0.373 (fixed: nullspace._noise_combination keeps 1e-6 off plant poles)
+        (13, "afd")]
+
+
+#: found broken by the audit and fixed, beyond the slow range: (seed, call) → what was wrong
+FIXED = {(20, "afd"): "n = 30, a resonance at 7.8 rad/s: the AFD gap was reported from a 200-point grid, 0.488 "
+                      "for the filter's 1.87 (nullspace._noise_combination now reports fault_noise_gap's)"}
+
+
+@pytest.mark.parametrize("seed, call", FAST)
+def test_approximate_designs_meet_the_judge(seed, call):
+    _assert_case(seed, (call,))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed, call", [p for p in _params(range(N_SLOW)) if tuple(p.values) not in FAST]
+                         + [p for p in _params(sorted({s for s, _ in KNOWN_BROKEN} | {s for s, _ in FIXED}))
+                            if tuple(p.values) in set(KNOWN_BROKEN) | set(FIXED) and p.values[0] >= N_SLOW])
+def test_approximate_designs_meet_the_judge_slow(seed, call):
+    _assert_case(seed, (call,))
