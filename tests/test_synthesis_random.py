@@ -844,18 +844,15 @@ def test_seed173_row_keeps_its_unstable_fault_mode_cancelled():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 17, judge (postconditions._values → freqresp.transfer_values, Schur path for n ≥ 64): the order-72 "
-    "row's Q is read 1.6e-8 off near z = 1 (a pole pair of eigenvector condition 1.9e7 at 0.9943) and the u "
-    "leak 1.47e-7 > dec_tol, where a dense LU solve (numpy) reads 1.6e-9 and an 80-bit solve 3.0e-10"))
 def test_seed163_listed_row_is_designed():
     """Audit of seeds 160-319 (benchmarks/synthesis_random_judged.py): seed 163 (discrete, n = 24, p = 3, m = 5,
-    noise w) row [1 1 0 0] (fa1, fa2 decoupled), listed by achievable_structure, is refused: "u+d leak 1.47e-07 ×
+    noise w) row [1 1 0 0] (fa1, fa2 decoupled), listed by achievable_structure, was refused (at 1a76c91): "u+d leak 1.47e-07 ×
     the weakest fault gain". The design (co-outer normalised, order 72) is clean: numpy reads ‖R_u‖ = 1.5e-9 of the
     fault gain (1.6e-9 at the library's worst point, 3.0e-10 by an 80-bit LU solve there). The library judge reads
     Q by the Schur form of its balanced A, whose backward error, through an eigenvalue pair of condition 1.9e7
     next to the point, puts 1.6e-8 (5e-10 relative) into Q(z) — times ‖Ge‖ = 432 a false leak. Designable iff
-    achievable: the row must be designed and pass the independent judge."""
+    achievable: the row must be designed and pass the independent judge. (Since integ4 the row's filter has order
+    46 and is read by dense solves; the order-72 reading is the freqresp.py test of the Hessenberg path.)"""
     model = random_case(163)
     row = [[1, 1, 0, 0]]
     assert row[0] in np.asarray(achievable_structure(model)).tolist()
