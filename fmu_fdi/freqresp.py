@@ -16,7 +16,9 @@ spread over every entry, which at a point beside an eigenvalue pair with ill-con
 is read back amplified by ``‖C R(λ)‖‖R(λ) B‖``; the Hessenberg reduction is finite (exact for a
 realisation already in Hessenberg form, as the designs' staircase forms are), and Gaussian elimination
 with partial pivoting then has the componentwise backward error of a dense LU solve. Random seed 163's
-order-72 filter read 1.8e-8 off in Q(z) by the Schur form, 1.8e-10 by dense LU and by this path.
+order-72 filter (already Hessenberg, entries over 16 decades) read Q(z) 1.8e-8 off by the Schur
+form, 8.9e-11 by this path and 1.8e-10 by a dense LU solve (against an 80-bit solve). Both forms are
+normwise backward stable; the gain is in the constant, on realisations already (nearly) Hessenberg.
 
 The design and its judge evaluate the same plant on several grids, stage after stage (the
 post-conditions' internal form ``R = Q·Ge`` before and after the normalisation, the report);

@@ -135,7 +135,9 @@ def test_ill_conditioned_eigenvectors_agree_with_dense_solves():
     iterations' normwise rounding (some eps·‖A‖ on every entry) into the values. The Hessenberg reduction of a
     Hessenberg matrix is exact (Z = I), so the values are those of Gaussian elimination on λI - A itself: they
     and numpy's dense solves each lie within the componentwise bound of the exact values, hence within twice it
-    of each other, entry by entry."""
+    of each other, entry by entry. (The former Schur path met this rigorous bound too — it was backward stable,
+    using 0.3 % of the bound here and 14 % on seed 163's filter, against 0.03 % for this path: its over-read was
+    a constant, which no derived bound separates; the exact reduction asserted below is what removes it.)"""
     rng = np.random.default_rng(17)
     n = 72
     spectrum = np.concatenate([[0.9943, 0.9940], rng.uniform(-0.9, 0.9, n - 2)])
