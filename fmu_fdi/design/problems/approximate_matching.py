@@ -1170,13 +1170,46 @@ def _check_boundary_zeros(Gh: LTI) -> None:
 
 
 # ------------------------------------------------------------------ evaluation
+#: relative distance (to ``max(|p|, ω_lo)``, ω_lo the grid's lowest positive frequency; to 1 in discrete time)
+#: under which a grid point counts as on a system's pole and is moved beside it (:func:`_points`)
+BESIDE_POLE = 1e-6
+
+
 def _points(systems, dt: float, num: int = 400) -> np.ndarray:
-    """Points λ of a frequency grid over every system's poles (and ω → ∞ in continuous time)."""
+    """Points λ of a frequency grid over every system's poles (and ω → ∞ in continuous time), none on a
+    pole of the systems: a point within ``BESIDE_POLE`` (relative) of one is moved ``2·BESIDE_POLE`` aside
+    along the boundary.
+
+    Every function read on these points (the error ``Q [Gf Gw] − M [Mr 0]``, ``Y Ĝ − F``) is stable, hence
+    analytic on the boundary, but its factors are not: at a plant pole on the boundary (a fault-only
+    integrator, z = 1), computed a rounding δ off, ``[Gf Gw]`` is ~ρ/δ and the product that cancels the pole
+    is rounding/δ (approximate audit seeds 10–23: 3.6 … 3.9e8 for errors ~1). At the distance ``2·BESIDE_POLE``
+    relative the rounding is amplified by eps/δ ≈ 1e-10 only, while the moved value differs from the one at
+    the pole by ~1e-6 of the function's variation on its pole scale (below the grid's own resolution)."""
     omega = frequency_grid(systems, num=num)
     omega = omega[np.isfinite(omega)]
     if not dt:
         omega = np.append(omega, 1e4 * max(omega.max(), 1.0))
-    return np.exp(1j * omega * dt) if dt else 1j * omega
+    lam = np.exp(1j * omega * dt) if dt else 1j * omega
+    poles = np.concatenate([np.ravel(np.asarray(s.poles(), complex)) for s in systems] + [np.zeros(0)])
+    if poles.size:
+        mags = np.abs(poles)
+        # the scale of a pole at 0 (an integrator computed ~eps‖A‖ off, a double one ~√eps off): the smallest
+        # pole magnitude above √eps of the largest (1 if none)
+        real = mags[mags > np.sqrt(EPS) * np.max(mags)]
+        lo = 1.0 if dt or not real.size else float(np.min(real))
+        tol = BESIDE_POLE * np.maximum(mags, lo)  # per pole: in λ (discrete: |λ| = 1, so in θ too)
+        ratio = np.abs(lam[:, None] - poles[None, :]) / tol[None, :]
+        near = np.argmin(ratio, axis=1)
+        on = ratio[np.arange(lam.size), near] <= 1.0
+        if np.any(on):
+            step = 2.0 * tol[near[on]]  # ω (continuous) or θ = ω dt (discrete, |p| ≈ 1 on the circle)
+            theta = omega * dt if dt else omega.copy()
+            top = np.pi if dt else np.inf
+            # toward the interior: down at Nyquist (z = −1), up elsewhere
+            theta[on] = np.where(theta[on] + step < top, theta[on] + step, theta[on] - step)
+            lam = np.unique(np.exp(1j * theta) if dt else 1j * theta)
+    return lam
 
 
 def _mk(lam: np.ndarray, a: float, K: int, dt: float) -> np.ndarray:
