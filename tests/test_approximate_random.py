@@ -436,7 +436,8 @@ KNOWN_BROKEN: dict[tuple[int, str], str] = {
 #: systems' poles (BESIDE_POLE); seeds 16 and 18 are designed and pass this judge (FIXED). What remains on the
 #: others is not the point (below), or the R-stability post-condition (seed 13)
 _SHIPPED = {10: "6.28e-05 (relative 1.99e-06; peak gain of Y 2.08e+06)",
-            20: "4.45 (relative 0.0566; peak gain of Y 1.94e+09)", 23: "0.367 (relative 0.00364; peak gain of Y 3.21e+06)"}
+            20: "4.45 (relative 0.0566; peak gain of Y 1.94e+09)",
+            23: "0.367 (relative 0.00364; peak gain of Y 3.21e+06)"}
 #: seeds 30 (continuous, unstable fault-only mode +1) and 31 (discrete, 1.105), and 20, 23: the same refusal, no point
 #: near a pole (the mode is 1 off the boundary): a real discrepancy, caught rightly. G1 itself is accurate (its values
 #: agree with Q0(λ)·[Gf Gw](λ) to ~1e-8 relative), but the interactor's Ĝ is not Φ G1: approximate_matching.interactor
@@ -449,18 +450,21 @@ _SHIPPED = {10: "6.28e-05 (relative 1.99e-06; peak gain of Y 2.08e+06)",
 #: is the realisation of Q with a peak gain of Y of 2e6
 KNOWN_BROKEN.update({(s_, "amm_ref"): "approximate_matching._shipped_filter (noisec): 'error response differs from "
                      f"the designed one by {d}' beside an unstable (not marginal) fault-only mode; the exact detection "
-                     "row is admissible" for s_, d in {30: "0.000926 (relative 6.53e-05; peak gain of Y 1.32e+08)",
-                                                       31: "0.0873 (relative 9.66e-05; peak gain of Y 1.97e+07)"}.items()})
+                     "row is admissible" for s_, d in {
+                         30: "0.000926 (relative 6.53e-05; peak gain of Y 1.32e+08)",
+                         31: "0.0873 (relative 9.66e-05; peak gain of Y 1.97e+07)"}.items()})
 KNOWN_BROKEN.update({(s_, "amm_ref"): "approximate_matching._shipped_filter (noisec): 'error response differs from "
                      f"the designed one by {d}' (points off the plant's poles) on a solvable problem (the exact "
                      "detection row is admissible)" for s_, d in _SHIPPED.items()})
-KNOWN_BROKEN[(2, "amm_ref")] = ("approximate_matching (already at integ4 88f69ed): the designed filter fails its R-stability "
-                                "post-condition at the fault-only mode s = 1: residue ||Q_1(1) c_p|| = 6.78e-12 > its "
-                                "rounding bound 5.5e-13 (Q = Y Φ Q0: Y's gain on the basis's rounding-level residue)")
-KNOWN_BROKEN[(13, "amm_ref")] = ("approximate_matching (noisec): the designed filter fails its R-stability post-condition "
-                                 "at the fault-only mode z = 1: residue ||Q_1(1) c_p|| = 3.03e-11 > its rounding bound "
-                                 "1.6e-11, as seed 2 (G1 = Q0 [Gf Gw] is already stable: the basis's stable factor cancels the "
-                                 "mode to rounding, Y Φ multiplies that residue); the exact detection row is admissible")
+KNOWN_BROKEN[(2, "amm_ref")] = ("approximate_matching (already at integ4 88f69ed): the designed filter fails its "
+                                "R-stability post-condition at the fault-only mode s = 1: residue ||Q_1(1) c_p|| = "
+                                "6.78e-12 > its rounding bound 5.5e-13 (Q = Y Φ Q0: Y's gain on the basis's "
+                                "rounding-level residue)")
+KNOWN_BROKEN[(13, "amm_ref")] = ("approximate_matching (noisec): the designed filter fails its R-stability "
+                                 "post-condition at the fault-only mode z = 1: residue ||Q_1(1) c_p|| = 3.03e-11 > its "
+                                 "rounding bound 1.6e-11, as seed 2 (G1 = Q0 [Gf Gw] is already stable: the basis's "
+                                 "stable factor cancels the mode to rounding, Y Φ multiplies that residue); the exact "
+                                 "detection row is admissible")
 
 
 def _params(seeds, calls=CALLS):
