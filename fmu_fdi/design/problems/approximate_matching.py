@@ -255,6 +255,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     dt = model.dt
     sdeg = _check_placement(poles, sdeg, dt, smarg)
     Q0, G1, basis = reduced_system(model, atol, nullspace=nullspace, simple=simple, HDesign=HDesign, rows=Mr.p)
+    Q0, G1 = stable_reduced_system(model, Q0, G1, smarg, atol)
     F = hstack([Mr, LTI.zero(Mr.p, model.nw, dt)]) if model.nw else Mr
     a = 1.0 if dt else -sdeg  # (discrete time: the interactor's shift is 1/z, M's pole sdeg is placed below)
     Gh, Phi, K, dropped, left = interactor(G1, a, atol)
@@ -900,6 +901,37 @@ def reduced_system(model: FDIModel, atol: float = 0.0, *, nullspace: bool | None
     # basis cancels too (its internal form is stable), are the exception: kept, G1 is unstable
     # and no stable Y exists (SLICOT refuses every level)
     return Q0, drop_negligible_unstable_modes(Q0 @ fault_noise_map(model)), info
+
+
+def stable_reduced_system(model: FDIModel, Q0: LTI, G1: LTI, smarg=None, atol: float = 0.0) -> tuple[LTI, LTI]:
+    """``(N_Q, N_G)`` from the stable left coprime factorisation ``[Q0 G1] = M⁻¹ [N_Q N_G]``
+    (:func:`..toolkit.stable_factor.glcf` on the observable part of the joint realisation, moving only the poles
+    outside the margin ``smarg``, to :func:`moved_pole_targets`'s places); ``(Q0, G1)`` when both are stable or
+    when the factorisation does not stabilise them (the synthesis then refuses with its own reason).
+
+    The basis Q0 and G1 = Q0 [Gf Gw] can keep a plant mode on or beyond the stability boundary (approximate
+    audit seed 1: the pair e^{±0.2j}, in Q0 itself). The admissible filters are ``Q = X Q0`` with ``X Q0`` and
+    ``X G1`` stable; by coprimeness (a Bezout identity) these are exactly ``Q = Y N_Q`` with Y stable, and then
+    ``X G1 = Y N_G``: the problem over stable Y on the stable pair is the same problem with no mode for Y to
+    cancel (without it SLICOT's Riccati equations failed at every level). FaultDetectionTools.jl ``ammsyn`` does
+    the same: its basis ``glnull(...; sdeg)`` is the stable factor of the whole ``[Q R]``."""
+    from ..toolkit.stable_factor import _stability_region, glcf, moved_pole_targets
+
+    good = _stability_region(model, None, smarg, True)
+
+    def stable(S: LTI) -> bool:
+        return all(good(float(p.real), float(p.imag)) for p in S.poles()) if S.n else True
+
+    if stable(Q0) and stable(G1):
+        return Q0, G1
+    S = hstack([Q0, G1]).minreal(atol, job="O")  # one realisation: Q0 and G1 share the basis's states
+    try:
+        N, _, _ = glcf(S, moved_pole_targets(model, None, None, smarg), good)
+    except DesignError:
+        return Q0, G1
+    if not stable(N):
+        return Q0, G1
+    return N[:, :Q0.m], N[:, Q0.m:]
 
 
 # ------------------------------------------------------------------- regularisation
