@@ -424,8 +424,8 @@ CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
 KNOWN_BROKEN: dict[tuple[int, str], str] = {
     (21, "amm_ref"): "approximate_matching (noisec): fault-only z = 1 kept by the basis Q0 and G1: 'H∞ synthesis "
                      "failed even at γ = 74.3207 > ||Mr||∞'; with Mr = I too ('γ = 1.01'). stable_reduced_system's "
-                     "coprime factorisation of [Q0 G1] (which fixed seed 1) leaves poles 1.07, 1 + 8e-9 and 3.8e4 on the "
-                     "observable part (20 states, the mode at 1 ill-conditioned): not used",
+                     "coprime factorisation of [Q0 G1] (which fixed seed 1) leaves poles 1.07, 1 + 8e-9 and 3.8e4 "
+                     "on the observable part (20 states, the mode at 1 ill-conditioned): not used",
 }
 #: approximate_model_matching (noisec) refused "the returned filter's error response differs from the designed one"
 #: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compared the two on points that
