@@ -421,12 +421,7 @@ def _assert_case(seed: int, calls):
 
 CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
 #: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
-KNOWN_BROKEN: dict[tuple[int, str], str] = {
-    (21, "amm_ref"): "approximate_matching (noisec): fault-only z = 1 kept by the basis Q0 and G1: 'H∞ synthesis "
-                     "failed even at γ = 74.3207 > ||Mr||∞'; with Mr = I too ('γ = 1.01'). stable_reduced_system's "
-                     "coprime factorisation of [Q0 G1] (which fixed seed 1) leaves poles 1.07, 1 + 8e-9 and 3.8e4 "
-                     "on the observable part (20 states, the mode at 1 ill-conditioned): not used",
-}
+KNOWN_BROKEN: dict[tuple[int, str], str] = {}
 #: approximate_model_matching (noisec) refused "the returned filter's error response differs from the designed one"
 #: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compared the two on points that
 #: included ω = 0 (z = 1), where [Gf Gw] is ~1/δ and Q·Gf (which cancels the mode) is rounding/δ (seed 16: 11.4,
@@ -532,7 +527,9 @@ FIXED = {(20, "afd"): "n = 30, a resonance at 7.8 rad/s: the AFD gap was reporte
          (1, "amm_ref"): "Mr = the exact detection row's Rf (the plant has a fault-only pair e^{±0.2j}, kept in the "
                          "basis Q0 itself): 'H∞ synthesis failed even at γ = 362.448 > ||Mr||∞ ... Riccati equations "
                          "ill-conditioned' (fixed: approximate_matching.stable_reduced_system, the stable coprime "
-                         "factorisation of [Q0 G1], as the peer's ammsyn)"}
+                         "factorisation of [Q0 G1], as the peer's ammsyn)",
+         (21, "amm_ref"): "fault-only z = 1 kept by the basis Q0 and G1: 'H∞ synthesis failed even at γ = 74.3207 > "
+                          "||Mr||∞' (with Mr = I too: 'γ = 1.01'); fixed as seed 1"}
 
 
 @pytest.mark.parametrize("seed, call", FAST)

@@ -904,19 +904,22 @@ def reduced_system(model: FDIModel, atol: float = 0.0, *, nullspace: bool | None
 
 
 def stable_reduced_system(model: FDIModel, Q0: LTI, G1: LTI, smarg=None, atol: float = 0.0) -> tuple[LTI, LTI]:
-    """``(N_Q, N_G)`` from the stable left coprime factorisation ``[Q0 G1] = M⁻¹ [N_Q N_G]``
-    (:func:`..toolkit.stable_factor.glcf` on the observable part of the joint realisation, moving only the poles
-    outside the margin ``smarg``, to :func:`moved_pole_targets`'s places); ``(Q0, G1)`` when both are stable or
-    when the factorisation does not stabilise them (the synthesis then refuses with its own reason).
+    """``(N_Q, N_G)``, stable, with ``[N_Q N_G] = M [Q0 G1]`` for a stable M: the stable left coprime factorisation
+    (:func:`..toolkit.stable_factor.glcf`, moving only the poles outside the margin ``smarg``, to
+    :func:`moved_pole_targets`'s places) of Q0's minimal realisation, ``Q0 = M1⁻¹ N_Q`` (G1 becomes ``M1 G1``
+    without the modes it cancels), then of G1 if still unstable, ``G1 = M2⁻¹ N_G`` (Q0 becomes ``M2 N_Q``);
+    ``(Q0, G1)`` when both are stable or when the factorisation does not stabilise them (the synthesis then
+    refuses with its own reason).
 
     The basis Q0 and G1 = Q0 [Gf Gw] can keep a plant mode on or beyond the stability boundary (approximate
-    audit seed 1: the pair e^{±0.2j}, in Q0 itself). The admissible filters are ``Q = X Q0`` with ``X Q0`` and
-    ``X G1`` stable; by coprimeness (a Bezout identity) these are exactly ``Q = Y N_Q`` with Y stable, and then
-    ``X G1 = Y N_G``: the problem over stable Y on the stable pair is the same problem with no mode for Y to
-    cancel (without it SLICOT's Riccati equations failed at every level). FaultDetectionTools.jl ``ammsyn`` does
-    the same: its basis ``glnull(...; sdeg)`` is the stable factor of the whole ``[Q R]``."""
+    audit seeds 1 and 21: the pair e^{±0.2j}, z = 1, in Q0 itself). The admissible filters are ``Q = X Q0`` with
+    ``X Q0`` and ``X G1`` stable; by coprimeness (a Bezout identity) these are exactly ``Q = Y N_Q`` with Y
+    stable, and then ``X G1 = Y N_G``: the problem over stable Y on the stable pair is the same problem with no
+    mode for Y to cancel (without it SLICOT's Riccati equations failed at every level). FaultDetectionTools.jl
+    ``ammsyn`` does the same: its basis ``glnull(...; sdeg)`` is the stable factor of the whole ``[Q R]``."""
     from ..toolkit.stable_factor import _stability_region, glcf, moved_pole_targets
 
+    Q0_in, G1_in = Q0, G1
     good = _stability_region(model, None, smarg, True)
 
     def stable(S: LTI) -> bool:
@@ -924,14 +927,17 @@ def stable_reduced_system(model: FDIModel, Q0: LTI, G1: LTI, smarg=None, atol: f
 
     if stable(Q0) and stable(G1):
         return Q0, G1
-    S = hstack([Q0, G1]).minreal(atol, job="O")  # one realisation: Q0 and G1 share the basis's states
+    targets = moved_pole_targets(model, None, None, smarg)
     try:
-        N, _, _ = glcf(S, moved_pole_targets(model, None, None, smarg), good)
+        if not stable(Q0):  # Q0 = M1⁻¹ N_Q: the filters X Q0 with X Q0 stable are Y N_Q, and X G1 = Y (M1 G1)
+            NQ, M1, _ = glcf(Q0.minreal(atol), targets, good)
+            Q0, G1 = NQ, drop_negligible_unstable_modes(M1 @ G1)
+        if not stable(G1):  # G1 = M2⁻¹ N_G: then Y (M2 Q0), Y N_G
+            NG, M2, _ = glcf(G1, targets, good)
+            Q0, G1 = M2 @ Q0, NG
     except DesignError:
-        return Q0, G1
-    if not stable(N):
-        return Q0, G1
-    return N[:, :Q0.m], N[:, Q0.m:]
+        return Q0_in, G1_in
+    return (Q0, G1) if stable(Q0) and stable(G1) else (Q0_in, G1_in)
 
 
 # ------------------------------------------------------------------- regularisation
