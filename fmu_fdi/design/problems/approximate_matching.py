@@ -255,6 +255,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     dt = model.dt
     sdeg = _check_placement(poles, sdeg, dt, smarg)
     Q0, G1, basis = reduced_system(model, atol, nullspace=nullspace, simple=simple, HDesign=HDesign, rows=Mr.p)
+    Q0, G1 = stable_reduced_system(model, Q0, G1, smarg, atol)
     F = hstack([Mr, LTI.zero(Mr.p, model.nw, dt)]) if model.nw else Mr
     a = 1.0 if dt else -sdeg  # (discrete time: the interactor's shift is 1/z, M's pole sdeg is placed below)
     Gh, Phi, K, dropped, left = interactor(G1, a, atol)
@@ -902,6 +903,43 @@ def reduced_system(model: FDIModel, atol: float = 0.0, *, nullspace: bool | None
     return Q0, drop_negligible_unstable_modes(Q0 @ fault_noise_map(model)), info
 
 
+def stable_reduced_system(model: FDIModel, Q0: LTI, G1: LTI, smarg=None, atol: float = 0.0) -> tuple[LTI, LTI]:
+    """``(N_Q, N_G)``, stable, with ``[N_Q N_G] = M [Q0 G1]`` for a stable M: the stable left coprime factorisation
+    (:func:`..toolkit.stable_factor.glcf`, moving only the poles outside the margin ``smarg``, to
+    :func:`moved_pole_targets`'s places) of Q0's minimal realisation, ``Q0 = M1⁻¹ N_Q`` (G1 becomes ``M1 G1``
+    without the modes it cancels), then of G1 if still unstable, ``G1 = M2⁻¹ N_G`` (Q0 becomes ``M2 N_Q``);
+    ``(Q0, G1)`` when both are stable or when the factorisation does not stabilise them (the synthesis then
+    refuses with its own reason).
+
+    The basis Q0 and G1 = Q0 [Gf Gw] can keep a plant mode on or beyond the stability boundary (approximate
+    audit seeds 1 and 21: the pair e^{±0.2j}, z = 1, in Q0 itself). The admissible filters are ``Q = X Q0`` with
+    ``X Q0`` and ``X G1`` stable; by coprimeness (a Bezout identity) these are exactly ``Q = Y N_Q`` with Y
+    stable, and then ``X G1 = Y N_G``: the problem over stable Y on the stable pair is the same problem with no
+    mode for Y to cancel (without it SLICOT's Riccati equations failed at every level). FaultDetectionTools.jl
+    ``ammsyn`` does the same: its basis ``glnull(...; sdeg)`` is the stable factor of the whole ``[Q R]``."""
+    from ..toolkit.stable_factor import _stability_region, glcf, moved_pole_targets
+
+    Q0_in, G1_in = Q0, G1
+    good = _stability_region(model, None, smarg, True)
+
+    def stable(S: LTI) -> bool:
+        return all(good(float(p.real), float(p.imag)) for p in S.poles()) if S.n else True
+
+    if stable(Q0) and stable(G1):
+        return Q0, G1
+    targets = moved_pole_targets(model, None, None, smarg)
+    try:
+        if not stable(Q0):  # Q0 = M1⁻¹ N_Q: the filters X Q0 with X Q0 stable are Y N_Q, and X G1 = Y (M1 G1)
+            NQ, M1, _ = glcf(Q0.minreal(atol), targets, good)
+            Q0, G1 = NQ, drop_negligible_unstable_modes(M1 @ G1)
+        if not stable(G1):  # G1 = M2⁻¹ N_G: then Y (M2 Q0), Y N_G
+            NG, M2, _ = glcf(G1, targets, good)
+            Q0, G1 = M2 @ Q0, NG
+    except DesignError:
+        return Q0_in, G1_in
+    return (Q0, G1) if stable(Q0) and stable(G1) else (Q0_in, G1_in)
+
+
 # ------------------------------------------------------------------- regularisation
 def interactor(G1: LTI, a: float, atol: float = 0.0) -> tuple[LTI, LTI, int, int, int]:
     """Silverman's structure algorithm: ``(Ĝ, Φ, K, dropped, left)`` with ``Φ G1 = m^K Ĝ``.
@@ -1170,13 +1208,46 @@ def _check_boundary_zeros(Gh: LTI) -> None:
 
 
 # ------------------------------------------------------------------ evaluation
+#: relative distance (to ``max(|p|, ω_lo)``, ω_lo the grid's lowest positive frequency; to 1 in discrete time)
+#: under which a grid point counts as on a system's pole and is moved beside it (:func:`_points`)
+BESIDE_POLE = 1e-6
+
+
 def _points(systems, dt: float, num: int = 400) -> np.ndarray:
-    """Points λ of a frequency grid over every system's poles (and ω → ∞ in continuous time)."""
+    """Points λ of a frequency grid over every system's poles (and ω → ∞ in continuous time), none on a
+    pole of the systems: a point within ``BESIDE_POLE`` (relative) of one is moved ``2·BESIDE_POLE`` aside
+    along the boundary.
+
+    Every function read on these points (the error ``Q [Gf Gw] − M [Mr 0]``, ``Y Ĝ − F``) is stable, hence
+    analytic on the boundary, but its factors are not: at a plant pole on the boundary (a fault-only
+    integrator, z = 1), computed a rounding δ off, ``[Gf Gw]`` is ~ρ/δ and the product that cancels the pole
+    is rounding/δ (approximate audit seeds 10–23: 3.6 … 3.9e8 for errors ~1). At the distance ``2·BESIDE_POLE``
+    relative the rounding is amplified by eps/δ ≈ 1e-10 only, while the moved value differs from the one at
+    the pole by ~1e-6 of the function's variation on its pole scale (below the grid's own resolution)."""
     omega = frequency_grid(systems, num=num)
     omega = omega[np.isfinite(omega)]
     if not dt:
         omega = np.append(omega, 1e4 * max(omega.max(), 1.0))
-    return np.exp(1j * omega * dt) if dt else 1j * omega
+    lam = np.exp(1j * omega * dt) if dt else 1j * omega
+    poles = np.concatenate([np.ravel(np.asarray(s.poles(), complex)) for s in systems] + [np.zeros(0)])
+    if poles.size:
+        mags = np.abs(poles)
+        # the scale of a pole at 0 (an integrator computed ~eps‖A‖ off, a double one ~√eps off): the smallest
+        # pole magnitude above √eps of the largest (1 if none)
+        real = mags[mags > np.sqrt(EPS) * np.max(mags)]
+        lo = 1.0 if dt or not real.size else float(np.min(real))
+        tol = BESIDE_POLE * np.maximum(mags, lo)  # per pole: in λ (discrete: |λ| = 1, so in θ too)
+        ratio = np.abs(lam[:, None] - poles[None, :]) / tol[None, :]
+        near = np.argmin(ratio, axis=1)
+        on = ratio[np.arange(lam.size), near] <= 1.0
+        if np.any(on):
+            step = 2.0 * tol[near[on]]  # ω (continuous) or θ = ω dt (discrete, |p| ≈ 1 on the circle)
+            theta = omega * dt if dt else omega.copy()
+            top = np.pi if dt else np.inf
+            # toward the interior: down at Nyquist (z = −1), up elsewhere
+            theta[on] = np.where(theta[on] + step < top, theta[on] + step, theta[on] - step)
+            lam = np.unique(np.exp(1j * theta) if dt else 1j * theta)
+    return lam
 
 
 def _mk(lam: np.ndarray, a: float, K: int, dt: float) -> np.ndarray:
