@@ -33,7 +33,7 @@ from fmu_fdi.design import (afdi_bank, approximate_model_detection_bank, approxi
                             nullspace_design)
 from fmu_fdi.design.problems.achievable import achievable_structure
 from fmu_fdi.errors import DesignError
-from test_synthesis_random import (DEC_TOL, ZERO_Q, _extended, _freqresp, _grid, _pbh_poles, _series,
+from test_synthesis_random import (DEC_TOL, ZERO_Q, _extended, _freqresp, _pbh_poles, _series,
                                    random_case)
 
 # A reported figure (gap, error) agrees with numpy's when their ratio is within 1 ± FIG_RTOL. The
