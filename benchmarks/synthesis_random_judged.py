@@ -29,12 +29,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_synthesis_random import _describe, check_case  # noqa: E402
 
 
-def _kind(detail: str) -> str:
+#: (pattern of a breakage's detail, its class) — benchmarks/approximate_random_judged.py adds its own
+KINDS = (("instead of DesignError", "crash"), ("achievable request refused", "achievable refused"),
+         ("cannot be built", "model not built"), ("unstable/marginal pole", "unstable R/Q"),
+         ("numerically zero", "zero Q"), ("invisible", "fault invisible"),
+         (r"‖R_(u|d|w)‖", "u/d/w leakage"), ("excluded fault", "excluded-fault leakage"))
+
+
+def _kind(detail: str, kinds=KINDS) -> str:
     """A short class of a breakage for the totals."""
-    for pat, name in (("instead of DesignError", "crash"), ("achievable request refused", "achievable refused"),
-                      ("cannot be built", "model not built"), ("unstable/marginal pole", "unstable R/Q"),
-                      ("numerically zero", "zero Q"), ("invisible", "fault invisible"),
-                      (r"‖R_(u|d|w)‖", "u/d/w leakage"), ("excluded fault", "excluded-fault leakage")):
+    for pat, name in kinds:
         if re.search(pat, detail):
             return name
     return "other"
