@@ -16,8 +16,6 @@ Run: python benchmarks/approximate_random_judged.py [N] [first_seed] [-v] [--tim
 (seeds first_seed … first_seed + N − 1; default 20 models from seed 0)
 """
 import sys
-import time
-from collections import Counter
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
@@ -26,7 +24,7 @@ import test_approximate_random  # noqa: E402
 from test_approximate_random import check_case, noisy_case  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from synthesis_random_judged import KINDS, _kind as _kind_exact  # noqa: E402
+from synthesis_random_judged import KINDS, _kind as _kind_exact, tally  # noqa: E402
 
 
 def _kind(detail: str) -> str:
@@ -36,33 +34,13 @@ def _kind(detail: str) -> str:
                                         ("above", "error above a known filter's")))
 
 
+def _desc(seed: int) -> str:
+    m = noisy_case(seed)
+    return f"n={m.n} p={m.ny} m={m.nu} nd={m.nd} nw={m.nw} nf={m.nf} {'disc' if m.dt else 'cont'}"
+
+
 def run(N: int = 20, first: int = 0, verbose: bool = False):
-    totals: dict[str, Counter] = {}
-    kinds: Counter = Counter()
-    times = []
-    t0 = time.perf_counter()
-    for seed in range(first, first + N):
-        t = time.perf_counter()
-        res = check_case(seed)
-        times.append(time.perf_counter() - t)
-        m = noisy_case(seed)
-        desc = f"n={m.n} p={m.ny} m={m.nu} nd={m.nd} nw={m.nw} nf={m.nf} {'disc' if m.dt else 'cont'}"
-        for what, status, detail in res:
-            totals.setdefault(what, Counter())[status] += 1
-            if status == "broken":
-                kinds[_kind(detail)] += 1
-            if verbose or status == "broken":
-                print(f"seed {seed:3d} {desc:40s} {what:34s} {status:8s} {detail[:220]}", flush=True)
-    print("\ncounts per call (ok / refused / broken):")
-    for key, c in totals.items():
-        print(f"  {key:34s} {c['ok']:4d} {c['refused']:4d} {c['broken']:4d}" + (f"  ({c['timeout']} timed out)"
-                                                                              if c['timeout'] else ""))
-    allc = sum(totals.values(), Counter())
-    print(f"  {'total':34s} {allc['ok']:4d} {allc['refused']:4d} {allc['broken']:4d}")
-    print("breakage kinds:", dict(kinds))
-    print(f"time per model: median {sorted(times)[len(times) // 2]:.2f} s, max {max(times):.2f} s, "
-          f"total {time.perf_counter() - t0:.1f} s")
-    return allc
+    return tally(range(first, first + N), check_case, _desc, kind=_kind, width=34, verbose=verbose)
 
 
 if __name__ == "__main__":

@@ -44,31 +44,38 @@ def _kind(detail: str, kinds=KINDS) -> str:
     return "other"
 
 
-def run(N: int = 40, first: int = 0, verbose: bool = False):
+def tally(seeds, check, describe, kind=_kind, key=lambda what: what, width: int = 22, verbose: bool = False):
+    """Run ``check(seed)`` → [(what, status, detail)] per seed; print the broken (all with verbose), the counts
+    per ``key(what)`` (ok / refused / broken, and timeouts where any), the breakage kinds and the time per model."""
     totals: dict[str, Counter] = {}
     kinds: Counter = Counter()
     times = []
     t0 = time.perf_counter()
-    for seed in range(first, first + N):
+    for seed in seeds:
         t = time.perf_counter()
-        res = check_case(seed, max_rows=None)
+        res = check(seed)
         times.append(time.perf_counter() - t)
         for what, status, detail in res:
-            key = what.split("(")[0]
-            totals.setdefault(key, Counter())[status] += 1
+            totals.setdefault(key(what), Counter())[status] += 1
             if status == "broken":
-                kinds[_kind(detail)] += 1
+                kinds[kind(detail)] += 1
             if verbose or status == "broken":
-                print(f"seed {seed:3d} {_describe(seed)[:60]:60s} {what:28s} {status:8s} {detail[:160]}")
+                print(f"seed {seed:3d} {describe(seed)[:60]:60s} {what:34s} {status:8s} {detail[:200]}", flush=True)
     print("\ncounts per call (ok / refused / broken):")
-    for key, c in totals.items():
-        print(f"  {key:22s} {c['ok']:4d} {c['refused']:4d} {c['broken']:4d}")
+    for k, c in totals.items():
+        print(f"  {k:{width}s} {c['ok']:4d} {c['refused']:4d} {c['broken']:4d}"
+              + (f"  ({c['timeout']} timed out)" if c["timeout"] else ""))
     allc = sum(totals.values(), Counter())
-    print(f"  {'total':22s} {allc['ok']:4d} {allc['refused']:4d} {allc['broken']:4d}")
+    print(f"  {'total':{width}s} {allc['ok']:4d} {allc['refused']:4d} {allc['broken']:4d}")
     print("breakage kinds:", dict(kinds))
     print(f"time per model: median {sorted(times)[len(times) // 2]:.2f} s, max {max(times):.2f} s, "
           f"total {time.perf_counter() - t0:.1f} s")
     return allc
+
+
+def run(N: int = 40, first: int = 0, verbose: bool = False):
+    return tally(range(first, first + N), lambda seed: check_case(seed, max_rows=None), _describe,
+                 key=lambda what: what.split("(")[0], verbose=verbose)
 
 
 def _matching_case(seed: int, unstable: bool) -> tuple[str, str]:
