@@ -427,12 +427,9 @@ KNOWN_BROKEN: dict[tuple[int, str], str] = {}
 #: included ω = 0 (z = 1), where [Gf Gw] is ~1/δ and Q·Gf (which cancels the mode) is rounding/δ (seed 16: 11.4,
 #: relative 0.685; seed 18: 3.57, relative 0.099). Fixed: approximate_matching._points moves every point off the
 #: systems' poles (BESIDE_POLE); seeds 16 and 18 are designed and pass this judge (FIXED). The same refusal on seeds
-#: 10, 20, 23, 26, 30, 31 is fixed too (REALISATION_FIXED, at the end); what remains is the R-stability
-#: post-condition (seeds 2, 13)
-KNOWN_BROKEN[(2, "amm_ref")] = ("approximate_matching (already at integ4 88f69ed): the designed filter fails its "
-                                "R-stability post-condition at the fault-only mode s = 1: residue ||Q_1(1) c_p|| = "
-                                "6.78e-12 > its rounding bound 5.5e-13 (Q = Y Φ Q0: Y's gain on the basis's "
-                                "rounding-level residue)")
+#: 10, 20, 23, 26, 30, 31 is fixed too (REALISATION_FIXED, at the end), and with it seed 2's R-stability failure (residue
+#: ||Q_1(1) c_p|| = 6.78e-12 > its rounding bound 5.5e-13: Y's peak gain 3.6e5 on the full-observer basis, 11.9 on
+#: the glcf one); what remains is the R-stability post-condition of seed 13
 KNOWN_BROKEN[(13, "amm_ref")] = ("approximate_matching (noisec): the designed filter fails its R-stability "
                                  "post-condition at the fault-only mode z = 1: residue ||Q_1(1) c_p|| = 3.03e-11 > its "
                                  "rounding bound 1.6e-11, as seed 2 (G1 = Q0 [Gf Gw] is already stable: the basis's "
