@@ -776,7 +776,8 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
     (:func:`placed_factor`; a list, one per row, when the rows' shifts differ) that multiplies ``Y Ĝ − F``,
     instead of ``scale m^K``; then ``Qfull`` is
     the pair (``μ/m^K`` times the minimal realisation of ``Y Φ Q0``, times ``Y Φ Q0`` itself), the
-    second tried last."""
+    second tried last. The shipped response ``Q [Gf Gw; 0 0]`` is read from the plant as the post-conditions read R
+    (:func:`_fault_noise_response`), not as the product of Q's and ``fnm``'s values (``fnm`` is no longer read)."""
     dt = model.dt
     Qfull, last = Qfull if isinstance(Qfull, tuple) else (Qfull, None)
     lam = _points([model.lti(), Y, Mr] + (list(factor) if isinstance(factor, list) else [factor] if factor is not None
@@ -929,9 +930,12 @@ def _observer_basis(model: FDIModel, smarg: float | None = None) -> tuple[LTI, L
 
     Why not a full observer (every pole placed, :func:`.coprime._factor_filter`): on ill-scaled plants with few
     outputs its gain made ``A − LC`` of balanced norm 2e7 … 6e9 (plant: 5 … 36) with an eigenvector condition
-    1e10 (approximate audit seeds 20, 23, 30, 31): G1 was 1 % off ``Q0 [Gf Gw]`` (seed 23), the interactor's
-    staircase lost 8 % (seed 31), and the error of the returned filter was not the designed one. The full
-    observer remains the fallback where this factorisation does not stabilise (an unobservable bad mode)."""
+    1e9 … 1e10 (approximate audit seeds 20, 23, 30, 31): read by numpy, the interactor's ``m^K Ĝ`` was 1.7e-4 … 8e-2
+    off ``Φ G1`` (seeds 30, 23, 31) and seed 20's G1, after the coprime factorisation its unstable G1 then needed,
+    0.99 off ``Q0 [Gf Gw]``; the γ-iteration's Y had peak gains 4e3 … 1.3e8 and the returned filter's error was
+    not the designed one (refused). On this basis: ≤ 8e-13, Y's peak gains 2 … 200, all designed
+    (tests/test_approximate_random.py). The full observer remains the fallback where this factorisation does not
+    stabilise (an unobservable bad mode: :func:`.coprime._factor_filter` then names it)."""
     from ..toolkit.stable_factor import _stability_region, glcf, moved_pole_targets
 
     nu, ny, dt = model.nu, model.ny, model.dt
