@@ -585,3 +585,32 @@ def test_reduced_problem_realisations_agree_with_their_factors(seed):
 @pytest.mark.parametrize("seed, call", sorted(REALISATION_FIXED))
 def test_approximate_matching_realisation_seeds_meet_the_judge(seed, call):
     _assert_case(seed, (call,))
+
+
+def test_shipped_response_is_read_without_the_modes_a_filter_cancels():
+    """``approximate_matching._fault_noise_response`` reads ``Q(λ) [Gf Gw; 0 0](λ)`` as the post-conditions read R:
+    a fault-only integrator that the filter cancels exactly is not read as its rounding over the distance to it.
+
+    ``y = f/s + (u + w)/(s + 2)`` and ``Q = [q  0]``, ``q = (s + ε)/(s + 1)`` realised as ``1 + (ε − 1)/(s + 1)``.
+    ε = 0: the exact response is ``[1/(s + 1), s/((s + 1)(s + 2))]`` (closed form, numpy): read by the function to
+    1e-12 of its peak at ω = 1e-12 … 1e-4 rad/s (measured 1.2e-16), while the product of values ``q(λ)·Gf(λ)``
+    carries q's rounding over |λ| (measured 1e-8). ε = 1e-6 (a residue ~1e10 times the rounding bound of this
+    order-3 design): the pole stays, the value is the closed form ``(λ + ε)/((λ + 1) λ)`` (1e6 at the lowest point)
+    to 1e-9 (measured 2.9e-11)."""
+    from fmu_fdi import FDIModel, component_fault
+    from fmu_fdi.design.problems.approximate_matching import _fault_noise_response
+    from fmu_fdi.design.toolkit.postconditions import _values
+    from fmu_fdi.lti import LTI
+
+    model = FDIModel.from_matrices(np.diag([0.0, -2.0]), [[0.0], [1.0]], [[1.0, 1.0]], Bw=[[0.0], [1.0]],
+                                   faults=[component_fault("f", [[1.0], [0.0]])], y_names=["y1"], u_names=["u1"])
+    lam = 1j * np.logspace(-12, -4, 9)
+    Ge = _values(model.augmented(), lam)
+    fw = [model.nu + model.nd + model.nw, model.nu + model.nd]  # the columns of f, then w
+    for eps, rtol in ((0.0, 1e-12), (1e-6, 1e-9)):
+        Q = LTI(np.array([[-1.0]]), np.array([[1.0, 0.0]]), np.array([[eps - 1.0]]), np.array([[1.0, 0.0]]))
+        exact = np.stack([(lam + eps) / ((lam + 1) * lam), (lam + eps) / ((lam + 1) * (lam + 2))], axis=1)[:, None, :]
+        read = _fault_noise_response(model, Q, lam, Ge)
+        assert _relative_gap(read, exact) <= rtol
+        if eps == 0.0:  # the naive product misses by q's rounding over |λ|: the reading above is needed
+            assert _relative_gap((_values(Q, lam) @ Ge)[:, :, fw], exact) > 1e3 * rtol
