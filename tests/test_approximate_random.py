@@ -451,15 +451,6 @@ KNOWN_BROKEN.update({(s_, "amm_ref"): "approximate_matching._shipped_filter (noi
 KNOWN_BROKEN.update({(s_, "amm_ref"): "approximate_matching._shipped_filter (noisec): 'error response differs from "
                      f"the designed one by {d}' (points off the plant's poles) on a solvable problem (the exact "
                      "detection row is admissible)" for s_, d in _SHIPPED.items()})
-KNOWN_BROKEN[(2, "amm_ref")] = ("approximate_matching (already at integ4 88f69ed): the designed filter fails its "
-                                "R-stability post-condition at the fault-only mode s = 1: residue ||Q_1(1) c_p|| = "
-                                "6.78e-12 > its rounding bound 5.5e-13 (Q = Y Φ Q0: Y's gain on the basis's "
-                                "rounding-level residue)")
-KNOWN_BROKEN[(13, "amm_ref")] = ("approximate_matching (noisec): the designed filter fails its R-stability "
-                                 "post-condition at the fault-only mode z = 1: residue ||Q_1(1) c_p|| = 3.03e-11 > its "
-                                 "rounding bound 1.6e-11, as seed 2 (G1 = Q0 [Gf Gw] is already stable: the basis's "
-                                 "stable factor cancels the mode to rounding, Y Φ multiplies that residue); the exact "
-                                 "detection row is admissible")
 
 
 def _params(seeds, calls=CALLS):
