@@ -348,6 +348,11 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     return gen
 
 
+#: :func:`_plant_mode_cancellation`: the fewest of the design's points at which its correction keeps the u, d
+#: decoupling, and the most unknowns ``(n_q + rows)·(p + m)`` it solves for (an SVD of ~4× as many rows: ~1 s)
+CANCEL_POINTS, CANCEL_UNKNOWNS = 100, 2000
+
+
 def _plant_mode_cancellation(model, Q, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol) -> tuple[LTI, dict]:
     """Stage of :func:`approximate_model_matching`: ``(Q', info['plant_mode_cancellation'])``, the shipped filter with
     its numerator corrected so that every plant mode on or beyond the stability boundary that some input of Ge
@@ -373,7 +378,13 @@ def _plant_mode_cancellation(model, Q, fnm, MF, lam, norm, systems, reltol, smar
     residues = boundary_residues(model, every_mode=True)
     if not residues:
         return Q, {**out, "reason": "no plant mode on or beyond the stability boundary that R must cancel"}
-    Qc, rel = cancel_residues(Q, residues)
+    unknowns, nud = (Q.n + Q.p) * Q.m, model.nu + model.nd
+    if unknowns > CANCEL_UNKNOWNS:
+        return Q, {**out, "reason": f"the correction has {unknowns} unknowns (> {CANCEL_UNKNOWNS}): Q kept as designed"}
+    # the u, d decoupling kept on the design's points, thinned to twice as many real equations as unknowns
+    k = min(lam.size, max(CANCEL_POINTS, -(-unknowns // max(Q.p * nud, 1))))
+    pts = lam[np.unique(np.linspace(0, lam.size - 1, k).round().astype(int))]
+    Qc, rel = cancel_residues(Q, residues, pts, _values(model.augmented(), pts)[:, :, :nud])
     out.update({"correction": rel, "modes": [complex(p) if complex(p).imag else float(complex(p).real)
                                              for p, _ in residues]})
     if Qc is Q:
