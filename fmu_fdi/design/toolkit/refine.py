@@ -22,6 +22,12 @@ rounding-size e along it is a visible leak): a minimum-norm correction, ``|δ| �
 and the fault responses move by rounding (iterative refinement of a null vector; Golub & Van
 Loan, *Matrix Computations*, 4th ed., sec. 6.3 on truncated-SVD least squares). It is kept only
 when it lowers the leak on the points.
+
+The boundary modes it constrains are the judge's: :func:`boundary_residues` reads them, their directions and which
+inputs excite them from :func:`.plant_modes.boundary_mode_table`, the table the post-conditions test. And
+:func:`cancel_residues` is the same correction made for those modes' sake — ``Q(λ_j) c_j = 0`` exactly, the
+decoupling kept on the points — and returned for the caller to judge (approximate model matching, whose filter
+``Q = Y·Φ·Q0`` carries the basis's rounding-level residue times Y's gain).
 """
 from __future__ import annotations
 
@@ -84,8 +90,8 @@ def cancel_residues(Q: LTI, residues, lam=(), Ge_ud=None) -> tuple[LTI, float]:
     :func:`refine_decoupling`'s); ``δ = ||Θ' − Θ||_F / ||Θ||_F``.
 
     The conditions are :func:`refine_decoupling`'s, ``(Gᵀ(λ_k) ⊗ K(λ_k)) vec(Θ) = 0`` at the points and
-    ``(c_jᵀ ⊗ K(λ_j)) vec(Θ) = 0`` at the modes (the latter alone without points, each mode's rows scaled to unit
-    norm), and the correction is the same minimum-norm removal of Θ's components along them
+    ``(c_jᵀ ⊗ K(λ_j)) vec(Θ) = 0`` at the modes (alone without points, each mode's largest row scaled to 1),
+    and the correction is the same minimum-norm removal of Θ's components along them
     (:func:`_without_components`); but it is returned whatever the leak does — the caller weighs it (a filter
     that matches a reference judges it by its matching error and post-conditions, not by the u, d leak alone).
     Without the points the least change of Θ that zeroes the residues is free to move ``Q·Gu``: a residue of
@@ -124,7 +130,8 @@ def _conditions(K: np.ndarray, G: np.ndarray, Kj: np.ndarray, residues) -> np.nd
     Phi = [np.kron(G[k].T, K[k]) for k in range(K.shape[0])]
     if Kj.shape[0]:
         top = max((float(np.max(np.linalg.norm(P, axis=1))) for P in Phi), default=1.0)
-        Phi += [R * (top / max(float(np.max(np.linalg.norm(R, axis=1))), 1e-300)) for R in _residue_rows(Kj, residues)]
+        rows = [np.kron(np.asarray(c, complex)[None, :], Kj[j]) for j, (_, c) in enumerate(residues)]
+        Phi += [R * (top / max(float(np.max(np.linalg.norm(R, axis=1))), 1e-300)) for R in rows]
     Phi = np.concatenate(Phi, axis=0)
     return np.vstack([Phi.real, Phi.imag])
 
@@ -141,11 +148,6 @@ def _numerator_map(Q: LTI, lam: np.ndarray) -> np.ndarray | None:
         except (sla.LinAlgWarning, np.linalg.LinAlgError):
             return None
     return np.concatenate([K, np.broadcast_to(np.eye(pr), (K.shape[0], pr, pr))], axis=2)
-
-
-def _residue_rows(Kj: np.ndarray, residues) -> list[np.ndarray]:
-    """The rows ``c_jᵀ ⊗ K(λ_j)`` of the conditions ``vec(K(λ_j) Θ c_j) = 0`` (column-major vec)."""
-    return [np.kron(np.asarray(c, complex)[None, :], Kj[j]) for j, (_, c) in enumerate(residues)]
 
 
 def _without_components(Phi: np.ndarray, theta: np.ndarray) -> np.ndarray | None:
