@@ -358,9 +358,8 @@ def _plant_mode_cancellation(model, Q, fnm, MF, lam, norm, systems, reltol, smar
     its numerator corrected so that every plant mode on or beyond the stability boundary that some input of Ge
     excites is cancelled exactly in ``R = Q·Ge`` — the modes and directions of the judge's table
     (:func:`..toolkit.refine.boundary_residues` with ``every_mode``, :func:`..toolkit.plant_modes.boundary_mode_table`),
-    the correction the least change of ``[B_q; D_q]`` that also keeps ``Q·[Gu Gd; I 0]`` zero on the design's points
-    (:func:`..toolkit.refine.cancel_residues`; without them the change that zeroes a residue of 1e-7 of Q's gain
-    leaked 2e-7 into R_u, tests/test_refine_modes.py).
+    the correction the change of ``[B_q; D_q]`` (of Q's balanced realisation) that zeroes the residues exactly and
+    changes ``Q·[Gu Gd; I 0]`` on the design's points least (:func:`..toolkit.refine.cancel_residues`).
 
     Why: the basis ``Q0`` (or its stable factor) cancels a fault-only boundary mode p to rounding, ``Q0(p) c_p ~
     eps``, and ``Q = Y Φ Q0`` multiplies that residue by Y's gain: random seed 2's ``||Q(1) c_p|| = 6.8e-12``
