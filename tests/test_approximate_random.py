@@ -429,12 +429,8 @@ KNOWN_BROKEN: dict[tuple[int, str], str] = {}
 #: systems' poles (BESIDE_POLE); seeds 16 and 18 are designed and pass this judge (FIXED). The same refusal on seeds
 #: 10, 20, 23, 26, 30, 31 is fixed too (REALISATION_FIXED, at the end), and with it seed 2's R-stability failure (residue
 #: ||Q_1(1) c_p|| = 6.78e-12 > its rounding bound 5.5e-13: Y's peak gain 3.6e5 on the full-observer basis, 11.9 on
-#: the glcf one); what remains is the R-stability post-condition of seed 13
-KNOWN_BROKEN[(13, "amm_ref")] = ("approximate_matching (noisec): the designed filter fails its R-stability "
-                                 "post-condition at the fault-only mode z = 1: residue ||Q_1(1) c_p|| = 3.03e-11 > its "
-                                 "rounding bound 1.6e-11, as seed 2 (G1 = Q0 [Gf Gw] is already stable: the basis's "
-                                 "stable factor cancels the mode to rounding, Y Φ multiplies that residue); the exact "
-                                 "detection row is admissible")
+#: the glcf one). Seed 13's R-stability failure (residue 3.03e-11 > its rounding bound 1.6e-11 at z = 1) is fixed by
+#: the stage cancelling the plant's boundary modes exactly in R (refine.cancel_residues)
 
 
 def _params(seeds, calls=CALLS):

@@ -218,7 +218,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``standard``, ``M`` (LTI, the identity if standard), ``interactor_steps`` (K),
         ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``reference_lowpass``
         (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``row_orders``
-        (McMillan degree of each row), ``poles``, ``postconditions``; with ``mindeg=True``,
+        (McMillan degree of each row), ``poles``, ``postconditions``, ``plant_mode_cancellation`` (the exact
+        cancellation of the plant's boundary modes in R, :func:`_plant_mode_cancellation`); with ``mindeg=True``,
         ``mindeg``: ``{'lowered', 'reason', 'row_orders_before', 'row_orders', 'order_before',
         'order', 'error_before', 'error', 'error_limit', 'row_methods'}`` (``error_before``: the
         optimal filter's measured error, itself within ``reltol`` of ``gamma_opt`` in the standard
@@ -311,6 +312,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     # passes (with a large gain of Y, near-cancelling modes that SLICOT's staircase removes
     # can matter), else the non-minimal Y Φ Q0 is returned
     Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor)
+    Q, cancelled = _plant_mode_cancellation(model, Q, fnm, MF, lam, norm, [model.lti(), Y, Mr], reltol, smarg, dec_tol)
     gen = ResidualGenerator(Q, model, "approximate_model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
     err = _shipped_error(model, Q, fnm, MF, lam, norm, [model.lti(), Y, Mr])
@@ -339,11 +341,69 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         "updating_poles": [complex(x) if complex(x).imag else float(complex(x).real) for x in placed + [-a] * Kb],
         **basis,
     })
+    gen.info["plant_mode_cancellation"] = cancelled
     if "bracket" in info:
         gen.info["gamma_bracket"] = [float(x) for x in info["bracket"]]
     if least is not None:
         gen.info["mindeg"] = least
     return gen
+
+
+#: :func:`_plant_mode_cancellation`: the fewest of the design's points at which its correction keeps the u, d
+#: decoupling, and the most unknowns ``(n_q + rows)·(p + m)`` it solves for (an SVD of ~4× as many rows: ~1 s)
+CANCEL_POINTS, CANCEL_UNKNOWNS = 100, 2000
+
+
+def _plant_mode_cancellation(model, Q, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol) -> tuple[LTI, dict]:
+    """Stage of :func:`approximate_model_matching`: ``(Q', info['plant_mode_cancellation'])``, the shipped filter with
+    its numerator corrected so that every plant mode on or beyond the stability boundary that some input of Ge
+    excites is cancelled exactly in ``R = Q·Ge`` — the modes and directions of the judge's table
+    (:func:`..toolkit.refine.boundary_residues` with ``every_mode``, :func:`..toolkit.plant_modes.boundary_mode_table`),
+    the correction the change of ``[B_q; D_q]`` (of Q's balanced realisation) that zeroes the residues exactly and
+    changes ``Q·[Gu Gd; I 0]`` on the design's points least (:func:`..toolkit.refine.cancel_residues`).
+
+    Why: the basis ``Q0`` (or its stable factor) cancels a fault-only boundary mode p to rounding, ``Q0(p) c_p ~
+    eps``, and ``Q = Y Φ Q0`` multiplies that residue by Y's gain: random seed 2's ``||Q(1) c_p|| = 6.8e-12``
+    against the judge's rounding bound δ_i = 5.5e-13 (s = 1), seed 13's 3.0e-11 against 1.6e-11 (z = 1) — an R_f
+    that grows as ``e^t·residue`` in a running FMU, refused by the R-stability post-condition. A stable R needs
+    ``Q(p) c_p = 0`` exactly, so the correction of a filter that is right up to that residue moves it by the
+    residue's size. As :func:`.matching._cancel_plant_modes`, the correction is
+    minimal in the parameters, not in the response, so it is kept only if the error measured on the corrected
+    filter (:func:`_shipped_error`, on the same points) is within ``reltol`` of the shipped one's (plus 1e-9 of
+    ``||M Mr||`` for exactly matchable references) and the corrected filter passes the post-conditions; otherwise
+    the shipped filter goes on to be judged as it is. The note has matching's keys: ``corrected``,
+    ``error_before``/``error_after``, ``correction`` (relative change of ``[B_q; D_q]``), ``reason``, and here the
+    ``modes`` corrected."""
+    from ..toolkit.refine import boundary_residues, cancel_residues
+
+    out = {"corrected": False, "error_before": None, "error_after": None, "correction": 0.0, "modes": []}
+    residues = boundary_residues(model, every_mode=True)
+    if not residues:
+        return Q, {**out, "reason": "no plant mode on or beyond the stability boundary that R must cancel"}
+    unknowns, nud = (Q.n + Q.p) * Q.m, model.nu + model.nd
+    if unknowns > CANCEL_UNKNOWNS:
+        return Q, {**out, "reason": f"the correction has {unknowns} unknowns (> {CANCEL_UNKNOWNS}): Q kept as designed"}
+    # the u, d decoupling kept on the design's points, thinned to twice as many real equations as unknowns
+    k = min(lam.size, max(CANCEL_POINTS, -(-unknowns // max(Q.p * nud, 1)))) if nud else 0
+    pts = lam[np.unique(np.linspace(0, lam.size - 1, k).round().astype(int))]
+    Qc, rel = cancel_residues(Q, residues, pts, _values(model.augmented(), pts)[:, :, :nud])
+    out.update({"correction": rel, "modes": [complex(p) if complex(p).imag else float(complex(p).real)
+                                             for p, _ in residues]})
+    if Qc is Q:
+        return Q, {**out, "reason": "Q's resolvent cannot be evaluated at the modes or points: Q kept as designed"}
+    before = _shipped_error(model, Q, fnm, MF, lam, norm, systems)
+    after = _shipped_error(model, Qc, fnm, MF, lam, norm, systems)
+    limit = before * (1 + reltol) + 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)), initial=0.0)), 1e-300)
+    out.update({"error_before": float(before), "error_after": float(after)})
+    if not after <= limit:
+        return Q, {**out, "reason": f"the exact cancellation would worsen the match from {before:.6g} to {after:.6g} "
+                                    f"(limit {limit:.6g}, reltol = {reltol:g}): Q kept as designed"}
+    try:
+        check_generator(ResidualGenerator(Qc, model, "approximate_model_matching"), decouple=("u", "d"), faults=[],
+                        smarg=smarg, dec_tol=dec_tol)
+    except DesignError as exc:
+        return Q, {**out, "reason": f"the corrected filter fails its post-conditions ({exc}): Q kept as designed"}
+    return Qc, {**out, "corrected": True, "reason": "the plant modes on or beyond the boundary cancel exactly in R"}
 
 
 def _shipped_error(model, Q, fnm, MF, lam, norm, systems) -> float:
