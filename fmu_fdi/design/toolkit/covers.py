@@ -185,8 +185,9 @@ def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.
     Guaranteed: the least order over the X whose Y is realised on the compound's states (Y'' has the cover's
     order). When the least-order X needs a Y with dynamics of its own that the compound does not hold — X1
     built on a null-space basis with other poles than X2's (an H∞-optimal row and the pencil basis: AMMP
-    seeds 5 and 9), or X1 and the least X sharing an unstable pole Y must cancel — the order returned is an
-    upper bound; the caller compares with another method (``mindeg`` also re-solves (2) from the reference). The
+    seed 26, 25 where the exact re-solve has 13, with no output-nulling state and clean rank decisions in both
+    steps; seed 5 was another case: see ``vrtol`` below), or X1 and the least X sharing an unstable pole Y must
+    cancel — the order returned is an upper bound; the caller compares with another method (``mindeg`` also re-solves (2) from the reference). The
     compound's minimal realisation is TB01PD's on TB01ID-scaled data: states of X1 with Hankel singular values
     ≤ 1e-13 of the largest (an H∞-optimal row, seed 9: 18 of 33) can survive it at every ``rtol``, and then
     nothing is lowered — pass X1 balanced and truncated (``mindeg`` tries both).
