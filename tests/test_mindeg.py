@@ -266,7 +266,8 @@ def test_least_order_zero_where_a_static_filter_matches(monkeypatch, seed, dt, c
 def test_covers_alone_reach_the_resolve_on_random_seed_5(monkeypatch):
     """Random seed 5 (discrete, two 66-state optimal rows): the exact re-solve of (2) reaches order 7 per row; the
     covers alone stopped at 21 while their step (i) kept the 20 states an output injection through the basis
-    makes uncontrollable (known only to ~1e-6 of the compound's norm, see covers.left_cover2's ``vrtol``). With
+    makes uncontrollable (PBH values ≤ 2e-9 of the compound's norm, which the deflation at working precision does
+    not remove; see covers.left_cover2's ``vrtol``). With
     the re-solve switched off, the covers must now reach the design's orders with it (Hankel singular values
     from scipy's Lyapunov solvers), with the optimal error (numpy responses, the test's grid, reltol 1e-6 plus
     the guard's floor 1e-9 ||M Mr||∞), decoupled and stable."""

@@ -746,13 +746,13 @@ def _resolved_row(fw: FDIModel, Qi: LTI, fnm: LTI, smarg, dec_tol: float, atol: 
     states, where the covers' rank decisions on the compound ``[Q_i; N]`` (its orders jump with the tolerance:
     seed 9's balanced compound 5, 7, 5, 3, 15, 15, 3 at ``MINDEG_RTOLS``) can miss the least order: no cover
     candidate of the re-solve's order appears at all. Random H∞ family, seeds 0-29 at reltol 1e-6
-    (``benchmarks/mindeg_time.py --seeds 0-29``): since the covers' step (i) runs at its own tolerance
-    (:func:`_row_candidates`) they reach the re-solve's [7, 7] on seed 5 (before: [21, 21]); it still lowers
-    further on seeds 17 (row 1: 5 vs 52; that row is a solution of (2) only to 8e-9 of the response — Q_i − X_r
-    is 7.8e-9 off N's row space — so no exact cover has its order) and 26 (13 vs 25: exact to 8e-13, while both
-    steps of the cover on the balanced compound of order 49 decide with clean gaps — no output-nulling state, a
-    single-column staircase whose singular values stay above 1e6 × tol — so the Type 2 cover of ``[Q_i; N]`` is
-    not least there: an open question), so it is kept (stage time covers alone / both: 0.78, geometric mean)."""
+    (``benchmarks/mindeg_time.py --seeds 0-29``): since the covers' step (i) also runs mode by mode at its own
+    tolerance (:func:`_row_candidates`) they reach the re-solve's [7, 7] on seed 5 (before: [21, 21]) and lower
+    seed 17's row 2 to 8 (before 52, the re-solve's too); it still lowers further on seeds 17 (row 1: 5 vs 52;
+    that row solves (2) only to 8e-9 of the response — Q_i − X_r is 7.8e-9 off N's row space — and the order-5
+    cover of the balanced compound is unstable) and 26 (13 vs 18, before 25: exact to 8e-13; the compound's PBH
+    values have no gap, from 7e-12 to 1e-2 of its norm), so it is kept (stage time covers alone / both: 0.86,
+    geometric mean)."""
     from .matching import model_matching
 
     try:
