@@ -11,10 +11,13 @@ two alternating ``R`` times, best kept) and their ratio, the row orders (optimal
 the geometric mean of the stage ratios.
 Run: python benchmarks/mindeg_time.py [R] [REV]
 
-``--seeds A-B`` instead: the random H∞ family of tests/test_synthesis_ammp.py (seeds A..B, reltol 1e-6), the
-mindeg stage of the current module with and without its re-solve candidate (``_resolved_row``), each called on
-the same optimal filter and grid: row orders (optimal → lowered) and stage times per seed, the seeds where the
-re-solve still lowers further than the covers alone, and the geometric mean of the time ratio cover-only / both.
+``--seeds A-B`` (or a list ``A,B,C``) instead: the random H∞ family of tests/test_synthesis_ammp.py (reltol 1e-6),
+the mindeg stage of the current module with and without its re-solve candidate (``_resolved_row``), and the
+baseline's (REV, default f08e977) without it, each called on the same optimal filter and grid: row orders
+(optimal → lowered) and stage times per seed, the seeds where the re-solve still lowers further than the covers
+alone (now and in the baseline), and the geometric means of the time ratios cover-only / both and cover-only
+now / baseline.
+Run: python benchmarks/mindeg_time.py --seeds 0-29 [REV]
 """
 import sys
 import time
@@ -44,11 +47,24 @@ def best(fn, reps):
     return out, t
 
 
-def seeds(lo: int, hi: int):
-    real_lo, real_rs = new._least_order, new._resolved_row
-    wins, ratios = [], []
-    print(f"{'seed':>4s} {'optimal':>12s} {'covers+re-solve':>16s} {'s':>7s} {'covers only':>12s} {'s':>7s}")
-    for seed in range(lo, hi + 1):
+def _covers_only(mod, args):
+    """``mod._least_order(*args)`` with its re-solve candidate switched off: ``(info, seconds)``."""
+    real = mod._resolved_row
+    mod._resolved_row = lambda *a, **k: (None, "")
+    try:
+        (_, info), t = best(single_blas_thread(lambda: mod._least_order(*args)), 1)
+    finally:
+        mod._resolved_row = real
+    return info, t
+
+
+def seeds(which, rev: str = "f08e977"):
+    real_lo = new._least_order
+    old = baseline(rev, "approximate_matching")
+    wins, wins_old, ratios, ratios_old = [], [], [], []
+    print(f"{'seed':>4s} {'optimal':>12s} {'covers+re-solve':>16s} {'s':>7s} {'covers only':>12s} {'s':>7s} "
+          f"{'baseline covers only':>21s} {'s':>7s}")
+    for seed in which:
         model, Mr = _random_case(seed)
         captured = {}
 
@@ -66,25 +82,32 @@ def seeds(lo: int, hi: int):
             new._least_order = real_lo
         args = captured["args"]
         (_, both), t_both = best(single_blas_thread(lambda: real_lo(*args)), 1)
-        new._resolved_row = lambda *a, **k: (None, "")
-        try:
-            (_, alone), t_alone = best(single_blas_thread(lambda: real_lo(*args)), 1)
-        finally:
-            new._resolved_row = real_rs
+        alone, t_alone = _covers_only(new, args)
+        before, t_before = _covers_only(old, args)
         if sum(both["row_orders"]) < sum(alone["row_orders"]):
             wins.append(seed)
+        if sum(both["row_orders"]) < sum(before["row_orders"]):
+            wins_old.append(seed)
         ratios.append(t_alone / t_both)
+        ratios_old.append(t_alone / t_before)
         print(f"{seed:4d} {str(both['row_orders_before']):>12s} {str(both['row_orders']):>16s} {t_both:7.2f} "
-              f"{str(alone['row_orders']):>12s} {t_alone:7.2f}")
-    print(f"seeds where the re-solve lowers further than the covers alone: {wins}")
+              f"{str(alone['row_orders']):>12s} {t_alone:7.2f} {str(before['row_orders']):>21s} {t_before:7.2f}")
+    print(f"seeds where the re-solve lowers further than the covers alone: {wins} (baseline {rev}: {wins_old})")
     print(f"geometric mean of the stage time ratio covers-only / covers+re-solve: "
           f"{float(np.exp(np.mean(np.log(ratios)))):.2f}")
+    print(f"geometric mean of the stage time ratio covers-only / baseline covers-only: "
+          f"{float(np.exp(np.mean(np.log(ratios_old)))):.2f}")
 
 
 def main():
     if len(sys.argv) > 1 and sys.argv[1] == "--seeds":
-        lo, hi = (int(v) for v in (sys.argv[2] if len(sys.argv) > 2 else "0-29").split("-"))
-        return seeds(lo, hi)
+        spec = sys.argv[2] if len(sys.argv) > 2 else "0-29"
+        if "-" in spec:
+            lo, hi = (int(v) for v in spec.split("-"))
+            which = list(range(lo, hi + 1))
+        else:
+            which = [int(v) for v in spec.split(",")]
+        return seeds(which, *sys.argv[3:4])
     reps = int(sys.argv[1]) if len(sys.argv) > 1 else 3
     rev = sys.argv[2] if len(sys.argv) > 2 else "19b534a"
     old = baseline(rev, "approximate_matching")

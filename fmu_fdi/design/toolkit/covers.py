@@ -125,11 +125,12 @@ def right_cover2(a: np.ndarray, b1: np.ndarray, b2: np.ndarray, c: np.ndarray, d
     return ar, br, cr, dr, f, g, cond
 
 
-def _compound(X1: LTI, X2: LTI, rtol, atol: float):
+def _compound(X1: LTI, X2: LTI, rtol, atol: float, vrtol: float | None = None):
     """Step (i) of :func:`left_cover2`: the balanced minimal compound ``[X1; X2]`` with the states one output
     injection through X2 makes uncontrollable removed: ``(A, B, C1, C2, D1, D2, Y0, M, tol, cond, n)`` —
     ``(A, B, C1, D1)`` realises ``X1' = X1 + Y0 X2`` and ``(A, B, C2, D2)`` realises ``M X2``; ``n`` is the
-    compound's minimal order before the removal."""
+    compound's minimal order before the removal. The removal's rank decisions use ``max(atol, vrtol·norm)``
+    when ``vrtol`` is given (:func:`left_cover2`), the compound's ``tol`` otherwise."""
     from .pencil import _output_nulling
 
     if X1.m != X2.m or X1.dt != X2.dt:
@@ -149,9 +150,14 @@ def _compound(X1: LTI, X2: LTI, rtol, atol: float):
     M = LTI.static(np.eye(p2), dt)
     cond = 1.0
     if n and p2:
-        P, _, _, F, _, fnorm = _output_nulling(A.T, C2.T, B.T, D2.T, tol)
-        if P.shape[1]:
+        vtol = tol if vrtol is None else max(atol, float(vrtol) * norm)
+        P = None
+        if vrtol is not None:
+            K0, P = _near_uncontrollable(A, B, C2, D2, vtol, tol)
+        if P is None:
+            P, _, _, F, _, fnorm = _output_nulling(A.T, C2.T, B.T, D2.T, vtol)
             K0 = P @ F.T  # dual feedback u = F ξ on x = P ξ: K0 = (F Pᵀ)ᵀ
+        if P.shape[1]:
             cond = max(cond, float(np.linalg.norm(K0, 2)))
             Ak, Bk = A + K0 @ C2, B + K0 @ D2
             Y0, M = LTI(Ak, K0, C1, np.zeros((p1, p2)), dt), LTI(Ak, K0, C2, np.eye(p2), dt)
@@ -160,7 +166,44 @@ def _compound(X1: LTI, X2: LTI, rtol, atol: float):
     return A, B, C1, C2, D1, D2, Y0, M, tol, cond, n
 
 
-def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.0) -> Cover:
+def _near_uncontrollable(A, B, C2, D2, vtol: float, tol: float):
+    """Step (i) of :func:`_compound` with a loosened threshold, by eigenvalues: ``(K0, P)`` or ``(None, None)``
+    when ``D2`` has not full row rank (above ``tol``).
+
+    With ``D2`` of full row rank the injection ``K0 = −B D2⁺`` leaves ``(Â, B̂) = (A + K0 C2, B (I − D2⁺ D2))``,
+    and the states any injection makes uncontrollable are the uncontrollable ones of that pair (the output
+    ``C2 x + D2 u`` fixes the rest of the injection). Each eigenvalue λ of Â is judged by its PBH test,
+    ``σ_min([Â − λI, B̂]) ≤ vtol``, and ``P`` spans the left invariant subspace of the accepted ones (ordered real
+    Schur form of Âᵀ, :func:`...linalg.ordered_schur`; orthonormal). One decision per mode instead of the
+    deflation's chain of rank decisions, whose rounding grows pass after pass: on random AMMP seed 26 the PBH
+    values of the balanced compound (order 49) run from 7e-12 to 1e-2 of its norm, the deflation finds no state
+    at any threshold up to 1e-3, this test 12 at 3e-7, and the cover drops from 25 to 18 with the row's
+    response to 5e-11."""
+    from ...linalg import ordered_schur
+
+    n = A.shape[0]
+    U, sv, Vh = np.linalg.svd(D2)
+    if not (sv.size == D2.shape[0] and sv[-1] > tol):
+        return None, None
+    Dp = Vh[:sv.size].T @ (U.T / sv[:, None])  # D2⁺ (full row rank: D2 D2⁺ = I)
+    K0 = -B @ Dp
+    Ah, Bh = A + K0 @ C2, B + K0 @ D2
+    ev = np.linalg.eigvals(Ah)
+    pbh = np.array([np.linalg.svd(np.hstack([Ah - z * np.eye(n), Bh]), compute_uv=False)[-1] for z in ev])
+    chosen = ev[pbh <= vtol]
+    if not chosen.size:
+        return K0, np.zeros((n, 0))
+
+    def select(re, im):
+        z = complex(re, im)
+        return bool(np.min(np.abs(chosen - z)) <= 1e-9 * max(1.0, abs(z)))
+
+    _, Z, k = ordered_schur(Ah.T, select)
+    return K0, Z[:, :k]
+
+
+def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.0,
+                vrtol: float | None = None) -> Cover:
     """Type 2 minimum dynamic cover ``X = X1 + Y X2`` of least McMillan degree (equation (1)).
 
     ``X1`` (p1 × m) and ``X2`` (p2 × m, possibly p2 = 0) are proper, of one sampling time. Their compound
@@ -182,13 +225,25 @@ def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.
     Guaranteed: the least order over the X whose Y is realised on the compound's states (Y'' has the cover's
     order). When the least-order X needs a Y with dynamics of its own that the compound does not hold — X1
     built on a null-space basis with other poles than X2's (an H∞-optimal row and the pencil basis: AMMP
-    seeds 5 and 9), or X1 and the least X sharing an unstable pole Y must cancel — the order returned is an
-    upper bound; the caller compares with another method (``mindeg`` also re-solves (2) from the reference). The
+    seeds 5 and 26, where step (i) at working precision removes nothing: see ``vrtol`` below), or X1 and the
+    least X sharing an unstable pole Y must cancel — the order returned is an upper bound; the caller compares
+    with another method (``mindeg`` also re-solves (2) from the reference). The
     compound's minimal realisation is TB01PD's on TB01ID-scaled data: states of X1 with Hankel singular values
     ≤ 1e-13 of the largest (an H∞-optimal row, seed 9: 18 of 33) can survive it at every ``rtol``, and then
     nothing is lowered — pass X1 balanced and truncated (``mindeg`` tries both).
+
+    ``vrtol`` (default: ``rtol``'s threshold) is the relative tolerance of step (i) alone, which then judges each
+    mode by its PBH test (:func:`_near_uncontrollable`; the deflation at that threshold when ``D2`` is rank
+    deficient). Step (i) finds the states only as accurately as X1 is known, and the staircase of step (ii)
+    needs them all removed: an H∞-optimal row known to ~1e-12 (random AMMP seed 5, the balanced compound of
+    order 41 of a row and the basis) has 20 modes whose PBH values are ≤ 2e-9 of the norm (then a gap to
+    1e-4), but the deflation at working precision removes none — its first constraint has singular values 2e-7
+    and 3e-11 of the norm where the exact ones are 0 — and the staircase of step (ii), whose rank decisions
+    then have clean gaps, stops at an unstable 13, where with the 20 states removed it gives the least order
+    7 of the exact re-solve. Seed 26 (order 49): no gap — PBH values from 7e-12 to 1e-2 — and the cover
+    drops with the threshold, 25 → 18 at 3e-7 (response to 5e-11) → 15 at 3e-6; the re-solve has 13.
     """
-    A, B, C1, C2, D1, D2, Y0, M, tol, cond, n = _compound(X1, X2, rtol, atol)
+    A, B, C1, C2, D1, D2, Y0, M, tol, cond, n = _compound(X1, X2, rtol, atol, vrtol)
     dt = X1.dt
     ar, br, cr, dr, f, g, c2 = right_cover2(A.T, C1.T, C2.T, B.T, D1.T, D2.T, tol)
     X = LTI(ar.T, cr.T, br.T, dr.T, dt)

@@ -380,29 +380,37 @@ def _refitted(X: LTI, tol: float, atol: float, polish: bool = True, reduce_rtol:
 
 
 def pole_refit(A0: np.ndarray, C: np.ndarray, dt: float, lam: np.ndarray, target: np.ndarray,
-               Ge: np.ndarray | None = None):
+               Ge: np.ndarray | None = None, free: np.ndarray | None = None):
     """``(A, Θ, residual)``: ``A`` (``C`` fixed) by Gauss–Newton from ``A0`` on the residual of :func:`numerator_fit`
     (variable projection, Golub & Pereyra: ``Θ = [B; D]`` eliminated by its linear least squares for each A;
     Levenberg–Marquardt, at most ``REFIT_JACOBIANS`` Jacobians), scaled by the target's largest entry; None when
     the iteration fails. Used where a reduction or a cover's rank decisions moved the kept poles by about their
     tolerance: the reduced exact-matching row (:func:`_refitted`) and mindeg's cover candidates
-    (:func:`...problems.approximate_matching._refit_numerator`)."""
+    (:func:`...problems.approximate_matching._refit_numerator`). ``free`` (boolean, n × n) limits the unknowns to
+    those entries of A (the others keep A0's): a real modal A0 refits its poles alone, about 2n unknowns for n²."""
     from scipy.optimize import least_squares
 
     n = A0.shape[0]
+    mask = np.ones((n, n), bool) if free is None else np.asarray(free, bool)
+
+    def full(a):
+        A = A0.copy()
+        A[mask] = a
+        return A
+
     top = max(float(np.max(np.abs(np.concatenate([target.real.ravel(), target.imag.ravel()])), initial=0.0)),
               1e-300)
 
     def residual(a):
-        res = numerator_fit(a.reshape(n, n), C, dt, lam, target, Ge)[1]
+        res = numerator_fit(full(a), C, dt, lam, target, Ge)[1]
         return np.concatenate([res.real.ravel(), res.imag.ravel()]) / top
 
     try:
-        a = least_squares(residual, A0.ravel(), xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm",
+        a = least_squares(residual, A0[mask], xtol=1e-15, ftol=1e-15, gtol=1e-15, method="lm",
                           max_nfev=2 * REFIT_JACOBIANS).x
     except (np.linalg.LinAlgError, ValueError):
         return None
-    A = a.reshape(n, n)
+    A = full(a)
     return (A, *numerator_fit(A, C, dt, lam, target, Ge))
 
 
