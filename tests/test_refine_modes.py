@@ -131,8 +131,9 @@ def test_an_amplified_rounding_residue_of_a_fault_only_mode_is_cancelled(case, m
     assert _pbh_poles(AR, BR, CR, dt, DR).size == 0
     note = gen.info["plant_mode_cancellation"]
     assert note["corrected"] and len(note["modes"]) == 1
-    # the error unchanged: that of the filter designed without the residue, to the γ-iteration's reltol = 1e-4
-    # (the residue's stable part, ε·E·[Gf Gw] ≲ 1e-7 × 10, moves it by ≤ 1e-6 ≪ 1e-4 of errors ≥ 4e-3)
+    # the error unchanged: that of the filter designed without the residue, to the γ-iteration's reltol = 1e-4 (the
+    # bound the stage keeps a correction within). What moves it is the residue's stable part, ε·E·[Gf Gw] with ε =
+    # 1e-7 of Q's gain: relative 2e-7 (s = 1, z = e^0.1, errors 0.33, 0.36) and 4e-5 (z = 1, error 3.9e-3)
     assert abs(_error(gen.Q, model, gen.info["M"], Mr) - designed) <= 1e-4 * designed
     assert abs(gen.info["error"] - gen0.info["error"]) <= 1e-4 * gen0.info["error"]
 

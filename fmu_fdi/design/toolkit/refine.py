@@ -145,8 +145,9 @@ def cancel_residues(Q: LTI, residues, lam=(), Ge_ud=None) -> tuple[LTI, float]:
         return Q, 0.0
     svd_m = (Um[:, bm], sm[bm], Vm[bm])
     delta = -_truncated_solve(Pm, svd_m, Pm @ theta0)
-    if lam.size:
-        Pp = _conditions([np.kron(G[k].T, K[k]) for k in range(lam.size)], [])
+    Pp = _conditions([np.kron(G[k].T, K[k]) for k in range(lam.size)], []) if lam.size else None
+    # the points' step only where Δ_m would move their values beyond the leak they have (the SVD of Φ_p P is the cost)
+    if Pp is not None and np.max(np.abs(Pp @ delta)) > np.max(np.abs(Pp @ theta0)):
         A = Pp - (Pp @ svd_m[2].T) @ svd_m[2]  # Φ_p P: the points' conditions on Φ_m's null space
         U, sv, Vt = np.linalg.svd(A, full_matrices=False)
         big = sv > REFINE_RTOL * sv[0] if sv.size and sv[0] > 0 else np.zeros(sv.size, bool)
