@@ -261,17 +261,14 @@ def judge(gen, model: FDIModel, S, names, w_decoupled: bool = False) -> list[str
     Qv = _freqresp(Qall.A, Qall.B, Qall.C, Qall.D, lam)        # (N, rows, p+m)
     Rv = Qv @ Gv
 
-    def peak(X):
-        return float(np.linalg.norm(X, 2, axis=(1, 2)).max()) if X.shape[1] and X.shape[2] else 0.0
-
     for i, g in enumerate(gen.groups):
         Rg, Qg = Rv[:, g, :], Qv[:, g, :]
-        qpk = peak(Qg)
+        qpk = _peak(Qg)
         if qpk < ZERO_Q:
             out.append(f"group {i}: Q is numerically zero (peak gain {qpk:.2e})")
             continue
         req = [nm for nm, s in zip(names, S[i]) if s]
-        gains = {nm: peak(Rg[:, :, fcols[nm]]) for nm in req}
+        gains = {nm: _peak(Rg[:, :, fcols[nm]]) for nm in req}
         for nm in req:
             bound = float(np.max(np.linalg.norm(Qg, 2, axis=(1, 2))
                                  * np.linalg.norm(Gv[:, :, fcols[nm]], 2, axis=(1, 2))))
@@ -280,19 +277,33 @@ def judge(gen, model: FDIModel, S, names, w_decoupled: bool = False) -> list[str
         gmin = min(gains.values()) if gains else 0.0
         if gmin <= 0:
             continue
-        scale = 1.0 / gmin
-        checks = [("u", Rg[:, :, sl_u]), ("d", Rg[:, :, sl_d])]
-        if w_decoupled:
-            checks.append(("w", Rg[:, :, sl_w]))
-        checks += [(f"excluded fault {nm}", Rg[:, :, fcols[nm]]) for nm, s in zip(names, S[i]) if not s]
-        for what, X in checks:
-            leak = scale * peak(X)
-            if leak > DEC_TOL:
-                out.append(f"group {i}: ‖R_{what}‖ = {leak:.2e} on the normalised form (> {DEC_TOL:g})")
-        Qsub = type("Qsub", (), {"A": Qall.A, "B": Qall.B, "C": Qall.C[g], "D": Qall.D[g]})
-        AR, BR, CR, DR = _series(Qsub, model)
-        for p_ in _pbh_poles(AR, BR, CR, model.dt, DR):
-            out.append(f"group {i}: R = Q·Ge has the unstable/marginal pole {p_:.4g}")
+        blocks = [("u", sl_u), ("d", sl_d)] + ([("w", sl_w)] if w_decoupled else [])
+        blocks += [(f"excluded fault {nm}", fcols[nm]) for nm, s in zip(names, S[i]) if not s]
+        out += row_violations(Qall, g, model, Rv, 1.0 / gmin, blocks, f"group {i}")
+    return out
+
+
+def _peak(X) -> float:
+    """The largest 2-norm over the points of ``X`` (shape (points, rows, columns)); 0 for an empty block."""
+    return float(np.linalg.norm(X, 2, axis=(1, 2)).max()) if X.size else 0.0
+
+
+def row_violations(Q, rows, model: FDIModel, Rv: np.ndarray, scale: float, blocks, tag: str) -> list[str]:
+    """The per-row part of issue 17's judge, shared by this file's :func:`judge` and test_approximate_random's
+    judges: for the residual rows ``rows`` of Q (a group, normalised by ``scale`` = 1 / its smallest required fault
+    peak), every block ``(name, columns of R)`` of ``blocks`` — u, d, w when decoupled, the faults the row excludes
+    — must have ``scale·max_k ‖R(λ_k)[rows, columns]‖ ≤ DEC_TOL`` on the points of ``Rv`` (``R = Q·Ge``
+    there, shape (points, Q's rows, Ge's columns)), and the series realisation of ``Q[rows]·Ge`` may have no
+    unstable or marginal pole that passes both PBH tests (:func:`_pbh_poles`)."""
+    out = []
+    for what, cols in blocks:
+        leak = scale * _peak(Rv[:, rows][:, :, cols])
+        if leak > DEC_TOL:
+            out.append(f"{tag}: ‖R_{what}‖ = {leak:.2e} on the normalised form (> {DEC_TOL:g})")
+    Qsub = type("Qsub", (), {"A": Q.A, "B": Q.B, "C": Q.C[rows], "D": Q.D[rows]})
+    AR, BR, CR, DR = _series(Qsub, model)
+    for p_ in _pbh_poles(AR, BR, CR, model.dt, DR):
+        out.append(f"{tag}: R = Q·Ge has the unstable/marginal pole {p_:.4g}")
     return out
 
 
@@ -348,17 +359,29 @@ def check_case(seed: int, max_rows: int | None = 6) -> list[tuple[str, str, str]
         else:
             idx = [names.index(x) for x in nm]
             achievable = all(any(np.array_equal(r[idx], s) for r in listed) for s in S)
-        if status == "crash":
-            results.append((what, "broken", f"{type(res).__name__} instead of DesignError: {res}"))
-        elif status == "refused":
-            results.append((what, "broken" if achievable else "refused",
-                            ("achievable request refused: " if achievable else "") + str(res)[:300]))
-        else:
+
+        def judged(res, S=S, nm=nm):
             wdec = bool(model.nw) and all(g.info.get("noise") == "decoupled exactly"
                                           for g in getattr(res, "members", [res]))
-            bad = judge(res, model, S, nm, w_decoupled=wdec)
-            results.append((what, "broken" if bad else "ok", "; ".join(bad[:4])))
+            return judge(res, model, S, nm, w_decoupled=wdec)
+
+        results.append((what,) + verdict(status, res, achievable, judged))
     return results
+
+
+def verdict(status: str, res, achievable: bool, judged) -> tuple[str, str]:
+    """``(status, detail)`` of one design call from :func:`_call`'s answer (this file's and
+    test_approximate_random's audits): another exception than DesignError is broken; a refusal is broken when
+    the request is ``achievable``; a returned design is broken when ``judged(res)`` lists violations."""
+    if status == "timeout":
+        return "timeout", str(res)
+    if status == "crash":
+        return "broken", f"{type(res).__name__} instead of DesignError: {str(res)[:300]}"
+    if status == "refused":
+        why = ("achievable request refused: " if achievable else "") + str(res)[:300]
+        return ("broken" if achievable else "refused"), why
+    bad = judged(res)
+    return ("broken" if bad else "ok"), "; ".join(bad[:4])
 
 
 def _describe(seed: int) -> str:
@@ -841,6 +864,52 @@ def test_seed173_row_keeps_its_unstable_fault_mode_cancelled():
     assert np.any(np.abs(ev - np.exp(0.1)) < 1e-9)
     gen = structured_bank(model, row)
     assert judge(gen, model, row, model.fault_names) == []
+
+
+def test_repeated_pole_targets_are_made_distinct():
+    """The pencil basis moves its unstable eigenvalues one Schur block at a time; two real blocks given one
+    conjugate pair as targets took the pair's speed twice. With one input that double eigenvalue is a Jordan
+    block, computed ~sqrt(eps) apart (random seed 218's row [1 1 0 1 0]: -0.41995 twice; seed 207's: 0.999
+    twice, which split to 1.0009 ± 0.0038j beyond the margin and were moved 15 times). Here, in closed form: a
+    single-input controllable pair (a companion matrix with eigenvalues 2, 3, -0.5, -4) whose bad eigenvalues 2
+    and 3 get the targets -1 ± 1j: every eigenvalue after the feedback (numpy's eig of a + b F) lies in the
+    region, the moved ones apart by more than 1e-3 (a Jordan block's computed pair is ~1e-8 apart), the kept
+    ones where they were (to 1e-9)."""
+    from fmu_fdi.design.toolkit.pencil import assign_poles
+
+    coeffs = np.poly([2.0, 3.0, -0.5, -4.0])
+    a = np.zeros((4, 4))
+    a[0, :] = -coeffs[1:]
+    a[1:, :3] = np.eye(3)
+    b = np.array([[1.0], [0.0], [0.0], [0.0]])
+    F, moved = assign_poles(a, b, 0.0, lambda bad: np.array([-1 + 1j, -1 - 1j])[:bad.size],
+                            lambda re, im: re < 0)
+    ev = np.sort_complex(np.linalg.eigvals(a + b @ F))
+    assert moved == 2 and np.all(ev.real < 0), ev
+    new = [z for z in ev if min(abs(z + 0.5), abs(z + 4)) > 1e-6]
+    assert len(new) == 2 and abs(new[0] - new[1]) > 1e-3, ev
+    assert min(abs(ev + 0.5)) < 1e-9 and min(abs(ev + 4)) < 1e-9, ev
+
+
+@pytest.mark.parametrize("seed, row, what", [
+    (207, [1, 1, 0, 1, 0], "discrete, n = 13, noise w; fc (decoupled) excites an undamped pair on |z| = 1: the one "
+                           "row that decouples w too (order 12) needs a feedback of norm 2.4e5 to move a basis pole "
+                           "48 of controllability 2e-4 and leaks 1.9e-6 of the weakest fault gain — noise is then "
+                           "attenuated by the (u, d) rows, not decoupled by that row"),
+    (218, [1, 1, 0, 1, 0], "continuous, n = 25: the pencil basis sent two real blocks to one target -0.41995 (a pair's "
+                           "speed taken twice), a defective double pole; leak 1.1e-7"),
+    (239, [0, 1, 0, 0, 1], "discrete, n = 21, plant poles within 8e-3 of fc's z = 1: the numerator refinement lowered "
+                           "the leak 4 % on its 77 points and raised it 28 times between them (Q(1)·c from 2.5e-8 to "
+                           "1.4e-5: z = 1 back in R_fc); it is kept only when the judge reads it better"),
+])
+def test_audit_199_258_listed_rows_are_designed(seed, row, what):
+    """Audit of seeds 199-258 (benchmarks/synthesis_random_judged.py 60 199): the three rows achievable_structure
+    lists that structured_bank refused. Designable iff achievable: each is designed and passes the independent
+    judge."""
+    model = random_case(seed)
+    assert row in np.asarray(achievable_structure(model)).tolist()
+    gen = structured_bank(model, [row])
+    assert judge(gen, model, [row], model.fault_names) == [], what
 
 
 @pytest.mark.slow
