@@ -866,6 +866,28 @@ def test_seed173_row_keeps_its_unstable_fault_mode_cancelled():
     assert judge(gen, model, row, model.fault_names) == []
 
 
+def test_grid_points_beside_poles_are_judged_by_each_pole_scale():
+    """freqresp.beside_poles, the one "grid point on a plant pole" test of the designs (nullspace's peaks, noise
+    combination and refinement skip such points; approximate matching moves them): within 1e-6 of the pole's own
+    magnitude, a pole at 0 (below sqrt(eps) of the median magnitude: an integrator computed 1e-17 off) at the
+    scale of the smallest other pole. A far pole (an H∞ filter's at 4e9) must neither widen the others'
+    neighbourhoods nor make the poles ~1 count as zero (approximate matching options seed 26)."""
+    from fmu_fdi.freqresp import beside_poles
+
+    poles = np.array([1e-17, -0.5 + 1j, -0.5 - 1j, -1.0, -4e9])
+    pts = 1j * np.array([0.0, 4e-7, 1e-5, 1.0 + 1e-6, 1.0 + 1e-4, 4e9, 1e3, 1e-3])
+    on, radius = beside_poles(pts, poles)
+    # |-0.5 ± 1j| = 1.118: the point j(1 + 1e-6) is 0.5 away from it; 1e-3·j is 1e-3 from the zero pole
+    # (radius 1e-6 × the smallest other magnitude 1.0): beside nothing
+    assert on.tolist() == [True, True, False, False, False, False, False, False], on
+    assert radius[0] == pytest.approx(1e-6) and radius[5] == pytest.approx(4e3)
+    on, _ = beside_poles([-0.5 + 1j * (1 + 1e-7), -1.0 + 2e-6j, -4e9 + 3e3j], poles)
+    assert on.tolist() == [True, False, True], on
+    # discrete: points on |z| = 1, a pole at z = 1 (rounded) and the scale 1
+    on, _ = beside_poles(np.exp(1j * np.array([0.0, 5e-7, 5e-6])), [1.0 - 1e-15, 0.5], dt=0.1)
+    assert on.tolist() == [True, True, False], on
+
+
 def test_repeated_pole_targets_are_made_distinct():
     """The pencil basis moves its unstable eigenvalues one Schur block at a time; two real blocks given one
     conjugate pair as targets took the pair's speed twice. With one input that double eigenvalue is a Jordan

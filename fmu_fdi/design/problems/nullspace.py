@@ -1052,7 +1052,8 @@ def _approximate_pencil(model: FDIModel, rdim, poles, sdeg, FDtol, FDGainTol, se
     exactly when a least-order pencil row of ``[Gu Gd Gw; I 0 0]`` sees every fault
     (:func:`_pencil` on the model with w as unknown inputs); otherwise the proper stable pencil
     bases of ``[Gu Gd; I 0]`` and ``[Gu Gd Gw; I 0 0]`` (:func:`..toolkit.pencil.pencil_basis`, no powers of
-    A) combined by :func:`_noise_combination`."""
+    A) combined by :func:`_noise_combination` — without the latter when the exact attempt failed its decoupling
+    post-condition (those rows leak on their own; ``info['noise_decoupling_refused']`` says so)."""
     from types import SimpleNamespace
 
     from ..toolkit.pencil import pencil_basis
