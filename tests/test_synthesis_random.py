@@ -935,6 +935,23 @@ def test_audit_199_258_listed_rows_are_designed(seed, row, what):
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 17, approximate_matching._shipped_filter (not audit7's): random seed 51 "
+                   "(noisy_case, discrete, n = 29, plant poles 0.9912 … 0.9959 next to z = 1), Mr = the exact "
+                   "detection row's fault response: Y (order 67, peak 9e4) Φ Q0 leaks u at 1.1e-12 of the "
+                   "strongest fault gain (numpy), the shipped minimal realisation (order 98) at 8.6e-11; on the "
+                   "normalised form 2.7e-7 (numpy, weakest fault) and 1.5e-7 … 3.7e-7 (the library's judge): "
+                   "refused for decoupling although Q_ref itself is admissible")
+def test_approximate_audit_seed51_detection_row_reference_is_matched():
+    """Audit of the approximate designs, seeds 40-63 (benchmarks/approximate_random_judged.py 24 40): matching the
+    fault response of an exact detection row (an admissible filter: the error 0 is attainable up to the noise) was
+    refused — its decoupling post-condition fails on the shipped filter's rounding (see the xfail reason)."""
+    from test_approximate_random import check_case as approximate_case
+
+    res = approximate_case(51, calls=("amm_ref",))
+    assert res and all(st != "broken" for _, st, _ in res), res
+
+
+@pytest.mark.slow
 def test_seed163_listed_row_is_designed():
     """Audit of seeds 160-319 (benchmarks/synthesis_random_judged.py): seed 163 (discrete, n = 24, p = 3, m = 5,
     noise w) row [1 1 0 0] (fa1, fa2 decoupled), listed by achievable_structure, was refused (at 1a76c91): "u+d leak 1.47e-07 ×
