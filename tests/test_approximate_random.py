@@ -33,8 +33,8 @@ from fmu_fdi.design import (afdi_bank, approximate_model_detection_bank, approxi
                             nullspace_design)
 from fmu_fdi.design.problems.achievable import achievable_structure
 from fmu_fdi.errors import DesignError
-from test_synthesis_random import (DEC_TOL, ZERO_Q, _extended, _freqresp, _pbh_poles, _series,
-                                   random_case)
+from test_synthesis_random import (DEC_TOL, ZERO_Q, _extended, _freqresp, _pbh_poles, _peak, random_case,
+                                   row_violations, verdict)
 
 # A reported figure (gap, error) agrees with numpy's when their ratio is within 1 ± FIG_RTOL. The
 # library's figures are peaks read on its own grid (200–400 points, refined around the top for the
@@ -155,27 +155,19 @@ def _cols(model):
             **{f.name: f0 + np.arange(model.nf)[f.columns] for f in model.faults}}
 
 
-def _peak(X) -> float:
-    return float(np.linalg.norm(X, 2, axis=(1, 2)).max()) if X.size else 0.0
-
-
-def _row_checks(Q, rows, model, lam, Rv, Qv, scale: float, w_decoupled: bool, tag: str) -> list[str]:
-    """Decoupling (normalised by ``scale``), Q nonzero and R stable for the rows ``rows`` of Q."""
-    out = []
+def _row_checks(Q, rows, model, lam, Rv, Qv, scale: float, w_decoupled: bool, tag: str,
+                excluded=()) -> list[str]:
+    """Decoupling (normalised by ``scale``) of u, d (w when decoupled exactly, the ``excluded`` faults), Q nonzero
+    and R stable for the rows ``rows`` of Q: test_synthesis_random's :func:`row_violations` on the points away
+    from the plant's poles (:func:`_away`)."""
     cols = _cols(model)
     keep = _away(model, lam)
     Rv, Qv = Rv[keep], Qv[keep]
     if _peak(Qv[:, rows, :]) < ZERO_Q:
         return [f"{tag}: Q is numerically zero (peak {_peak(Qv[:, rows, :]):.2e})"]
-    for what in ("u", "d") + (("w",) if w_decoupled else ()):
-        leak = scale * _peak(Rv[:, rows, cols[what]])
-        if leak > DEC_TOL:
-            out.append(f"{tag}: ‖R_{what}‖ = {leak:.2e} on the normalised form (> {DEC_TOL:g})")
-    Qsub = type("Qsub", (), {"A": Q.A, "B": Q.B, "C": Q.C[rows], "D": Q.D[rows]})
-    AR, BR, CR, DR = _series(Qsub, model)
-    for p_ in _pbh_poles(AR, BR, CR, model.dt, DR):
-        out.append(f"{tag}: R = Q·Ge has the unstable/marginal pole {p_:.4g}")
-    return out
+    blocks = [(what, cols[what]) for what in ("u", "d") + (("w",) if w_decoupled else ())]
+    blocks += [(f"excluded fault {nm}", cols[nm]) for nm in excluded]
+    return row_violations(Q, rows, model, Rv, scale, blocks, tag)
 
 
 def _agree(what: str, reported: float, numpy_fig: float, rtol: float) -> list[str]:
@@ -211,12 +203,8 @@ def judge_afd(gen, model, S, names) -> list[str]:
         if gmin <= 0:
             out.append(f"group {i}: a required fault is invisible ({fpk})")
             continue
-        out += _row_checks(Q, g, model, lam, Rv, Qv, 1.0 / gmin, exact_w, f"group {i}")
-        excl = [nm for nm, s in zip(names, S[i]) if not s]
-        for nm in excl:
-            leak = _peak(Rv[_away(model, lam)][:, g][:, :, cols[nm]]) / gmin
-            if leak > DEC_TOL:
-                out.append(f"group {i}: ‖R_{nm}‖ = {leak:.2e} excluded fault (> {DEC_TOL:g})")
+        out += _row_checks(Q, g, model, lam, Rv, Qv, 1.0 / gmin, exact_w, f"group {i}",
+                           excluded=[nm for nm, s in zip(names, S[i]) if not s])
         wpk = _refined_peak(lambda L: _freqresp(Q.A, Q.B, Q.C[g], Q.D[g], L) @ _ge_values(model, L)[:, :, cols["w"]],
                             lam, model.dt)
         gap = np.inf if wpk <= DEC_TOL * gmin else gmin / wpk
@@ -369,16 +357,7 @@ def check_case(seed: int, max_rows: int = 3, calls=("afd", "afdi", "amm_ref", "a
         out.append(("achievable_structure", "broken", f"{type(listed).__name__}"))
 
     def record(what, status, res, judge, achievable):
-        if status == "timeout":
-            out.append((what, "timeout", str(res)))
-        elif status == "crash":
-            out.append((what, "broken", f"{type(res).__name__} instead of DesignError: {str(res)[:200]}"))
-        elif status == "refused":
-            out.append((what, "broken" if achievable else "refused",
-                        ("achievable request refused: " if achievable else "") + str(res)[:300]))
-        else:
-            bad = judge(res)
-            out.append((what, "broken" if bad else "ok", "; ".join(bad[:4])))
+        out.append((what,) + verdict(status, res, achievable, judge))
 
     ones = np.ones((1, len(names)), int)
     listed_set = {tuple(r) for r in listed}

@@ -261,17 +261,14 @@ def judge(gen, model: FDIModel, S, names, w_decoupled: bool = False) -> list[str
     Qv = _freqresp(Qall.A, Qall.B, Qall.C, Qall.D, lam)        # (N, rows, p+m)
     Rv = Qv @ Gv
 
-    def peak(X):
-        return float(np.linalg.norm(X, 2, axis=(1, 2)).max()) if X.shape[1] and X.shape[2] else 0.0
-
     for i, g in enumerate(gen.groups):
         Rg, Qg = Rv[:, g, :], Qv[:, g, :]
-        qpk = peak(Qg)
+        qpk = _peak(Qg)
         if qpk < ZERO_Q:
             out.append(f"group {i}: Q is numerically zero (peak gain {qpk:.2e})")
             continue
         req = [nm for nm, s in zip(names, S[i]) if s]
-        gains = {nm: peak(Rg[:, :, fcols[nm]]) for nm in req}
+        gains = {nm: _peak(Rg[:, :, fcols[nm]]) for nm in req}
         for nm in req:
             bound = float(np.max(np.linalg.norm(Qg, 2, axis=(1, 2))
                                  * np.linalg.norm(Gv[:, :, fcols[nm]], 2, axis=(1, 2))))
@@ -280,19 +277,33 @@ def judge(gen, model: FDIModel, S, names, w_decoupled: bool = False) -> list[str
         gmin = min(gains.values()) if gains else 0.0
         if gmin <= 0:
             continue
-        scale = 1.0 / gmin
-        checks = [("u", Rg[:, :, sl_u]), ("d", Rg[:, :, sl_d])]
-        if w_decoupled:
-            checks.append(("w", Rg[:, :, sl_w]))
-        checks += [(f"excluded fault {nm}", Rg[:, :, fcols[nm]]) for nm, s in zip(names, S[i]) if not s]
-        for what, X in checks:
-            leak = scale * peak(X)
-            if leak > DEC_TOL:
-                out.append(f"group {i}: ‖R_{what}‖ = {leak:.2e} on the normalised form (> {DEC_TOL:g})")
-        Qsub = type("Qsub", (), {"A": Qall.A, "B": Qall.B, "C": Qall.C[g], "D": Qall.D[g]})
-        AR, BR, CR, DR = _series(Qsub, model)
-        for p_ in _pbh_poles(AR, BR, CR, model.dt, DR):
-            out.append(f"group {i}: R = Q·Ge has the unstable/marginal pole {p_:.4g}")
+        blocks = [("u", sl_u), ("d", sl_d)] + ([("w", sl_w)] if w_decoupled else [])
+        blocks += [(f"excluded fault {nm}", fcols[nm]) for nm, s in zip(names, S[i]) if not s]
+        out += row_violations(Qall, g, model, Rv, 1.0 / gmin, blocks, f"group {i}")
+    return out
+
+
+def _peak(X) -> float:
+    """The largest 2-norm over the points of ``X`` (shape (points, rows, columns)); 0 for an empty block."""
+    return float(np.linalg.norm(X, 2, axis=(1, 2)).max()) if X.size else 0.0
+
+
+def row_violations(Q, rows, model: FDIModel, Rv: np.ndarray, scale: float, blocks, tag: str) -> list[str]:
+    """The per-row part of issue 17's judge, shared by this file's :func:`judge` and test_approximate_random's
+    judges: for the residual rows ``rows`` of Q (a group, normalised by ``scale`` = 1 / its smallest required fault
+    peak), every block ``(name, columns of R)`` of ``blocks`` — u, d, w when decoupled, the faults the row excludes
+    — must have ``scale·max_k ‖R(λ_k)[rows, columns]‖ ≤ DEC_TOL`` on the points of ``Rv`` (``R = Q·Ge``
+    there, shape (points, Q's rows, Ge's columns)), and the series realisation of ``Q[rows]·Ge`` may have no
+    unstable or marginal pole that passes both PBH tests (:func:`_pbh_poles`)."""
+    out = []
+    for what, cols in blocks:
+        leak = scale * _peak(Rv[:, rows][:, :, cols])
+        if leak > DEC_TOL:
+            out.append(f"{tag}: ‖R_{what}‖ = {leak:.2e} on the normalised form (> {DEC_TOL:g})")
+    Qsub = type("Qsub", (), {"A": Q.A, "B": Q.B, "C": Q.C[rows], "D": Q.D[rows]})
+    AR, BR, CR, DR = _series(Qsub, model)
+    for p_ in _pbh_poles(AR, BR, CR, model.dt, DR):
+        out.append(f"{tag}: R = Q·Ge has the unstable/marginal pole {p_:.4g}")
     return out
 
 
@@ -348,17 +359,29 @@ def check_case(seed: int, max_rows: int | None = 6) -> list[tuple[str, str, str]
         else:
             idx = [names.index(x) for x in nm]
             achievable = all(any(np.array_equal(r[idx], s) for r in listed) for s in S)
-        if status == "crash":
-            results.append((what, "broken", f"{type(res).__name__} instead of DesignError: {res}"))
-        elif status == "refused":
-            results.append((what, "broken" if achievable else "refused",
-                            ("achievable request refused: " if achievable else "") + str(res)[:300]))
-        else:
+
+        def judged(res, S=S, nm=nm):
             wdec = bool(model.nw) and all(g.info.get("noise") == "decoupled exactly"
                                           for g in getattr(res, "members", [res]))
-            bad = judge(res, model, S, nm, w_decoupled=wdec)
-            results.append((what, "broken" if bad else "ok", "; ".join(bad[:4])))
+            return judge(res, model, S, nm, w_decoupled=wdec)
+
+        results.append((what,) + verdict(status, res, achievable, judged))
     return results
+
+
+def verdict(status: str, res, achievable: bool, judged) -> tuple[str, str]:
+    """``(status, detail)`` of one design call from :func:`_call`'s answer (this file's and
+    test_approximate_random's audits): another exception than DesignError is broken; a refusal is broken when
+    the request is ``achievable``; a returned design is broken when ``judged(res)`` lists violations."""
+    if status == "timeout":
+        return "timeout", str(res)
+    if status == "crash":
+        return "broken", f"{type(res).__name__} instead of DesignError: {str(res)[:300]}"
+    if status == "refused":
+        why = ("achievable request refused: " if achievable else "") + str(res)[:300]
+        return ("broken" if achievable else "refused"), why
+    bad = judged(res)
+    return ("broken" if bad else "ok"), "; ".join(bad[:4])
 
 
 def _describe(seed: int) -> str:
@@ -841,6 +864,119 @@ def test_seed173_row_keeps_its_unstable_fault_mode_cancelled():
     assert np.any(np.abs(ev - np.exp(0.1)) < 1e-9)
     gen = structured_bank(model, row)
     assert judge(gen, model, row, model.fault_names) == []
+
+
+def test_grid_points_beside_poles_are_judged_by_each_pole_scale():
+    """freqresp.beside_poles, the one "grid point on a plant pole" test of the designs (nullspace's peaks, noise
+    combination and refinement skip such points; approximate matching moves them): within 1e-6 of the pole's own
+    magnitude, a pole at 0 (below sqrt(eps) of the median magnitude: an integrator computed 1e-17 off) at the
+    scale of the smallest other pole. A far pole (an H∞ filter's at 4e9) must neither widen the others'
+    neighbourhoods nor make the poles ~1 count as zero (approximate matching options seed 26)."""
+    from fmu_fdi.freqresp import beside_poles
+
+    poles = np.array([1e-17, -0.5 + 1j, -0.5 - 1j, -1.0, -4e9])
+    pts = 1j * np.array([0.0, 4e-7, 1e-5, 1.0 + 1e-6, 1.0 + 1e-4, 4e9, 1e3, 1e-3])
+    on, radius = beside_poles(pts, poles)
+    # |-0.5 ± 1j| = 1.118: the point j(1 + 1e-6) is 0.5 away from it; 1e-3·j is 1e-3 from the zero pole
+    # (radius 1e-6 × the smallest other magnitude 1.0): beside nothing
+    assert on.tolist() == [True, True, False, False, False, False, False, False], on
+    assert radius[0] == pytest.approx(1e-6) and radius[5] == pytest.approx(4e3)
+    on, _ = beside_poles([-0.5 + 1j * (1 + 1e-7), -1.0 + 2e-6j, -4e9 + 3e3j], poles)
+    assert on.tolist() == [True, False, True], on
+    # discrete: points on |z| = 1, a pole at z = 1 (rounded) and the scale 1
+    on, _ = beside_poles(np.exp(1j * np.array([0.0, 5e-7, 5e-6])), [1.0 - 1e-15, 0.5], dt=0.1)
+    assert on.tolist() == [True, True, False], on
+
+
+def test_repeated_pole_targets_are_made_distinct():
+    """The pencil basis moves its unstable eigenvalues one Schur block at a time; two real blocks given one
+    conjugate pair as targets took the pair's speed twice. With one input that double eigenvalue is a Jordan
+    block, computed ~sqrt(eps) apart (random seed 218's row [1 1 0 1 0]: -0.41995 twice; seed 207's: 0.999
+    twice, which split to 1.0009 ± 0.0038j beyond the margin and were moved 15 times). Here, in closed form: a
+    single-input controllable pair (a companion matrix with eigenvalues 2, 3, -0.5, -4) whose bad eigenvalues 2
+    and 3 get the targets -1 ± 1j: every eigenvalue after the feedback (numpy's eig of a + b F) lies in the
+    region, the moved ones apart by more than 1e-3 (a Jordan block's computed pair is ~1e-8 apart), the kept
+    ones where they were (to 1e-9)."""
+    from fmu_fdi.design.toolkit.pencil import assign_poles
+
+    coeffs = np.poly([2.0, 3.0, -0.5, -4.0])
+    a = np.zeros((4, 4))
+    a[0, :] = -coeffs[1:]
+    a[1:, :3] = np.eye(3)
+    b = np.array([[1.0], [0.0], [0.0], [0.0]])
+    F, moved = assign_poles(a, b, 0.0, lambda bad: np.array([-1 + 1j, -1 - 1j])[:bad.size],
+                            lambda re, im: re < 0)
+    ev = np.sort_complex(np.linalg.eigvals(a + b @ F))
+    assert moved == 2 and np.all(ev.real < 0), ev
+    new = [z for z in ev if min(abs(z + 0.5), abs(z + 4)) > 1e-6]
+    assert len(new) == 2 and abs(new[0] - new[1]) > 1e-3, ev
+    assert min(abs(ev + 0.5)) < 1e-9 and min(abs(ev + 4)) < 1e-9, ev
+
+
+@pytest.mark.parametrize("seed, row, what", [
+    (207, [1, 1, 0, 1, 0], "discrete, n = 13, noise w; fc (decoupled) excites an undamped pair on |z| = 1: the one "
+                           "row that decouples w too (order 12) needs a feedback of norm 2.4e5 to move a basis pole "
+                           "48 of controllability 2e-4 and leaks 1.9e-6 of the weakest fault gain — noise is then "
+                           "attenuated by the (u, d) rows, not decoupled by that row"),
+    (218, [1, 1, 0, 1, 0], "continuous, n = 25: the pencil basis sent two real blocks to one target -0.41995 (a pair's "
+                           "speed taken twice), a defective double pole; leak 1.1e-7"),
+    (239, [0, 1, 0, 0, 1], "discrete, n = 21, plant poles within 8e-3 of fc's z = 1: the numerator refinement lowered "
+                           "the leak 4 % on its 77 points and raised it 28 times between them (Q(1)·c from 2.5e-8 to "
+                           "1.4e-5: z = 1 back in R_fc); it is kept only when the judge reads it better"),
+])
+def test_audit_199_258_listed_rows_are_designed(seed, row, what):
+    """Audit of seeds 199-258 (benchmarks/synthesis_random_judged.py 60 199): the three rows achievable_structure
+    lists that structured_bank refused. Designable iff achievable: each is designed and passes the independent
+    judge."""
+    model = random_case(seed)
+    assert row in np.asarray(achievable_structure(model)).tolist()
+    gen = structured_bank(model, [row])
+    assert judge(gen, model, [row], model.fault_names) == [], what
+
+
+@pytest.mark.xfail(strict=True, reason="issue 17, nullspace design / postconditions R-stability decision (not yet "
+                   "located): random seed 307 (discrete, fc's fault-only z = 1), row [0 1 1 0 1] listed achievable, "
+                   "is refused: 'R = Q·Ge keeps the plant pole 1: residue ||Q_1(p) c_p|| = 1.07e-12 > δ_i = 8.38e-13' "
+                   "(1.28 times its rounding bound); the stable factor M·N of the order-18 pencil row passes both the "
+                   "library judge (no failure, leak 2.1e-11) and numpy's PBH test")
+def test_audit_259_318_seed307_listed_row_is_designed():
+    """Audit of seeds 259-318 (benchmarks/synthesis_random_judged.py 60 259): the one listed row refused."""
+    model = random_case(307)
+    row = [[0, 1, 1, 0, 1]]
+    assert row[0] in np.asarray(achievable_structure(model)).tolist()
+    gen = structured_bank(model, row)
+    assert judge(gen, model, row, model.fault_names) == []
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 17, postconditions (bank reading): random seed 218's 16 listed rows, "
+                   "designed together, are refused for row 11 [1 1 0 1 0]: its excluded fault fc reads 1.18e-7 of the "
+                   "weakest required fault gain in the 16-row bank, 3.3e-8 for the same member judged alone; the "
+                   "independent numpy judge passes the whole bank (the row alone is designed: "
+                   "test_audit_199_258_listed_rows_are_designed)")
+def test_seed218_bank_of_every_listed_row_is_designed():
+    """Audit of seeds 199-258, rechecked after the fixes: seed 218's structured_bank over every listed row."""
+    model = random_case(218)
+    rows = np.asarray(achievable_structure(model), int)
+    gen = structured_bank(model, rows)
+    assert judge(gen, model, rows, model.fault_names) == []
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 17, approximate_matching._shipped_filter (not audit7's): random seed 51 "
+                   "(noisy_case, discrete, n = 29, plant poles 0.9912 … 0.9959 next to z = 1), Mr = the exact "
+                   "detection row's fault response: Y (order 67, peak 9e4) Φ Q0 leaks u at 1.1e-12 of the "
+                   "strongest fault gain (numpy), the shipped minimal realisation (order 98) at 8.6e-11; on the "
+                   "normalised form 2.7e-7 (numpy, weakest fault) and 1.5e-7 … 3.7e-7 (the library's judge): "
+                   "refused for decoupling although Q_ref itself is admissible")
+def test_approximate_audit_seed51_detection_row_reference_is_matched():
+    """Audit of the approximate designs, seeds 40-63 (benchmarks/approximate_random_judged.py 24 40): matching the
+    fault response of an exact detection row (an admissible filter: the error 0 is attainable up to the noise) was
+    refused — its decoupling post-condition fails on the shipped filter's rounding (see the xfail reason)."""
+    from test_approximate_random import check_case as approximate_case
+
+    res = approximate_case(51, calls=("amm_ref",))
+    assert res and all(st != "broken" for _, st, _ in res), res
 
 
 @pytest.mark.slow

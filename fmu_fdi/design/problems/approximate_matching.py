@@ -1395,21 +1395,11 @@ def _points(systems, dt: float, num: int = 400) -> np.ndarray:
     lam = np.exp(1j * omega * dt) if dt else 1j * omega
     poles = np.concatenate([np.ravel(np.asarray(s.poles(), complex)) for s in systems] + [np.zeros(0)])
     if poles.size:
-        mags = np.abs(poles)
-        # the scale of a pole at 0 (an integrator computed ~eps‖A‖ off, a double one ~√eps off): a pole below √eps
-        # of the median magnitude counts as one, at the scale of the smallest pole above that floor (1 if none);
-        # every other pole at its own magnitude (not the largest's: an H∞ filter's pole at 4e9 made every plant
-        # pole ~1 "zero" and moved the whole low band 4e3 up — approximate-matching options seed 26 read its
-        # error 6.9e-5 for 0.298)
-        floor = np.sqrt(EPS) * float(np.median(mags))
-        real = mags[mags > floor]
-        lo = 1.0 if dt or not real.size else float(np.min(real))
-        tol = BESIDE_POLE * np.where(mags > floor, mags, lo)  # per pole: in λ (discrete: |λ| = 1, so in θ too)
-        ratio = np.abs(lam[:, None] - poles[None, :]) / tol[None, :]
-        near = np.argmin(ratio, axis=1)
-        on = ratio[np.arange(lam.size), near] <= 1.0
+        from ...freqresp import beside_poles  # the one "on a pole" test, with its scale per pole (in λ; discrete: θ)
+
+        on, radius = beside_poles(lam, poles, dt, BESIDE_POLE)
         if np.any(on):
-            step = 2.0 * tol[near[on]]  # ω (continuous) or θ = ω dt (discrete, |p| ≈ 1 on the circle)
+            step = 2.0 * radius[on]  # ω (continuous) or θ = ω dt (discrete, |p| ≈ 1 on the circle)
             theta = omega * dt if dt else omega.copy()
             top = np.pi if dt else np.inf
             # toward the interior: down at Nyquist (z = −1), up elsewhere

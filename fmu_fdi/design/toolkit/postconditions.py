@@ -974,8 +974,10 @@ def _finish(fig: dict, failures, adv: dict, gen, raise_error: bool) -> dict:
         shown = [m for _, m in failures[:6]] + ([f"... {len(failures) - 6} more"] if len(failures) > 6 else [])
         numerical = {"decoupling", "structure", "stability", "finite", "R stability"}
         cls = NumericalDesignError if set(kinds) & numerical else DesignError
-        raise cls(f"{gen.method} design fails its post-conditions ({', '.join(kinds)}): " + "; ".join(shown)
+        exc = cls(f"{gen.method} design fails its post-conditions ({', '.join(kinds)}): " + "; ".join(shown)
                   + ". " + " ".join(f"[{k}] {adv[k]}." for k in kinds))
+        exc.conditions = kinds  # the failed conditions, for a caller deciding by them (nullspace._approximate_pencil)
+        raise exc
     if failures:
         fig["failures"] = [m for _, m in failures]
     gen.info["postconditions"] = fig
