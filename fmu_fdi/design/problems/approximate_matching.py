@@ -891,7 +891,8 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
     A candidate is taken where, at every point, the gap between the two responses is within the rounding of the
     comparison itself, to first order
 
-        β(λ) = δQ ||Gfw|| + ||Q|| δGfw + γ_m ||Q|| ||Gfw|| + |m^k| (δY ||Ĝ|| + ||Y|| δĜ + γ_q ||Y|| ||Ĝ|| + δF) + δ(MF),
+        β(λ) = δQ ||Gfw|| + ||Q|| δGfw + γ_m ||Q|| ||Gfw|| + |m^k| (δY ||Ĝ|| + ||Y|| δĜ + γ_q ||Y|| ||Ĝ|| + δF) + δ(MF)
+               + ||the removal of the modes each row cancels to δ_i||,
 
     ``δS`` the evaluation bound of each factor (:func:`_evaluation_rounding`), ``γ_m`` of the products — and that
     bound is at most ``SHIPPED_ACCURACY`` of the error's size (else the response is no figure and the gap no test).
@@ -930,11 +931,19 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
                                                + _gamma(Y.m) * nY * nGh + _evaluation_rounding(F, lam)) \
         + _evaluation_rounding(MF, lam)
     fv, d_fnm = _nrm(_values(fnm, lam)), _evaluation_rounding(fnm, lam)
+    sl = model.group_slices()
+    cols = np.r_[np.arange(sl["f"].start, sl["f"].stop), np.arange(sl["w"].start, sl["w"].stop)]
     for Q in cands:
         shipped = _fault_noise_response(model, Q, lam, Ge) - mfv
         ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
-        nQ = _nrm(_values(Q, lam))
-        bound = _evaluation_rounding(Q, lam) * fv + nQ * d_fnm + _gamma(Q.m) * nQ * fv + d_designed
+        Qv = _values(Q, lam)
+        nQ = _nrm(Qv)
+        # (+ what reading R without the plant modes each row cancels to its rounding bound δ_i changed: that
+        # decision is the judge's derived one, and the correction δ_i/|λ − p| is rounding by it — 4.6e-16 at
+        # λ = 44j, 2e-21 at 1e7 j against a product bound of 3e-27 where m^K = 1e-12 scales all that is designed:
+        # tests/test_approximate_matching_options.py, unstable_actuator_model with its pole at +0.5)
+        removed = _nrm(shipped + mfv - np.einsum("kij,kjl->kil", Qv, Ge)[:, :, cols])
+        bound = _evaluation_rounding(Q, lam) * fv + nQ * d_fnm + _gamma(Q.m) * nQ * fv + d_designed + removed
         ok &= np.isfinite(bound)
         diff = _nrm(shipped[ok] - designed[ok])
         if not diff.size:  # no point where both responses and the bound are finite: nothing is shown
