@@ -57,7 +57,7 @@ M(λ) [Mr 0](λ)``, is compared point by point with the designed ``M (Ŷ Ĝ − 
 factor evaluated from its own balanced realisation: norms of the product realisations,
 with near-cancelling modes, lost every digit on nearly exact matches); a difference above the
 rounding bound of that comparison (each factor's componentwise GEPP bound times the other factors'
-gains, :func:`_evaluation_rounding`), or a bound above 1 % of the error's size, is refused. ``error``/``gamma_sub`` are the H∞ peak of that
+gains, :func:`_evaluation_rounding`), or above 1e-3 of the error's size, is refused. ``error``/``gamma_sub`` are the H∞ peak of that
 response on a refined grid (H2: Gauss–Legendre quadrature).
 
 **Least order** (``mindeg=True``, as ``ammsyn(…; mindeg = true)``, which solves the approximate
@@ -895,12 +895,14 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
                + ||the removal of the modes each row cancels to δ_i||,
 
     ``δS`` the evaluation bound of each factor (:func:`_evaluation_rounding`), ``γ_m`` of the products — and that
-    bound is at most ``SHIPPED_ACCURACY`` of the error's size (else the response is no figure and the gap no test).
+    gap is at most ``SHIPPED_ACCURACY`` of the error's size (a bound of the error's size decides nothing).
     The fixed 1e-6 it replaces refused discrete H2 random seeds 7, 9, 17, 21, 27 (gaps 1.3e-6 … 1.7e-5 of the error,
     0.0007 … 0.7 of β; Y's gain 9e3 … 4e7): their filters are the designed ones, and the judge then refuses them
     for what is wrong with them — u/d leaks of 2e-6 … 3.5e-4 of the weakest fault gain (Y's gain times the rounding of
     ``Q0 [Gu Gd; I 0] = 0``; numpy confirms seed 9's 3e-6 against fault gains ~1). Seed 13 (gain of Y 2.4e8) differs
-    by 1.13 of the error, 21 β: refused here."""
+    by 1.13 of the error, 21 β: refused here. And the bound is tighter than 1e-6 where the error is small against
+    ``M [Mr 0]``: continuous H∞ seeds 4, 28 took the minimal realisation (gaps 1.15, 4.6 β) that the judge refused for
+    u+d leaks of 9e-7, 4.9e-7; the product realisation (0.03, 0.008 β) passes it."""
     dt = model.dt
     Qfull, last = Qfull if isinstance(Qfull, tuple) else (Qfull, None)
     lam = _points([model.lti(), Y, Mr] + (list(factor) if isinstance(factor, list) else [factor] if factor is not None
@@ -950,21 +952,23 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
             gap = excess = worst = np.inf
             continue
         gap, excess, worst = float(np.max(diff)), float(np.max(diff / bound[ok])), float(np.max(bound[ok]))
-        if excess <= 1.0 and worst <= SHIPPED_ACCURACY * size:
+        if excess <= 1.0 and gap <= SHIPPED_ACCURACY * size:
             break
     else:
         raise DesignError(f"approximate_model_matching: the returned filter's error response differs from the "
-                          f"designed one by {gap:.3g} (relative {gap / size:.3g}; {excess:.3g} times its rounding "
-                          f"bound, which is {worst / size:.3g} of the error's size, limit {SHIPPED_ACCURACY:g}): the "
+                          f"designed one by {gap:.3g} (relative {gap / size:.3g}, limit {SHIPPED_ACCURACY:g}; "
+                          f"{excess:.3g} times its rounding bound, at most {worst / size:.3g} of the error's size): the "
                           f"realisation of Q = Y Φ Q0 lost accuracy (peak gain of Y {float(np.nanmax(nY)):.3g}; "
                           f"an ill-conditioned, nearly exactly matchable problem: try model_matching, or another sdeg)")
     return Q, lam
 
 
-#: :func:`_shipped_filter`: the largest rounding bound of the shipped error response, relative to its size, with which
-#: the response is still a figure (``gamma_sub``) and the gap to the designed one a test: beyond it the realisation's
-#: response cannot be computed to 1 % of the error it reports (random H2 seed 13's minimal Q: bound 24× the error)
-SHIPPED_ACCURACY = 1e-2
+#: :func:`_shipped_filter`: the largest gap, relative to the error's size, between the shipped and the designed error
+#: response, whatever the rounding bound: the H2 contract of the reported error (tests/test_synthesis_ammp.py,
+#: ``check_contract``: 1e-3). The bound alone does not decide where it is itself of the error's size — random H2 seed
+#: 13's minimal Q, a gap 1.39 of the error at 1.06 of its bound 24 times the error; the bound is that large, harmlessly,
+#: beside poles (approximate audit seeds 10, 26: bounds 0.08, 5.5 of the error, gaps 1.6e-13, 2.9e-10)
+SHIPPED_ACCURACY = 1e-3
 
 
 def _gamma(n: int) -> float:
