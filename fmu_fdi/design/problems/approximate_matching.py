@@ -55,8 +55,9 @@ solvers. The optimum does not depend on the basis Q0: ``Q0`` spans every admissi
 Before it returns, the error response of the returned filter, ``Q(λ) [Gf Gw; 0 0](λ) −
 M(λ) [Mr 0](λ)``, is compared point by point with the designed ``M (Ŷ Ĝ − F)`` (every
 factor evaluated from its own balanced realisation: norms of the product realisations,
-with near-cancelling modes, lost every digit on nearly exact matches); a difference above
-1e-6 of the data's size is refused. ``error``/``gamma_sub`` are the H∞ peak of that
+with near-cancelling modes, lost every digit on nearly exact matches); a difference above the
+rounding bound of that comparison (each factor's componentwise GEPP bound times the other factors'
+gains, :func:`_evaluation_rounding`), or above 1e-3 of the error's size, is refused. ``error``/``gamma_sub`` are the H∞ peak of that
 response on a refined grid (H2: Gauss–Legendre quadrature).
 
 **Least order** (``mindeg=True``, as ``ammsyn(…; mindeg = true)``, which solves the approximate
@@ -102,6 +103,8 @@ A. Varga, Reliable algorithms for computing minimal dynamic covers, IEEE CDC 200
 from __future__ import annotations
 
 from itertools import pairwise
+
+import warnings
 
 import numpy as np
 import scipy.linalg as sla
@@ -883,7 +886,23 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
     instead of ``scale m^K``; then ``Qfull`` is
     the pair (``μ/m^K`` times the minimal realisation of ``Y Φ Q0``, times ``Y Φ Q0`` itself), the
     second tried last. The shipped response ``Q [Gf Gw; 0 0]`` is read from the plant as the post-conditions read R
-    (:func:`_fault_noise_response`), not as the product of Q's and ``fnm``'s values (``fnm`` is no longer read)."""
+    (:func:`_fault_noise_response`), not as the product of Q's and ``fnm``'s values.
+
+    A candidate is taken where, at every point, the gap between the two responses is within the rounding of the
+    comparison itself, to first order
+
+        β(λ) = δQ ||Gfw|| + ||Q|| δGfw + γ_m ||Q|| ||Gfw|| + |m^k| (δY ||Ĝ|| + ||Y|| δĜ + γ_q ||Y|| ||Ĝ|| + δF) + δ(MF)
+               + ||the removal of the modes each row cancels to δ_i||,
+
+    ``δS`` the evaluation bound of each factor (:func:`_evaluation_rounding`), ``γ_m`` of the products — and that
+    gap is at most ``SHIPPED_ACCURACY`` of the error's size (a bound of the error's size decides nothing).
+    The fixed 1e-6 it replaces refused discrete H2 random seeds 7, 9, 17, 21, 27 (gaps 1.3e-6 … 1.7e-5 of the error,
+    0.0007 … 0.7 of β; Y's gain 9e3 … 4e7): their filters are the designed ones, and the judge then refuses them
+    for what is wrong with them — u/d leaks of 2e-6 … 3.5e-4 of the weakest fault gain (Y's gain times the rounding of
+    ``Q0 [Gu Gd; I 0] = 0``; numpy confirms seed 9's 3e-6 against fault gains ~1). Seed 13 (gain of Y 2.4e8) differs
+    by 1.13 of the error, 21 β: refused here. And the bound is tighter than 1e-6 where the error is small against
+    ``M [Mr 0]``: continuous H∞ seeds 4, 28 took the minimal realisation (gaps 1.15, 4.6 β) that the judge refused for
+    u+d leaks of 9e-7, 4.9e-7; the product realisation (0.03, 0.008 β) passes it."""
     dt = model.dt
     Qfull, last = Qfull if isinstance(Qfull, tuple) else (Qfull, None)
     lam = _points([model.lti(), Y, Mr] + (list(factor) if isinstance(factor, list) else [factor] if factor is not None
@@ -907,19 +926,85 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
         fin = np.all(np.isfinite(qv), axis=(1, 2))
         if np.max(_nrm(_values(Ql, lam)[fin] - qv[fin])) <= 1e-9 * max(float(np.max(_nrm(qv[fin]))), 1e-300):
             cands = (Ql,) + cands
+    # the designed side's rounding: |m^k| (δY ||Ĝ|| + ||Y|| δĜ + γ_q ||Y|| ||Ĝ|| + δF) + δ(M F) (:func:`_evaluation_rounding`)
+    Yv, Ghv = _values(Y, lam), _values(Gh, lam)
+    nY, nGh = _nrm(Yv), _nrm(Ghv)
+    d_designed = np.max(np.abs(mk), axis=1) * (_evaluation_rounding(Y, lam) * nGh + nY * _evaluation_rounding(Gh, lam)
+                                               + _gamma(Y.m) * nY * nGh + _evaluation_rounding(F, lam)) \
+        + _evaluation_rounding(MF, lam)
+    fv, d_fnm = _nrm(_values(fnm, lam)), _evaluation_rounding(fnm, lam)
+    sl = model.group_slices()
+    cols = np.r_[np.arange(sl["f"].start, sl["f"].stop), np.arange(sl["w"].start, sl["w"].stop)]
     for Q in cands:
         shipped = _fault_noise_response(model, Q, lam, Ge) - mfv
         ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
-        gap = float(np.max(_nrm(shipped[ok] - designed[ok])))
-        # rounding of the factors' values (~1e-13 relative) times the gain of Y: 1e-6 is ample
-        if gap <= 1e-6 * size:
+        Qv = _values(Q, lam)
+        nQ = _nrm(Qv)
+        # (+ what reading R without the plant modes each row cancels to its rounding bound δ_i changed: that
+        # decision is the judge's derived one, and the correction δ_i/|λ − p| is rounding by it — 4.6e-16 at
+        # λ = 44j, 2e-21 at 1e7 j against a product bound of 3e-27 where m^K = 1e-12 scales all that is designed:
+        # tests/test_approximate_matching_options.py, unstable_actuator_model with its pole at +0.5)
+        removed = _nrm(shipped + mfv - np.einsum("kij,kjl->kil", Qv, Ge)[:, :, cols])
+        bound = _evaluation_rounding(Q, lam) * fv + nQ * d_fnm + _gamma(Q.m) * nQ * fv + d_designed + removed
+        ok &= np.isfinite(bound)
+        diff = _nrm(shipped[ok] - designed[ok])
+        if not diff.size:  # no point where both responses and the bound are finite: nothing is shown
+            gap = excess = worst = np.inf
+            continue
+        gap, excess, worst = float(np.max(diff)), float(np.max(diff / bound[ok])), float(np.max(bound[ok]))
+        if excess <= 1.0 and gap <= SHIPPED_ACCURACY * size:
             break
     else:
         raise DesignError(f"approximate_model_matching: the returned filter's error response differs from the "
-                          f"designed one by {gap:.3g} (relative {gap / size:.3g} > 1e-6): the realisation of "
-                          f"Q = Y Φ Q0 lost accuracy (peak gain of Y {float(np.nanmax(_nrm(_values(Y, lam)))):.3g}; "
+                          f"designed one by {gap:.3g} (relative {gap / size:.3g}, limit {SHIPPED_ACCURACY:g}; "
+                          f"{excess:.3g} times its rounding bound, at most {worst / size:.3g} of the error's size): the "
+                          f"realisation of Q = Y Φ Q0 lost accuracy (peak gain of Y {float(np.nanmax(nY)):.3g}; "
                           f"an ill-conditioned, nearly exactly matchable problem: try model_matching, or another sdeg)")
     return Q, lam
+
+
+#: :func:`_shipped_filter`: the largest gap, relative to the error's size, between the shipped and the designed error
+#: response, whatever the rounding bound: the H2 contract of the reported error (tests/test_synthesis_ammp.py,
+#: ``check_contract``: 1e-3). The bound alone does not decide where it is itself of the error's size — random H2 seed
+#: 13's minimal Q, a gap 1.39 of the error at 1.06 of its bound 24 times the error; the bound is that large, harmlessly,
+#: beside poles (approximate audit seeds 10, 26: bounds 0.08, 5.5 of the error, gaps 1.6e-13, 2.9e-10)
+SHIPPED_ACCURACY = 1e-3
+
+
+def _gamma(n: int) -> float:
+    """``γ̃_n = √n·u``: the probabilistic constant of an n-term inner product's rounding (Higham and Mary, A new approach
+    to probabilistic rounding error analysis, SIAM J. Sci. Comput. 41(5), 2019, Thm 2.4: the worst case ``n·u`` is
+    exceeded by ``λ√n·u`` with probability ≤ 2 exp(−λ²(1 − u)²/2)); λ = 1 taken with n → 3n for GEPP."""
+    return float(np.sqrt(max(n, 1))) * EPS / 2
+
+
+def _evaluation_rounding(S: LTI, lam: np.ndarray) -> np.ndarray:
+    """Per point λ, a bound of the rounding of ``S(λ) = C (λI − A)^{-1} B + D`` as :func:`_values` computes it (from
+    the balanced realisation, Gaussian elimination with partial pivoting on ``λI − A``): GEPP's computed ``X̂`` solves
+    ``(λI − A + ΔA) X̂ = B`` with ``|ΔA| ≤ γ_{3n} |L̂||Û| ≈ γ_{3n} |λI − A|`` (Higham, *Accuracy and Stability of
+    Numerical Algorithms*, 2nd ed., Thm 9.3, no growth), so to first order
+
+        |Ŝ − S| ≤ γ_{3n} (|W| |λI − A| |X| + |C| |X|) + u |S|,   X = (λI − A)^{-1} B,  W = C (λI − A)^{-1},
+
+    returned as the 2-norm of that matrix, with ``γ_{3n}`` the probabilistic ``√(3n)·u`` (:func:`_gamma`; the worst
+    case 3n·u overestimates random seeds 7, 9's gaps 1e3 … 1e4-fold). The componentwise form matters: the normwise
+    ``||W|| ||λI − A|| ||X||`` exceeds the gaps of the same seeds 1e4 … 1e6-fold."""
+    if not S.n:
+        return np.full(lam.size, EPS / 2 * float(np.linalg.norm(S.D, 2)) if S.D.size else 0.0)
+    S = S.balanced()[0]
+    n = S.n
+    M = lam[:, None, None] * np.eye(n) - S.A
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            X = np.linalg.solve(M, np.broadcast_to(S.B.astype(complex), (lam.size,) + S.B.shape))
+            Wh = np.linalg.solve(M.conj().transpose(0, 2, 1),
+                                 np.broadcast_to(S.C.T.astype(complex), (lam.size,) + S.C.T.shape))
+        except np.linalg.LinAlgError:
+            return np.full(lam.size, np.inf)
+        W = Wh.conj().transpose(0, 2, 1)
+        E = np.abs(W) @ np.abs(M) @ np.abs(X) + np.abs(S.C) @ np.abs(X)
+        return _gamma(3 * n) * _nrm(E) + EPS / 2 * _nrm(S.C @ X + S.D)
 
 
 def _fault_noise_response(model: FDIModel, Q: LTI, lam: np.ndarray, Ge: np.ndarray) -> np.ndarray:
