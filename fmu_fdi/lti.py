@@ -175,32 +175,6 @@ class LTI:
                           f"unreliable (first: lam = {near[0][0]:.6g}, reciprocal condition {near[0][1]:.3g})",
                           sla.LinAlgWarning, stacklevel=3)
         return out
-        # One Hessenberg reduction makes every frequency an O(n^2) solve.
-        H, Z = sla.hessenberg(self.A, calc_q=True)
-        Bh = (Z.T @ self.B).astype(complex)
-        Ch = self.C @ Z
-        eye = np.eye(self.n)
-        # scipy warns once per point where lam I - A is singular to working precision; a grid
-        # through a pole (e.g. one a non-minimal realisation cancels) would flood the user, so
-        # the warnings are gathered and said once, with the count and the first one's message.
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", sla.LinAlgWarning)
-            for k, w in enumerate(omega):
-                if not self.is_discrete and np.isinf(w):
-                    out[k] = self.D
-                    continue
-                lam = np.exp(1j * w * self.dt) if self.is_discrete else 1j * w
-                out[k] = Ch @ sla.solve(lam * eye - H, Bh) + self.D
-        near = [c for c in caught if issubclass(c.category, sla.LinAlgWarning)]
-        for c in caught:
-            if not issubclass(c.category, sla.LinAlgWarning):
-                warnings.warn_explicit(c.message, c.category, c.filename, c.lineno)
-        if near:
-            warnings.warn(f"frequency response of an order-{self.n} realisation: at {len(near)} of {omega.size} "
-                          f"frequencies lam I - A is singular to working precision (a pole on or next to the "
-                          f"frequency axis, e.g. one a non-minimal realisation cancels); the values there are "
-                          f"unreliable (first: {near[0].message})", sla.LinAlgWarning, stacklevel=2)
-        return out
 
     def dcgain(self) -> np.ndarray:
         return self.freqresp([0.0])[0].real
