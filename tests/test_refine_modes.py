@@ -146,13 +146,7 @@ def test_audit_seed_13_meets_the_judge():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [2, 6, pytest.param(8, marks=pytest.mark.xfail(strict=True, reason=(
-    "issue 17, postconditions' rounding bound (found at integration, with the observer basis of "
-    "approximate_matching._observer_basis): the correction of the pair ±2j is 1.5e-16 and leaves the residue "
-    "||Q_1(p) c_p|| = 3.23e-14 (3.85e-14 before) against δ_i = 2.55e-14; refused (DesignError), not a wrong filter. "
-    "Not the evaluation's rounding: an 80-bit evaluation of the returned order-16 row at the float plant's eigenpair "
-    "refined in 80 bits reads 3.237e-14 (float64 3.231e-14), so the residue is the realisation's own (a design "
-    "accuracy question, not δ_i's)"))), 12])
+@pytest.mark.parametrize("seed", [2, 6, 8, 12])
 def test_audit_matches_to_the_identity_are_designed(seed):
     """Mr = I (one row per fault, rows of different scales; the audit counts a refusal of it as 'refused', not
     'broken', so _assert_case would pass one): these were refused for a fault-only mode kept in R_f at a residue
