@@ -117,7 +117,7 @@ from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit._basis import check_poles, pick_poles
 from ..toolkit.approximate import drop_negligible_unstable_modes, transmission_zeros
-from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator
+from ..toolkit.postconditions import DEC_TOL, _nrm, _values, check_generator, resolvent_pair
 from ..toolkit.notes import keeps_notes, note, silenced
 from .reference import reference
 
@@ -996,13 +996,10 @@ def _evaluation_rounding(S: LTI, lam: np.ndarray) -> np.ndarray:
     M = lam[:, None, None] * np.eye(n) - S.A
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        try:
-            X = np.linalg.solve(M, np.broadcast_to(S.B.astype(complex), (lam.size,) + S.B.shape))
-            Wh = np.linalg.solve(M.conj().transpose(0, 2, 1),
-                                 np.broadcast_to(S.C.T.astype(complex), (lam.size,) + S.C.T.shape))
-        except np.linalg.LinAlgError:
+        XW = resolvent_pair(S, lam)
+        if XW is None:
             return np.full(lam.size, np.inf)
-        W = Wh.conj().transpose(0, 2, 1)
+        X, W = XW
         E = np.abs(W) @ np.abs(M) @ np.abs(X) + np.abs(S.C) @ np.abs(X)
         return _gamma(3 * n) * _nrm(E) + EPS / 2 * _nrm(S.C @ X + S.D)
 

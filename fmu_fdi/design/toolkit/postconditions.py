@@ -310,15 +310,28 @@ def _row_sensitivity(S: LTI, p: complex, c: np.ndarray) -> tuple[float, float]:
     if not S.n:
         return float(np.linalg.norm(np.abs(S.D) @ np.abs(c))), 0.0
     with np.errstate(all="ignore"):
-        L = p * np.eye(S.n) - S.A
-        try:
-            X = np.linalg.solve(L, S.B)
-            Y = np.linalg.solve(L.T, S.C.T).T
-        except np.linalg.LinAlgError:
+        XY = resolvent_pair(S, np.array([p]))
+        if XY is None:
             return np.inf, np.inf
+        X, Y = XY[0][0], XY[1][0]
         M = np.abs(S.D) + np.abs(S.C) @ np.abs(X) + np.abs(Y) @ np.abs(S.B) + np.abs(Y) @ np.abs(S.A) @ np.abs(X)
         k, d = float(np.linalg.norm(M @ np.abs(c))), float(np.linalg.norm(Y @ (X @ c)))
     return (k, d) if np.isfinite(k) and np.isfinite(d) else (np.inf, np.inf)
+
+
+def resolvent_pair(S: LTI, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(X, Y)`` per point λ of ``lam``: ``X = (λI − A)⁻¹ B`` and ``Y = C (λI − A)⁻¹`` of S's realisation as stored
+    (shapes (points, n, m) and (points, p, n); LAPACK's GEPP, one LU per point and system), the two solves of every
+    componentwise bound on ``S(λ) = C X + D`` (:func:`_row_sensitivity`, the perturbation of S's data;
+    :func:`..problems.approximate_matching._evaluation_rounding`, GEPP's rounding). None where ``λI − A`` is
+    exactly singular at some point."""
+    L = lam[:, None, None] * np.eye(S.n) - S.A
+    try:
+        X = np.linalg.solve(L, np.broadcast_to(S.B, (lam.size,) + S.B.shape))
+        Y = np.linalg.solve(L.transpose(0, 2, 1), np.broadcast_to(S.C.T, (lam.size,) + S.C.T.shape)).transpose(0, 2, 1)
+    except np.linalg.LinAlgError:
+        return None
+    return X, Y
 
 
 def _mode_decisions(model, Q: LTI, groups, qpeaks) -> dict | None:
