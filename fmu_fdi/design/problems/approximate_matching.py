@@ -913,7 +913,8 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
     else:
         mk = np.stack([_values(f, lam)[:, 0, 0] for f in (factor if isinstance(factor, list) else
                                                           [factor] * len(shifts))], 1)
-    designed = (np.einsum("kij,kjl->kil", _values(Y, lam), _values(Gh, lam)) - _values(F, lam)) * mk[:, :, None]
+    Yv, Ghv = _values(Y, lam), _values(Gh, lam)
+    designed = (np.einsum("kij,kjl->kil", Yv, Ghv) - _values(F, lam)) * mk[:, :, None]
     mfv, Ge = _values(MF, lam), _values(model.augmented(), lam)
     size = max(float(np.nanmax(_nrm(mfv))), float(np.nanmax(_nrm(designed))), 1e-300)
     cands = (Qfull.minreal(atol), Qfull) + ((last,) if last is not None else ())
@@ -927,24 +928,21 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
         if np.max(_nrm(_values(Ql, lam)[fin] - qv[fin])) <= 1e-9 * max(float(np.max(_nrm(qv[fin]))), 1e-300):
             cands = (Ql,) + cands
     # the designed side's rounding: |m^k| (δY ||Ĝ|| + ||Y|| δĜ + γ_q ||Y|| ||Ĝ|| + δF) + δ(M F) (:func:`_evaluation_rounding`)
-    Yv, Ghv = _values(Y, lam), _values(Gh, lam)
     nY, nGh = _nrm(Yv), _nrm(Ghv)
     d_designed = np.max(np.abs(mk), axis=1) * (_evaluation_rounding(Y, lam) * nGh + nY * _evaluation_rounding(Gh, lam)
                                                + _gamma(Y.m) * nY * nGh + _evaluation_rounding(F, lam)) \
         + _evaluation_rounding(MF, lam)
     fv, d_fnm = _nrm(_values(fnm, lam)), _evaluation_rounding(fnm, lam)
-    sl = model.group_slices()
-    cols = np.r_[np.arange(sl["f"].start, sl["f"].stop), np.arange(sl["w"].start, sl["w"].stop)]
     for Q in cands:
-        shipped = _fault_noise_response(model, Q, lam, Ge) - mfv
+        read, Qv, product = _fault_noise_response(model, Q, lam, Ge)
+        shipped = read - mfv
         ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
-        Qv = _values(Q, lam)
         nQ = _nrm(Qv)
         # (+ what reading R without the plant modes each row cancels to its rounding bound δ_i changed: that
         # decision is the judge's derived one, and the correction δ_i/|λ − p| is rounding by it — 4.6e-16 at
         # λ = 44j, 2e-21 at 1e7 j against a product bound of 3e-27 where m^K = 1e-12 scales all that is designed:
         # tests/test_approximate_matching_options.py, unstable_actuator_model with its pole at +0.5)
-        removed = _nrm(shipped + mfv - np.einsum("kij,kjl->kil", Qv, Ge)[:, :, cols])
+        removed = _nrm(shipped + mfv - product)
         bound = _evaluation_rounding(Q, lam) * fv + nQ * d_fnm + _gamma(Q.m) * nQ * fv + d_designed + removed
         ok &= np.isfinite(bound)
         diff = _nrm(shipped[ok] - designed[ok])
@@ -1004,9 +1002,10 @@ def _evaluation_rounding(S: LTI, lam: np.ndarray) -> np.ndarray:
         return _gamma(3 * n) * _nrm(E) + EPS / 2 * _nrm(S.C @ X + S.D)
 
 
-def _fault_noise_response(model: FDIModel, Q: LTI, lam: np.ndarray, Ge: np.ndarray) -> np.ndarray:
-    """``Q(λ) [Gf Gw; 0 0](λ)`` at the points ``lam`` as the post-conditions read the residual (``Ge``: the values of
-    ``[Gu Gd Gw Gf; I 0 0 0]`` there): each row without the plant's boundary modes it cancels to the rounding bound
+def _fault_noise_response(model: FDIModel, Q: LTI, lam: np.ndarray, Ge: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(read, Q(λ), product)``: ``read`` = ``Q(λ) [Gf Gw; 0 0](λ)`` at the points ``lam`` as the post-conditions read
+    the residual (``Ge``: the values of ``[Gu Gd Gw Gf; I 0 0 0]`` there), ``product`` the plain product of values
+    (what the reading removed is their difference). The reading: each row without the plant's boundary modes it cancels to the rounding bound
     δ_i of its design (:func:`..toolkit.postconditions._without_cancelled_modes`, the reading of the R-stability
     post-condition that follows). Beside such a mode, a product of values reads the row's rounding-level residue
     divided by the distance δ to the pole: approximate audit seed 26 (a fault-only integrator at 1.3e-16; filter
@@ -1015,25 +1014,28 @@ def _fault_noise_response(model: FDIModel, Q: LTI, lam: np.ndarray, Ge: np.ndarr
     does not cancel the mode to δ_i keeps it (the minimal realisation of the same filter: residue 3.3e-8, 0.3)."""
     from ..toolkit.postconditions import _without_cancelled_modes
 
-    sl = model.group_slices()
-    cols = np.r_[np.arange(sl["f"].start, sl["f"].stop), np.arange(sl["w"].start, sl["w"].stop)]
+    cols = _fault_noise_columns(model)
     Qv = _values(Q, lam)
     R = np.einsum("kij,kjl->kil", Qv, Ge)
+    product = R[:, :, cols]  # (a copy: fancy indexing)
     ok = np.all(np.isfinite(R), axis=(1, 2))
     if np.any(ok) and model.n:
         Rk = R[ok]
         _without_cancelled_modes(model, Q, [[i] for i in range(Q.p)], lam[ok], Rk, Qv[ok], Ge[ok])
         R[ok] = Rk
-    return R[:, :, cols]
+    return R[:, :, cols], Qv, product
 
 
 # ----------------------------------------------------------------------------- inputs
 def fault_noise_map(model: FDIModel) -> LTI:
     """``[Gf Gw; 0 0]``: from [f; w] to [y; u] (the columns of F = [Mr 0])."""
-    Ge = model.augmented()
+    return model.augmented()[:, _fault_noise_columns(model)]
+
+
+def _fault_noise_columns(model: FDIModel) -> np.ndarray:
+    """The columns of f, then w, in ``Ge = [Gu Gd Gw Gf; I 0 0 0]`` (:meth:`FDIModel.augmented`)."""
     sl = model.group_slices()
-    cols = np.r_[np.arange(sl["f"].start, sl["f"].stop), np.arange(sl["w"].start, sl["w"].stop)]
-    return Ge[:, cols]
+    return np.r_[np.arange(sl["f"].start, sl["f"].stop), np.arange(sl["w"].start, sl["w"].stop)]
 
 
 def _check_basis_options(nullspace, simple) -> None:
