@@ -488,41 +488,49 @@ def _numpy_leak_and_faults(model, Q, num=800):
     return np.abs(R[:, :, ud]).max(axis=(0, 2)), np.abs(R[:, :, f]).max(axis=0)
 
 
-def test_discrete_h2_rounding_level_gap_is_not_the_refusal_the_leak_is(monkeypatch):
-    """Random discrete H2 seed 9 (K = 1, gain of Y 7e7): the shipped filter's error response differs from the designed
-    one by 2e-6 of the error — within the comparison's own rounding bound (0.0007 of it), which the fixed 1e-6 refused
-    as a realisation that lost accuracy. The filter is refused for what is wrong with it: its u leak (Y's gain times
-    the rounding of Q0 [Gu; I] = 0), named by the DesignError and confirmed by numpy on the filter the design
-    reached the judge with — above dec_tol = 1e-7 of the row's strongest fault gain, so refusing it is right
-    (every normalisation, Varga's by the weakest required fault too, only raises the figure)."""
-    import fmu_fdi.design.problems.approximate_matching as am
-
-    model, Mr = _random_case(9)
-    judged = {}
-    orig = am.check_generator
-
-    def capture(gen, **kw):
-        judged["Q"] = gen.Q
-        return orig(gen, **kw)
-
-    monkeypatch.setattr(am, "check_generator", capture)
-    with pytest.raises(DesignError, match=r"post-conditions \(decoupling\).*leak") as exc:
-        approximate_model_matching(model, Mr, norm="2")
-    assert "lost accuracy" not in str(exc.value)
-    leak, faults = _numpy_leak_and_faults(model, judged["Q"])
-    assert np.all(leak / faults.max(axis=1) > 1e-7)
+@pytest.mark.parametrize("seed", [3, 9, 27, pytest.param(13, marks=pytest.mark.slow)])
+def test_discrete_h2_optimum_is_no_worse_in_h2_than_the_hinf_filter(seed):
+    """Random discrete seeds 3, 9, 27: the H2 design is judged by numpy against an admissible competitor, the H∞ design
+    (same M = z^{-K}, so the same problem's search space): its numpy-measured H2 error is no larger, its u/d leak is
+    below dec_tol = 1e-7 of every row's weakest fault peak gain (the strictest normalisation), and the measured error
+    is the reported one. Before the filter DARE was solved by SLICOT SB02OD and checked (:func:`_filter_dare`), scipy's
+    solution (indefinite, relative residual 0.75) gave seed 3 an H2 error 41.58 where the H∞ filter's is ~1e-7, and
+    seeds 9, 27 (exactly matchable: optimum 0, reached with a gain of Y of 32.5) filters of gain 7e7 and 3e7 whose
+    u leak (1.6e-6, 2.5e-6 of the weakest fault) the judge refused; seed 13 (slow: ~10 s) a gain of Y of 2.4e8 whose
+    realisation could not reproduce the designed response (a gap 1.13 of the error): refused as "lost accuracy"."""
+    model, Mr = _random_case(seed)
+    g2 = approximate_model_matching(model, Mr, norm="2")
+    gi = approximate_model_matching(model, Mr, norm="inf")
+    M = g2.info["M"]
+    # the same updating factor (discrete, default sdeg = 0: z^{-K} with the same K), so gi.Q is admissible for g2's problem
+    assert gi.info["interactor_steps"] == g2.info["interactor_steps"] and not g2.info["reference_lowpass"]
+    e2 = check_contract(g2, Mr, "2")
+    # 1e-3: the trapezoid's accuracy on both (check_contract); the floor 1e-9 ||Mr||∞ serves the exactly matchable ones
+    assert e2 <= error_norm(gi, Mr, M, "2") * (1 + 1e-3) + 1e-9 * Mr.hinfnorm()[0]
+    leak, faults = _numpy_leak_and_faults(model, g2.Q)
+    assert np.all(leak <= 1e-7 * faults.min(axis=1))
 
 
-def test_discrete_h2_real_discrepancy_still_refused():
-    """Random discrete H2 seed 13 (gain of Y 2.4e8): the minimal and the product realisation of Q = Y Φ Q0 both read
-    an error response 1.1 … 1.4 times the error's size away from the designed one — 21 times the comparison's
-    rounding bound for the product (the minimal one's bound is 24 times the error itself: no figure at all). Refused,
-    naming the gap and the bound."""
-    model, Mr = _random_case(13)
-    with pytest.raises(DesignError, match=r"lost accuracy") as exc:
-        approximate_model_matching(model, Mr, norm="2")
-    m = re.search(r"relative ([0-9.e+-]+), limit [0-9.e+-]+; ([0-9.e+-]+) times its rounding bound", str(exc.value))
-    assert m and float(m.group(1)) > 0.1 and float(m.group(2)) > 1.0
+def test_filter_dare_closed_form_and_refusal():
+    """:func:`_filter_dare` against the scalar DARE solved by hand. Process noise b v1, measurement noise d v2
+    (independent): ``c² P² + (d²(1 − a²) − b²c²) P − b²d² = 0``, P the positive root — for an unstable a = 1.2 and a
+    measurement noise 1e-6 (R = 1e-12: the regularised rows' ε²); correlated noise with one input (B = b, D21 = d ≠ 0)
+    is recoverable from y, so ``P = 0`` where that estimator is stable (``a − b c/d`` inside the unit circle). A marginal mode the output does not see (a = 1, c = 0) has no stabilising
+    solution: DesignError, not a returned gain."""
+    from fmu_fdi.design.problems.approximate_matching import _filter_dare
+
+    for a, b, c, d in [(1.2, 0.7, 2.0, 1e-6), (0.5, 3.0, 0.1, 2.0), (-0.9, 1e3, 1e-3, 1.0)]:
+        h = d * d * (1 - a * a) - b * b * c * c
+        P_exact = (-h + np.sqrt(h * h + 4 * c * c * b * b * d * d)) / (2 * c * c)
+        P = _filter_dare(np.array([[a]]), np.array([[b, 0.0]]), np.array([[c]]), np.array([[0.0, d]]))
+        # the quadratic's own rounding: its terms are ~max(h², c²b²d²)/c² P, relative 1e-12 leaves 1e3 u of margin
+        assert P[0, 0] == pytest.approx(P_exact, rel=1e-10)
+    # v = (y − c x)/d: the state is known exactly, P = 0, stabilising as the channel's zero a − b c/d = −0.2 is stable
+    # (the floor: rounding of the terms b² = 0.49, relative eps, times a few)
+    P = _filter_dare(np.array([[1.2]]), np.array([[0.7]]), np.array([[2.0]]), np.array([[1.0]]))
+    assert abs(P[0, 0]) <= 1e-14
+    with pytest.raises(DesignError, match="no stabilising solution"):
+        _filter_dare(np.array([[1.0]]), np.array([[1.0, 0.0]]), np.array([[0.0]]), np.array([[0.0, 1.0]]))
 
 
 def test_rounding_bound_lets_a_well_realised_candidate_through():
