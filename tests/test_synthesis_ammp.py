@@ -488,16 +488,19 @@ def _numpy_leak_and_faults(model, Q, num=800):
     return np.abs(R[:, :, ud]).max(axis=(0, 2)), np.abs(R[:, :, f]).max(axis=0)
 
 
-@pytest.mark.parametrize("seed", [3, 9, 27, pytest.param(13, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("seed", [3, 5, 9, 27, pytest.param(13, marks=pytest.mark.slow)])
 def test_discrete_h2_optimum_is_no_worse_in_h2_than_the_hinf_filter(seed):
-    """Random discrete seeds 3, 9, 27: the H2 design is judged by numpy against an admissible competitor, the H∞ design
+    """Random discrete seeds 3, 5, 9, 27: the H2 design is judged by numpy against an admissible competitor, the H∞ design
     (same M = z^{-K}, so the same problem's search space): its numpy-measured H2 error is no larger, its u/d leak is
     below dec_tol = 1e-7 of every row's weakest fault peak gain (the strictest normalisation), and the measured error
     is the reported one. Before the filter DARE was solved by SLICOT SB02OD and checked (:func:`_filter_dare`), scipy's
     solution (indefinite, relative residual 0.75) gave seed 3 an H2 error 41.58 where the H∞ filter's is ~1e-7, and
     seeds 9, 27 (exactly matchable: optimum 0, reached with a gain of Y of 32.5) filters of gain 7e7 and 3e7 whose
     u leak (1.6e-6, 2.5e-6 of the weakest fault) the judge refused; seed 13 (slow: ~10 s) a gain of Y of 2.4e8 whose
-    realisation could not reproduce the designed response (a gap 1.13 of the error): refused as "lost accuracy"."""
+    realisation could not reproduce the designed response (a gap 1.13 of the error): refused as "lost accuracy".
+    Seed 5 (exactly matchable, error 4.9e-11): scipy found no stabilising solution; with SB02OD's, row_shifts divided a
+    row by z^{-1} on a feedthrough 1.1e-9 of its [c d] (below its 1e-9·||B|| test, not zero) and the shipped response
+    was 6.7e-6 off the designed one — now every row takes the K shifts when the per-row filter is not reproduced."""
     model, Mr = _random_case(seed)
     g2 = approximate_model_matching(model, Mr, norm="2")
     gi = approximate_model_matching(model, Mr, norm="inf")
