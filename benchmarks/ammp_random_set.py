@@ -9,22 +9,23 @@ within 1e-5 relative in H∞); "BROKEN" counts returned designs that fail it, "c
 other than DesignError. Run: python benchmarks/ammp_random_set.py [N]
 
 The contract is also judged by numpy on the returned Q and the model's matrices alone (tests/test_synthesis_ammp.py's
-``_numpy_leak_and_faults`` and ``error_norm``, not the package's analysis): every row's u/d leak at most dec_tol = 1e-7
-of its weakest required fault's peak gain (Varga's normalisation; a fault is required by a row where that row of Mr
-is not identically zero), and an H2 design's H2 error no larger than the H∞ design's (an admissible filter of the
-same problem where both have the same M: 1e-3 for the trapezoid; 1e-6 ||Mr||∞ absolute, the regularised problems'
-accuracy: fictitious noise ε = 1e-6 ||Ĝ||∞ on rank-deficient rows moves each optimum by O(ε), continuous seeds 0, 2
-differ by 6e-8, 8e-8). A design failing only the leak test is counted "leak" (apart from BROKEN): the package's
-post-condition judges a matching row unnormalised (``faults=[]``), so these are rows whose weakest fault is small.
+``_numpy_leak_and_faults`` and numpy solves here, not the package's analysis): every row's u/d leak at most
+dec_tol = 1e-7 of its weakest required fault's peak gain (Varga's normalisation; a fault is required by a row where
+that row of Mr is not identically zero), and an H2 design's H2 error of the problem it solves,
+``||Y Ĝ − F||₂ = ||M⁻¹ E||₂`` (Varga's γopt0; the returned ``M E`` is not optimal for ``M [Mr 0]`` where M ≠ I), no
+larger than the H∞ design's (an admissible Y of the same problem; 1e-3 for the trapezoid; 1e-6 ||Mr||∞ absolute, the
+regularised problems' accuracy: fictitious noise ε = 1e-6 ||Ĝ||∞ on rank-deficient rows moves each optimum by O(ε)).
+A design failing only the leak test is counted "leak" (apart from BROKEN): the package's post-condition judges a
+matching row unnormalised (``faults=[]``), so these are rows whose weakest fault is small.
 
-27 Nov, h2exact (same session, numpy judge): main e6079aa ok 45 / refused 8 / BROKEN 7 — the discrete H2 filter DARE
-(scipy) returned wrong solutions: seeds 3, 29 H2 errors 41.58, 9.029 above the H∞ filters' H2 errors; after
-approximate_matching._filter_dare (SLICOT SB02OD, checked) see the figures printed by the run in the commit message.
-
-N = 30, 27 Nov (same session): integ5 ok 50 / refused 10 (6 "error response differs from the designed one" at the
-fixed 1e-6: discrete H2 seeds 7, 9, 13, 17, 21, 27); with the derived rounding bound of
-approximate_matching._shipped_filter ok 52 / refused 8 (continuous H∞ seeds 4, 28 designed; H2 seeds 7, 9, 17, 21, 27
-refused by the judge for their u/d leaks, seed 13 still for its gap), BROKEN 0, crash 0 both.
+27 Nov, h2exact (same session, this numpy judge, loaded 2-core machine): main e6079aa ok 45 / refused 8 / leak 4 /
+BROKEN 3 / crash 0 (median design time 7.4 s) → ok 55 / refused 0 / leak 5 / BROKEN 0 / crash 0 (6.6 s). The discrete H2
+filter DARE (scipy's solve_discrete_are, unchecked) returned wrong solutions: seeds 3, 25, 29 were H2 errors 41.58,
+4.644, 9.029 above the H∞ filters' 9.8e-10, 4.278, 2.146 (BROKEN), seeds 7, 9, 17, 21, 27 gains of Y 9e3 … 7e7 with u/d
+leaks and seed 13 (2.4e8) an unreproducible realisation (refused), seed 5 no solution; with
+approximate_matching._filter_dare (SLICOT SB02OD on the factors, checked) all are designed (seed 5 with the uniform
+K shifts). "leak": H∞ seeds 2, 4, 7, 10 and H2 seed 7 leak 1.3e-7 … 3.5e-7 of the weakest fault (seed 7 H2: 1.6e-8 of
+its strongest) — passed by the package's unnormalised matching post-condition, on main as now.
 """
 import sys
 import time
@@ -38,7 +39,7 @@ from fmu_fdi import DesignError, approximate_model_matching  # noqa: E402
 from fmu_fdi.design.problems.approximate_matching import fault_noise_map  # noqa: E402
 from fmu_fdi.lti import LTI, hstack  # noqa: E402
 from synthesis_models import random_model  # noqa: E402
-from test_synthesis_ammp import _numpy_leak_and_faults, error_norm  # noqa: E402
+from test_synthesis_ammp import _numpy_leak_and_faults  # noqa: E402
 
 #: the judge's decoupling tolerance on Varga's normalised form (postconditions.DEC_TOL)
 DEC_TOL = 1e-7
@@ -52,13 +53,13 @@ def reference(model, seed: int) -> LTI:
                model.dt)
 
 
-def peak_error(gen, Mr) -> float:
+def error_values(gen, Mr, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(E(λ), M(λ))`` at the frequencies w: the error ``Q [Gf Gw; 0 0] − M [Mr 0]`` and the updating factor, by
+    numpy solves on the returned Q, the model's matrices, M and Mr."""
     model = gen.model
     F = hstack([Mr, LTI.zero(Mr.p, model.nw, model.dt)]) if model.nw else Mr
     M = gen.info["M"]
     MF = M @ F if M.n else M.D @ F
-    top = np.pi / model.dt if model.dt else 1e5
-    w = np.concatenate([[0.0], np.logspace(-5, np.log10(top), 600)])
     lam = np.exp(1j * w * model.dt) if model.dt else 1j * w
 
     def resp(S):
@@ -67,8 +68,29 @@ def peak_error(gen, Mr) -> float:
         X = np.linalg.solve(lam[:, None, None] * np.eye(S.n) - S.A, np.broadcast_to(S.B, (w.size,) + S.B.shape))
         return S.C @ X + S.D
 
-    E = np.einsum("kij,kjl->kil", resp(gen.Q), resp(fault_noise_map(model))) - resp(MF)
-    return float(np.max(np.linalg.norm(E, 2, axis=(1, 2))))
+    return np.einsum("kij,kjl->kil", resp(gen.Q), resp(fault_noise_map(model))) - resp(MF), resp(M)
+
+
+def peak_error(gen, Mr) -> float:
+    model = gen.model
+    top = np.pi / model.dt if model.dt else 1e5
+    w = np.concatenate([[0.0], np.logspace(-5, np.log10(top), 600)])
+    return float(np.max(np.linalg.norm(error_values(gen, Mr, w)[0], 2, axis=(1, 2))))
+
+
+def h2_of_solved_error(gen, Mr) -> float:
+    """``||M⁻¹ E||₂ = ||Y Ĝ − F||₂``, the H2 norm of the problem each design solves (Varga's: Y for Ĝ and F, then
+    ``Q = M Y Φ Q0 / m^K``; ``γopt0``), by the trapezoidal rule on a dense numpy grid; inf where M is not a scalar
+    times I (not compared). Discrete: 4001 uniform points on [0, π/dt]; continuous: 8000 log points 1e-6 … 1e8 rad/s
+    (an error not strictly proper reads large there: its H2 norm is infinite)."""
+    model = gen.model
+    w = np.linspace(0, np.pi / model.dt, 4001) if model.dt else np.logspace(-6, 8, 8000)
+    E, Mv = error_values(gen, Mr, w)
+    m = Mv[:, 0, 0]
+    if not np.allclose(Mv, m[:, None, None] * np.eye(Mv.shape[1]), rtol=0, atol=1e-12 * np.abs(m).max()):
+        return np.inf
+    f = np.sum(np.abs(E / m[:, None, None]) ** 2, axis=(1, 2))
+    return float(np.sqrt(np.trapezoid(f, w) / np.pi * (model.dt if model.dt else 1.0)))
 
 
 def numpy_verdict(gen, Mr, other=None) -> str:
@@ -84,14 +106,10 @@ def numpy_verdict(gen, Mr, other=None) -> str:
         low = faults[i, req[i]].min() if np.any(req[i]) else faults[i].max()
         if not leak[i] <= DEC_TOL * low:
             out.append(f"leak: row {i + 1} {leak[i] / low:.2g} of its weakest fault")
-    if other is not None and gen.info["norm"] == "2":
-        M = gen.info["M"]
-        lam2 = np.exp(1j * np.linspace(0, np.pi, 16)) if model.dt else 1j * np.logspace(-2, 2, 16)
-        if np.allclose(M.values(lam2) if M.n else M.D, other.info["M"].values(lam2) if other.info["M"].n
-                       else other.info["M"].D, rtol=1e-12, atol=0):
-            e2, ei = error_norm(gen, Mr, M, "2"), error_norm(other, Mr, M, "2")
-            if not e2 <= ei * (1 + 1e-3) + 1e-6 * Mr.hinfnorm()[0]:
-                out.append(f"H2 error {e2:.4g} > the H∞ filter's {ei:.4g}")
+    if other is not None and gen.info["norm"] == "2" and not gen.info["reference_lowpass"]:
+        e2, ei = h2_of_solved_error(gen, Mr), h2_of_solved_error(other, Mr)
+        if np.isfinite(e2) and not e2 <= ei * (1 + 1e-3) + 1e-6 * Mr.hinfnorm()[0]:
+            out.append(f"H2 error {e2:.4g} > the H∞ filter's {ei:.4g}")
     return "; ".join(out)
 
 

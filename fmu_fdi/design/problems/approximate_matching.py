@@ -920,7 +920,9 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
     0.0007 … 0.7 of β; Y's gain 9e3 … 4e7): their filters are the designed ones, and the judge then refuses them
     for what is wrong with them — u/d leaks of 2e-6 … 3.5e-4 of the weakest fault gain (Y's gain times the rounding of
     ``Q0 [Gu Gd; I 0] = 0``; numpy confirms seed 9's 3e-6 against fault gains ~1). Seed 13 (gain of Y 2.4e8) differs
-    by 1.13 of the error, 21 β: refused here. And the bound is tighter than 1e-6 where the error is small against
+    by 1.13 of the error, 21 β: refused here. (Those gains came from wrong Riccati solutions, :func:`_filter_dare`:
+    solved by SB02OD the six are designed with gains of Y 14 … 464; numpy leaks ≤ 2.4e-8 of the weakest fault,
+    seed 7's 3.4e-7 of it, 1.6e-8 of its strongest.) And the bound is tighter than 1e-6 where the error is small against
     ``M [Mr 0]``: continuous H∞ seeds 4, 28 took the minimal realisation (gaps 1.15, 4.6 β) that the judge refused for
     u+d leaks of 9e-7, 4.9e-7; the product realisation (0.03, 0.008 β) passes it."""
     dt = model.dt
@@ -1693,8 +1695,8 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
     ``C = Bᵀ`` and ``R = Dᵀ D`` with ``D = D21ᵀ`` given as such, so ``R⁻¹`` — of condition 1/ε² with the fictitious
     noise ε of regularised rows — is never formed; Van Dooren, SIAM J. Sci. Stat. Comput. 2, 1981), scipy's
     ``solve_discrete_are`` the fallback. A solution is accepted only if it is symmetric positive semidefinite (to
-    ``DARE_RESIDUAL`` of ``max(||P||, ||B||²)``), its residual is within :data:`DARE_RESIDUAL` of the size of the equation's terms
-    and ``A − L C2`` is stable; else DesignError (the regularisation ladder then tries the next ε)."""
+    ``DARE_RESIDUAL`` of ``max(||P||, ||B||²)``), its residual is within :data:`DARE_RESIDUAL` of the size of the
+    equation's terms and ``A − L C2`` is stable; else DesignError (the regularisation ladder then tries the next ε)."""
     import slycot
 
     n, q, m = A.shape[0], C2.shape[0], B.shape[1]
