@@ -1652,9 +1652,9 @@ def _h2_discrete(Gh: LTI, F: LTI) -> tuple[LTI, dict]:
     (Anderson & Moore, *Optimal Filtering*, 1979, ch. 5; the role of SLICOT SB10ED, which
     slycot does not wrap).
 
-    The DARE is solved by :func:`_filter_dare` (SLICOT SB02OD on the factors ``B``, ``D21``, checked); scipy's
-    ``solve_discrete_are`` on the formed ``B Bᵀ``, ``D21 D21ᵀ`` returned, without an error, an indefinite ``P`` of
-    norm 1e14 with a relative residual 0.75 on random discrete H2 seed 9 (an exactly matchable problem: the
+    The DARE is solved by :func:`_filter_dare` (scipy, then SLICOT SB02OD on the factors ``B``, ``D21``; checked);
+    scipy's ``solve_discrete_are`` on the formed ``B Bᵀ``, ``D21 D21ᵀ`` returned, without an error, an indefinite
+    ``P`` of norm 1e14 with a relative residual 0.75 on random discrete H2 seed 9 (an exactly matchable problem: the
     optimum is 0, reached by a Y of peak gain 32.5); the filter built on it had error 0.49 and gain 7e7, and Y's
     gain times the rounding of ``Q0 [Gu Gd; I 0] = 0`` leaked u into the residual (refused by the judge).
     """
@@ -1680,62 +1680,42 @@ def _h2_discrete(Gh: LTI, F: LTI) -> tuple[LTI, dict]:
     return Y, {"gamma": _h2_quad(lambda lam: _values(E, lam), [Gh, Y, F], dt)}
 
 
-#: :func:`_filter_dare`: the largest relative residual of an accepted DARE solution, √u — half the digits, so that the
-#: gains L, Kd (first order in P) keep at least that relative accuracy; a solver's failure is far above it (scipy's
-#: 0.75 on random seed 9), a backward-stable solution far below (SB02OD there: 3e-14)
-DARE_RESIDUAL = float(np.sqrt(EPS))
-
-
 def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) -> np.ndarray:
     """The stabilising solution ``P = Pᵀ ≥ 0`` of the filter DARE of :func:`_h2_discrete`,
 
         P = A P Aᵀ − (A P C2ᵀ + S)(C2 P C2ᵀ + R)⁻¹(A P C2ᵀ + S)ᵀ + B Bᵀ,   R = D21 D21ᵀ,  S = B D21ᵀ,
 
-    by SLICOT SB02OD (the deflating subspace of the extended symplectic pencil, on the factors: ``Q = Cᵀ C`` with
-    ``C = Bᵀ`` and ``R = Dᵀ D`` with ``D = D21ᵀ`` given as such, so ``R⁻¹`` — of condition 1/ε² with the fictitious
-    noise ε of regularised rows — is never formed; Van Dooren, SIAM J. Sci. Stat. Comput. 2, 1981), scipy's
-    ``solve_discrete_are`` the fallback. A solution is accepted only if it is symmetric positive semidefinite (to
-    ``DARE_RESIDUAL`` of ``max(||P||, ||B||²)``), its residual is within :data:`DARE_RESIDUAL` of the size of the
-    equation's terms and ``A − L C2`` is stable; else DesignError (the regularisation ladder then tries the next ε)."""
-    import slycot
+    the dual of the spectral factorisation's DARE, solved by :func:`..toolkit.approximate.spectral_riccati` on
+    ``(Aᵀ, C2ᵀ, Bᵀ, D21ᵀ)``: scipy's QZ solver, then SLICOT SB02OD on the factors (``R⁻¹``, of condition 1/ε² with
+    the fictitious noise ε of regularised rows, never formed; Van Dooren, SIAM J. Sci. Stat. Comput. 2, 1981), each
+    answer kept only if its residual is within ``RICCATI_RTOL`` of the terms' size. Here also: P positive
+    semidefinite (to ``RICCATI_RTOL`` of ``max(||P||, ||B||²)``: an exactly estimable state has P = 0 to rounding) and
+    ``A − L C2`` stable (the stabilising solution); else DesignError (the regularisation ladder then tries the next
+    ε). scipy's solution of random seed 9's equation, taken unchecked before, was indefinite with norm 1e14 and a
+    relative residual 0.75; SB02OD's residual there is 3e-14 (P = 0: the problem is exactly matchable)."""
+    from ..toolkit.approximate import RICCATI_RTOL, spectral_riccati
 
-    n, q, m = A.shape[0], C2.shape[0], B.shape[1]
-    S = B @ D21.T
-    found, why = [], []
-    try:
-        # (slycot's closed-loop spectrum divides by β = 0 at the pencil's infinite eigenvalues: not used here)
-        with np.errstate(all="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            found.append(slycot.sb02od(n, q, A.T.copy(), C2.T.copy(), B.T.copy(), D21.T.copy(), "D", p=m,
-                                       L=S.copy(), fact="B", uplo="U", sort="S", tol=0.0)[0])
-    except (SlycotError, ValueError, np.linalg.LinAlgError) as exc:
-        why.append(f"SB02OD: {exc}")
-    try:
-        found.append(sla.solve_discrete_are(A.T, C2.T, B @ B.T, D21 @ D21.T, s=S))
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        why.append(f"scipy: {exc}")
-    for P in found:
-        P = (P + P.T) / 2
+    n = A.shape[0]
+    # (slycot's SB02OD wrapper computes the closed-loop spectrum as α/β, dividing by β = 0 at the pencil's infinite
+    # eigenvalues: not used here)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        P = spectral_riccati(A.T.copy(), C2.T.copy(), B.T.copy(), D21.T.copy(), 1.0)
+    why = "no solution with a residual within RICCATI_RTOL (scipy, SLICOT SB02OD)"
+    if P is not None:
         Sig = C2 @ P @ C2.T + D21 @ D21.T
-        G = A @ P @ C2.T + S
         try:
-            L = np.linalg.solve(Sig, G.T).T
+            L = np.linalg.solve(Sig, (A @ P @ C2.T + B @ D21.T).T).T
         except np.linalg.LinAlgError:
-            why.append("C2 P C2ᵀ + R singular")
-            continue
-        APA, corr = A @ P @ A.T, L @ G.T
-        res = float(np.linalg.norm(APA - P - corr + B @ B.T))
-        size = max(sum(float(np.linalg.norm(X)) for X in (APA, P, corr, B @ B.T)), 1e-300)
+            L = None
         low = float(np.linalg.eigvalsh(P).min()) if n else 0.0
-        rho = float(np.max(np.abs(np.linalg.eigvals(A - L @ C2)))) if n else 0.0
-        # (P ≥ 0 on the scale of P or of the noise's covariance B Bᵀ: an exactly estimable state has P = 0 to rounding)
         scale = max(float(np.linalg.norm(P, 2)), float(np.linalg.norm(B, 2)) ** 2, 1e-300)
-        if res <= DARE_RESIDUAL * size and low >= -DARE_RESIDUAL * scale and rho < 1.0:
+        rho = float(np.max(np.abs(np.linalg.eigvals(A - L @ C2)))) if L is not None and n else np.inf
+        if low >= -RICCATI_RTOL * scale and rho < 1.0:
             return P
-        why.append(f"relative residual {res / size:.3g}, smallest eigenvalue {low:.3g} of ||P|| = "
-                   f"{float(np.linalg.norm(P, 2)):.3g}, spectral radius of A − L C2 {rho:.6g}")
-    raise DesignError(f"discrete H2 synthesis: the filter Riccati equation has no stabilising solution "
-                      f"({'; '.join(why)}; accepted: residual ≤ {DARE_RESIDUAL:.3g}, P ≥ 0, A − L C2 stable)")
+        why = (f"smallest eigenvalue of P {low:.3g} (||P|| = {float(np.linalg.norm(P, 2)):.3g}), spectral radius of "
+               f"A − L C2 {rho:.6g}")
+    raise DesignError(f"discrete H2 synthesis: the filter Riccati equation has no stabilising solution ({why})")
 
 
 def _hinf_at(Gh: LTI, F: LTI, gamma: float):
