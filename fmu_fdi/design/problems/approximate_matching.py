@@ -696,7 +696,7 @@ def _row_candidates(Qi: LTI, N: LTI, lim: float, dt: float, atol: float, choose=
     row 2: 52 → 8; :func:`..toolkit.covers.left_cover2`'s ``vrtol``)."""
     from ..toolkit.covers import left_cover2
 
-    found, notes = {}, []
+    found, notes, unstable = {}, [], []
     pairs = [(Qi, N, "")]
     Qb, Nb = _balanced_minimal(Qi), (_balanced_minimal(N) if N.n else N)
     if Qb.n < Qi.n or Nb is not N:
@@ -719,29 +719,33 @@ def _row_candidates(Qi: LTI, N: LTI, lim: float, dt: float, atol: float, choose=
             if worst > lim:
                 notes.append(f"its least-order solution of (2) at {at} (order {Xi.n}, {src}cover) is unstable "
                              f"(largest {'|pole|' if dt else 'Re(pole)'} {worst:.6g})")
+                unstable.append(Xi.n)
                 continue
             found[(src, vr, Xi.n)] = (rtol if not src and vr is None else f"{src}cover at {at}", Xi)
-    if choose is not None and X2.p:
-        _stable_covers(X1, X2, lim, dt, atol, choose, found, notes)
+    low = min([X.n for _, X in found.values()] + [Qi.n])
+    if choose is not None and X2.p and unstable and min(unstable) < low:  # a lower cover exists, but not stable
+        _stable_covers(X1, X2, lim, dt, atol, choose, found, notes, min(low, STABLE_COVER_MAX + 1))
     return sorted(found.values(), key=lambda c: c[1].n), notes
 
 
-def _stable_covers(X1: LTI, X2: LTI, lim: float, dt: float, atol: float, choose, found: dict, notes: list) -> None:
-    """Into ``found``: the stable covers ``X1 + Y X2`` of order at most ``STABLE_COVER_MAX`` whose free poles are chosen
+def _stable_covers(X1: LTI, X2: LTI, lim: float, dt: float, atol: float, choose, found: dict, notes: list,
+                   top: int) -> None:
+    """Into ``found``: the stable covers ``X1 + Y X2`` of order below ``top`` whose free poles are chosen
     (:func:`..toolkit.covers.stable_left_cover` at ``STABLE_COVER_RTOLS`` × ``MINDEG_VSTAR_RTOLS``; its free
-    characteristic polynomial at ``choose``, else the admissible one nearest to it).
+    characteristic polynomial at ``choose``, else the admissible one nearest to it). :func:`_row_candidates` asks for
+    them only when a cover below its lowest stable candidate was unstable, below that candidate's order and at most
+    ``STABLE_COVER_MAX`` (tried on every row, it made the stage 2.4 … 5 times slower on random seeds 4, 9, 10 and lowered nothing there).
 
     :func:`..toolkit.covers.left_cover2` fixes the cover's free parameters by least squares, which can leave the
     least-order cover unstable where a stable one of that order exists: random seed 17, row 1 — its order-5 cover
     (step (i) at 3e-7) has |pole| 2.16, the order-4 one 1.80, and the covers stopped at the optimal 52; with its
-    free poles chosen (deadbeat) the order-5 cover is stable and passes the guard, the re-solve's order. Seed 26:
-    stable covers of order 12 … 14 appear, but step (i) at 3e-7 … 3e-6 removes states the row needs there (its PBH
-    values have no gap) and the guard (:func:`_verified`) refuses them (u leaks 1.1e-3 … 4.7e-3 of the weakest
-    fault gain)."""
+    free poles chosen (deadbeat) the order-5 cover is stable and passes the guard, the re-solve's order. Seed 26
+    (not asked: its lowest stable candidate is an order-1 cover that leaks): tried there, stable covers of order
+    12 … 14 appear, but step (i) at 3e-7 … 3e-6 removes states the row needs (its PBH values have no gap) and the
+    guard (:func:`_verified`) refuses them (u leaks 1.1e-3 … 4.7e-3 of the weakest fault gain)."""
     from ..toolkit.covers import stable_left_cover
 
     good = (lambda re, im: np.hypot(re, im) <= lim) if dt else (lambda re, im: re <= lim)  # noqa: E731
-    top = min(X1.n, STABLE_COVER_MAX + 1)
     for rtol in STABLE_COVER_RTOLS:
         for vr in MINDEG_VSTAR_RTOLS:
             try:
