@@ -258,7 +258,7 @@ def left_cover2(X1: LTI, X2: LTI, *, rtol: float | None = None, atol: float = 0.
 
 
 def stable_left_cover(X1: LTI, X2: LTI, good, choose, *, rtol: float | None = None, atol: float = 0.0,
-                      max_order: int | None = None) -> Cover | None:
+                      max_order: int | None = None, vrtol: float | None = None) -> Cover | None:
     """A stable ``X = X1 + Y X2`` (one row X1) of the least order this method decides, or None.
 
     On the dual of the compound of :func:`_compound` (``a = Aᵀ``, ``b1 = C1ᵀ`` one column, ``b2 = C2ᵀ``), a
@@ -279,11 +279,12 @@ def stable_left_cover(X1: LTI, X2: LTI, good, choose, *, rtol: float | None = No
     have been missed (deciding it is a non-convex problem): the order is then an upper bound of the least.
     Numerics: Krylov matrices of ``a/ρ`` (ρ = max(1, ||a||)), orthonormalised columns, ranks by SVD at the
     compound's tolerance; meant for the low orders of exact-matching rows (a stable solution of order ≤ ~10).
-    X is minimal; Y is ``Y0' + Y'' M`` as in :func:`left_cover2`.
+    X is minimal; Y is ``Y0' + Y'' M`` as in :func:`left_cover2`. ``vrtol`` as :func:`left_cover2`'s (step (i) mode
+    by mode at that relative threshold).
     """
     if X1.p != 1:
         raise ValueError(f"stable_left_cover: X1 must be one row, got {X1.p}")
-    A, B, C1, C2, D1, D2, Y0, M, tol, cond, n0 = _compound(X1, X2, rtol, atol)
+    A, B, C1, C2, D1, D2, Y0, M, tol, cond, n0 = _compound(X1, X2, rtol, atol, vrtol)
     dt, n = X1.dt, A.shape[0]
     a, b1, b2, c, d1, d2 = A.T, C1.T, C2.T, B.T, D1.T, D2.T
     rho = max(1.0, float(np.linalg.norm(a, 2))) if n else 1.0
