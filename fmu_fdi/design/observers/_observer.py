@@ -36,6 +36,7 @@ from ...generator import ResidualGenerator
 from ...linalg import EPS, default_rtol, ordered_schur
 from ...lti import LTI
 from ...model import FDIModel
+from ..toolkit.approximate import RICCATI_RTOL, spectral_riccati
 from ..toolkit.pencil import controllable_staircase
 
 
@@ -357,13 +358,21 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
             f"{'|z| = 1' if dt else 'Re s = 0'})")
 
     P = _deflated_riccati(A, C, Qx, R, S, dt, no_solution)
+    Sigma = C @ P @ C.T + R if dt else R
+    Sigma = (Sigma + Sigma.T) / 2
+    # Σ > 0 in exact arithmetic (P ⪰ 0, R > 0); in floating point R can lie below the rounding of C P Cᵀ, and then
+    # no gain computed from Σ has any accuracy: refused where Σ's condition exceeds 1/(p·eps)
+    ev = np.linalg.eigvalsh(Sigma) if Sigma.size else np.ones(1)
+    if not ev[0] > Sigma.shape[0] * EPS * ev[-1]:
+        raise DesignError(
+            f"{what}: the innovation covariance Σ = {'C P Cᵀ + R' if dt else 'R'} is not numerically positive "
+            f"definite (eigenvalues {ev[0]:.3g} … {ev[-1]:.3g}; R's smallest eigenvalue "
+            f"{float(np.linalg.eigvalsh((R + R.T) / 2)[0]):.3g} is below the rounding of the predicted output "
+            f"covariance): the gain is not computable to any accuracy; scale the outputs or raise R")
     if dt:
-        Sigma = C @ P @ C.T + R
-        Sigma = (Sigma + Sigma.T) / 2
         Kf = sla.solve(Sigma, C @ P, assume_a="pos").T
         L = sla.solve(Sigma, (A @ P @ C.T + S).T, assume_a="pos").T
     else:
-        Sigma = (R + R.T) / 2
         L = sla.solve(Sigma, (P @ C.T + S).T, assume_a="pos").T
         Kf = L
     poles = np.linalg.eigvals(A - L @ C) if n else np.zeros(0)
@@ -434,13 +443,21 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
     W = C1.T @ sla.solve(R, C1, assume_a="pos") if R.size else np.zeros((n_c, n_c))
     q, w = float(np.linalg.norm(Q1, 2)), float(np.linalg.norm(W, 2))
     gamma = np.sqrt(q / w) if q > 0 and w > 0 else 1.0
-    try:
-        if dt:
-            P1 = sla.solve_discrete_are(A1.T, C1.T, Q1 / gamma, R / gamma)
-        else:
-            P1 = sla.solve_continuous_are(A1.T, C1.T, Q1 / gamma, R / gamma)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise no_solution(str(exc)) from None
+    # the dual of the spectral factorisation's equation on factors (Q̄₁₁/γ = HᵀH, R/γ = DᵀD, cross term HᵀD = 0):
+    # scipy's QZ solver, then SLICOT SB02OD, each answer kept only if its residual is within RICCATI_RTOL — scipy's
+    # solver can return, without an error, a P with a residual of the order of its terms (random discrete H2 seed 9
+    # of approximate_matching._filter_dare: an indefinite P of norm 1e14, relative residual 0.75)
+    lq, vq = np.linalg.eigh(Q1 / gamma)
+    H = np.sqrt(np.clip(lq, 0.0, None))[:, None] * vq.T
+    Rf = sla.cholesky(R / gamma) if R.size else np.zeros((0, 0))
+    Cf = np.vstack([H, np.zeros((Rf.shape[0], n_c))])
+    Df = np.vstack([np.zeros((n_c, Rf.shape[1])), Rf])
+    with np.errstate(all="ignore"), warnings.catch_warnings():  # SB02OD's wrapper divides α/β at infinite eigenvalues
+        warnings.simplefilter("ignore", RuntimeWarning)
+        P1 = spectral_riccati(A1.T.copy(), C1.T.copy(), Cf, Df, dt)
+    if P1 is None:
+        raise no_solution("no solution of the reduced filter Riccati equation with a residual within "
+                          f"RICCATI_RTOL = {RICCATI_RTOL:g} of its terms (scipy's QZ solver, SLICOT SB02OD)")
     P = T1 @ (gamma * (P1 + P1.T) / 2) @ T1.T
     return (P + P.T) / 2
 
