@@ -59,3 +59,32 @@ def test_returned_riccati_solution_solves_its_equation(seed, trial):
     assert np.linalg.eigvalsh((f.P + f.P.T) / 2)[0] >= -1e-8 * max(np.linalg.norm(f.P, 2), 1.0)
     ev = np.linalg.eigvals(A - f.L @ C)
     assert np.all(np.abs(ev) < 1.0) if dt else np.all(ev.real < 0.0)
+
+
+def test_validation_predictor_of_an_unstable_model():
+    """identify.validation.validate judges a model with unstable poles by its one-step predictor, whose gain comes
+    from the same checked Riccati solve. Exact data of the model itself (x0 = 0): the predictor's state error obeys
+    e⁺ = (A − K C) e from e0 = 0, so ŷ = y to rounding and the fit is 100 %. A model whose unstable mode the output
+    does not see has no predictor: a DesignError naming it, not scipy's LinAlgError."""
+    from types import SimpleNamespace
+
+    from fmu_fdi.identify.validation import validate
+
+    A = np.array([[1.05, 0.2], [0.0, 0.6]])
+    B = np.array([[1.0], [0.5]])
+    C = np.array([[1.0, 1.0]])
+    D = np.zeros((1, 1))
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal((60, 1))
+    x, y = np.zeros(2), np.empty((60, 1))
+    for k in range(60):
+        y[k] = C @ x + D @ u[k]
+        x = A @ x + B @ u[k]
+    model = SimpleNamespace(A=A, B=B, C=C, D=D, dt=0.1)
+    report = validate(model, u, y)
+    assert report.kind == "one-step predictor"
+    # |y| grows to ~1.05^60 ≈ 19 times its start; rounding of the recursion ~1e-13 of that
+    assert np.max(np.abs(report.y_hat - y)) <= 1e-9 * np.max(np.abs(y))
+    hidden = SimpleNamespace(A=A, B=B, C=np.array([[0.0, 1.0]]), D=D, dt=0.1)  # 1.05 unobservable
+    with pytest.raises(DesignError, match="one-step predictor"):
+        validate(hidden, u, y)

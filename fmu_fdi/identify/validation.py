@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import scipy.linalg as sla
 
 
 @dataclass
@@ -111,8 +110,12 @@ def validate(model, u, y, t=None, continuous_poles=None, output_names=None, kind
         y_hat = simulated(model, u, y)
         kind = kind or "simulation"
     else:
-        P = sla.solve_discrete_are(A.T, C.T, np.eye(n), np.eye(C.shape[0]))
-        K = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + np.eye(C.shape[0]))
+        # the steady-state predictor gain K = A P Cᵀ (C P Cᵀ + I)⁻¹ of unit process and measurement noise: the
+        # observers' checked filter Riccati solve (a model whose unstable modes C does not see has no predictor)
+        from ..design.observers._observer import filter_riccati
+
+        K = filter_riccati(A, C, np.eye(n), np.eye(C.shape[0]), np.zeros((n, C.shape[0])), model.dt,
+                           what="the one-step predictor of the identified model").L
         x = np.zeros(n)
         y_hat = np.empty_like(y)
         for k in range(N):
