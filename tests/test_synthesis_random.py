@@ -934,15 +934,14 @@ def test_audit_199_258_listed_rows_are_designed(seed, row, what):
     assert judge(gen, model, [row], model.fault_names) == [], what
 
 
-@pytest.mark.xfail(strict=True, reason="issue 17, nullspace design / postconditions R-stability decision (not yet "
-                   "located): random seed 307 (discrete, fc's fault-only z = 1), row [0 1 1 0 1] listed achievable, "
-                   "is refused: 'R = Q·Ge keeps the plant pole 1: residue ||Q_1(p) c_p|| = 1.07e-12 > δ_i = 8.38e-13' "
-                   "(1.28 times its rounding bound); the stable factor M·N of the order-18 pencil row passes both the "
-                   "library judge (no failure, leak 2.1e-11) and numpy's PBH test. The residue is the refused realisation's own, "
-                   "not the evaluation's rounding: evaluated in 80 bits at the float plant's eigenpair refined in 80 bits "
-                   "(z = 1 + 1.26e-16) it reads 1.0658e-12 (float64 1.0654e-12)")
 def test_audit_259_318_seed307_listed_row_is_designed():
-    """Audit of seeds 259-318 (benchmarks/synthesis_random_judged.py 60 259): the one listed row refused."""
+    """Audit of seeds 259-318 (benchmarks/synthesis_random_judged.py 60 259): the one listed row refused, [0 1 1 0 1]
+    (discrete, n = 19, fc's fault-only z = 1, w not decouplable): "R = Q·Ge keeps the plant pole 1: residue
+    ||Q_1(p) c_p|| = 1.07e-12 > δ_i = 8.38e-13". Located: the stable factor (order 19) cancelled z = 1 to a residue
+    1.2e-14 against δ_i = 6.7e-12; the noise normaliser's product fac·Q1 (order 39) and the minimal realisation of it
+    (order 24) left 1.2e-13 against δ_i = 9.6e-14 — the product's cancellations lost the factor's zero. Now
+    nullspace._boundary_modes_cancelled re-imposes Q(p) c_p = 0 exactly (refine.cancel_residues, [B_q; D_q] moved
+    by 3e-15 relative) where the judge reads a residue above δ_i; the row passes the numpy judge."""
     model = random_case(307)
     row = [[0, 1, 1, 0, 1]]
     assert row[0] in np.asarray(achievable_structure(model)).tolist()
