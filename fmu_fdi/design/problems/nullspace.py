@@ -867,10 +867,13 @@ def _boundary_modes_cancelled(model, Q: LTI, lam, Gv) -> LTI:
     Why: the stable factor ``M`` puts the zero ``Q(p) c_p = 0`` where R would keep a fault-only mode p, to the
     rounding of the factorisation; what follows can lose it. Random seed 307's row [0 1 1 0 1] (discrete, fc's
     z = 1, w not decouplable): after the factor (order 19) the residue was 1.2e-14 against δ_i = 6.7e-12; the
-    noise normaliser's product ``fac·Q1`` (order 39) and its minimal realisation (order 24) left 1.2e-13 against
-    δ_i = 9.6e-14 (the product's cancellations, not the factor) — R kept z = 1 and the row was refused. The
-    correction moves ``[B_q; D_q]`` by 3e-15 relative and the residue to rounding; numpy's judge passes the row.
-    As :func:`_refined`, bounded to ≤ 2000 numerator unknowns."""
+    noise normaliser's product ``fac·Q1`` (order 39) read 1.1e-13 (δ_i 5.7e-13), and its balanced re-realisation
+    (:func:`..toolkit.stable_factor.conditioned_realisation`, order 24) kept that residue with a realisation
+    whose bound is δ_i = 9.6e-14 — R kept z = 1 and the row was refused. Seed 319's row [1 0 1 1 1]: the
+    product (order 48) kept the zero (7.4e-15 against 2.7e-12), the re-realisation (order 42) raised it to
+    2.8e-13 against 2.0e-13. The correction moves ``[B_q; D_q]`` by 3.9e-15 (seed 307) and 7.1e-15 (319)
+    relative and the residues to 4.5e-17 and 1.5e-16 (the row's own rounding); numpy's judge passes both rows. As
+    :func:`_refined`, bounded to ≤ 2000 numerator unknowns."""
     from ..toolkit.refine import boundary_residues, cancel_residues
 
     if not model.n or (Q.n + Q.p) * Q.m > 2000:
