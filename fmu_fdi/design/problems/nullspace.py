@@ -917,6 +917,7 @@ def _boundary_modes_cancelled(model, Q: LTI, lam, Gv) -> LTI:
     Qb = conditioned_realisation(model, Q, amplification_max=1.0)
     if Qb is not Q:
         candidates += [Qb, cancel_residues(Qb, residues, lam[ok], G[:, :, :nud] if nud else None)[0]]
+    candidates = [X for k, X in enumerate(candidates) if all(X is not Y for Y in candidates[:k])]  # each once
     verdicts = [_verdict(model, X, lam[ok], G) for X in candidates]
     return candidates[min(range(len(candidates)), key=lambda k: verdicts[k])]
 
