@@ -400,7 +400,15 @@ def _assert_case(seed: int, calls):
 
 CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
 #: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
-KNOWN_BROKEN: dict[tuple[int, str], str] = {}
+KNOWN_BROKEN: dict[tuple[int, str], str] = {
+    (83, "amm_ref"): "approximate_matching (h2exact): audit of seeds 76-87 (benchmarks/approximate_random_judged.py 12 "
+                     "76): seed 83 (discrete, n = 28, p = 4, m = 6, stable, poles up to 0.9911) matching its exact "
+                     "detection row's fault response is refused, 'u leak 1.9e-07 × the weakest fault gain' at "
+                     "ω = 4.0e-3 rad/s (order-65 filter Y·Φ·Q0; no boundary mode, so the exact cancellation stage does "
+                     "nothing). The numerator refinement nullspace designs use (refine.refine_decoupling on 200 grid "
+                     "points) lowers the leak to 5.5e-9 and the post-conditions pass, but takes 19 s at 660 unknowns: "
+                     "a u, d re-decoupling stage of approximate_model_matching, not added here",
+}
 #: approximate_model_matching (noisec) refused "the returned filter's error response differs from the designed one"
 #: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compared the two on points that
 #: included ω = 0 (z = 1), where [Gf Gw] is ~1/δ and Q·Gf (which cancels the mode) is rounding/δ (seed 16: 11.4,

@@ -188,7 +188,7 @@ def _stable_internal_form(model: FDIModel, Q: LTI, *, poles, sdeg, smarg, keep_s
 NONNORMAL_MAX = 1e4
 
 
-def conditioned_realisation(model: FDIModel, Q: LTI) -> LTI:
+def conditioned_realisation(model: FDIModel, Q: LTI, amplification_max: float = NONNORMAL_MAX) -> LTI:
     """Q in a balanced realisation (SLICOT AB09AD, square-root balance, no truncation beyond the minimal
     order) when its realisation is far from normal at a plant pole ``λ_j`` on or beyond the stability
     boundary: ``dist(λ_j, eig A_q) / σ_min(λ_j I − A_q) > NONNORMAL_MAX``; else Q itself.
@@ -200,7 +200,8 @@ def conditioned_realisation(model: FDIModel, Q: LTI) -> LTI:
     the numerator refinement (:mod:`.refine`) cannot evaluate it well enough to remove it. The transfer
     function is unchanged (checked at eight points away from the poles: relative 1e-9 of the peak,
     else Q is kept); a balanced realisation of a stable system has ``||A|| ≤ 1`` (discrete) and no such
-    amplification (seed 33: σ_min(I − A_q) = 1.6e-3, ``|K||Θ|`` 9.3)."""
+    amplification (seed 33: σ_min(I − A_q) = 1.6e-3, ``|K||Θ|`` 9.3). ``amplification_max``: the threshold
+    (default :data:`NONNORMAL_MAX`; :func:`..problems.nullspace._boundary_modes_cancelled` asks for any gain)."""
     if not Q.n or not model.n or not (Q.m and Q.p):
         return Q
     from ...margin import default_smarg, outside_margin
@@ -222,7 +223,7 @@ def conditioned_realisation(model: FDIModel, Q: LTI) -> LTI:
         return worst
 
     before = amplification(Q.A)
-    if before <= NONNORMAL_MAX:
+    if before <= amplification_max:
         return Q
     import warnings
 
