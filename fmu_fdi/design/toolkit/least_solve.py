@@ -51,7 +51,7 @@ import numpy as np
 from ...errors import DesignError
 from ...lti import LTI
 from ...model import FDIModel
-from .pencil import assign_poles, controllable_staircase, pencil_basis, simple_rows
+from .pencil import assign_poles, controllable_staircase, pencil_basis, schur_feedback, simple_rows
 
 
 @dataclass
@@ -87,9 +87,8 @@ class LeastRow:
         N, p = self.N, self.p
         A, B, C, D = N.A, N.B, N.C, N.D
         if N.n:
-            F, _ = assign_poles(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
-            L = F.T
-            A, B = A + L @ C, B + L @ D
+            T, Z, F, _ = schur_feedback(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
+            A, B, C = T.T, Z.T @ B + F.T @ D, C @ Z  # A + L C in its Schur coordinates (accurate for a large L)
         keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
         X = LTI(A, B[:, keep], C, D[:, keep], N.dt)
         m = LTI(A, -B[:, [p]], C, -D[:, [p]], N.dt)
@@ -433,8 +432,8 @@ def _combined_row(group: list, p: int, choose, good, tol: float) -> LTI | None:
     placed, rho = [], None
     for N in group:
         A, B, C, D = N.A, N.B, N.C, N.D
-        F, _ = assign_poles(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
-        A, B = A + F.T @ C, B + F.T @ D
+        T, Z, F, _ = schur_feedback(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
+        A, B, C = T.T, Z.T @ B + F.T @ D, C @ Z  # A + L C in its Schur coordinates (accurate for a large L)
         if not all(good(z.real, z.imag) for z in np.linalg.eigvals(A)):
             return None
         w = _markov_norm(LTI(A, B, C, D, N.dt), np.arange(N.m))  # each row at unit size: h measures conditioning
