@@ -29,7 +29,10 @@ proper basis of McMillan degree Σ indices (minimal when the realisation of ``[G
 is). Its poles are free (state feedback on the controllable pair = a left coprime
 factor ``M⁻¹``): eigenvalues outside the stability region (margin, ``sdeg``) are moved,
 one Schur block at a time, leaving the others in place (Varga 1981); a full placement of a
-25-state pair with one or two inputs would need gains far above the data's norm.
+25-state pair with one or two inputs would need gains far above the data's norm. The basis is
+realised in the Schur coordinates of that closed loop (:func:`schur_feedback`): a weakly
+controllable pole needs a large gain by any method, and ``a + bF`` formed in other coordinates
+would lose its eigenvalues to cancellation.
 """
 from __future__ import annotations
 
