@@ -915,9 +915,10 @@ def test_repeated_pole_targets_are_made_distinct():
 
 @pytest.mark.parametrize("seed, row, what", [
     (207, [1, 1, 0, 1, 0], "discrete, n = 13, noise w; fc (decoupled) excites an undamped pair on |z| = 1: the one "
-                           "row that decouples w too (order 12) needs a feedback of norm 2.4e5 to move a basis pole "
-                           "48 of controllability 2e-4 and leaks 1.9e-6 of the weakest fault gain — noise is then "
-                           "attenuated by the (u, d) rows, not decoupled by that row"),
+                           "row that decouples w too (order 12) needs a feedback of norm 2.4e5 (the least possible) "
+                           "to move a basis pole 48 of controllability 2e-4; formed as a + bF it leaked 1.9e-6 of the "
+                           "weakest fault gain, realised in the closed loop's Schur coordinates it decouples w "
+                           "(tests/test_synthesis_pencil.py::test_random_seed207_row_decouples_noise_exactly)"),
     (218, [1, 1, 0, 1, 0], "continuous, n = 25: the pencil basis sent two real blocks to one target -0.41995 (a pair's "
                            "speed taken twice), a defective double pole; leak 1.1e-7"),
     (239, [0, 1, 0, 0, 1], "discrete, n = 21, plant poles within 8e-3 of fc's z = 1: the numerator refinement lowered "

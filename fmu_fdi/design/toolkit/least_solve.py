@@ -51,7 +51,7 @@ import numpy as np
 from ...errors import DesignError
 from ...lti import LTI
 from ...model import FDIModel
-from .pencil import assign_poles, controllable_staircase, pencil_basis, simple_rows
+from .pencil import controllable_staircase, pencil_basis, schur_feedback, simple_rows
 
 
 @dataclass
@@ -87,9 +87,8 @@ class LeastRow:
         N, p = self.N, self.p
         A, B, C, D = N.A, N.B, N.C, N.D
         if N.n:
-            F, _ = assign_poles(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
-            L = F.T
-            A, B = A + L @ C, B + L @ D
+            T, Z, F, _ = schur_feedback(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
+            A, B, C = T.T, Z.T @ B + F.T @ D, C @ Z  # A + L C in its Schur coordinates (accurate for a large L)
         keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
         X = LTI(A, B[:, keep], C, D[:, keep], N.dt)
         m = LTI(A, -B[:, [p]], C, -D[:, [p]], N.dt)
@@ -433,8 +432,8 @@ def _combined_row(group: list, p: int, choose, good, tol: float) -> LTI | None:
     placed, rho = [], None
     for N in group:
         A, B, C, D = N.A, N.B, N.C, N.D
-        F, _ = assign_poles(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
-        A, B = A + F.T @ C, B + F.T @ D
+        T, Z, F, _ = schur_feedback(A.T, C.T, N.dt, lambda eig: choose(eig.size), lambda re, im: False, full=True)
+        A, B, C = T.T, Z.T @ B + F.T @ D, C @ Z  # A + L C in its Schur coordinates (accurate for a large L)
         if not all(good(z.real, z.imag) for z in np.linalg.eigvals(A)):
             return None
         w = _markov_norm(LTI(A, B, C, D, N.dt), np.arange(N.m))  # each row at unit size: h measures conditioning
@@ -507,7 +506,6 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
     P = np.eye(d.shape[0]) - d @ h
     Ah, Ch = A - b @ h @ C, P @ C
     n = A.shape[0]
-    L = np.zeros((n, d.shape[0]))
     if n:
         T, taus = controllable_staircase(Ah.T, Ch.T, max(atol, row.rank_tol, 1e3 * np.finfo(float).eps * scale))
         no = sum(taus)
@@ -529,10 +527,15 @@ def stable_solution(row: LeastRow, choose, good, tol: float, atol: float = 0.0) 
                               f"solution has the poles {np.round(np.asarray(bad, complex), 10).tolist()} (zeros of "
                               f"the Mr-column of the null-space basis outside the stability region); pass "
                               f"updating=True")
-        F1, _ = assign_poles(at[:no, :no], bt[:no], N.dt, lambda eig: choose(eig.size), good)
-        F = np.hstack([F1, np.zeros((F1.shape[0], n - no))]) @ T.T
-        L = -F.T
-    Y = LTI(Ah - L @ Ch, b @ h + L @ P, -h @ C, h, N.dt)
+        # L on the observable part, and Y realised in that closed loop's Schur coordinates x = S x̃ (Ah − L Ch is
+        # not formed: its eigenvalues would cancel out of entries ‖L‖‖Ch‖ where the gain is large, pencil.schur_feedback)
+        T1, Z1, F1, _ = schur_feedback(at[:no, :no], bt[:no], N.dt, lambda eig: choose(eig.size), good)
+        S = T @ np.block([[Z1, np.zeros((no, n - no))], [np.zeros((n - no, no)), np.eye(n - no)]])
+        a_cl = np.block([[T1, Z1.T @ at[:no, no:]], [at[no:, :no] @ Z1 + bt[no:] @ F1, at[no:, no:]]])  # Sᵀ(Ahᵀ + Chᵀ F)S
+        L = -np.vstack([F1.T, np.zeros((n - no, F1.shape[0]))])  # Sᵀ L
+        Y = LTI(a_cl.T, S.T @ b @ h + L @ P, -h @ C @ S, h, N.dt)
+    else:
+        Y = LTI(Ah, b @ h, -h @ C, h, N.dt)
     W = Y @ N
     keep = np.r_[np.arange(p), np.arange(p + 1, N.m)]
     X = LTI(W.A, W.B[:, keep], -W.C, -W.D[:, keep], N.dt)

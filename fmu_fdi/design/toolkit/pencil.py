@@ -29,7 +29,10 @@ proper basis of McMillan degree Σ indices (minimal when the realisation of ``[G
 is). Its poles are free (state feedback on the controllable pair = a left coprime
 factor ``M⁻¹``): eigenvalues outside the stability region (margin, ``sdeg``) are moved,
 one Schur block at a time, leaving the others in place (Varga 1981); a full placement of a
-25-state pair with one or two inputs would need gains far above the data's norm.
+25-state pair with one or two inputs would need gains far above the data's norm. The basis is
+realised in the Schur coordinates of that closed loop (:func:`schur_feedback`): a weakly
+controllable pole needs a large gain by any method, and ``a + bF`` formed in other coordinates
+would lose its eigenvalues to cancellation.
 """
 from __future__ import annotations
 
@@ -233,19 +236,58 @@ def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good, full: bo
     region ``good(re, im)`` to the targets ``choose(bad_eigenvalues)``: ``(F, moved)``. ``full``: every
     eigenvalue is moved, to ``choose(all eigenvalues)`` (given filter poles: Varga's ``evals``).
 
-    Schur method (Varga 1981, as in Varga's ``saloc``/``glcf``): an ordered real Schur form puts
-    one bad 1×1 or 2×2 block last; a feedback acting on its coordinates alone moves it and leaves
-    the other eigenvalues where they are; repeat. Each step solves a 1- or 2-state problem, so
-    the gains stay small where a full placement of a high-order, few-input pair would not.
+    The gain of :func:`schur_feedback` in the original coordinates, ``F = F_Z Zᵀ``. A caller that forms the
+    closed loop should take :func:`schur_feedback`'s ``T = Zᵀ(a + bF)Z`` instead of forming ``a + bF``: where the
+    gain is large (a weakly controllable bad mode) the latter loses the closed loop's eigenvalues to cancellation.
     """
-    n = a.shape[0]
-    F = np.zeros((b.shape[1], n))
+    T, Z, Fz, moved = schur_feedback(a, b, dt, choose, good, full)
+    return Fz @ Z.T, moved
+
+
+def schur_feedback(a: np.ndarray, b: np.ndarray, dt: float, choose, good,
+                   full: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """State feedback for the controllable pair ``(a, b)`` moving every eigenvalue outside the region
+    ``good(re, im)`` to ``choose(bad_eigenvalues)`` (``full``: every eigenvalue, to ``choose(all)``), with the
+    closed loop computed in Schur coordinates: ``(T, Z, F_Z, moved)``, Z orthogonal,
+
+        Zᵀ (a + b F) Z = T  (quasi-upper triangular),    F = F_Z Zᵀ.
+
+    Schur method (Varga 1981, as in Varga's ``saloc``/``glcf``): an ordered real Schur form puts one bad
+    1×1 or 2×2 block last; a feedback acting on its coordinates alone moves it and leaves the other
+    eigenvalues where they are; repeat, on the closed loop's Schur form (every step is an orthogonal
+    reordering of T and one update of the moved block's columns ``T[:, moved] += (Zᵀb) F₂``).
+
+    *The gain is the least possible; the coordinates carry the accuracy.* For a 1×1 block λ with unit left
+    eigenvector w (the last Schur vector), ``wᵀ(a + bF − λI) = (wᵀb) F``, so ``σ_min(a + bF − λI) ≤ ‖wᵀb‖‖F‖``,
+    while Bauer–Fike gives ``σ_min(a + bF − λI) ≥ dist(λ, Λ(a + bF)) / κ(V)`` (V the closed loop's eigenvectors):
+
+        ‖F‖ · κ(V) ≥ dist(λ, Λ(a + bF)) / ‖wᵀb‖          for every F, by any method.
+
+    The block step's minimum-norm gain ``(t − λ) B₂ᵀ/‖B₂‖²`` (``B₂ = wᵀb``) has ``‖F₂‖ = |t − λ| / ‖wᵀb‖``: the
+    bound with κ = 1. A whole-set placement (KNV/YT, moving the kept eigenvalues too, other targets) can
+    only trade gain for eigenvector conditioning — and with one input F is fixed by the targets alone.
+    Random seed 207's w-decoupling basis row (order 12, one input): λ = 48.04, ‖wᵀb‖ = 2.07e-4, every target
+    in the unit disc: ‖F‖·κ ≥ 47/2.07e-4 = 2.3e5; the block method's ‖F‖ = 2.45e5 for any targets (measured
+    for six target pairs; placing all twelve at 0.3…0.6 "with gain 505" left 48 where it was). What the gain
+    costs is accuracy, and that depends on where ``a + bF`` is formed. In the original coordinates its entries are
+    ``‖b‖‖F‖`` and the closed loop's eigenvalues (of the data's size) emerge from their cancellation: a perturbation
+    eps·‖b‖‖F‖ in every entry, amplified by the closed loop's eigenvalue condition, which itself grows with F —
+    an error of second order in the gain (seed 207's row leaked 7e-7 … 2.6e-6 of its weakest fault gain; a
+    closed-form pair with ‖F‖ = 4.8e4 and 4.8e8, tests/test_synthesis_pencil.py: transfer function off by 3.3e-6
+    and 1.0). In Schur coordinates the kept blocks are only reordered (backward error eps·‖a‖), the moved block is
+    set to its targets, and the update's rounding is a perturbation ≤ 2·eps·‖b‖‖F‖ of the moved columns only: the
+    realisation is backward stable, its error first order in the gain (8.4e-14 and 5.6e-10 on that pair; seed 207's
+    row leaks 1.4e-9). So the closed loop is returned in those coordinates, and the callers realise their factors
+    there.
+    """
+    n, m = a.shape[0], b.shape[1]
+    Fz = np.zeros((m, n))
     if n == 0:
-        return F, 0
+        return np.asarray(a, float).copy(), np.eye(0), Fz, 0
     eig = eigenvalues(a)  # kept for the basis Nl, whose A is aᵀ when no pole moves (freqresp)
     bad = eig if full else eig[~np.array([good(z.real, z.imag) for z in eig])]
     if bad.size == 0:
-        return F, 0
+        return np.asarray(a, float).copy(), np.eye(n), Fz, 0
     targets = list(np.asarray(choose(bad), complex))
     placed: list[complex] = []
     if full:  # the blocks already moved lead the ordered Schur form; every other block is moved next
@@ -254,15 +296,17 @@ def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good, full: bo
     last = targets[-1] if targets else complex(0.5 if dt else -1.0)
     spare = abs(last) if dt else last.real  # a 2×2 block may need one target more than counted
     moved = 0
+    T, Z, bz = np.asarray(a, float), np.eye(n), np.asarray(b, float)
     for _ in range(n):
-        T, Z, kgood = ordered_schur(a + b @ F, good)
+        Ti, Zi, kgood = ordered_schur(T, good)  # T is the closed loop in the coordinates Z (quasi-triangular after step 1)
+        T, Z, bz, Fz = Ti, Z @ Zi, Zi.T @ bz, Fz @ Zi
         if kgood == n:
             break
         size = 2 if n - kgood >= 2 and abs(T[n - 1, n - 2]) > 0 else 1
         if full and size == 1 and n - kgood >= 2 and (n == 2 or T[n - 2, n - 3] == 0) and targets and \
                 abs(targets[0].imag) > 1e-12 * max(1.0, abs(targets[0])):
             size = 2  # a conjugate pair for two real eigenvalues: the trailing 2 × 2 of the Schur form
-        blk, B2 = T[n - size:, n - size:], (Z.T @ b)[n - size:]
+        blk, B2 = T[n - size:, n - size:], bz[n - size:]
         # never a target already placed (a pair's speed taken for two real blocks, the spare reused, a block moved
         # again): a repeated eigenvalue of a pair with few inputs is defective and scatters by ~eps^(1/2), which
         # broke the margin and the realisation (random seed 207's row [1 1 0 1 0]: two blocks sent to 0.999 split
@@ -276,9 +320,13 @@ def assign_poles(a: np.ndarray, b: np.ndarray, dt: float, choose, good, full: bo
             F2 = (tg[0].real - blk[0, 0]) * B2.T / nb  # minimum-norm gain: blk + B2 F2 = target
         else:
             F2 = _place(blk, B2, tg)
-        F = F + F2 @ Z[:, n - size:].T
+        T = T.copy()
+        T[:, n - size:] += bz @ F2
+        if size == 1:
+            T[n - 1, n - 1] = tg[0].real  # the target itself, not its rounding
+        Fz[:, n - size:] += F2
         moved += size
-    return F, moved
+    return T, Z, Fz, moved
 
 
 def mirror(eig: np.ndarray, beta: float, dt: bool) -> np.ndarray:
@@ -413,9 +461,11 @@ def pencil_basis(model: FDIModel, *, rtol: float | None = None, atol: float = 0.
     Dz = np.vstack([K, -(Du.T @ K)]) if m else K
     dual = (ac.copy(), bc.copy(), Cz.copy(), Dz.copy())
     full = poles is not None
-    Fw, moved = assign_poles(ac, bc, model.dt, choose, good, full)
+    # state feedback w = Fw ξ + v on the dual (a right coprime factor), realised in the closed loop's Schur
+    # coordinates ξ = Z ζ (schur_feedback: accurate where the gain is large)
+    ac, Z, Fw, moved = schur_feedback(ac, bc, model.dt, choose, good, full)
+    bc, Cz = Z.T @ bc, Cz @ Z + Dz @ Fw
     if Fw.size:
-        ac, Cz = ac + bc @ Fw, Cz + Dz @ Fw  # state feedback w = Fw ξ + v on the dual: a right coprime factor
         fnorm = max(fnorm, float(np.linalg.norm(Fw, 2)))
     N = LTI(ac.T, Cz.T, bc.T, Dz.T, model.dt)
     rank_d = normal_rank(model.lti("d"), rtol=None) if md else 0
@@ -577,9 +627,9 @@ def simple_rows(pb: PencilBasis, dt: float) -> list[tuple[LTI, int, float]]:
             continue  # no cover of order ν (a rank decision made differently), or too ill-conditioned: left out
         a1, b1, c1, d1, cond = best
         try:
-            F, _ = assign_poles(a1, b1, dt, choose, good, full)
+            a1, Z, F, _ = schur_feedback(a1, b1, dt, choose, good, full)
         except (np.linalg.LinAlgError, DesignError):  # an ordered Schur form / placement that fails: row left out
             continue
-        a1, c1 = a1 + b1 @ F, c1 + d1 @ F
+        b1, c1 = Z.T @ b1, c1 @ Z + d1 @ F
         out.append((LTI(a1.T, c1.T, b1.T, d1.T, dt), nu, max(cond, float(np.linalg.norm(F, 2)) if F.size else 0.0)))
     return out

@@ -30,16 +30,22 @@ def glcf(sys: LTI, choose, good) -> tuple[LTI, LTI, int]:
     method of Varga's ``glcf``). ``M`` is biproper (D = I), so ``M·X`` is zero only where X is.
     ``sys`` must be observable in its bad modes (pass a minimal realisation): an unobservable bad
     mode cannot be moved and is reported as not moved. Returns ``(N, M, moved)``.
+
+    When poles move, N and M are realised in the Schur coordinates of the closed loop, ``x = Z x̃``:
+    ``Ã = Zᵀ(A + L C)Z = Tᵀ``, ``C̃ = C Z``, ``L̃ = Zᵀ L`` (:func:`~fmu_fdi.design.toolkit.pencil.schur_feedback`),
+    never by forming ``A + L C``, whose eigenvalues cancel out of entries of size ``‖L‖‖C‖`` where the gain is
+    large (a weakly observable bad mode).
     """
-    from .pencil import assign_poles
+    from .pencil import schur_feedback
 
     if sys.n == 0:
         return sys, LTI.static(np.eye(sys.p), sys.dt), 0
-    F, moved = assign_poles(sys.A.T, sys.C.T, sys.dt, choose, good)
-    L = F.T
-    A = sys.A + L @ sys.C
-    N = LTI(A, sys.B + L @ sys.D, sys.C, sys.D, sys.dt)
-    M = LTI(A, L, sys.C, np.eye(sys.p), sys.dt)
+    T, Z, Fz, moved = schur_feedback(sys.A.T, sys.C.T, sys.dt, choose, good)
+    if not moved:
+        return sys, LTI(sys.A, np.zeros((sys.n, sys.p)), sys.C, np.eye(sys.p), sys.dt), 0
+    L, A, C = Fz.T, T.T, sys.C @ Z
+    N = LTI(A, Z.T @ sys.B + L @ sys.D, C, sys.D, sys.dt)
+    M = LTI(A, L, C, np.eye(sys.p), sys.dt)
     return N, M, moved
 
 
