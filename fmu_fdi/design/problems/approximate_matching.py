@@ -222,7 +222,11 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``reference_lowpass``
         (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``row_orders``
         (McMillan degree of each row), ``poles``, ``postconditions``, ``plant_mode_cancellation`` (the exact
-        cancellation of the plant's boundary modes in R, :func:`_plant_mode_cancellation`); with ``mindeg=True``,
+        cancellation of the plant's boundary modes in R, :func:`_plant_mode_cancellation`), ``ud_redecoupling``
+        (the u/d leak on the normalised form — rows at unit weakest required fault gain, a fault required where the
+        row of Mr is nonzero — and, where it exceeded ``dec_tol``, the numerator's refit: ``refined``,
+        ``leak_before``/``leak_after``, ``error_before``/``error_after``, ``reason``; :func:`_ud_redecoupling`);
+        with ``mindeg=True``,
         ``mindeg``: ``{'lowered', 'reason', 'row_orders_before', 'row_orders', 'order_before',
         'order', 'error_before', 'error', 'error_limit', 'row_methods'}`` (``error_before``: the
         optimal filter's measured error, itself within ``reltol`` of ``gamma_opt`` in the standard
