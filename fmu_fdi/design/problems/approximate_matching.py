@@ -478,9 +478,11 @@ def _leak_of(fig: dict) -> float:
     return float(max(fig.get("decoupling", np.nan), own))
 
 
-#: :func:`_ud_redecoupling`: the most numerator unknowns ``(n_q + rows)·(p + m)`` it solves for (as
-#: :data:`CANCEL_UNKNOWNS` and nullspace's refinement, 2000)
-REDECOUPLE_UNKNOWNS = CANCEL_UNKNOWNS
+#: :func:`_ud_redecoupling`: the most numerator unknowns ``(n_q + rows)·(p + m)`` it solves for (a dense least-squares
+#: problem on every column of Ge, ~8·unknowns³ flops: 2000 unknowns took minutes on the realisation seeds)
+REDECOUPLE_UNKNOWNS = 1000
+#: :func:`_ud_redecoupling`'s real equations per unknown (its points thinned to that many)
+REDECOUPLE_ROWS = 8
 
 
 def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol) -> tuple[LTI, dict]:
@@ -496,8 +498,9 @@ def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, sm
     The correction is kept only if the normalised leak falls to ``dec_tol`` or below, the error measured on the
     corrected filter (:func:`_shipped_error`, the same points) is within ``reltol`` of the shipped one's (plus 1e-9 of
     ``||M Mr||`` for exactly matchable references, as :func:`_plant_mode_cancellation`) and the corrected filter
-    passes the post-conditions. Bounded to :data:`REDECOUPLE_UNKNOWNS` unknowns; the points are thinned as
-    :func:`_plant_mode_cancellation`'s (twice as many real equations as unknowns, at least :data:`CANCEL_POINTS`).
+    passes the post-conditions. Bounded to :data:`REDECOUPLE_UNKNOWNS` unknowns; the points (the design's and the
+    judge's grid, :func:`..toolkit.postconditions._eval_points`) are thinned to :data:`REDECOUPLE_ROWS` real equations
+    per unknown.
     The note: ``refined``, ``leak_before``/``leak_after`` (normalised), ``error_before``/``error_after``,
     ``unknowns``, ``points``, ``reason``."""
     from ..toolkit.refine import boundary_residues, refine_decoupling
@@ -514,9 +517,12 @@ def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, sm
     unknowns = out["unknowns"]
     if unknowns > REDECOUPLE_UNKNOWNS:
         return Q, {**out, "reason": f"the correction has {unknowns} unknowns (> {REDECOUPLE_UNKNOWNS}): Q kept"}
-    k = min(lam.size, max(CANCEL_POINTS, -(-unknowns // max(Q.p * nud, 1))))
-    pts = np.concatenate([lam[np.unique(np.linspace(0, lam.size - 1, k).round().astype(int))],
-                          _eval_points(model, Q)[1]])
+    # the design's points and the judge's, thinned to REDECOUPLE_ROWS times as many real equations (2·p·columns per
+    # point) as unknowns: the least-squares solve costs ~REDECOUPLE_ROWS·unknowns³ (1000 unknowns: ~1 s)
+    pts = np.concatenate([lam, _eval_points(model, Q)[1]])
+    pts = pts[np.argsort(np.angle(pts) if model.dt else pts.imag)]
+    k = min(pts.size, -(-REDECOUPLE_ROWS * unknowns // (2 * Q.p * model.augmented().m)))
+    pts = pts[np.unique(np.linspace(0, pts.size - 1, k).round().astype(int))]
     out["points"] = int(pts.size)
     Qr = _decoupling_refit(model, Q, pts)
     fig = normalised_leak(model, Qr, required, smarg, dec_tol)
