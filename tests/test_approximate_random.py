@@ -401,13 +401,6 @@ def _assert_case(seed: int, calls):
 CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
 #: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
 KNOWN_BROKEN: dict[tuple[int, str], str] = {
-    (83, "amm_ref"): "approximate_matching (h2exact): audit of seeds 76-87 (benchmarks/approximate_random_judged.py 12 "
-                     "76): seed 83 (discrete, n = 28, p = 4, m = 6, stable, poles up to 0.9911) matching its exact "
-                     "detection row's fault response is refused, 'u leak 1.9e-07 × the weakest fault gain' at "
-                     "ω = 4.0e-3 rad/s (order-65 filter Y·Φ·Q0; no boundary mode, so the exact cancellation stage does "
-                     "nothing). The numerator refinement nullspace designs use (refine.refine_decoupling on 200 grid "
-                     "points) lowers the leak to 5.5e-9 and the post-conditions pass, but takes 19 s at 660 unknowns: "
-                     "a u, d re-decoupling stage of approximate_model_matching, not added here",
 }
 #: approximate_model_matching (noisec) refused "the returned filter's error response differs from the designed one"
 #: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compared the two on points that
@@ -489,7 +482,11 @@ FIXED = {(20, "afd"): "n = 30, a resonance at 7.8 rad/s: the AFD gap was reporte
                          "ill-conditioned' (fixed: approximate_matching.stable_reduced_system, the stable coprime "
                          "factorisation of [Q0 G1], as the peer's ammsyn)",
          (21, "amm_ref"): "fault-only z = 1 kept by the basis Q0 and G1: 'H∞ synthesis failed even at γ = 74.3207 > "
-                          "||Mr||∞' (with Mr = I too: 'γ = 1.01'); fixed as seed 1"}
+                          "||Mr||∞' (with Mr = I too: 'γ = 1.01'); fixed as seed 1",
+         (83, "amm_ref"): "audit of seeds 76-87: discrete, n = 28, p = 4, m = 6; matching the exact detection row was "
+                          "refused, 'u leak 1.9e-07 × the weakest fault gain' at ω = 4.0e-3 rad/s (order-65 filter "
+                          "Y·Φ·Q0, no boundary mode); designed since the factors are realised in the Schur coordinates "
+                          "of their closed loops (pencil.schur_feedback: glcf, the pencil basis), not by forming A + LC"}
 
 
 @pytest.mark.parametrize("seed, call", FAST)
