@@ -483,10 +483,10 @@ FIXED = {(20, "afd"): "n = 30, a resonance at 7.8 rad/s: the AFD gap was reporte
                          "factorisation of [Q0 G1], as the peer's ammsyn)",
          (21, "amm_ref"): "fault-only z = 1 kept by the basis Q0 and G1: 'H∞ synthesis failed even at γ = 74.3207 > "
                           "||Mr||∞' (with Mr = I too: 'γ = 1.01'); fixed as seed 1",
-         (83, "amm_ref"): "discrete, n = 28, p = 4, m = 6: matching its exact detection row's fault response was refused, "
-                          "'u leak 1.9e-07 × the weakest fault gain' at ω = 4.0e-3 rad/s (order-65 filter Y·Φ·Q0, no "
-                          "boundary mode); fixed: approximate_matching._ud_redecoupling refits the numerator to zero "
-                          "Q·[Gu Gd; I 0] on the normalised rows with Q·[Gf Gw; 0 0] kept (error within reltol)"}
+         (83, "amm_ref"): "audit of seeds 76-87: discrete, n = 28, p = 4, m = 6; matching the exact detection row was "
+                          "refused, 'u leak 1.9e-07 × the weakest fault gain' at ω = 4.0e-3 rad/s (order-65 filter "
+                          "Y·Φ·Q0, no boundary mode); designed since the factors are realised in the Schur coordinates "
+                          "of their closed loops (pencil.schur_feedback: glcf, the pencil basis), not by forming A + LC"}
 
 
 @pytest.mark.parametrize("seed, call", FAST)

@@ -9,7 +9,6 @@ test_synthesis_ammp.decoupling, stability by the eigenvalues of Q's A. Cases: Va
 5.11, 5.14, 5.15, 5.16, 5.17 (FDT Ex5_1*.jl), Niemann's model, the seeded random models of
 test_synthesis_ammp, and discrete-time versions of Ex. 5.16 and Niemann's model.
 """
-import types
 
 import numpy as np
 import published as pub

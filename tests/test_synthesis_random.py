@@ -176,7 +176,7 @@ def _freqresp(A, B, C, D, lam: np.ndarray) -> np.ndarray:
 
 def _extended(model: FDIModel):
     """State-space data of ``Ge = [Gu Gd Gw Gf; I 0 0 0]`` (inputs u, d, w, f; outputs y, u)."""
-    p, m = model.ny, model.nu
+    m = model.nu
     B = np.hstack([model.Bu, model.Bd, model.Bw, model.Bf])
     D = np.hstack([model.Du, model.Dd, model.Dw, model.Df])
     Ce = np.vstack([model.C, np.zeros((m, model.n))])
@@ -441,7 +441,7 @@ def test_judge_is_accurate_on_ill_scaled_models(seed, monkeypatch):
     from fmu_fdi.lti import LTI
 
     model = random_case(seed)
-    p, m = model.ny, model.nu
+    p = model.ny
     Q = LTI(model.A, np.hstack([np.zeros((model.n, p)), -model.Bu]), model.C, np.hstack([np.eye(p), -model.Du]),
             model.dt)
 
