@@ -422,19 +422,31 @@ def _plant_mode_cancellation(model, Q, fnm, MF, lam, norm, systems, reltol, smar
                                              for p, _ in residues]})
     if Qc is Q:
         return Q, {**out, "reason": "Q's resolvent cannot be evaluated at the modes or points: Q kept as designed"}
-    before = _shipped_error(model, Q, fnm, MF, lam, norm, systems)
-    after = _shipped_error(model, Qc, fnm, MF, lam, norm, systems)
-    limit = before * (1 + reltol) + 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)), initial=0.0)), 1e-300)
-    out.update({"error_before": float(before), "error_after": float(after)})
-    if not after <= limit:
-        return Q, {**out, "reason": f"the exact cancellation would worsen the match from {before:.6g} to {after:.6g} "
-                                    f"(limit {limit:.6g}, reltol = {reltol:g}): Q kept as designed"}
+    before, after, why = _correction_refused(model, Q, Qc, "the exact cancellation", fnm, MF, lam, norm, systems,
+                                             reltol, smarg, dec_tol)
+    out.update({"error_before": before, "error_after": after})
+    if why:
+        return Q, {**out, "reason": f"{why}: Q kept as designed"}
+    return Qc, {**out, "corrected": True, "reason": "the plant modes on or beyond the boundary cancel exactly in R"}
+
+
+def _correction_refused(model, Q, Qc, what, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol):
+    """The acceptance of a correction ``Qc`` of the shipped filter ``Q`` (:func:`_plant_mode_cancellation`,
+    :func:`_ud_redecoupling`): ``(error of Q, error of Qc, None or why it is refused)`` — refused where the error
+    measured on Qc (:func:`_shipped_error`, the same points) exceeds ``reltol`` of Q's plus 1e-9 of ``||M Mr||`` (for
+    exactly matchable references), or Qc fails the post-conditions."""
+    e0 = float(_shipped_error(model, Q, fnm, MF, lam, norm, systems))
+    e1 = float(_shipped_error(model, Qc, fnm, MF, lam, norm, systems))
+    limit = e0 * (1 + reltol) + 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)), initial=0.0)), 1e-300)
+    if not e1 <= limit:
+        return e0, e1, (f"{what} would worsen the match from {e0:.6g} to {e1:.6g} (limit {limit:.6g}, "
+                        f"reltol = {reltol:g})")
     try:
         check_generator(ResidualGenerator(Qc, model, "approximate_model_matching"), decouple=("u", "d"), faults=[],
                         smarg=smarg, dec_tol=dec_tol)
     except DesignError as exc:
-        return Q, {**out, "reason": f"the corrected filter fails its post-conditions ({exc}): Q kept as designed"}
-    return Qc, {**out, "corrected": True, "reason": "the plant modes on or beyond the boundary cancel exactly in R"}
+        return e0, e1, f"the corrected filter fails its post-conditions ({exc})"
+    return e0, e1, None
 
 
 #: a fault is required by a matching row where that row of Mr has a peak on the design's points above this fraction of
@@ -526,23 +538,16 @@ def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, sm
     Qr = _decoupling_refit(model, Q, pts)
     fig = normalised_leak(model, Qr, required, smarg, dec_tol)
     after = _leak_of(fig)
-    e0 = _shipped_error(model, Q, fnm, MF, lam, norm, systems)
-    e1 = _shipped_error(model, Qr, fnm, MF, lam, norm, systems)
-    limit = e0 * (1 + reltol) + 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)), initial=0.0)), 1e-300)
-    out.update({"leak_after": after, "error_before": float(e0), "error_after": float(e1)})
+    e0, e1, why = _correction_refused(model, Q, Qr, "the refinement", fnm, MF, lam, norm, systems, reltol, smarg,
+                                      dec_tol)
+    out.update({"leak_after": after, "error_before": e0, "error_after": e1})
     if not after <= dec_tol:
         return Q, {**out, "reason": f"the refined filter still leaks {after:.3g} > dec_tol = {dec_tol:g}: Q kept"}
-    if not e1 <= limit:
-        return Q, {**out, "reason": f"the refinement would worsen the match from {e0:.6g} to {e1:.6g} "
-                                    f"(limit {limit:.6g}, reltol = {reltol:g}): Q kept"}
     bad = [f"{c}: {m}" for c, m in fig.get("failures", ()) if c != "structure"]
     if bad:
-        return Q, {**out, "reason": f"the refined filter fails its post-conditions ({'; '.join(bad)}): Q kept"}
-    try:
-        check_generator(ResidualGenerator(Qr, model, "approximate_model_matching"), decouple=("u", "d"), faults=[],
-                        smarg=smarg, dec_tol=dec_tol)
-    except DesignError as exc:
-        return Q, {**out, "reason": f"the refined filter fails its post-conditions ({exc}): Q kept"}
+        why = why or f"the refined filter fails its post-conditions ({'; '.join(bad)})"
+    if why:
+        return Q, {**out, "reason": f"{why}: Q kept"}
     return Qr, {**out, "refined": True, "reason": "u, d re-decoupled on the normalised form"}
 
 
