@@ -342,7 +342,8 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
     their cross-covariance. The states no noise reaches and whose modes are stable are
     deflated first (:func:`_deflated_riccati`: the stabilising solution is zero on them,
     exactly); the rest is solved, scaled, by the Schur/QZ methods of ``scipy.linalg``
-    (Laub 1979; Arnold & Laub 1984). Those raise for most problems without a stabilising
+    (Laub 1979; Arnold & Laub 1984), then SLICOT SB02OD, then Newton's method from their answer
+    (:func:`~fmu_fdi.design.toolkit.approximate.spectral_riccati`). Those raise for most problems without a stabilising
     solution but can return a non-stabilising one, so the closed loop is checked as well.
     A stabilising solution exists iff ``(A, C)`` is detectable and ``(A − S R⁻¹ C,
     Qx − S R⁻¹ Sᵀ)`` has no uncontrollable mode on the stability boundary (Chan, Goodwin &
@@ -444,9 +445,10 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
     q, w = float(np.linalg.norm(Q1, 2)), float(np.linalg.norm(W, 2))
     gamma = np.sqrt(q / w) if q > 0 and w > 0 else 1.0
     # the dual of the spectral factorisation's equation on factors (Q̄₁₁/γ = HᵀH, R/γ = DᵀD, cross term HᵀD = 0):
-    # scipy's QZ solver, then SLICOT SB02OD, each answer kept only if its residual is within RICCATI_RTOL — scipy's
-    # solver can return, without an error, a P with a residual of the order of its terms (random discrete H2 seed 9
-    # of approximate_matching._filter_dare: an indefinite P of norm 1e14, relative residual 0.75)
+    # scipy's QZ solver, then SLICOT SB02OD, each answer kept only if its residual is within RICCATI_RTOL, else refined
+    # by Newton's method from one with a stable closed loop (toolkit.riccati_newton) — scipy's solver can return,
+    # without an error, a P with a residual of the order of its terms (random discrete H2 seed 9 of
+    # approximate_matching._filter_dare: an indefinite P of norm 1e14, relative residual 0.75)
     lq, vq = np.linalg.eigh(Q1 / gamma)
     H = np.sqrt(np.clip(lq, 0.0, None))[:, None] * vq.T
     Rf = sla.cholesky(R / gamma) if R.size else np.zeros((0, 0))
@@ -457,7 +459,8 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
         P1 = spectral_riccati(A1.T.copy(), C1.T.copy(), Cf, Df, dt)
     if P1 is None:
         raise no_solution("no solution of the reduced filter Riccati equation with a residual within "
-                          f"RICCATI_RTOL = {RICCATI_RTOL:g} of its terms (scipy's QZ solver, SLICOT SB02OD)")
+                          f"RICCATI_RTOL = {RICCATI_RTOL:g} of its terms (scipy's QZ solver, SLICOT SB02OD, Newton's "
+                          f"method from an answer of theirs with a stable closed loop)")
     P = T1 @ (gamma * (P1 + P1.T) / 2) @ T1.T
     return (P + P.T) / 2
 
