@@ -14,30 +14,24 @@ from fmu_fdi.design.observers._observer import filter_riccati
 from fmu_fdi.design.toolkit.riccati_newton import newton_refined
 from fmu_fdi.errors import DesignError
 
-from test_kalman_riccati import _problem, _relative_residual
+from test_kalman_riccati import _problem, assert_solves
 
 EPS = np.finfo(float).eps
 
 
-# the seeded ill-scaled problems of test_kalman_riccati.py that main refused ("no solution of the reduced filter
-# Riccati equation with a residual within RICCATI_RTOL": scipy's and SB02OD's answers had residuals 1e-7 … 1e-1 of
-# the terms, closed loops stable) and the refinement designs (benchmarks/riccati_refinement.py); continuous and discrete
-REFINED = [(2, 2), (3, 1), (3, 2), (6, 1), (6, 2), (10, 0), (10, 1), (14, 1), (15, 2), (19, 0), (46, 2), (50, 0),
-           (50, 2), (54, 0), (55, 0), (58, 1), (59, 2)]
+# the seeded ill-scaled problems of test_kalman_riccati.py that only the refinement designs: neither scipy's nor
+# SB02OD's answer is within RICCATI_RTOL (the starts refined: 1.2e-8 … 5.6e-5 of the terms, closed loops stable); with
+# newton_refined disabled every one is refused (measured). Main refused six of them (also in
+# test_kalman_riccati.REFUSED_ON_MAIN); it designed (4, 1) and (52, 1) in the staircase's coordinates, which the
+# reduced equation no longer uses where nothing is deflated.
+REFINED = [(3, 0), (3, 1), (3, 2), (4, 1), (18, 1), (26, 1), (52, 1), (58, 2)]
 
 
 @pytest.mark.parametrize("seed, trial", REFINED)
 def test_refined_riccati_solution_solves_its_equation(seed, trial):
     A, C, Qx, R, dt = _problem(seed, trial)
-    f = filter_riccati(A, C, Qx, R, np.zeros((A.shape[0], C.shape[0])), dt)
-    # bound (as test_kalman_riccati.py): RICCATI_RTOL = 1e-8 is judged on the deflated, scaled equation; the deflation
-    # is orthogonal and the scaling a scalar, so the full equation's relative residual is that within a factor of a
-    # few (the terms' norms are summed differently); 1e-7 leaves that margin (measured here: 2.3e-12 … 4.1e-8)
-    assert _relative_residual(A, C, Qx, R, f.P, dt) <= 1e-7
-    # P ⪰ 0 to the acceptance line of its norm (an indefinite P beyond it is another matrix, not a refined one)
-    assert np.linalg.eigvalsh((f.P + f.P.T) / 2)[0] >= -1e-8 * max(np.linalg.norm(f.P, 2), 1.0)
-    ev = np.linalg.eigvals(A - f.L @ C)
-    assert np.all(np.abs(ev) < 1.0) if dt else np.all(ev.real < 0.0)
+    # residuals measured 3.6e-16 … 8.7e-10 (the bound 1e-7 and its derivation: test_kalman_riccati.assert_solves)
+    assert_solves(A, C, Qx, R, dt, filter_riccati(A, C, Qx, R, np.zeros((A.shape[0], C.shape[0])), dt))
 
 
 def _m(x) -> np.ndarray:

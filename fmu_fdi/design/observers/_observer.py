@@ -397,7 +397,12 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
     The states ``T₂ᵀ x`` see no noise and their error decays by itself, so ``P = T₁ P₁₁ T₁ᵀ``
     with ``P₁₁`` the stabilising solution of the reduced equation ``(Ā₁₁, C T₁, G₁ G₁ᵀ, R)``
     (substitute: every term of the (1,2) and (2,2) blocks vanishes), and
-    ``eig(A − L C) = eig(closed loop of the reduced problem) ∪ eig(Ā₂₂)``. Without this,
+    ``eig(A − L C) = eig(closed loop of the reduced problem) ∪ eig(Ā₂₂)``. Where nothing is
+    deflated (``T₂`` empty) ``T₁ = I``: the staircase basis would only mix the caller's
+    coordinates, and on badly scaled models (states over eight decades) the direct solvers'
+    answers in mixed coordinates miss ``RICCATI_RTOL`` where those in the caller's do not
+    (tests/test_kalman_riccati.py's seeded problems, benchmarks/riccati_refinement.py: 151 of
+    180 designed with the mixing, 175 without, both with the Newton refinement). Without the deflation,
     scipy's solvers reject e.g. ``Qx = 0`` with a slow stable mode (the solution ``P = 0``
     makes their relative symmetry check on ``U₁₁ᴴ U₂₁`` compare rounding with rounding).
     Uncontrollable modes on the stability boundary admit no stabilising solution and are
@@ -437,7 +442,7 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
         n_c += n_u
     if n_c == 0:
         return np.zeros((n, n))
-    T1 = Z[:, :n_c]
+    T1 = Z[:, :n_c] if n_c < n else np.eye(n)  # nothing deflated: the caller's coordinates, not the staircase's
     A1, C1 = T1.T @ Ab @ T1, C @ T1
     Q1 = T1.T @ Qb @ T1
     Q1 = (Q1 + Q1.T) / 2
