@@ -58,6 +58,16 @@ def test_newton_converges_quadratically_on_the_scalar_care():
     assert abs(float(newton_refined(*args, _m(x0), 0.0, rtol=1e-8)[0, 0]) - xs) <= 20 * EPS * 6
 
 
+def test_exact_line_search_when_the_newton_step_overshoots():
+    """The scalar CARE above from X0 = −0.9 (closed loop a − X0 = −0.1, stable): Newton's step −𝓡/𝓡' =
+    3.99/0.2 = 19.95 overshoots to 19.05 (residual 3.99 → −398). Benner & Byers' exact line search minimises
+    ‖(1 − t)𝓡(X0) − t²Δ²‖: here a root, t = 0.0952…, where X0 + tΔ = 1 = X* — one step to the solution."""
+    args = (_m(-1.0), _m(1.0), _m(3.0), _m(1.0), _m(0.0))
+    x1 = float(newton_refined(*args, _m(-0.9), 0.0, rtol=1.0, steps=1)[0, 0])
+    # rounding: t is a simple root of the cubic (relative error ~eps), times |Δ| ≈ 20, plus the addition
+    assert abs(x1 - 1.0) <= 100 * EPS * 20
+
+
 def test_newton_converges_quadratically_on_the_scalar_dare():
     """``a²X − X − a²X²/(r + X) + q = 0`` (A = a, B = 1, R = r): a = 2 (unstable), r = q = 1 give −X² + 4X + 1 = 0,
     X* = 2 + sqrt(5), closed loop a r/(r + X*) = 0.382. With 𝓡(X) = a²rX/(r + X) − X + q, Newton's error obeys
