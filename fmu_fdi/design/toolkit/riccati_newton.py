@@ -15,8 +15,9 @@ current closed loop for the correction ``Δ``:
 - continuous:  ``A_Fᵀ Δ + Δ A_F = −𝓡(X_k)``,        then ``𝓡(X_k + Δ) = −Δ B R⁻¹ Bᵀ Δ``;
 - discrete:    ``A_Fᵀ Δ A_F − Δ = −𝓡(X_k)``,        then ``𝓡(X_k + Δ) = −A_FᵀΔB (R + Bᵀ(X_k + Δ)B)⁻¹ BᵀΔA_F``;
 
-so the residual falls quadratically near the solution, and from any stabilising start every iterate after the first is
-stabilising and the sequence decreases monotonically to the stabilising solution (Kleinman; Hewer). The Lyapunov/Stein
+so the residual falls quadratically near the solution, and (for ``[Q S; Sᵀ R] ⪰ 0``, ``R > 0``) from any stabilising
+start every iterate is stabilising and those after the first decrease monotonically to the stabilising solution
+(Kleinman; Hewer). The Lyapunov/Stein
 equations are solved by SLICOT SB03MD (real Schur form of ``A_F``, Bartels–Stewart / Barraud), in the coordinates of
 a diagonal balancing of ``A`` (see :func:`newton_refined`). Far from the solution
 the full step can overshoot; then ``X_{k+1} = X_k + tΔ`` with a step ``t`` that lowers the residual: in continuous
@@ -101,8 +102,7 @@ def _exact_step(Rx: np.ndarray, V: np.ndarray) -> float:
     return min(ts, key=f)
 
 
-def newton_refined(A, B, Q, R, S, X0, dt: float, rtol: float, steps: int = NEWTON_STEPS,
-                   balance: bool = True) -> np.ndarray | None:
+def newton_refined(A, B, Q, R, S, X0, dt: float, rtol: float, steps: int = NEWTON_STEPS) -> np.ndarray | None:
     """The stabilising solution refined from ``X0`` by Newton's method with line search (module docstring), or None.
 
     The iteration runs in the coordinates of the diagonal balancing of ``A`` (``Ã = T⁻¹AT``, ``T`` diagonal of powers
@@ -115,9 +115,9 @@ def newton_refined(A, B, Q, R, S, X0, dt: float, rtol: float, steps: int = NEWTO
     stable. Returned: the last iterate, if its relative residual (:func:`riccati_residual`, the caller's coordinates)
     is within ``rtol``, its closed loop stable and its least eigenvalue no lower than ``−rtol·‖X‖₂`` (the stabilising
     solution is ⪰ 0 when ``[Q S; Sᵀ R] ⪰ 0``, as for factored data)."""
-    if X0 is None or not np.all(np.isfinite(X0)):
+    if X0 is None or not np.all(np.isfinite(X0)) or A.shape[0] == 0:
         return None
-    t = sla.matrix_balance(A, permute=False, separate=True)[1][0] if balance else np.ones(A.shape[0])
+    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
     X = _iterated(A * (1 / t)[:, None] * t[None, :], B / t[:, None], Q * t[:, None] * t[None, :], R,
                   S * t[:, None], (X0 + X0.T) / 2 * t[:, None] * t[None, :], dt, steps)
     if X is None:
