@@ -94,8 +94,9 @@ def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
     (:func:`.riccati_newton.riccati_residual`) is within :data:`RICCATI_RTOL` of the size of the terms. Where
     neither is, but one is finite with a stable closed loop, it is refined by Newton's method (defect correction:
     Kleinman 1968, Hewer 1971, Mehrmann & Tan 1988; exact line search, Benner & Byers 1998 —
-    :func:`.riccati_newton.newton_refined`), and the iterate kept only if its residual falls within
-    :data:`RICCATI_RTOL` with the closed loop stable. That the returned closed loop is stable with the caller's
+    :func:`.riccati_newton.newton_refined`, in the coordinates of a diagonal balancing of ``A``), and the iterate
+    kept only if its residual falls within :data:`RICCATI_RTOL` with the closed loop stable and ``X ⪰ 0`` to
+    :data:`RICCATI_RTOL` of its norm. That the returned closed loop is stable with the caller's
     margin (that ``X`` is the stabilising solution) is the caller's check."""
     Q, R, S = C.T @ C, D.T @ D, C.T @ D
 
