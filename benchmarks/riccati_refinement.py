@@ -6,7 +6,10 @@ default. Each is solved by ``filter_riccati`` of the current code and of the bas
 ``observers/_observer.py`` as of REV, default ``main``, loaded from ``git show`` as sibling modules; the baseline
 observer module calls the baseline ``spectral_riccati``). Every returned ``P`` is judged by numpy — the relative
 residual of the full equation (the test file's ``_relative_residual``), ``P ⪰ 0`` and the closed loop ``A − L C``
-stable; a DesignError is a refusal. Prints the problems where the two differ, the counts designed / refused /
+stable; a DesignError is a refusal. Where a reference is reliable (:func:`reference`: the diagonally balanced
+problem solved by scipy, its residual ≤ 1e-13), the forward error ``‖P − P_ref‖_F / ‖P_ref‖_F`` of each designed
+``P`` is read too (a residual is a backward measure; on these ill-scaled equations a small one does not bound the
+error of ``P``). Prints the problems where the two differ, the counts designed / refused /
 wrong per side, and the time per solve: the geometric mean of the ratios current / baseline over the problems both
 design, and the ratio of the total times (best of ``R`` calls each).
 
@@ -20,6 +23,9 @@ Run: python benchmarks/riccati_refinement.py [SEEDS] [REV] [R]
   Without the refinement the coordinates alone give 167 / 13 / 0 and refuse two that main designs (4/1, 52/1: the direct
   answers 2–6e-8 there; Newton brings them within RICCATI_RTOL). On the 134 both design the residuals move both ways
   (16 lower, 12 higher by more than 10×), the largest 1.4e-8 → 5.3e-9.
+  Final code (e7660c3 + this reading), R = 3: main 134 / 46 / 0, now 175 / 5 / 0; forward error against the balanced
+  reference (where kept): main max 1.7e-2 (seed 15/0, residual 5.1e-11), 4 of 73 above 1e-6 → now max 2.8e-6
+  (47/1), 1 of 76; time per solve geometric mean 1.011 on the 134, total 0.934.
 """
 import importlib.util
 import subprocess
@@ -57,8 +63,24 @@ def baseline(rev: str):
     return obs
 
 
+def reference(A, C, Qx, R, dt):
+    """A reference solution for the forward error: scipy's solver on the problem balanced by the diagonal similarity
+    of LAPACK GEBAL on ``A`` (powers of 2, exact), mapped back; kept only where its own relative residual in the
+    original coordinates is at most 1e-13 (else None)."""
+    import scipy.linalg as sla
+
+    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
+    try:
+        Pb = (sla.solve_discrete_are if dt else sla.solve_continuous_are)(
+            (A * t[None, :] / t[:, None]).T, (C * t[None, :]).T, Qx / t[:, None] / t[None, :], R)
+        P = Pb * t[:, None] * t[None, :]
+        return P if _relative_residual(A, C, Qx, R, P, dt) <= 1e-13 else None
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+
+
 def judged(module, A, C, Qx, R, dt, repeats: int):
-    """``(verdict, residual, seconds)``: 'ok' (residual ≤ 1e-7, P ⪰ 0, A − LC stable), 'refused' or 'wrong'."""
+    """``(verdict, residual, seconds, P)``: 'ok' (residual ≤ 1e-7, P ⪰ 0, A − LC stable), 'refused' or 'wrong'."""
     best, out = np.inf, None
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -68,17 +90,18 @@ def judged(module, A, C, Qx, R, dt, repeats: int):
             out = None
         best = min(best, time.perf_counter() - t0)
     if out is None:
-        return "refused", np.nan, best
+        return "refused", np.nan, best, None
     res = _relative_residual(A, C, Qx, R, out.P, dt)
     psd = np.linalg.eigvalsh((out.P + out.P.T) / 2)[0] >= -1e-8 * max(np.linalg.norm(out.P, 2), 1.0)
     ev = np.linalg.eigvals(A - out.L @ C)
     stable = np.all(np.abs(ev) < 1.0) if dt else np.all(ev.real < 0.0)
-    return ("ok" if res <= 1e-7 and psd and stable else "wrong"), res, best
+    return ("ok" if res <= 1e-7 and psd and stable else "wrong"), res, best, out.P
 
 
 def main(seeds: int = 60, rev: str = "main", repeats: int = 1) -> None:
     old = baseline(rev)
     count = {"baseline": {}, "current": {}}
+    forward = {"baseline": [], "current": []}  # ||P − P_ref||_F / ||P_ref||_F where the reference is kept
     ratios, t_old, t_new = [], 0.0, 0.0
     print(f"{'seed':>4s} {'trial':>5s} {'n':>3s} {'dt':>4s}  {'baseline ' + rev:>24s}  {'current':>24s}")
     for seed in range(seeds):
@@ -86,8 +109,13 @@ def main(seeds: int = 60, rev: str = "main", repeats: int = 1) -> None:
             A, C, Qx, R, dt = _problem(seed, trial)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                vo, ro, so = judged(old, A, C, Qx, R, dt, repeats)
-                vn, rn, sn = judged(new, A, C, Qx, R, dt, repeats)
+                vo, ro, so, Po = judged(old, A, C, Qx, R, dt, repeats)
+                vn, rn, sn, Pn = judged(new, A, C, Qx, R, dt, repeats)
+                Pr = reference(A, C, Qx, R, dt)
+            if Pr is not None:
+                for side, v, P in (("baseline", vo, Po), ("current", vn, Pn)):
+                    if v == "ok":
+                        forward[side].append(float(np.linalg.norm(P - Pr) / np.linalg.norm(Pr)))
             for side, v in (("baseline", vo), ("current", vn)):
                 count[side][v] = count[side].get(v, 0) + 1
             t_old, t_new = t_old + so, t_new + sn
@@ -100,7 +128,9 @@ def main(seeds: int = 60, rev: str = "main", repeats: int = 1) -> None:
     for side in ("baseline", "current"):
         c = count[side]
         print(f"{side:>8s}: {c.get('ok', 0)} designed / {c.get('refused', 0)} refused / {c.get('wrong', 0)} wrong "
-              f"of {total}")
+              f"of {total}; forward error against the balanced reference (where its residual ≤ 1e-13, "
+              f"{len(forward[side])} designed): max {max(forward[side], default=np.nan):.1e}, "
+              f"{sum(e > 1e-6 for e in forward[side])} above 1e-6")
     print(f"time per solve current/baseline: geometric mean {np.exp(np.mean(np.log(ratios))):.3f} over the "
           f"{len(ratios)} problems both design; total {t_new:.2f} s / {t_old:.2f} s = {t_new / t_old:.3f}")
 
