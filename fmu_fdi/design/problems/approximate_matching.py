@@ -1021,16 +1021,16 @@ def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg,
     stacked = vstack(rows) if len(rows) > 1 else rows[0]
     Qm = stacked.minreal(atol)
 
-    def post_refused(S, out):
+    def post_refused(S, out):  # (the judged generator: check_generator records its figures in its info)
+        cand = ResidualGenerator(S, model, "approximate_model_matching")
         try:
-            check_generator(ResidualGenerator(S, model, "approximate_model_matching"), decouple=("u", "d"), faults=[],
-                            smarg=smarg, dec_tol=dec_tol)
+            check_generator(cand, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
         except DesignError as exc:
-            return {**out, "reason": f"the least-order filter fails its post-conditions ({exc}): the optimal "
-                                     f"filter is returned"}
-        return None
+            return cand, {**out, "reason": f"the least-order filter fails its post-conditions ({exc}): the optimal "
+                                           f"filter is returned"}
+        return cand, None
 
-    refused = post_refused(Qm, {})  # (first: the cheapest refusal of most candidates)
+    cand, refused = post_refused(Qm, {})  # (first: the cheapest refusal of most candidates)
     if refused:
         return None, refused
     # the optimal filter's points and the new filter's poles; the same response realised twice: H∞ within the
@@ -1072,13 +1072,12 @@ def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg,
                                            f"weakest required fault gain) is {out['leak']:.3g} > dec_tol = "
                                            f"{dec_tol:g} ({note['reason']}): the optimal row is kept"}
         if note["refined"] or out["plant_mode_cancellation"]["corrected"]:  # corrected: judged again
-            refused = post_refused(Qm, out)
+            cand, refused = post_refused(Qm, out)
             if not refused:
                 err2, refused = error_refused(Qm, out)
             if refused:
                 return None, refused
-    return ResidualGenerator(Qm, model, "approximate_model_matching"), {**out, "error": float(err2),
-                                                                         "error_limit": limit}
+    return cand, {**out, "error": float(err2), "error_limit": limit}
 
 
 #: :func:`_weighted_redecoupling`: the weights of the u/d equations against the fault/noise ones, tried in turn
