@@ -10,6 +10,8 @@ test_synthesis_ammp.decoupling, stability by the eigenvalues of Q's A. Cases: Va
 test_synthesis_ammp, and discrete-time versions of Ex. 5.16 and Niemann's model.
 """
 
+import re
+
 import numpy as np
 import published as pub
 import pytest
@@ -285,23 +287,29 @@ def test_covers_alone_reach_the_resolve_on_random_seed_5(monkeypatch):
 
 
 @pytest.mark.slow
-def test_covers_alone_reach_the_resolve_on_random_seed_17(monkeypatch):
+def test_covers_alone_on_random_seed_17_keep_only_decoupled_rows(monkeypatch):
     """Random seed 17 (discrete, two 52-state optimal rows): the exact re-solve of (2) lowers the rows to [5, 8]
-    (benchmarks/mindeg_time.py --seeds 17). The covers alone stopped at [52, 8]: row 1's least-order covers of the
-    balanced compound, their free parameters fixed by least squares (covers.left_cover2), are unstable (order 5:
-    |pole| 2.16; order 4: 1.80), and the guard refuses its stable ones of orders 12 and 15 (u leaks 3.9e-3, 1.4e-2
-    of the weakest fault). With the cover's free poles chosen stable (covers.stable_left_cover, step (i) mode by
-    mode) and the re-solve switched off, the covers must reach [5, 8]: McMillan degrees by Hankel singular values
-    from scipy's Lyapunov solvers (:func:`row_degrees`), the optimal error (numpy responses, the test's grid, reltol
-    1e-6 plus the guard's floor 1e-9 ||M Mr||∞), decoupled (numpy, < 1e-9 of |Q||G|) and stable."""
+    (benchmarks/mindeg_time.py --seeds 17). With the re-solve switched off, the covers alone reached [5, 8] on main:
+    row 1's order-5 cover with its free poles chosen stable (covers.stable_left_cover, step (i) mode by mode) met the
+    unnormalised guard, but it leaks u 2.1e-4 of the row's weakest fault (the library's normalised reading; the
+    re-decoupling refits leave 4.4e-5, weighted 6e-6) — the returned filter leaked 3.3e-6 of the weakest fault by
+    numpy. Judged on the normalised form, that cover is refused with its figures; what the covers return must meet
+    the judge: every row's u/d leak at most dec_tol = 1e-7 of its weakest fault by numpy (_numpy_leak_and_faults),
+    row 2 still at the re-solve's 8, row 1 below the optimal 52; the optimal error (numpy responses, the test's grid,
+    reltol 1e-6 plus the guard's floor 1e-9 ||M Mr||∞); McMillan degrees by Hankel singular values (:func:`row_degrees`);
+    stable."""
     import fmu_fdi.design.problems.approximate_matching as am
+    from test_synthesis_ammp import _numpy_leak_and_faults
 
     model, Mr = _random_case(17)
     g0 = approximate_model_matching(model, Mr, reltol=1e-6)
     monkeypatch.setattr(am, "_resolved_row", lambda *a, **k: (None, ""))
     g1 = approximate_model_matching(model, Mr, reltol=1e-6, mindeg=True)
     d0, d1 = row_degrees(g0.Q), row_degrees(g1.Q)
-    assert d1[0] <= 5 and d1[1] <= 8 and min(d0) > 8, (d0, d1)
+    assert d1[0] < d0[0] and d1[1] <= 8 and min(d0) > 8, (d0, d1)
+    leak, faults = _numpy_leak_and_faults(model, g1.Q)
+    assert np.all(leak <= 1e-7 * faults.min(axis=1)), leak / faults.min(axis=1)
+    assert re.search(r"order-5 candidate \(stable cover[^;]*u/d leak on the normalised form", g1.info["mindeg"]["reason"])
     e0, e1 = error_norm(g0, Mr, g0.info["M"], "inf"), error_norm(g1, Mr, g1.info["M"], "inf")
     assert e1 <= e0 * (1 + 1e-6) + 1e-9 * max(1.0, (g1.info["M"] @ Mr).hinfnorm()[0])
-    assert decoupling(g1) < 1e-9 and stable(g1.Q)
+    assert stable(g1.Q)

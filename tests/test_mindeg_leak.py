@@ -1,0 +1,84 @@
+"""approximate_model_matching(…, mindeg=True) meets the judge of the optimal design: every returned row's u/d leak at
+most dec_tol = 1e-7 of its weakest required fault's peak gain (Varga's normalisation, the issue's judge; a fault is
+required where the row of Mr is nonzero — here Mr's rows are dense, so every fault is).
+
+Judged by numpy on the returned Q and the model's matrices alone (test_synthesis_ammp._numpy_leak_and_faults: 800 log
+points, numpy solves), the error by test_synthesis_ammp.error_norm on its own grid, against the same design without
+mindeg. The least-order rows are new realisations (covers, re-solve, numerator refits) that were judged unnormalised
+only: on the random families (benchmarks/mindeg_time.py --judged 0-29, main cfcd677) six mindeg designs whose optimal
+filter met dec_tol were returned leaking 1.4e-7 … 3.0e-5 (H∞ seeds 7, 13, 17; H2 seeds 7, 12, 17).
+"""
+
+import numpy as np
+import pytest
+from test_mindeg import row_degrees, stable
+from test_synthesis_ammp import _numpy_leak_and_faults, _random_case, error_norm
+
+from fmu_fdi import approximate_model_matching
+
+#: the issue's decoupling tolerance on the normalised form (postconditions.DEC_TOL)
+DEC_TOL = 1e-7
+
+
+def _judged(seed, norm):
+    """The mindeg design and the optimal one of random case ``seed``, and the numpy reading of the mindeg filter's
+    worst row leak over that row's weakest fault peak."""
+    model, Mr = _random_case(seed)
+    g0 = approximate_model_matching(model, Mr, norm=norm, reltol=1e-6)
+    g1 = approximate_model_matching(model, Mr, norm=norm, reltol=1e-6, mindeg=True)
+    leak, faults = _numpy_leak_and_faults(model, g1.Q)
+    # every fault required (Mr's rows are dense: rng.normal entries), so the weakest fault of each row normalises it
+    assert np.all(np.abs(Mr.D + Mr.C @ np.linalg.solve(-Mr.A if not Mr.dt else np.eye(Mr.n) - Mr.A, Mr.B)) > 0)
+    return Mr, g0, g1, float(np.max(leak / faults.min(axis=1)))
+
+
+def _same_error(g0, g1, Mr, norm):
+    # the guard's contract: within reltol = 1e-6 of the optimal filter's error plus 1e-9 ||M Mr||∞; the test's grid
+    # reads the two peaks to 1e-5 (H∞, refined peaks of one response realised twice), the trapezoid to 1e-3 (H2)
+    rel = 1e-5 if norm == "inf" else 1e-3
+    floor = 1e-9 * max(1.0, (g1.info["M"] @ Mr).hinfnorm()[0])
+    e0, e1 = error_norm(g0, Mr, g0.info["M"], norm), error_norm(g1, Mr, g1.info["M"], norm)
+    assert e1 <= e0 * (1 + rel) + floor, (e0, e1)
+
+
+def test_lowered_h2_row_of_seed_12_is_decoupled_on_the_normalised_form():
+    """Random continuous H2 seed 12 (one 54-state optimal row, numpy leak 4.5e-11): on main the mindeg filter (an
+    order-18 row) leaked u 9.2e-7 of its weakest fault (numpy; the library's normalised reading 9.5e-7), above
+    dec_tol — its post-condition read the row unnormalised. Now each lowered candidate is judged on the normalised
+    form (and re-decoupled where it leaks): an order-18 row that leaks 4.8e-8 is returned, the lowering kept."""
+    Mr, g0, g1, worst = _judged(12, "2")
+    info = g1.info["mindeg"]
+    assert worst <= DEC_TOL, worst
+    assert info["lowered"] and sum(row_degrees(g1.Q)) < sum(row_degrees(g0.Q))
+    assert info["leak"] <= DEC_TOL
+    _same_error(g0, g1, Mr, "2")
+    assert stable(g1.Q)
+
+
+@pytest.mark.slow
+def test_seed_17_rows_are_lowered_and_re_decoupled():
+    """Random discrete H∞ seed 17 (two 52-state optimal rows; slow: ~20 s): on main the mindeg filter [5, 8] leaked
+    u 3.3e-6 of its weakest fault (numpy). Row 1's order-5 re-solve leaks 1.14e-6 and row 2's order-8 cover 4.7e-7
+    (the library's normalised readings); the plain re-decoupling refit leaves 1.8e-7 and 1.08e-7, the refit with
+    the u/d equations weighted by 10 8.0e-8 and 5.5e-9 within the error's reltol: [5, 8] is returned, below
+    dec_tol by numpy."""
+    Mr, g0, g1, worst = _judged(17, "inf")
+    info = g1.info["mindeg"]
+    assert worst <= DEC_TOL, worst
+    assert info["row_orders"] == [5, 8] and row_degrees(g1.Q) == [5, 8]
+    assert info["ud_redecoupling"]["refined"]
+    _same_error(g0, g1, Mr, "inf")
+    assert stable(g1.Q)
+
+
+@pytest.mark.parametrize("seed, norm", [(9, "inf"), (14, "2"), (23, "inf"), (27, "2")])
+def test_every_mindeg_design_leaks_at_most_dec_tol(seed, norm):
+    """The property on fast seeds (discrete and continuous, H∞ and H2, each lowered on main too): whatever rows are
+    returned, each leaks at most dec_tol of its weakest fault by numpy, with the optimal error, stable; where a row
+    is not lowered the reason is given."""
+    Mr, g0, g1, worst = _judged(seed, norm)
+    info = g1.info["mindeg"]
+    assert worst <= DEC_TOL, worst
+    _same_error(g0, g1, Mr, norm)
+    assert stable(g1.Q)
+    assert info["lowered"] or info["reason"]
