@@ -558,7 +558,7 @@ def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, sm
         e0, e1, why = _correction_refused(model, Q, Qr, "the refinement", fnm, MF, lam, norm, systems, reltol, smarg,
                                           dec_tol)
         out.update({"error_before": e0, "error_after": e1})
-        bad = [f"{c}: {m}" for c, m in fig.get("failures", ()) if c != "structure"]
+        bad = [f"{c}: {m}" for c, m in zip(fig.get("failed_conditions", ()), fig.get("failures", ())) if c != "structure"]
         if bad:
             why = why or f"the refined filter fails its post-conditions ({'; '.join(bad)})"
         if why:
