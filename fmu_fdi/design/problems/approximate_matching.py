@@ -225,7 +225,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         cancellation of the plant's boundary modes in R, :func:`_plant_mode_cancellation`), ``ud_redecoupling``
         (the u/d leak on the normalised form — rows at unit weakest required fault gain, a fault required where the
         row of Mr is nonzero — and, where it exceeded ``dec_tol``, the numerator's refit: ``refined``,
-        ``leak_before``/``leak_after``, ``error_before``/``error_after``, ``reason``; :func:`_ud_redecoupling`);
+        ``leak_before``/``leak_after`` (the judge's reading plus the realisation's sensitivity), ``error_before``/
+        ``error_after``, ``realisation`` (of the kept refit: ``'shipped'`` or ``'minimal balanced'``), ``reason``;
+        :func:`_ud_redecoupling`);
         with ``mindeg=True``,
         ``mindeg``: ``{'lowered', 'reason', 'row_orders_before', 'row_orders', 'order_before',
         'order', 'error_before', 'error', 'error_limit', 'row_methods'}`` (``error_before``: the
@@ -240,7 +242,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         and d; zeros of the reduced system on the stability boundary; SLICOT's Riccati
         solvers failing at every level/regularisation; a returned filter whose error
         response is not the designed one (realisation accuracy) or that fails its
-        post-conditions; an option's bad value, each naming it: ``HDesign`` (shape, rank,
+        post-conditions, among them a u/d leak on the normalised form (rows at unit weakest required fault gain)
+        above ``dec_tol`` (:func:`_ud_leak_refused`: row, leak, that gain, dec_tol); an option's bad value,
+        each naming it: ``HDesign`` (shape, rank,
         finiteness), ``nullspace = False`` with d, ``simple`` with ``nullspace = False``,
         ``poles``/``sdeg`` outside the stability region (``poles`` also outside ``smarg``).
 
@@ -587,14 +591,14 @@ def _redecoupling_realisations(Q: LTI):
 
 def _ud_leak_refused(fig: dict, dec_tol: float) -> None:
     """The post-condition of :func:`approximate_model_matching` on the normalised u/d leak: the judge's normalised
-    figures of the returned filter (:func:`normalised_leak`) must not read a row's u/d leak provably above
-    ``dec_tol`` of its weakest required fault's gain (the reading minus its error bound,
+    figures of the returned filter (:func:`normalised_leak`) must not read a row's u/d leak above ``dec_tol`` of its
+    weakest required fault's gain (the judge's reading of the stored filter, its error bound named beside it,
     :func:`..toolkit.postconditions._ud_reading`); else a DesignError naming the row, the leak, that gain and
     dec_tol."""
     scales = fig.get("scales") or []
     bad = []
     for i, (d, e) in enumerate(zip(fig.get("decoupling_rows", []), fig.get("decoupling_row_errors", []))):
-        if d - e > dec_tol:
+        if d > dec_tol:
             gain = 1.0 / scales[i] if i < len(scales) and scales[i] else float("nan")
             bad.append(f"residual {i + 1}: u/d leak {d:.3g} (± {e:.2g}) of its weakest required fault's gain "
                        f"{gain:.3g} > dec_tol = {dec_tol:.3g}")
