@@ -684,7 +684,7 @@ def _column_names(model) -> list:
 EXT_UNIT = float(np.finfo(np.longdouble).eps) / 2
 
 
-def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.ndarray, refine=None, steps: int = 3):
+def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.ndarray, refine=None, steps: int = 2):
     """Per point λ_k: ``X_k = (λ_k I − A)^{-1} rhs_k`` (rhs: (K, n, c) in the extended type) and ``W_k = left·(λ_k I −
     A)^{-1}``, in double; at the points of the mask ``refine`` (default none) X_k refined in the extended type and W_k
     not computed. Non-finite where ``λ_k I − A`` is singular.
@@ -726,8 +726,9 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
             W[k] = solve(leftT, trans=1).T
             continue
         x = x.astype(np.clongdouble)
-        for _ in range(steps):
-            x = x + solve((b - (np.clongdouble(lk) * x - Ax @ x)).astype(complex))
+        for _ in range(steps):  # (A real: its products with the real and imaginary parts, no complex copy of A)
+            Axx = Ax @ x.real + 1j * (Ax @ x.imag)
+            x = x + solve((b - (np.clongdouble(lk) * x - Axx)).astype(complex))
         X[k] = x
     return X, W
 
