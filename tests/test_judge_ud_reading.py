@@ -57,6 +57,7 @@ def _figures(model, Q):
     return normalised_leak(model, Q, np.ones((Q.p, len(model.faults)), bool), None, DEC_TOL)
 
 
+@pytest.mark.slow  # ~26 s with its fixture on the loaded 2-core machine (four judge readings of an order-70 filter)
 def test_reading_is_invariant_under_scalings_and_agrees_with_a_refined_numpy_reading(shipped):
     """The judge's normalised u/d leak of the same filter under output scalings (1e-3, 204: not powers of 2) and a
     diagonal state scaling (random factors in [1e-2, 1e2]): every reading lies within its reported error bound
