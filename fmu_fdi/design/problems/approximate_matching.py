@@ -225,7 +225,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         cancellation of the plant's boundary modes in R, :func:`_plant_mode_cancellation`), ``ud_redecoupling``
         (the u/d leak on the normalised form — rows at unit weakest required fault gain, a fault required where the
         row of Mr is nonzero — and, where it exceeded ``dec_tol``, the numerator's refit: ``refined``,
-        ``leak_before``/``leak_after``, ``error_before``/``error_after``, ``reason``; :func:`_ud_redecoupling`);
+        ``leak_before``/``leak_after`` (the judge's reading plus the realisation's sensitivity), ``error_before``/
+        ``error_after``, ``realisation`` (of the kept refit: ``'shipped'`` or ``'minimal balanced'``), ``reason``;
+        :func:`_ud_redecoupling`);
         with ``mindeg=True``,
         ``mindeg``: ``{'lowered', 'reason', 'row_orders_before', 'row_orders', 'order_before',
         'order', 'error_before', 'error', 'error_limit', 'row_methods'}`` (``error_before``: the
@@ -240,7 +242,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         and d; zeros of the reduced system on the stability boundary; SLICOT's Riccati
         solvers failing at every level/regularisation; a returned filter whose error
         response is not the designed one (realisation accuracy) or that fails its
-        post-conditions; an option's bad value, each naming it: ``HDesign`` (shape, rank,
+        post-conditions, among them a u/d leak on the normalised form (rows at unit weakest required fault gain)
+        above ``dec_tol`` (:func:`_ud_leak_refused`: row, leak, that gain, dec_tol); an option's bad value,
+        each naming it: ``HDesign`` (shape, rank,
         finiteness), ``nullspace = False`` with d, ``simple`` with ``nullspace = False``,
         ``poles``/``sdeg`` outside the stability region (``poles`` also outside ``smarg``).
 
@@ -326,6 +330,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     required = required_faults(model, Mr, lam)
     Q, redecoupled = _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, [model.lti(), Y, Mr], reltol, smarg,
                                       dec_tol)
+    _ud_leak_refused(redecoupled.pop("figures"), dec_tol)
     gen = ResidualGenerator(Q, model, "approximate_model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
     err = _shipped_error(model, Q, fnm, MF, lam, norm, [model.lti(), Y, Mr])
@@ -479,15 +484,14 @@ def normalised_leak(model, Q: LTI, required: np.ndarray, smarg, dec_tol: float) 
 
 
 def _leak_of(fig: dict) -> float:
-    """The larger of the judge's two readings of a :func:`normalised_leak` figure set: ``decoupling`` (the rows scaled,
-    read on the scaled filter's balanced realisation) and ``leakage`` times the largest row scale (Q's own realisation
-    as :func:`fmu_fdi.analysis.leakage` reads it, exact for one row). Where the u/d leak is at the rounding of
-    evaluating ``Q·Ge`` the two differ by a factor 3-10 and a correction fitted to one of them only moves the
-    rounding (random seeds 4, 7 of benchmarks/ammp_random_set.py: 3.6e-7 and 5.6e-7 → 4.0e-8 and 2.2e-7; numpy's
-    reading 1.8e-7 → 4.9e-7); a genuine leak reads the same in both (seeds 2, 10: 1.83e-7, 3.63e-7 in both)."""
-    scales = fig.get("scales")
-    own = fig.get("leakage", np.nan) * max(scales) if scales else np.nan
-    return float(max(fig.get("decoupling", np.nan), own))
+    """The u/d leak of a :func:`normalised_leak` figure set as a double-precision evaluation of the filter's
+    realisation can show it: the judge's reading ``decoupling`` (the stored filter's value,
+    :func:`..toolkit.postconditions._ud_reading`, the same whatever the row scaling and diagonal state scaling) plus
+    ``decoupling_sensitivity`` (the first-order change of that leak under rounding u of every entry of the
+    realisation: what a double-precision evaluation or simulation of this realisation may add). Random H∞ seed 4's
+    shipped filter (order 70, non-minimal: Hankel singular values down to 1e-25 of the largest) reads 2.0e-8 of its
+    weakest required fault with a sensitivity 3.4e-7, and numpy's plain evaluation read it at 1.8e-7."""
+    return float(fig.get("decoupling", np.nan) + fig.get("decoupling_sensitivity", 0.0))
 
 
 #: :func:`_ud_redecoupling`: the most numerator unknowns ``(n_q + rows)·(p + m)`` it solves for (a dense least-squares
@@ -495,60 +499,115 @@ def _leak_of(fig: dict) -> float:
 REDECOUPLE_UNKNOWNS = 1000
 #: :func:`_ud_redecoupling`'s real equations per unknown (its points thinned to that many)
 REDECOUPLE_ROWS = 8
+#: :func:`_ud_redecoupling`: the Hankel singular values below this fraction of the largest are dropped by the
+#: minimal balanced realisation it refits on (the error is at most twice their sum; the candidate is kept only if its
+#: matching error is within reltol of the shipped one's)
+REDECOUPLE_HSV_RTOL = 1e-12
 
 
 def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol) -> tuple[LTI, dict]:
     """Stage of :func:`approximate_model_matching`: ``(Q', info['ud_redecoupling'])``, the shipped filter with its
     numerator refitted so that ``Q·[Gu Gd; I 0]`` is zero on the design's points while ``Q·[Gf Gw; 0 0]`` is kept
-    (:func:`_decoupling_refit`) — run only where the filter's u/d leak on the normalised form
-    (:func:`normalised_leak`, :func:`_leak_of`) exceeds ``dec_tol``.
+    (:func:`_decoupling_refit`) — run only where the filter's u/d leak on the normalised form, as a double-precision
+    evaluation of its realisation can show it (:func:`normalised_leak`, :func:`_leak_of`: the judge's reading plus the
+    realisation's sensitivity), exceeds ``dec_tol``.
 
     Why: ``Q = Y·Φ·Q0`` decouples u, d to the rounding of Q0 times Y's gain, and a matching row's weakest required
     fault can be small beside its error response (benchmarks/ammp_random_set.py, H∞ seeds 2 and 10: normalised u/d
     leaks 1.83e-7 and 3.63e-7, returned before; refitted 1.3e-8 and 1.5e-8, errors 1.84821e-6 → 1.84822e-6 and
-    1.36527e-8 → 1.36691e-8. Seed 4 stays above: its leak is at the rounding floor, |Q|·|Gu| 4.2e4 beside a weakest
-    fault gain 4.9e-3, and the refit only moves rounding — not kept).
-    The correction is kept only if the normalised leak falls to ``dec_tol`` or below, the error measured on the
-    corrected filter (:func:`_shipped_error`, the same points) is within ``reltol`` of the shipped one's (plus 1e-9 of
-    ``||M Mr||`` for exactly matchable references, as :func:`_plant_mode_cancellation`) and the corrected filter
-    passes the post-conditions. Bounded to :data:`REDECOUPLE_UNKNOWNS` unknowns; the points (the design's and the
-    judge's grid, :func:`..toolkit.postconditions._eval_points`) are thinned to :data:`REDECOUPLE_ROWS` real equations
-    per unknown.
-    The note: ``refined``, ``leak_before``/``leak_after`` (normalised), ``error_before``/``error_after``,
-    ``unknowns``, ``points``, ``reason``."""
+    1.36527e-8 → 1.36691e-8). And the shipped realisation can be so ill-conditioned that its leak, small as stored,
+    is not what an evaluation in double reads: seed 4 (order 70, Hankel singular values down to 1e-25 of the largest)
+    leaks 2.0e-8 with a sensitivity 3.4e-7 (numpy's plain evaluation: 1.8e-7); its refit on its own realisation keeps
+    that sensitivity. So the candidates, the first that passes kept: the refit of Q's realisation, then the minimal
+    balanced realisation of Q (Hankel singular values above :data:`REDECOUPLE_HSV_RTOL` of the largest; seed 4: order
+    22, sensitivity 4.6e-11, leak 4.1e-7) refitted (seed 4: 2.5e-8; numpy 2.2e-8).
+    A candidate is kept only if its leak plus sensitivity is ``dec_tol`` or below, the error measured on it
+    (:func:`_shipped_error`, the same points) is within ``reltol`` of the shipped one's (plus 1e-9 of
+    ``||M Mr||`` for exactly matchable references, as :func:`_plant_mode_cancellation`) and it passes the
+    post-conditions. Bounded to :data:`REDECOUPLE_UNKNOWNS` unknowns; the points (the design's and the judge's grid,
+    :func:`..toolkit.postconditions._eval_points`) are thinned to :data:`REDECOUPLE_ROWS` real equations per unknown.
+    The note: ``refined``, ``leak_before``/``leak_after`` (normalised, reading plus sensitivity),
+    ``error_before``/``error_after``, ``unknowns``, ``points``, ``realisation`` (``'shipped'`` or ``'minimal
+    balanced'``, of the kept refit), ``reason``; ``figures``: the judge's normalised figures of the returned Q
+    (:func:`normalised_leak`)."""
     nud = model.nu + model.nd
-    before = _leak_of(normalised_leak(model, Q, required, smarg, dec_tol))
+    fig0 = normalised_leak(model, Q, required, smarg, dec_tol)
+    before = _leak_of(fig0)
     out = {"refined": False, "leak_before": before, "leak_after": before, "error_before": None, "error_after": None,
-           "unknowns": int((Q.n + Q.p) * Q.m), "points": 0}
+           "unknowns": int((Q.n + Q.p) * Q.m), "points": 0, "realisation": None, "figures": fig0}
     if not before > dec_tol:
         return Q, {**out, "reason": f"the normalised u/d leak {before:.3g} is within dec_tol = {dec_tol:g}"
                                     if np.isfinite(before) else "the normalised u/d leak cannot be read"}
     if not nud:
         return Q, {**out, "reason": "no u or d to decouple"}
-    unknowns = out["unknowns"]
-    if unknowns > REDECOUPLE_UNKNOWNS:
-        return Q, {**out, "reason": f"the correction has {unknowns} unknowns (> {REDECOUPLE_UNKNOWNS}): Q kept"}
-    # the design's points and the judge's, thinned to REDECOUPLE_ROWS times as many real equations (2·p·columns per
-    # point) as unknowns: the least-squares solve costs ~REDECOUPLE_ROWS·unknowns³ (1000 unknowns: ~1 s)
-    pts = np.concatenate([lam, _eval_points(model, Q)[1]])
-    pts = pts[np.argsort(np.angle(pts) if model.dt else pts.imag)]
-    k = min(pts.size, -(-REDECOUPLE_ROWS * unknowns // (2 * Q.p * model.augmented().m)))
-    pts = pts[np.unique(np.linspace(0, pts.size - 1, k).round().astype(int))]
-    out["points"] = int(pts.size)
-    Qr = _decoupling_refit(model, Q, pts)
-    fig = normalised_leak(model, Qr, required, smarg, dec_tol)
-    after = _leak_of(fig)
-    e0, e1, why = _correction_refused(model, Q, Qr, "the refinement", fnm, MF, lam, norm, systems, reltol, smarg,
-                                      dec_tol)
-    out.update({"leak_after": after, "error_before": e0, "error_after": e1})
-    if not after <= dec_tol:
-        return Q, {**out, "reason": f"the refined filter still leaks {after:.3g} > dec_tol = {dec_tol:g}: Q kept"}
-    bad = [f"{c}: {m}" for c, m in fig.get("failures", ()) if c != "structure"]
+    reasons = []
+    for what, S in _redecoupling_realisations(Q):
+        unknowns = int((S.n + S.p) * S.m)
+        if unknowns > REDECOUPLE_UNKNOWNS:
+            reasons.append(f"{what}: the correction has {unknowns} unknowns (> {REDECOUPLE_UNKNOWNS})")
+            continue
+        # the design's points and the judge's, thinned to REDECOUPLE_ROWS times as many real equations (2·p·columns
+        # per point) as unknowns: the least-squares solve costs ~REDECOUPLE_ROWS·unknowns³ (1000 unknowns: ~1 s)
+        pts = np.concatenate([lam, _eval_points(model, S)[1]])
+        pts = pts[np.argsort(np.angle(pts) if model.dt else pts.imag)]
+        k = min(pts.size, -(-REDECOUPLE_ROWS * unknowns // (2 * S.p * model.augmented().m)))
+        pts = pts[np.unique(np.linspace(0, pts.size - 1, k).round().astype(int))]
+        Qr = _decoupling_refit(model, S, pts)
+        fig = normalised_leak(model, Qr, required, smarg, dec_tol)
+        after = _leak_of(fig)
+        out.update({"leak_after": after, "points": int(pts.size), "unknowns": unknowns})
+        if not after <= dec_tol:
+            reasons.append(f"{what}: the refined filter still leaks {after:.3g} > dec_tol = {dec_tol:g}")
+            continue
+        e0, e1, why = _correction_refused(model, Q, Qr, "the refinement", fnm, MF, lam, norm, systems, reltol, smarg,
+                                          dec_tol)
+        out.update({"error_before": e0, "error_after": e1})
+        bad = [f"{c}: {m}" for c, m in zip(fig.get("failed_conditions", ()), fig.get("failures", ())) if c != "structure"]
+        if bad:
+            why = why or f"the refined filter fails its post-conditions ({'; '.join(bad)})"
+        if why:
+            reasons.append(f"{what}: {why}")
+            continue
+        return Qr, {**out, "refined": True, "realisation": what, "figures": fig,
+                    "reason": f"u, d re-decoupled on the normalised form ({what} realisation)"}
+    return Q, {**out, "leak_after": out["leak_after"], "reason": "; ".join(reasons) + ": Q kept"}
+
+
+def _redecoupling_realisations(Q: LTI):
+    """The realisations :func:`_ud_redecoupling` refits, in order: Q's own, then its minimal balanced realisation
+    (SLICOT AB09AD's square-root balanced truncation at the Hankel singular values above :data:`REDECOUPLE_HSV_RTOL` of
+    the largest; skipped where SLICOT refuses it or it drops nothing)."""
+    yield "shipped", Q
+    if not Q.n:
+        return
+    try:
+        hsv = Q.balanced_truncation(order=Q.n)[1]
+        Qm = Q.balanced_truncation(tol=REDECOUPLE_HSV_RTOL * float(np.max(hsv, initial=0.0)))[0]
+    except (SlycotError, ValueError, np.linalg.LinAlgError):
+        return
+    if 0 < Qm.n < Q.n:
+        yield "minimal balanced", Qm
+
+
+def _ud_leak_refused(fig: dict, dec_tol: float) -> None:
+    """The post-condition of :func:`approximate_model_matching` on the normalised u/d leak: the judge's normalised
+    figures of the returned filter (:func:`normalised_leak`) must not read a row's u/d leak above ``dec_tol`` of its
+    weakest required fault's gain (the judge's reading of the stored filter, its error bound named beside it,
+    :func:`..toolkit.postconditions._ud_reading`); else a DesignError naming the row, the leak, that gain and
+    dec_tol."""
+    scales = fig.get("scales") or []
+    bad = []
+    for i, (d, e) in enumerate(zip(fig.get("decoupling_rows", []), fig.get("decoupling_row_errors", []))):
+        if d > dec_tol:
+            gain = 1.0 / scales[i] if i < len(scales) and scales[i] else float("nan")
+            bad.append(f"residual {i + 1}: u/d leak {d:.3g} (± {e:.2g}) of its weakest required fault's gain "
+                       f"{gain:.3g} > dec_tol = {dec_tol:.3g}")
     if bad:
-        why = why or f"the refined filter fails its post-conditions ({'; '.join(bad)})"
-    if why:
-        return Q, {**out, "reason": f"{why}: Q kept"}
-    return Qr, {**out, "refined": True, "reason": "u, d re-decoupled on the normalised form"}
+        raise DesignError("approximate_model_matching: the returned filter leaks u/d above dec_tol on the normalised "
+                          "form (rows at unit weakest required fault gain, Varga's normalisation): " + "; ".join(bad)
+                          + ". [decoupling] the optimal filter decouples u and d only to the rounding of its basis "
+                          "times the gain of Y: a larger dec_tol, or an Mr whose rows require only faults the row sees "
+                          "strongly")
 
 
 def _decoupling_refit(model, Q: LTI, pts: np.ndarray, w_ud: float = 1.0) -> LTI:
