@@ -233,7 +233,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         'order', 'error_before', 'error', 'error_limit', 'row_methods'}`` (``error_before``: the
         optimal filter's measured error, itself within ``reltol`` of ``gamma_opt`` in the standard
         H∞ case; ``error_limit``: ``(1 + reltol)`` times it, plus 1e-9 ``||M Mr||∞`` for exactly
-        matchable references — the least-order filter is returned only if its error is below it).
+        matchable references — the least-order filter is returned only if its error is below it);
+        where a filter was lowered also ``leak`` (its normalised u/d leak, read as ``ud_redecoupling`` reads it),
+        ``plant_mode_cancellation`` and ``ud_redecoupling`` (the optimal filter's two corrections, run again on
+        the lowered one: a lowered row is kept only if the lowered filter meets ``dec_tol``).
 
     Raises
     ------
@@ -2043,8 +2046,9 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
 
     the dual of the spectral factorisation's DARE, solved by :func:`..toolkit.approximate.spectral_riccati` on
     ``(Aᵀ, C2ᵀ, Bᵀ, D21ᵀ)``: scipy's QZ solver, then SLICOT SB02OD on the factors (``R⁻¹``, of condition 1/ε² with
-    the fictitious noise ε of regularised rows, never formed; Van Dooren, SIAM J. Sci. Stat. Comput. 2, 1981), each
-    answer kept only if its residual is within ``RICCATI_RTOL`` of the terms' size. Here also: P positive
+    the fictitious noise ε of regularised rows, never formed; Van Dooren, SIAM J. Sci. Stat. Comput. 2, 1981), then
+    Newton's method from a stabilising answer of either (:mod:`..toolkit.riccati_newton`), an answer kept only if its
+    residual is within ``RICCATI_RTOL`` of the terms' size. Here also: P positive
     semidefinite (to ``RICCATI_RTOL`` of ``max(||P||, ||B||²)``: an exactly estimable state has P = 0 to rounding) and
     ``A − L C2`` stable (the stabilising solution); else DesignError (the regularisation ladder then tries the next
     ε). scipy's solution of random seed 9's equation, taken unchecked before, was indefinite with norm 1e14 and a
@@ -2057,7 +2061,7 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         P = spectral_riccati(A.T.copy(), C2.T.copy(), B.T.copy(), D21.T.copy(), 1.0)
-    why = "no solution with a residual within RICCATI_RTOL (scipy, SLICOT SB02OD)"
+    why = "no solution with a residual within RICCATI_RTOL (scipy, SLICOT SB02OD, Newton's method from either)"
     if P is not None:
         Sig = C2 @ P @ C2.T + D21 @ D21.T
         try:
