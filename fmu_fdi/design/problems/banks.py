@@ -234,7 +234,11 @@ def row_gaps(bank: ResidualBank, S) -> list[float]:
     carries every member's states (order Σ n(Q_i) + n): there, the rows of one group keep the other
     members' states, which the minimal realisation of the row does not remove (approximate audit
     seed 68: rows of order 141 of 143, the noise block's hstack 564 states, one H∞ norm 140-180 s;
-    the bank's gaps took 740 s of a 766 s afdi_bank under load, each member's own 0.7-0.8 s).
+    the bank's gaps took 740 s of a 766 s afdi_bank under load). Read per member they took 13.2 s
+    in one run, 89 s in another (benchmarks/approximate_random_judged.py --gap-time 68: stacked
+    147.7 s, ratio 1.7; the machine's load varies these): the noise block is still an hstack of
+    separately realised columns (analysis._hstack_norm: 240 states where the member's internal form
+    has 60), which only analysis.py can mend.
     """
     from ...analysis import fault_noise_gap
 
