@@ -14,6 +14,12 @@ design failing the judge, another exception than DesignError, an achievable AFD/
 Run: python benchmarks/approximate_random_judged.py [N] [first_seed] [-v] [--timeout=SECONDS]
 (a call that gives no answer within the timeout counts as "timeout", none by default)
 (seeds first_seed … first_seed + N − 1; default 20 models from seed 0)
+
+With ``--gap-time SEED [SEED …]`` it times instead, per seed, the afdi_bank of the audit (the rows
+check_case picks) and then the bank's gaps read two ways in the same run: the baseline
+``analysis.fault_noise_gap`` on the stacked bank (rows of the bank's internal form, which carry every
+member's states) against ``banks.row_gaps`` (each row on its own member); prints both times, their
+ratio and the largest relative difference of the gaps.
 """
 import sys
 from pathlib import Path
@@ -43,7 +49,44 @@ def run(N: int = 20, first: int = 0, verbose: bool = False):
     return tally(range(first, first + N), check_case, _desc, kind=_kind, width=34, verbose=verbose)
 
 
+def gap_time(seeds) -> None:
+    import time
+
+    import numpy as np
+
+    from fmu_fdi.analysis import fault_noise_gap
+    from fmu_fdi.design import afdi_bank
+    from fmu_fdi.design.problems.achievable import achievable_structure
+    from fmu_fdi.design.problems.banks import row_gaps
+
+    print(f"{'seed':>4s} {'model':34s} {'afdi_bank s':>11s} {'stacked s':>9s} {'rows s':>7s} {'ratio':>7s} "
+          f"{'max rel diff':>12s}")
+    for seed in seeds:
+        model = noisy_case(seed)
+        listed = np.asarray(achievable_structure(model), int).reshape(-1, len(model.faults))
+        rng = np.random.default_rng(seed)
+        rows = listed if len(listed) <= 3 else listed[np.sort(rng.choice(len(listed), 3, False))]
+        t = time.perf_counter()
+        bank = afdi_bank(model, rows)
+        t_design = time.perf_counter() - t
+        t = time.perf_counter()
+        own = np.array(row_gaps(bank, rows))
+        t_rows = time.perf_counter() - t
+        t = time.perf_counter()
+        stacked = fault_noise_gap(bank, rows)
+        t_stacked = time.perf_counter() - t
+        fin = np.isfinite(stacked)
+        diff = float(np.max(np.abs(own[fin] - stacked[fin]) / np.abs(stacked[fin]), initial=0.0))
+        same_inf = bool(np.all(np.isinf(own[~fin])))
+        print(f"{seed:4d} {_desc(seed):34s} {t_design:11.1f} {t_stacked:9.1f} {t_rows:7.2f} "
+              f"{t_stacked / t_rows:7.1f} {diff:12.1e}{'' if same_inf else '  (an infinite gap differs)'}",
+              flush=True)
+
+
 if __name__ == "__main__":
+    if "--gap-time" in sys.argv:
+        gap_time([int(a) for a in sys.argv[sys.argv.index("--gap-time") + 1:]])
+        sys.exit()
     args = [a for a in sys.argv[1:] if a != "-v" and not a.startswith("--timeout=")]
     for a in sys.argv[1:]:
         if a.startswith("--timeout="):

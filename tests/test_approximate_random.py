@@ -401,6 +401,16 @@ def _assert_case(seed: int, calls):
 CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
 #: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
 KNOWN_BROKEN: dict[tuple[int, str], str] = {
+    # audit of seeds 88-111 (benchmarks/approximate_random_judged.py 24 88 --timeout=120): matching the exact
+    # detection row (an admissible Q_ref exists) is refused by approximate_matching._shipped_filter (judge9's file)
+    (98, "amm_ref"): "continuous, n = 14, p = 2, m = 4, nf = 5: refused 'the returned filter's error response differs "
+                     "from the designed one by 3.44e-07 (relative 6.09e-08, limit 0.001; 2.59e+04 times its rounding "
+                     "bound)': the gap is small against the error, the first-order rounding bound is below it "
+                     "(approximate_matching._shipped_filter)",
+    (102, "amm_ref"): "continuous, n = 11, p = 4, m = 6, nf = 5: refused 'the returned filter's error response differs "
+                      "from the designed one by 24.2 (relative 5.87, limit 0.001; 1.7e+07 times its rounding bound)': "
+                      "every realisation of Q = Y Φ Q0 that _shipped_filter tries is another filter than the designed "
+                      "one (approximate_matching)",
 }
 #: approximate_model_matching (noisec) refused "the returned filter's error response differs from the designed one"
 #: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compared the two on points that

@@ -914,6 +914,7 @@ def test_repeated_pole_targets_are_made_distinct():
 
 
 @pytest.mark.parametrize("seed, row, what", [
+    # Audit of seeds 199-258 (benchmarks/synthesis_random_judged.py 60 199): three listed rows refused.
     (207, [1, 1, 0, 1, 0], "discrete, n = 13, noise w; fc (decoupled) excites an undamped pair on |z| = 1: the one "
                            "row that decouples w too (order 12) needs a feedback of norm 2.4e5 (the least possible) "
                            "to move a basis pole 48 of controllability 2e-4; formed as a + bF it leaked 1.9e-6 of the "
@@ -924,45 +925,30 @@ def test_repeated_pole_targets_are_made_distinct():
     (239, [0, 1, 0, 0, 1], "discrete, n = 21, plant poles within 8e-3 of fc's z = 1: the numerator refinement lowered "
                            "the leak 4 % on its 77 points and raised it 28 times between them (Q(1)·c from 2.5e-8 to "
                            "1.4e-5: z = 1 back in R_fc); it is kept only when the judge reads it better"),
+    # Audit of seeds 259-318 (benchmarks/synthesis_random_judged.py 60 259): the one listed row refused.
+    (307, [0, 1, 1, 0, 1], "discrete, n = 19, fc's fault-only z = 1, w not decouplable; was refused: 'R = Q·Ge keeps "
+                           "the plant pole 1: residue ||Q_1(p) c_p|| = 1.07e-12 > δ_i = 8.38e-13'. The stable factor "
+                           "(order 19) cancelled z = 1 to 1.2e-14 against δ_i = 6.7e-12; the noise normaliser's "
+                           "product fac·Q1 (order 39) read 1.1e-13 and its balanced re-realisation "
+                           "(stable_factor.conditioned_realisation, order 24) kept it against δ_i = 9.6e-14. "
+                           "nullspace._boundary_modes_cancelled re-imposes Q(p) c_p = 0 exactly "
+                           "(refine.cancel_residues, [B_q; D_q] moved by 3.9e-15 relative)"),
+    # Audit of seeds 319-348 (benchmarks/synthesis_random_judged.py 30 319), on the code before that stage.
+    (319, [1, 0, 1, 1, 1], "discrete, n = 27, p = 4, m = 6, nd = 2, noise w not decouplable, fc's fault-only z = 1; "
+                           "was refused: 'residue ||Q_1(p) c_p|| = 1.54e-12 > δ_i = 1.1e-12'. The noise "
+                           "normaliser's product (order 48) kept the stable factor's zero (7.4e-15 against δ_i "
+                           "2.7e-12); the balanced re-realisation of conditioned_realisation (order 48 → 42, at "
+                           "unit fault peak) raised the residue 38-fold to 2.8e-13 against δ_i 2.0e-13. The exact "
+                           "cancellation after it (nullspace._boundary_modes_cancelled) designs the row"),
 ])
-def test_audit_199_258_listed_rows_are_designed(seed, row, what):
-    """Audit of seeds 199-258 (benchmarks/synthesis_random_judged.py 60 199): the three rows achievable_structure
-    lists that structured_bank refused. Designable iff achievable: each is designed and passes the independent
-    judge."""
+def test_audited_listed_rows_are_designed(seed, row, what):
+    """Audits of the random seeds (benchmarks/synthesis_random_judged.py): rows achievable_structure lists that
+    structured_bank refused or returned failing the judge (each case's story is its ``what``). Designable iff
+    achievable: each is designed and passes the independent numpy judge."""
     model = random_case(seed)
     assert row in np.asarray(achievable_structure(model)).tolist()
     gen = structured_bank(model, [row])
     assert judge(gen, model, [row], model.fault_names) == [], what
-
-
-def test_audit_259_318_seed307_listed_row_is_designed():
-    """Audit of seeds 259-318 (benchmarks/synthesis_random_judged.py 60 259): the one listed row refused, [0 1 1 0 1]
-    (discrete, n = 19, fc's fault-only z = 1, w not decouplable): "R = Q·Ge keeps the plant pole 1: residue
-    ||Q_1(p) c_p|| = 1.07e-12 > δ_i = 8.38e-13". Located: the stable factor (order 19) cancelled z = 1 to a residue
-    1.2e-14 against δ_i = 6.7e-12; the noise normaliser's product fac·Q1 (order 39) read 1.1e-13 and its balanced
-    re-realisation (stable_factor.conditioned_realisation, order 24) kept it against δ_i = 9.6e-14. Now
-    nullspace._boundary_modes_cancelled re-imposes Q(p) c_p = 0 exactly (refine.cancel_residues, [B_q; D_q] moved
-    by 3.9e-15 relative) where the judge reads a residue above δ_i; the row passes the numpy judge."""
-    model = random_case(307)
-    row = [[0, 1, 1, 0, 1]]
-    assert row[0] in np.asarray(achievable_structure(model)).tolist()
-    gen = structured_bank(model, row)
-    assert judge(gen, model, row, model.fault_names) == []
-
-
-def test_audit_319_348_seed319_listed_row_is_designed():
-    """Audit of seeds 319-348 (benchmarks/synthesis_random_judged.py 30 319): on the code before
-    nullspace._boundary_modes_cancelled, seed 319's row [1 0 1 1 1] (discrete, n = 27, p = 4, m = 6, nd = 2, noise w
-    not decouplable, fc's fault-only z = 1) was refused: "residue ||Q_1(p) c_p|| = 1.54e-12 > δ_i = 1.1e-12". Here the
-    noise normaliser's product (order 48) kept the stable factor's zero (residue 7.4e-15 against δ_i 2.7e-12); the
-    balanced re-realisation of stable_factor.conditioned_realisation (order 48 → 42, at unit fault peak) raised the
-    residue 38-fold to 2.8e-13 against δ_i 2.0e-13. The exact cancellation after it designs the row; numpy's judge
-    passes it."""
-    model = random_case(319)
-    row = [[1, 0, 1, 1, 1]]
-    assert row[0] in np.asarray(achievable_structure(model)).tolist()
-    gen = structured_bank(model, row)
-    assert judge(gen, model, row, model.fault_names) == []
 
 
 def test_audit_349_378_seed359_listed_row_is_designed():
