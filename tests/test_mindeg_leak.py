@@ -58,14 +58,17 @@ def test_lowered_h2_row_of_seed_12_is_decoupled_on_the_normalised_form():
 @pytest.mark.slow
 def test_seed_17_rows_are_lowered_and_re_decoupled():
     """Random discrete H∞ seed 17 (two 52-state optimal rows; slow: ~20 s): on main the mindeg filter [5, 8] leaked
-    u 3.3e-6 of its weakest fault (numpy). Row 1's order-5 re-solve leaks 1.14e-6 and row 2's order-8 cover 4.7e-7
-    (the library's normalised readings); the plain re-decoupling refit leaves 1.8e-7 and 1.08e-7, the refit with
-    the u/d equations weighted by 10 8.0e-8 and 5.5e-9 within the error's reltol: [5, 8] is returned, below
-    dec_tol by numpy."""
+    u 3.3e-6 of its weakest fault (numpy). Row 2's order-8 cover leaks 4.7e-7 and is re-decoupled below dec_tol
+    (kept). Row 1's order-5 candidates are refused: the one judge reads a lowered filter's leak as its stored value
+    plus the realisation's sensitivity to rounding (``approximate_matching._leak_of``: what a double-precision
+    evaluation may add), and every refit of the order-5 re-solve stays above dec_tol so read (plain 5.0e-7, minimal
+    balanced 2.6e-7, weighted 3.8e-7 and 3.5e-7) — row 1 keeps its optimal row and the reason names the order-5
+    candidate. Returned: row orders [52, 8], below dec_tol by numpy."""
     Mr, g0, g1, worst = _judged(17, "inf")
     info = g1.info["mindeg"]
     assert worst <= DEC_TOL, worst
-    assert info["row_orders"] == [5, 8] and row_degrees(g1.Q) == [5, 8]
+    assert info["row_orders"] == [52, 8] and row_degrees(g1.Q)[1] == 8  # (row 1: McMillan degree 18 of 52 states)
+    assert "order-5 candidate" in info["reason"] and "leak" in info["reason"]
     assert info["ud_redecoupling"]["refined"]
     _same_error(g0, g1, Mr, "inf")
     assert stable(g1.Q)
