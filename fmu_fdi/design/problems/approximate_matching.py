@@ -221,7 +221,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``standard``, ``M`` (LTI, the identity if standard), ``interactor_steps`` (K),
         ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``reference_lowpass``
         (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``row_orders``
-        (McMillan degree of each row), ``poles``, ``postconditions``, ``plant_mode_cancellation`` (the exact
+        (McMillan degree of each row), ``poles``, ``postconditions``, ``zero_filter_error`` (``||M [Mr 0]||``, the error of Q = 0: the returned error
+        exceeds it only within ``reltol``, and a note then says the reference cannot be approached,
+        :func:`_zero_filter_error`), ``plant_mode_cancellation`` (the exact
         cancellation of the plant's boundary modes in R, :func:`_plant_mode_cancellation`), ``ud_redecoupling``
         (the u/d leak on the normalised form — rows at unit weakest required fault gain, a fault required where the
         row of Mr is nonzero — and, where it exceeded ``dec_tol``, the numerator's refit: ``refined``,
@@ -246,7 +248,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         solvers failing at every level/regularisation; a returned filter whose error
         response is not the designed one (realisation accuracy) or that fails its
         post-conditions, among them a u/d leak on the normalised form (rows at unit weakest required fault gain)
-        above ``dec_tol`` (:func:`_ud_leak_refused`: row, leak, that gain, dec_tol); an option's bad value,
+        above ``dec_tol`` (:func:`_ud_leak_refused`: row, leak, that gain, dec_tol); a returned filter whose error
+        exceeds the zero filter's ``||M [Mr 0]||`` by more than ``reltol`` (:func:`_zero_filter_error`: both errors);
+        an option's bad value,
         each naming it: ``HDesign`` (shape, rank,
         finiteness), ``nullspace = False`` with d, ``simple`` with ``nullspace = False``,
         ``poles``/``sdeg`` outside the stability region (``poles`` also outside ``smarg``).
@@ -342,6 +346,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         gen, least = _least_order(model, gen, fnm, MF, lam, norm, [model.lti(), Y, Mr], err, reltol, smarg,
                                   dec_tol, atol, required=required)
         Q, err = gen.Q, least["error"]
+    zero_error = _zero_filter_error(model, err, MF, lam, norm, [model.lti(), Y, Mr], reltol)
     if K == 0:  # (with Kb = 1 the problem solved is the one with M Mr already)
         gamma_opt = gamma_opt0
     else:
@@ -362,6 +367,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         "updating_poles": [complex(x) if complex(x).imag else float(complex(x).real) for x in placed + [-a] * Kb],
         **basis,
     })
+    gen.info["zero_filter_error"] = zero_error
     gen.info["plant_mode_cancellation"] = cancelled
     gen.info["ud_redecoupling"] = redecoupled
     if "bracket" in info:
@@ -369,6 +375,38 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     if least is not None:
         gen.info["mindeg"] = least
     return gen
+
+
+#: :func:`_zero_filter_error`: an error above Q = 0's by more than ``reltol`` plus this fraction of it (the rounding of
+#: two refined peaks read on the same points, ~1e-12 of the error, with margin) is refused
+ZERO_FILTER_SLACK = 1e-9
+
+
+def _zero_filter_error(model, err, MF, lam, norm, systems, reltol) -> float:
+    """Stage of :func:`approximate_model_matching`: the error of the zero filter, ``||M [Mr 0]||`` (its error is
+    ``−M [Mr 0]``; H∞ refined peak or H2 quadrature, as :func:`_shipped_error` reads the returned filter's), compared
+    with the returned filter's error ``err``. Q = 0 is admissible (it decouples u and d), so the optimum γ_opt0 is at
+    most this, and a filter within ``reltol`` of the optimum has ``err ≤ (1 + reltol)·||M [Mr 0]||``:
+
+    - above that (plus :data:`ZERO_FILTER_SLACK`) the design missed its optimum: DesignError, naming both errors;
+    - above ``||M [Mr 0]||`` but within ``reltol`` of it: the reference cannot be approached — no admissible filter
+      does better than the zero one in this norm (e.g. ``Mr = I`` on more faults than the residual space reaches,
+      ``nf > p − rank Gd``: some direction of Mr is never matched, whatever Q), and the returned filter, optimal
+      within ``reltol``, is worse than Q = 0 by less than ``reltol``. It is returned (it matches the directions it
+      can reach; Q = 0 would be no residual at all) with a note saying so (approximate audit seed 110: nf = 5,
+      p = 3, Mr = I: error 1.0000777 against Q = 0's 1)."""
+    def values(L):
+        return -_values(MF, L)
+
+    zero = float(_refined_peak(values, lam, model.dt) if norm == "inf" else _h2_quad(values, systems, model.dt))
+    if err > zero * (1 + reltol + ZERO_FILTER_SLACK):
+        raise DesignError(f"approximate_model_matching: the returned filter's error {err:.6g} exceeds that of Q = 0, "
+                          f"||M [Mr 0]|| = {zero:.6g}, by more than reltol = {reltol:g}: the optimum was not reached")
+    if err > zero:
+        note(f"the reference cannot be approached: no admissible filter has an error below that of Q = 0 "
+             f"(||M [Mr 0]|| = {zero:.6g}); the returned filter's {err:.6g} exceeds it by {err / zero - 1:.3g} "
+             f"(within reltol = {reltol:g}) — it matches only the directions of Mr the residuals can reach")
+    return zero
 
 
 def _uniform_factor(Qs: LTI, F: LTI, K: int, Kb: int, a: float, poles, sdeg: float, normalize: str, dt: float,
