@@ -418,16 +418,7 @@ def _assert_case(seed: int, calls):
 CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
 #: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
 KNOWN_BROKEN: dict[tuple[int, str], str] = {
-    # audit of seeds 88-111 (benchmarks/approximate_random_judged.py 24 88 --timeout=120): matching the exact
-    # detection row (an admissible Q_ref exists) is refused by approximate_matching._shipped_filter (judge9's file)
-    (98, "amm_ref"): "continuous, n = 14, p = 2, m = 4, nf = 5: refused 'the returned filter's error response differs "
-                     "from the designed one by 3.44e-07 (relative 6.09e-08, limit 0.001; 2.59e+04 times its rounding "
-                     "bound)': the gap is small against the error, the first-order rounding bound is below it "
-                     "(approximate_matching._shipped_filter)",
-    (102, "amm_ref"): "continuous, n = 11, p = 4, m = 6, nf = 5: refused 'the returned filter's error response differs "
-                      "from the designed one by 24.2 (relative 5.87, limit 0.001; 1.7e+07 times its rounding bound)': "
-                      "every realisation of Q = Y Φ Q0 that _shipped_filter tries is another filter than the designed "
-                      "one (approximate_matching)",
+    # (audit of seeds 88-111: seeds 98 and 102 'amm_ref' moved to FIXED)
 }
 #: approximate_model_matching (noisec) refused "the returned filter's error response differs from the designed one"
 #: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compared the two on points that
@@ -513,7 +504,23 @@ FIXED = {(20, "afd"): "n = 30, a resonance at 7.8 rad/s: the AFD gap was reporte
          (83, "amm_ref"): "audit of seeds 76-87: discrete, n = 28, p = 4, m = 6; matching the exact detection row was "
                           "refused, 'u leak 1.9e-07 × the weakest fault gain' at ω = 4.0e-3 rad/s (order-65 filter "
                           "Y·Φ·Q0, no boundary mode); designed since the factors are realised in the Schur coordinates "
-                          "of their closed loops (pencil.schur_feedback: glcf, the pencil basis), not by forming A + LC"}
+                          "of their closed loops (pencil.schur_feedback: glcf, the pencil basis), not by forming A + LC",
+         # audit of seeds 88-111 (benchmarks/approximate_random_judged.py 24 88 --timeout=120)
+         **{(s_, "amm_ref"): "refused 'the returned filter's error response differs from the designed one by "
+                             f"{d}': approximate_matching.stable_reduced_system factored G1 = [Gf Gw] = M2⁻¹ N_G "
+                             "(glcf) on its raw realisation, ill-scaled, the boundary mode weakly observed in it; "
+                             f"N_G differed from M2 Q0 [Gf Gw] by {g} relative (seed 102: the integrator's residue "
+                             "kept by M2·G1, 3.9e-5/ω); fixed: glcf of G1's minimal realisation (‖A‖ 11.5, |C v| "
+                             f"2.3), gap {g2}; the error {e} is within the reference row's noise {r}"
+             for s_, d, g, g2, e, r in ((98, "3.44e-7 (2.6e4 times its rounding bound)", "1.7e-7", "1.4e-13",
+                                         "5.526", "27.24"),
+                                        (102, "24.2 (relative 5.87)", "0.995 (raw ‖A‖ 1.3e7, |C v| 5.4e-4)",
+                                         "1.7e-9", "1.154", "1.296"))},
+         (110, "amm_eye"): "Mr = I on nf = 5 faults, p = 3: numpy read 1.00171 for the reported 1.00008 — its "
+                           "refinement read the cancelled plant pair ±2j's rounding residue 1.9e-12 at 1e-9 from the "
+                           "pole (the judge's refinement now keeps _points' 1e-7); and the error above Q = 0's (1, "
+                           "the optimum: rank Q·Gf ≤ 3 < 5) within reltol is now said in a note "
+                           "(approximate_matching._zero_filter_error, tests/test_amm_zero_filter.py)"}
 
 
 @pytest.mark.parametrize("seed, call", FAST)

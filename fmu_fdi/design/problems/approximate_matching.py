@@ -1583,7 +1583,16 @@ def stable_reduced_system(model: FDIModel, Q0: LTI, G1: LTI, smarg=None, atol: f
     ``X Q0`` and ``X G1`` stable; by coprimeness (a Bezout identity) these are exactly ``Q = Y N_Q`` with Y
     stable, and then ``X G1 = Y N_G``: the problem over stable Y on the stable pair is the same problem with no
     mode for Y to cancel (without it SLICOT's Riccati equations failed at every level). FaultDetectionTools.jl
-    ``ammsyn`` does the same: its basis ``glnull(...; sdeg)`` is the stable factor of the whole ``[Q R]``."""
+    ``ammsyn`` does the same: its basis ``glnull(...; sdeg)`` is the stable factor of the whole ``[Q R]``.
+
+    Both factorisations are of minimal realisations (:func:`..toolkit.stable_factor.glcf` asks for one): G1 as the
+    model gives it (``[Gf Gw]`` on the plant's states) can be ill-scaled, its boundary mode weakly observed, and the
+    output injection then loses the identity ``N_G = M2 G1``, so that the filters ``Y (M2 Q0)`` have another error
+    than the one designed on ``N_G`` — approximate audit seed 102 (an integrator; raw ‖A‖ = 1.3e7, ``|C v|`` =
+    5.4e-4, cond of the eigenvectors 1e7): ``N_G`` and ``M2 Q0 [Gf Gw]`` differed by 0.995 relative and the design
+    was refused; seed 98 (±2j): by 1.7e-7, refused at 2.6e4 times the realisation's rounding bound. On the
+    minimal (balanced) realisation (‖A‖ = 11.5, ``|C v|`` = 2.3) the gaps are 1.7e-9 and 1.4e-13
+    (tests/test_amm_stable_factor.py)."""
     from ..toolkit.stable_factor import _stability_region, glcf, moved_pole_targets
 
     Q0_in, G1_in = Q0, G1
@@ -1600,7 +1609,7 @@ def stable_reduced_system(model: FDIModel, Q0: LTI, G1: LTI, smarg=None, atol: f
             NQ, M1, _ = glcf(Q0.minreal(atol), targets, good)
             Q0, G1 = NQ, drop_negligible_unstable_modes(M1 @ G1)
         if not stable(G1):  # G1 = M2⁻¹ N_G: then Y (M2 Q0), Y N_G
-            NG, M2, _ = glcf(G1, targets, good)
+            NG, M2, _ = glcf(G1.minreal(atol), targets, good)
             Q0, G1 = M2 @ Q0, NG
     except DesignError:
         return Q0_in, G1_in
