@@ -19,7 +19,8 @@ Run: python benchmarks/gap_speed.py [--stacked] [SEED …]   (default seeds 1 2)
 Measured (27 Nov, 2 shared cores, one run each): seed 68 (n 21) afdi_bank 15.4 s -> 5.2 s (3.0), per-member
 gaps 17.08 s -> 1.06 s (16.1; noise block 240 states -> member R 60), stacked rows 74.8 s -> 7.3 s (10.3;
 571 -> 143 states); seed 78 (n 25) afdi_bank 14.3 s -> 2.8 s (5.1), per-member gaps 12.44 s -> 0.34 s
-(37.1; 213 -> 71 states); seeds 1, 2 gaps ratio 1.8, 2.1 (hundredths of a second). Gaps agree to 3e-13.
+(37.1; 213 -> 71 states), with --stacked in another run its stacked rows 116.3 s -> 45.2 s (2.6; 482 ->
+162 states: the rows keep the other members' states); seeds 1, 2 gaps ratio 1.8, 2.1 (hundredths of a second). Gaps agree to 3e-13.
 The rows are those ``approximate_random_judged.py --gap-time`` picks (the audit's check_case).
 """
 import sys
