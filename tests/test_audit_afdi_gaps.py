@@ -2,10 +2,10 @@
 bank's own gaps (analysis.fault_noise_gap on the stacked bank, rows of its internal form).
 
 The two read the same transfer functions on different realisations: the stacked bank's rows carry
-every member's states (approximate audit seed 68: 564 states in one H∞ norm, 740 s of a 766 s
-afdi_bank under load), a member's only its own. Seeds here are small (n 6, 7; discrete, continuous) so that the stacked
+every member's states (approximate audit seed 68: 143 states in its internal form, 564 in the noise
+block of the former hstack reading, one H∞ norm of which took 140–180 s), a member's only its own. Seeds here are small (n 6, 7; discrete, continuous) so that the stacked
 reading, the baseline, stays cheap; the time is measured in
-``benchmarks/approximate_random_judged.py --gap-time``.
+``benchmarks/approximate_random_judged.py --gap-time`` and ``benchmarks/gap_speed.py``.
 """
 import sys
 from pathlib import Path
