@@ -67,7 +67,8 @@ def content_key(*arrays: np.ndarray) -> bytes:
     return h.digest()
 
 
-def _remember(cache: OrderedDict, key: bytes, value, size: int):
+def remember(cache: OrderedDict, key: bytes, value, size: int):
+    """Keep ``value`` under ``key`` in the least-recently-used ``cache`` of at most ``size`` entries; returns it."""
     with _lock:
         cache[key] = value
         cache.move_to_end(key)
@@ -76,7 +77,7 @@ def _remember(cache: OrderedDict, key: bytes, value, size: int):
     return value
 
 
-def _recall(cache: OrderedDict, key: bytes):
+def recall(cache: OrderedDict, key: bytes):
     """The kept value for ``key`` (now the most recently used), or None."""
     with _lock:
         hit = cache.get(key)
@@ -90,15 +91,15 @@ def eigenvalues(A: np.ndarray) -> np.ndarray:
     block for a block-diagonal A (:func:`diagonal_blocks`); kept for ``Aᵀ`` too (a dual realisation
     and the basis it transposes into have one spectrum)."""
     key = content_key(A)
-    hit = _recall(_eig_cache, key)
+    hit = recall(_eig_cache, key)
     if hit is None:
         A = np.asarray(A)
         blocks = diagonal_blocks(A) if A.ndim == 2 and A.shape[0] == A.shape[1] else [None]
         hit = np.linalg.eigvals(A) if len(blocks) == 1 else \
             np.concatenate([np.linalg.eigvals(A[np.ix_(g, g)]) for g in blocks])
-        _remember(_eig_cache, key, hit, EIG_CACHE_SIZE)
+        remember(_eig_cache, key, hit, EIG_CACHE_SIZE)
         if A.ndim == 2 and A.shape[0] >= BLOCK_MIN:
-            _remember(_eig_cache, content_key(A.T), hit, EIG_CACHE_SIZE)
+            remember(_eig_cache, content_key(A.T), hit, EIG_CACHE_SIZE)
     return hit.copy()
 
 
@@ -138,13 +139,13 @@ def hessenberg_form(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     LAPACK dgehrd/dorghr; Golub & Van Loan sec. 7.4.3: a finite, backward-stable reduction); kept per content
     of A (read-only arrays: the cached form is shared)."""
     key = content_key(A)
-    hit = _recall(_form_cache, key)
+    hit = recall(_form_cache, key)
     if hit is not None:
         return hit
     H, Z = sla.hessenberg(np.asarray(A, float), calc_q=True)
     H.setflags(write=False)
     Z.setflags(write=False)
-    return _remember(_form_cache, key, (H, Z), FORM_CACHE_SIZE)
+    return remember(_form_cache, key, (H, Z), FORM_CACHE_SIZE)
 
 
 def transfer_values(A, B, C, D, lams) -> np.ndarray:
@@ -167,7 +168,7 @@ def transfer_values(A, B, C, D, lams) -> np.ndarray:
         out[:] = np.nan
         return out
     key = content_key(A, B, C, D, lams)
-    hit = _recall(_value_cache, key)
+    hit = recall(_value_cache, key)
     if hit is not None:
         return hit.copy()
     if n < SCHUR_MIN_ORDER:  # small: one dense LU solve per point, as LTI.evalfr
@@ -177,13 +178,13 @@ def transfer_values(A, B, C, D, lams) -> np.ndarray:
                 out[k] = C @ np.linalg.solve(lam * eye - A, Bc) + D
             except np.linalg.LinAlgError:
                 out[k] = np.nan
-        _remember(_value_cache, key, out.copy(), VALUE_CACHE_SIZE)
+        remember(_value_cache, key, out.copy(), VALUE_CACHE_SIZE)
         return out
     rows, cols = np.flatnonzero(np.any(C != 0, axis=1)), np.flatnonzero(np.any(B != 0, axis=0))
     for g in diagonal_blocks(A):  # G = D + Σ_g C_g (λI - A_g)^{-1} B_g over the diagonal blocks of A
         sub = _strictly_proper(A[np.ix_(g, g)], B[np.ix_(g, cols)], C[np.ix_(rows, g)], lams)
         out[:, rows[:, None], cols[None, :]] += sub
-    _remember(_value_cache, key, out.copy(), VALUE_CACHE_SIZE)
+    remember(_value_cache, key, out.copy(), VALUE_CACHE_SIZE)
     return out
 
 

@@ -39,7 +39,7 @@ from ..toolkit.approximate import gap_objective, noise_normalizer, with_nonstand
 from ...freqresp import beside_poles, eigenvalues
 from ...margin import near_poles
 from ..toolkit.stable_factor import stable_internal_form, stable_joint_factor
-from ..toolkit.postconditions import (DEC_TOL, NumericalDesignError, _boundary_poles, _cosine, _mode_decisions,
+from ..toolkit.postconditions import (DEC_TOL, NumericalDesignError, boundary_poles, _cosine, mode_decisions,
                                       _values, check_generator)
 from ..toolkit.notes import keeps_notes, tentative
 
@@ -858,9 +858,9 @@ def _verdict(model, X: LTI, lam, Gv) -> tuple[int, float]:
 
 def _boundary_modes_cancelled(model, Q: LTI, lam, Gv) -> LTI:
     """Q made to cancel the plant's modes on or beyond the stability boundary as well as its data can: tried only
-    where the judge's decisions on those modes (:func:`..toolkit.postconditions._mode_decisions`) read a row that
+    where the judge's decisions on those modes (:func:`..toolkit.postconditions.mode_decisions`) read a row that
     keeps one — its residue ``||Q_i(p) c_p||`` above its rounding bound δ_i (a pole of R) or so large that R read two
-    of the judge's gaps beside p (``residue/(2·gap)``, :func:`..toolkit.postconditions._boundary_poles`) exceeds
+    of the judge's gaps beside p (``residue/(2·gap)``, :func:`..toolkit.postconditions.boundary_poles`) exceeds
     0.1·:data:`DEC_TOL` of the row's weakest fault peak — and among the candidates kept the one the judge reads best
     (:func:`_verdict`; Q itself on a tie):
 
@@ -895,11 +895,11 @@ def _boundary_modes_cancelled(model, Q: LTI, lam, Gv) -> LTI:
     ok = np.all(np.isfinite(Gv), axis=(1, 2))
     Qv = _values(Q, lam)
     ok &= np.all(np.isfinite(Qv), axis=(1, 2)) & ~beside_poles(lam, eigenvalues(model.A), model.dt)[0]
-    boundary = _boundary_poles([model.lti()], model.dt)
+    boundary = boundary_poles([model.lti()], model.dt)
     if not np.any(ok) or not boundary:
         return Q
     Qv, G = Qv[ok], Gv[ok]
-    decisions = _mode_decisions(model, Q, [[k] for k in range(Q.p)],
+    decisions = mode_decisions(model, Q, [[k] for k in range(Q.p)],
                                 [float(np.max(np.linalg.norm(Qv[:, k, :], axis=1))) for k in range(Q.p)])
     if decisions is None:
         return Q

@@ -45,7 +45,7 @@ i.e. the gain used is the grid estimate of ``||R_fj,i||∞`` (peak over Λ of th
   ``Re p ≤ smarg`` continuous, ``|p| ≤ smarg`` discrete): the eigenvalues of Q's realisation
   (the filter that runs) and the poles of R (:func:`_r_poles`): a plant mode on or beyond the stability
   boundary is a pole of ``R_i``'s column c unless its residue is within its derived rounding bound —
-  ``||Q_i(p) c_p|| ≤ δ_i`` or ``|y_pᴴ b_c| ≤ δ_c``, the grid's own decision (:func:`_mode_decisions`) — and
+  ``||Q_i(p) c_p|| ≤ δ_i`` or ``|y_pᴴ b_c| ≤ δ_c``, the grid's own decision (:func:`mode_decisions`) — and
   the other margin-violating modes are those of the series realisation ``Q·Ge`` that are both controllable
   and observable;
 - a required fault is no rounding noise in its row: the cosine
@@ -71,7 +71,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ...errors import DesignError
-from ...freqresp import _recall, _remember, content_key, transfer_values
+from ...freqresp import content_key, recall, remember, transfer_values
 from ...linalg import EPS
 from ...lti import LTI, _pole_scales, frequency_grid
 from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
@@ -169,12 +169,12 @@ def _beside_boundary_poles(lam: np.ndarray, systems, dt: float) -> np.ndarray:
     refused as a pole of R (:func:`_r_poles`) whatever the grid.
     """
     mask = np.zeros(lam.size, bool)
-    for p, gap in _boundary_poles(systems, dt):
+    for p, gap in boundary_poles(systems, dt):
         mask |= np.min(np.abs(lam[:, None] - p[None, :]), axis=1) <= gap
     return mask
 
 
-def _boundary_poles(systems, dt: float) -> list:
+def boundary_poles(systems, dt: float) -> list:
     """``(poles outside the default margin, BOUNDARY_GAP·max(1, ||A_bal||))`` of each of ``systems`` that has any."""
     out = []
     for S in systems:
@@ -195,7 +195,7 @@ def _beside_boundary_freqs(systems, dt: float) -> np.ndarray:
     at s = 0 and z = 1 as at an undamped pair or e^{jθ}, whose neighbourhood a log-spaced grid (10 % steps) never
     reaches (ε = 1e-11 at ±2j read 7.8e-11 and passed)."""
     out = []
-    for p, gap in _boundary_poles(systems, dt):
+    for p, gap in boundary_poles(systems, dt):
         if dt:
             on = p[np.abs(np.abs(p) - 1.0) <= gap]
             w0, off = np.abs(np.angle(on)) / dt, 2.0 * gap / dt
@@ -342,7 +342,7 @@ def resolvent_pair(S: LTI, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray] | N
     return X, Y
 
 
-def _mode_decisions(model, Q: LTI, groups, qpeaks) -> dict | None:
+def mode_decisions(model, Q: LTI, groups, qpeaks) -> dict | None:
     """The one decision on the plant's boundary modes (:func:`_boundary_modes`) per row group and input column of
     Ge, read by the grid (:func:`_without_cancelled_modes`) and by the poles of R (:func:`_r_poles`) alike: mode p
     is removed from ``R_i``'s column c where the row cancels it (``||Q_i(p) c_p|| ≤ δ_i``, :func:`_row_cancels`) or
@@ -452,14 +452,14 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
     R_i) its bound is large and R_i, whose bound is the small pole part, is the most accurate.
 
     Returns the removals: ``[(p, mask)]``, mask (groups × input columns of Ge) marking where p was removed from the
-    values; R is changed in place. ``decisions``: :func:`_mode_decisions` on the same groups (computed here when not
+    values; R is changed in place. ``decisions``: :func:`mode_decisions` on the same groups (computed here when not
     given), the decision :func:`_r_poles` reads too.
     """
     removed: list = []
     if not lam.size:
         return removed
     if decisions is None:
-        decisions = _mode_decisions(model, Q, groups, [float(np.max(_nrm(Qv[:, g, :]))) for g in groups])
+        decisions = mode_decisions(model, Q, groups, [float(np.max(_nrm(Qv[:, g, :]))) for g in groups])
     if decisions is None:
         return removed
     modes = decisions["modes"]
@@ -611,7 +611,7 @@ def _r_poles(model, Q: LTI, smarg: float, decisions: dict | None = None) -> tupl
     even a rounding-size coupling diverge or drift.
 
     **Unstable and marginal plant modes are decided as the grid decides them** (``decisions``,
-    :func:`_mode_decisions`): a simple plant mode p on or beyond the stability boundary is removed from row i and
+    :func:`mode_decisions`): a simple plant mode p on or beyond the stability boundary is removed from row i and
     column c only where its residue is within its derived rounding bound — ``||Q_i(p) c_p|| ≤ δ_i`` or
     ``|y_pᴴ b_c| ≤ δ_c`` — and is a pole of R wherever it is not, whatever a rank decision with a fixed tolerance
     says. The staircase of :func:`margin_reduced` (tolerance :data:`R_POLE_TOL` on the part's data over the norms of
@@ -796,9 +796,9 @@ def _ud_reading(model, Q: LTI, g, lam: np.ndarray, ud: np.ndarray, R: np.ndarray
     Qi = _row_system(Q, g) if Q.n else LTI(Q.A, Q.B, Q.C[rows, :], Q.D[rows, :], Q.dt)
     Ge = model.augmented()[:, ud]
     key = content_key(Qi.A, Qi.B, Qi.C, Qi.D, Ge.A, Ge.B, Ge.C, Ge.D, lam, np.array([model.nu]))
-    hit = _recall(_UD_CACHE, key)
+    hit = recall(_UD_CACHE, key)
     if hit is None:
-        hit = _remember(_UD_CACHE, key, _ud_values(Qi, Ge, lam, model.nu), UD_CACHE_SIZE)
+        hit = remember(_UD_CACHE, key, _ud_values(Qi, Ge, lam, model.nu), UD_CACHE_SIZE)
     val, err, sens = hit
     fine = np.all(np.isfinite(val), axis=(1, 2)) & np.all(np.isfinite(err), axis=(1, 2))
     if not np.any(fine):
@@ -915,7 +915,7 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
         for i, g in enumerate(groups):
             if _ud_matters(R[:, g, :], Qv[:, g, :], Ge, ud, fall):
                 _ud_reading(model, Q, g, lam[ok], ud, R, out["peaks"], i)
-    out["decisions"] = _mode_decisions(model, Q, groups, [float(np.max(_nrm(Qv[:, g, :]))) for g in groups])
+    out["decisions"] = mode_decisions(model, Q, groups, [float(np.max(_nrm(Qv[:, g, :]))) for g in groups])
     out["removed"] = _without_cancelled_modes(model, Q, groups, lam[ok], R, Qv, Ge, out["decisions"])
     Gf_n = [_nrm(Ge[:, :p, c]) for c in fcols]
     nGe = _nrm(Ge)
@@ -1136,7 +1136,7 @@ def _visibility(fj, judged, names, all_names, col, S, FDtol, fig, failures) -> n
 
 def _stability(model, Q, smarg, fig, failures, decisions=None) -> None:
     """Stage 2 of :func:`check_generator`: stability with margin of Q's realisation, then R's own
-    poles (the plant modes it keeps; ``decisions``: :func:`_mode_decisions`); adds to ``fig`` and ``failures``."""
+    poles (the plant modes it keeps; ``decisions``: :func:`mode_decisions`); adds to ``fig`` and ``failures``."""
     # 2. stability with margin: Q's realisation, then R's own poles (plant modes it keeps)
     worst_of = (lambda p: float(np.max(np.abs(p)))) if model.dt else (lambda p: float(np.max(p.real)))
     what = "largest |pole|" if model.dt else "largest Re(pole)"

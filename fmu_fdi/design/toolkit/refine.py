@@ -230,7 +230,7 @@ def boundary_residues(model, every_input: bool = False, every_mode: bool = False
     [0 1 1 1 1]: the pair ±2j of fault fc, refused as a pole of R).
 
     ``every_mode``: every mode of the table that some input excites, on or beyond the boundary — each one every
-    row of R must cancel, as the judge decides (:func:`.postconditions._mode_decisions`); for a filter whose
+    row of R must cancel, as the judge decides (:func:`.postconditions.mode_decisions`); for a filter whose
     u, d decoupling has no grid point to refine (:func:`cancel_residues`)."""
     from ...margin import default_smarg, outside_margin
     from .plant_modes import boundary_mode_table

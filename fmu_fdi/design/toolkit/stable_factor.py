@@ -447,14 +447,14 @@ def _move_plant_poles(model: FDIModel, Q: LTI, choose, good, margin: float) -> t
 
 def _judged_plant_poles(model: FDIModel, Q: LTI, margin: float, kept: np.ndarray) -> np.ndarray:
     """The plant's boundary modes outside ``margin`` that the judge calls poles of ``[R_w R_f]`` and the staircase
-    (``kept``) does not: the judge's own decision (:func:`.postconditions._mode_decisions`, residue against δ_i and
+    (``kept``) does not: the judge's own decision (:func:`.postconditions.mode_decisions`, residue against δ_i and
     δ_c, Q's rows as one group), so that the factorisation moves what the judge would refuse. The staircase's fixed
     tolerance on the whole series realisation misses couplings far above rounding: random seed 38's bank row
     [1 1 0 1 1] (n = 21) kept s = 1 in R_fc with ``||Q(1) c|| = 5.1e-9`` of the unit fault gain against δ_i =
     1.8e-12 — an unstable fault response the new judge refused. Only added to ``kept``, never taken from it (a mode
     the staircase keeps is moved as before)."""
     from ...margin import outside_margin
-    from .postconditions import _eval_points, _mode_decisions, _nrm, _values
+    from .postconditions import _eval_points, mode_decisions, _nrm, _values
 
     if not model.n:
         return np.zeros(0, complex)
@@ -463,7 +463,7 @@ def _judged_plant_poles(model: FDIModel, Q: LTI, margin: float, kept: np.ndarray
     Qv = Qv[np.all(np.isfinite(Qv), axis=(1, 2))]
     if not Qv.shape[0]:
         return np.zeros(0, complex)
-    dec = _mode_decisions(model, Q, [list(range(Q.p))], [float(np.max(_nrm(Qv)))])
+    dec = mode_decisions(model, Q, [list(range(Q.p))], [float(np.max(_nrm(Qv)))])
     if dec is None:
         return np.zeros(0, complex)
     sl = model.group_slices()
