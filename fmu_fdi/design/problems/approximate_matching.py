@@ -611,7 +611,7 @@ def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, sm
             continue
         return Qr, {**out, "refined": True, "realisation": what, "figures": fig,
                     "reason": f"u, d re-decoupled on the normalised form ({what} realisation)"}
-    return Q, {**out, "leak_after": out["leak_after"], "reason": "; ".join(reasons) + ": Q kept"}
+    return Q, {**out, "reason": "; ".join(reasons) + ": Q kept"}
 
 
 def _redecoupling_realisations(Q: LTI):

@@ -100,18 +100,20 @@ def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
     margin (that ``X`` is the stabilising solution) is the caller's check."""
     Q, R, S = C.T @ C, D.T @ D, C.T @ D
 
+    starts = []  # (relative residual, answer) of the direct solvers' answers outside RICCATI_RTOL
+
     def residual_ok(X) -> bool:
         res = riccati_residual(A, B, Q, R, S, X, dt)
+        if res is not None and not res[0] <= RICCATI_RTOL:
+            starts.append((res[0], X))
         return res is not None and res[0] <= RICCATI_RTOL
 
-    starts = []
     try:
         X = (sla.solve_discrete_are if dt else sla.solve_continuous_are)(A, B, Q, R, s=S)
     except (np.linalg.LinAlgError, ValueError):
         X = None
     if residual_ok(X):
         return X
-    starts.append(X)
     import slycot
     from slycot.exceptions import SlycotError
 
@@ -123,11 +125,9 @@ def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
         X = None
     if residual_ok(X):
         return X
-    starts.append(X)
     # neither within RICCATI_RTOL: Newton's method from each answer with a stable closed loop, the closer first
-    scored = [(r[0], k) for k, X in enumerate(starts) if (r := riccati_residual(A, B, Q, R, S, X, dt)) is not None]
-    for _, k in sorted(scored):
-        X = newton_refined(A, B, Q, R, S, starts[k], dt, RICCATI_RTOL)
+    for _, X0 in sorted(starts, key=lambda rx: rx[0]):
+        X = newton_refined(A, B, Q, R, S, X0, dt, RICCATI_RTOL)
         if X is not None:
             return X
     return None

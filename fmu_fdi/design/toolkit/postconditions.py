@@ -773,7 +773,7 @@ def _ud_reading(model, Q: LTI, g, lam: np.ndarray, ud: np.ndarray, R: np.ndarray
 
     **The reading.** The product first: ``Z = (λI − A_q)^{-1} (B_q G)``, ``R_ud = C_q Z + D_q G``, ``G`` the u/d
     columns of Ge (both realisations balanced by TB01ID, a diagonal similarity by powers of 2: the same data), each
-    solve refined in the extended type (:func:`_refined_solve`, :data:`EXT_UNIT`) and the sums formed there. Its
+    solve refined in the extended type (:func:`_refined_solves`, :data:`EXT_UNIT`) and the sums formed there. Its
     error, to first order (GEPP's componentwise backward error ``|ΔL| ≤ γ_3N |L|`` of each system, refined to the
     extended precision; Higham Thm 9.3 and ch. 12):
 
@@ -907,7 +907,6 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     p = model.ny
     fsl = sl["f"]
     fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
-    fsl = model.group_slices()["f"]
     R = np.einsum("kiq,kqc->kic", Qv, Ge)
     ud = np.r_[np.arange(sl["u"].start, sl["u"].stop), np.arange(sl["d"].start, sl["d"].stop)]
     if ud.size and model.n + Q.n:
