@@ -546,7 +546,8 @@ REDECOUPLE_ROWS = 8
 REDECOUPLE_HSV_RTOL = 1e-12
 
 
-def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol) -> tuple[LTI, dict]:
+def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol,
+                     fig0=None) -> tuple[LTI, dict]:
     """Stage of :func:`approximate_model_matching`: ``(Q', info['ud_redecoupling'])``, the shipped filter with its
     numerator refitted so that ``Q·[Gu Gd; I 0]`` is zero on the design's points while ``Q·[Gf Gw; 0 0]`` is kept
     (:func:`_decoupling_refit`) — run only where the filter's u/d leak on the normalised form, as a double-precision
@@ -570,9 +571,10 @@ def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, sm
     The note: ``refined``, ``leak_before``/``leak_after`` (normalised, reading plus sensitivity),
     ``error_before``/``error_after``, ``unknowns``, ``points``, ``realisation`` (``'shipped'`` or ``'minimal
     balanced'``, of the kept refit), ``reason``; ``figures``: the judge's normalised figures of the returned Q
-    (:func:`normalised_leak`)."""
+    (:func:`normalised_leak`). ``fig0``: those figures of Q where the caller has read them already."""
     nud = model.nu + model.nd
-    fig0 = normalised_leak(model, Q, required, smarg, dec_tol)
+    if fig0 is None:
+        fig0 = normalised_leak(model, Q, required, smarg, dec_tol)
     before = _leak_of(fig0)
     out = {"refined": False, "leak_before": before, "leak_after": before, "error_before": None, "error_after": None,
            "unknowns": int((Q.n + Q.p) * Q.m), "points": 0, "realisation": None, "figures": fig0}
@@ -1156,12 +1158,13 @@ def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg,
     if required is not None:
         Qm, out["plant_mode_cancellation"] = _plant_mode_cancellation(model, Qm, fnm, MF, lam, norm, systems, reltol,
                                                                       smarg, dec_tol)
-        out["leak"] = _leak_of(normalised_leak(model, Qm, required, smarg, dec_tol))
+        fig = normalised_leak(model, Qm, required, smarg, dec_tol)
+        out["leak"] = _leak_of(fig)
         if out["leak"] > dec_tol * LEAK_REFIT_MAX or not np.isfinite(out["leak"]):
             return None, {**out, "reason": f"the least-order filter's u/d leak on the normalised form (rows at unit "
                                            f"weakest required fault gain) is {out['leak']:.3g}, above "
                                            f"{LEAK_REFIT_MAX:g} dec_tol: the optimal row is kept"}
-        Qm, note = _ud_redecoupling(model, Qm, required, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol)
+        Qm, note = _ud_redecoupling(model, Qm, required, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol, fig)
         if not note["refined"] and note["leak_before"] > dec_tol:
             Qm, note = _weighted_redecoupling(model, Qm, required, fnm, MF, lam, norm, systems, reltol, smarg,
                                               dec_tol, note)
