@@ -30,13 +30,15 @@ i.e. the gain used is the grid estimate of ``||R_fj,i||∞`` (peak over Λ of th
 2-norm), and the returned ``Q`` carries the scaling. It then requires, on the normalised form:
 
 - decoupling, *absolute*: ``max_λ ||R_X,i(λ)|| ≤ dec_tol`` for X = u, d (and w when w is
-  decoupled) and for every fault with ``S_ij = 0`` (``structure``). The u/d block of a row whose plain reading is
-  not far below its fault gains is read on the filter as stored, the product ``(λI − A_q)^{-1}(B_q Ge)`` first, with
-  solves refined in extended precision and a derived error bound e (:func:`_ud_reading`: the same reading whatever
-  the row's scale and diagonal state scaling, where the plain values of Q then Q·Ge read 1.2e-7 … 4.3e-7 of a
-  filter that leaks 2.0e-8); the verdict is the reading's (``decoupling_error``, e, is reported beside it: a
-  worst-case bound, above a true leak of 2.5e-6 on a non-normal plant, so not subtracted;
-  ``decoupling_sensitivity``: what rounding of the realisation's entries may move it, e.g. a double-precision
+  decoupled) and for every fault with ``S_ij = 0`` (``structure``). Every block a row decouples (u, d, a decoupled
+  w, an excluded fault) whose plain reading is not far below its fault gains is read on the filter as stored, the
+  product ``(λI − A_q)^{-1}(B_q Ge)`` first, with solves refined in extended precision and a derived error bound e
+  per block (:func:`_decoupled_blocks`, :func:`_decoupled_reading`: the same reading whatever the row's scale and
+  diagonal state scaling, where the plain values of Q then Q·Ge read 1.2e-7 … 4.3e-7 of a filter that leaks
+  2.0e-8, and an excluded fault leaking 9e-10 at 1.18e-7 or 7.5e-8 depending on the state scaling); the verdict is
+  the reading's (``decoupling_error`` / ``structure_leak_error``, e, is reported beside it: a worst-case bound,
+  above a true leak of 2.5e-6 on a non-normal plant, so not subtracted; ``decoupling_sensitivity`` /
+  ``structure_leak_sensitivity``: what rounding of the realisation's entries may move it, e.g. a double-precision
   evaluation of an ill-conditioned realisation). Absolute on the normalised
   row means: the residual moves with u at most ``dec_tol`` times as much as with the weakest
   required fault (the relative-to-``|Q||Ge|`` measure of issue 13 passed filters whose
@@ -679,8 +681,8 @@ def _column_names(model) -> list:
     return list(model.u_names) + list(model.d_names) + list(model.w_names) + fault
 
 
-#: unit roundoff of the extended type the u/d reading refines its residuals in (:func:`_ud_reading`): 2^-64 where
-#: numpy's longdouble is the x87 80-bit format, EPS/2 where it is double (the reading is then the plain one)
+#: unit roundoff of the extended type the decoupled reading refines its residuals in (:func:`_decoupled_reading`):
+#: 2^-64 where numpy's longdouble is the x87 80-bit format, EPS/2 where it is double (the reading is then the plain one)
 EXT_UNIT = float(np.finfo(np.longdouble).eps) / 2
 
 
@@ -733,34 +735,75 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
     return X, W
 
 
-#: :func:`_ud_matters`: a u/d reading below this fraction of the row's weakest fault gain (normalised: 1e-3 of the
-#: default dec_tol) decides nothing and is not re-read
+#: :func:`_decoupled_blocks`: a reading of a decoupled block below this fraction of the row's weakest fault gain
+#: (normalised: 1e-3 of the default dec_tol) decides nothing and is not re-read
 UD_REREAD = 1e-3 * DEC_TOL
-#: :func:`_ud_matters`: fault gains below this fraction of the row's ``max ||Q_i|| ||Ge||`` are rounding, not a fault
-#: the row can be normalised on (a required fault there fails the visibility test, FDtol ≥ 1e-10 here)
+#: :func:`_decoupled_blocks`: fault gains below this fraction of the row's ``max ||Q_i|| ||Ge||`` are rounding, not a
+#: fault the row can be normalised on (a required fault there fails the visibility test, FDtol ≥ 1e-10 here)
 UD_FAULT_FLOOR = 1e-10
+#: :func:`_decoupled_blocks`: a w or fault block whose plain reading is above this fraction of the row's strongest
+#: fault gain is no block the row decouples (a required fault, a noise the design does not decouple, or a leak far
+#: above every decision: 1e3·dec_tol of the strongest fault, where the plain reading's error is ~1e-7 of the weakest
+#: on the ill-scaled filters of the random sets) and is read plainly
+REREAD_CEIL = 1e3 * DEC_TOL
 
 
-def _ud_matters(Ri: np.ndarray, Qi: np.ndarray, Ge: np.ndarray, ud: np.ndarray, fcols: np.ndarray) -> bool:
-    """Is the row group's u/d block worth :func:`_ud_reading`'s accurate reading: its plain reading above
-    :data:`UD_REREAD` of the row's weakest fault gain (among the fault columns above :data:`UD_FAULT_FLOOR` of the
-    row's ``max ||Q_i|| ||Ge||``), or no fault column to compare with? Exact designs read 1e-16 … 1e-10 there and are
-    not re-read (the accurate reading costs a factorisation per point and, near the decision, iterative refinement)."""
-    leak = float(np.max(_nrm(Ri[:, :, ud]), initial=0.0))
-    if not leak > 0:
-        return False
+def _decoupled_blocks(Ri: np.ndarray, Qi: np.ndarray, Ge: np.ndarray, sl: dict, fcols: list) -> dict:
+    """The blocks of row group i the judge may decide to be zero and whose plain reading could decide it — the
+    columns :func:`_decoupled_reading` re-reads: ``{label: columns of Ge}``, labels 'u', 'd', 'w' and fault indices j.
+
+    The reading cannot know the structure or which groups a caller decouples (``leakage()`` and ``structure_matrix()``
+    read the same figures without them), so it decides from the values, scale free (a row scaling changes nothing):
+
+    - u and d (always decoupled) where their plain peak is above :data:`UD_REREAD` of the row's weakest fault gain
+      (per column, among those above :data:`UD_FAULT_FLOOR` of the row's ``max ||Q_i|| ||Ge||``), or there is no
+      such fault column to compare with. Exact designs read 1e-16 … 1e-10 there and are not re-read.
+    - w and each fault block j where its plain peak is within ``(UD_REREAD · g_low, REREAD_CEIL · g_top]``: g_low the
+      weakest of the *other* fault columns (as above), g_top the strongest fault block. That contains every
+      decoupled w and excluded fault whose verdict the plain reading's error could move (the decision is at
+      ``dec_tol`` times the weakest required gain ≤ g_top), and no required fault of a row whose faults are within
+      1e4 of each other; a weaker required fault is re-read too (harmless: the reading is the more accurate).
+
+    The accurate reading costs a factorisation per point (shared by all the row's re-read columns) and, near a
+    decision, iterative refinement; a row with nothing to re-read costs nothing more."""
+    out: dict = {}
+    if not Ri.shape[0]:
+        return out
+    peak = lambda c: float(np.max(_nrm(Ri[:, :, c]), initial=0.0))  # noqa: E731
     bound = float(np.max(_nrm(Qi) * _nrm(Ge), initial=0.0))
-    if not fcols.size:
-        return True
-    gains = np.max(np.abs(Ri[:, :, fcols]), axis=(0, 1))
-    gains = gains[gains > UD_FAULT_FLOOR * bound]
-    return not gains.size or leak > UD_REREAD * float(np.min(gains))
+    fall = np.concatenate(fcols) if fcols else np.zeros(0, int)
+    colgain = np.max(np.abs(Ri[:, :, fall]), axis=(0, 1)) if fall.size else np.zeros(0)
+    visible = colgain > UD_FAULT_FLOOR * bound
+
+    def low_other(cols):
+        g = colgain[visible & ~np.isin(fall, cols)]
+        return float(np.min(g)) if g.size else None
+
+    ud = {x: np.arange(sl[x].start, sl[x].stop) for x in ("u", "d")}
+    both = np.r_[ud["u"], ud["d"]]
+    leak = peak(both) if both.size else 0.0
+    if leak > 0:
+        low = low_other(np.zeros(0, int))
+        if low is None or leak > UD_REREAD * low:
+            out.update({x: c for x, c in ud.items() if c.size})
+    top = max((peak(c) for c in fcols), default=0.0)
+    cand = [("w", np.arange(sl["w"].start, sl["w"].stop))] + list(enumerate(fcols))
+    for label, cols in cand:
+        if not cols.size:
+            continue
+        r = peak(cols)
+        low = low_other(cols)
+        if 0 < r <= REREAD_CEIL * top and low is not None and r > UD_REREAD * low:
+            out[label] = cols
+    return out
 
 
-def _ud_reading(model, Q: LTI, g, lam: np.ndarray, ud: np.ndarray, R: np.ndarray, peaks: dict, i: int) -> None:
-    """The u/d block of row group g, ``R_ud = Q_g·[Gu Gd; I 0]``, read on the filter as stored, with its error bound
-    and the realisation's sensitivity; writes the values into ``R[:, g, ud]`` and ``peaks['ud_error'][i]``,
-    ``peaks['ud_sensitivity'][i]``.
+def _decoupled_reading(model, Q: LTI, g, lam: np.ndarray, blocks: dict, R: np.ndarray, peaks: dict, i: int) -> None:
+    """The blocks ``blocks`` (:func:`_decoupled_blocks`: u, d, a decoupled w, excluded faults) of row group g,
+    ``R_X = Q_g·Ge_X``, read on the filter as stored, with each block's error bound and the realisation's
+    sensitivity; writes the values into ``R[:, g, cols]`` and the bounds into ``peaks['ud_error'][i]``,
+    ``peaks['ud_sensitivity'][i]`` (u and d together), ``peaks['w_error'][i]``, ``peaks['w_sensitivity'][i]`` and
+    ``peaks['f_error'][i, j]``, ``peaks['f_sensitivity'][i, j]`` (fault j).
 
     **Why.** A decoupling row is a cancellation: ``|Q_g|·|Ge|`` is up to 1e7 times its weakest fault gain
     (benchmarks/ammp_random_set.py H∞ seed 4: 4e6, seed 7: 3.4e7), so 1e-7 of that gain is ~1e-14 of the terms. The
@@ -769,9 +812,10 @@ def _ud_reading(model, Q: LTI, g, lam: np.ndarray, ud: np.ndarray, R: np.ndarray
     filter (order 70), whose u/d leak is 2.0e-8 of its weakest fault (this reading), read 4.3e-7 (Hessenberg,
     balanced), 1.9e-7 (dense LU, balanced), 1.2e-7 (dense LU as stored); seed 7's (order 87, 3.8e-8) 7.8e-8,
     4.5e-8, 4.1e-8. The error is in the solve, not in the sums (with the solve refined, ``C X + D`` in double is off
-    by 1e-14): the componentwise condition of ``Q_g(λ)`` is 2e6 ``|Q_g(λ)|`` there.
+    by 1e-14): the componentwise condition of ``Q_g(λ)`` is 2e6 ``|Q_g(λ)|`` there. An excluded fault or a decoupled
+    w is the same cancellation, read the same way (tests/test_judge_decoupled_reading.py).
 
-    **The reading.** The product first: ``Z = (λI − A_q)^{-1} (B_q G)``, ``R_ud = C_q Z + D_q G``, ``G`` the u/d
+    **The reading.** The product first: ``Z = (λI − A_q)^{-1} (B_q G)``, ``R_X = C_q Z + D_q G``, ``G`` the re-read
     columns of Ge (both realisations balanced by TB01ID, a diagonal similarity by powers of 2: the same data), each
     solve refined in the extended type (:func:`_refined_solves`, :data:`EXT_UNIT`) and the sums formed there. Its
     error, to first order (GEPP's componentwise backward error ``|ΔL| ≤ γ_3N |L|`` of each system, refined to the
@@ -781,49 +825,65 @@ def _ud_reading(model, Q: LTI, g, lam: np.ndarray, ud: np.ndarray, R: np.ndarray
         E_G = |W_e||λI − A_e||X_e| + |C_e||X_e|,   W = C_q (λI − A_q)^{-1},
 
     (``W_e``, ``X_e`` Ge's resolvents, N the larger order, u_x = :data:`EXT_UNIT`; Frobenius norm over the block),
-    ``peaks['ud_error']`` its peak. **Invariance:** a diagonal state scaling by powers of 2 leaves the data and this
-    reading exactly as they are; an output scaling of the row by c rounds ``C_q``, ``D_q`` by ``u`` relative and
-    moves the normalised reading by at most ``u·(|C_q||Z| + |D_q||G|)/g``; any other similarity T (computed in
-    floating point) is new data, whose leak differs from this one's by at most the two realisations'
+    each block's peak over the points its bound. **Invariance:** a diagonal state scaling by powers of 2 leaves the
+    data and this reading exactly as they are; an output scaling of the row by c rounds ``C_q``, ``D_q`` by ``u``
+    relative and moves the normalised reading by at most ``u·(|C_q||Z| + |D_q||G|)/g``; any other similarity T
+    (computed in floating point) is new data, whose leak differs from this one's by at most the two realisations'
     **sensitivities** ``u·( |W||A_q||Z| + |W||B_q||G| + |C_q||Z| + |D_q||G| )`` (first order in relative
-    perturbations u of every entry of the stored data; ``peaks['ud_sensitivity']``), plus T's own rounding: the
-    leak a double-precision evaluation or simulation of this realisation can show beside the stored filter's
-    (seed 4's shipped filter: 5.5e-7 of its weakest fault, against its leak 2.0e-8).
+    perturbations u of every entry of the stored data), plus T's own rounding: the leak a double-precision
+    evaluation or simulation of this realisation can show beside the stored filter's (seed 4's shipped filter:
+    5.5e-7 of its weakest fault, against its leak 2.0e-8).
     """
-    if not lam.size:
+    if not lam.size or not blocks:
         return
     rows = np.atleast_1d(np.arange(Q.p)[g])
     Qi = _row_system(Q, g) if Q.n else LTI(Q.A, Q.B, Q.C[rows, :], Q.D[rows, :], Q.dt)
-    Ge = model.augmented()[:, ud]
-    key = content_key(Qi.A, Qi.B, Qi.C, Qi.D, Ge.A, Ge.B, Ge.C, Ge.D, lam, np.array([model.nu]))
+    labels = list(blocks)
+    cols = np.concatenate([blocks[x] for x in labels])
+    at = np.cumsum([0] + [blocks[x].size for x in labels])
+    local = {x: np.arange(at[k], at[k + 1]) for k, x in enumerate(labels)}  # each block's columns in G
+    Ge = model.augmented()[:, cols]
+    key = content_key(Qi.A, Qi.B, Qi.C, Qi.D, Ge.A, Ge.B, Ge.C, Ge.D, lam, at)
     hit = recall(_UD_CACHE, key)
     if hit is None:
-        hit = remember(_UD_CACHE, key, _ud_values(Qi, Ge, lam, model.nu), UD_CACHE_SIZE)
+        hit = remember(_UD_CACHE, key, _decoupled_values(Qi, Ge, lam, list(local.values())), UD_CACHE_SIZE)
     val, err, sens = hit
     fine = np.all(np.isfinite(val), axis=(1, 2)) & np.all(np.isfinite(err), axis=(1, 2))
     if not np.any(fine):
         return
     block = R[:, g, :]
-    block[np.ix_(fine, np.arange(rows.size), ud)] = val[fine]
+    block[np.ix_(fine, np.arange(rows.size), cols)] = val[fine]
     R[:, g, :] = block
     N = max(Qi.n, Ge.n, 1)
-    peaks["ud_error"][i] = 3 * N * EXT_UNIT * float(np.max(np.linalg.norm(err[fine], axis=(1, 2))))
-    peaks["ud_sensitivity"][i] = EPS / 2 * float(np.max(np.linalg.norm(sens[fine], axis=(1, 2))))
+    peak = lambda X, c: float(np.max(np.linalg.norm(X[fine][:, :, c], axis=(1, 2)), initial=0.0))  # noqa: E731
+    ud = np.concatenate([local[x] for x in ("u", "d") if x in local] or [np.zeros(0, int)])
+    if ud.size:
+        peaks["ud_error"][i] = 3 * N * EXT_UNIT * peak(err, ud)
+        peaks["ud_sensitivity"][i] = EPS / 2 * peak(sens, ud)
+    for x in labels:
+        if x in ("u", "d"):
+            continue
+        e, s = 3 * N * EXT_UNIT * peak(err, local[x]), EPS / 2 * peak(sens, local[x])
+        if x == "w":
+            peaks["w_error"][i], peaks["w_sensitivity"][i] = e, s
+        else:
+            peaks["f_error"][i, x], peaks["f_sensitivity"][i, x] = e, s
 
 
-#: :func:`_ud_reading`'s kept readings (the same filter is read by check_generator, then by report on the same object)
+#: :func:`_decoupled_reading`'s kept readings (the same filter is read by check_generator, then by report on the
+#: same object)
 _UD_CACHE: OrderedDict = OrderedDict()
 UD_CACHE_SIZE = 16
 
 
-def _ud_values(Qi: LTI, Ge: LTI, lam: np.ndarray, nu: int):
-    """:func:`_ud_reading`'s values ``(R_ud, the error matrix, the sensitivity matrix)`` (points × rows × columns; the
-    last two before their factors 3N·u_x and u) of the row ``Qi`` on the u/d columns ``Ge`` (nu of them u)."""
-    ud = np.arange(Ge.m)
-    nud = ud.size
+def _decoupled_values(Qi: LTI, Ge: LTI, lam: np.ndarray, blocks: list):
+    """:func:`_decoupled_reading`'s values ``(R_X, the error matrix, the sensitivity matrix)`` (points × rows ×
+    columns; the last two before their factors 3N·u_x and u) of the row ``Qi`` on the columns ``Ge``; ``blocks``:
+    the column indices of each block, whose peak decides where a point is refined."""
+    nud = Ge.m
     Geb = Ge.balanced()[0] if Ge.n else Ge
-    # Ge's u/d columns, refined: X_e = (λI − A_e)^{-1} B_e
-    if Geb.n:  # Ge's u/d columns, refined at every point (the plant's order: cheap)
+    # Ge's columns, refined: X_e = (λI − A_e)^{-1} B_e
+    if Geb.n:  # Ge's columns, refined at every point (the plant's order: cheap)
         B = np.broadcast_to(Geb.B.astype(np.clongdouble), (lam.size,) + Geb.B.shape)
         Xe, We = _refined_solves(Geb.A, lam, B, Geb.C)
         Xe = _refined_solves(Geb.A, lam, B, Geb.C, refine=np.ones(lam.size, bool))[0] if EXT_UNIT < EPS / 2 else Xe
@@ -849,14 +909,13 @@ def _ud_values(Qi: LTI, Ge: LTI, lam: np.ndarray, nu: int):
         sens = WAZ + common
         val = Qb.C @ Z + Qb.D @ G.astype(complex)
         if EXT_UNIT < EPS / 2:
-            # refined only where the double reading's own bound 3N·u·err could move the block's peak (by more than
+            # refined only where the double reading's own bound 3N·u·err could move a block's peak (by more than
             # 1e-3 of the value): elsewhere it is within that of the stored filter's value already
             N = max(Qb.n, Geb.n, 1)
             need = np.zeros(lam.size, bool)
-            for cols in (ud[:nu], ud[nu:]):
-                if not cols.size:
+            for idx in blocks:
+                if not idx.size:
                     continue
-                idx = np.flatnonzero(np.isin(ud, cols))
                 r = np.linalg.norm(val[:, :, idx], axis=(1, 2))
                 e = 3 * N * EPS / 2 * np.linalg.norm(err[:, :, idx], axis=(1, 2))
                 ok = np.isfinite(r) & np.isfinite(e)
@@ -889,7 +948,9 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     out = {"finite": True, "peaks": {g: np.zeros(G) for g in ("u", "d", "w", "Q", "bound")},
            "cosine": np.zeros((G, nf)), "at_freqs": None, "removed": [], "decisions": None}
     out["peaks"]["f"] = np.zeros((G, nf))
-    out["peaks"]["ud_error"], out["peaks"]["ud_sensitivity"] = np.zeros(G), np.zeros(G)
+    for x in ("ud", "w"):  # the decoupled blocks' error bounds and sensitivities (:func:`_decoupled_reading`)
+        out["peaks"][x + "_error"], out["peaks"][x + "_sensitivity"] = np.zeros(G), np.zeros(G)
+    out["peaks"]["f_error"], out["peaks"]["f_sensitivity"] = np.zeros((G, nf)), np.zeros((G, nf))
     if not all(np.all(np.isfinite(X)) for X in (Q.A, Q.B, Q.C, Q.D)):
         out["finite"] = False
         return out
@@ -908,12 +969,11 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     fsl = sl["f"]
     fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
     R = np.einsum("kiq,kqc->kic", Qv, Ge)
-    ud = np.r_[np.arange(sl["u"].start, sl["u"].stop), np.arange(sl["d"].start, sl["d"].stop)]
-    if ud.size and model.n + Q.n:
-        fall = np.arange(fsl.start, fsl.stop)
+    if model.n + Q.n:  # the blocks each row decouples, read on the filter as stored where the plain reading may decide
         for i, g in enumerate(groups):
-            if _ud_matters(R[:, g, :], Qv[:, g, :], Ge, ud, fall):
-                _ud_reading(model, Q, g, lam[ok], ud, R, out["peaks"], i)
+            blocks = _decoupled_blocks(R[:, g, :], Qv[:, g, :], Ge, sl, fcols)
+            if blocks:
+                _decoupled_reading(model, Q, g, lam[ok], blocks, R, out["peaks"], i)
     out["decisions"] = mode_decisions(model, Q, groups, [float(np.max(_nrm(Qv[:, g, :]))) for g in groups])
     out["removed"] = _without_cancelled_modes(model, Q, groups, lam[ok], R, Qv, Ge, out["decisions"])
     Gf_n = [_nrm(Ge[:, :p, c]) for c in fcols]
@@ -963,7 +1023,8 @@ def _figures_by_group(gen, groups, freqs) -> dict:
         parts.append(internal_figures(view, view.groups, freqs))
     out = {"finite": all(f["finite"] for f in parts), "at_freqs": None, "decisions": None, "removed": []}
     out["peaks"] = {k: np.concatenate([f["peaks"][k] for f in parts])
-                    for k in ("u", "d", "w", "Q", "bound", "f", "ud_error", "ud_sensitivity")}
+                    for k in ("u", "d", "w", "Q", "bound", "f", "ud_error", "ud_sensitivity", "w_error",
+                              "w_sensitivity", "f_error", "f_sensitivity")}
     out["cosine"] = np.concatenate([f["cosine"] for f in parts])
     if freqs is not None and all(f["at_freqs"] is not None for f in parts):
         out["at_freqs"] = np.concatenate([f["at_freqs"] for f in parts], axis=1)
@@ -1162,35 +1223,41 @@ def _decoupling(model, fj, judged, names, col, S, decouple, dec_tol, fig, failur
     form; adds to ``fig`` and ``failures``."""
     # 3. decoupling and structure, absolute on the normalised form
     labels = [g for g in decouple if model.group_slices()[g].stop > model.group_slices()[g].start]
-    decs, errs, sens, zero_leaks, low_gain = [], [], [], [], []
+    pk = fj["peaks"]
+    decs, errs, sens, zero_leaks, zero_errs, zero_sens, low_gain = [], [], [], [], [], [], []
     for i in range(len(judged)):
-        d = max((fj["peaks"][g][i] for g in labels), default=0.0)
-        # the reading's error bound (:func:`_ud_reading`), reported beside it; the verdict is the reading's: the
-        # worst-case bound can exceed a true leak (tests/test_synthesis_random.py's non-normal plant, eigenvector
-        # condition 2.8e8: a leak > 2.5e-6 read 2.4e-5 with a bound above that), so "above only where provably so"
-        # would pass it
-        e = float(fj["peaks"]["ud_error"][i]) if labels and set(labels) <= {"u", "d"} else 0.0
+        d = max((pk[g][i] for g in labels), default=0.0)
+        # each block's error bound (:func:`_decoupled_reading`; 0 where the plain reading was far from any decision),
+        # reported beside the reading; the verdict is the reading's: the worst-case bound can exceed a true leak
+        # (tests/test_synthesis_random.py's non-normal plant, eigenvector condition 2.8e8: a leak > 2.5e-6 read 2.4e-5
+        # with a bound above that), so "above only where provably so" would pass it
+        kinds = {"ud" if g in ("u", "d") else g for g in labels}
+        e = max((float(pk[k + "_error"][i]) for k in kinds), default=0.0)
         decs.append(d)
         errs.append(e)
-        sens.append(float(fj["peaks"]["ud_sensitivity"][i]) if labels else 0.0)
+        sens.append(max((float(pk[k + "_sensitivity"][i]) for k in kinds), default=0.0))
         if not d <= dec_tol:
             failures.append(("decoupling", f"residual {i + 1}: {'+'.join(labels)} leak {d:.3g} (± {e:.2g}) × the "
                                            f"weakest fault gain > dec_tol = {dec_tol:.3g}"))
-        zl = 0.0
+        zl, ze, zs = 0.0, 0.0, 0.0
         for j, nm in enumerate(names):
-            v = fj["peaks"]["f"][i, col[j]]
+            v = pk["f"][i, col[j]]
             if S[i, j]:
                 low_gain.append(v)
             else:
-                zl = max(zl, v)
+                ej = float(pk["f_error"][i, col[j]])
+                zl, ze, zs = max(zl, v), max(ze, ej), max(zs, float(pk["f_sensitivity"][i, col[j]]))
                 if not v <= dec_tol:
                     failures.append(("structure", f"residual {i + 1}: fault '{nm}' must be decoupled (S = 0) but "
-                                                  f"leaks {v:.3g} × the weakest required fault gain > dec_tol = "
-                                                  f"{dec_tol:.3g}"))
+                                                  f"leaks {v:.3g} (± {ej:.2g}) × the weakest required fault gain > "
+                                                  f"dec_tol = {dec_tol:.3g}"))
         zero_leaks.append(zl)
+        zero_errs.append(ze)
+        zero_sens.append(zs)
     fig.update({"decoupling": max(decs, default=0.0), "decoupling_error": max(errs, default=0.0),
                 "decoupling_sensitivity": max(sens, default=0.0), "decoupling_rows": decs, "decoupling_row_errors": errs,
-                "structure_leak": max(zero_leaks, default=0.0),
+                "structure_leak": max(zero_leaks, default=0.0), "structure_leak_error": max(zero_errs, default=0.0),
+                "structure_leak_sensitivity": max(zero_sens, default=0.0),
                 "fault_gain": min(low_gain, default=float("inf")),
                 "filter_peak_gain": float(np.max(fj["peaks"]["Q"], initial=0.0))})
     if not (np.isfinite(fig["filter_peak_gain"]) and fig["filter_peak_gain"] > 0):
