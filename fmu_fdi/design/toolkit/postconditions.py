@@ -74,7 +74,7 @@ import scipy.linalg as sla
 
 from ...errors import DesignError
 from ...freqresp import content_key, recall, remember, transfer_values
-from ...linalg import EPS
+from ...linalg import EPS, single_blas_thread
 from ...lti import LTI, _pole_scales, frequency_grid
 from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
 from .plant_modes import EIGVEC_BOUND, boundary_mode_table as _boundary_modes, leading_schur
@@ -466,7 +466,7 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
         return removed
     modes = decisions["modes"]
     A, Bp, Ce, De = modes["A"], modes["B"], modes["Ce"], modes["De"]
-    poles, n = modes["poles"], A.shape[0]
+    poles = modes["poles"]
     masks = np.zeros((len(poles), len(groups), Bp.shape[1]), bool)
     nrm = lambda X: np.linalg.norm(X, axis=-2)  # noqa: E731  (K, r, c) -> (K, c): 2-norm over the rows
     for i, g in enumerate(groups):
@@ -479,6 +479,7 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
         rem = decisions["removed"][:, i, :] & modes["coupled"][None, :]  # (modes, columns)
         masks[:, i, :] = rem | ~modes["coupled"][None, :]  # a column without coupling to the states has no pole
         Qb = Qi.balanced()[0] if Qi.n else Qi
+        schur_q = None
         # the columns that lose the same modes are read together
         for pattern in {tuple(r) for r in rem.T if any(r)}:
             cols = np.flatnonzero(np.all(rem.T == np.array(pattern), axis=1))
@@ -495,14 +496,13 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
             B1t = Bt[:kk] + Zs @ Bt[kk:]
             nB2 = np.linalg.norm(Bt[kk:], axis=0)
             eB1 = eZ * nB2 + gam * (np.linalg.norm(Bt[:kk], axis=0) + float(np.linalg.norm(Zs, 2)) * nB2)
-            X2 = np.linalg.solve(lam[:, None, None] * np.eye(n - kk) - T22,
-                                 np.broadcast_to(Bt[kk:], (lam.size,) + Bt[kk:].shape))
+            X2 = shifted_triangular_solve(T22, lam, Bt[kk:])
             Gf = (C2 - C1 @ Zs) @ X2 + De[:, cols]                                # Ge' at the points
             nX2 = nrm(X2)
             eG = float(np.linalg.norm(C1, 2)) * eZ * nX2 + gam * (
                 (float(np.linalg.norm(C2, 2)) + float(np.linalg.norm(C1, 2)) * float(np.linalg.norm(Zs, 2))) * nX2
                 + np.linalg.norm(De[:, cols], axis=0)[None, :])
-            Inv11 = np.linalg.solve(lam[:, None, None] * np.eye(kk) - T11, np.broadcast_to(np.eye(kk), (lam.size, kk, kk)))
+            Inv11 = shifted_triangular_solve(T11, lam, np.eye(kk))
             W = Inv11 @ B1t                                                        # (K, kk, cols)
             nInv11 = np.linalg.norm(Inv11, 2, axis=(1, 2))
             if Qb.n:
@@ -510,11 +510,13 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
                 K = Qb.D @ C1 + Qb.C @ Y                                           # Q_i(p) c_p for one mode
                 eK = float(np.linalg.norm(Qb.C, 2)) * eY + gam * (float(np.linalg.norm(Qb.D, 2)) * float(np.linalg.norm(C1, 2))
                                                                   + float(np.linalg.norm(Qb.C, 2)) * float(np.linalg.norm(Y, 2)))
-                Phi = np.linalg.solve(lam[:, None, None] * np.eye(Qb.n) - Qb.A,
-                                      np.broadcast_to(np.eye(Qb.n), (lam.size, Qb.n, Qb.n)))
-                Phi = Qb.C @ Phi                                                   # (K, rows, n_q)
+                if schur_q is None:  # the row's filter in Schur form once for all its patterns: A_q = U_q T_q U_qᴴ
+                    schur_q = sla.schur(Qb.A.astype(complex), output="complex")
+                Tq, Uq = schur_q
+                # Φ U_q = C_q U_q (λI − T_q)⁻¹ at every point (the unitary U_q keeps every 2-norm)
+                Phi = shifted_triangular_solve(Tq, lam, Qb.C @ Uq, left=True)     # (K, rows, n_q)
                 nPhi, nY = np.linalg.norm(Phi, 2, axis=(1, 2)), float(np.linalg.norm(Y, 2))
-                free = Qg @ Gf - Phi @ (Y @ B1t)
+                free = Qg @ Gf - Phi @ (Uq.conj().T @ (Y @ B1t))
                 e_free = (gam * (qn[:, None] * nrm(Gf) + nPhi[:, None] * nY * np.linalg.norm(B1t, axis=0)[None, :])
                           + qn[:, None] * eG + nPhi[:, None] * (eY * np.linalg.norm(B1t, axis=0)[None, :] + nY * eB1[None, :]))
             else:
@@ -556,6 +558,34 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
         if np.any(masks[k] & modes["coupled"][None, :]):
             removed.append((p, masks[k]))
     return removed
+
+
+def shifted_triangular_solve(T: np.ndarray, lam: np.ndarray, B: np.ndarray, left: bool = False) -> np.ndarray:
+    """``X_k = (λ_k I − T)⁻¹ B`` (``left``: ``B (λ_k I − T)⁻¹``) for an upper triangular T (a Schur form) at all the
+    points ``lam`` at once: shape (K, n, c) (left: (K, r, n)); non-finite where ``λ_k`` is a diagonal entry of T.
+
+    One back substitution (left: forward substitution on ``(λI − T)ᵀ``) carried over every point and column
+    together, O(n² K c) with n steps in Python: after the one Schur form (O(n³)) each point costs O(n²) per column,
+    where a dense LU solve per point costs O(n³) (and ``n`` columns more for an inverse). Componentwise backward
+    stable at each point: the computed X_k solves ``(λ_k I − T + ΔT_k) X_k = B`` with ``|ΔT_k| ≤ γ_n |λ_k I − T|``
+    (Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd ed., Thm 8.5); the Schur form adds its own
+    normwise backward error O(n·eps·||A||), that of every Schur-based frequency response (Laub 1981)."""
+    T = np.asarray(T, complex)
+    n = T.shape[0]
+    K = lam.size
+    if left:
+        B = np.asarray(B).T
+        L = T.T                                                    # (λI − T)ᵀ Xᵀ = Bᵀ, lower triangular
+    Bk = np.broadcast_to(np.asarray(B, complex), (K,) + np.shape(B)[-2:]).transpose(1, 0, 2)  # (n, K, c)
+    X = np.empty(Bk.shape, complex)
+    d = lam[None, :] - np.diag(T)[:, None]                         # (n, K): the diagonal of λI − T
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for j in (range(n) if left else range(n - 1, -1, -1)):
+            rest = (np.tensordot(L[j, :j], X[:j], axes=(0, 0)) if left
+                    else np.tensordot(T[j, j + 1:], X[j + 1:], axes=(0, 0)))
+            X[j] = (Bk[j] + rest) / d[j][:, None]
+    X = X.transpose(1, 0, 2)                                       # (K, n, c)
+    return X.transpose(0, 2, 1) if left else X
 
 
 def _nrm(X: np.ndarray) -> np.ndarray:
@@ -681,8 +711,8 @@ def _column_names(model) -> list:
     return list(model.u_names) + list(model.d_names) + list(model.w_names) + fault
 
 
-#: unit roundoff of the extended type the decoupled reading refines its residuals in (:func:`_decoupled_reading`):
-#: 2^-64 where numpy's longdouble is the x87 80-bit format, EPS/2 where it is double (the reading is then the plain one)
+#: unit roundoff of the extended type the u/d reading refines its residuals in (:func:`_ud_reading`): 2^-64 where
+#: numpy's longdouble is the x87 80-bit format, EPS/2 where it is double (the reading is then the plain one)
 EXT_UNIT = float(np.finfo(np.longdouble).eps) / 2
 
 
@@ -930,7 +960,8 @@ def _decoupled_values(Qi: LTI, Ge: LTI, lam: np.ndarray, blocks: list):
     return val, err, sens
 
 
-def internal_figures(gen, groups=None, freqs=None) -> dict:
+@single_blas_thread  # as the designs: small matrices, where threaded BLAS spin-waits on a loaded machine
+def internal_figures(gen, groups=None, freqs=None, accurate: bool = True) -> dict:
     """The peaks of the internal form of ``gen`` per residual group, on the judge's grid.
 
     Returns a dict with, for the groups ``groups`` (default ``gen.groups``):
@@ -939,14 +970,16 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     row group's own peak gain ``max_λ ||Q_i(λ)||``; ``bound``: ``max_λ ||Q_i(λ)|| ||Ge(λ)||``,
     the scale of everything the row can output); ``cosine``: (G, faults), the γ_j of the
     module docstring; ``at_freqs``: (len(freqs), G, faults) gains ``||R_fj,i(jω)||`` or None;
-    ``finite``: False when the filter or the model cannot be evaluated on the grid.
+    ``finite``: False when the filter or the model cannot be evaluated on the grid; ``reread``: whether some row has
+    a block :func:`_decoupled_blocks` re-reads (with ``accurate=False`` the blocks are chosen, not re-read: the plain
+    figures, for check_generator's scales, which are fault gains the plain reading reads to rounding).
     """
     model, Q = gen.model, gen.Q
     groups = gen.groups if groups is None else groups
     nf = len(model.faults)
     G = len(groups)
     out = {"finite": True, "peaks": {g: np.zeros(G) for g in ("u", "d", "w", "Q", "bound")},
-           "cosine": np.zeros((G, nf)), "at_freqs": None, "removed": [], "decisions": None}
+           "cosine": np.zeros((G, nf)), "at_freqs": None, "removed": [], "decisions": None, "reread": False}
     out["peaks"]["f"] = np.zeros((G, nf))
     for x in ("ud", "w"):  # the decoupled blocks' error bounds and sensitivities (:func:`_decoupled_reading`)
         out["peaks"][x + "_error"], out["peaks"][x + "_sensitivity"] = np.zeros(G), np.zeros(G)
@@ -955,7 +988,7 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
         out["finite"] = False
         return out
     if G > 1:
-        return _figures_by_group(gen, groups, freqs)
+        return _figures_by_group(gen, groups, freqs, accurate)
     omega, lam = _eval_points(model, Q)
     Ge = _values(model.augmented(), lam)
     Qv = _values_by_row(Q, groups, lam)
@@ -965,17 +998,34 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
         return out
     Ge, Qv = Ge[ok], Qv[ok]
     sl = model.group_slices()
-    p = model.ny
     fsl = sl["f"]
     fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
     R = np.einsum("kiq,kqc->kic", Qv, Ge)
-    if model.n + Q.n:  # the blocks each row decouples, read on the filter as stored where the plain reading may decide
+    # the blocks each row decouples, read on the filter as stored where the plain reading may decide
+    blocks = [_decoupled_blocks(R[:, g, :], Qv[:, g, :], Ge, sl, fcols) if model.n + Q.n else {} for g in groups]
+    out["reread"] = any(bool(b) for b in blocks)
+    state = (model, Q, groups, freqs, lam[ok], R, Qv, Ge, blocks)
+    if out["reread"] and not accurate:  # kept for :func:`accurate_figures`
+        out["_state"] = state[:5] + (R.copy(),) + state[6:]
+    return _figures_from(out, state, accurate)
+
+
+def _figures_from(out: dict, state: tuple, accurate: bool) -> dict:
+    """The rest of :func:`internal_figures` (one row group) from its plain values ``state``: the decoupled blocks
+    re-read (``accurate``), the cancelled boundary modes removed, the peaks; fills and returns ``out``. R (in
+    ``state``) is changed in place."""
+    model, Q, groups, freqs, lam, R, Qv, Ge, blocks = state
+    sl = model.group_slices()
+    p, G, nf = model.ny, len(groups), len(model.faults)
+    fsl = sl["f"]
+    fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
+    if accurate:
         for i, g in enumerate(groups):
-            blocks = _decoupled_blocks(R[:, g, :], Qv[:, g, :], Ge, sl, fcols)
-            if blocks:
-                _decoupled_reading(model, Q, g, lam[ok], blocks, R, out["peaks"], i)
-    out["decisions"] = mode_decisions(model, Q, groups, [float(np.max(_nrm(Qv[:, g, :]))) for g in groups])
-    out["removed"] = _without_cancelled_modes(model, Q, groups, lam[ok], R, Qv, Ge, out["decisions"])
+            if blocks[i]:
+                _decoupled_reading(model, Q, g, lam, blocks[i], R, out["peaks"], i)
+    if out.get("decisions") is None:
+        out["decisions"] = mode_decisions(model, Q, groups, [float(np.max(_nrm(Qv[:, g, :]))) for g in groups])
+    out["removed"] = _without_cancelled_modes(model, Q, groups, lam, R, Qv, Ge, out["decisions"])
     Gf_n = [_nrm(Ge[:, :p, c]) for c in fcols]
     nGe = _nrm(Ge)
     for i, g in enumerate(groups):
@@ -1001,7 +1051,27 @@ def internal_figures(gen, groups=None, freqs=None) -> dict:
     return out
 
 
-def _figures_by_group(gen, groups, freqs) -> dict:
+def accurate_figures(fj: dict) -> dict:
+    """The figures :func:`internal_figures` returns with ``accurate=True``, from those it returned with
+    ``accurate=False`` (the same grid values and mode decisions, kept): the decoupled blocks re-read. ``fj`` itself
+    where nothing is re-read."""
+    if "_parts" in fj:
+        return _stacked([accurate_figures(f) for f in fj["_parts"]], fj["_groups"], fj["_freqs"])
+    if "_state" not in fj:
+        return fj
+    state = fj["_state"]
+    G, nf = len(state[2]), len(state[0].faults)
+    out = {"finite": True, "peaks": {g: np.zeros(G) for g in ("u", "d", "w", "Q", "bound")},
+           "cosine": np.zeros((G, nf)), "at_freqs": None, "removed": [], "decisions": fj["decisions"],
+           "reread": True}
+    out["peaks"]["f"] = np.zeros((G, nf))
+    for x in ("ud", "w"):
+        out["peaks"][x + "_error"], out["peaks"][x + "_sensitivity"] = np.zeros(G), np.zeros(G)
+    out["peaks"]["f_error"], out["peaks"]["f_sensitivity"] = np.zeros((G, nf)), np.zeros((G, nf))
+    return _figures_from(out, state[:5] + (state[5].copy(),) + state[6:], True)
+
+
+def _figures_by_group(gen, groups, freqs, accurate: bool = True) -> dict:
     """:func:`internal_figures` of several row groups, each read alone: on its own filter (:func:`_row_system`: a
     bank member's own states) and on the grid of its own poles and the plant's (:func:`_eval_points`), then stacked.
 
@@ -1020,8 +1090,17 @@ def _figures_by_group(gen, groups, freqs) -> dict:
         idx = np.atleast_1d(rows[g])
         sub = _row_system(Q, g) if Q.n else LTI(Q.A, Q.B, Q.C[idx, :], Q.D[idx, :], Q.dt)
         view = SimpleNamespace(model=model, Q=sub, groups=[list(range(idx.size))])  # what internal_figures reads
-        parts.append(internal_figures(view, view.groups, freqs))
-    out = {"finite": all(f["finite"] for f in parts), "at_freqs": None, "decisions": None, "removed": []}
+        parts.append(internal_figures(view, view.groups, freqs, accurate))
+    out = _stacked(parts, groups, freqs)
+    if not accurate and out["reread"]:  # kept for :func:`accurate_figures`
+        out.update({"_parts": parts, "_groups": groups, "_freqs": freqs})
+    return out
+
+
+def _stacked(parts: list, groups, freqs) -> dict:
+    """The figures of row groups read alone (:func:`_figures_by_group`), stacked."""
+    out = {"finite": all(f["finite"] for f in parts), "at_freqs": None, "decisions": None, "removed": [],
+           "reread": any(f.get("reread", False) for f in parts)}
     out["peaks"] = {k: np.concatenate([f["peaks"][k] for f in parts])
                     for k in ("u", "d", "w", "Q", "bound", "f", "ud_error", "ud_sensitivity", "w_error",
                               "w_sensitivity", "f_error", "f_sensitivity")}
@@ -1057,6 +1136,7 @@ _ADVICE = {
 }
 
 
+@single_blas_thread  # as the designs: small matrices, where threaded BLAS spin-waits on a loaded machine
 def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, block: bool = False,
                     freqs=None, FDtol: float = 1e-4, FDGainTol: float = 0.01, smarg: float | None = None,
                     dec_tol: float = DEC_TOL, hints: dict | None = None, raise_error: bool = True,
@@ -1126,7 +1206,9 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
     all_names = model.fault_names
     col = [all_names.index(nm) for nm in names]
 
-    fj = internal_figures(gen, judged)
+    # the plain figures first (the scales are fault gains, read to rounding without the decoupled blocks' accurate
+    # reading, which is made once, on the normalised rows: it costs a factorisation per point and refinement)
+    fj = internal_figures(gen, judged, accurate=False)
     if not fj["finite"]:
         failures.append(("finite", "the filter or the model cannot be evaluated on the frequency grid "
                                    "(NaN/Inf in the filter's matrices or at every grid point)"))
@@ -1134,9 +1216,15 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
 
     scales = _visibility(fj, judged, names, all_names, col, S, FDtol, fig, failures)
     if failures:
+        if fj["reread"]:  # the figures of a refusal are the accurate ones too
+            fj = accurate_figures(fj)
+            failures.clear()
+            _visibility(fj, judged, names, all_names, col, S, FDtol, fig, failures)
         return _finish(fig, failures, adv, gen, raise_error)
     own_gen = gen
-    if np.any(scales != 1.0):
+    if not np.any(scales != 1.0):
+        fj = accurate_figures(fj)  # unscaled rows: the same grid values and decisions (kept), the blocks re-read
+    else:
         row_scale = np.ones(gen.Q.p)
         for i, g in enumerate(judged):
             row_scale[g] = scales[i]
@@ -1284,6 +1372,7 @@ def _strong_visibility(gen, judged, names, col, S, freqs, FDGainTol, fig, failur
         fig["strong_gain_ratio"] = min(strong, default=float("inf"))
 
 
+@single_blas_thread  # as the designs: small matrices, where threaded BLAS spin-waits on a loaded machine
 def report(gen, freqs=None, FDGainTol: float = 0.01, dec_tol: float = DEC_TOL, groups=None) -> dict:
     """What the judge reads off a generator as it is (no scaling), per ``groups`` (default ``gen.groups``):
     ``leakage = max_i max(||Ru,i||, ||Rd,i||)`` (grid peaks), the weak structure matrix

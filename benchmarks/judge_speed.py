@@ -1,0 +1,154 @@
+"""Time of the one judge (postconditions.check_generator + report, i.e. internal_figures and what it calls) on designs
+of the random sets: main's judge against this tree's, measured in the same run on the same filters.
+
+Main's module is ``git show main:fmu_fdi/design/toolkit/postconditions.py`` loaded beside the package (as
+``fmu_fdi.design.toolkit._postconditions_main``: its relative imports read this tree's other modules). Each design is
+built once (with this tree's code); then, per judge and repetition, the caches the judge reads through
+(:mod:`fmu_fdi.freqresp`'s values and forms, the decoupled reading's) are cleared and a deep copy of the design is
+judged: ``check_generator(copy, structure=S, raise_error=False)`` then ``report(copy)``, both judges with one BLAS
+thread (as the designs call them; threaded BLAS on these small matrices spin-waits on a loaded machine). Best of ``--reps`` (default
+2) per judge; printed: both times, their ratio (main / this tree), whether the verdicts (failed conditions) agree and
+the largest relative difference of the figures ``decoupling``, ``structure_leak``, ``leakage`` and the fault gains.
+
+Cases: approximate audit afdi_bank seed 78 (tests/test_approximate_random.py's ``noisy_case``, the rows the audit
+picks), random H∞ matching seeds 4 and 7 (benchmarks/ammp_random_set.py's models and references; S = every fault),
+structured_bank on exact audit models (tests/test_synthesis_random.py's ``random_case``; up to 4 listed rows).
+
+Run: python benchmarks/judge_speed.py [--reps=N] [--base=REF] [--exact SEED ...] [--profile LABEL]
+(``--base=REF``: the baseline's git ref, default main — e.g. a commit of this branch, to time one change alone)
+(``--profile LABEL``: a cProfile of this tree's judge on that case instead, top 25 by cumulative time)
+"""
+import copy
+import importlib.util
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from fmu_fdi import freqresp  # noqa: E402
+from fmu_fdi.design.toolkit import postconditions as new  # noqa: E402
+
+
+def main_module(ref: str = "main"):
+    """Main's (or ``ref``'s) postconditions module, loaded from ``git show ref:...`` as a sibling of this tree's."""
+    src = subprocess.check_output(["git", "show", f"{ref}:fmu_fdi/design/toolkit/postconditions.py"], cwd=ROOT,
+                                  text=True)
+    name = "fmu_fdi.design.toolkit._postconditions_main"
+    spec = importlib.util.spec_from_loader(name, loader=None)
+    mod = importlib.util.module_from_spec(spec)
+    mod.__package__ = "fmu_fdi.design.toolkit"
+    sys.modules[name] = mod
+    exec(compile(src, f"{ref}:fmu_fdi/design/toolkit/postconditions.py", "exec"), mod.__dict__)
+    return mod
+
+
+def cases(exact_seeds):
+    """``[(label, design, S)]``, each design built once by this tree."""
+    from fmu_fdi.design import afdi_bank, approximate_model_matching, structured_bank
+    from fmu_fdi.design.problems.achievable import achievable_structure
+    from ammp_random_set import reference
+    from synthesis_models import random_model
+    from test_approximate_random import noisy_case
+    from test_synthesis_random import random_case
+
+    out = []
+    model = noisy_case(78)
+    listed = np.asarray(achievable_structure(model), int).reshape(-1, len(model.faults))
+    rng = np.random.default_rng(78)
+    rows = listed if len(listed) <= 3 else listed[np.sort(rng.choice(len(listed), 3, False))]
+    out.append(("afdi_bank seed 78", afdi_bank(model, rows), rows))
+    for seed in (4, 7):
+        model = random_model(seed)
+        gen = approximate_model_matching(model, reference(model, seed), norm="inf")
+        out.append((f"H∞ matching seed {seed}", gen, np.ones((len(gen.groups), model.nf), int)))
+    for seed in exact_seeds:
+        model = random_case(seed)
+        listed = np.asarray(achievable_structure(model), int).reshape(-1, len(model.faults))
+        if not len(listed):
+            continue
+        rng = np.random.default_rng(seed)
+        rows = listed if len(listed) <= 4 else listed[np.sort(rng.choice(len(listed), 4, False))]
+        try:
+            out.append((f"structured_bank seed {seed}", structured_bank(model, rows), rows))
+        except Exception as exc:  # noqa: BLE001  (a refused bank: nothing to judge)
+            print(f"seed {seed}: structured_bank refused ({type(exc).__name__}); skipped")
+    return out
+
+
+def judge(mod, gen, S):
+    freqresp.clear_caches()
+    new._UD_CACHE.clear()
+    if hasattr(mod, "_UD_CACHE"):
+        mod._UD_CACHE.clear()
+    g = copy.deepcopy(gen)
+    with threadpool_limits(limits=1, user_api="blas"):  # both judges as the designs call them: one BLAS thread
+        t = time.perf_counter()
+        fig = mod.check_generator(g, structure=S, raise_error=False)
+        rep = mod.report(g)
+        return time.perf_counter() - t, fig, rep
+
+
+def rel(a, b) -> float:
+    a, b = np.atleast_1d(np.asarray(a, float)), np.atleast_1d(np.asarray(b, float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.abs(a - b) / np.maximum(np.maximum(np.abs(a), np.abs(b)), 1e-300)
+    return float(np.max(np.where(np.isfinite(d), d, 0.0), initial=0.0))
+
+
+def run(reps: int, exact_seeds, ref: str = "main") -> None:
+    old = main_module(ref)
+    print(f"baseline: {ref}'s postconditions.py")
+    print(f"{'case':26s} {'main s':>7s} {'this s':>7s} {'ratio':>6s} {'same verdict':>12s} {'max rel diff':>12s}")
+    tot_old = tot_new = 0.0
+    for label, gen, S in cases(exact_seeds):
+        t_old, t_new = [], []
+        for _ in range(reps):
+            t, f_old, r_old = judge(old, gen, S)
+            t_old.append(t)
+            t, f_new, r_new = judge(new, gen, S)
+            t_new.append(t)
+        same = f_old.get("failed_conditions", []) == f_new.get("failed_conditions", [])
+        diff = max(rel(f_old[k], f_new[k]) for k in ("decoupling", "structure_leak", "leakage"))
+        diff = max(diff, rel(r_old["peaks"]["f"], r_new["peaks"]["f"]))
+        tot_old, tot_new = tot_old + min(t_old), tot_new + min(t_new)
+        print(f"{label:26s} {min(t_old):7.2f} {min(t_new):7.2f} {min(t_old) / min(t_new):6.2f} {str(same):>12s} "
+              f"{diff:12.2e}" + ("" if same else f"  main {f_old.get('failed_conditions')} this "
+                                                f"{f_new.get('failed_conditions')}"))
+    print(f"{'total':26s} {tot_old:7.2f} {tot_new:7.2f} {tot_old / tot_new:6.2f}")
+
+
+def profile(label: str, exact_seeds) -> None:
+    import cProfile
+    import pstats
+
+    for lab, gen, S in cases(exact_seeds):
+        if lab == label:
+            pr = cProfile.Profile()
+            pr.enable()
+            judge(new, gen, S)
+            pr.disable()
+            pstats.Stats(pr).sort_stats("cumulative").print_stats(25)
+            return
+    print(f"no case {label!r}")
+
+
+if __name__ == "__main__":
+    reps = next((int(a.split("=")[1]) for a in sys.argv[1:] if a.startswith("--reps=")), 2)
+    seeds = [3, 10, 26]
+    if "--exact" in sys.argv:
+        i = sys.argv.index("--exact") + 1
+        seeds = []
+        while i < len(sys.argv) and sys.argv[i].isdigit():
+            seeds.append(int(sys.argv[i]))
+            i += 1
+    if "--profile" in sys.argv:
+        profile(sys.argv[sys.argv.index("--profile") + 1], seeds)
+    else:
+        run(reps, seeds, next((a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--base=")), "main"))
