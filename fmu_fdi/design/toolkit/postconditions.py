@@ -1208,7 +1208,7 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
 
     # the plain figures first (the scales are fault gains, read to rounding without the decoupled blocks' accurate
     # reading, which is made once, on the normalised rows: it costs a factorisation per point and refinement)
-    fj = internal_figures(gen, judged, accurate=False)
+    fj = internal_figures(gen, judged, freqs, accurate=False)
     if not fj["finite"]:
         failures.append(("finite", "the filter or the model cannot be evaluated on the frequency grid "
                                    "(NaN/Inf in the filter's matrices or at every grid point)"))
@@ -1233,7 +1233,7 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
 
             gen = ResidualGenerator(gen.Q, model, gen.method, gen.residual_names, gen.groups)
         gen.scale_rows(row_scale)
-        fj = internal_figures(gen, judged)
+        fj = internal_figures(gen, judged, freqs)
         if not fj["finite"]:
             failures.append(("finite", f"the normalised filter (scales {scales.tolist()}) cannot be evaluated"))
             return _finish(fig, failures, adv, own_gen, raise_error)
@@ -1241,10 +1241,15 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
 
     _stability(model, gen.Q, smarg, fig, failures, fj["decisions"])
     _decoupling(model, fj, judged, names, col, S, decouple, dec_tol, fig, failures)
-    _strong_visibility(gen, judged, names, col, S, freqs, FDGainTol, fig, failures)
+    _strong_visibility(fj["at_freqs"], judged, names, col, S, freqs, FDGainTol, fig, failures)
 
-    # 5. what leakage() and structure_matrix() report for this object (the generator's own groups)
-    own = report(own_gen, freqs=freqs, FDGainTol=FDGainTol, dec_tol=dec_tol)
+    # 5. what leakage() and structure_matrix() report for this object (the generator's own groups): the figures just
+    # read where they are of that object and its groups (the normalised rows, judged as the generator groups them)
+    if own_gen is gen and [list(np.atleast_1d(np.arange(gen.Q.p)[g])) for g in judged] == \
+            [list(np.atleast_1d(np.arange(gen.Q.p)[g])) for g in gen.groups]:
+        own = _reported(fj, gen, freqs, FDGainTol, dec_tol)
+    else:
+        own = report(own_gen, freqs=freqs, FDGainTol=FDGainTol, dec_tol=dec_tol)
     fig["leakage"] = own["leakage"]
     fig["structure_matrix"] = own["structure_matrix"]
     if freqs is not None:
@@ -1352,12 +1357,11 @@ def _decoupling(model, fj, judged, names, col, S, decouple, dec_tol, fig, failur
         failures.append(("zero", f"the returned filter's peak gain is {fig['filter_peak_gain']:.3g}"))
 
 
-def _strong_visibility(gen, judged, names, col, S, freqs, FDGainTol, fig, failures) -> None:
-    """Stage 4 of :func:`check_generator`: strong visibility at ``freqs`` on the normalised rows;
-    adds to ``fig`` and ``failures``."""
+def _strong_visibility(fs, judged, names, col, S, freqs, FDGainTol, fig, failures) -> None:
+    """Stage 4 of :func:`check_generator`: strong visibility at ``freqs`` on the normalised rows (``fs``: their
+    gains there, :func:`internal_figures`' ``at_freqs``); adds to ``fig`` and ``failures``."""
     # 4. strong visibility at freqs on the normalised rows
     if freqs is not None:
-        fs = internal_figures(gen, judged, freqs)["at_freqs"]
         strong = []
         for i in range(len(judged)):
             for j, nm in enumerate(names):
@@ -1379,7 +1383,11 @@ def report(gen, freqs=None, FDGainTol: float = 0.01, dec_tol: float = DEC_TOL, g
     ``peak ||R_fj,i|| > dec_tol`` (absolute, on a design's unit-gain rows) and, with ``freqs``,
     the strong one ``||R_fj,i(jω)|| ≥ FDGainTol`` at every ω. :func:`fmu_fdi.analysis.leakage`
     and :func:`fmu_fdi.analysis.structure_matrix` return these numbers."""
-    fj = internal_figures(gen, groups, freqs)
+    return _reported(internal_figures(gen, groups, freqs), gen, freqs, FDGainTol, dec_tol)
+
+
+def _reported(fj: dict, gen, freqs, FDGainTol: float, dec_tol: float) -> dict:
+    """:func:`report`'s figures from :func:`internal_figures`' ``fj`` of ``gen`` (its groups, ``freqs``)."""
     if not fj["finite"]:
         raise DesignError(f"{gen.method} generator cannot be evaluated on the frequency grid (NaN/Inf)")
     pk = fj["peaks"]
