@@ -14,6 +14,24 @@ Cases: approximate audit afdi_bank seed 78 (tests/test_approximate_random.py's `
 picks), random H∞ matching seeds 4 and 7 (benchmarks/ammp_random_set.py's models and references; S = every fault),
 structured_bank on exact audit models (tests/test_synthesis_random.py's ``random_case``; up to 4 listed rows).
 
+Measured 27 Nov (judge10, 2-core machine shared with three other sessions: times indicative, ratios same run),
+``--reps=3`` against main (c8e837c):
+
+    case                        main s  this s  ratio same verdict max rel diff
+    afdi_bank seed 78             3.17    1.66   1.90         True     0.00e+00
+    H∞ matching seed 4            0.52    0.34   1.53         True     0.00e+00
+    H∞ matching seed 7            4.18    1.82   2.29         True     0.00e+00
+    structured_bank seed 3        1.21    1.05   1.16         True     1.78e-01
+    structured_bank seed 10       0.54    0.56   0.97         True     2.41e-01
+    structured_bank seed 26       1.68    1.10   1.53         True     9.43e-01
+    total                        11.30    6.53   1.73
+
+The exact seeds' differences are their excluded faults, now read on the stored filter (seed 26 row 3's fault 5: main's
+plain reading 1.32e-9, the accurate one 7.6e-11 ± 1.0e-7); that reading is also their added cost. Step by step (same
+runs, ``--base`` = the commit before): the accurate reading of excluded faults 0.65 (task's cost), Schur-form solves in
+_without_cancelled_modes + the plain figures first 1.36, check_generator's report from its own figures 1.22, np.dot in
+the refinement 1.17.
+
 Run: python benchmarks/judge_speed.py [--reps=N] [--base=REF] [--exact SEED ...] [--profile LABEL]
 (``--base=REF``: the baseline's git ref, default main — e.g. a commit of this branch, to time one change alone)
 (``--profile LABEL``: a cProfile of this tree's judge on that case instead, top 25 by cumulative time)
