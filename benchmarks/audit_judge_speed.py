@@ -21,7 +21,10 @@ check_case (figures to 3 digits) is the same both ways. The designs are computed
 deterministic); only the judge's time is counted.
 
 Measured 27 Nov (tenth session, 2 shared cores, load ~11; one run each): seed 379 judge 39.2 s -> 5.9 s (6.7),
-seed 412 577.6 s -> 7.5 s (76.8); every verdict and detail string the same both ways.
+seed 412 577.6 s -> 7.5 s (76.8); seeds 403, 382 in a second run: 229.3 -> 8.6 s (26.7), 498.3 -> 11.6 s (42.8);
+every verdict and detail string the same both ways. The slow models of seeds 379-408 (one per model,
+tests/test_synthesis_random.check_case, same session): 382 520 s (its structured bank's judge 474 s, the
+design 39 s), 403 495 s (judge 382 s, design 86 s), 392 299 s (judges 229 s), 406 123 s, 379 63 s.
 
 Run: python benchmarks/audit_judge_speed.py SEED …   (e.g. 379 412)
 """
