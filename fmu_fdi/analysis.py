@@ -149,15 +149,18 @@ def fault_noise_gap(gen: ResidualGenerator, S=None, atol: float = np.sqrt(np.fin
     functions as side-by-side copies of separately realised columns, on at most the filter-times-
     plant realisation's states (approximate audit seed 68, one afdi_bank member: the noise block
     of separately realised columns had 240 states where the member's internal form has ~60, and
-    one H∞ norm on the stacked bank's 564 took 140–180 s).
+    one H∞ norm on the stacked bank's 564 took 140–180 s). With ``S``, row group i is read on
+    :meth:`~fmu_fdi.generator.ResidualGenerator.group_internal_form`: for a bank, the minimal realisation
+    of its own member's ``Q_i·Ge`` — the rows of the stacked bank's realisation keep the other members'
+    states (afdi seed 78: 162 where the member has 71; benchmarks/gap_speed.py --stacked).
     """
-    R = gen._R
     m = gen.model
     sl = m.group_slices()
     fcols = np.arange(sl["f"].start, sl["f"].stop)
     blocks = [fcols[f.columns] for f in m.faults]
     dw = np.r_[np.arange(sl["d"].start, sl["d"].stop), np.arange(sl["w"].start, sl["w"].stop)].astype(int)
     if S is None:
+        R = gen._R
         rows = np.arange(R.p)
         beta = min((_slice_norm(R, rows, b) for b in blocks), default=0.0)
         noise = _slice_norm(R, rows, dw)
@@ -166,11 +169,12 @@ def fault_noise_gap(gen: ResidualGenerator, S=None, atol: float = np.sqrt(np.fin
     if S.shape != (len(gen.groups), len(blocks)):
         raise DesignError(f"S must have shape {(len(gen.groups), len(blocks))}, got {S.shape}")
     gaps = []
-    for i, g in enumerate(gen.groups):
-        rows = np.asarray(g, int)
-        beta = min((_slice_norm(R, rows, blocks[j]) for j in range(len(blocks)) if S[i, j]), default=0.0)
+    for i in range(len(gen.groups)):
+        Ri = gen.group_internal_form(i)  # a bank's group on its own member's states
+        rows = np.arange(Ri.p)
+        beta = min((_slice_norm(Ri, rows, blocks[j]) for j in range(len(blocks)) if S[i, j]), default=0.0)
         others = [blocks[j] for j in range(len(blocks)) if not S[i, j]]
-        noise = _slice_norm(R, rows, np.concatenate(others + [dw]).astype(int))
+        noise = _slice_norm(Ri, rows, np.concatenate(others + [dw]).astype(int))
         gaps.append(float("inf") if noise <= atol else beta / noise)
     return np.array(gaps)
 

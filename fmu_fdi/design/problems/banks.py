@@ -228,25 +228,18 @@ def row_gaps(bank: ResidualBank, S) -> list[float]:
     """The fault-to-noise gap of every row group i of ``bank`` against row i of ``S`` (over all
     the model's faults), ``H∞−(Rf_i, S_i = 1) / ||[Rf_i (S_i = 0)  Rd_i  Rw_i]||∞``
     (:func:`fmu_fdi.analysis.fault_noise_gap`), each read on member i's own internal form
-    ``Q_i·Ge``.
+    ``Q_i·Ge`` (:meth:`~fmu_fdi.generator.ResidualGenerator.group_internal_form`: the states the
+    group's rows observe, which for a bank are its member's).
 
     The same transfer functions as the rows of the bank's stacked internal form, whose realisation
     carries every member's states (order Σ n(Q_i) + n): there, the rows of one group keep the other
     members' states, which the minimal realisation of the row does not remove (approximate audit
-    seed 68: rows of order 141 of 143, the noise block's hstack 564 states, one H∞ norm 140-180 s;
-    the bank's gaps took 740 s of a 766 s afdi_bank under load). Read per member they took 13.2 s
-    in one run, 89 s in another (benchmarks/approximate_random_judged.py --gap-time 68: stacked
-    147.7 s, ratio 1.7; the machine's load varies these). Since fault_noise_gap reads every norm on
-    a column slice of the one realisation of the internal form (no longer an hstack of separately
-    realised columns: 240 states where the member's internal form has 60), benchmarks/gap_speed.py
-    68 measured in one run: per member 17.08 s -> 1.06 s, the stacked bank's rows 74.8 s -> 7.3 s
-    (571 -> 143 states), the whole afdi_bank 15.4 s -> 5.2 s.
+    seed 68: rows of order 141 of 143; seed 78: 162 where the member has 71). benchmarks/gap_speed.py
+    --stacked 68 78, one run: the stacked rows 12.1 s and 11.7 s, each group on its own states 0.26 s
+    and 0.41 s (46×, 29×), gaps agree to 7e-11. Before that, fault_noise_gap read every norm on column slices of the one
+    realisation rather than an hstack of separately realised columns (seed 68 per member 17.08 s ->
+    1.06 s).
     """
     from ...analysis import fault_noise_gap
 
-    S = np.asarray(S, dtype=int)
-    gaps = []
-    for i, member in enumerate(bank.members):
-        one = ResidualBank([member], bank.method)  # the member's rows as one group
-        gaps.append(float(fault_noise_gap(one, S[i:i + 1])[0]))
-    return gaps
+    return [float(x) for x in fault_noise_gap(bank, np.asarray(S, dtype=int))]
