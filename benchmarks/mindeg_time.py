@@ -44,6 +44,19 @@ and this band stop at finite frequencies) — reported, not counted.
 1.22; slowest: seed 7 21.8 s vs 4.7 s, 13 30.5 vs 18.1, 17 22.0 vs 12.9 (the corrections and their judge calls on
 candidates main accepted unjudged); re-solve lowers further than covers alone on [17, 26] (main [26]: seed 17's covers
 reached [5, 8] through an order-5 stable cover that leaks 2.1e-4 normalised, now refused → [52, 8]).
+
+27 Nov, amm10 (main c8e837c run first, then the branch, each beside other sessions' work and tests, load 9-11 on the
+2-core machine): ``--judged 0-29`` main ok 66 / refused 2 / leak 1 / BROKEN 0 / crash 0 → branch **68 / 1 / 0 / 0 / 0**.
+H∞ seed 10 (optimal filter, order 50, numpy leak 2.4e-7: the refusal read the judge's reading alone, 1.7e-8, not its
+sensitivity 9.9e-7) → its minimal balanced realisation refitted to its response, order 33, numpy 6.6e-8; H∞ seed 4
+(refused) → designed, [22] → [8], numpy 1.4e-8; H∞ seed 7 [87, 26] → [86, 26] (row 1's order-26 candidate still
+leaks 1.72e-7 on its own realisation and on its refits); seed 18 refused on both (realisation accuracy). H∞ and H2
+seed 17 row 1 stay at the optimal row (order-5 candidates: own realisation 2.24e-6, per-row refit 3.37e-7; a pole
+refit was tried: 2.0e-2). Every other design the same orders. Time per design branch/main 1.35 (geometric mean, not the
+same run); H∞ seed 7 in one run, alternating main, branch, main, branch (``_judged_design`` of both modules):
+84.5, 105.9, 43.3, 46.7 s — best of two, branch/main **1.08**. The branch run above predates ``_proper_error``; the 11 continuous H2 designs whose lowered error had
+a feedthrough, re-run with it: all ok, same orders, ``|E(j1e9)|`` main 1.5e-15 … 1.9e-11 → 1.7e-20 … 1.3e-16 or below
+10× the optimal filter's (the strictly proper part's 1/ω tail; the feedthrough ``D_Q D_fw − D_MF`` is exactly 0).
 """
 import sys
 import time

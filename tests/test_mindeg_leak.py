@@ -85,3 +85,27 @@ def test_every_mindeg_design_leaks_at_most_dec_tol(seed, norm):
     _same_error(g0, g1, Mr, norm)
     assert stable(g1.Q)
     assert info["lowered"] or info["reason"]
+
+
+@pytest.mark.parametrize("seed", [6, 0])
+def test_lowered_continuous_h2_rows_leave_a_strictly_proper_error(seed):
+    """Random continuous H2 seeds 6 and 0 (mindeg, reltol 1e-6): a continuous error ``E = Q [Gf Gw; 0 0] − M [Mr 0]``
+    with a feedthrough has an infinite H2 norm. The optimal filters' feedthrough is exactly 0; main's lowered rows
+    (numerators fitted on finite points) left 1.4e-12 and 1.1e-11 (``|D_Q||D_fw|`` 4.3e-11 and 0.33). Judged from
+    the matrices alone: ``D_E = D_Q [Df Dw; 0 0] − D_M [D_Mr 0]`` is at most the rounding of that product, 64·eps
+    times ``|D_Q||D_fw|`` entrywise (a sum of p + m products, each rounded, Higham's γ_k), and the u/d feedthrough
+    ``D_Q [Du Dd; I 0]`` likewise; the filter still leaks at most dec_tol by numpy."""
+    model, Mr = _random_case(seed)
+    g = approximate_model_matching(model, Mr, norm="2", reltol=1e-6, mindeg=True)
+    assert g.info["mindeg"]["lowered"]
+    nu, nd, nw = model.nu, model.nd, model.nw
+    Dfw = np.vstack([np.hstack([model.Df, model.Dw]), np.zeros((nu, model.nf + nw))])
+    Dud = np.vstack([np.hstack([model.Du, model.Dd]), np.hstack([np.eye(nu), np.zeros((nu, nd))])])
+    M = g.info["M"]
+    DMF = M.D @ np.hstack([Mr.D, np.zeros((Mr.p, nw))])
+    eps = np.finfo(float).eps
+    DE = g.Q.D @ Dfw - DMF
+    assert np.all(np.abs(DE) <= 64 * eps * (np.abs(g.Q.D) @ np.abs(Dfw)) + 1e-300), np.abs(DE).max()
+    assert np.all(np.abs(g.Q.D @ Dud) <= 64 * eps * (np.abs(g.Q.D) @ np.abs(Dud)) + 1e-300)
+    leak, faults = _numpy_leak_and_faults(model, g.Q)
+    assert np.all(leak / faults.min(axis=1) <= DEC_TOL)

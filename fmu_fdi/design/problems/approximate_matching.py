@@ -117,7 +117,8 @@ from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit._basis import check_poles, pick_poles
 from ..toolkit.approximate import drop_negligible_unstable_modes, transmission_zeros
-from ..toolkit.postconditions import DEC_TOL, _eval_points, _nrm, _values, check_generator, resolvent_pair
+from ..toolkit.postconditions import (DEC_TOL, _eval_points, _nrm, _row_system, _values, check_generator,
+                                      resolvent_pair)
 from ..toolkit.notes import keeps_notes, note, silenced
 from .reference import reference
 
@@ -227,8 +228,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         cancellation of the plant's boundary modes in R, :func:`_plant_mode_cancellation`), ``ud_redecoupling``
         (the u/d leak on the normalised form — rows at unit weakest required fault gain, a fault required where the
         row of Mr is nonzero — and, where it exceeded ``dec_tol``, the numerator's refit: ``refined``,
-        ``leak_before``/``leak_after`` (the judge's reading plus the realisation's sensitivity), ``error_before``/
-        ``error_after``, ``realisation`` (of the kept refit: ``'shipped'`` or ``'minimal balanced'``), ``reason``;
+        ``leak_before``/``leak_after`` (the judge's reading plus the realisation's sensitivity, the worst row),
+        ``row_leaks``, ``error_before``/``error_after``, ``realisation`` (of the kept candidate: ``'shipped'``,
+        ``'minimal balanced'`` or ``'per row'`` with ``row_realisations``), ``reason``;
         :func:`_ud_redecoupling`);
         with ``mindeg=True``,
         ``mindeg``: ``{'lowered', 'reason', 'row_orders_before', 'row_orders', 'order_before',
@@ -248,7 +250,9 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         solvers failing at every level/regularisation; a returned filter whose error
         response is not the designed one (realisation accuracy) or that fails its
         post-conditions, among them a u/d leak on the normalised form (rows at unit weakest required fault gain)
-        above ``dec_tol`` (:func:`_ud_leak_refused`: row, leak, that gain, dec_tol); a returned filter whose error
+        above ``dec_tol`` as a double-precision evaluation of the returned realisation can show it — the judge's
+        reading plus the realisation's sensitivity — where no refit or better-conditioned realisation meets it
+        (:func:`_ud_leak_refused`: row, reading, sensitivity, that gain, dec_tol); a returned filter whose error
         exceeds the zero filter's ``||M [Mr 0]||`` by more than ``reltol`` (:func:`_zero_filter_error`: both errors);
         an option's bad value,
         each naming it: ``HDesign`` (shape, rank,
@@ -337,7 +341,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     required = required_faults(model, Mr, lam)
     Q, redecoupled = _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, [model.lti(), Y, Mr], reltol, smarg,
                                       dec_tol)
-    _ud_leak_refused(redecoupled.pop("figures"), dec_tol)
+    _ud_leak_refused(redecoupled.pop("figures"), dec_tol, redecoupled["row_leaks"])
     gen = ResidualGenerator(Q, model, "approximate_model_matching")
     check_generator(gen, decouple=("u", "d"), faults=[], smarg=smarg, dec_tol=dec_tol)
     err = _shipped_error(model, Q, fnm, MF, lam, norm, [model.lti(), Y, Mr])
@@ -529,14 +533,42 @@ def _leak_of(fig: dict) -> float:
     realisation can show it: the judge's reading ``decoupling`` (the stored filter's value,
     :func:`..toolkit.postconditions._ud_reading`, the same whatever the row scaling and diagonal state scaling) plus
     ``decoupling_sensitivity`` (the first-order change of that leak under rounding u of every entry of the
-    realisation: what a double-precision evaluation or simulation of this realisation may add). Random H∞ seed 4's
-    shipped filter (order 70, non-minimal: Hankel singular values down to 1e-25 of the largest) reads 2.0e-8 of its
-    weakest required fault with a sensitivity 3.4e-7, and numpy's plain evaluation read it at 1.8e-7."""
+    realisation: what a double-precision evaluation or simulation of this realisation may add; the rule and its
+    derivation: :func:`_ud_leak_refused`). The rows' largest reading plus their largest sensitivity: per row,
+    :func:`_row_leaks`. Random H∞ seed 4's shipped filter (order 70, non-minimal: Hankel singular values down to
+    1e-25 of the largest) reads 2.0e-8 of its weakest required fault with a sensitivity 3.4e-7, and numpy's plain
+    evaluation read it at 1.8e-7."""
     return float(fig.get("decoupling", np.nan) + fig.get("decoupling_sensitivity", 0.0))
 
 
+def _row_leaks(model, Q: LTI, required: np.ndarray, smarg, dec_tol: float, fig: dict) -> list[float]:
+    """Per row of Q, :func:`_leak_of` of that row: its reading (``fig['decoupling_rows']``) plus its own sensitivity.
+    The judge's figures give the sensitivity of the rows together only (their largest, ``decoupling_sensitivity``;
+    per row where they carry ``decoupling_row_sensitivities``), so a row that passes on its reading and fails with
+    that largest sensitivity is read alone — ``Q[i, :]``, which the judge reads on the states the row sees
+    (:func:`..toolkit.postconditions._row_system`), as it reads the row inside Q. A random H∞ seed 17 lowered filter
+    ([5, 8] rows, mindeg) read its order-5 row at 2.6e-7 … 5.0e-7 with the other row's sensitivity. No row figures:
+    ``[_leak_of(fig)]`` for every row."""
+    reads = [float(d) for d in fig.get("decoupling_rows", [])]
+    if len(reads) != Q.p:
+        return [_leak_of(fig)] * Q.p
+    own = fig.get("decoupling_row_sensitivities")
+    if own is not None:
+        return [d + float(s) for d, s in zip(reads, own)]
+    top = float(fig.get("decoupling_sensitivity", 0.0))
+    out = []
+    for i, d in enumerate(reads):
+        if Q.p > 1 and d <= dec_tol < d + top:
+            alone = normalised_leak(model, Q[i, :], required[i:i + 1], smarg, dec_tol)
+            out.append(float(alone.get("decoupling", d)) + float(alone.get("decoupling_sensitivity", top)))
+        else:
+            out.append(d + top)
+    return out
+
+
 #: :func:`_ud_redecoupling`: the most numerator unknowns ``(n_q + rows)·(p + m)`` it solves for (a dense least-squares
-#: problem on every column of Ge, ~8·unknowns³ flops: 2000 unknowns took minutes on the realisation seeds)
+#: problem on every column of Ge, ~8·unknowns³ flops: 2000 unknowns took minutes on the realisation seeds); a row's
+#: own refit (:func:`_row_redecoupling`) has ``(n_i + 1)·(p + m)``
 REDECOUPLE_UNKNOWNS = 1000
 #: :func:`_ud_redecoupling`'s real equations per unknown (its points thinned to that many)
 REDECOUPLE_ROWS = 8
@@ -547,12 +579,12 @@ REDECOUPLE_HSV_RTOL = 1e-12
 
 
 def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol,
-                     fig0=None) -> tuple[LTI, dict]:
-    """Stage of :func:`approximate_model_matching`: ``(Q', info['ud_redecoupling'])``, the shipped filter with its
-    numerator refitted so that ``Q·[Gu Gd; I 0]`` is zero on the design's points while ``Q·[Gf Gw; 0 0]`` is kept
-    (:func:`_decoupling_refit`) — run only where the filter's u/d leak on the normalised form, as a double-precision
-    evaluation of its realisation can show it (:func:`normalised_leak`, :func:`_leak_of`: the judge's reading plus the
-    realisation's sensitivity), exceeds ``dec_tol``.
+                     fig0=None, rows=None) -> tuple[LTI, dict]:
+    """Stage of :func:`approximate_model_matching`: ``(Q', info['ud_redecoupling'])``, the shipped filter realised
+    again or with its numerator refitted so that ``Q·[Gu Gd; I 0]`` is zero on the design's points while ``Q·[Gf Gw; 0
+    0]`` is kept (:func:`_decoupling_refit`) — run only where a row's u/d leak on the normalised form, as a
+    double-precision evaluation of its realisation can show it (:func:`normalised_leak`, :func:`_row_leaks`: the
+    judge's reading plus the realisation's sensitivity; the rule: :func:`_ud_leak_refused`), exceeds ``dec_tol``.
 
     Why: ``Q = Y·Φ·Q0`` decouples u, d to the rounding of Q0 times Y's gain, and a matching row's weakest required
     fault can be small beside its error response (benchmarks/ammp_random_set.py, H∞ seeds 2 and 10: normalised u/d
@@ -560,49 +592,52 @@ def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, sm
     1.36527e-8 → 1.36691e-8). And the shipped realisation can be so ill-conditioned that its leak, small as stored,
     is not what an evaluation in double reads: seed 4 (order 70, Hankel singular values down to 1e-25 of the largest)
     leaks 2.0e-8 with a sensitivity 3.4e-7 (numpy's plain evaluation: 1.8e-7); its refit on its own realisation keeps
-    that sensitivity. So the candidates, the first that passes kept: the refit of Q's realisation, then the minimal
-    balanced realisation of Q (Hankel singular values above :data:`REDECOUPLE_HSV_RTOL` of the largest; seed 4: order
-    22, sensitivity 4.6e-11, leak 4.1e-7) refitted (seed 4: 2.5e-8; numpy 2.2e-8).
-    A candidate is kept only if its leak plus sensitivity is ``dec_tol`` or below, the error measured on it
-    (:func:`_shipped_error`, the same points) is within ``reltol`` of the shipped one's (plus 1e-9 of
-    ``||M Mr||`` for exactly matchable references, as :func:`_plant_mode_cancellation`) and it passes the
-    post-conditions. Bounded to :data:`REDECOUPLE_UNKNOWNS` unknowns; the points (the design's and the judge's grid,
-    :func:`..toolkit.postconditions._eval_points`) are thinned to :data:`REDECOUPLE_ROWS` real equations per unknown.
-    The note: ``refined``, ``leak_before``/``leak_after`` (normalised, reading plus sensitivity),
-    ``error_before``/``error_after``, ``unknowns``, ``points``, ``realisation`` (``'shipped'`` or ``'minimal
-    balanced'``, of the kept refit), ``reason``; ``figures``: the judge's normalised figures of the returned Q
-    (:func:`normalised_leak`). ``fig0``: those figures of Q where the caller has read them already."""
+    that sensitivity. So the candidates (:func:`_redecoupling_candidates`), the first that passes kept: the refit of
+    Q's realisation, then the minimal balanced realisation of Q (Hankel singular values above
+    :data:`REDECOUPLE_HSV_RTOL` of the largest; seed 4: order 22, sensitivity 4.6e-11, leak 4.1e-7) refitted to Q's
+    own fault/noise response (the truncation moves ``Q·[Gf Gw]``: at reltol 1e-6 seed 10's order-33 truncation, its
+    dropped values below 1e-12 of the largest, moved the error from 3.47e-8 to 2.5e-4 — its u/d refit alone kept
+    that; refitted to Q's response: error 3.2e-9, leak 2.9e-8, sensitivity 2.2e-10, numpy 2.8e-8 where the shipped
+    filter read 1.7e-8 with a sensitivity 9.9e-7 and numpy 2.4e-7). A candidate is kept only if every row's leak
+    plus sensitivity is ``dec_tol`` or below, the error measured on it (:func:`_shipped_error`, the same points) is
+    within ``reltol`` of the shipped one's (plus 1e-9 of ``||M Mr||`` for exactly matchable references, as
+    :func:`_plant_mode_cancellation`) and it passes the post-conditions. Where none does and Q has several rows,
+    the rows are re-decoupled one by one (:func:`_row_redecoupling`). Bounded to :data:`REDECOUPLE_UNKNOWNS`
+    unknowns per refit; the points (the design's and the judge's grid, :func:`..toolkit.postconditions._eval_points`)
+    are thinned to :data:`REDECOUPLE_ROWS` real equations per unknown.
+    The note: ``refined``, ``leak_before``/``leak_after`` (normalised, reading plus sensitivity, the worst row),
+    ``row_leaks`` (each row's, of the returned filter), ``error_before``/``error_after``, ``unknowns``,
+    ``realisation`` (of the kept candidate: ``'shipped'`` (its refit), ``'minimal balanced'`` (its refit to Q's
+    response) or ``'per row'`` with ``row_realisations``), ``reason``; ``figures``: the judge's normalised figures of
+    the returned Q (:func:`normalised_leak`). ``fig0``: those figures of Q where the caller has read them already;
+    ``rows``: Q's rows, each on its own realisation, where the caller has them (:func:`_verified`: the lowered rows
+    Q stacks), for :func:`_row_redecoupling`."""
     nud = model.nu + model.nd
     if fig0 is None:
         fig0 = normalised_leak(model, Q, required, smarg, dec_tol)
-    before = _leak_of(fig0)
-    out = {"refined": False, "leak_before": before, "leak_after": before, "error_before": None, "error_after": None,
-           "unknowns": int((Q.n + Q.p) * Q.m), "points": 0, "realisation": None, "figures": fig0}
+    rows0 = _row_leaks(model, Q, required, smarg, dec_tol, fig0)
+    before = float(max(rows0, default=_leak_of(fig0)))
+    out = {"refined": False, "leak_before": before, "leak_after": before, "row_leaks": rows0, "error_before": None,
+           "error_after": None, "unknowns": int((Q.n + Q.p) * Q.m), "realisation": None,
+           "figures": fig0}
     if not before > dec_tol:
         return Q, {**out, "reason": f"the normalised u/d leak {before:.3g} is within dec_tol = {dec_tol:g}"
                                     if np.isfinite(before) else "the normalised u/d leak cannot be read"}
     if not nud:
         return Q, {**out, "reason": "no u or d to decouple"}
     reasons = []
-    for what, S in _redecoupling_realisations(Q):
-        unknowns = int((S.n + S.p) * S.m)
-        if unknowns > REDECOUPLE_UNKNOWNS:
-            reasons.append(f"{what}: the correction has {unknowns} unknowns (> {REDECOUPLE_UNKNOWNS})")
+    for what, S in _redecoupling_candidates(model, Q, lam):
+        if isinstance(S, str):
+            reasons.append(f"{what}: {S}")
             continue
-        # the design's points and the judge's, thinned to REDECOUPLE_ROWS times as many real equations (2·p·columns
-        # per point) as unknowns: the least-squares solve costs ~REDECOUPLE_ROWS·unknowns³ (1000 unknowns: ~1 s)
-        pts = np.concatenate([lam, _eval_points(model, S)[1]])
-        pts = pts[np.argsort(np.angle(pts) if model.dt else pts.imag)]
-        k = min(pts.size, -(-REDECOUPLE_ROWS * unknowns // (2 * S.p * model.augmented().m)))
-        pts = pts[np.unique(np.linspace(0, pts.size - 1, k).round().astype(int))]
-        Qr = _decoupling_refit(model, S, pts)
-        fig = normalised_leak(model, Qr, required, smarg, dec_tol)
-        after = _leak_of(fig)
-        out.update({"leak_after": after, "points": int(pts.size), "unknowns": unknowns})
+        fig = normalised_leak(model, S, required, smarg, dec_tol)
+        leaks = _row_leaks(model, S, required, smarg, dec_tol, fig)
+        after = float(max(leaks, default=_leak_of(fig)))
+        out.update({"leak_after": after, "unknowns": int((S.n + S.p) * S.m)})
         if not after <= dec_tol:
             reasons.append(f"{what}: the refined filter still leaks {after:.3g} > dec_tol = {dec_tol:g}")
             continue
-        e0, e1, why = _correction_refused(model, Q, Qr, "the refinement", fnm, MF, lam, norm, systems, reltol, smarg,
+        e0, e1, why = _correction_refused(model, Q, S, "the refinement", fnm, MF, lam, norm, systems, reltol, smarg,
                                           dec_tol)
         out.update({"error_before": e0, "error_after": e1})
         bad = [f"{c}: {m}" for c, m in zip(fig.get("failed_conditions", ()), fig.get("failures", ())) if c != "structure"]
@@ -611,76 +646,192 @@ def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, sm
         if why:
             reasons.append(f"{what}: {why}")
             continue
-        return Qr, {**out, "refined": True, "realisation": what, "figures": fig,
-                    "reason": f"u, d re-decoupled on the normalised form ({what} realisation)"}
-    return Q, {**out, "reason": "; ".join(reasons) + ": Q kept"}
+        return S, {**out, "refined": True, "realisation": what, "figures": fig, "row_leaks": leaks,
+                   "reason": f"u, d re-decoupled on the normalised form ({what} realisation)"}
+    if Q.p > 1:
+        S, note = _row_redecoupling(model, Q, required, rows0, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol,
+                                    rows)
+        if S is not None:
+            return S, {**out, **note, "refined": True, "realisation": "per row",
+                       "reason": f"u, d re-decoupled on the normalised form row by row ({note['reason']}; "
+                                 f"the whole filter: {'; '.join(reasons)})"}
+        reasons.append(f"per row: {note['reason']}")
+    return Q, {**out, "leak_after": before, "reason": "; ".join(reasons) + ": Q kept"}
 
 
-def _redecoupling_realisations(Q: LTI):
-    """The realisations :func:`_ud_redecoupling` refits, in order: Q's own, then its minimal balanced realisation
-    (SLICOT AB09AD's square-root balanced truncation at the Hankel singular values above :data:`REDECOUPLE_HSV_RTOL` of
-    the largest; skipped where SLICOT refuses it or it drops nothing)."""
-    yield "shipped", Q
+def _refit_points(model, S: LTI, lam: np.ndarray) -> np.ndarray:
+    """The refit's points: the design's and the judge's grid of ``S`` (:func:`..toolkit.postconditions._eval_points`),
+    thinned to :data:`REDECOUPLE_ROWS` times as many real equations (2·p·columns per point) as unknowns: the
+    least-squares solve costs ~REDECOUPLE_ROWS·unknowns³ (1000 unknowns: ~1 s)."""
+    unknowns = int((S.n + S.p) * S.m)
+    pts = np.concatenate([lam, _eval_points(model, S)[1]])
+    pts = pts[np.argsort(np.angle(pts) if model.dt else pts.imag)]
+    k = min(pts.size, -(-REDECOUPLE_ROWS * unknowns // (2 * S.p * model.augmented().m)))
+    return pts[np.unique(np.linspace(0, pts.size - 1, k).round().astype(int))]
+
+
+def _redecoupling_candidates(model, Q: LTI, lam: np.ndarray):
+    """The candidates :func:`_ud_redecoupling` judges, in order, lazily: ``(what, filter or why not)`` — the refit of Q's
+    own realisation (``'shipped'``), then Q's minimal balanced realisation (SLICOT AB09AD's square-root balanced
+    truncation at the Hankel singular values above :data:`REDECOUPLE_HSV_RTOL` of the largest; skipped where SLICOT
+    refuses it or it drops nothing) refitted so that its u/d response is zero and its fault/noise response Q's
+    (``'minimal balanced'``). A refit above :data:`REDECOUPLE_UNKNOWNS` unknowns is not made (its why instead).
+
+    The truncation alone is not a candidate: its error, at most twice the dropped Hankel values (≤ 1e-12 of the
+    largest each), is absolute in Q, and the u/d block is a cancellation ``|Q||Ge|`` up to 1e7 times the weakest fault
+    gain — random H∞ seed 10 at reltol 1e-6: the order-33 truncation of the order-51 filter leaks 18.6 of its weakest
+    fault (numpy 14.2) and moves the error from 3.47e-8 to 2.5e-4; refitted on its own response, the leak is 6e-10 and
+    the error still 2.5e-4; refitted to Q's response, the leak 2.9e-8 and the error 3.2e-9."""
+    yield "shipped", _refit_or_why(model, Q, lam)
     if not Q.n:
         return
     try:
         hsv = Q.balanced_truncation(order=Q.n)[1]
         Qm = Q.balanced_truncation(tol=REDECOUPLE_HSV_RTOL * float(np.max(hsv, initial=0.0)))[0]
     except (SlycotError, ValueError, np.linalg.LinAlgError):
-        return
+        Qm = Q
     if 0 < Qm.n < Q.n:
-        yield "minimal balanced", Qm
+        yield "minimal balanced", _refit_or_why(model, Qm, lam, ref=Q)
 
 
-def _ud_leak_refused(fig: dict, dec_tol: float) -> None:
-    """The post-condition of :func:`approximate_model_matching` on the normalised u/d leak: the judge's normalised
-    figures of the returned filter (:func:`normalised_leak`) must not read a row's u/d leak above ``dec_tol`` of its
-    weakest required fault's gain (the judge's reading of the stored filter, its error bound named beside it,
-    :func:`..toolkit.postconditions._ud_reading`); else a DesignError naming the row, the leak, that gain and
-    dec_tol."""
+def _refit_or_why(model, S: LTI, lam: np.ndarray, ref: LTI | None = None):
+    """:func:`_decoupling_refit` of ``S`` on :func:`_refit_points` (``ref``: the filter whose fault/noise response it
+    keeps, default S's own), or why it is not made (above :data:`REDECOUPLE_UNKNOWNS` unknowns)."""
+    unknowns = int((S.n + S.p) * S.m)
+    if unknowns > REDECOUPLE_UNKNOWNS:
+        return f"the correction has {unknowns} unknowns (> {REDECOUPLE_UNKNOWNS})"
+    return _decoupling_refit(model, S, _refit_points(model, S, lam), ref=ref)
+
+
+def _row_redecoupling(model, Q, required, leaks, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol, rows=None):
+    """:func:`_ud_redecoupling` row by row, where the whole filter's candidates failed: ``(Q' or None, note)``. Each
+    row on its own realisation (``rows``, default its minimal realisation :func:`_minimal_row`; Q' stacks them,
+    ``vstack``: a row's states are its own; a lowered filter's minimal realisation mixes its rows' states: seed 7's
+    order-26 row read on all 113);
+    a row whose leak (``leaks``, :func:`_row_leaks`) exceeds ``dec_tol`` takes the first of its minimal realisation as
+    it is, then :func:`_redecoupling_candidates` of it (refits of ``(n_i + 1)·(p + m)`` unknowns, not the whole
+    filter's ``(n + rows)·(p + m)``) whose own leak plus sensitivity is at most ``dec_tol`` and with which the whole
+    filter passes :func:`_correction_refused` (error within reltol of Q's, post-conditions). Q' is then judged whole:
+    every row's leak at most ``dec_tol``. Why: a lowered row of ``mindeg`` is a new realisation beside the optimal
+    rows; random H∞ seed 7's whole filter (order 113 after stacking an order-26 row on an order-87 one) has 1035
+    unknowns (> :data:`REDECOUPLE_UNKNOWNS`), its lowered row 243. Note: ``row_realisations`` (per row: ``'kept'``,
+    ``'minimal'``, ``'shipped'``, ``'minimal balanced'``), ``row_leaks``, ``error_before``/``error_after``,
+    ``leak_after``, ``figures``, ``reason``."""
+    rows = list(rows) if rows is not None else [_minimal_row(Q[i, :]) for i in range(Q.p)]
+    kinds, why, e01 = ["kept"] * Q.p, [], (None, None)
+    for i in np.flatnonzero(np.asarray(leaks) > dec_tol):
+        tried = []
+        for what, S in [("minimal", rows[i]), *_redecoupling_candidates(model, rows[i], lam)]:
+            if isinstance(S, str):
+                tried.append(f"{what}: {S}")
+                continue
+            leak = _leak_of(normalised_leak(model, S, required[i:i + 1], smarg, dec_tol))
+            if not leak <= dec_tol:
+                tried.append(f"{what} (order {S.n}): leaks {leak:.3g}")
+                continue
+            trial = vstack(rows[:i] + [S] + rows[i + 1:])
+            e0, e1, bad = _correction_refused(model, Q, trial, f"row {i + 1}'s {what} realisation", fnm, MF, lam,
+                                              norm, systems, reltol, smarg, dec_tol)
+            if bad:
+                tried.append(f"{what} (order {S.n}): {bad}")
+                continue
+            rows[i], kinds[i], e01 = S, what, (e0, e1)
+            break
+        else:
+            return None, {"reason": f"row {i + 1} (leak {leaks[i]:.3g}): " + "; ".join(tried)}
+        why.append(f"row {i + 1}: {what} (order {rows[i].n})")
+    S = vstack(rows)
+    fig = normalised_leak(model, S, required, smarg, dec_tol)
+    after = _row_leaks(model, S, required, smarg, dec_tol, fig)
+    if not max(after) <= dec_tol:
+        return None, {"reason": f"the rows stacked leak {', '.join(f'{x:.3g}' for x in after)}"}
+    return S, {"row_realisations": kinds, "row_leaks": after, "leak_after": float(max(after)), "figures": fig,
+               "error_before": e01[0], "error_after": e01[1], "unknowns": int(max((r.n + 1) * Q.m for r in rows)),
+               "reason": "; ".join(why)}
+
+
+def _ud_leak_refused(fig: dict, dec_tol: float, leaks=None) -> None:
+    """The post-condition of :func:`approximate_model_matching` on the normalised u/d leak: no row of the returned
+    filter may leak u/d above ``dec_tol`` of its weakest required fault's gain as a double-precision evaluation of the
+    returned realisation can show it — the judge's reading of the stored filter (:func:`normalised_leak`,
+    :func:`..toolkit.postconditions._ud_reading`, its error bound named beside it) plus the realisation's
+    sensitivity (``leaks``: per row, :func:`_row_leaks`; default each row's reading plus the rows' largest
+    sensitivity); else a DesignError naming the row, the reading, the sensitivity, that gain and dec_tol.
+
+    **The rule and why.** The user's residual is computed in double from the shipped realisation (the FMU simulates
+    ``x' = A_q x + B_q y``, ``r = C_q x + D_q y``). To first order, what a double-precision evaluation computes is the
+    exact response of data whose every entry is perturbed by a relative ``δ``, ``|δ| ≤ u`` (componentwise backward
+    stability of each product and of the solve with ``λI − A_q``, Higham 2nd ed. ch. 3, 9), so its u/d block is
+    ``R_ud + ΔR``, ``|ΔR| ≤ u·(|W||A_q||Z| + |W||B_q||G| + |C_q||Z| + |D_q||G|)`` — the judge's
+    ``decoupling_sensitivity`` (``W = C_q(λI − A_q)^{-1}``, ``Z = (λI − A_q)^{-1}B_q G``, ``G = [Gu Gd; I 0]``). The
+    shipped realisation meets ``dec_tol`` as a double evaluation can show it iff reading + sensitivity ≤ dec_tol. The
+    reading alone (before) returned random H∞ seed 10 at reltol 1e-6 (order 51: reading 1.7e-8, sensitivity 9.9e-7,
+    numpy's plain evaluation 2.4e-7 of its weakest required fault) while the re-decoupling had refused its refits on
+    reading + sensitivity: one rule now, and :func:`_ud_redecoupling` first looks for a realisation that meets it.
+    The bound is worst-case in the signs of the roundings: numpy's dense-LU evaluation read 0.24 (seed 10) and 0.53
+    (seed 4) of it."""
     scales = fig.get("scales") or []
+    reads = [float(d) for d in fig.get("decoupling_rows", [])]
+    top = float(fig.get("decoupling_sensitivity", 0.0))
+    leaks = [d + top for d in reads] if leaks is None else leaks
     bad = []
-    for i, (d, e) in enumerate(zip(fig.get("decoupling_rows", []), fig.get("decoupling_row_errors", []))):
-        if d > dec_tol:
+    for i, (d, e, x) in enumerate(zip(reads, fig.get("decoupling_row_errors", []), leaks)):
+        if x > dec_tol:
             gain = 1.0 / scales[i] if i < len(scales) and scales[i] else float("nan")
-            bad.append(f"residual {i + 1}: u/d leak {d:.3g} (± {e:.2g}) of its weakest required fault's gain "
-                       f"{gain:.3g} > dec_tol = {dec_tol:.3g}")
+            bad.append(f"residual {i + 1}: u/d leak {d:.3g} (± {e:.2g}) plus the realisation's rounding sensitivity "
+                       f"{x - d:.2g} = {x:.3g} of its weakest required fault's gain {gain:.3g} > dec_tol = "
+                       f"{dec_tol:.3g}")
     if bad:
         raise DesignError("approximate_model_matching: the returned filter leaks u/d above dec_tol on the normalised "
-                          "form (rows at unit weakest required fault gain, Varga's normalisation): " + "; ".join(bad)
+                          "form (rows at unit weakest required fault gain, Varga's normalisation) as a double-"
+                          "precision evaluation of its realisation can show it: " + "; ".join(bad)
                           + ". [decoupling] the optimal filter decouples u and d only to the rounding of its basis "
-                          "times the gain of Y: a larger dec_tol, or an Mr whose rows require only faults the row sees "
-                          "strongly")
+                          "times the gain of Y, and no refit or better-conditioned realisation of it met dec_tol: a "
+                          "larger dec_tol, or an Mr whose rows require only faults the row sees strongly")
 
 
-def _decoupling_refit(model, Q: LTI, pts: np.ndarray, w_ud: float = 1.0) -> LTI:
+def _decoupling_refit(model, Q: LTI, pts: np.ndarray, w_ud: float = 1.0, ref: LTI | None = None) -> LTI:
     """Q with ``[B_q; D_q]`` corrected so that, on the points, ``Q·[Gu Gd; I 0]`` is zero and ``Q·[Gf Gw; 0 0]`` is
-    unchanged, in the least-squares sense on Q's rows at unit weakest fault gain.
+    unchanged (``ref``: equal to ``ref·[Gf Gw; 0 0]``, the response of the filter Q realises again), in the
+    least-squares sense on Q's rows at unit weakest fault gain.
 
     With ``(A_q, C_q)`` fixed, ``Q(λ) = K(λ) Θ`` is linear in ``Θ = [B_q; D_q]``; the correction Δ solves
-    ``K(λ_k) Δ Ge(λ_k) = [−R_ud(λ_k)  0]`` (:func:`..toolkit.least_solve.numerator_fit` on the correction, so its
-    accuracy is relative to the leak, not to Θ). The rows are weighted by ``s_i = 1/g_i`` (``g_i`` row i's weakest
-    fault peak on the points): the fit is made for ``diag(s) Q`` — ``C_q`` and ``D_q`` scaled, B shared — and its D
-    part scaled back. A fault response kept, not a null vector's minimum-norm change
+    ``K(λ_k) Δ Ge(λ_k) = [−R_ud(λ_k)  R'_fw(λ_k) − R_fw(λ_k)]`` (``R'`` ref's response, zero without ref;
+    :func:`..toolkit.least_solve.numerator_fit` on the correction, so its accuracy is relative to the leak and the
+    mismatch, not to Θ). The rows are weighted by ``s_i = 1/g_i`` (``g_i`` row i's weakest fault peak on the points,
+    of the response kept): the fit is made for ``diag(s) Q`` — ``C_q`` and ``D_q`` scaled, B shared — and its D part
+    scaled back. A fault response kept, not a null vector's minimum-norm change
     (:func:`..toolkit.refine.refine_decoupling`), which moved random seed 10's matching error 1.4e-8 → 1.8e-4."""
     from ..toolkit.least_solve import numerator_fit
 
-    nud, fsl = model.nu + model.nd, model.group_slices()["f"]
-    Gv = _values(model.augmented(), pts)
-    Qv = _values(Q, pts)
-    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))
-    pts, Gv, Qv = pts[ok], Gv[ok], Qv[ok]
-    R = np.einsum("kiq,kqc->kic", Qv, Gv)
-    g = np.array([min((float(np.max(np.linalg.norm(R[:, i, fsl][:, np.arange(model.nf)[f.columns]], axis=1)))
-                       for f in model.faults), default=0.0) for i in range(Q.p)])
-    s = 1.0 / np.where(g > 0, g, np.maximum(np.max(np.abs(R[:, :, fsl]), initial=0.0), 1e-300))
+    nud = model.nu + model.nd
+    pts, Gv, R, s = _kept_response(model, Q, pts, ref)
     Qn = LTI(Q.A, Q.B, s[:, None] * Q.C, s[:, None] * Q.D, Q.dt)
     Qn = Qn.balanced()[0] if Qn.n else Qn
     Rn = np.einsum("kiq,kqc->kic", _values(Qn, pts), Gv)
-    target = np.concatenate([-w_ud * Rn[:, :, :nud], np.zeros_like(Rn[:, :, nud:])], axis=2)
+    keep = np.zeros_like(Rn[:, :, nud:]) if ref is None else s[None, :, None] * R[:, :, nud:] - Rn[:, :, nud:]
+    target = np.concatenate([-w_ud * Rn[:, :, :nud], keep], axis=2)
     Gw = np.concatenate([w_ud * Gv[:, :, :nud], Gv[:, :, nud:]], axis=2)
     Delta = numerator_fit(Qn.A, Qn.C, Q.dt, pts, target, Gw)[0]
     return LTI(Qn.A, Qn.B + Delta[:Q.n], Qn.C / s[:, None], (Qn.D + Delta[Q.n:]) / s[:, None], Q.dt)
+
+
+def _kept_response(model, Q: LTI, pts: np.ndarray, ref: LTI | None = None):
+    """The response a refit keeps, on the points where Q, ``ref`` and Ge are finite: ``(points, Ge values, R, s)``,
+    ``R = ref·Ge`` (``ref`` default Q) and ``s_i = 1/g_i``, ``g_i`` row i's weakest fault peak in R (its largest fault
+    entry where no fault is seen): the rows' weights of Varga's normalised form."""
+    fsl = model.group_slices()["f"]
+    Gv = _values(model.augmented(), pts)
+    Qv = _values(Q, pts)
+    Kv = Qv if ref is None else _values(ref, pts)
+    ok = np.all(np.isfinite(Gv), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2)) & \
+        np.all(np.isfinite(Kv), axis=(1, 2))
+    pts, Gv, Kv = pts[ok], Gv[ok], Kv[ok]
+    R = np.einsum("kiq,kqc->kic", Kv, Gv)
+    g = np.array([min((float(np.max(np.linalg.norm(R[:, i, fsl][:, np.arange(model.nf)[f.columns]], axis=1)))
+                       for f in model.faults), default=0.0) for i in range(Q.p)])
+    s = 1.0 / np.where(g > 0, g, np.maximum(np.max(np.abs(R[:, :, fsl]), initial=0.0), 1e-300))
+    return pts, Gv, R, s
 
 
 def _shipped_error(model, Q, fnm, MF, lam, norm, systems) -> float:
@@ -703,8 +854,12 @@ def _minimal_row(Qi: LTI, atol: float = 0.0) -> LTI:
     """Minimal realisation of one row: the observable part first (for a row of a stacked realisation
     the other rows' states are exactly unobservable), then the controllable part. SLICOT TB01PD's
     ``job='M'`` (controllable part first) kept one state too many on a row of two stacked order-2 rows
-    sharing a pole (Example 5.16): the controllability staircase mixed the rows' states."""
-    return Qi.minreal(atol, job="O").minreal(atol, job="C")
+    sharing a pole (Example 5.16): the controllability staircase mixed the rows' states. The observability
+    staircase mixes them too where the rows share poles (random H∞ seed 7: row 2 of two order-87 rows stacked, each
+    minimal, kept 174 states), so the row is first restricted to the states it sees structurally (C's nonzero columns
+    closed under A's coupling, the judge's :func:`..toolkit.postconditions._row_system`): in a stack, its own."""
+    return _row_system(Qi, [0]).minreal(atol, job="O").minreal(atol, job="C") if Qi.n and Qi.p == 1 else \
+        Qi.minreal(atol, job="O").minreal(atol, job="C")
 
 
 def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, dec_tol, atol, *, required=None):
@@ -1121,7 +1276,8 @@ def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg,
     filters leaking 1.4e-7 … 3.0e-5 of their weakest required fault (H∞ seeds 7, 13, 17; H2 seeds 7, 12, 17)."""
     dt = model.dt
     stacked = vstack(rows) if len(rows) > 1 else rows[0]
-    Qm = stacked.minreal(atol)
+    proper = norm == "2" and not dt  # (continuous H2: the error must be strictly proper, :func:`_proper_error`)
+    Qm = _proper_error(model, stacked.minreal(atol), MF) if proper else stacked.minreal(atol)
 
     def post_refused(S, out):  # (the judged generator: check_generator records its figures in its info)
         cand = ResidualGenerator(S, model, "approximate_model_matching")
@@ -1164,7 +1320,9 @@ def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg,
             return None, {**out, "reason": f"the least-order filter's u/d leak on the normalised form (rows at unit "
                                            f"weakest required fault gain) is {out['leak']:.3g}, above "
                                            f"{LEAK_REFIT_MAX:g} dec_tol: the optimal row is kept"}
-        Qm, note = _ud_redecoupling(model, Qm, required, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol, fig)
+        own = None if out["plant_mode_cancellation"]["corrected"] else rows  # (each lowered row's own realisation)
+        Qm, note = _ud_redecoupling(model, Qm, required, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol, fig,
+                                    own)
         if not note["refined"] and note["leak_before"] > dec_tol:
             Qm, note = _weighted_redecoupling(model, Qm, required, fnm, MF, lam, norm, systems, reltol, smarg,
                                               dec_tol, note)
@@ -1175,12 +1333,39 @@ def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg,
                                            f"weakest required fault gain) is {out['leak']:.3g} > dec_tol = "
                                            f"{dec_tol:g} ({note['reason']}): the optimal row is kept"}
         if note["refined"] or out["plant_mode_cancellation"]["corrected"]:  # corrected: judged again
+            Qm = _proper_error(model, Qm, MF) if proper else Qm  # (a refit's D is fitted on finite points)
             cand, refused = post_refused(Qm, out)
             if not refused:
                 err2, refused = error_refused(Qm, out)
             if refused:
                 return None, refused
     return cand, {**out, "error": float(err2), "error_limit": limit}
+
+
+def _proper_error(model, Q: LTI, MF: LTI) -> LTI:
+    """Continuous H2: Q with its feedthrough corrected so that ``R = Q·Ge`` has exactly the feedthrough the design
+    requires — zero on the u/d columns, ``D_MF`` (of ``M [Mr 0]``) on the fault/noise ones: ``D_Q·D_G = T``. A
+    continuous error ``E = Q [Gf Gw; 0 0] − M [Mr 0]`` with a feedthrough has an infinite H2 norm (white noise gives
+    a residual error of infinite variance), and a u/d feedthrough a leak at every frequency. The least change (in
+    Frobenius norm) is ``ΔD = (T − D_Q D_G)·D_G⁺`` (the minimum-norm least-squares solution, an SVD:
+    ``numpy.linalg.lstsq``); it is made only where T lies in the row space of ``D_G`` (else Q is returned as it is:
+    the guard's judges decide). Why: a lowered row's numerator is fitted on finite points
+    (:func:`_refit_numerator`, :func:`_decoupling_refit`), which leaves ``D_Q`` free to a fit error: random
+    continuous H2 seeds 0, 6 (``benchmarks/mindeg_time.py --judged``): feedthroughs 1.1e-11 and 1.4e-12 of the
+    error where the optimal filter's is exactly 0 (``|D_Q||D_fw|`` 0.33 and 4.3e-11)."""
+    if not Q.p:
+        return Q
+    G = model.augmented()
+    cols = _fault_noise_columns(model)
+    T = np.zeros((Q.p, G.m))
+    T[:, cols] = MF.D
+    X = T - Q.D @ G.D
+    if not np.any(X):
+        return Q
+    dD = np.linalg.lstsq(G.D.T, X.T, rcond=None)[0].T
+    if np.linalg.norm(X - dD @ G.D) > 1e-12 * max(np.linalg.norm(X), np.linalg.norm(Q.D) * np.linalg.norm(G.D)):
+        return Q
+    return LTI(Q.A, Q.B, Q.C, Q.D + dD, Q.dt)
 
 
 #: :func:`_weighted_redecoupling`: the weights of the u/d equations against the fault/noise ones, tried in turn
