@@ -14,25 +14,9 @@ from functools import cached_property
 
 import numpy as np
 
-from .lti import LTI, vstack
+from .lti import LTI, structurally_observed, vstack
 from .margin import default_smarg, margin_reduced
 from .model import FDIModel
-
-
-def structurally_observed(A: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """Indices (in order) of the states of ``(A, C)`` with a path to the output through the exact
-    non-zero pattern: ``C[:, j] ≠ 0``, or ``A[i, j] ≠ 0`` for an observed state i. The other states are
-    unobservable whatever the values (no rank decision, no tolerance): removing them keeps the transfer
-    function and, where none is removed, the realisation."""
-    n = A.shape[0]
-    seen = np.any(C != 0, axis=0) if C.size else np.zeros(n, bool)
-    frontier = seen.copy()
-    nz = A != 0
-    while frontier.any():
-        new = np.any(nz[frontier, :], axis=0) & ~seen
-        seen |= new
-        frontier = new
-    return np.flatnonzero(seen)
 
 
 class ResidualGenerator:

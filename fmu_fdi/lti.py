@@ -384,6 +384,22 @@ class LTI:
         return cls(sys.A, sys.B, sys.C, sys.D, float(dt or 0.0))
 
 
+def structurally_observed(A: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Indices (in order) of the states of ``(A, C)`` with a path to the output through the exact
+    non-zero pattern: ``C[:, j] ≠ 0``, or ``A[i, j] ≠ 0`` for an observed state i. The other states are
+    unobservable whatever the values (no rank decision, no tolerance): removing them keeps the transfer
+    function and, where none is removed, the realisation."""
+    n = A.shape[0]
+    seen = np.any(C != 0, axis=0) if C.size else np.zeros(n, bool)
+    frontier = seen.copy()
+    nz = A != 0
+    while frontier.any():
+        new = np.any(nz[frontier, :], axis=0) & ~seen
+        seen |= new
+        frontier = new
+    return np.flatnonzero(seen)
+
+
 def _index(idx, size: int) -> np.ndarray:
     if isinstance(idx, slice):
         return np.arange(size)[idx]

@@ -1,7 +1,7 @@
 """approximate_model_matching ships a realisation whose u/d leak meets dec_tol as a double-precision evaluation of it
 shows it: the user's residual is computed in double from the shipped (A, B, C, D), as the FMU computes it.
 
-The judge (postconditions._ud_reading) reads the stored filter's leak with refined solves and reports beside it the
+The judge (postconditions._decoupled_reading) reads the stored filter's leak with refined solves and reports beside it the
 realisation's sensitivity (first order in relative rounding u of every entry: what a double evaluation or simulation
 may add). On main the refusal read the reading alone and the re-decoupling reading + sensitivity: random H∞ seed 10 at
 reltol 1e-6 (order 51, reading 1.7e-8, sensitivity 9.9e-7) was returned and numpy's plain evaluation read its leak

@@ -583,7 +583,7 @@ def test_leaking_matching_rows_are_re_decoupled_on_the_normalised_form(seed):
 def test_re_decoupling_on_the_minimal_balanced_realisation():
     """Random continuous H∞ seed 4 (this test pinned, before, that the filter was returned with numpy's leak 1.8e-7 of
     its weakest required fault, "at the rounding floor"). The judge now reads the stored filter's u/d leak with
-    refined solves (postconditions._ud_reading): the shipped filter (order 70, Hankel singular values down to 1e-25
+    refined solves (postconditions._decoupled_reading): the shipped filter (order 70, Hankel singular values down to 1e-25
     of the largest) leaks 2.0e-8 as stored, but its realisation's sensitivity is 3.4e-7 — numpy's plain evaluation
     read it at 1.8e-7, and so would any double-precision evaluation of that realisation. The stage now refits the
     minimal balanced realisation (order 22, sensitivity 4.6e-11): judged by numpy on the returned Q and the model, the

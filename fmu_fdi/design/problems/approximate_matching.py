@@ -117,7 +117,7 @@ from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit._basis import check_poles, pick_poles
 from ..toolkit.approximate import drop_negligible_unstable_modes, transmission_zeros
-from ..toolkit.postconditions import (DEC_TOL, _eval_points, _nrm, _row_system, _values, check_generator,
+from ..toolkit.postconditions import (DEC_TOL, _eval_points, _nrm, row_system, _values, check_generator,
                                       resolvent_pair)
 from ..toolkit.notes import keeps_notes, note, silenced
 from .reference import reference
@@ -531,7 +531,7 @@ def normalised_leak(model, Q: LTI, required: np.ndarray, smarg, dec_tol: float) 
 def _leak_of(fig: dict) -> float:
     """The u/d leak of a :func:`normalised_leak` figure set as a double-precision evaluation of the filter's
     realisation can show it: the judge's reading ``decoupling`` (the stored filter's value,
-    :func:`..toolkit.postconditions._ud_reading`, the same whatever the row scaling and diagonal state scaling) plus
+    :func:`..toolkit.postconditions._decoupled_reading`, the same whatever the row scaling and diagonal state scaling) plus
     ``decoupling_sensitivity`` (the first-order change of that leak under rounding u of every entry of the
     realisation: what a double-precision evaluation or simulation of this realisation may add; the rule and its
     derivation: :func:`_ud_leak_refused`). The rows' largest reading plus their largest sensitivity: per row,
@@ -546,7 +546,7 @@ def _row_leaks(model, Q: LTI, required: np.ndarray, smarg, dec_tol: float, fig: 
     The judge's figures give the sensitivity of the rows together only (their largest, ``decoupling_sensitivity``;
     per row where they carry ``decoupling_row_sensitivities``), so a row that passes on its reading and fails with
     that largest sensitivity is read alone — ``Q[i, :]``, which the judge reads on the states the row sees
-    (:func:`..toolkit.postconditions._row_system`), as it reads the row inside Q. A random H∞ seed 17 lowered filter
+    (:func:`..toolkit.postconditions.row_system`), as it reads the row inside Q. A random H∞ seed 17 lowered filter
     ([5, 8] rows, mindeg) read its order-5 row at 2.6e-7 … 5.0e-7 with the other row's sensitivity. No row figures:
     ``[_leak_of(fig)]`` for every row."""
     reads = [float(d) for d in fig.get("decoupling_rows", [])]
@@ -754,7 +754,7 @@ def _ud_leak_refused(fig: dict, dec_tol: float, leaks=None) -> None:
     """The post-condition of :func:`approximate_model_matching` on the normalised u/d leak: no row of the returned
     filter may leak u/d above ``dec_tol`` of its weakest required fault's gain as a double-precision evaluation of the
     returned realisation can show it — the judge's reading of the stored filter (:func:`normalised_leak`,
-    :func:`..toolkit.postconditions._ud_reading`, its error bound named beside it) plus the realisation's
+    :func:`..toolkit.postconditions._decoupled_reading`, its error bound named beside it) plus the realisation's
     sensitivity (``leaks``: per row, :func:`_row_leaks`; default each row's reading plus the rows' largest
     sensitivity); else a DesignError naming the row, the reading, the sensitivity, that gain and dec_tol.
 
@@ -857,8 +857,8 @@ def _minimal_row(Qi: LTI, atol: float = 0.0) -> LTI:
     sharing a pole (Example 5.16): the controllability staircase mixed the rows' states. The observability
     staircase mixes them too where the rows share poles (random H∞ seed 7: row 2 of two order-87 rows stacked, each
     minimal, kept 174 states), so the row is first restricted to the states it sees structurally (C's nonzero columns
-    closed under A's coupling, the judge's :func:`..toolkit.postconditions._row_system`): in a stack, its own."""
-    return _row_system(Qi, [0]).minreal(atol, job="O").minreal(atol, job="C") if Qi.n and Qi.p == 1 else \
+    closed under A's coupling, the judge's :func:`..toolkit.postconditions.row_system`): in a stack, its own."""
+    return row_system(Qi, [0]).minreal(atol, job="O").minreal(atol, job="C") if Qi.n and Qi.p == 1 else \
         Qi.minreal(atol, job="O").minreal(atol, job="C")
 
 

@@ -75,7 +75,7 @@ import scipy.linalg as sla
 from ...errors import DesignError
 from ...freqresp import content_key, recall, remember, transfer_values
 from ...linalg import EPS, single_blas_thread
-from ...lti import LTI, _pole_scales, frequency_grid
+from ...lti import LTI, _pole_scales, frequency_grid, structurally_observed
 from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
 from .plant_modes import EIGVEC_BOUND, boundary_mode_table as _boundary_modes, leading_schur
 
@@ -220,27 +220,21 @@ def _values(sys: LTI, lam: np.ndarray) -> np.ndarray:
         return transfer_values(sys.A, sys.B, sys.C, sys.D, lam)
 
 
-def _row_system(Q: LTI, g) -> LTI:
-    """Row group ``g`` of Q on the states it sees (its C's nonzero columns, closed under A's coupling): inside a
-    stacked bank, that row's own member filter."""
+def row_system(Q: LTI, g) -> LTI:
+    """Row group ``g`` of Q on the states it sees (:func:`...lti.structurally_observed`: its C's nonzero columns,
+    closed under A's coupling): inside a stacked bank, that row's own member filter."""
     if not Q.n:
         return LTI(Q.A, Q.B, Q.C[g, :], Q.D[g, :], Q.dt)
-    seen = np.any(Q.C[g, :] != 0, axis=0)
-    while True:
-        more = seen | np.any(Q.A[seen, :] != 0, axis=0)
-        if np.array_equal(more, seen):
-            break
-        seen = more
-    st = np.flatnonzero(seen)
+    st = structurally_observed(Q.A, Q.C[g, :])
     return LTI(Q.A[np.ix_(st, st)], Q.B[st, :], Q.C[np.ix_(g, st)], Q.D[g, :], Q.dt)
 
 
 def _values_by_row(Q: LTI, groups, lam: np.ndarray) -> np.ndarray:
-    """Q's values at ``lam`` with each row group read from its own states (:func:`_row_system`). A bank stacks
+    """Q's values at ``lam`` with each row group read from its own states (:func:`row_system`). A bank stacks
     members that share poles (the plant's, the placed ones); one Schur form of the stack mixes their states
     within each cluster, so a row would read the rounding of a member 1e3 times its gain (random seed 33's
     15-row bank: row [1 0 1 0] read ``|Q_i(1) c| = 5.5e-8`` stacked, 1.4e-13 alone)."""
-    subs = [(g, _row_system(Q, g)) for g in groups] if Q.n else []
+    subs = [(g, row_system(Q, g)) for g in groups] if Q.n else []
     covered = sorted(i for g, sub in subs if sub.n < Q.n for i in np.atleast_1d(np.arange(Q.p)[g]))
     if not Q.n or covered != list(range(Q.p)):  # some row reads the whole realisation
         out = _values(Q, lam)
@@ -359,7 +353,7 @@ def mode_decisions(model, Q: LTI, groups, qpeaks) -> dict | None:
     out = {"modes": modes, "residue": np.full((P, len(groups)), np.inf), "delta_i": np.full((P, len(groups)), np.inf),
            "removed": np.zeros((P, len(groups), m), bool)}
     for i, g in enumerate(groups):
-        Qi = _row_system(Q, g)  # the row's own filter: a bank's other members add nothing but their rounding
+        Qi = row_system(Q, g)  # the row's own filter: a bank's other members add nothing but their rounding
         cancels, out["delta_i"][:, i], out["residue"][:, i] = _row_cancels(modes, Qi, float(qpeaks[i]), model.n + Qi.n)
         out["removed"][:, i, :] = (cancels[:, None] | modes["unexcited"]) | ~modes["coupled"][None, :]
     return out
@@ -470,7 +464,7 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
     masks = np.zeros((len(poles), len(groups), Bp.shape[1]), bool)
     nrm = lambda X: np.linalg.norm(X, axis=-2)  # noqa: E731  (K, r, c) -> (K, c): 2-norm over the rows
     for i, g in enumerate(groups):
-        Qi = _row_system(Q, g)  # the row's own filter: a bank's other members add nothing but their rounding
+        Qi = row_system(Q, g)  # the row's own filter: a bank's other members add nothing but their rounding
         N = model.n + Qi.n
         gam = N * EPS
         Qg = Qv[:, g, :]
@@ -711,7 +705,7 @@ def _column_names(model) -> list:
     return list(model.u_names) + list(model.d_names) + list(model.w_names) + fault
 
 
-#: unit roundoff of the extended type the u/d reading refines its residuals in (:func:`_ud_reading`): 2^-64 where
+#: unit roundoff of the extended type the u/d reading refines its residuals in (:func:`_decoupled_reading`): 2^-64 where
 #: numpy's longdouble is the x87 80-bit format, EPS/2 where it is double (the reading is then the plain one)
 EXT_UNIT = float(np.finfo(np.longdouble).eps) / 2
 
@@ -870,7 +864,7 @@ def _decoupled_reading(model, Q: LTI, g, lam: np.ndarray, blocks: dict, R: np.nd
     if not lam.size or not blocks:
         return
     rows = np.atleast_1d(np.arange(Q.p)[g])
-    Qi = _row_system(Q, g) if Q.n else LTI(Q.A, Q.B, Q.C[rows, :], Q.D[rows, :], Q.dt)
+    Qi = row_system(Q, g) if Q.n else LTI(Q.A, Q.B, Q.C[rows, :], Q.D[rows, :], Q.dt)
     labels = list(blocks)
     cols = np.concatenate([blocks[x] for x in labels])
     at = np.cumsum([0] + [blocks[x].size for x in labels])
@@ -1081,7 +1075,7 @@ def accurate_figures(fj: dict) -> dict:
 
 
 def _figures_by_group(gen, groups, freqs, accurate: bool = True) -> dict:
-    """:func:`internal_figures` of several row groups, each read alone: on its own filter (:func:`_row_system`: a
+    """:func:`internal_figures` of several row groups, each read alone: on its own filter (:func:`row_system`: a
     bank member's own states) and on the grid of its own poles and the plant's (:func:`_eval_points`), then stacked.
 
     A row is read the same whether it stands alone or in a bank. One grid for the whole bank (built from every
@@ -1097,7 +1091,7 @@ def _figures_by_group(gen, groups, freqs, accurate: bool = True) -> dict:
     parts = []
     for g in groups:
         idx = np.atleast_1d(rows[g])
-        sub = _row_system(Q, g) if Q.n else LTI(Q.A, Q.B, Q.C[idx, :], Q.D[idx, :], Q.dt)
+        sub = row_system(Q, g) if Q.n else LTI(Q.A, Q.B, Q.C[idx, :], Q.D[idx, :], Q.dt)
         view = SimpleNamespace(model=model, Q=sub, groups=[list(range(idx.size))])  # what internal_figures reads
         parts.append(_internal_figures(view, view.groups, freqs, accurate))
     out = _stacked(parts, groups, freqs)
@@ -1358,6 +1352,7 @@ def _decoupling(model, fj, judged, names, col, S, decouple, dec_tol, fig, failur
         zero_sens.append(zs)
     fig.update({"decoupling": max(decs, default=0.0), "decoupling_error": max(errs, default=0.0),
                 "decoupling_sensitivity": max(sens, default=0.0), "decoupling_rows": decs, "decoupling_row_errors": errs,
+                "decoupling_row_sensitivities": sens,
                 "structure_leak": max(zero_leaks, default=0.0), "structure_leak_error": max(zero_errs, default=0.0),
                 "structure_leak_sensitivity": max(zero_sens, default=0.0),
                 "fault_gain": min(low_gain, default=float("inf")),
