@@ -10,7 +10,7 @@ although a group's rows observe only its own member's states. Profiled (cProfile
 bank of 11 rows, Q order 439, series order 468; 2 shared cores under load 11): check_case 481 s, of which
 the judge 437 s (``_pbh_poles`` 272 s, ``_freqresp`` 163 s) and the design calls 44 s.
 
-New (a proposal for the test's judge, patched in here only): the same judge with ``_freqresp`` solving,
+New (the test's judge since the tenth session; the old way is patched back in here as the baseline): the same judge with ``_freqresp`` solving,
 for each set of output rows observing the same states, on those states only, and ``_series`` built from
 the states the group's rows observe — both by the exact zero pattern of (A, C) (a state with no path to
 the rows' outputs is unobservable whatever the values; no rank decision, no tolerance). The transfer
@@ -33,47 +33,16 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import test_synthesis_random as T  # noqa: E402
 
 
-def observed_states(A: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """States of (A, C) with a path to an output through the exact non-zero pattern (in order)."""
-    n = A.shape[0]
-    seen = np.any(C != 0, axis=0) if C.size else np.zeros(n, bool)
-    frontier, nz = seen.copy(), A != 0
-    while frontier.any():
-        new = np.any(nz[frontier, :], axis=0) & ~seen
-        seen |= new
-        frontier = new
-    return np.flatnonzero(seen)
-
-
 @contextmanager
-def by_observed_states():
-    """Patch the judge's ``_freqresp`` and ``_series`` to work on the states each output observes."""
+def whole_order():
+    """The judge as it was (the baseline): ``_freqresp`` and ``_series`` on every state of the stacked filter."""
     freqresp, series = T._freqresp, T._series
-
-    def _freqresp(A, B, C, D, lam):
-        A, B, C, D = (np.asarray(X, float) for X in (A, B, C, D))
-        out = np.empty((lam.size,) + D.shape, complex)
-        sets: dict[tuple, list[int]] = {}
-        for r in range(C.shape[0]):
-            sets.setdefault(tuple(observed_states(A, C[r:r + 1])), []).append(r)
-        for keep, rows in sets.items():
-            k = list(keep)
-            out[:, rows, :] = freqresp(A[np.ix_(k, k)], B[k, :], C[np.ix_(rows, k)], D[rows, :], lam)
-        return out
-
-    def _series(Q, model):
-        k = observed_states(Q.A, Q.C)
-        Qk = type("Qk", (), {"A": Q.A[np.ix_(k, k)], "B": Q.B[k, :], "C": Q.C[:, k], "D": Q.D})
-        return series(Qk, model)
-
-    T._freqresp, T._series = _freqresp, _series
+    T._freqresp, T._series = T._freqresp_dense, T._series_whole
     try:
         yield
     finally:
@@ -101,9 +70,9 @@ def _judged(seed):
 def main(seeds):
     print(f"{'seed':>4s} {'judge old s':>11s} {'judge new s':>11s} {'ratio':>6s}  same verdicts and details")
     for seed in seeds:
-        old, t_old = _judged(seed)
-        with by_observed_states():
-            new, t_new = _judged(seed)
+        with whole_order():
+            old, t_old = _judged(seed)
+        new, t_new = _judged(seed)
         same = old == new
         print(f"{seed:4d} {t_old:11.1f} {t_new:11.1f} {t_old / t_new:6.1f}  {same}", flush=True)
         if not same:

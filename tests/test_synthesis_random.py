@@ -36,6 +36,7 @@ from __future__ import annotations
 import sys
 import time
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -164,8 +165,38 @@ def _balanced(A, B, C):
     return (A * scale[None, :]) / scale[:, None], B / scale[:, None], C * scale[None, :]
 
 
+def observed_states(A, C) -> np.ndarray:
+    """States of ``(A, C)`` with a path to an output through the exact non-zero pattern (``C[:, j] ≠ 0``, or
+    ``A[i, j] ≠ 0`` for an observed i), in order: the others are unobservable whatever the values (no rank decision,
+    no tolerance), so dropping them keeps the transfer function. A bank's Q is the block-diagonal stack of its
+    members: a row observes its own member's states only."""
+    A, C = np.asarray(A, float), np.asarray(C, float)
+    seen = np.any(C != 0, axis=0) if C.size else np.zeros(A.shape[0], bool)
+    frontier, nz = seen.copy(), A != 0
+    while frontier.any():
+        new = np.any(nz[frontier, :], axis=0) & ~seen
+        seen |= new
+        frontier = new
+    return np.flatnonzero(seen)
+
+
 def _freqresp(A, B, C, D, lam: np.ndarray) -> np.ndarray:
-    """``D + C (λI − A)⁻¹ B`` at every point of ``lam``; shape (len(lam), p, m)."""
+    """``D + C (λI − A)⁻¹ B`` at every point of ``lam``; shape (len(lam), p, m). The output rows observing the same
+    states (:func:`observed_states`) are read together on those states only: a bank's rows on their own member
+    (seed 412's bank of order 439: 163 s → seconds, benchmarks/audit_judge_speed.py)."""
+    A, B, C, D = (np.asarray(X, float) for X in (A, B, C, D))
+    out = np.empty((lam.size,) + D.shape, complex)
+    sets: dict[tuple, list[int]] = {}
+    for r in range(C.shape[0]):
+        sets.setdefault(tuple(observed_states(A, C[r:r + 1])), []).append(r)
+    for keep, rows in sets.items():
+        k = list(keep)
+        out[:, rows, :] = _freqresp_dense(A[np.ix_(k, k)], B[k, :], C[np.ix_(rows, k)], D[rows, :], lam)
+    return out
+
+
+def _freqresp_dense(A, B, C, D, lam: np.ndarray) -> np.ndarray:
+    """:func:`_freqresp` on every state of the realisation (one dense solve of its order per point)."""
     A, B, C = _balanced(np.asarray(A, float), np.asarray(B, float), np.asarray(C, float))
     n = A.shape[0]
     out = np.empty((lam.size,) + D.shape, complex)
@@ -229,7 +260,15 @@ def _pbh_poles(A, B, C, dt: float, D=None) -> np.ndarray:
 
 
 def _series(Q, model: FDIModel):
-    """State-space data of ``R = Q·Ge`` (series connection, states [x_Q; x_G]) and its feedthrough."""
+    """State-space data of ``R = Q·Ge`` (series connection, states [x_Q; x_G]) and its feedthrough, Q on the states
+    its rows observe (:func:`observed_states`: a bank row group's own member; the PBH tests cost the cube of the
+    series order)."""
+    k = observed_states(Q.A, Q.C)
+    return _series_whole(SimpleNamespace(A=Q.A[np.ix_(k, k)], B=Q.B[k, :], C=Q.C[:, k], D=Q.D), model)
+
+
+def _series_whole(Q, model: FDIModel):
+    """:func:`_series` on every state of Q's realisation."""
     A, B, Ce, De = _extended(model)
     nq, n = Q.A.shape[0], A.shape[0]
     AR = np.block([[Q.A, Q.B @ Ce], [np.zeros((n, nq)), A]])
