@@ -23,7 +23,6 @@ and, for the detection-row reference, the exact row itself (error ‖Q_ref·Gw�
 """
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
 import pytest
@@ -32,9 +31,8 @@ import scipy.linalg as sla
 from fmu_fdi.design import (afdi_bank, approximate_model_detection_bank, approximate_model_matching,
                             nullspace_design)
 from fmu_fdi.design.problems.achievable import achievable_structure
-from fmu_fdi.errors import DesignError
-from test_synthesis_random import (DEC_TOL, ZERO_Q, _extended, _freqresp, _pbh_poles, _peak, random_case,
-                                   row_violations, verdict)
+from test_synthesis_random import (DEC_TOL, ZERO_Q, _call, _extended, _freqresp, _pbh_poles, _peak,
+                                   random_case, row_violations, verdict)
 
 # A reported figure (gap, error) agrees with numpy's when their ratio is within 1 ± FIG_RTOL. The
 # library's figures are peaks read on its own grid (200–400 points, refined around the top for the
@@ -313,39 +311,6 @@ def judge_amd(bank, models) -> list[str]:
 
 
 # ------------------------------------------------------------------------------------------ driver
-#: seconds per design call (0: none); the benchmark sets it (SIGALRM, main thread) to time-box the audit
-CALL_TIMEOUT = 0
-
-
-class CallTimeout(Exception):
-    """A design call that ran longer than :data:`CALL_TIMEOUT`."""
-
-
-def _alarm(signum, frame):
-    raise CallTimeout(f"no answer within {CALL_TIMEOUT} s")
-
-
-def _call(fn):
-    import signal
-
-    if CALL_TIMEOUT:
-        signal.signal(signal.SIGALRM, _alarm)
-        signal.alarm(int(CALL_TIMEOUT))
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return "ok", fn()
-    except CallTimeout as exc:
-        return "timeout", exc
-    except DesignError as exc:
-        return "refused", exc
-    except Exception as exc:  # noqa: BLE001 - any other exception type is the failure under test
-        return "crash", exc
-    finally:
-        if CALL_TIMEOUT:
-            signal.alarm(0)
-
-
 def _detection_reference(model):
     """An exact detection row (noise ignored) and its fault response as an LTI (the reference Mr), and
     ‖Q_ref·Gw‖∞ read by numpy — or None when no such row exists."""
