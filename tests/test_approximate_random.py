@@ -384,6 +384,16 @@ CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
 #: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
 KNOWN_BROKEN: dict[tuple[int, str], str] = {
     # (audit of seeds 88-111: seeds 98 and 102 'amm_ref' moved to FIXED)
+    # audit of seeds 112-135 (approximate_matching.py, amm10's): _shipped_filter refuses a filter that is the designed
+    # one to 1.4e-9 / 2.5e-8 of the error's size because the gap is 10.4 / 2.78 times its "rounding bound", whose
+    # inner-product constant _gamma(n) = sqrt(n)·u is the probabilistic estimate at λ = 1 (Higham-Mary Thm 2.4: exceeded
+    # with probability up to 2·exp(-1/2) > 1, i.e. no bound). With that test loosened (_gamma → 1e-6, the 1e-3 relative
+    # cap kept) the shipped filters pass this judge: seed 119 error 170.41 (reference row's noise 175.39, order 86),
+    # seed 120 error 7.5709 (reference 8.1615, order 119)
+    (119, "amm_ref"): "achievable reference refused: shipped-response gap 1.57e-6 (relative 1.43e-9) = 10.4 times "
+                      "_shipped_filter's probabilistic rounding estimate; the filter passes numpy's judge (error 170.41)",
+    (120, "amm_ref"): "achievable reference refused: shipped-response gap 8.64e-7 (relative 2.49e-8) = 2.78 times "
+                      "_shipped_filter's probabilistic rounding estimate; the filter passes numpy's judge (error 7.5709)",
 }
 #: approximate_model_matching (noisec) refused "the returned filter's error response differs from the designed one"
 #: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compared the two on points that
