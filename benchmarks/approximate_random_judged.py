@@ -26,7 +26,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-import test_approximate_random  # noqa: E402
+import test_synthesis_random  # noqa: E402
 from test_approximate_random import check_case, noisy_case  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -89,5 +89,5 @@ if __name__ == "__main__":
     args = [a for a in sys.argv[1:] if a != "-v" and not a.startswith("--timeout=")]
     for a in sys.argv[1:]:
         if a.startswith("--timeout="):
-            test_approximate_random.CALL_TIMEOUT = int(a.split("=", 1)[1])
+            test_synthesis_random.CALL_TIMEOUT = int(a.split("=", 1)[1])
     run(int(args[0]) if args else 20, int(args[1]) if len(args) > 1 else 0, "-v" in sys.argv)

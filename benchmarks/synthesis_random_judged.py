@@ -15,8 +15,9 @@ judge: "ok" (matched exactly at no higher order, stable Q and M), "refused" (Des
 reference row exists), "broken" (a reference that cannot be built although a row is achievable, a
 refused or failing match, another exception).
 
-Run: python benchmarks/synthesis_random_judged.py [N] [first_seed] [-v] [--matching]
-(seeds first_seed … first_seed + N − 1; default 40 models from seed 0)
+Run: python benchmarks/synthesis_random_judged.py [N] [first_seed] [-v] [--matching] [--timeout=SECONDS]
+(seeds first_seed … first_seed + N − 1; default 40 models from seed 0; a design call that gives no answer
+within the timeout counts as "timeout", none by default; a timestamped line per model shows progress)
 """
 import re
 import sys
@@ -59,8 +60,11 @@ def tally(seeds, check, describe, kind=_kind, key=lambda what: what, width: int 
             totals.setdefault(key(what), Counter())[status] += 1
             if status == "broken":
                 kinds[kind(detail)] += 1
-            if verbose or status == "broken":
+            if verbose or status in ("broken", "timeout"):
                 print(f"seed {seed:3d} {describe(seed)[:60]:60s} {what:34s} {status:8s} {detail[:200]}", flush=True)
+        c = Counter(status for _, status, _ in res)
+        print(f"{time.strftime('%H:%M:%S')} seed {seed:3d} {times[-1]:7.1f} s  ok {c['ok']} refused {c['refused']} "
+              f"broken {c['broken']}" + (f" timeout {c['timeout']}" if c["timeout"] else ""), flush=True)
     print("\ncounts per call (ok / refused / broken):")
     for k, c in totals.items():
         print(f"  {k:{width}s} {c['ok']:4d} {c['refused']:4d} {c['broken']:4d}"
@@ -132,6 +136,11 @@ def run_matching(N: int = 40, first: int = 0, verbose: bool = False):
 
 
 if __name__ == "__main__":
-    args = [a for a in sys.argv[1:] if a not in ("-v", "--matching")]
+    for a in sys.argv[1:]:
+        if a.startswith("--timeout="):
+            import test_synthesis_random
+
+            test_synthesis_random.CALL_TIMEOUT = int(a.split("=", 1)[1])
+    args = [a for a in sys.argv[1:] if a not in ("-v", "--matching") and not a.startswith("--timeout=")]
     n_models, first_seed = (int(args[0]) if args else 40), (int(args[1]) if len(args) > 1 else 0)
     (run_matching if "--matching" in sys.argv else run)(n_models, first_seed, "-v" in sys.argv)

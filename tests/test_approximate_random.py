@@ -23,7 +23,6 @@ and, for the detection-row reference, the exact row itself (error ‖Q_ref·Gw�
 """
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
 import pytest
@@ -32,9 +31,8 @@ import scipy.linalg as sla
 from fmu_fdi.design import (afdi_bank, approximate_model_detection_bank, approximate_model_matching,
                             nullspace_design)
 from fmu_fdi.design.problems.achievable import achievable_structure
-from fmu_fdi.errors import DesignError
-from test_synthesis_random import (DEC_TOL, ZERO_Q, _extended, _freqresp, _pbh_poles, _peak, random_case,
-                                   row_violations, verdict)
+from test_synthesis_random import (DEC_TOL, VIS_TOL, ZERO_Q, _call, _extended, _freqresp, _pbh_poles, _peak,
+                                   random_case, row_violations, verdict)
 
 # A reported figure (gap, error) agrees with numpy's when their ratio is within 1 ± FIG_RTOL. The
 # library's figures are peaks read on its own grid (200–400 points, refined around the top for the
@@ -186,10 +184,10 @@ def _row_checks(Q, rows, model, lam, Rv, Qv, scale: float, w_decoupled: bool, ta
     return row_violations(Q, rows, model, Rv, scale, blocks, tag)
 
 
-def _agree(what: str, reported: float, numpy_fig: float, rtol: float) -> list[str]:
+def _agree(what: str, reported: float, numpy_fig: float, rtol: float, atol: float = 0.0) -> list[str]:
     if np.isinf(reported) and np.isinf(numpy_fig):
         return []
-    if not (np.isfinite(reported) and abs(reported - numpy_fig) <= rtol * max(abs(numpy_fig), 1e-300)):
+    if not (np.isfinite(reported) and abs(reported - numpy_fig) <= max(rtol * abs(numpy_fig), atol, 1e-300)):
         return [f"{what}: reported {reported:.6g}, numpy {numpy_fig:.6g} (rtol {rtol:g})"]
     return []
 
@@ -261,7 +259,11 @@ def judge_amm(gen, model, Mr, ref_noise: float | None) -> list[str]:
         return out + ["‖M·Mr‖ = 0"]
     out += _row_checks(Q, list(range(Q.C.shape[0])), model, lam, Rv, Qv, 1.0 / top, False, "filter")
     err = _refined_peak(error, lam, model.dt, poles)
-    out += _agree("matching error", float(gen.info["error"]), err, ERR_RTOL)
+    # An exact match's error is the rounding of evaluating Q·[Gf Gw] − M·[Mr 0]: each reading carries ≲ VIS_TOL of
+    # the gains compared (test_synthesis_random's derivation), ‖M·Mr‖ = top for a matched row, so two readings of
+    # it agree within 2·VIS_TOL·top (audit seed 129, an exact match: reported 2.0186e-13, numpy 1.9970e-13 of
+    # top = 8.07 — 2.7e-16 of it apart, refused by the relative 1e-3 alone)
+    out += _agree("matching error", float(gen.info["error"]), err, ERR_RTOL, atol=2 * VIS_TOL * top)
     if err > top * (1 + ERR_RTOL):
         out.append(f"matching error {err:.6g} above that of Q = 0 ({top:.6g})")
     M_is_I = M.A.shape[0] == 0 and np.allclose(M.D, np.eye(M.D.shape[0]))
@@ -313,39 +315,6 @@ def judge_amd(bank, models) -> list[str]:
 
 
 # ------------------------------------------------------------------------------------------ driver
-#: seconds per design call (0: none); the benchmark sets it (SIGALRM, main thread) to time-box the audit
-CALL_TIMEOUT = 0
-
-
-class CallTimeout(Exception):
-    """A design call that ran longer than :data:`CALL_TIMEOUT`."""
-
-
-def _alarm(signum, frame):
-    raise CallTimeout(f"no answer within {CALL_TIMEOUT} s")
-
-
-def _call(fn):
-    import signal
-
-    if CALL_TIMEOUT:
-        signal.signal(signal.SIGALRM, _alarm)
-        signal.alarm(int(CALL_TIMEOUT))
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return "ok", fn()
-    except CallTimeout as exc:
-        return "timeout", exc
-    except DesignError as exc:
-        return "refused", exc
-    except Exception as exc:  # noqa: BLE001 - any other exception type is the failure under test
-        return "crash", exc
-    finally:
-        if CALL_TIMEOUT:
-            signal.alarm(0)
-
-
 def _detection_reference(model):
     """An exact detection row (noise ignored) and its fault response as an LTI (the reference Mr), and
     ‖Q_ref·Gw‖∞ read by numpy — or None when no such row exists."""
@@ -419,6 +388,19 @@ CALLS = ("afd", "afdi", "amm_ref", "amm_eye", "amd")
 #: (seed, call) pairs the audit found broken, with the cause (owner's file); strict: a fix makes the test XPASS
 KNOWN_BROKEN: dict[tuple[int, str], str] = {
     # (audit of seeds 88-111: seeds 98 and 102 'amm_ref' moved to FIXED)
+    # audit of seeds 112-135 (approximate_matching.py, amm10's): _shipped_filter refuses a filter that is the designed
+    # one to 1.4e-9 / 2.5e-8 of the error's size because the gap is 10.4 / 2.78 times its "rounding bound", whose
+    # inner-product constant _gamma(n) = sqrt(n)·u is the probabilistic estimate at λ = 1 (Higham-Mary Thm 2.4: exceeded
+    # with probability up to 2·exp(-1/2) > 1, i.e. no bound). With that test loosened (_gamma → 1e-6, the 1e-3 relative
+    # cap kept) the shipped filters pass this judge: seed 119 error 170.41 (reference row's noise 175.39, order 86),
+    # seed 120 error 7.5709 (reference 8.1615, order 119)
+    (119, "amm_ref"): "achievable reference refused: shipped-response gap 1.57e-6 (relative 1.43e-9) = 10.4 times "
+                      "_shipped_filter's probabilistic rounding estimate; the filter passes numpy's judge (error 170.41)",
+    (120, "amm_ref"): "achievable reference refused: shipped-response gap 8.64e-7 (relative 2.49e-8) = 2.78 times "
+                      "_shipped_filter's probabilistic rounding estimate; the filter passes numpy's judge (error 7.5709)",
+    (131, "amm_ref"): "achievable reference refused: shipped-response gap 2.39e-7 (relative 1.46e-9) = 1.01 times "
+                      "_shipped_filter's probabilistic rounding estimate; the filter passes numpy's judge (error 87.096, "
+                      "reference row's noise 112.29, order 78)",
 }
 #: approximate_model_matching (noisec) refused "the returned filter's error response differs from the designed one"
 #: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compared the two on points that
@@ -489,7 +471,10 @@ FAST = [(0, "afd"), (0, "amm_ref"), (4, "amd"), (4, "afdi"), (7, "amm_eye"), (7,
 
 
 #: found broken by the audit and fixed, beyond the slow range: (seed, call) → what was wrong
-FIXED = {(20, "afd"): "n = 30, a resonance at 7.8 rad/s: the AFD gap was reported from a 200-point grid, 0.488 "
+FIXED = {(129, "amm_ref"): "an exact match (error 2e-13 of ‖M·Mr‖ = 8.07): the judge compared the two readings of "
+                          "rounding (reported 2.0186e-13, numpy 1.9970e-13) with the relative 1e-3 alone; the test "
+                          "judge's fault — judge_amm now admits 2·VIS_TOL·‖M·Mr‖ absolute",
+         (20, "afd"): "n = 30, a resonance at 7.8 rad/s: the AFD gap was reported from a 200-point grid, 0.488 "
                       "for the filter's 1.87 (nullspace._noise_combination now reports fault_noise_gap's)",
          **{(s_, "amm_ref"): "approximate_model_matching refused 'error response differs from the designed one by "
                              f"{d}': read at the fault-only integrator, rounding/δ (approximate_matching._points now "
