@@ -113,7 +113,7 @@ class ResidualGenerator:
     def group_internal_form(self, i: int) -> LTI:
         """``R_g = Q_g·[Gu Gd Gw Gf; I 0 0 0]`` for the rows ``g`` of residual group ``i``: the rows ``g`` of
         :attr:`_R` (always for a single group), or, where those rows of Q do not observe every state of Q by its exact zero pattern
-        (:func:`structurally_observed`: a bank's group sees only its own member's states), the minimal
+        (:func:`~fmu_fdi.lti.structurally_observed`: a bank's group sees only its own member's states), the minimal
         realisation of ``Q_g·Ge`` built on the states they observe.
 
         The same transfer function either way. Rows of the stacked bank's :attr:`_R` keep the other
@@ -131,17 +131,14 @@ class ResidualGenerator:
                                                        Q.D[g, :], Q.dt))
         return cache[i]
 
-    @cached_property
-    def _blocks(self) -> dict[str, LTI]:
-        # the blocks reduced so far (one each; scale_rows forgets them with _R)
-        return {}
-
     def _block(self, group: str) -> LTI:
         """``R[:, group's columns]`` of the one realisation :attr:`_R`, reduced to a minimal realisation
-        once and kept: ``Rf`` alone no longer reduces the u, d and w blocks too."""
-        if group not in self._blocks:
-            self._blocks[group] = self._R[:, self.model.group_slices()[group]].minreal()
-        return self._blocks[group]
+        once and kept (``scale_rows`` forgets them with ``_R``): ``Rf`` alone no longer reduces the u, d
+        and w blocks too."""
+        cache = self.__dict__.setdefault("_blocks", {})
+        if group not in cache:
+            cache[group] = self._R[:, self.model.group_slices()[group]].minreal()
+        return cache[group]
 
     def internal_form(self) -> dict[str, LTI]:
         """``{'u': Ru, 'd': Rd, 'w': Rw, 'f': Rf}``, minimal realisations of column slices of the one

@@ -840,7 +840,7 @@ def _decoupled_reading(model, Q: LTI, g, lam: np.ndarray, blocks: dict, R: np.nd
     balanced), 1.9e-7 (dense LU, balanced), 1.2e-7 (dense LU as stored); seed 7's (order 87, 3.8e-8) 7.8e-8,
     4.5e-8, 4.1e-8. The error is in the solve, not in the sums (with the solve refined, ``C X + D`` in double is off
     by 1e-14): the componentwise condition of ``Q_g(λ)`` is 2e6 ``|Q_g(λ)|`` there. An excluded fault or a decoupled
-    w is the same cancellation, read the same way (tests/test_judge_decoupled_reading.py).
+    w is the same cancellation, read the same way (tests/test_judge_ud_reading.py, the excluded-fault test).
 
     **The reading.** The product first: ``Z = (λI − A_q)^{-1} (B_q G)``, ``R_X = C_q Z + D_q G``, ``G`` the re-read
     columns of Ge (both realisations balanced by TB01ID, a diagonal similarity by powers of 2: the same data), each
@@ -981,12 +981,7 @@ def _internal_figures(gen, groups=None, freqs=None, accurate: bool = True) -> di
     groups = gen.groups if groups is None else groups
     nf = len(model.faults)
     G = len(groups)
-    out = {"finite": True, "peaks": {g: np.zeros(G) for g in ("u", "d", "w", "Q", "bound")},
-           "cosine": np.zeros((G, nf)), "at_freqs": None, "removed": [], "decisions": None, "reread": False}
-    out["peaks"]["f"] = np.zeros((G, nf))
-    for x in ("ud", "w"):  # the decoupled blocks' error bounds and sensitivities (:func:`_decoupled_reading`)
-        out["peaks"][x + "_error"], out["peaks"][x + "_sensitivity"] = np.zeros(G), np.zeros(G)
-    out["peaks"]["f_error"], out["peaks"]["f_sensitivity"] = np.zeros((G, nf)), np.zeros((G, nf))
+    out = _blank_figures(G, nf, None, False)
     if not all(np.all(np.isfinite(X)) for X in (Q.A, Q.B, Q.C, Q.D)):
         out["finite"] = False
         return out
@@ -1064,14 +1059,20 @@ def accurate_figures(fj: dict) -> dict:
         return fj
     state = fj["_state"]
     G, nf = len(state[2]), len(state[0].faults)
+    out = _blank_figures(G, nf, fj["decisions"], True)
+    return _figures_from(out, state[:5] + (state[5].copy(),) + state[6:], True)
+
+
+def _blank_figures(G: int, nf: int, decisions, reread: bool) -> dict:
+    """:func:`internal_figures`' figures of G row groups and nf faults before anything is read: zero peaks, the
+    decoupled blocks' error bounds and sensitivities (:func:`_decoupled_reading`) zero."""
     out = {"finite": True, "peaks": {g: np.zeros(G) for g in ("u", "d", "w", "Q", "bound")},
-           "cosine": np.zeros((G, nf)), "at_freqs": None, "removed": [], "decisions": fj["decisions"],
-           "reread": True}
+           "cosine": np.zeros((G, nf)), "at_freqs": None, "removed": [], "decisions": decisions, "reread": reread}
     out["peaks"]["f"] = np.zeros((G, nf))
     for x in ("ud", "w"):
         out["peaks"][x + "_error"], out["peaks"][x + "_sensitivity"] = np.zeros(G), np.zeros(G)
     out["peaks"]["f_error"], out["peaks"]["f_sensitivity"] = np.zeros((G, nf)), np.zeros((G, nf))
-    return _figures_from(out, state[:5] + (state[5].copy(),) + state[6:], True)
+    return out
 
 
 def _figures_by_group(gen, groups, freqs, accurate: bool = True) -> dict:
