@@ -327,7 +327,10 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     # passes (with a large gain of Y, near-cancelling modes that SLICOT's staircase removes
     # can matter), else the non-minimal Y Φ Q0 is returned
     try:
-        Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor)
+        # (per row: on the rounding estimate alone — the uniform K shifts below are the next candidate before the
+        # worst-case bound is admitted, :func:`_shipped_filter`)
+        Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor,
+                                 estimate_only=per_row)
     except DesignError:
         if not per_row:
             raise
@@ -1484,7 +1487,7 @@ def _solve_regularised(Gh, F, left, norm, reltol):
     return Y, info, eps
 
 
-def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor=None):
+def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor=None, estimate_only=False):
     """Stage of :func:`approximate_model_matching`: the realisation of ``Q = Y Φ Q0`` whose error
     response is the designed one (the minimal one if it passes, else the non-minimal one);
     returns ``(Q, the comparison points)``. Row i of ``Y Ĝ − F`` is multiplied by ``scale_i m^{k_i}``
@@ -1511,7 +1514,25 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
     solved by SB02OD the six are designed with gains of Y 14 … 464; numpy leaks ≤ 2.4e-8 of the weakest fault,
     seed 7's 3.4e-7 of it, 1.6e-8 of its strongest.) And the bound is tighter than 1e-6 where the error is small against
     ``M [Mr 0]``: continuous H∞ seeds 4, 28 took the minimal realisation (gaps 1.15, 4.6 β) that the judge refused for
-    u+d leaks of 9e-7, 4.9e-7; the product realisation (0.03, 0.008 β) passes it."""
+    u+d leaks of 9e-7, 4.9e-7; the product realisation (0.03, 0.008 β) passes it.
+
+    β is an estimate, not a bound: its constants are Higham and Mary's probabilistic ``γ̃_n = √n·u`` at λ = 1
+    (:func:`_gamma`), which the rounding exceeds with probability up to 2 exp(−1/2) > 1. So the candidates are tried in
+    order against β first (the test that keeps seeds 4, 28 on their product realisation), and only where none passes
+    it, the first whose gap is within ``β_w`` — the same first-order sum with the deterministic ``γ_n = n·u/(1 − n·u)``
+    in every term (Higham, Thm 3.4 for the products, Thm 9.3 for GEPP's solves in :func:`_evaluation_rounding`; every
+    constant grows by ``√n/(1 − n·u)`` ≥ 1, the ``u|S|`` terms and the removed modes not at all, so ``β ≤ β_w``) — and
+    within ``SHIPPED_ACCURACY`` of the error's size is taken. A gap above ``β_w`` is more than any rounding of the
+    comparison (to first order): the realisation is another filter and it is refused. One within ``β_w`` but above
+    β may still be the worse of two realisations (seeds 4, 28's minimal ones), which is why β decides first; the
+    filter taken by ``β_w`` is then judged, as every returned filter, by the post-conditions that follow (the u/d leak
+    on reading + sensitivity, :func:`_ud_leak_refused`; the error; the zero filter). Approximate audit seeds 119, 120,
+    131 (``amm_ref``, tests/test_approximate_random.py) were refused on β alone: 120, 131 (gaps 2.78, 1.01 β, 2.5e-8,
+    1.5e-9 of the error) are within β_w, designed (orders 119, 78) and pass numpy's judge; 119 (its two candidates'
+    gaps 124 and 10.4 β, 8.77 and 1.14 β_w, beside z = 1 where the designed side's terms dominate) stays refused: its
+    gap is more than the evaluation's rounding — the factors' realisations carry their construction's errors, which
+    no term of β bounds.
+    ``estimate_only``: β alone (the per-row shifts, whose next candidate is the uniform K shifts)."""
     dt = model.dt
     Qfull, last = Qfull if isinstance(Qfull, tuple) else (Qfull, None)
     lam = _points([model.lti(), Y, Mr] + (list(factor) if isinstance(factor, list) else [factor] if factor is not None
@@ -1538,36 +1559,51 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
             cands = (Ql,) + cands
     # the designed side's rounding: |m^k| (δY ||Ĝ|| + ||Y|| δĜ + γ_q ||Y|| ||Ĝ|| + δF) + δ(M F) (:func:`_evaluation_rounding`)
     nY, nGh = _nrm(Yv), _nrm(Ghv)
-    d_designed = np.max(np.abs(mk), axis=1) * (_evaluation_rounding(Y, lam) * nGh + nY * _evaluation_rounding(Gh, lam)
-                                               + _gamma(Y.m) * nY * nGh + _evaluation_rounding(F, lam)) \
-        + _evaluation_rounding(MF, lam)
-    fv, d_fnm = _nrm(_values(fnm, lam)), _evaluation_rounding(fnm, lam)
+    fv = _nrm(_values(fnm, lam))
+
+    def fixed_rounding(worst):  # (the designed side's rounding, δ(fnm)): with the estimated or the worst-case γ
+        return (np.max(np.abs(mk), axis=1) * (_evaluation_rounding(Y, lam, worst) * nGh
+                                              + nY * _evaluation_rounding(Gh, lam, worst)
+                                              + _gamma(Y.m, worst) * nY * nGh + _evaluation_rounding(F, lam, worst))
+                + _evaluation_rounding(MF, lam, worst), _evaluation_rounding(fnm, lam, worst))
+
+    def compare(Q, shipped, nQ, removed, fixed, worst):  # (gap, excess over the bound, the bound's peak)
+        bound = _evaluation_rounding(Q, lam, worst) * fv + nQ * fixed[1] + _gamma(Q.m, worst) * nQ * fv + fixed[0] \
+            + removed
+        ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2)) \
+            & np.isfinite(bound)
+        diff = _nrm(shipped[ok] - designed[ok])
+        if not diff.size:  # no point where both responses and the bound are finite: nothing is shown
+            return np.inf, np.inf, np.inf
+        return float(np.max(diff)), float(np.max(diff / bound[ok])), float(np.max(bound[ok]))
+
+    fixed, tried = fixed_rounding(False), []
     for Q in cands:
         read, Qv, product = _fault_noise_response(model, Q, lam, Ge)
         shipped = read - mfv
-        ok = np.all(np.isfinite(shipped), axis=(1, 2)) & np.all(np.isfinite(designed), axis=(1, 2))
-        nQ = _nrm(Qv)
         # (+ what reading R without the plant modes each row cancels to its rounding bound δ_i changed: that
         # decision is the judge's derived one, and the correction δ_i/|λ − p| is rounding by it — 4.6e-16 at
         # λ = 44j, 2e-21 at 1e7 j against a product bound of 3e-27 where m^K = 1e-12 scales all that is designed:
         # tests/test_approximate_matching_options.py, unstable_actuator_model with its pole at +0.5)
         removed = _nrm(shipped + mfv - product)
-        bound = _evaluation_rounding(Q, lam) * fv + nQ * d_fnm + _gamma(Q.m) * nQ * fv + d_designed + removed
-        ok &= np.isfinite(bound)
-        diff = _nrm(shipped[ok] - designed[ok])
-        if not diff.size:  # no point where both responses and the bound are finite: nothing is shown
-            gap = excess = worst = np.inf
-            continue
-        gap, excess, worst = float(np.max(diff)), float(np.max(diff / bound[ok])), float(np.max(bound[ok]))
+        tried.append((Q, shipped, _nrm(Qv), removed))
+        gap, excess, worst = compare(*tried[-1], fixed, False)
         if excess <= 1.0 and gap <= SHIPPED_ACCURACY * size:
-            break
-    else:
-        raise DesignError(f"approximate_model_matching: the returned filter's error response differs from the "
-                          f"designed one by {gap:.3g} (relative {gap / size:.3g}, limit {SHIPPED_ACCURACY:g}; "
-                          f"{excess:.3g} times its rounding bound, at most {worst / size:.3g} of the error's size): the "
-                          f"realisation of Q = Y Φ Q0 lost accuracy (peak gain of Y {float(np.nanmax(nY)):.3g}; "
-                          f"an ill-conditioned, nearly exactly matchable problem: try model_matching, or another sdeg)")
-    return Q, lam
+            return Q, lam
+    # no candidate within the estimate: the first within the worst-case first-order bound (and SHIPPED_ACCURACY)
+    fixed, excess_w = None if estimate_only else fixed_rounding(True), []
+    for cand in ([] if estimate_only else tried):
+        gap_w, ew, _ = compare(*cand, fixed, True)
+        excess_w.append(ew)
+        if ew <= 1.0 and gap_w <= SHIPPED_ACCURACY * size:
+            return cand[0], lam
+    raise DesignError(f"approximate_model_matching: the returned filter's error response differs from the "
+                      f"designed one by {gap:.3g} (relative {gap / size:.3g}, limit {SHIPPED_ACCURACY:g}; "
+                      f"{excess:.3g} times its rounding estimate, at most {worst / size:.3g} of the error's size"
+                      + (f"; the candidates' gaps are {', '.join(f'{e:.3g}' for e in excess_w)} times their "
+                         f"worst-case first-order rounding bound" if excess_w else "") + "): the "
+                      f"realisation of Q = Y Φ Q0 lost accuracy (peak gain of Y {float(np.nanmax(nY)):.3g}; "
+                      f"an ill-conditioned, nearly exactly matchable problem: try model_matching, or another sdeg)")
 
 
 #: :func:`_shipped_filter`: the largest gap, relative to the error's size, between the shipped and the designed error
@@ -1578,14 +1614,18 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
 SHIPPED_ACCURACY = 1e-3
 
 
-def _gamma(n: int) -> float:
+def _gamma(n: int, worst: bool = False) -> float:
     """``γ̃_n = √n·u``: the probabilistic constant of an n-term inner product's rounding (Higham and Mary, A new approach
     to probabilistic rounding error analysis, SIAM J. Sci. Comput. 41(5), 2019, Thm 2.4: the worst case ``n·u`` is
-    exceeded by ``λ√n·u`` with probability ≤ 2 exp(−λ²(1 − u)²/2)); λ = 1 taken with n → 3n for GEPP."""
-    return float(np.sqrt(max(n, 1))) * EPS / 2
+    exceeded by ``λ√n·u`` with probability ≤ 2 exp(−λ²(1 − u)²/2)); λ = 1 taken with n → 3n for GEPP. At λ = 1 that
+    probability bound is 2 exp(−1/2) = 1.21: an estimate of the typical rounding, not a bound.
+    ``worst``: the deterministic ``γ_n = n·u/(1 − n·u)`` (Higham, *Accuracy and Stability of Numerical Algorithms*,
+    2nd ed., Lemma 3.1 and Thm 3.4 for the inner product, Thm 9.3 for GEPP), a bound whatever the rounding's signs."""
+    n, u = max(n, 1), EPS / 2
+    return n * u / (1.0 - n * u) if worst else float(np.sqrt(n)) * u
 
 
-def _evaluation_rounding(S: LTI, lam: np.ndarray) -> np.ndarray:
+def _evaluation_rounding(S: LTI, lam: np.ndarray, worst: bool = False) -> np.ndarray:
     """Per point λ, a bound of the rounding of ``S(λ) = C (λI − A)^{-1} B + D`` as :func:`_values` computes it (from
     the balanced realisation, Gaussian elimination with partial pivoting on ``λI − A``): GEPP's computed ``X̂`` solves
     ``(λI − A + ΔA) X̂ = B`` with ``|ΔA| ≤ γ_{3n} |L̂||Û| ≈ γ_{3n} |λI − A|`` (Higham, *Accuracy and Stability of
@@ -1595,7 +1635,8 @@ def _evaluation_rounding(S: LTI, lam: np.ndarray) -> np.ndarray:
 
     returned as the 2-norm of that matrix, with ``γ_{3n}`` the probabilistic ``√(3n)·u`` (:func:`_gamma`; the worst
     case 3n·u overestimates random seeds 7, 9's gaps 1e3 … 1e4-fold). The componentwise form matters: the normwise
-    ``||W|| ||λI − A|| ||X||`` exceeds the gaps of the same seeds 1e4 … 1e6-fold."""
+    ``||W|| ||λI − A|| ||X||`` exceeds the gaps of the same seeds 1e4 … 1e6-fold. ``worst``: with the deterministic
+    ``γ_{3n}`` (:func:`_gamma`), the first-order bound itself."""
     if not S.n:
         return np.full(lam.size, EPS / 2 * float(np.linalg.norm(S.D, 2)) if S.D.size else 0.0)
     S = S.balanced()[0]
@@ -1608,7 +1649,7 @@ def _evaluation_rounding(S: LTI, lam: np.ndarray) -> np.ndarray:
             return np.full(lam.size, np.inf)
         X, W = XW
         E = np.abs(W) @ np.abs(M) @ np.abs(X) + np.abs(S.C) @ np.abs(X)
-        return _gamma(3 * n) * _nrm(E) + EPS / 2 * _nrm(S.C @ X + S.D)
+        return _gamma(3 * n, worst) * _nrm(E) + EPS / 2 * _nrm(S.C @ X + S.D)
 
 
 def _fault_noise_response(model: FDIModel, Q: LTI, lam: np.ndarray, Ge: np.ndarray) -> tuple[np.ndarray, ...]:
