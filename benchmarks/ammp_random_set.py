@@ -52,6 +52,11 @@ machine, times indicative): main ok 60 / refused 0 / leak 0 / BROKEN 0 / crash 0
 ok 60 / 0 / 0 / 0 / 0, median 3.35 s, max 22.5 s (per-design time ratio branch/main, geometric mean 1.24, not the same
 run). The refusal now counts the realisation's sensitivity (reading + sensitivity ≤ dec_tol, the rule the
 re-decoupling already used); at the default reltol none of the 60 is refused by it.
+
+27 Nov, shipped10 (integ11 004129e copied and run first, then the branch, concurrently; 2-core machine shared with a
+CI run, times indicative): ok 60 / refused 0 / leak 0 / BROKEN 0 / crash 0, median 2.30 s, max 14.8 s → the same
+60 / 0 / 0 / 0 / 0, median 2.27 s, max 15.3 s, every verdict and gamma_sub the same: _shipped_filter's worst-case
+fallback (β_w, tried only where no candidate is within the rounding estimate β) changes none of the 60 designs.
 """
 import sys
 import time
