@@ -197,6 +197,7 @@ def observed_states(A, C) -> np.ndarray:
     return np.flatnonzero(seen)
 
 
+@_one_blas_thread
 def _freqresp(A, B, C, D, lam: np.ndarray) -> np.ndarray:
     """``D + C (λI − A)⁻¹ B`` at every point of ``lam``; shape (len(lam), p, m). The output rows observing the same
     states (:func:`observed_states`) are read together on those states only: a bank's rows on their own member
@@ -212,7 +213,6 @@ def _freqresp(A, B, C, D, lam: np.ndarray) -> np.ndarray:
     return out
 
 
-@_one_blas_thread
 def _freqresp_dense(A, B, C, D, lam: np.ndarray) -> np.ndarray:
     """:func:`_freqresp` on every state of the realisation (one dense solve of its order per point)."""
     A, B, C = _balanced(np.asarray(A, float), np.asarray(B, float), np.asarray(C, float))
