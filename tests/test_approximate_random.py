@@ -23,7 +23,6 @@ and, for the detection-row reference, the exact row itself (error ‖Q_ref·Gw�
 """
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 import scipy.linalg as sla
