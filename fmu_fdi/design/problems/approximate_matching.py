@@ -544,29 +544,17 @@ def _leak_of(fig: dict) -> float:
     return float(fig.get("decoupling", np.nan) + fig.get("decoupling_sensitivity", 0.0))
 
 
-def _row_leaks(model, Q: LTI, required: np.ndarray, smarg, dec_tol: float, fig: dict) -> list[float]:
-    """Per row of Q, :func:`_leak_of` of that row: its reading (``fig['decoupling_rows']``) plus its own sensitivity.
-    The judge's figures give the sensitivity of the rows together only (their largest, ``decoupling_sensitivity``;
-    per row where they carry ``decoupling_row_sensitivities``), so a row that passes on its reading and fails with
-    that largest sensitivity is read alone — ``Q[i, :]``, which the judge reads on the states the row sees
-    (:func:`..toolkit.postconditions.row_system`), as it reads the row inside Q. A random H∞ seed 17 lowered filter
-    ([5, 8] rows, mindeg) read its order-5 row at 2.6e-7 … 5.0e-7 with the other row's sensitivity. No row figures:
-    ``[_leak_of(fig)]`` for every row."""
+def _row_leaks(fig: dict, p: int) -> list[float]:
+    """Per row (p of them), :func:`_leak_of` of that row: its reading (``fig['decoupling_rows']``) plus its own
+    realisation's sensitivity (``fig['decoupling_row_sensitivities']``: the judge reads each row on the states it
+    sees, :func:`..toolkit.postconditions.row_system`) — not the rows' largest sensitivity: a random H∞ seed 17 lowered
+    filter ([5, 8] rows, mindeg) read its order-5 row at 2.6e-7 … 5.0e-7 with the other row's sensitivity. No row
+    figures (the judge stopped before its decoupling stage): ``[_leak_of(fig)]`` for every row."""
     reads = [float(d) for d in fig.get("decoupling_rows", [])]
-    if len(reads) != Q.p:
-        return [_leak_of(fig)] * Q.p
     own = fig.get("decoupling_row_sensitivities")
-    if own is not None:
-        return [d + float(s) for d, s in zip(reads, own)]
-    top = float(fig.get("decoupling_sensitivity", 0.0))
-    out = []
-    for i, d in enumerate(reads):
-        if Q.p > 1 and d <= dec_tol < d + top:
-            alone = normalised_leak(model, Q[i, :], required[i:i + 1], smarg, dec_tol)
-            out.append(float(alone.get("decoupling", d)) + float(alone.get("decoupling_sensitivity", top)))
-        else:
-            out.append(d + top)
-    return out
+    if len(reads) != p or own is None:
+        return [_leak_of(fig)] * p
+    return [d + float(s) for d, s in zip(reads, own)]
 
 
 #: :func:`_ud_redecoupling`: the most numerator unknowns ``(n_q + rows)·(p + m)`` it solves for (a dense least-squares
@@ -618,7 +606,7 @@ def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, sm
     nud = model.nu + model.nd
     if fig0 is None:
         fig0 = normalised_leak(model, Q, required, smarg, dec_tol)
-    rows0 = _row_leaks(model, Q, required, smarg, dec_tol, fig0)
+    rows0 = _row_leaks(fig0, Q.p)
     before = float(max(rows0, default=_leak_of(fig0)))
     out = {"refined": False, "leak_before": before, "leak_after": before, "row_leaks": rows0, "error_before": None,
            "error_after": None, "unknowns": int((Q.n + Q.p) * Q.m), "realisation": None,
@@ -634,7 +622,7 @@ def _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, reltol, sm
             reasons.append(f"{what}: {S}")
             continue
         fig = normalised_leak(model, S, required, smarg, dec_tol)
-        leaks = _row_leaks(model, S, required, smarg, dec_tol, fig)
+        leaks = _row_leaks(fig, S.p)
         after = float(max(leaks, default=_leak_of(fig)))
         out.update({"leak_after": after, "unknowns": int((S.n + S.p) * S.m)})
         if not after <= dec_tol:
@@ -745,7 +733,7 @@ def _row_redecoupling(model, Q, required, leaks, fnm, MF, lam, norm, systems, re
         why.append(f"row {i + 1}: {what} (order {rows[i].n})")
     S = vstack(rows)
     fig = normalised_leak(model, S, required, smarg, dec_tol)
-    after = _row_leaks(model, S, required, smarg, dec_tol, fig)
+    after = _row_leaks(fig, S.p)
     if not max(after) <= dec_tol:
         return None, {"reason": f"the rows stacked leak {', '.join(f'{x:.3g}' for x in after)}"}
     return S, {"row_realisations": kinds, "row_leaks": after, "leak_after": float(max(after)), "figures": fig,
