@@ -12,7 +12,8 @@ residue of 3.8e-15 times the row's slope.
 - :func:`balanced_plant`: the realisation ``(A, B, Ce, De)``;
 - :func:`leading_schur`: its ordered Schur form with chosen eigenvalues first (complex, or real as
   :func:`fmu_fdi.linalg.ordered_schur`);
-- :func:`boundary_mode_table`: per simple mode outside the default margin, what the judge tests it by.
+- :func:`boundary_mode_table`: per simple mode outside the default margin (and, for the judge, those inside it within
+  the grid's gap of the boundary, :func:`beside_boundary`), what the judge tests it by.
 
 Reference: A. Varga, *Solving Fault Diagnosis Problems*, Springer 2017, sec. 5.1 (the stability of the internal
 form) and 7.6 (the left coprime factorisation moving the plant's poles); Golub & Van Loan, *Matrix
@@ -33,6 +34,28 @@ from ...margin import default_smarg, outside_margin
 #: Golub & Van Loan, *Matrix Computations*, 4th ed., Thm. 7.2.4); :func:`.postconditions._without_cancelled_modes`
 EIGVEC_BOUND = 4.0
 
+#: the judge reads no point closer than this, relative to ``max(1, ||A||)`` of the balanced realisation, to a pole of
+#: the plant or the filter on (or beyond) the stability boundary, nor to a plant pole inside the margin but within
+#: this gap of the boundary that the row cancels (:func:`.postconditions._beside_boundary_poles`, :func:`beside_boundary`)
+BOUNDARY_GAP = 1e-6
+
+
+def boundary_gap(A: np.ndarray) -> float:
+    """``BOUNDARY_GAP·max(1, ||A||_2)``: the judge's distance to a boundary pole of a (balanced) realisation with A."""
+    return BOUNDARY_GAP * max(1.0, float(np.linalg.norm(A, 2))) if A.size else BOUNDARY_GAP
+
+
+def beside_boundary(ev: np.ndarray, dt: float, gap: float) -> np.ndarray:
+    """Mask of the eigenvalues ``ev`` inside the default margin (stable) but within ``gap`` of the stability boundary:
+    ``|Re p| ≤ gap`` (continuous) or ``1 − |p| ≤ gap`` (discrete) — the poles the judge's grid can come within the gap
+    of although they are no boundary poles. A row that cancels such a mode to rounding reads its residue ρ as ``ρ/δ``
+    at the distance δ the grid comes (δ → the margin as the pole nears it), then, across the margin, not at all (the
+    mode removed, the grid kept ``gap`` away): the judge treats them as it treats the boundary poles
+    (:func:`boundary_mode_table` with ``beside=True``)."""
+    ev = np.asarray(ev)
+    dist = (1.0 - np.abs(ev)) if dt else -ev.real
+    return ~outside_margin(ev, dt, default_smarg(dt)) & (dist <= gap)
+
 
 def balanced_plant(model) -> LTI:
     """``Ge = [Gu Gd Gw Gf; I 0 0 0]`` (:meth:`FDIModel.augmented`) balanced by a diagonal similarity (TB01ID): the
@@ -52,9 +75,15 @@ def leading_schur(A: np.ndarray, select, real: bool = False) -> tuple[np.ndarray
     return sla.schur(np.asarray(A).astype(complex), output="complex", sort=select)
 
 
-def boundary_mode_table(model) -> dict | None:
+def boundary_mode_table(model, beside: bool = False) -> dict | None:
     """The simple plant modes on or beyond the stability boundary whose cancellation the judge can decide, with
     what :func:`.postconditions._without_cancelled_modes` tests them by (None when there are none).
+
+    ``beside``: also the stable modes within the gap of the boundary (:func:`beside_boundary`, ``gap`` =
+    :func:`boundary_gap` of the balanced A), decided by the same tests — the judge's table
+    (:func:`.postconditions.mode_decisions`), so that a pole reads the same on both sides of the margin; the
+    factoriser and the refinement (:mod:`.stable_factor`, :mod:`.refine`) move and cancel only the modes outside
+    the margin and read the default table. ``outside``: per mode, whether it violates the default margin; ``gap``.
 
     Balanced ``Ge = (A, B, Ce, De)`` (:func:`balanced_plant`); for each simple eigenvalue p outside the default
     margin with ``sep_p = σ_min(T22 − pI)`` of the ordered Schur form ``[p t; 0 T22]`` (:func:`leading_schur`):
@@ -74,7 +103,9 @@ def boundary_mode_table(model) -> dict | None:
     A, Bp, Ce, De = bal.A, bal.B, bal.C, bal.D
     n = A.shape[0]
     ev = np.linalg.eigvals(A)
-    cand = np.flatnonzero(outside_margin(ev, model.dt, default_smarg(model.dt)))
+    gap = boundary_gap(A)
+    out_m = outside_margin(ev, model.dt, default_smarg(model.dt))
+    cand = np.flatnonzero(out_m | beside_boundary(ev, model.dt, gap) if beside else out_m)
     if not cand.size:
         return None
     nA, nC = float(np.linalg.norm(A, 2)), float(np.linalg.norm(Ce, 2))  # ||A||, not max(1, ·): scale-free
@@ -102,7 +133,8 @@ def boundary_mode_table(model) -> dict | None:
         return None
     return {"A": A, "B": Bp, "Ce": Ce, "De": De, "nA": nA, "nC": nC, "poles": np.array(poles), "dirs": dirs,
             "seps": seps, "unexcited": np.array(unexcited), "delta_c": np.array(delta_c), "coupled": nb > 0,
-            "coupling": np.array(couplings), "coupling_tol": np.array(coupling_tol), "conds": np.array(conds)}
+            "coupling": np.array(couplings), "coupling_tol": np.array(coupling_tol), "conds": np.array(conds),
+            "outside": outside_margin(np.array(poles), model.dt, default_smarg(model.dt)), "gap": gap}
 
 
 def _refined_eigenvector(A: np.ndarray, p: complex, v: np.ndarray) -> np.ndarray:

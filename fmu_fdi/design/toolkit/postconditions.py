@@ -10,10 +10,12 @@ bank (:func:`_figures_by_group`) — (:func:`_eval_points`: log-spaced two decad
 pole scale of the plant and the row's filter, plus 0, the resonances of lightly damped poles, two gaps
 beside every pole on the stability boundary (:func:`_beside_boundary_freqs`) and, discrete, Nyquist; without points below
 1e-9 of its top (capped at 1e-2 of the slowest pole scale that is no rounding of s = 0 / z = 1), within 1e-9, relative, of a pole of either realisation, or within
-``BOUNDARY_GAP·||A||`` of one on the stability boundary: :func:`_beside_boundary_poles`) of values computed
+``BOUNDARY_GAP·||A||`` of one on the stability boundary: :func:`_beside_boundary_poles`, or of a stable plant pole
+within that gap of the boundary that the row cancels to rounding: :func:`_beside_cancelled`) of values computed
 point by point, ``R(λ) = Q(λ) Ge(λ)`` from balanced realisations (no general minimal realisation or
 rank decision; one exception: a plant mode on the stability boundary that a row cancels, or an input column does
-not excite, to the rounding of its eigen-direction is removed from that row and column, and the value kept there is
+not excite, to the rounding of its eigen-direction — or a stable one within the gap of the boundary, so that a pole
+reads the same on both sides of the margin — is removed from that row and column, and the value kept there is
 the most accurate of three readings with derived error bounds, clipped to their enclosure and never above R_i itself,
 :func:`_without_cancelled_modes`). :func:`internal_figures`
 computes them once; ``leakage()``,
@@ -77,7 +79,8 @@ from ...freqresp import content_key, recall, remember, transfer_values
 from ...linalg import EPS, single_blas_thread
 from ...lti import LTI, _pole_scales, frequency_grid, structurally_observed
 from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
-from .plant_modes import EIGVEC_BOUND, boundary_mode_table as _boundary_modes, leading_schur
+from .plant_modes import BOUNDARY_GAP, EIGVEC_BOUND, boundary_gap, leading_schur  # noqa: F401  (BOUNDARY_GAP: here)
+from .plant_modes import boundary_mode_table as _boundary_modes
 
 class NumericalDesignError(DesignError):
     """A design broke a numerical post-condition (decoupling, basis rank, stability of the
@@ -117,10 +120,15 @@ def _resonances(poles: np.ndarray, dt: float) -> np.ndarray:
     return out[np.isfinite(out) & (out > 0)] if not dt else out[(out > 0) & (out <= np.pi / dt)]
 
 
-def _eval_points(model, Q: LTI, freqs=None) -> tuple[np.ndarray, np.ndarray]:
+def _eval_points(model, Q: LTI, freqs=None, beside=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(ω, λ)``: the judge's grid (module docstring). ``beside``: ``[(poles, gap)]`` of stable plant modes within
+    the gap of the boundary (:func:`.plant_modes.beside_boundary`), whose two-gaps-beside points are added too
+    (:func:`_internal_figures` removes the points within the gap of those a row cancels)."""
     extra = [] if freqs is None else [np.atleast_1d(np.asarray(freqs, float))]
     extra.append(_resonances(np.concatenate([model.lti().poles(), Q.poles()]), model.dt))
     extra.append(_beside_boundary_freqs([model.lti(), Q], model.dt))
+    if beside:
+        extra.append(_two_gaps_beside(beside, model.dt))
     omega = frequency_grid([model.lti(), Q] if Q.n else [model.lti()], num=120, extra=np.concatenate(extra))
     omega = omega[np.isfinite(omega)]
     # no points below 1e-9 of the top (1e-7 of the largest pole scale): a pole at 1e-17 (an
@@ -147,11 +155,6 @@ def _eval_points(model, Q: LTI, freqs=None) -> tuple[np.ndarray, np.ndarray]:
         near |= _beside_boundary_poles(lam, [model.lti(), Q], model.dt)
         omega, lam = omega[~near], lam[~near]
     return omega, lam
-
-
-#: the judge reads no point closer than this, relative to ``max(1, ||A||)`` of the balanced realisation,
-#: to a pole of the plant or the filter on (or beyond) the stability boundary (:func:`_beside_boundary_poles`)
-BOUNDARY_GAP = 1e-6
 
 
 def _beside_boundary_poles(lam: np.ndarray, systems, dt: float) -> np.ndarray:
@@ -186,7 +189,7 @@ def boundary_poles(systems, dt: float) -> list:
         p = p[outside_margin(p, dt, default_smarg(dt))]
         if p.size:
             bal = S.balanced()[0] if S.m and S.p else S
-            out.append((p, BOUNDARY_GAP * max(1.0, float(np.linalg.norm(bal.A, 2)))))
+            out.append((p, boundary_gap(bal.A)))
     return out
 
 
@@ -196,8 +199,13 @@ def _beside_boundary_freqs(systems, dt: float) -> np.ndarray:
     residue ρ of a mode the row does not cancel to rounding (:func:`_without_cancelled_modes`) reads ``ρ/(2·gap)``
     at s = 0 and z = 1 as at an undamped pair or e^{jθ}, whose neighbourhood a log-spaced grid (10 % steps) never
     reaches (ε = 1e-11 at ±2j read 7.8e-11 and passed)."""
+    return _two_gaps_beside(boundary_poles(systems, dt), dt)
+
+
+def _two_gaps_beside(pairs, dt: float) -> np.ndarray:
+    """:func:`_beside_boundary_freqs` of ``[(poles, gap)]``: ``ω0 ± 2·gap`` of those within the gap of the boundary."""
     out = []
-    for p, gap in boundary_poles(systems, dt):
+    for p, gap in pairs:
         if dt:
             on = p[np.abs(np.abs(p) - 1.0) <= gap]
             w0, off = np.abs(np.angle(on)) / dt, 2.0 * gap / dt
@@ -338,15 +346,18 @@ def resolvent_pair(S: LTI, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray] | N
     return X, Y
 
 
-def mode_decisions(model, Q: LTI, groups, qpeaks) -> dict | None:
+def mode_decisions(model, Q: LTI, groups, qpeaks, beside: bool = False, modes=False) -> dict | None:
     """The one decision on the plant's boundary modes (:func:`_boundary_modes`) per row group and input column of
     Ge, read by the grid (:func:`_without_cancelled_modes`) and by the poles of R (:func:`_r_poles`) alike: mode p
     is removed from ``R_i``'s column c where the row cancels it (``||Q_i(p) c_p|| ≤ δ_i``, :func:`_row_cancels`) or
     the column does not excite it (``|y_pᴴ b_c| ≤ δ_c``), or the column has no coupling to the states at all;
     everywhere else it is a pole of ``R_i``'s column c. ``qpeaks``: each group's peak gain ``max_λ ||Q_i(λ)||`` on
     the grid. Returns None without boundary modes, else ``modes`` (the table), ``residue``, ``delta_i``
-    (modes × groups) and ``removed`` (modes × groups × columns)."""
-    modes = _boundary_modes(model)
+    (modes × groups) and ``removed`` (modes × groups × columns). ``beside``: the judge's table, with the stable modes
+    within the gap of the boundary (:func:`.plant_modes.boundary_mode_table`); ``modes``: that table if already
+    computed (None: there is none)."""
+    if modes is False:
+        modes = _boundary_modes(model, beside=beside)
     if modes is None:
         return None
     P, m = len(modes["poles"]), modes["B"].shape[1]
@@ -987,14 +998,11 @@ def _internal_figures(gen, groups=None, freqs=None, accurate: bool = True) -> di
         return out
     if G > 1:
         return _figures_by_group(gen, groups, freqs, accurate)
-    omega, lam = _eval_points(model, Q)
-    Ge = _values(model.augmented(), lam)
-    Qv = _values_by_row(Q, groups, lam)
-    ok = np.all(np.isfinite(Ge), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))
-    if not np.any(ok):
+    pts = judge_points(model, Q, groups, getattr(gen, "_modes", False))  # a bank's groups: the table once
+    if pts is None:
         out["finite"] = False
         return out
-    Ge, Qv = Ge[ok], Qv[ok]
+    lam, Ge, Qv, out["decisions"] = pts
     sl = model.group_slices()
     fsl = sl["f"]
     fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
@@ -1002,10 +1010,53 @@ def _internal_figures(gen, groups=None, freqs=None, accurate: bool = True) -> di
     # the blocks each row decouples, read on the filter as stored where the plain reading may decide
     blocks = [_decoupled_blocks(R[:, g, :], Qv[:, g, :], Ge, sl, fcols) if model.n + Q.n else {} for g in groups]
     out["reread"] = any(bool(b) for b in blocks)
-    state = (model, Q, groups, freqs, lam[ok], R, Qv, Ge, blocks)
+    state = (model, Q, groups, freqs, lam, R, Qv, Ge, blocks)
     if out["reread"] and not accurate:  # kept for :func:`accurate_figures`
         out["_state"] = state[:5] + (R.copy(),) + state[6:]
     return _figures_from(out, state, accurate)
+
+
+def judge_points(model, Q: LTI, groups, modes=False):
+    """``(λ, Ge, Qv, decisions)``: the points one row group is read at, the plant's and the filter's values there
+    (where both are finite) and the decisions on the plant's boundary modes (:func:`mode_decisions` on the judge's
+    table, :func:`.plant_modes.boundary_mode_table` with ``beside``); None where no point is finite. The grid of
+    :func:`_eval_points` with the two-gaps-beside points of the stable modes within the gap of the boundary, then
+    without the points within the gap of those the row removes (:func:`_beside_cancelled`). ``modes``: the table,
+    if already computed (a bank's groups share it)."""
+    if modes is False:
+        modes = _boundary_modes(model, beside=True) if model.n else None
+    near = modes is not None and not np.all(modes["outside"])
+    lam = _eval_points(model, Q, beside=[(modes["poles"][~modes["outside"]], modes["gap"])] if near else None)[1]
+    Ge = _values(model.augmented(), lam)
+    Qv = _values_by_row(Q, groups, lam)
+    ok = np.all(np.isfinite(Ge), axis=(1, 2)) & np.all(np.isfinite(Qv), axis=(1, 2))
+    if not np.any(ok):
+        return None
+    Ge, Qv, lam = Ge[ok], Qv[ok], lam[ok]
+    decisions = mode_decisions(model, Q, groups, [float(np.max(_nrm(Qv[:, g, :]))) for g in groups], modes=modes)
+    if near:
+        keep = ~_beside_cancelled(decisions, lam)
+        if np.any(keep):
+            Ge, Qv, lam = Ge[keep], Qv[keep], lam[keep]
+    return lam, Ge, Qv, decisions
+
+
+def _beside_cancelled(decisions: dict, lam: np.ndarray) -> np.ndarray:
+    """Mask of the points ``lam`` within the gap of a stable plant mode beside the boundary
+    (:func:`.plant_modes.beside_boundary`) that the one row group of ``decisions`` removes from every column it
+    couples to (cancelled to rounding, or not excited): the grid keeps the same distance from it as from a
+    boundary pole (:func:`_beside_boundary_poles`), so that a pole reads the same on both sides of the margin.
+
+    A mode the row does not cancel keeps the points beside it: its peak ``ρ/δ`` at the distance δ of the pole
+    from the axis (ω = Im p, on the grid as 0 or a resonance) is what the user's residual shows — a slow but
+    stable leak, not rounding — and is read there (a boundary pole the row keeps is refused as a pole of R
+    instead, :func:`_r_poles`)."""
+    modes = decisions["modes"]
+    mask = np.zeros(lam.size, bool)
+    for k in np.flatnonzero(~modes["outside"]):
+        if np.all(decisions["removed"][k][:, modes["coupled"]]):
+            mask |= np.abs(lam - modes["poles"][k]) <= modes["gap"]
+    return mask
 
 
 def _figures_from(out: dict, state: tuple, accurate: bool) -> dict:
@@ -1021,8 +1072,6 @@ def _figures_from(out: dict, state: tuple, accurate: bool) -> dict:
         for i, g in enumerate(groups):
             if blocks[i]:
                 _decoupled_reading(model, Q, g, lam, blocks[i], R, out["peaks"], i)
-    if out.get("decisions") is None:
-        out["decisions"] = mode_decisions(model, Q, groups, [float(np.max(_nrm(Qv[:, g, :]))) for g in groups])
     out["removed"] = _without_cancelled_modes(model, Q, groups, lam, R, Qv, Ge, out["decisions"])
     Gf_n = [_nrm(Ge[:, :p, c]) for c in fcols]
     nGe = _nrm(Ge)
@@ -1090,10 +1139,11 @@ def _figures_by_group(gen, groups, freqs, accurate: bool = True) -> dict:
     model, Q = gen.model, gen.Q
     rows = np.arange(Q.p)
     parts = []
+    modes = _boundary_modes(model, beside=True) if model.n else None  # the plant's: once for every group
     for g in groups:
         idx = np.atleast_1d(rows[g])
         sub = row_system(Q, g) if Q.n else LTI(Q.A, Q.B, Q.C[idx, :], Q.D[idx, :], Q.dt)
-        view = SimpleNamespace(model=model, Q=sub, groups=[list(range(idx.size))])  # what internal_figures reads
+        view = SimpleNamespace(model=model, Q=sub, groups=[list(range(idx.size))], _modes=modes)  # what it reads
         parts.append(_internal_figures(view, view.groups, freqs, accurate))
     out = _stacked(parts, groups, freqs)
     if not accurate and out["reread"]:  # kept for :func:`accurate_figures`
