@@ -204,10 +204,12 @@ def dense_values(A, B, C, D, lams) -> np.ndarray:
     benchmarks/transfer_values_speed.py). A stack holding an exactly singular matrix is solved point by point."""
     n = A.shape[0]
     out = np.empty((lams.size,) + D.shape, complex)
-    eye, Bc = np.eye(n), B.astype(complex)
+    Bc, diag = B.astype(complex), np.arange(n)
     for s in range(0, lams.size, DENSE_CHUNK):
         part = lams[s:s + DENSE_CHUNK]
-        M = part[:, None, None] * eye - A
+        M = np.empty((part.size, n, n), complex)  # λI - A: -A, then λ added on the diagonal (the same sums)
+        M[:] = -A
+        M[:, diag, diag] += part[:, None]
         try:
             X = np.linalg.solve(M, np.broadcast_to(Bc, (part.size,) + Bc.shape))
         except np.linalg.LinAlgError:  # an exactly zero pivot somewhere in the stack: NaN at that point only
