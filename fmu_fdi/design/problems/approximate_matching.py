@@ -1409,8 +1409,9 @@ def _weighted_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, relt
     leaves room to move it out of u/d. Random H∞ seed 17 (``benchmarks/mindeg_time.py --judged``): row 2's order-8
     cover leaks 4.7e-7 of its weakest fault, the unweighted refit 1.08e-7, weighted by 10 5.5e-9 (error 2.06520e-7 →
     2.06517e-7); row 1's order-5 re-solve 1.14e-6, 1.8e-7 and 8.0e-8 as the judge read them before it added the
-    realisation's sensitivity (:func:`_leak_of`) — read so, every refit of it stays at 2.6e-7 … 5.0e-7 and row 1 keeps
-    its optimal row (tests/test_mindeg_leak.py)."""
+    realisation's sensitivity (:func:`_leak_of`) — read so, every refit of its own realisation stays at 2.6e-7 …
+    5.0e-7 (its sensitivity alone is 3.4e-7); its balanced realisation (sensitivity 3.0e-8, refit reading 5.1e-8) is
+    what lowers it now, row by row (:func:`_row_redecoupling`, tests/test_mindeg_leak.py)."""
     unknowns = int((Q.n + Q.p) * Q.m)
     if unknowns > REDECOUPLE_UNKNOWNS or not model.nu + model.nd:
         return Q, note
