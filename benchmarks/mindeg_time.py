@@ -57,6 +57,16 @@ same run); H∞ seed 7 in one run, alternating main, branch, main, branch (``_ju
 84.5, 105.9, 43.3, 46.7 s — best of two, branch/main **1.08**. The branch run above predates ``_proper_error``; the 11 continuous H2 designs whose lowered error had
 a feedthrough, re-run with it: all ok, same orders, ``|E(j1e9)|`` main 1.5e-15 … 1.9e-11 → 1.7e-20 … 1.3e-16 or below
 10× the optimal filter's (the strictly proper part's 1/ω tail; the feedthrough ``D_Q D_fw − D_MF`` is exactly 0).
+27 Nov, mindeg11 (main ccd3d32 from a git archive under /tmp and the branch from another, run concurrently for most of
+their length beside three other sessions and this session's tests; load 9-11 on the 2-core machine): ``--judged 0-29``
+main **69 ok / 0 refused / 0 leak / 0 BROKEN / 0 crash** (H∞ seed 18, refused at amm10's run, is designed on this main)
+→ branch **69 / 0 / 0 / 0 / 0**. Row orders changed on two designs: H∞ seed 7 [87, 87] → [86, 26] on main, **[26, 26]**
+on the branch (numpy 5.7e-8 → 3.2e-8); H∞ seed 17 [52, 8] → **[5, 8]** (numpy 5.3e-9 → 5.1e-8; row 1's order-5
+re-solve on its balanced realisation: sensitivity 3.0e-8 where its own realisation's is 3.4e-7). Every other design:
+the same verdict, orders and numpy leak figure. Time: sum of design times main 1357 s, branch 1117 s — not a same-load
+ratio (the runs overlapped only in part); H∞ seed 7 126.9 s main, 131.6 s branch (concurrent). A first branch run with
+the Schur candidate before main's minimal balanced one kept H2 seed 7's optimal filter at 87 states (main 30) and gave
+[87, 27] where main gives [28, 27]: the candidates now come in main's order first.
 """
 import sys
 import time

@@ -24,6 +24,19 @@ from fmu_fdi.lti import LTI, vstack
 DEC_TOL = 1e-7
 
 
+def _judged_by_numpy(model, Mr, gen, ref):
+    """numpy's verdict on a returned H∞ filter: every row's u/d leak at most dec_tol of its weakest fault (every
+    fault is required: Mr's rows are dense), the error — numpy's peak on its own grid — within reltol = 1e-6 of the
+    optimum ``ref`` plus the test grid's 1e-5 (two peaks of responses read on different grids) and the stage's
+    1e-9 ||Mr||∞ allowance for exactly matchable references, Q stable."""
+    leak, faults = _numpy_leak_and_faults(model, gen.Q)
+    worst = leak / faults.min(axis=1)
+    assert np.all(worst <= DEC_TOL), worst
+    e = error_norm(gen, Mr, gen.info["M"], "inf")
+    assert e <= ref * (1 + 1e-5) + 1e-9 * max(1.0, Mr.hinfnorm()[0]), (e, ref)
+    assert gen.Q.is_stable()
+
+
 @pytest.mark.slow  # ~10-15 s on the loaded 2-core machine (one H∞ design at reltol 1e-6, its re-decoupling)
 def test_seed_10_hinf_is_returned_decoupled_as_a_double_evaluation_reads_it():
     """Random continuous H∞ seed 10 at reltol 1e-6 (~10 s): main returned the order-51 optimal filter whose u/d leak
@@ -34,12 +47,7 @@ def test_seed_10_hinf_is_returned_decoupled_as_a_double_evaluation_reads_it():
     allowance for exactly matchable references (the optimum is 3.5e-8 here)."""
     model, Mr = _random_case(10)
     gen = approximate_model_matching(model, Mr, reltol=1e-6)
-    leak, faults = _numpy_leak_and_faults(model, gen.Q)
-    worst = leak / faults.min(axis=1)
-    assert np.all(worst <= DEC_TOL), worst
-    e = error_norm(gen, Mr, gen.info["M"], "inf")
-    assert e <= gen.info["gamma_opt"] * (1 + 1e-5) + 1e-9 * max(1.0, Mr.hinfnorm()[0]), (e, gen.info["gamma_opt"])
-    assert gen.Q.is_stable()
+    _judged_by_numpy(model, Mr, gen, gen.info["gamma_opt"])
     assert gen.info["ud_redecoupling"]["refined"]
 
 
@@ -76,3 +84,76 @@ def test_row_orders_of_stacked_rows_sharing_their_poles():
         alone = [row_orders(r)[0] for r in rows]
         assert max(alone) <= n
         assert row_orders(vstack(rows)) == alone
+
+
+@pytest.mark.slow  # ~45 s idle-ish, ~70 s beside three sessions (one H∞ design at reltol 1e-6 of an order-87 filter)
+def test_seed_7_hinf_keeps_its_shared_realisation():
+    """Random continuous H∞ seed 7 at reltol 1e-6, no mindeg: the optimal filter (two rows on 87 shared states) reads
+    6.5e-8 on row 1 with a realisation sensitivity 4.1e-8 (1.07e-7 > dec_tol); its refit 1.12e-7, its minimal
+    balanced refit 2.5e-7, so main re-decoupled row by row and shipped the rows on their own realisations: 174
+    states. In the coordinates of its real Schur form (orthogonal: no growth of the entrywise products) the
+    sensitivity is 2.4e-9 and the refit reads ~1e-8: the filter is shipped on 87 states. Judged by numpy: every
+    row's u/d leak at most dec_tol of its weakest fault (every fault required: Mr's rows are dense), the error within
+    reltol of the optimal filter's error plus the test grid's 1e-5 (as the seed-10 test), Q stable."""
+    model, Mr = _random_case(7)
+    gen = approximate_model_matching(model, Mr, reltol=1e-6)
+    assert gen.Q.n <= 87, gen.Q.n
+    # not standard: γ_opt is the updated problem's; the optimum is the optimal filter's error, measured by the stage
+    # on its points before the refit (the error it returned is within reltol of it, and numpy reads that to 1e-5)
+    _judged_by_numpy(model, Mr, gen, gen.info["ud_redecoupling"]["error_before"])
+
+
+def _entrywise_sensitivity(S: LTI, lam) -> float:
+    """numpy: ``max_λ || |W||A||Z| + |W||B| + |C||Z| + |D| ||_F`` (``W = C(λI − A)^{-1}``, ``Z = (λI − A)^{-1}B``;
+    the judge's sensitivity with ``G = I``, before its factor u)."""
+    out = 0.0
+    for s in lam:
+        M = s * np.eye(S.n) - S.A
+        W, Z = np.linalg.solve(M.T, S.C.T).T, np.linalg.solve(M, S.B)
+        aW, aZ = np.abs(W), np.abs(Z)
+        out = max(out, float(np.linalg.norm(aW @ np.abs(S.A) @ aZ + aW @ np.abs(S.B) + np.abs(S.C) @ aZ
+                                            + np.abs(S.D))))
+    return out
+
+
+def test_schur_and_balanced_coordinates_of_an_ill_conditioned_realisation():
+    """The realisations the re-decoupling tries besides the shipped one (``_redecoupling_candidates``), judged by the
+    rule's entrywise sensitivity computed in numpy: a well-conditioned order-8 system S0 realised again by a
+    similarity of condition 1e6 (S) has a sensitivity orders of magnitude above S0's; its balanced realisation (same
+    order: nothing is truncated — main tried the balanced realisation only where the truncation dropped states)
+    brings it back to within 10× of S0's balanced one (the balanced realisation is unique up to an orthogonal
+    similarity for distinct Hankel singular values, and the Schur step's bound covers that). In Schur coordinates
+    (``_schur_realisation``) the sensitivity is at most √n times the orthogonally invariant norm products
+    (``|x|ᵀ|M||y| ≤ ‖x‖₂‖|M|‖₂‖y‖₂ ≤ √n‖x‖₂‖M‖₂‖y‖₂`` per term); each realisation's values agree with S's to its
+    transformation's rounding (1e-6 relative: n·u times the condition 1e6 squared would be 1e-2 — measured ~1e-10)."""
+    from fmu_fdi.design.problems.approximate_matching import _schur_realisation
+
+    rng = np.random.default_rng(3)
+    n = 8
+    A = rng.normal(size=(n, n))
+    A -= (np.linalg.eigvals(A).real.max() + 1.0) * np.eye(n)
+    S0 = LTI(A, rng.normal(size=(n, 3)), rng.normal(size=(1, n)), rng.normal(size=(1, 3)))
+    U, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    V, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    T = U @ np.diag(np.logspace(-3, 3, n)) @ V
+    Ti = V.T @ np.diag(np.logspace(3, -3, n)) @ U.T
+    S = LTI(Ti @ S0.A @ T, Ti @ S0.B, S0.C @ T, S0.D)
+    lam = 1j * np.logspace(-2, 2, 40)
+    Sb, S0b = S.balanced_truncation(order=n)[0], S0.balanced_truncation(order=n)[0]
+    assert Sb.n == n
+    X = _schur_realisation(Sb)
+    s0, ss, sb, sx = (_entrywise_sensitivity(R, lam) for R in (S0b, S, Sb, X))
+    assert ss > 1e3 * s0, (ss, s0)
+    assert sb <= 10 * s0, (sb, s0)
+    bound = 0.0
+    for s in lam:  # the norm products on Sb (orthogonally invariant: X's are the same)
+        M = s * np.eye(n) - Sb.A
+        W, Z = np.linalg.solve(M.T, Sb.C.T).T, np.linalg.solve(M, Sb.B)
+        nW, nZ = np.linalg.norm(W, 2), np.linalg.norm(Z, 2)
+        bound = max(bound, np.sqrt(n) * (nW * np.linalg.norm(Sb.A, 2) * nZ + nW * np.linalg.norm(Sb.B, 2)
+                                         + np.linalg.norm(Sb.C, 2) * nZ) + np.linalg.norm(Sb.D))
+    assert sx <= bound * (1 + 1e-6), (sx, bound)
+    assert np.allclose(np.triu(X.A, -1), X.A)  # quasi-upper-triangular
+    vs = S.values(lam)
+    for R in (Sb, X):
+        assert np.max(np.abs(R.values(lam) - vs)) <= 1e-6 * np.max(np.abs(vs))

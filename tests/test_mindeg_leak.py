@@ -57,18 +57,18 @@ def test_lowered_h2_row_of_seed_12_is_decoupled_on_the_normalised_form():
 
 @pytest.mark.slow
 def test_seed_17_rows_are_lowered_and_re_decoupled():
-    """Random discrete H∞ seed 17 (two 52-state optimal rows; slow: ~20 s): on main the mindeg filter [5, 8] leaked
-    u 3.3e-6 of its weakest fault (numpy). Row 2's order-8 cover leaks 4.7e-7 and is re-decoupled below dec_tol
-    (kept). Row 1's order-5 candidates are refused: the one judge reads a lowered filter's leak as its stored value
-    plus the realisation's sensitivity to rounding (``approximate_matching._leak_of``: what a double-precision
-    evaluation may add), and every refit of the order-5 re-solve stays above dec_tol so read (plain 5.0e-7, minimal
-    balanced 2.6e-7, weighted 3.8e-7 and 3.5e-7) — row 1 keeps its optimal row and the reason names the order-5
-    candidate. Returned: row orders [52, 8], below dec_tol by numpy."""
+    """Random discrete H∞ seed 17 (two 52-state optimal rows; slow: ~20 s idle, ~90 s beside three sessions): on
+    cfcd677 the mindeg filter [5, 8] leaked u 3.3e-6 of its weakest fault (numpy). Row 2's order-8 cover leaks 4.7e-7
+    and is re-decoupled below dec_tol. Row 1's order-5 re-solve: the one judge reads a lowered filter's leak as its
+    stored value plus the realisation's sensitivity to rounding (``approximate_matching._leak_of``), and on its own
+    realisation that sensitivity alone is 3.4e-7 (Schur coordinates 1.7e-7): every refit of it stayed above dec_tol
+    and main kept row 1's optimal row ([52, 8]). Its balanced realisation (same order: nothing to truncate, so main
+    never tried it) has sensitivity 3.0e-8 and its refit reads 5.1e-8: row 1 is lowered to 5. Returned: row orders
+    [5, 8], below dec_tol by numpy, the optimal error."""
     Mr, g0, g1, worst = _judged(17, "inf")
     info = g1.info["mindeg"]
     assert worst <= DEC_TOL, worst
-    assert info["row_orders"] == [52, 8] and row_degrees(g1.Q)[1] == 8  # (row 1: McMillan degree 18 of 52 states)
-    assert "order-5 candidate" in info["reason"] and "leak" in info["reason"]
+    assert info["row_orders"] == [5, 8] and row_degrees(g1.Q) == [5, 8]
     assert info["ud_redecoupling"]["refined"]
     _same_error(g0, g1, Mr, "inf")
     assert stable(g1.Q)
