@@ -332,7 +332,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         # (per row: on the rounding estimate alone — the uniform K shifts below are the next candidate before the
         # worst-case bound is admitted, :func:`_shipped_filter`)
         Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor,
-                                 estimate_only=per_row)
+                                 estimate_only=per_row, norm=norm, reltol=reltol)
     except DesignError:
         if not per_row:
             raise
@@ -341,7 +341,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         # [c d] dropped moved an error of 4.9e-11 by 6.7e-6; with K shifts on both rows it is reproduced)
         shifts, scale, M, Qfull, MF, factor, placed, row_poles = _uniform_factor(Qs, F, K, Kb, a, poles, sdeg,
                                                                                  normalize, dt, placing, atol)
-        Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor)
+        Q, lam = _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor, norm=norm,
+                                 reltol=reltol)
     Q, cancelled = _plant_mode_cancellation(model, Q, fnm, MF, lam, norm, [model.lti(), Y, Mr], reltol, smarg, dec_tol)
     required = required_faults(model, Mr, lam)
     Q, redecoupled = _ud_redecoupling(model, Q, required, fnm, MF, lam, norm, [model.lti(), Y, Mr], reltol, smarg,
@@ -1477,7 +1478,8 @@ def _solve_regularised(Gh, F, left, norm, reltol):
     return Y, info, eps
 
 
-def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor=None, estimate_only=False):
+def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol, factor=None, estimate_only=False,
+                    norm: str = "inf", reltol: float | None = None):
     """Stage of :func:`approximate_model_matching`: the realisation of ``Q = Y Φ Q0`` whose error
     response is the designed one (the minimal one if it passes, else the non-minimal one);
     returns ``(Q, the comparison points)``. Row i of ``Y Ĝ − F`` is multiplied by ``scale_i m^{k_i}``
@@ -1516,23 +1518,43 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
     comparison (to first order): the realisation is another filter and it is refused. One within ``β_w`` but above
     β may still be the worse of two realisations (seeds 4, 28's minimal ones), which is why β decides first; the
     filter taken by ``β_w`` is then judged, as every returned filter, by the post-conditions that follow (the u/d leak
-    on reading + sensitivity, :func:`_ud_leak_refused`; the error; the zero filter). Approximate audit seeds 119, 120,
-    131 (``amm_ref``, tests/test_approximate_random.py) were refused on β alone: 120, 131 (gaps 2.78, 1.01 β, 2.5e-8,
-    1.5e-9 of the error) are within β_w, designed (orders 119, 78) and pass numpy's judge; 119 (its two candidates'
-    gaps 124 and 10.4 β, 8.77 and 1.14 β_w, beside z = 1 where the designed side's terms dominate) stays refused: its
-    gap is more than the evaluation's rounding — the factors' realisations carry their construction's errors, which
-    no term of β bounds.
+    on reading + sensitivity, :func:`_ud_leak_refused`; the error; the zero filter). Approximate audit seeds 120, 131
+    (``amm_ref``, tests/test_approximate_random.py; gaps 2.78, 1.01 β, 2.5e-8, 1.5e-9 of the error) are within β_w.
+
+    β_w bounds the *evaluation* of the factors; it does not bound their *construction*: the realisations of Y, Ĝ, Φ, Q0
+    (coprime factorisation, minimal realisation, series products) each carry a backward error of their own, normwise
+    ~n·u·||A|| (Higham, 2nd ed., Lemma 19.3 and Thm 19.4 for the staircase's Householder steps; Golub and Van Loan,
+    4th ed., sec. 7.5.6 for the real Schur forms; Varga 2017, sec. 10.1), which
+    the product ``Y Φ Q0`` and the designed ``Y Ĝ − F`` carry differently — no first-order evaluation term covers it,
+    and a bound of it would be a normwise ``n·u·||A||/dist(λ, poles)`` per factor, orders above the gaps β_w meets. So
+    where no candidate is within β_w, the test is the one the user's residual asks: the shipped realisation is
+    another filter, admissible by construction (``Q0`` annihilates u, d; the decoupling of the shipped realisation is
+    judged after, on reading + sensitivity); it is shipped if its own error — read from its own realisation as the
+    returned figure is (:func:`_shipped_error`: refined H∞ peak, H2 quadrature) — is the designed filter's error
+    ``e_d`` (read from the factors, same reading) within ``reltol``, ``e_s ≤ e_d (1 + reltol) + ZERO_ERROR_FLOOR·||M
+    [Mr 0]||`` (the limit every later correction meets, :func:`_correction_refused`), and its gap is within
+    ``SHIPPED_ACCURACY``; of those the nearest to the designed response in β_w, with a note naming gap, both errors
+    and the limit. A realisation whose error exceeds that limit is refused, the message naming the errors (a
+    realisation off by 5e-4 of Q: tests/test_amm_shipped_error.py). Seed 119 (candidates at 8.77 and 1.14 β_w, beside
+    z = 1 where the designed side's terms dominate; refused before; 1.08 β_w since the γ-iteration's change): its error 170.410907 is the designed 170.410907
+    to nine digits (limit 170.427949), numpy's judge passes it; seed 131, accepted by β_w at 0.964 of it, meets this
+    test too (87.0955351 against the designed 87.0955351, measured with β_w's tier bypassed): a rounding that tips
+    it over β_w no longer refuses it.
     ``estimate_only``: β alone (the per-row shifts, whose next candidate is the uniform K shifts)."""
     dt = model.dt
     Qfull, last = Qfull if isinstance(Qfull, tuple) else (Qfull, None)
     lam = _points([model.lti(), Y, Mr] + (list(factor) if isinstance(factor, list) else [factor] if factor is not None
                                           else []), dt)
-    # each row's factor (:func:`row_shifts`): s_i m(λ)^{k_i}, or the placed μ_i(λ)
-    if factor is None:
-        mk = np.stack([sc * _mk(lam, a, k, dt) for sc, k in zip(np.broadcast_to(scale, len(shifts)), shifts)], 1)
-    else:
-        mk = np.stack([_values(f, lam)[:, 0, 0] for f in (factor if isinstance(factor, list) else
+    def mk_at(L):  # each row's factor (:func:`row_shifts`): s_i m(λ)^{k_i}, or the placed μ_i(λ)
+        if factor is None:
+            return np.stack([sc * _mk(L, a, k, dt) for sc, k in zip(np.broadcast_to(scale, len(shifts)), shifts)], 1)
+        return np.stack([_values(f, L)[:, 0, 0] for f in (factor if isinstance(factor, list) else
                                                           [factor] * len(shifts))], 1)
+
+    def designed_at(L):  # the designed error response m^k (Y Ĝ − F)
+        return (np.einsum("kij,kjl->kil", _values(Y, L), _values(Gh, L)) - _values(F, L)) * mk_at(L)[:, :, None]
+
+    mk = mk_at(lam)
     Yv, Ghv = _values(Y, lam), _values(Gh, lam)
     designed = (np.einsum("kij,kjl->kil", Yv, Ghv) - _values(F, lam)) * mk[:, :, None]
     mfv, Ge = _values(MF, lam), _values(model.augmented(), lam)
@@ -1581,19 +1603,45 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
         if excess <= 1.0 and gap <= SHIPPED_ACCURACY * size:
             return Q, lam
     # no candidate within the estimate: the first within the worst-case first-order bound (and SHIPPED_ACCURACY)
-    fixed, excess_w = None if estimate_only else fixed_rounding(True), []
+    fixed, excess_w, gaps_w = None if estimate_only else fixed_rounding(True), [], []
     for cand in ([] if estimate_only else tried):
         gap_w, ew, _ = compare(*cand, fixed, True)
         excess_w.append(ew)
+        gaps_w.append(gap_w)
         if ew <= 1.0 and gap_w <= SHIPPED_ACCURACY * size:
             return cand[0], lam
+    # none within β_w either: the candidate nearest the designed response (in β_w) whose own error is the designed
+    # one's within reltol, as the corrections after it are judged (:func:`_correction_refused`)
+    errors, why = [], ""
+    if not estimate_only and reltol is not None:
+        systems = [model.lti(), Y, Mr]
+        e_d = float(_refined_peak(designed_at, lam, dt) if norm == "inf" else _h2_quad(designed_at, systems, dt))
+        limit = e_d * (1 + reltol) + ZERO_ERROR_FLOOR * float(np.nanmax(_nrm(mfv)))
+        for k in np.argsort(excess_w, kind="stable"):
+            if not gaps_w[k] <= SHIPPED_ACCURACY * size:
+                continue
+            e_s = float(_shipped_error(model, tried[k][0], fnm, MF, lam, norm, systems))
+            errors.append(e_s)
+            if e_s <= limit:
+                note(f"the shipped realisation (order {tried[k][0].n}) differs from the designed error response by "
+                     f"{gaps_w[k]:.3g} (relative {gaps_w[k] / size:.3g}), {excess_w[k]:.3g} times its worst-case "
+                     f"first-order evaluation bound: its own error {e_s:.9g} is the designed {e_d:.9g} within "
+                     f"reltol = {reltol:g} (limit {limit:.9g}), so it is taken")
+                return tried[k][0], lam
+        why = (f"; their errors {', '.join(f'{e:.9g}' for e in errors)} exceed the designed {e_d:.9g} by more than "
+               f"reltol = {reltol:g} (limit {limit:.9g})" if errors else "")
     raise DesignError(f"approximate_model_matching: the returned filter's error response differs from the "
                       f"designed one by {gap:.3g} (relative {gap / size:.3g}, limit {SHIPPED_ACCURACY:g}; "
                       f"{excess:.3g} times its rounding estimate, at most {worst / size:.3g} of the error's size"
                       + (f"; the candidates' gaps are {', '.join(f'{e:.3g}' for e in excess_w)} times their "
-                         f"worst-case first-order rounding bound" if excess_w else "") + "): the "
+                         f"worst-case first-order rounding bound" if excess_w else "") + why + "): the "
                       f"realisation of Q = Y Φ Q0 lost accuracy (peak gain of Y {float(np.nanmax(nY)):.3g}; "
                       f"an ill-conditioned, nearly exactly matchable problem: try model_matching, or another sdeg)")
+
+
+#: :func:`_shipped_filter`: the error limit's absolute floor, this fraction of ``||M [Mr 0]||`` (exactly matchable
+#: references: two readings of an error of rounding size differ by rounding; :func:`_correction_refused`'s 1e-9)
+ZERO_ERROR_FLOOR = 1e-9
 
 
 #: :func:`_shipped_filter`: the largest gap, relative to the error's size, between the shipped and the designed error
