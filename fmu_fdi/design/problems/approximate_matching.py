@@ -58,7 +58,9 @@ M(λ) [Mr 0](λ)``, is compared point by point with the designed ``M (Ŷ Ĝ − 
 factor evaluated from its own balanced realisation: norms of the product realisations,
 with near-cancelling modes, lost every digit on nearly exact matches); a difference above the
 rounding bound of that comparison (each factor's componentwise GEPP bound times the other factors'
-gains, :func:`_evaluation_rounding`), or above 1e-3 of the error's size, is refused. ``error``/``gamma_sub`` are the H∞ peak of that
+gains, :func:`_evaluation_rounding`), or above 1e-3 of the error's size, is refused — unless the realisation's own
+error is the designed one's within ``reltol`` (the factors' construction errors, which no evaluation bound covers:
+:func:`_shipped_filter`). ``error``/``gamma_sub`` are the H∞ peak of that
 response on a refined grid (H2: Gauss–Legendre quadrature).
 
 **Least order** (``mindeg=True``, as ``ammsyn(…; mindeg = true)``, which solves the approximate
@@ -250,7 +252,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         Mr of the wrong shape, sample time, unstable or improper; no residual decouples u
         and d; zeros of the reduced system on the stability boundary; SLICOT's Riccati
         solvers failing at every level/regularisation; a returned filter whose error
-        response is not the designed one (realisation accuracy) or that fails its
+        response is not the designed one (realisation accuracy: beyond the evaluation's rounding bound, and its own
+        error above the designed one's by more than ``reltol``) or that fails its
         post-conditions, among them a u/d leak on the normalised form (rows at unit weakest required fault gain)
         above ``dec_tol`` as a double-precision evaluation of the returned realisation can show it — the judge's
         reading plus the realisation's sensitivity — where no refit or better-conditioned realisation meets it
@@ -2304,14 +2307,15 @@ def solve_standard(Gh: LTI, F: LTI, norm: str, reltol: float) -> tuple[LTI, dict
     # measured error (approximate audit seed 120, Mr = I on 4 faults and one residual row, γopt = ||F||∞ = 1:
     # the central controllers at 1.0014 … 1.00005 measured γ·(1 + 1.7e-6), above SB10FD's certificate by more
     # than 1e-6, so those levels were called infeasible, the bracket stopped at [1.00148, 1.00156] and the
-    # filter's 1.00155 was refused as worse than Q = 0's 1 by more than reltol). It stops when the returned
-    # controller's measured error is within reltol of the infeasible level (the figure returned, not the
-    # level: the two differ by the controllers' accuracy), when the levels are within HINF_LEVEL_FLOOR·reltol
-    # (the controllers' inaccuracy, not the bracket, then limits the figure), or when a measured error is already
+    # filter's 1.00155 was refused as worse than Q = 0's 1 by more than reltol). It stops when both the feasible
+    # level and the kept controller's measured error are within reltol of the infeasible level (the figure
+    # returned, not only the level: the two differ by the controllers' accuracy), when the levels are within
+    # HINF_LEVEL_FLOOR·reltol (the controllers' inaccuracy, not the bracket, then limits the figure), or when a
+    # measured error is already
     # below the infeasible level (then that level was a numerical refusal, and the error — an upper bound of
     # γopt — is the answer)
-    while (ebest > lo * (1 + reltol) and hi > lo * (1 + HINF_LEVEL_FLOOR * reltol) and ebest > lo
-           and ebest > 1e-12 * hi0):
+    while ((hi > lo * (1 + reltol) or ebest > lo * (1 + reltol)) and hi > lo * (1 + HINF_LEVEL_FLOOR * reltol)
+           and ebest > lo and ebest > 1e-12 * hi0):
         mid = np.sqrt(lo * hi)
         got = _hinf_at(Gh, F, mid)
         feasible = got is not None and got[2]
