@@ -57,6 +57,11 @@ re-decoupling already used); at the default reltol none of the 60 is refused by 
 CI run, times indicative): ok 60 / refused 0 / leak 0 / BROKEN 0 / crash 0, median 2.30 s, max 14.8 s → the same
 60 / 0 / 0 / 0 / 0, median 2.27 s, max 15.3 s, every verdict and gamma_sub the same: _shipped_filter's worst-case
 fallback (β_w, tried only where no candidate is within the rounding estimate β) changes none of the 60 designs.
+
+27 Nov, amm11 (main ccd3d32 copied and run, then the branch, the two beside other sessions' work — times not comparable):
+main ok 60 / refused 0 / leak 0 / BROKEN 0 / crash 0 → branch cb28e9d the same, every verdict and printed gamma_sub
+identical (an intermediate stop rule of the γ-iteration — measured error only — had moved H∞ seed 25 from 7.414298 to
+7.414590, within reltol of the bracket's 7.413943; the stop kept requires the level too, and gives main's 7.414298).
 """
 import sys
 import time

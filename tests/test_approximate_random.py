@@ -120,14 +120,15 @@ def _away(model, lam: np.ndarray) -> np.ndarray:
     return np.min(np.abs(lam[:, None] - ev[None, :]), axis=1) > 1e-3 * np.maximum(1.0, np.abs(lam))
 
 
-def _refined_peak(fun, lam: np.ndarray, dt: float, poles=()) -> float:
+def _refined_peak(fun, lam: np.ndarray, dt: float, poles=(), where: list | None = None) -> float:
     """The largest 2-norm of ``fun(points)`` (shape (k, p, m)) over the boundary: grid maximum, then
     three rounds of 21 points between the neighbours of the best point (refined H∞ norm); the refined
     points keep ``_points``' distance ≥ 1e-7 (relative) from ``poles`` (the plant's and the filters'). Without
     that guard the refinement between two grid points on either side of a cancelled boundary mode reads the
     rounding-level residue r of the cancellation over the distance δ: approximate audit seed 110 (Mr = I,
     plant pole ±2j, ||Q(2j) c|| = 1.9e-12 within the balanced realisation's evaluation bound 2.9e-12) read
-    1.00171 at δ ≈ 1e-9 for an error of 1.00008 (r/δ: 8.5e-5 at 1e-8, 9.6e-3 at 1e-10; 8.6e-6 at 1e-7)."""
+    1.00171 at δ ≈ 1e-9 for an error of 1.00008 (r/δ: 8.5e-5 at 1e-8, 9.6e-3 at 1e-10; 8.6e-6 at 1e-7).
+    ``where``: a list the point of the peak is appended to."""
     poles = np.asarray(poles, complex).ravel()
 
     def guarded(pts):
@@ -140,6 +141,7 @@ def _refined_peak(fun, lam: np.ndarray, dt: float, poles=()) -> float:
     best = float(vals.max(initial=0.0))
     if not vals.size:
         return 0.0
+    at = lam[int(np.argmax(vals))]
     x = np.angle(lam) if dt else lam.imag
     for k in np.argsort(vals)[-3:]:
         a, b = x[max(k - 1, 0)], x[min(k + 1, len(x) - 1)]
@@ -151,8 +153,11 @@ def _refined_peak(fun, lam: np.ndarray, dt: float, poles=()) -> float:
                 break
             v = np.linalg.norm(fun(pts[keep]), 2, axis=(1, 2))
             j = int(keep[int(np.argmax(v))])
-            best = max(best, float(v.max()))
+            if float(v.max()) > best:
+                best, at = float(v.max()), pts[j]
             a, b = xs[max(j - 1, 0)], xs[min(j + 1, 20)]
+    if where is not None:
+        where.append(at)
     return best
 
 
@@ -257,16 +262,29 @@ def judge_amm(gen, model, Mr, ref_noise: float | None) -> list[str]:
     if top <= 0:
         return out + ["‖M·Mr‖ = 0"]
     out += _row_checks(Q, list(range(Q.C.shape[0])), model, lam, Rv, Qv, 1.0 / top, False, "filter")
-    err = _refined_peak(error, lam, model.dt, poles)
+    where: list = []
+    err = _refined_peak(error, lam, model.dt, poles, where)
     # An exact match's error is the rounding of evaluating Q·[Gf Gw] − M·[Mr 0]: each reading carries ≲ VIS_TOL of
     # the gains compared (test_synthesis_random's derivation), ‖M·Mr‖ = top for a matched row, so two readings of
     # it agree within 2·VIS_TOL·top (audit seed 129, an exact match: reported 2.0186e-13, numpy 1.9970e-13 of
-    # top = 8.07 — 2.7e-16 of it apart, refused by the relative 1e-3 alone)
-    out += _agree("matching error", float(gen.info["error"]), err, ERR_RTOL, atol=2 * VIS_TOL * top)
+    # top = 8.07 — 2.7e-16 of it apart, refused by the relative 1e-3 alone). Beside a boundary mode of the plant
+    # that R cancels (fault-only, [Gf](λ) ≈ c/(λ − p)), the reading of Q(λ)·[Gf Gw](λ) carries Q's evaluation error
+    # times ‖[Gf Gw](λ)‖ ~ ‖c‖/δ, whatever |Q(λ)| (Q has a zero at p): GEPP on λI − A_Q errs by ≲ γ_{3n}|λI − A_Q|
+    # componentwise (Higham, 2nd ed., Thm 9.3), so the reading's floor at the peak λ* is γ_{3n_Q}·‖Q‖·‖[Gf Gw](λ*)‖
+    # (‖Q‖ its peak on the grid). Audit seed 159 (discrete, exact match of ‖Mr‖ = 129, plant pair e^{±0.2j} of
+    # eigenvalue condition 4.6e5, ‖c‖ = 4.39): |Q(p) c| = 7.2e-14 = 7.8 u·‖Q‖‖c‖, so numpy read η/δ = 4.16e-7 at
+    # δ = 1e-7 (4.0e-8 at 1e-6, 1.2e-10 at 1e-2 ≈ the designed 1.28e-10) and the design 6.96e-9 at its 2e-6: two
+    # readings of rounding/δ; the floor there is 4.95e-6 (3.8e-8 of ‖Mr‖)
+    n_q = 3 * max(Q.A.shape[0], 1)
+    u = np.finfo(float).eps / 2
+    Gs = _ge_values(model, np.asarray(where[:1], complex)) if where else np.zeros((1, 0, 0))
+    g_star = _peak(np.concatenate([Gs[:, :, fcol], Gs[:, :, cols["w"]]], axis=2)) if where else 0.0
+    floor = n_q * u / (1 - n_q * u) * _peak(Qv) * g_star
+    out += _agree("matching error", float(gen.info["error"]), err, ERR_RTOL, atol=2 * VIS_TOL * top + floor)
     if err > top * (1 + ERR_RTOL):
         out.append(f"matching error {err:.6g} above that of Q = 0 ({top:.6g})")
     M_is_I = M.A.shape[0] == 0 and np.allclose(M.D, np.eye(M.D.shape[0]))
-    if ref_noise is not None and M_is_I and err > ref_noise * (1 + ERR_RTOL) + 1e-9 * top:
+    if ref_noise is not None and M_is_I and err > ref_noise * (1 + ERR_RTOL) + 1e-9 * top + floor:
         out.append(f"matching error {err:.6g} above the reference row's own ‖Q_ref Gw‖∞ = {ref_noise:.6g}")
     return out
 
@@ -391,13 +409,12 @@ KNOWN_BROKEN: dict[tuple[int, str], str] = {
     # 1.4e-9 / 2.5e-8 / 1.5e-9 of the error's size because the gap was 10.4 / 2.78 / 1.01 times its "rounding bound",
     # whose inner-product constant _gamma(n) = sqrt(n)·u is the probabilistic estimate at λ = 1 (Higham-Mary Thm 2.4:
     # exceeded with probability up to 2·exp(-1/2) > 1, i.e. no bound). Seeds 120, 131: fixed (FIXED) by the
-    # worst-case first-order bound; seed 119's gap exceeds that bound too (shipped10)
-    (119, "amm_ref"): "achievable reference refused: shipped-response gap 1.57e-6 (relative 1.43e-9) = 10.4 times "
-                      "_shipped_filter's probabilistic rounding estimate and 1.14 times (the minimal candidate: 8.77) "
-                      "its worst-case first-order bound (deterministic γ_n = n·u/(1 − n·u)), beside z = 1 where the "
-                      "designed side's terms dominate: more than the evaluation's rounding (the factors' realisations "
-                      "carry their construction's errors, which the bound does not include); with the bound bypassed "
-                      "the filter passes numpy's judge (error 170.41, reference row's noise 175.39, order 86)",
+    # worst-case first-order bound; seed 119's gap exceeds that bound too (shipped10) — fixed by amm11 (FIXED)
+    # amm11 (same session, numpy judge): seeds 136-159 main 104 ok / 0 refused / 1 broken (159 amm_ref: the judge,
+    # FIXED) → 105 / 0 / 0; seeds 112-135 re-run on the branch 106 / 1 / 0 — the refusal is seed 122 amm(Mr=I) (not
+    # broken: Mr = I need not be reachable): γ-iteration 1.0000777 within reltol of its bracket [1, 1.0000777], the
+    # shipped filter's own error 1.000102 (a plant mode at 0 beside which it is read; the exact cancellation would make
+    # it 1.0156) exceeds Q = 0's 1 by more than reltol — left open
 }
 #: approximate_model_matching (noisec) refused "the returned filter's error response differs from the designed one"
 #: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compared the two on points that
@@ -509,6 +526,19 @@ FIXED = {(129, "amm_ref"): "an exact match (error 2e-13 of ‖M·Mr‖ = 8.07): 
                                                119),
                                               (131, "2.39e-7 (relative 1.46e-9)", 1.01, 0.964, 1.34, "87.096", "112.29",
                                                78))},
+         (119, "amm_ref"): "achievable reference refused: shipped-response gap 1.57e-6 (relative 1.43e-9) = 10.4 times "
+                           "_shipped_filter's probabilistic rounding estimate and 1.14 times its worst-case first-order "
+                           "bound β_w (the minimal candidate: 8.77), beside z = 1 — the factors' construction errors, "
+                           "which no evaluation bound covers; fixed: where no candidate is within β_w, the one nearest "
+                           "the designed response whose own error is the designed one's within reltol is shipped "
+                           "(error 170.410907, limit 170.427949; gap 6.05e-6 = 1.08 β_w after the γ-iteration's "
+                           "change), numpy judge ok (reference row's noise 175.39, order 86)",
+         (159, "amm_ref"): "audit of seeds 136-159: discrete n 5, an exact match (designed error 1.28e-10, ‖Mr‖ 129) "
+                           "beside the plant's fault-only pair e^{±0.2j} (eigenvalue condition 4.6e5) that R cancels: "
+                           "numpy read 4.16e-7 at 1e-7 from the pole for the reported 6.96e-9 (read at 2e-6) — both "
+                           "|Q(p) c|/δ with |Q(p) c| = 7.2e-14 = 7.8 u·‖Q‖‖c‖, the rounding of Q's evaluation; the "
+                           "test judge's fault — judge_amm's floor now includes γ_{3n_Q}·‖Q‖·‖[Gf Gw](λ*)‖ at the "
+                           "peak (4.95e-6 here)",
          (110, "amm_eye"): "Mr = I on nf = 5 faults, p = 3: numpy read 1.00171 for the reported 1.00008 — its "
                            "refinement read the cancelled plant pair ±2j's rounding residue 1.9e-12 at 1e-9 from the "
                            "pole (the judge's refinement now keeps _points' 1e-7); and the error above Q = 0's (1, "
