@@ -390,6 +390,11 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     return gen
 
 
+#: the error limits' absolute floor, this fraction of ``||M [Mr 0]||`` (exactly matchable references: two readings of
+#: an error of rounding size differ by rounding) — :func:`_shipped_filter`, :func:`_correction_refused`, the row
+#: lowering's guard and the mindeg acceptance
+ZERO_ERROR_FLOOR = 1e-9
+
 #: :func:`_zero_filter_error`: an error above Q = 0's by more than ``reltol`` plus this fraction of it (the rounding of
 #: two refined peaks read on the same points, ~1e-12 of the error, with margin) is refused
 ZERO_FILTER_SLACK = 1e-9
@@ -492,11 +497,11 @@ def _plant_mode_cancellation(model, Q, fnm, MF, lam, norm, systems, reltol, smar
 def _correction_refused(model, Q, Qc, what, fnm, MF, lam, norm, systems, reltol, smarg, dec_tol):
     """The acceptance of a correction ``Qc`` of the shipped filter ``Q`` (:func:`_plant_mode_cancellation`,
     :func:`_ud_redecoupling`): ``(error of Q, error of Qc, None or why it is refused)`` — refused where the error
-    measured on Qc (:func:`_shipped_error`, the same points) exceeds ``reltol`` of Q's plus 1e-9 of ``||M Mr||`` (for
-    exactly matchable references), or Qc fails the post-conditions."""
+    measured on Qc (:func:`_shipped_error`, the same points) exceeds ``reltol`` of Q's plus
+    :data:`ZERO_ERROR_FLOOR` of ``||M Mr||`` (for exactly matchable references), or Qc fails the post-conditions."""
     e0 = float(_shipped_error(model, Q, fnm, MF, lam, norm, systems))
     e1 = float(_shipped_error(model, Qc, fnm, MF, lam, norm, systems))
-    limit = e0 * (1 + reltol) + 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)), initial=0.0)), 1e-300)
+    limit = e0 * (1 + reltol) + ZERO_ERROR_FLOOR * max(float(np.nanmax(_nrm(_values(MF, lam)), initial=0.0)), 1e-300)
     if not e1 <= limit:
         return e0, e1, (f"{what} would worsen the match from {e0:.6g} to {e1:.6g} (limit {limit:.6g}, "
                         f"reltol = {reltol:g})")
@@ -941,7 +946,7 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, reltol, smarg, de
     choose = lambda count: pick_poles(None, 0.0 if dt else -1.0, count)  # noqa: E731
     # half the guard's allowance (:func:`_verified`): a candidate whose response is already that close to the row's
     # needs no pole refit
-    slack = 0.5 * (reltol * float(err) + 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)))), 1e-300))
+    slack = 0.5 * (reltol * float(err) + ZERO_ERROR_FLOOR * max(float(np.nanmax(_nrm(_values(MF, lam)))), 1e-300))
     for i, Qi in enumerate(rows):
         cs, ns = _row_candidates(Qi, N, lim, dt, atol, choose) if Qi.n else ([], [])
         if Qi.n:
@@ -1327,7 +1332,7 @@ def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, reltol, smarg,
     # (errors at rounding level, ~1e-12)
     lam2 = np.concatenate([lam, _points([Qm], dt, 100)])
     ref = max(err, _shipped_error(model, gen.Q, fnm, MF, lam2, norm, systems + [Qm]))
-    floor = 1e-9 * max(float(np.nanmax(_nrm(_values(MF, lam)))), 1e-300)
+    floor = ZERO_ERROR_FLOOR * max(float(np.nanmax(_nrm(_values(MF, lam)))), 1e-300)
     limit = float(ref * (1 + reltol) + floor)
 
     def error_refused(S, out):
@@ -1675,11 +1680,6 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
                          f"worst-case first-order rounding bound" if excess_w else "") + why + "): the "
                       f"realisation of Q = Y Φ Q0 lost accuracy (peak gain of Y {float(np.nanmax(nY)):.3g}; "
                       f"an ill-conditioned, nearly exactly matchable problem: try model_matching, or another sdeg)")
-
-
-#: :func:`_shipped_filter`: the error limit's absolute floor, this fraction of ``||M [Mr 0]||`` (exactly matchable
-#: references: two readings of an error of rounding size differ by rounding; :func:`_correction_refused`'s 1e-9)
-ZERO_ERROR_FLOOR = 1e-9
 
 
 #: :func:`_shipped_filter`: the largest gap, relative to the error's size, between the shipped and the designed error
