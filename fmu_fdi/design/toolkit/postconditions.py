@@ -694,13 +694,21 @@ def _r_poles(model, Q: LTI, smarg: float, decisions: dict | None = None) -> tupl
                 kept = np.append(kept, p)
                 i, j = (int(x[0]) for x in np.nonzero(~rem))
                 c = int(cols[j])
-                reasons.append(f"{'unstable' if _beyond(p, model.dt) else 'marginal'} plant mode {_fmt(np.array([p]))} "
+                reasons.append(f"{_mode_kind(p, model.dt)} plant mode {_fmt(np.array([p]))} "
                                f"in R_{_group_of(sl, c)} of residual {i + 1}: residue ||Q_{i + 1}(p) c_p|| = "
                                f"{decisions['residue'][k, i]:.3g} > δ_i = {decisions['delta_i'][k, i]:.3g} (its rounding "
                                f"bound) and input '{names[c]}' excites it (|y_pᴴ b| = {modes['coupling'][k][c]:.3g} > "
                                f"δ_c = {modes['coupling_tol'][k][c]:.3g})")
         found.append(kept)
     return (np.concatenate(found) if found else np.zeros(0, complex)), reasons
+
+
+def _mode_kind(p: complex, dt: float) -> str:
+    """'unstable' (:func:`_beyond`), 'marginal' (outside the default margin) or 'slow' (a stable mode within the gap
+    of the boundary, :func:`.plant_modes.beside_boundary`, that breaks a user ``smarg``)."""
+    if _beyond(p, dt):
+        return "unstable"
+    return "marginal" if outside_margin(np.array([p]), dt, default_smarg(dt))[0] else "slow"
 
 
 def _beyond(p: complex, dt: float) -> bool:

@@ -452,7 +452,20 @@ def _judged_plant_poles(model: FDIModel, Q: LTI, margin: float, kept: np.ndarray
     tolerance on the whole series realisation misses couplings far above rounding: random seed 38's bank row
     [1 1 0 1 1] (n = 21) kept s = 1 in R_fc with ``||Q(1) c|| = 5.1e-9`` of the unit fault gain against δ_i =
     1.8e-12 — an unstable fault response the new judge refused. Only added to ``kept``, never taken from it (a mode
-    the staircase keeps is moved as before)."""
+    the staircase keeps is moved as before).
+
+    **One rule for a mode beside the boundary.** The table is the judge's own
+    (:func:`.plant_modes.boundary_mode_table` with ``beside=True``: also the stable modes within the grid's gap of
+    the boundary, :func:`.plant_modes.beside_boundary`), so a stable plant mode there that breaks a user ``smarg``
+    is decided for ``[R_w R_f]`` by its residue here as in :func:`.postconditions._r_poles` — not by the staircase
+    here and the residue there. Why the residue: it is the decision whose threshold is the derived rounding of the
+    row's zero (δ_i, δ_c); the staircase's fixed :data:`~fmu_fdi.margin.R_POLE_TOL` of the data reads a fault
+    coupled to the mode at 1e-10 as no coupling, while the fault response keeps the pole with the weight numpy
+    reads (tests/test_judge_beside_smarg.py: a mode at s = −1e-7 that u and d do not excite and a fault fx excites
+    at 1e-10 of its column, ``smarg = −0.05``: the staircase left it, the judge refused the design ('R stability'):
+    the row does not cancel it, ``||Q(p) c_p|| = 0.13`` against δ_i = 2.7e-12, and fx couples to it at 5.3e-11
+    against δ_c = 1.2e-13, a tail ρ/δ ≈ 3e-3 of the fault gain; moved here, the design is returned and numpy reads
+    R's residue there at rounding)."""
     from ...margin import outside_margin
     from .postconditions import _eval_points, mode_decisions, _nrm, _values
 
@@ -463,7 +476,7 @@ def _judged_plant_poles(model: FDIModel, Q: LTI, margin: float, kept: np.ndarray
     Qv = Qv[np.all(np.isfinite(Qv), axis=(1, 2))]
     if not Qv.shape[0]:
         return np.zeros(0, complex)
-    dec = mode_decisions(model, Q, [list(range(Q.p))], [float(np.max(_nrm(Qv)))])
+    dec = mode_decisions(model, Q, [list(range(Q.p))], [float(np.max(_nrm(Qv)))], beside=True)
     if dec is None:
         return np.zeros(0, complex)
     sl = model.group_slices()

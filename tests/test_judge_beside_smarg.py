@@ -1,0 +1,112 @@
+"""The judge and the factoriser decide a stable plant mode beside the boundary by one rule when a user ``smarg`` is
+tighter than the default (issue 17, item 1: every block of R stable with the margin).
+
+A plant (n = 6, three outputs, two actuators with a fault on u1, a sensor fault on y1, one unknown input d, and a
+component fault fx) whose slowest mode sits at s = −δ, mixed by a random orthogonal similarity U and a diagonal state
+scaling over four decades. u and d do not excite the slow mode (their columns are projected off its eigen-direction
+in the modal coordinates), so a u/d-decoupling row need not cancel it; fx excites it at ``η`` of its column. With
+``smarg = −0.05`` the mode breaks the user's margin and must leave R_f: the factoriser has to move it.
+
+Judged by numpy alone in the plant's modal coordinates (the stored data rescaled by the known diagonal scaling:
+A0 = T⁻¹AT = U·diag(−δ, …)·Uᵀ, eigenvectors orthonormal to rounding): Q's poles, and for every plant mode p that
+breaks the margin the residue of R = Q·Ge there, ``max_c ||Q(p) c_p|| |y_pᴴ b_c|`` over Ge's columns, relative to
+the weakest fault's peak gain ``min_f max_ω ||R_f(jω)||`` (ω ∈ {0} ∪ logspace(−10, 3)). A pole of R with a residue
+ρ shows in the residual with the peak ρ/|Re p| at ω = 0; a residue at rounding (N·eps·||Q|| ||Ge||, N = n + n_q ≤
+12, data of norm ≤ 1e2 after the modal rescaling: ≤ 1e-12 relative with two decades to spare) is no pole.
+
+On integ13 (factoriser: staircase at R_POLE_TOL = 1e-8 of the data; judge: residue against δ_i for a mode within the
+gap of the boundary) the η = 1e-10 plant at δ = 1e-6, 1e-7 was refused ('R stability': "marginal plant mode [-1e-07]
+in R_f": the row does not cancel it, ||Q(p) c_p|| = 0.13 against δ_i = 2.7e-12, and fx couples to it at 5.3e-11
+against δ_c = 1.2e-13) — the factoriser had not moved the mode the judge called a pole. Now both decide it by the
+judge's table (:func:`fmu_fdi.design.toolkit.stable_factor._judged_plant_poles` reads it with ``beside=True``).
+"""
+import numpy as np
+import pytest
+
+from fmu_fdi import FDIModel, actuator_fault, sensor_fault
+from fmu_fdi.design import nullspace_design
+from fmu_fdi.faults import component_fault
+
+OMEGA = np.r_[0.0, np.logspace(-10, 3, 300)]
+ROUNDING = 1e-12  # relative residue of a cancelled mode (module docstring)
+
+
+def _plant(delta: float, eta: float, seed: int = 3):
+    """The plant with its slow mode at s = −δ, fx coupled to it at η; and the diagonal scaling t."""
+    rng = np.random.default_rng(seed)
+    n, p = 6, 3
+    J = np.diag([-delta, -0.5, -1.0, -2.0, -3.0, -5.0])
+    U, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    t = 10 ** rng.uniform(-2, 2, n)
+    A = (t[:, None] * (U @ J @ U.T)) / t[None, :]
+    P = np.eye(n) - U[:, :1] @ U[:, :1].T  # off the slow mode's (left = right) eigen-direction in x0
+    Bu, Bd = P @ rng.standard_normal((n, 2)), P @ rng.standard_normal((n, 1))
+    Bf = P @ rng.standard_normal((n, 1)) + eta * U[:, :1]
+    C = rng.standard_normal((p, n)) / t[None, :]
+    faults = [actuator_fault("fa1", "u1"), sensor_fault("fs1", "y1"), component_fault("fx", t[:, None] * Bf)]
+    model = FDIModel.from_matrices(A, t[:, None] * Bu, C, Bd=t[:, None] * Bd, faults=faults)
+    return model, t
+
+
+def _resp(S, lam):
+    """S(λ) by one dense solve per point (numpy)."""
+    if not S.n:
+        return np.broadcast_to(S.D, (lam.size,) + S.D.shape).astype(complex)
+    return np.stack([S.C @ np.linalg.solve(x * np.eye(S.n) - S.A, S.B) + S.D for x in lam])
+
+
+def _numpy_verdict(model, t, Q, smarg: float):
+    """(Q's poles beyond smarg, [(p, relative residue of R at p)] for the plant modes beyond smarg), numpy only."""
+    G = model.augmented()
+    A0, B0, C0 = G.A * t[None, :] / t[:, None], G.B / t[:, None], G.C * t[None, :]
+    ev, V = np.linalg.eig(A0)
+    W = np.linalg.solve(V, np.eye(G.n))
+    R = _resp(Q, 1j * OMEGA) @ _resp(type(G)(A0, B0, C0, G.D), 1j * OMEGA)
+    fsl = model.group_slices()["f"]
+    fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
+    low = min(float(np.max(np.linalg.norm(R[:, :, c], axis=(1, 2)))) for c in fcols)
+    qp = np.linalg.eigvals(Q.A) if Q.n else np.zeros(0)
+    out = []
+    for k in np.flatnonzero(ev.real > smarg):
+        Qp = _resp(Q, ev[k:k + 1])[0]
+        res = np.linalg.norm(Qp @ C0 @ V[:, k]) * np.max(np.abs(W[k] @ B0))
+        out.append((ev[k], float(res) / low))
+    return qp[qp.real > smarg], out
+
+
+@pytest.mark.parametrize("delta", [1e-6, 1e-7])
+def test_a_weakly_excited_mode_beside_the_boundary_is_moved_for_a_tight_smarg(delta):
+    """η = 1e-10 (the column's coupling 5.3e-11 is 460 times the judge's δ_c, 1e-2 of the staircase's R_POLE_TOL):
+    with ``smarg = −0.05`` the design is returned, Q is stable with the margin and R keeps no plant mode beyond it (numpy's residue at
+    rounding; unmoved, R_f's residue there is ~3e-10 relative, a tail ρ/δ = 3e-4 … 3e-3 of the fault gain)."""
+    model, t = _plant(delta, 1e-10)
+    gen = nullspace_design(model, smarg=-0.05)
+    qbad, modes = _numpy_verdict(model, t, gen.Q, -0.05)
+    assert qbad.size == 0, qbad
+    assert modes and all(res <= ROUNDING for _, res in modes), modes
+
+
+@pytest.mark.parametrize("delta", [1e-6, 1e-7])
+def test_the_same_plant_with_the_default_margin_keeps_its_stable_mode(delta):
+    """The other side of the agreement: with the default margin −sqrt(eps) the slow mode is stable, nothing breaks
+    the margin (numpy: Q's poles and the plant's within it) and the factoriser adds no state (Q's order equals the
+    u/d-decoupling row's, the order of the ``smarg = −0.05`` design minus the one moved mode)."""
+    model, t = _plant(delta, 1e-10)
+    gen = nullspace_design(model)
+    qbad, modes = _numpy_verdict(model, t, gen.Q, -np.sqrt(np.finfo(float).eps))
+    assert qbad.size == 0 and not modes, (qbad, modes)
+    assert gen.Q.n + 1 == nullspace_design(model, smarg=-0.05).Q.n
+
+
+@pytest.mark.parametrize("pole", [-0.06, -0.05, -0.04])
+def test_the_verdict_is_continuous_as_a_mode_crosses_the_users_margin(pole):
+    """fx excites the mode fully (η = 1): a mode at −0.06 is within ``smarg = −0.05`` and may stay in R_f; on the
+    margin (inclusive) likewise; at −0.04 it breaks it and is moved. Every design is returned, Q is stable with the
+    margin and every plant mode beyond it has numpy's residue at rounding."""
+    model, t = _plant(-pole, 1.0)
+    gen = nullspace_design(model, smarg=-0.05)
+    # inclusive: a mode on the margin is computed ~1e-16 off it (eps·||A0||, ||A0|| = 5); 1e-11 is the judge's slack
+    qbad, modes = _numpy_verdict(model, t, gen.Q, -0.05 + 1e-11)
+    assert qbad.size == 0, qbad
+    assert all(res <= ROUNDING for _, res in modes), (pole, modes)
+    assert bool(modes) == (pole > -0.05), modes
