@@ -31,11 +31,13 @@ OMEGA = np.r_[0.0, np.logspace(-10, 3, 300)]
 ROUNDING = 1e-12  # relative residue of a cancelled mode (module docstring)
 
 
-def _plant(delta: float, eta: float, seed: int = 3):
-    """The plant with its slow mode at s = −δ, fx coupled to it at η; and the diagonal scaling t."""
+def _plant(delta: float, eta: float, seed: int = 3, dt: float = 0.0):
+    """The plant with its slow mode at s = −δ (discrete, ``dt``: the modes sampled, z = e^{−δ·dt}), fx coupled to it
+    at η; and the diagonal scaling t."""
     rng = np.random.default_rng(seed)
     n, p = 6, 3
-    J = np.diag([-delta, -0.5, -1.0, -2.0, -3.0, -5.0])
+    rates = np.array([delta, 0.5, 1.0, 2.0, 3.0, 5.0])
+    J = np.diag(np.exp(-rates * dt) if dt else -rates)
     U, _ = np.linalg.qr(rng.standard_normal((n, n)))
     t = 10 ** rng.uniform(-2, 2, n)
     A = (t[:, None] * (U @ J @ U.T)) / t[None, :]
@@ -44,7 +46,7 @@ def _plant(delta: float, eta: float, seed: int = 3):
     Bf = P @ rng.standard_normal((n, 1)) + eta * U[:, :1]
     C = rng.standard_normal((p, n)) / t[None, :]
     faults = [actuator_fault("fa1", "u1"), sensor_fault("fs1", "y1"), component_fault("fx", t[:, None] * Bf)]
-    model = FDIModel.from_matrices(A, t[:, None] * Bu, C, Bd=t[:, None] * Bd, faults=faults)
+    model = FDIModel.from_matrices(A, t[:, None] * Bu, C, Bd=t[:, None] * Bd, faults=faults, dt=dt)
     return model, t
 
 
@@ -61,27 +63,32 @@ def _numpy_verdict(model, t, Q, smarg: float):
     A0, B0, C0 = G.A * t[None, :] / t[:, None], G.B / t[:, None], G.C * t[None, :]
     ev, V = np.linalg.eig(A0)
     W = np.linalg.solve(V, np.eye(G.n))
-    R = _resp(Q, 1j * OMEGA) @ _resp(type(G)(A0, B0, C0, G.D), 1j * OMEGA)
+    dt = model.dt
+    lam = np.exp(1j * OMEGA[OMEGA <= np.pi / dt] * dt) if dt else 1j * OMEGA
+    R = _resp(Q, lam) @ _resp(type(G)(A0, B0, C0, G.D), lam)
     fsl = model.group_slices()["f"]
     fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
     low = min(float(np.max(np.linalg.norm(R[:, :, c], axis=(1, 2)))) for c in fcols)
     qp = np.linalg.eigvals(Q.A) if Q.n else np.zeros(0)
+    beyond = (lambda z: np.abs(z) > smarg) if dt else (lambda z: z.real > smarg)  # noqa: E731
     out = []
-    for k in np.flatnonzero(ev.real > smarg):
+    for k in np.flatnonzero(beyond(ev)):
         Qp = _resp(Q, ev[k:k + 1])[0]
         res = np.linalg.norm(Qp @ C0 @ V[:, k]) * np.max(np.abs(W[k] @ B0))
         out.append((ev[k], float(res) / low))
-    return qp[qp.real > smarg], out
+    return qp[beyond(qp)], out
 
 
-@pytest.mark.parametrize("delta", [1e-6, 1e-7])
-def test_a_weakly_excited_mode_beside_the_boundary_is_moved_for_a_tight_smarg(delta):
+@pytest.mark.parametrize("delta, dt, smarg", [(1e-6, 0.0, -0.05), (1e-7, 0.0, -0.05), (1e-6, 0.1, 0.95)])
+def test_a_weakly_excited_mode_beside_the_boundary_is_moved_for_a_tight_smarg(delta, dt, smarg):
     """η = 1e-10 (the column's coupling 5.3e-11 is 460 times the judge's δ_c, 1e-2 of the staircase's R_POLE_TOL):
-    with ``smarg = −0.05`` the design is returned, Q is stable with the margin and R keeps no plant mode beyond it (numpy's residue at
-    rounding; unmoved, R_f's residue there is ~3e-10 relative, a tail ρ/δ = 3e-4 … 3e-3 of the fault gain)."""
-    model, t = _plant(delta, 1e-10)
-    gen = nullspace_design(model, smarg=-0.05)
-    qbad, modes = _numpy_verdict(model, t, gen.Q, -0.05)
+    with ``smarg = −0.05`` the design is returned, Q is stable with the margin and R keeps no plant mode beyond it
+    (numpy's residue at rounding; unmoved — the default-margin design's Q — R_f's residue there is 1.9e-11 of the
+    weakest fault's peak, a tail ρ/δ = 1.9e-5 … 1.9e-4 of it). Discrete: z = 1 − 1e-7, ``smarg = 0.95`` (then the
+    plant's 0.951 breaks it too; numpy's residue there 1.2e-13, unmoved, which the staircase decides)."""
+    model, t = _plant(delta, 1e-10, dt=dt)
+    gen = nullspace_design(model, smarg=smarg)
+    qbad, modes = _numpy_verdict(model, t, gen.Q, smarg)
     assert qbad.size == 0, qbad
     assert modes and all(res <= ROUNDING for _, res in modes), modes
 
@@ -110,3 +117,17 @@ def test_the_verdict_is_continuous_as_a_mode_crosses_the_users_margin(pole):
     assert qbad.size == 0, qbad
     assert all(res <= ROUNDING for _, res in modes), (pole, modes)
     assert bool(modes) == (pole > -0.05), modes
+
+
+@pytest.mark.xfail(strict=True, reason="open: beyond the grid's gap the judge and the factoriser both decide a stable "
+                   "mode breaking a user smarg by the staircase (R_POLE_TOL = 1e-8 of the data), which reads fx's "
+                   "1e-10 coupling as none: R_f keeps s = -1e-4 with residue 1.9e-11 of the weakest fault's "
+                   "peak (a tail rho/delta = 1.9e-7 of it)")
+def test_a_weakly_excited_slow_mode_beyond_the_gap_is_moved_for_a_tight_smarg():
+    """The same plant with the mode at s = −1e-4 (beyond the gap BOUNDARY_GAP·||A_bal|| ≈ 5e-6): one rule for every
+    mode that breaks the user's margin would move it as at −1e-6 (the verdict is discontinuous at the gap's edge)."""
+    model, t = _plant(1e-4, 1e-10)
+    gen = nullspace_design(model, smarg=-0.05)
+    qbad, modes = _numpy_verdict(model, t, gen.Q, -0.05)
+    assert qbad.size == 0, qbad
+    assert modes and all(res <= ROUNDING for _, res in modes), modes

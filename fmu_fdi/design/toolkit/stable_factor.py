@@ -464,8 +464,8 @@ def _judged_plant_poles(model: FDIModel, Q: LTI, margin: float, kept: np.ndarray
     reads (tests/test_judge_beside_smarg.py: a mode at s = −1e-7 that u and d do not excite and a fault fx excites
     at 1e-10 of its column, ``smarg = −0.05``: the staircase left it, the judge refused the design ('R stability'):
     the row does not cancel it, ``||Q(p) c_p|| = 0.13`` against δ_i = 2.7e-12, and fx couples to it at 5.3e-11
-    against δ_c = 1.2e-13, a tail ρ/δ ≈ 3e-3 of the fault gain; moved here, the design is returned and numpy reads
-    R's residue there at rounding)."""
+    against δ_c = 1.2e-13; numpy: residue 1.9e-11 of the weakest fault's peak, a tail ρ/δ = 1.9e-4 of it; moved
+    here, the design is returned and numpy reads R's residue there at rounding)."""
     from ...margin import outside_margin
     from .postconditions import _eval_points, mode_decisions, _nrm, _values
 
