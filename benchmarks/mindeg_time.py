@@ -67,6 +67,14 @@ the same verdict, orders and numpy leak figure. Time: sum of design times main 1
 ratio (the runs overlapped only in part); H∞ seed 7 126.9 s main, 131.6 s branch (concurrent). A first branch run with
 the Schur candidate before main's minimal balanced one kept H2 seed 7's optimal filter at 87 states (main 30) and gave
 [87, 27] where main gives [28, 27]: the candidates now come in main's order first.
+27 Nov, amm12 (branch vs integ13 loaded as REV, same run, beside two sessions; seeds chosen, not 0-29): ``--judged
+7-7 integ13``, ``17-17``, ``cases``: all ok on both. H2 seed 13 (its own script, _judged_design): [84, 84] → [84, 13]
+→ **[26, 13]** (the optimal row's balanced truncations, re-decoupled, offered last; numpy 3.3e-9 → 3.5e-9, error the
+optimal 6.36e-6; 59.4 → 48.1 s, separate runs); H2 seed 17 [52, 5] → **[19, 5]** (numpy 2.6e-8 → 4.9e-9); H∞ seed 7
+optimal filter [87, 87] → [30, 30] (the γ-iteration's half budget, approximate_matching.iteration_reltol, gives another
+central controller), lowered [26, 26] → [27, 27], numpy 3.2e-8 → 6.7e-8; H2 seed 7, H∞ seed 17 and the 9 CASES the
+same orders. Time (same run): H∞ 17 7.1 → 9.5 s, H2 17 7.4 → 11.4 s, seed9 1.50 → 1.91 s (the truncations' refits,
+computed for every row with near-cancelled modes, eagerly); H∞ 7 15.7 → 14.3 s.
 """
 import sys
 import time

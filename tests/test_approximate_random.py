@@ -414,7 +414,7 @@ KNOWN_BROKEN: dict[tuple[int, str], str] = {
     # FIXED) → 105 / 0 / 0; seeds 112-135 re-run on the branch 106 / 1 / 0 — the refusal is seed 122 amm(Mr=I) (not
     # broken: Mr = I need not be reachable): γ-iteration 1.0000777 within reltol of its bracket [1, 1.0000777], the
     # shipped filter's own error 1.000102 (a plant mode at 0 beside which it is read; the exact cancellation would make
-    # it 1.0156) exceeds Q = 0's 1 by more than reltol — left open
+    # it 1.0156) exceeds Q = 0's 1 by more than reltol — fixed by amm12 (FIXED: the iteration takes half the budget)
 }
 #: approximate_model_matching (noisec) refused "the returned filter's error response differs from the designed one"
 #: on every model whose fault-only mode is an integrator or z = 1: _shipped_filter compared the two on points that
@@ -539,6 +539,12 @@ FIXED = {(129, "amm_ref"): "an exact match (error 2e-13 of ‖M·Mr‖ = 8.07): 
                            "|Q(p) c|/δ with |Q(p) c| = 7.2e-14 = 7.8 u·‖Q‖‖c‖, the rounding of Q's evaluation; the "
                            "test judge's fault — judge_amm's floor now includes γ_{3n_Q}·‖Q‖·‖[Gf Gw](λ*)‖ at the "
                            "peak (4.95e-6 here)",
+         (122, "amm_eye"): "refused, not broken: Mr = I on nf = 5 faults, p = 4 (γ_opt = ||F||∞ = 1): the γ-iteration "
+                           "spent the whole reltol (1.0000777 in [1, 1.0000777]) and the shipped order-21 filter, read "
+                           "beside the plant integrator it cancels to a residue 1.6e-12, added 2.4e-5 (1.000102): "
+                           "worse than Q = 0 by more than reltol = 1e-4. Fixed: the iteration takes r_γ, (1 + r_γ)² = "
+                           "1 + reltol (approximate_matching.iteration_reltol): bracket [1, 1.0000389], error 1.0000954, "
+                           "numpy judge ok (tests/test_amm_reltol_budget.py)",
          (110, "amm_eye"): "Mr = I on nf = 5 faults, p = 3: numpy read 1.00171 for the reported 1.00008 — its "
                            "refinement read the cancelled plant pair ±2j's rounding residue 1.9e-12 at 1e-9 from the "
                            "pole (the judge's refinement now keeps _points' 1e-7); and the error above Q = 0's (1, "

@@ -168,6 +168,7 @@ def test_a_worse_least_order_filter_is_not_returned(monkeypatch):
 
     real = am._refit_numerator
     monkeypatch.setattr(am, "_refit_numerator", lambda *a: real(*a) * 1.5)
+    monkeypatch.setattr(am, "_truncation_orders", lambda S: [])  # (the optimal row's truncations: not spoiled)
     g0 = approximate_model_matching(ex5_14(), MR14, sdeg=-1, normalize="gain", reltol=1e-5)
     g1 = approximate_model_matching(ex5_14(), MR14, sdeg=-1, normalize="gain", reltol=1e-5, mindeg=True)
     info = g1.info["mindeg"]
@@ -309,7 +310,10 @@ def test_covers_alone_on_random_seed_17_keep_only_decoupled_rows(monkeypatch):
     assert d1[0] < d0[0] and d1[1] <= 8 and min(d0) > 8, (d0, d1)
     leak, faults = _numpy_leak_and_faults(model, g1.Q)
     assert np.all(leak <= 1e-7 * faults.min(axis=1)), leak / faults.min(axis=1)
-    assert re.search(r"order-5 candidate \(stable cover[^;]*u/d leak on the normalised form", g1.info["mindeg"]["reason"])
+    # the leaking order-5 cover is not returned: refused with its figures, or row 1 lowered by another candidate (since
+    # amm12 the optimal row's balanced truncations are offered last; the reason then lists no refusal of a lowered row)
+    assert re.search(r"order-5 candidate \(stable cover[^;]*u/d leak on the normalised form",
+                     g1.info["mindeg"]["reason"]) or (d1[0] != 5 and g1.info["mindeg"]["lowered"])
     e0, e1 = error_norm(g0, Mr, g0.info["M"], "inf"), error_norm(g1, Mr, g1.info["M"], "inf")
     assert e1 <= e0 * (1 + 1e-6) + 1e-9 * max(1.0, (g1.info["M"] @ Mr).hinfnorm()[0])
     assert stable(g1.Q)

@@ -74,6 +74,24 @@ def test_seed_17_rows_are_lowered_and_re_decoupled():
     assert stable(g1.Q)
 
 
+@pytest.mark.slow
+def test_h2_seed_13_row_1_is_lowered_by_truncating_the_optimal_row():
+    """Random discrete H2 seed 13 (slow: ~50 s on the loaded 2-core machine): row 1 of the optimal filter has order
+    84 but 19 Hankel singular values above 1e-7 of its largest; on integ13 it stayed at 84 (its covers unstable or
+    leaking, the re-solve leaking 1.8e-3) → [84, 13]. Now the optimal row balanced-truncated (orders 19, 22, 24, 27:
+    the Hankel counts at 1e-7 … 1e-13 of the largest) and refitted to zero u/d response and the row's fault/noise
+    response is offered last: row 1 is lowered (measured [84, 84] → [26, 13], numpy leak 3.5e-9 of the weakest fault,
+    error 6.36e-6 as the optimal's) and the filter meets the judge — numpy leak ≤ dec_tol of each row's weakest fault, the optimal
+    error within the H2 test's 1e-3, stable."""
+    Mr, g0, g1, worst = _judged(13, "2")
+    info = g1.info["mindeg"]
+    assert worst <= DEC_TOL, worst
+    assert info["lowered"] and info["row_orders"][0] < info["row_orders_before"][0], info["row_orders"]
+    assert sum(row_degrees(g1.Q)) < sum(row_degrees(g0.Q))
+    _same_error(g0, g1, Mr, "2")
+    assert stable(g1.Q)
+
+
 @pytest.mark.parametrize("seed, norm", [(9, "inf"), (14, "2"), (23, "inf"), (27, "2")])
 def test_every_mindeg_design_leaks_at_most_dec_tol(seed, norm):
     """The property on fast seeds (discrete and continuous, H∞ and H2, each lowered on main too): whatever rows are
