@@ -41,8 +41,8 @@ in the H∞ or the H2 norm (Varga 2017, sec. 5.7, Procedure AMMS; FaultDetection
    on the solvability of the two Riccati equations of Glover and Doyle (1988) (SLICOT
    SB10FD, SB10DD in discrete time; every level above ``||F||∞`` is feasible, Y = 0 meeting it); the
    central controller of least measured error is Y, within the bisection tolerance of
-   the highest infeasible level (half of ``reltol``, :func:`iteration_reltol`: the stages after it have the other half). H2: the
-   optimal controller (SLICOT SB10HD) after removing the feedthrough with
+   the highest infeasible level (half of ``reltol``, :func:`iteration_reltol`: the stages after it
+   have the other half). H2: the optimal controller (SLICOT SB10HD) after removing the feedthrough with
    ``Y0 = D_F D̂⁺`` (finite H2 norm needs ``D_F (I − D̂⁺ D̂) = 0``; when it fails the
    reference is first updated by the low-pass ``m``, which becomes a factor of M, as in
    ``ammsyn``; ``info['reference_lowpass']``); in discrete time the
@@ -679,10 +679,11 @@ def _redecoupling_candidates(model, Q: LTI, lam: np.ndarray):
     own realisation (``'shipped'``), then Q's minimal balanced realisation (SLICOT AB09AD's square-root balanced
     truncation at the Hankel singular values above :data:`REDECOUPLE_HSV_RTOL` of the largest; skipped where SLICOT
     refuses it or it drops nothing) refitted so that its u/d response is zero and its fault/noise response Q's
-    (``'minimal balanced'``; ``'balanced'`` where the truncation drops nothing: Q's balanced coordinates, which main
-    did not try), then that realisation in the coordinates of its real Schur form (``'balanced Schur'``), then Q's
-    in its own Schur form (``'Schur'``) — each refitted to Q's fault/noise response; the realisation's rounding
-    sensitivity, which the rule charges, depends on the coordinates (:func:`_schur_realisation`). A refit above :data:`REDECOUPLE_UNKNOWNS` unknowns is not made (its why instead).
+    (``'minimal balanced'``; ``'balanced'`` where the truncation drops nothing: Q's balanced coordinates), then that
+    realisation in the coordinates of its real Schur form (``'balanced Schur'``), then Q's in its own Schur form
+    (``'Schur'``) — each refitted to Q's fault/noise response: the realisation's rounding sensitivity, which the rule
+    charges, depends on the coordinates (:func:`_schur_realisation`). A refit above :data:`REDECOUPLE_UNKNOWNS`
+    unknowns is not made (its why instead).
 
     The truncation alone is not a candidate: its error, at most twice the dropped Hankel values (≤ 1e-12 of the
     largest each), is absolute in Q, and the u/d block is a cancellation ``|Q||Ge|`` up to 1e7 times the weakest fault
@@ -697,9 +698,9 @@ def _redecoupling_candidates(model, Q: LTI, lam: np.ndarray):
         Qm = Q.balanced_truncation(tol=REDECOUPLE_HSV_RTOL * float(np.max(hsv, initial=0.0)))[0]
     except (SlycotError, ValueError, np.linalg.LinAlgError):
         Qm = Q
-    # main's two candidates first (where they passed, the same filter is returned), then the new coordinates, the
-    # lower order first (random H2 seed 7: the Schur realisation first kept its optimal filter at 87 states where
-    # the minimal balanced one has 30)
+    # the shipped and the minimal balanced realisation first (where they pass, their filter is the one returned),
+    # then the other coordinates, the lower order first (random H2 seed 7: the Schur realisation first kept its
+    # optimal filter at 87 states where the minimal balanced one has 30)
     if 0 < Qm.n < Q.n:
         yield "minimal balanced", _refit_or_why(model, Qm, lam, ref=Q)
     elif Qm.n == Q.n and Qm is not Q:  # nothing dropped: Q's balanced coordinates (:func:`_schur_realisation`'s why)
@@ -1636,8 +1637,8 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
     ``SHIPPED_ACCURACY``; of those the nearest to the designed response in β_w, with a note naming gap, both errors
     and the limit. A realisation whose error exceeds that limit is refused, the message naming the errors (a
     realisation off by 5e-4 of Q: tests/test_amm_shipped_error.py). Seed 119 (candidates at 8.77 and 1.14 β_w, beside
-    z = 1 where the designed side's terms dominate; refused before; 1.08 β_w since the γ-iteration's change): its error 170.410907 is the designed 170.410907
-    to nine digits (limit 170.427949), numpy's judge passes it; seed 131, accepted by β_w at 0.964 of it, meets this
+    z = 1 where the designed side's terms dominate; refused before; 1.08 β_w since the γ-iteration's change): its
+    error 170.410907 is the designed 170.410907 to nine digits (limit 170.427949), numpy's judge passes it; seed 131, accepted by β_w at 0.964 of it, meets this
     test too (87.0955351 against the designed 87.0955351, measured with β_w's tier bypassed): a rounding that tips
     it over β_w no longer refuses it.
     ``estimate_only``: β alone (the per-row shifts, whose next candidate is the uniform K shifts)."""
