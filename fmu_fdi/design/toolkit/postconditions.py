@@ -999,9 +999,10 @@ def internal_figures(gen, groups=None, freqs=None, accurate: bool = True) -> dic
     return _internal_figures(gen, groups, freqs, accurate)
 
 
-def _internal_figures(gen, groups=None, freqs=None, accurate: bool = True) -> dict:
+def _internal_figures(gen, groups=None, freqs=None, accurate: bool = True, modes=False) -> dict:
     """:func:`internal_figures` without its BLAS thread limit: the judge's own calls (check_generator and report
-    limit it already; threadpoolctl's limit costs ~8 ms a call, it reads every loaded library)."""
+    limit it already; threadpoolctl's limit costs ~8 ms a call, it reads every loaded library). ``modes``: the
+    plant's mode table (:func:`judge_points`) where the caller has it — a bank's groups share one."""
     model, Q = gen.model, gen.Q
     groups = gen.groups if groups is None else groups
     nf = len(model.faults)
@@ -1012,7 +1013,7 @@ def _internal_figures(gen, groups=None, freqs=None, accurate: bool = True) -> di
         return out
     if G > 1:
         return _figures_by_group(gen, groups, freqs, accurate)
-    pts = judge_points(model, Q, groups, getattr(gen, "_modes", False))  # a bank's groups: the table once
+    pts = judge_points(model, Q, groups, modes)
     if pts is None:
         out["finite"] = False
         return out
@@ -1157,8 +1158,8 @@ def _figures_by_group(gen, groups, freqs, accurate: bool = True) -> dict:
     for g in groups:
         idx = np.atleast_1d(rows[g])
         sub = row_system(Q, g) if Q.n else LTI(Q.A, Q.B, Q.C[idx, :], Q.D[idx, :], Q.dt)
-        view = SimpleNamespace(model=model, Q=sub, groups=[list(range(idx.size))], _modes=modes)  # what it reads
-        parts.append(_internal_figures(view, view.groups, freqs, accurate))
+        view = SimpleNamespace(model=model, Q=sub, groups=[list(range(idx.size))])  # what internal_figures reads
+        parts.append(_internal_figures(view, view.groups, freqs, accurate, modes))
     out = _stacked(parts, groups, freqs)
     if not accurate and out["reread"]:  # kept for :func:`accurate_figures`
         out.update({"_parts": parts, "_groups": groups, "_freqs": freqs})
