@@ -30,7 +30,7 @@ import scipy.linalg as sla
 from ...errors import DesignError
 from ...linalg import inv_sqrtm_pd, ordered_schur, rank, sqrtm_psd
 from ...lti import LTI, hstack
-from .riccati_newton import newton_refined, riccati_residual
+from .riccati_newton import FORWARD_RTOL, forward_refined, newton_refined, riccati_residual
 
 
 def coouter_inverse(G: LTI) -> tuple[LTI, LTI] | None:
@@ -77,7 +77,8 @@ def coouter_inverse(G: LTI) -> tuple[LTI, LTI] | None:
 RICCATI_RTOL = 1e-8
 
 
-def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, dt: float) -> np.ndarray | None:
+def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray, dt: float, *,
+                     figures: dict | None = None, forward: bool = True) -> np.ndarray | None:
     """The stabilising solution ``X`` of the Riccati equation of the inner–outer factorisation of the tall
     ``(A, B, C, D)`` (Zhou, Doyle & Glover, Thm. 13.34; discrete: Thm. 21.26), or None when none is found:
 
@@ -96,11 +97,42 @@ def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
     Kleinman 1968, Hewer 1971, Mehrmann & Tan 1988; exact line search, Benner & Byers 1998 —
     :func:`.riccati_newton.newton_refined`, in the coordinates of a diagonal balancing of ``A``), and the iterate
     kept only if its residual falls within :data:`RICCATI_RTOL` with the closed loop stable and ``X ⪰ 0`` to
-    :data:`RICCATI_RTOL` of its norm. That the returned closed loop is stable with the caller's
-    margin (that ``X`` is the stabilising solution) is the caller's check."""
+    :data:`RICCATI_RTOL` of its norm.
+
+    A small residual is a backward measure: on an ill-conditioned equation it can hide a large error of ``X``
+    (the seeded problems of tests/test_kalman_riccati.py: relative residual 2e-11, ``X`` wrong by 0.8 of its norm).
+    So an answer within :data:`RICCATI_RTOL` is also judged by a forward measure
+    (:func:`.riccati_newton.forward_refined`): the loop closed with its gain ``F(X)`` has the cost ``X_F`` (filter
+    form: the error covariance of the filter run with that gain), ``X_F − X`` is the forward error to first order,
+    and it must be within :data:`.riccati_newton.FORWARD_RTOL` of ``X``'s scale — else Newton's full steps
+    ``X ← X_F`` from it while the correction halves; an answer they cannot bring within the line is not returned.
+    ``figures`` (if given) receives the returned answer's ``residual``, ``forward`` and ``steps`` — or, on None,
+    the best ``forward`` met and ``why``. ``forward=False`` leaves the forward measure to a caller that reads it on
+    another form of the equation (the Kalman filter's, on its unfactored ``Qx`` in its own coordinates). That the returned closed loop is stable with the caller's margin (that
+    ``X`` is the stabilising solution) is the caller's check."""
     Q, R, S = C.T @ C, D.T @ D, C.T @ D
 
     starts = []  # (relative residual, answer) of the direct solvers' answers outside RICCATI_RTOL
+    figures = {} if figures is None else figures
+    best = {"forward": np.inf}  # the refused answer closest to the forward line, for the caller's message
+
+    def accepted(X):
+        """``X`` (or its Newton refinement) if within both lines, else None."""
+        got: dict = {}
+        if not forward:
+            return X
+        X = forward_refined(A, B, Q, R, S, X, dt, FORWARD_RTOL, figures=got)
+        if X is None:
+            if got.get("forward", np.inf) <= best["forward"]:
+                best.clear()
+                best.update(got)
+            return None
+        res = riccati_residual(A, B, Q, R, S, X, dt)
+        if res is None or not res[0] <= RICCATI_RTOL:  # a Newton step cannot raise it past the line; checked
+            return None
+        figures.clear()
+        figures.update(got, residual=res[0])
+        return X
 
     def residual_ok(X) -> bool:
         res = riccati_residual(A, B, Q, R, S, X, dt)
@@ -108,11 +140,16 @@ def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
             starts.append((res[0], X))
         return res is not None and res[0] <= RICCATI_RTOL
 
+    def refused():
+        figures.clear()
+        figures.update(best)
+        return None
+
     try:
         X = (sla.solve_discrete_are if dt else sla.solve_continuous_are)(A, B, Q, R, s=S)
     except (np.linalg.LinAlgError, ValueError):
         X = None
-    if residual_ok(X):
+    if residual_ok(X) and (X := accepted(X)) is not None:
         return X
     import slycot
     from slycot.exceptions import SlycotError
@@ -123,14 +160,14 @@ def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
         X = (X + X.T) / 2
     except (SlycotError, ValueError, np.linalg.LinAlgError):
         X = None
-    if residual_ok(X):
+    if residual_ok(X) and (X := accepted(X)) is not None:
         return X
-    # neither within RICCATI_RTOL: Newton's method from each answer with a stable closed loop, the closer first
+    # neither within both lines: Newton's method from each answer with a stable closed loop, the closer first
     for _, X0 in sorted(starts, key=lambda rx: rx[0]):
         X = newton_refined(A, B, Q, R, S, X0, dt, RICCATI_RTOL)
-        if X is not None:
+        if X is not None and (X := accepted(X)) is not None:
             return X
-    return None
+    return refused()
 
 
 def gap_objective(Rf: list[np.ndarray], Rw: np.ndarray):
