@@ -190,14 +190,23 @@ def closed_loop_correction(A, B, Q, R, S, X, dt: float):
     ``X_F = X`` iff ``X`` solves the equation; ``X_F`` is the cost of the gain the caller will run, and ``X_F − X* ⪰ 0``
     is quadratic in ``F − F*`` (Kleinman), so ``‖Δ‖`` is the forward error ``‖X − X*‖`` to first order — where
     ``‖𝓡(X)‖/sep(A_F)`` (Byers 1985; Higham & Kenney; Sun 1998) only bounds it. Solved in the coordinates of the
-    diagonal balancing of ``A`` (as :func:`newton_refined`; exact), ``Δ`` returned in the caller's."""
+    diagonal balancing of ``A`` (as :func:`newton_refined`; exact), ``Δ`` returned in the caller's.
+
+    The residual is formed in extended precision (:func:`_extended_residual`), as in mixed-precision iterative
+    refinement (Wilkinson; Higham, *Accuracy and Stability of Numerical Algorithms*, ch. 12): in double its rounding
+    ``~n·eps·size`` (the terms cancel to a residual far below them) gives ``Δ`` an absolute floor ``n·eps·size/sep``
+    that on the seeded ill-scaled problems reached 1e-6 … 6e-5 of ``‖X‖`` where the judge of
+    tests/test_riccati_forward.py (scipy's Lyapunov of the closed loop with its positive semidefinite right side)
+    reads 1e-11 … 1.5e-7 — a false refusal. With the residual in long double (64-bit significand on x86, eps 1.1e-19)
+    that floor falls ~2000×, and what is left is the Lyapunov solve's relative error ``~eps·‖A_F‖/sep`` of ``Δ``
+    itself. (Where numpy's long double is double, the measure is double's, with its floor.)"""
     t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
     At, Bt = A * (1 / t)[:, None] * t[None, :], B / t[:, None]
     Qt, St, Xt = Q * t[:, None] * t[None, :], S * t[:, None], (X + X.T) / 2 * t[:, None] * t[None, :]
-    cur = _residual(At, Bt, Qt, R, St, Xt, dt)
+    cur = _extended_residual(At, Bt, Qt, R, St, Xt, dt)
     if cur is None:
         return None
-    Rx, _, F = cur
+    Rx, F = cur
     Acl = At + Bt @ F
     if not _stable(Acl, dt):
         return None
@@ -205,6 +214,29 @@ def closed_loop_correction(A, B, Q, R, S, X, dt: float):
     if D is None:
         return None
     return D / t[:, None] / t[None, :], F * t[None, :]
+
+
+def _extended_residual(A, B, Q, R, S, X, dt: float):
+    """``(𝓡(X), F(X))`` with the residual's products and sums in ``np.longdouble`` (rounded to double at the end) and
+    the gain term ``K G⁻¹ Kᵀ`` from ``G⁻¹Kᵀ`` solved in double and refined once with a long-double residual
+    (``G`` is ``R``, discrete ``R + BᵀXB``); ``F`` in double. None when ``X`` is not finite or ``G`` is singular."""
+    if X is None or not np.all(np.isfinite(X)):
+        return None
+    ld = np.longdouble
+    Al, Bl, Ql, Rl, Sl, Xl = (np.asarray(M, ld) for M in (A, B, Q, R, S, X))
+    if dt:
+        XB = Xl @ Bl
+        K, G, AX = Al.T @ XB + Sl, Rl + Bl.T @ XB, Al.T @ Xl @ Al
+    else:
+        K, G, AX = Xl @ Bl + Sl, Rl, Al.T @ Xl
+    Gd = G.astype(float)
+    try:
+        Y = np.linalg.solve(Gd, K.T.astype(float))
+        Yl = Y.astype(ld) + np.linalg.solve(Gd, (K.T - G @ Y.astype(ld)).astype(float)).astype(ld)
+    except np.linalg.LinAlgError:
+        return None
+    Rx = (AX - Xl if dt else AX + AX.T) - K @ Yl + Ql
+    return np.asarray(Rx, float), -Y
 
 
 def solution_scale(A, Q, X, dt: float) -> float:
@@ -272,9 +304,10 @@ def forward_refined(A, B, Q, R, S, X, dt: float, rtol: float = FORWARD_RTOL, ste
 def _condition(A, B, Q, R, S, X, dt: float) -> dict:
     """``sep``, the separation of the closed-loop Lyapunov (Stein) operator ``Δ ↦ A_FᵀΔ + ΔA_F`` (``A_FᵀΔA_F − Δ``)
     in the coordinates of the diagonal balancing of ``A_F`` (SLICOT SB03MD's estimate), and ``floor = n·eps·size /
-    (sep·scale)``: the forward error the rounding of the residual (``~n·eps·size``, :func:`riccati_residual`'s terms)
-    can leave through the inverse operator — Byers' condition estimate of the equation, relative to the solution's
-    scale. Read only for a refusal's message (one more Schur form)."""
+    (sep·scale)``: the forward error the rounding of a double-precision solver's residual (``~n·eps·size``,
+    :func:`riccati_residual`'s terms) can leave through the inverse operator — Byers' condition estimate of the
+    equation, relative to the solution's scale, i.e. what no answer computed in double is certain to beat. Read only
+    for a refusal's message (one more Schur form)."""
     import slycot
 
     out = _residual(A, B, Q, R, S, X, dt)

@@ -1,0 +1,81 @@
+"""The Kalman filter's Riccati solve accepted by a forward measure, against a baseline revision accepting by the residual.
+
+Problems: tests/test_kalman_riccati.py's seeded ill-scaled ones (``_problem``) and tests/test_riccati_forward.py's
+deflated ones (``deflated_problem``: the process noise reaches only an invariant subspace), seeds 0–SEEDS−1 × trials
+0–2 each. Each is solved by ``filter_riccati`` of the current code and of REV (default ``main``; loaded from
+``git show`` as benchmarks/riccati_refinement.py does). Every returned ``(P, L)`` is judged by the independent forward
+measure of tests/test_riccati_forward.py (``forward_error``: scipy's Lyapunov of the filter run with ``L``, P_K = P to
+first order iff P is the stabilising solution) and the relative residual; a DesignError is a refusal. Prints the
+problems where the sides differ, per side and family: designed / refused, the designs with a forward error above 1e-6
+and 1e-5, the largest; and the time per solve (best of R calls; run with OPENBLAS_NUM_THREADS=1): the geometric mean
+of current/baseline over the problems both design, and the ratio of the totals.
+
+Run: OPENBLAS_NUM_THREADS=1 python benchmarks/riccati_forward.py [SEEDS] [REV] [R]
+"""
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from fmu_fdi.design.observers import _observer as new  # noqa: E402
+from fmu_fdi.errors import DesignError  # noqa: E402
+from riccati_refinement import baseline  # noqa: E402
+from test_kalman_riccati import _problem  # noqa: E402
+from test_riccati_forward import deflated_problem, forward_error  # noqa: E402
+
+
+def solved(module, A, C, Qx, R, dt, repeats: int):
+    """``(forward error or None if refused, seconds)``."""
+    best, out = np.inf, None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        try:
+            out = module.filter_riccati(A, C, Qx, R, np.zeros((A.shape[0], C.shape[0])), dt)
+        except DesignError:
+            out = None
+        best = min(best, time.perf_counter() - t0)
+    return (None if out is None else forward_error(A, C, Qx, R, dt, out.P, out.L)), best
+
+
+def main(seeds: int = 60, rev: str = "main", repeats: int = 1) -> None:
+    old = baseline(rev)
+    ratios, t_old, t_new = [], 0.0, 0.0
+    for family, problem in (("full", _problem), ("deflated", deflated_problem)):
+        fw = {"baseline": [], "current": []}
+        refused = {"baseline": 0, "current": 0}
+        for seed in range(seeds):
+            for trial in range(3):
+                A, C, Qx, R, dt = problem(seed, trial)
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    eo, so = solved(old, A, C, Qx, R, dt, repeats)
+                    en, sn = solved(new, A, C, Qx, R, dt, repeats)
+                for side, e in (("baseline", eo), ("current", en)):
+                    if e is None:
+                        refused[side] += 1
+                    else:
+                        fw[side].append(e)
+                t_old, t_new = t_old + so, t_new + sn
+                if eo is not None and en is not None:
+                    ratios.append(sn / so)
+                if (eo is None) != (en is None) or max(eo or 0, en or 0) > 1e-6:
+                    show = lambda e: "refused" if e is None else f"{e:.1e}"  # noqa: E731
+                    print(f"{family:>8s} {seed:3d}/{trial}  n={A.shape[0]:2d} dt={dt:g}  forward {rev}: {show(eo):>8s} "
+                          f"({so:.3f} s)  current: {show(en):>8s} ({sn:.3f} s)", flush=True)
+        for side in ("baseline", "current"):
+            e = np.array(fw[side])
+            print(f"{family:>8s} {side:>8s}: {e.size} designed / {refused[side]} refused; forward error > 1e-6: "
+                  f"{int(np.sum(e > 1e-6))}, > 1e-5: {int(np.sum(e > 1e-5))}, max {e.max() if e.size else np.nan:.2e}")
+    print(f"time per solve current/baseline: geometric mean {np.exp(np.mean(np.log(ratios))):.3f} over the "
+          f"{len(ratios)} problems both design; total {t_new:.2f} s / {t_old:.2f} s = {t_new / t_old:.3f}")
+
+
+if __name__ == "__main__":
+    args = sys.argv[1:]
+    main(int(args[0]) if args else 60, args[1] if len(args) > 1 else "main", int(args[2]) if len(args) > 2 else 1)
