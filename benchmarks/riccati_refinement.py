@@ -79,8 +79,8 @@ def reference(A, C, Qx, R, dt):
         return None
 
 
-def judged(module, A, C, Qx, R, dt, repeats: int):
-    """``(verdict, residual, seconds, P)``: 'ok' (residual ≤ 1e-7, P ⪰ 0, A − LC stable), 'refused' or 'wrong'."""
+def timed_filter(module, A, C, Qx, R, dt, repeats: int):
+    """``(filter or None if refused, best seconds of `repeats` calls)`` of ``module.filter_riccati`` (S = 0)."""
     best, out = np.inf, None
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -89,6 +89,12 @@ def judged(module, A, C, Qx, R, dt, repeats: int):
         except DesignError:
             out = None
         best = min(best, time.perf_counter() - t0)
+    return out, best
+
+
+def judged(module, A, C, Qx, R, dt, repeats: int):
+    """``(verdict, residual, seconds, P)``: 'ok' (residual ≤ 1e-7, P ⪰ 0, A − LC stable), 'refused' or 'wrong'."""
+    out, best = timed_filter(module, A, C, Qx, R, dt, repeats)
     if out is None:
         return "refused", np.nan, best, None
     res = _relative_residual(A, C, Qx, R, out.P, dt)

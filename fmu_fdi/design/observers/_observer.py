@@ -348,7 +348,12 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
     exactly); the rest is solved, scaled, by the Schur/QZ methods of ``scipy.linalg``
     (Laub 1979; Arnold & Laub 1984), then SLICOT SB02OD, then Newton's method from their answer
     (:func:`~fmu_fdi.design.toolkit.approximate.spectral_riccati`). Those raise for most problems without a stabilising
-    solution but can return a non-stabilising one, so the closed loop is checked as well.
+    solution but can return a non-stabilising one, so the closed loop is checked as well. The answer is accepted by a
+    forward measure on this (caller's) equation, not only by its residual: the filter run with ``L`` has the error
+    covariance ``P_K`` of its Lyapunov (Stein) equation, ``P_K − P`` is ``P``'s forward error to first order, and it
+    must be within ``FORWARD_RTOL`` = 1e-6 of ``‖P‖`` — refined by Newton's steps where it is not, a DesignError
+    naming the correction, the closed loop's separation and the rounding floor where they cannot bring it there
+    (:func:`~fmu_fdi.design.toolkit.riccati_newton.forward_refined`); ``accuracy`` holds the figure.
     A stabilising solution exists iff ``(A, C)`` is detectable and ``(A − S R⁻¹ C,
     Qx − S R⁻¹ Sᵀ)`` has no uncontrollable mode on the stability boundary (Chan, Goodwin &
     Sin 1984); such modes are named in the error.
@@ -408,7 +413,12 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, accuracy: dict | N
     coordinates, and on badly scaled models (states over eight decades) the direct solvers'
     answers in mixed coordinates miss ``RICCATI_RTOL`` where those in the caller's do not
     (tests/test_kalman_riccati.py's seeded problems, benchmarks/riccati_refinement.py: 151 of
-    180 designed with the mixing, 175 without, both with the Newton refinement). Without the deflation,
+    180 designed with the mixing, 175 without, both with the Newton refinement). Where something is
+    deflated the staircase basis still mixes them, and that cost accuracy: on the deflated seeded problems
+    of tests/test_riccati_forward.py 32 of 172 answers had forward errors above 1e-6 in the caller's
+    coordinates (up to 1.2e-2) with residuals within RICCATI_RTOL; the answer is therefore judged, and
+    refined, on the caller's whole equation (its Qx, S, coordinates) after the reduced solve — 0 of 172
+    above 1e-6 (benchmarks/riccati_forward.py). Without the deflation,
     scipy's solvers reject e.g. ``Qx = 0`` with a slow stable mode (the solution ``P = 0``
     makes their relative symmetry check on ``U₁₁ᴴ U₂₁`` compare rounding with rounding).
     Uncontrollable modes on the stability boundary admit no stabilising solution and are

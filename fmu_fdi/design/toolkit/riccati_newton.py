@@ -25,7 +25,10 @@ time the ``t ∈ [0, 2]`` that minimises it exactly, ``𝓡(X_k + tΔ) = (1 − 
 "An exact line search method for solving generalized continuous-time algebraic Riccati equations", IEEE TAC 43(1),
 1998); in discrete time by halving ``t`` while the residual does not fall.
 
-:func:`riccati_residual` is the one residual both the direct solvers' answers and the iterates are judged by.
+:func:`riccati_residual` is the one residual both the direct solvers' answers and the iterates are judged by — a
+backward measure. :func:`forward_refined` is the forward one an answer must also meet: the closed-loop correction
+``X_F − X`` (:func:`closed_loop_correction`, Newton's step with its residual in extended precision) within
+:data:`FORWARD_RTOL` of the solution's scale, Newton's full steps taken while it is not.
 """
 from __future__ import annotations
 
