@@ -326,7 +326,8 @@ class RiccatiFilter:
     Kf: np.ndarray     # filter (measurement-update) gain, discrete time; equals L in continuous time
     Sigma: np.ndarray  # innovation covariance (discrete) or intensity (continuous)
     #: the forward measure the answer was accepted by: ``forward`` = ‖P_K − P‖_F / ‖P‖_F (P_K the error covariance of
-    #: the filter run with L, by its Lyapunov/Stein equation), at most FORWARD_RTOL; ``newton_steps`` taken to get there
+    #: the filter run with L, by its Lyapunov/Stein equation), at most FORWARD_RTOL; ``newton_steps`` taken to get there;
+    #: ``gain_forward`` = ‖ΔL‖_F / ‖L‖_F, L's forward error to first order (ΔL from P_K − P; stated, not bounded)
     accuracy: dict = field(default_factory=dict)
 
 
@@ -390,6 +391,13 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
     bad = unstable(poles, dt, max(1.0, float(np.linalg.norm(A, 2)) if n else 1.0))
     if bad.size:
         raise no_solution(f"the solver's solution leaves the modes {fmt_modes(bad)} of A − L C unstable")
+    # the gain's forward error to first order, from P's correction Δ = P_K − P: continuous ΔL = Δ Cᵀ R⁻¹; discrete
+    # (L = (A P Cᵀ + S) Σ⁻¹, Σ = C P Cᵀ + R) ΔL = (A Δ Cᵀ − L C Δ Cᵀ) Σ⁻¹
+    D = accuracy.pop("correction", None)
+    if D is not None and n:
+        dL = (sla.solve(Sigma, (A @ D @ C.T - L @ (C @ D @ C.T)).T, assume_a="pos").T if dt
+              else sla.solve(Sigma, (D @ C.T).T, assume_a="pos").T)
+        accuracy["gain_forward"] = float(np.linalg.norm(dL) / max(float(np.linalg.norm(L)), np.finfo(float).tiny))
     return RiccatiFilter(P, L, Kf, Sigma, accuracy)
 
 
@@ -499,7 +507,7 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, accuracy: dict | N
             raise DesignError(f"{what}: {_refusal('the filter Riccati equation', full)}")
         raise no_solution(_refusal("the filter Riccati equation", full))
     if accuracy is not None:
-        accuracy.update(forward=float(full["forward"]), newton_steps=int(full["steps"]))
+        accuracy.update(forward=float(full["forward"]), newton_steps=int(full["steps"]), correction=full["correction"])
     return P
 
 

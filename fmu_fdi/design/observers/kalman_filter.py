@@ -67,7 +67,8 @@ def kalman(model: FDIModel, Qw=None, Rv=None, *, atol: float = 0.0) -> ResidualG
         ``whitening`` Σ^{-1/2}, ``innovation_kind`` ('covariance' or 'intensity'),
         ``noise_model``, ``poles``, ``detected_faults``; ``riccati_accuracy``: ``forward`` = ‖P_K − P‖_F/‖P‖_F, P_K
         the error covariance of the filter run with the returned gain (its Lyapunov/Stein equation) — the forward
-        error of P to first order, at most ``FORWARD_RTOL`` = 1e-6 — and the ``newton_steps`` taken to get there.
+        error of P to first order, at most ``FORWARD_RTOL`` = 1e-6 — the ``newton_steps`` taken to get there, and
+        ``gain_forward``, the gain's relative forward error to first order (from the same correction).
 
     Raises
     ------

@@ -272,7 +272,7 @@ def forward_refined(A, B, Q, R, S, X, dt: float, rtol: float = FORWARD_RTOL, ste
     from a stabilising gain every iterate is stabilising, ``X_F ⪰ X*``); the iteration stops after ``steps`` steps or
     when ``‖Δ‖`` has not fallen below its least value for :data:`FORWARD_STALL` steps (the rounding floor
     ``~n·eps·size/sep`` of an ill-conditioned equation: no iterate is certain to ``rtol``). ``figures`` (if given) receives ``forward`` (the last ``‖Δ‖_F / scale``), ``steps`` (the
-    steps taken) and, on a refusal, ``why``."""
+    steps taken), the accepted answer's ``correction`` Δ, and on a refusal ``why`` (with ``sep`` and ``floor``)."""
     figures = {} if figures is None else figures
     if X is None or not np.all(np.isfinite(X)):
         figures.update(forward=np.inf, steps=0, why="no finite answer")
@@ -292,6 +292,7 @@ def forward_refined(A, B, Q, R, S, X, dt: float, rtol: float = FORWARD_RTOL, ste
         fwd = float(np.linalg.norm(D)) / solution_scale(A, Q, X, dt)
         figures.update(forward=fwd, steps=k)
         if fwd <= rtol:
+            figures["correction"] = D
             return X
         stalled = 0 if fwd < best else stalled + 1
         best = min(best, fwd)
