@@ -22,6 +22,7 @@ Run: OPENBLAS_NUM_THREADS=1 python benchmarks/riccati_forward.py [SEEDS] [REV] [
   judge reads 1e-11 … 1.5e-7).
 """
 import sys
+import time
 import warnings
 from pathlib import Path
 
@@ -32,15 +33,41 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from fmu_fdi.design.observers import _observer as new  # noqa: E402
+from fmu_fdi.design.toolkit import approximate as new_approximate  # noqa: E402
 from riccati_refinement import baseline, timed_filter  # noqa: E402
 from test_kalman_riccati import _problem  # noqa: E402
-from test_riccati_forward import deflated_problem, forward_error  # noqa: E402
+from test_riccati_forward import deflated_problem, filter_gain, forward_error  # noqa: E402
 
 
 def solved(module, A, C, Qx, R, dt, repeats: int):
     """``(forward error or None if refused, seconds)``."""
     out, best = timed_filter(module, A, C, Qx, R, dt, repeats)
     return (None if out is None else forward_error(A, C, Qx, R, dt, out.P, out.L)), best
+
+
+def factored(problem):
+    """The seeded problem as spectral_riccati's factored control-form equation: ``(Aᵀ, Cᵀ)``, ``Q = HᵀH`` with
+    ``H = [Gᵀ; 0]`` (``Qx = GGᵀ`` by an eigendecomposition), ``R = DᵀD``, ``D = [0; √R]``."""
+    def make(seed, trial):
+        A, C, Qx, R, dt = problem(seed, trial)
+        lam, V = np.linalg.eigh(Qx)
+        G = V * np.sqrt(np.clip(lam, 0, None))
+        n, p = A.shape[0], R.shape[0]
+        H = np.vstack([G.T, np.zeros((p, n))])
+        D = np.vstack([np.zeros((n, p)), np.sqrt(R)])
+        return A, C, H.T @ H, R, dt, H, D
+    return make
+
+
+def timed_spectral(module, A, C, H, D, dt, repeats: int):
+    """``(X or None, best seconds)`` of ``module.spectral_riccati`` on ``(Aᵀ, Cᵀ, H, D)``."""
+    best, X = np.inf, None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        with np.errstate(all="ignore"):
+            X = module.spectral_riccati(A.T.copy(), C.T.copy(), H, D, dt)
+        best = min(best, time.perf_counter() - t0)
+    return X, best
 
 
 def main(seeds: int = 60, rev: str = "main", repeats: int = 1) -> None:
@@ -74,6 +101,37 @@ def main(seeds: int = 60, rev: str = "main", repeats: int = 1) -> None:
                   f"{int(np.sum(e > 1e-6))}, > 1e-5: {int(np.sum(e > 1e-5))}, max {e.max() if e.size else np.nan:.2e}")
     print(f"time per solve current/baseline: geometric mean {np.exp(np.mean(np.log(ratios))):.3f} over the "
           f"{len(ratios)} problems both design; total {t_new:.2f} s / {t_old:.2f} s = {t_new / t_old:.3f}")
+    # spectral_riccati alone (approximate.coouter_inverse, approximate_matching's filter DARE): the factored
+    # control-form equations of both families, judged by the same closed-loop covariance of the gain it implies
+    ratios, t_old, t_new = [], 0.0, 0.0
+    for family, problem in (("full", factored(_problem)), ("deflated", factored(deflated_problem))):
+        fw = {"baseline": [], "current": []}
+        refused = {"baseline": 0, "current": 0}
+        for seed in range(seeds):
+            for trial in range(3):
+                A, C, Q, R, dt, H, D = problem(seed, trial)
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    Xo, so = timed_spectral(old, A, C, H, D, dt, repeats)
+                    Xn, sn = timed_spectral(new_approximate, A, C, H, D, dt, repeats)
+                for side, X in (("baseline", Xo), ("current", Xn)):
+                    if X is None:
+                        refused[side] += 1
+                        continue
+                    L = filter_gain(A, C, R, X, dt)
+                    try:
+                        fw[side].append(forward_error(A, C, Q, R, dt, X, L))
+                    except (np.linalg.LinAlgError, ValueError):
+                        fw[side].append(np.inf)
+                t_old, t_new = t_old + so, t_new + sn
+                if Xo is not None and Xn is not None:
+                    ratios.append(sn / so)
+        for side in ("baseline", "current"):
+            e = np.array(fw[side])
+            print(f"spectral_riccati {family:>8s} {side:>8s}: {e.size} solved / {refused[side]} None; forward error "
+                  f"> 1e-6: {int(np.sum(e > 1e-6))}, > 1e-5: {int(np.sum(e > 1e-5))}, max {e.max() if e.size else np.nan:.2e}")
+    print(f"spectral_riccati time current/baseline: geometric mean {np.exp(np.mean(np.log(ratios))):.3f} over the "
+          f"{len(ratios)} both solve; total {t_new:.2f} s / {t_old:.2f} s = {t_new / t_old:.3f}")
 
 
 if __name__ == "__main__":

@@ -61,12 +61,19 @@ def forward_error(A, C, Qx, R, dt, P, L) -> float:
     return float(np.linalg.norm(closed_loop_covariance(A, C, Qx, R, L, dt) - P) / max(np.linalg.norm(P), floor))
 
 
+def filter_gain(A, C, R, P, dt) -> np.ndarray:
+    """The gain of ``P`` (S = 0): continuous ``P Cᵀ R⁻¹``, discrete ``A P Cᵀ Σ⁻¹``, ``Σ = C P Cᵀ + R``, by a solve (an
+    explicit inverse of a Σ of condition 1e16, met on the factored discrete problems, makes the judge's own gain
+    wrong: benchmarks/riccati_forward.py read 'forward errors' up to 1e10 that way)."""
+    return np.linalg.solve(C @ P @ C.T + R, C @ P @ A.T).T if dt else np.linalg.solve(R, C @ P).T
+
+
 def gain_error(A, C, Qx, R, dt, L) -> float:
     """``‖L(P_K) − L‖_F / ‖L‖_F``: the gain the Riccati formula gives for the judge's ``P_K`` (continuous ``P_K CᵀR⁻¹``,
     discrete ``A P_K Cᵀ(C P_K Cᵀ + R)⁻¹``, S = 0) against the returned one — ``L(P_K) − L*`` is second order in the
     error (P_K − P* is, Kleinman), so this reads the gain's forward error to first order."""
     PK = closed_loop_covariance(A, C, Qx, R, L, dt)
-    LK = np.linalg.solve(C @ PK @ C.T + R, C @ PK @ A.T).T if dt else np.linalg.solve(R, C @ PK).T
+    LK = filter_gain(A, C, R, PK, dt)
     return float(np.linalg.norm(LK - L) / np.linalg.norm(L))
 
 
@@ -116,21 +123,6 @@ def test_deflated_problem_answer_is_accurate_in_the_callers_coordinates(seed, tr
     assert np.all(np.abs(ev) < 1.0) if dt else np.all(ev.real < 0.0)
 
 
-def test_an_answer_the_backward_test_passes_and_the_forward_test_refuses_is_not_returned():
-    """Seed 47 trial 0 (discrete, states over eight decades): scipy's answer on the balanced problem has a residual
-    within RICCATI_RTOL and yet, by the judge, a forward error of 1.4e-2 — a backward test passes a gain that is not
-    the stabilising solution's. The design returns a gain that is (read by the same judge)."""
-    A, C, Qx, R, dt = _problem(47, 0)
-    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
-    Pb = sla.solve_discrete_are((A / t[:, None] * t[None, :]).T, (C * t[None, :]).T, Qx / t[:, None] / t[None, :], R)
-    P = Pb * t[:, None] * t[None, :]
-    assert dt and _relative_residual(A, C, Qx, R, P, dt) <= RICCATI_RTOL
-    L = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
-    assert forward_error(A, C, Qx, R, dt, P, L) > 1e-3
-    f = _designed(A, C, Qx, R, dt)
-    assert forward_error(A, C, Qx, R, dt, f.P, f.L) <= JUDGE_LINE
-
-
 def test_a_gain_not_certain_to_the_line_is_refused_naming_its_figures(monkeypatch):
     """The refusal path: no double-precision P is certain to 1e-20 of its norm (the iterate itself is rounded to
     eps·‖P‖), so with that line the Newton corrections stall and the design raises a DesignError naming the
@@ -158,6 +150,11 @@ def test_eight_decade_scaled_scalar_pair_is_refined_not_accepted_by_its_residual
     C = np.array([[1.0, 1.0 / s]])        # y = x₁ + x₂/s: x₂ = s·ξ₂ in the scaled coordinates
     Qx = np.diag([q, q * s * s])          # noise on ξ₂ with intensity q, seen as s²q on x₂
     R = np.array([[r]])
+    # the backward test passes the answer that drops x₂'s noise (the scalar CARE −2p − p² + 1 = 0 of x₁ alone,
+    # p = √2 − 1): its residual is the dropped 1e-16, while the filter run with its gain has a covariance 2.1e-2 away
+    P0 = np.diag([np.sqrt(2.0) - 1.0, 0.0])
+    assert _relative_residual(A, C, Qx, R, P0, 0.0) <= RICCATI_RTOL
+    assert forward_error(A, C, Qx, R, 0.0, P0, filter_gain(A, C, R, P0, 0.0)) > 1e-2
     f = _designed(A, C, Qx, R, 0.0)
     # P_ref to ~1e-15 relative per block (a well-conditioned 2×2 CARE; the similarity by 1e-8 adds one rounding);
     # rtol 1e-6 = FORWARD_RTOL, atol 1e-6 of the x₂ block's scale (s²·|P_ref|) for the entries of size s·P and s²·P
@@ -186,5 +183,5 @@ def test_spectral_riccati_answer_meets_the_forward_line_in_control_form():
             X = spectral_riccati(A.T.copy(), C.T.copy(), Cf, Df, dt)
         if X is None:
             continue
-        L = (A @ X @ C.T @ np.linalg.inv(C @ X @ C.T + R)) if dt else X @ C.T @ np.linalg.inv(R)
+        L = filter_gain(A, C, R, X, dt)
         assert forward_error(A, C, Q, R, dt, X, L) <= JUDGE_LINE
