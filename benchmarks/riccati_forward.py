@@ -39,8 +39,9 @@ from test_kalman_riccati import _problem  # noqa: E402
 from test_riccati_forward import deflated_problem, filter_gain, forward_error  # noqa: E402
 
 
-def solved(module, A, C, Qx, R, dt, repeats: int):
-    """``(forward error or None if refused, seconds)``."""
+def filter_forward(module, data, repeats: int):
+    """``(forward error or None if refused, seconds)`` of ``module.filter_riccati`` on ``data = (A, C, Qx, R, dt)``."""
+    A, C, Qx, R, dt = data
     out, best = timed_filter(module, A, C, Qx, R, dt, repeats)
     return (None if out is None else forward_error(A, C, Qx, R, dt, out.P, out.L)), best
 
@@ -59,30 +60,38 @@ def factored(problem):
     return make
 
 
-def timed_spectral(module, A, C, H, D, dt, repeats: int):
-    """``(X or None, best seconds)`` of ``module.spectral_riccati`` on ``(Aᵀ, Cᵀ, H, D)``."""
+def spectral_forward(module, data, repeats: int):
+    """``(forward error or None, best seconds)`` of ``module.spectral_riccati`` on ``(Aᵀ, Cᵀ, H, D)`` of ``data``
+    (:func:`factored`), judged with the gain it implies."""
+    A, C, Q, R, dt, H, D = data
     best, X = np.inf, None
     for _ in range(repeats):
         t0 = time.perf_counter()
         with np.errstate(all="ignore"):
             X = module.spectral_riccati(A.T.copy(), C.T.copy(), H, D, dt)
         best = min(best, time.perf_counter() - t0)
-    return X, best
+    if X is None:
+        return None, best
+    try:
+        return forward_error(A, C, Q, R, dt, X, filter_gain(A, C, R, X, dt)), best
+    except (np.linalg.LinAlgError, ValueError):
+        return np.inf, best
 
 
-def main(seeds: int = 60, rev: str = "main", repeats: int = 1) -> None:
-    old = baseline(rev)
+def compare(label: str, families, run, old, new, seeds: int, rev: str, repeats: int) -> None:
+    """Both sides of ``run(module, data, repeats)`` on every problem of ``families``: counts, forward errors, times."""
     ratios, t_old, t_new = [], 0.0, 0.0
-    for family, problem in (("full", _problem), ("deflated", deflated_problem)):
+    show = lambda e: "refused" if e is None else f"{e:.1e}"  # noqa: E731
+    for family, problem in families:
         fw = {"baseline": [], "current": []}
         refused = {"baseline": 0, "current": 0}
         for seed in range(seeds):
             for trial in range(3):
-                A, C, Qx, R, dt = problem(seed, trial)
+                data = problem(seed, trial)
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    eo, so = solved(old, A, C, Qx, R, dt, repeats)
-                    en, sn = solved(new, A, C, Qx, R, dt, repeats)
+                    eo, so = run(old, data, repeats)
+                    en, sn = run(new, data, repeats)
                 for side, e in (("baseline", eo), ("current", en)):
                     if e is None:
                         refused[side] += 1
@@ -92,46 +101,24 @@ def main(seeds: int = 60, rev: str = "main", repeats: int = 1) -> None:
                 if eo is not None and en is not None:
                     ratios.append(sn / so)
                 if (eo is None) != (en is None) or max(eo or 0, en or 0) > 1e-6:
-                    show = lambda e: "refused" if e is None else f"{e:.1e}"  # noqa: E731
-                    print(f"{family:>8s} {seed:3d}/{trial}  n={A.shape[0]:2d} dt={dt:g}  forward {rev}: {show(eo):>8s} "
-                          f"({so:.3f} s)  current: {show(en):>8s} ({sn:.3f} s)", flush=True)
+                    print(f"{label} {family:>8s} {seed:3d}/{trial}  n={data[0].shape[0]:2d} dt={data[4]:g}  forward "
+                          f"{rev}: {show(eo):>8s} ({so:.3f} s)  current: {show(en):>8s} ({sn:.3f} s)", flush=True)
         for side in ("baseline", "current"):
             e = np.array(fw[side])
-            print(f"{family:>8s} {side:>8s}: {e.size} designed / {refused[side]} refused; forward error > 1e-6: "
+            print(f"{label} {family:>8s} {side:>8s}: {e.size} designed / {refused[side]} refused; forward error > 1e-6: "
                   f"{int(np.sum(e > 1e-6))}, > 1e-5: {int(np.sum(e > 1e-5))}, max {e.max() if e.size else np.nan:.2e}")
-    print(f"time per solve current/baseline: geometric mean {np.exp(np.mean(np.log(ratios))):.3f} over the "
+    print(f"{label} time per solve current/baseline: geometric mean {np.exp(np.mean(np.log(ratios))):.3f} over the "
           f"{len(ratios)} problems both design; total {t_new:.2f} s / {t_old:.2f} s = {t_new / t_old:.3f}")
+
+
+def main(seeds: int = 60, rev: str = "main", repeats: int = 1) -> None:
+    old = baseline(rev)
+    compare("filter_riccati", (("full", _problem), ("deflated", deflated_problem)), filter_forward, old, new, seeds,
+            rev, repeats)
     # spectral_riccati alone (approximate.coouter_inverse, approximate_matching's filter DARE): the factored
     # control-form equations of both families, judged by the same closed-loop covariance of the gain it implies
-    ratios, t_old, t_new = [], 0.0, 0.0
-    for family, problem in (("full", factored(_problem)), ("deflated", factored(deflated_problem))):
-        fw = {"baseline": [], "current": []}
-        refused = {"baseline": 0, "current": 0}
-        for seed in range(seeds):
-            for trial in range(3):
-                A, C, Q, R, dt, H, D = problem(seed, trial)
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    Xo, so = timed_spectral(old, A, C, H, D, dt, repeats)
-                    Xn, sn = timed_spectral(new_approximate, A, C, H, D, dt, repeats)
-                for side, X in (("baseline", Xo), ("current", Xn)):
-                    if X is None:
-                        refused[side] += 1
-                        continue
-                    L = filter_gain(A, C, R, X, dt)
-                    try:
-                        fw[side].append(forward_error(A, C, Q, R, dt, X, L))
-                    except (np.linalg.LinAlgError, ValueError):
-                        fw[side].append(np.inf)
-                t_old, t_new = t_old + so, t_new + sn
-                if Xo is not None and Xn is not None:
-                    ratios.append(sn / so)
-        for side in ("baseline", "current"):
-            e = np.array(fw[side])
-            print(f"spectral_riccati {family:>8s} {side:>8s}: {e.size} solved / {refused[side]} None; forward error "
-                  f"> 1e-6: {int(np.sum(e > 1e-6))}, > 1e-5: {int(np.sum(e > 1e-5))}, max {e.max() if e.size else np.nan:.2e}")
-    print(f"spectral_riccati time current/baseline: geometric mean {np.exp(np.mean(np.log(ratios))):.3f} over the "
-          f"{len(ratios)} both solve; total {t_new:.2f} s / {t_old:.2f} s = {t_new / t_old:.3f}")
+    compare("spectral_riccati", (("full", factored(_problem)), ("deflated", factored(deflated_problem))),
+            spectral_forward, old, new_approximate, seeds, rev, repeats)
 
 
 if __name__ == "__main__":
