@@ -100,7 +100,9 @@ def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
     :data:`RICCATI_RTOL` of its norm.
 
     A small residual is a backward measure: on an ill-conditioned equation it can hide a large error of ``X``
-    (the seeded problems of tests/test_kalman_riccati.py: relative residual 2e-11, ``X`` wrong by 0.8 of its norm).
+    (the Kalman filter's seeded problems of tests/test_kalman_riccati.py: relative residual 2e-11, ``P`` wrong by 0.8
+    of its norm — there through a factor of ``Qx`` exact only to ``eps·‖Qx‖``, which is another equation for the
+    states scaled 1e-4; tests/test_riccati_forward.py).
     So an answer within :data:`RICCATI_RTOL` is also judged by a forward measure
     (:func:`.riccati_newton.forward_refined`): the loop closed with its gain ``F(X)`` has the cost ``X_F`` (filter
     form: the error covariance of the filter run with that gain), ``X_F − X`` is the forward error to first order,

@@ -167,15 +167,16 @@ def _iterated(A, B, Q, R, S, X, dt: float, steps: int) -> np.ndarray | None:
 # ------------------------------------------------------------------------------------------- the forward measure
 #: an answer is accepted when the closed-loop correction (:func:`forward_refined`) is within this fraction of its
 #: scale: the returned ``X`` — hence the gain ``F(X)`` and the cost/covariance of the loop a user runs — is within
-#: 1e-6 of the stabilising solution to first order. Why 1e-6: the correction is computed from the residual, whose
-#: rounding is ``~n·eps·size`` (``size`` the terms' norms), so the estimate has a floor ``n·eps·size/sep`` (``sep``
-#: the closed-loop Lyapunov operator's separation): 1e-6 certifies equations with ``size/(sep·‖X‖)`` (Byers' and
-#: Sun's condition of the CARE/DARE, to a factor of the order of the gain) up to ~1e-6/(n·eps) ≈ 1e8–1e9 — six
-#: digits of ``X`` where double precision can give them, a refusal where it cannot (cond beyond that: no backward
-#: stable solver's answer is certain to six digits). Six digits of the covariance are far below what a χ² threshold
-#: or a noise normaliser can use (a covariance estimated from N samples is known to ~1/√N), and the acceptance line
-#: is 100× above the floor of the equations the direct solvers meet here (forward 1e-16 … 1e-8 on the seeded
-#: problems of tests/test_kalman_riccati.py, benchmarks/riccati_forward.py).
+#: 1e-6 of the stabilising solution to first order. Why 1e-6: (1) what is certifiable — an answer computed in double
+#: carries the backward error of its data's rounding, ``~n·eps·size`` (``size`` the terms' norms), so its forward
+#: error can be ``n·eps·size/sep`` (``sep`` the closed-loop Lyapunov operator's separation; ``size/(sep·‖X‖)`` is
+#: Byers' and Sun's condition of the CARE/DARE up to a factor of the order of the gain): 1e-6 certifies six digits
+#: wherever that condition is below ~1e-6/(n·eps) ≈ 1e8–1e9 and refuses where double precision cannot promise six;
+#: the correction itself is read with an extended-precision residual (:func:`closed_loop_correction`), so its own floor
+#: lies ~2000× lower and does not decide. (2) what is useful — six digits of a covariance are far beyond what a χ²
+#: threshold or a noise normaliser can use (a covariance estimated from N samples is known to ~1/√N). (3) measured
+#: (benchmarks/riccati_forward.py, 360 seeded ill-scaled problems): the direct solvers' accepted answers read up to 0.81
+#: by the independent judge; after the refinement every designed one reads ≤ 1.4e-6 and none is refused for the line.
 FORWARD_RTOL = 1e-6
 
 
