@@ -368,19 +368,12 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
             f"(the pair (A − S R⁻¹ C, Qx − S R⁻¹ Sᵀ) must have no uncontrollable mode with "
             f"{'|z| = 1' if dt else 'Re s = 0'})")
 
+    P = _deflated_riccati(A, C, Qx, R, S, dt, no_solution)
+    Sigma = _innovation_covariance(C, P, R, dt, what)
     accuracy = {"forward": 0.0, "newton_steps": 0}
-    P = _deflated_riccati(A, C, Qx, R, S, dt, no_solution, accuracy, what)
-    Sigma = C @ P @ C.T + R if dt else R
-    Sigma = (Sigma + Sigma.T) / 2
-    # Σ > 0 in exact arithmetic (P ⪰ 0, R > 0); in floating point R can lie below the rounding of C P Cᵀ, and then
-    # no gain computed from Σ has any accuracy: refused where Σ's condition exceeds 1/(p·eps)
-    ev = np.linalg.eigvalsh(Sigma) if Sigma.size else np.ones(1)
-    if not ev[0] > Sigma.shape[0] * EPS * ev[-1]:
-        raise DesignError(
-            f"{what}: the innovation covariance Σ = {'C P Cᵀ + R' if dt else 'R'} is not numerically positive "
-            f"definite (eigenvalues {ev[0]:.3g} … {ev[-1]:.3g}; R's smallest eigenvalue "
-            f"{float(np.linalg.eigvalsh((R + R.T) / 2)[0]):.3g} is below the rounding of the predicted output "
-            f"covariance): the gain is not computable to any accuracy; scale the outputs or raise R")
+    if n:
+        P = _forward_checked(A, C, Qx, R, S, P, dt, no_solution, what, accuracy)
+        Sigma = _innovation_covariance(C, P, R, dt, what)
     if dt:
         Kf = sla.solve(Sigma, C @ P, assume_a="pos").T
         L = sla.solve(Sigma, (A @ P @ C.T + S).T, assume_a="pos").T
@@ -401,8 +394,24 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
     return RiccatiFilter(P, L, Kf, Sigma, accuracy)
 
 
-def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, accuracy: dict | None = None,
-                      what: str = "the Kalman filter") -> np.ndarray:
+def _innovation_covariance(C, P, R, dt: float, what: str) -> np.ndarray:
+    """``Σ = C P Cᵀ + R`` (discrete) or ``R`` (continuous), symmetrised; a DesignError where it is not numerically
+    positive definite."""
+    Sigma = C @ P @ C.T + R if dt else R
+    Sigma = (Sigma + Sigma.T) / 2
+    # Σ > 0 in exact arithmetic (P ⪰ 0, R > 0); in floating point R can lie below the rounding of C P Cᵀ, and then
+    # no gain computed from Σ has any accuracy: refused where Σ's condition exceeds 1/(p·eps)
+    ev = np.linalg.eigvalsh(Sigma) if Sigma.size else np.ones(1)
+    if not ev[0] > Sigma.shape[0] * EPS * ev[-1]:
+        raise DesignError(
+            f"{what}: the innovation covariance Σ = {'C P Cᵀ + R' if dt else 'R'} is not numerically positive "
+            f"definite (eigenvalues {ev[0]:.3g} … {ev[-1]:.3g}; R's smallest eigenvalue "
+            f"{float(np.linalg.eigvalsh((R + R.T) / 2)[0]):.3g} is below the rounding of the predicted output "
+            f"covariance): the gain is not computable to any accuracy; scale the outputs or raise R")
+    return Sigma
+
+
+def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
     """Stabilising ``P`` of the filter Riccati equation, the states no noise reaches deflated.
 
     Removing the cross-covariance (Anderson & Moore 1979, sec. 5.5) gives the equivalent
@@ -465,8 +474,6 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, accuracy: dict | N
         Z = np.hstack([Z[:, :n_c], Z[:, n_c:] @ U])
         n_c += n_u
     if n_c == 0:
-        if accuracy is not None:
-            accuracy.update(forward=0.0, newton_steps=0)
         return np.zeros((n, n))
     T1 = Z[:, :n_c] if n_c < n else np.eye(n)  # nothing deflated: the caller's coordinates, not the staircase's
     A1, C1 = T1.T @ Ab @ T1, C @ T1
@@ -493,6 +500,12 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, accuracy: dict | N
         raise no_solution(_refusal("the reduced filter Riccati equation", {}))
     P = T1 @ (gamma * (P1 + P1.T) / 2) @ T1.T
     P = (P + P.T) / 2
+    return P
+
+
+def _forward_checked(A, C, Qx, R, S, P, dt: float, no_solution, what: str, accuracy: dict) -> np.ndarray:
+    """``P`` (or its Newton refinement) accepted by the forward measure on the caller's filter equation, else a
+    DesignError naming the figures; ``accuracy`` receives ``forward``, ``newton_steps`` and the ``correction``."""
     # The forward measure is read on the caller's equation — its coordinates and its Qx, S — not on the reduced one:
     # the reduced equation is in the staircase's orthogonal basis where something is deflated, which mixes states
     # scaled over decades, and its factor H (Q̄₁₁/γ = HᵀH by an eigendecomposition) is exact only to eps·‖Q̄‖, which
@@ -506,8 +519,7 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, accuracy: dict | N
         if np.isfinite(full.get("forward", np.inf)):
             raise DesignError(f"{what}: {_refusal('the filter Riccati equation', full)}")
         raise no_solution(_refusal("the filter Riccati equation", full))
-    if accuracy is not None:
-        accuracy.update(forward=float(full["forward"]), newton_steps=int(full["steps"]), correction=full["correction"])
+    accuracy.update(forward=float(full["forward"]), newton_steps=int(full["steps"]), correction=full["correction"])
     return P
 
 
