@@ -15,6 +15,17 @@ Run: python benchmarks/approximate_random_judged.py [N] [first_seed] [-v] [--tim
 (a call that gives no answer within the timeout counts as "timeout", none by default)
 (seeds first_seed … first_seed + N − 1; default 20 models from seed 0)
 
+Measured 27 Nov (audit17, ``--timeout=120``, nice 10 beside the exact audit, load ~2):
+
+    seeds    AFD     afdi_bank  amm(Mr=row)  amm(Mr=I)  model detection  total ok/refused/broken
+    160-179  20/0/0  19/0/1     19/0/1       20/0/0     9/0/0            87/0/2
+    180-199  20/0/0  20/0/0     19/0/1       20/0/0     8/0/0            87/0/1
+
+no timeout; median 6.0 / 3.7 s per model, slowest 29.2 s (191), 20.2 s (199), 19.8 s (173). The three broken calls
+are pinned and diagnosed in tests/test_audit_seeds17.py (176 afdi_bank: AB13DD returns a local peak of a row's fault
+slice; 173, 199 amm(Mr = row): the shipped minimal realisation of Y·Φ·Q0 loses the u/d cancellation the product
+keeps).
+
 With ``--gap-time SEED [SEED …]`` it times instead, per seed, the afdi_bank of the audit (the rows
 check_case picks) and then the bank's gaps read two ways in the same run: the baseline
 ``analysis.fault_noise_gap`` on the stacked bank (rows of the bank's internal form, which carry every

@@ -21,7 +21,15 @@ run on every seed by hand, no disagreement on any row of any model):
     619-648        29/1/0           30/0/0           32/13/0         32/13/0          123/27/0
     349-378        30/0/0           30/0/0           31/14/0         31/14/0          122/28/0  (regression)
 
-no timeout; the slowest model 94 s (seed 577). The two refused nullspace_design calls (546, 642; n = 1) name
+no timeout; the slowest model 94 s (seed 577). Measured 27 Nov (audit17, ``--timeout=300``, refusals re-judged by
+numpy as below, nice 10 beside another audit, load ~2):
+
+    seeds      nullspace_design  structured_bank  dedicated_bank  generalized_bank  total ok/refused/broken
+    649-678        30/0/0           30/0/0           33/11/0         33/11/0          126/22/0
+    679-708        30/0/0           30/0/0           21/23/0         21/23/0          102/46/0
+    709-738        30/0/0           30/0/0           29/18/0         29/18/0          118/36/0
+
+no timeout, no false refusal; median 0.5-0.9 s per model, slowest 9.7 s (691), 9.0 s (687), 7.8 s (712). The two refused nullspace_design calls (546, 642; n = 1) name
 ``rank [Gd Gf_fa] = rank Gd = 1``, as numpy reads it; every bank refusal's "normal rank of Gd = p" matched numpy's
 rank of [Gd G_X] (206 messages).
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-import scipy.optimize as sopt
 
 
 def _normalize(h: np.ndarray) -> np.ndarray:
@@ -45,6 +44,10 @@ def maximize_on_sphere(objective: Callable[[np.ndarray], float], k: int, seed: i
                     picked.append(c)
                 if len(picked) == 4:
                     break
+        # (imported here: scipy.optimize costs 0.16-0.4 s at ``import fmu_fdi.design``, whose other modules do not
+        # need it; the first pole placement imports it anyway, through scipy.signal → scipy.stats)
+        import scipy.optimize as sopt
+
         for c in picked[:4]:
             res = sopt.minimize(lambda x: -objective(_normalize(x)), c, method="Nelder-Mead",
                                 options={"xatol": 1e-10, "fatol": 1e-12, "maxiter": 400 * k, "maxfev": 400 * k})
