@@ -465,8 +465,16 @@ def _judged_plant_poles(model: FDIModel, Q: LTI, margin: float, kept: np.ndarray
     at 1e-10 of its column, ``smarg = −0.05``: the staircase left it, the judge refused the design ('R stability'):
     the row does not cancel it, ``||Q(p) c_p|| = 0.13`` against δ_i = 2.7e-12, and fx couples to it at 5.3e-11
     against δ_c = 1.2e-13; numpy: residue 1.9e-11 of the weakest fault's peak, a tail ρ/δ = 1.9e-4 of it; moved
-    here, the design is returned and numpy reads R's residue there at rounding)."""
+    here, the design is returned and numpy reads R's residue there at rounding).
+
+    **One rule with the user's margin.** The table also holds every other simple stable mode that breaks ``margin``
+    (:func:`.plant_modes.boundary_mode_table` with ``smarg``: the modes of :func:`.plant_modes.user_margin_table`),
+    which the judge reads the same way (:func:`.postconditions.user_margin_decisions`): beyond the grid's gap the
+    staircase read the same 1e-10 coupling as none at s = −1e-4 and −1e-2 (numpy: R_f kept the mode with residue
+    1.9e-11 / 2.0e-11 of the weakest peak, 2.1e-10 at z = 0.99), so the verdict jumped at the gap's edge. With the
+    default margin (or a looser one) the table is the beside-boundary one, unchanged."""
     from ...margin import outside_margin
+    from .plant_modes import boundary_mode_table
     from .postconditions import _eval_points, mode_decisions, _nrm, _values
 
     if not model.n:
@@ -476,7 +484,8 @@ def _judged_plant_poles(model: FDIModel, Q: LTI, margin: float, kept: np.ndarray
     Qv = Qv[np.all(np.isfinite(Qv), axis=(1, 2))]
     if not Qv.shape[0]:
         return np.zeros(0, complex)
-    dec = mode_decisions(model, Q, [list(range(Q.p))], [float(np.max(_nrm(Qv)))], beside=True)
+    modes = boundary_mode_table(model, beside=True, smarg=margin)
+    dec = mode_decisions(model, Q, [list(range(Q.p))], [float(np.max(_nrm(Qv)))], modes=modes)
     if dec is None:
         return np.zeros(0, complex)
     sl = model.group_slices()
