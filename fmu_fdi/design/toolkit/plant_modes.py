@@ -182,8 +182,8 @@ def user_margin_table(model, smarg: float) -> dict | None:
     (tests/test_judge_beside_smarg.py). The grid and the figures do not read these modes: the grid never comes
     within the gap of them (``|Re p|`` > gap), so what the user's residual shows beside them is read as it runs,
     and ``leakage()`` stays independent of ``smarg``."""
-    if smarg is None or not model.n:
-        return None
+    if smarg is None or not model.n or float(smarg) >= default_smarg(model.dt):
+        return None  # a margin no tighter than the default forbids no mode the default table lacks (no work)
     return boundary_mode_table(model, beside=True, smarg=smarg, only_user=True)
 
 
