@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from fmu_fdi import FDIModel, actuator_fault, sensor_fault
-from fmu_fdi.design import nullspace_design
+from fmu_fdi.design import nullspace_design, structured_bank
 from fmu_fdi.design.toolkit.postconditions import check_generator
 from fmu_fdi.faults import component_fault
 
@@ -58,8 +58,9 @@ def _resp(S, lam):
     return np.stack([S.C @ np.linalg.solve(x * np.eye(S.n) - S.A, S.B) + S.D for x in lam])
 
 
-def _numpy_verdict(model, t, Q, smarg: float):
-    """(Q's poles beyond smarg, [(p, relative residue of R at p)] for the plant modes beyond smarg), numpy only."""
+def _numpy_verdict(model, t, Q, smarg: float, required=None):
+    """(Q's poles beyond smarg, [(p, relative residue of R at p)] for the plant modes beyond smarg), numpy only.
+    ``required``: 0/1 per fault, the faults whose weakest peak the residue is relative to (default all)."""
     G = model.augmented()
     A0, B0, C0 = G.A * t[None, :] / t[:, None], G.B / t[:, None], G.C * t[None, :]
     ev, V = np.linalg.eig(A0)
@@ -69,7 +70,8 @@ def _numpy_verdict(model, t, Q, smarg: float):
     R = _resp(Q, lam) @ _resp(type(G)(A0, B0, C0, G.D), lam)
     fsl = model.group_slices()["f"]
     fcols = [np.arange(fsl.start, fsl.stop)[f.columns] for f in model.faults]
-    low = min(float(np.max(np.linalg.norm(R[:, :, c], axis=(1, 2)))) for c in fcols)
+    req = np.ones(len(fcols), int) if required is None else np.asarray(required)
+    low = min(float(np.max(np.linalg.norm(R[:, :, c], axis=(1, 2)))) for c, r in zip(fcols, req) if r)
     qp = np.linalg.eigvals(Q.A) if Q.n else np.zeros(0)
     beyond = (lambda z: np.abs(z) > smarg) if dt else (lambda z: z.real > smarg)  # noqa: E731
     out = []
@@ -204,3 +206,18 @@ def test_the_default_margin_adds_no_mode_to_the_judges_table(dt):
         inside_gap = delta < 1e-5
         # the slow mode is added where the grid's table does not hold it (beyond the gap); never a mode within smarg
         assert (table is None) == inside_gap, (delta, table and table["poles"])
+
+
+@pytest.mark.parametrize("delta, dt, smarg", [(1e-4, 0.0, -0.05), (1e-4, 1.0, 0.95)])
+def test_a_structured_bank_moves_the_mode_in_every_row(delta, dt, smarg):
+    """The banks factorise each row with the same table: structured_bank with rows [1 1 1], [0 1 1], [1 0 1] (each
+    row's residue relative to its own weakest required fault). Branch: every member's residue at the slow mode ≤
+    2e-25 (continuous), 6.9e-24 (discrete), orders 3, 4, 5. Old code: members of orders 2, 3, 4 kept it — numpy's
+    residue 1.9e-11, 1.2e-11, 2.2e-12 (continuous), 1.8e-10, 4.4e-11, 1.9e-12 (discrete)."""
+    model, t = _plant(delta, 1e-10, dt=dt)
+    S = np.array([[1, 1, 1], [0, 1, 1], [1, 0, 1]])
+    bank = structured_bank(model, S, smarg=smarg)
+    for row, member in zip(S, bank.members):
+        qbad, modes = _numpy_verdict(model, t, member.Q, smarg, required=row)
+        assert qbad.size == 0, (row, qbad)
+        assert modes and all(res <= ROUNDING for _, res in modes), (row, modes)
