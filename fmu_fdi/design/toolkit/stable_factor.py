@@ -199,7 +199,7 @@ def _user_margin_pass(model: FDIModel, Q: LTI, info: dict, poles, sdeg, smarg, g
     ``keep_stable_poles=False``: the joint factor left it in R_f, numpy's residue 2e-11 of the weakest fault's
     peak — returned by the old judge beyond the grid's gap, refused inside it). Only where Q's own poles are then
     in the region (the plant-pole step assumes a stable Q); ``(Q, info)`` unchanged otherwise, and always with
-    the default margin (the judge's table there is the staircase's complement, which the joint step reads)."""
+    the default margin or a looser one (default-margin designs are untouched)."""
     from .postconditions import default_smarg
 
     dt = float(model.dt)
