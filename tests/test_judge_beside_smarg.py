@@ -19,6 +19,11 @@ gap of the boundary) the η = 1e-10 plant at δ = 1e-6, 1e-7 was refused ('R sta
 in R_f": the row does not cancel it, ||Q(p) c_p|| = 0.13 against δ_i = 2.7e-12, and fx couples to it at 5.3e-11
 against δ_c = 1.2e-13) — the factoriser had not moved the mode the judge called a pole. Now both decide it by the
 judge's table (:func:`fmu_fdi.design.toolkit.stable_factor._judged_plant_poles` reads it with ``beside=True``).
+
+judge17: the same rule at every distance from the boundary. Beyond the grid's gap (s = −1e-2, −1e-4; z = 1 − 1e-2,
+1 − 1e-4) the judge and the factoriser decided the mode by the staircase and left it in R_f (numpy: 1.9e-11 …
+2.1e-10 of the weakest fault's peak); now both read one table with the user's margin
+(:func:`fmu_fdi.design.toolkit.plant_modes.user_margin_table`), the banks and the joint factorisation included.
 """
 import numpy as np
 import pytest
