@@ -13,7 +13,9 @@ residue of 3.8e-15 times the row's slope.
 - :func:`leading_schur`: its ordered Schur form with chosen eigenvalues first (complex, or real as
   :func:`fmu_fdi.linalg.ordered_schur`);
 - :func:`boundary_mode_table`: per simple mode outside the default margin (and, for the judge, those inside it within
-  the grid's gap of the boundary, :func:`beside_boundary`), what the judge tests it by.
+  the grid's gap of the boundary, :func:`beside_boundary`), what the judge tests it by;
+- :func:`user_margin_table`: the stable modes a user ``smarg`` tighter than the default forbids beyond that gap,
+  decided by the same tests for the poles of R (the judge and the factoriser alike); :func:`merged_tables`.
 
 Reference: A. Varga, *Solving Fault Diagnosis Problems*, Springer 2017, sec. 5.1 (the stability of the internal
 form) and 7.6 (the left coprime factorisation moving the plant's poles); Golub & Van Loan, *Matrix
@@ -75,7 +77,7 @@ def leading_schur(A: np.ndarray, select, real: bool = False) -> tuple[np.ndarray
     return sla.schur(np.asarray(A).astype(complex), output="complex", sort=select)
 
 
-def boundary_mode_table(model, beside: bool = False) -> dict | None:
+def boundary_mode_table(model, beside: bool = False, smarg: float | None = None, only_user: bool = False) -> dict | None:
     """The simple plant modes on or beyond the stability boundary whose cancellation the judge can decide, with
     what :func:`.postconditions._without_cancelled_modes` tests them by (None when there are none).
 
@@ -84,6 +86,10 @@ def boundary_mode_table(model, beside: bool = False) -> dict | None:
     (:func:`.postconditions.mode_decisions`), so that a pole reads the same on both sides of the margin; the
     factoriser and the refinement (:mod:`.stable_factor`, :mod:`.refine`) move and cancel only the modes outside
     the margin and read the default table. ``outside``: per mode, whether it violates the default margin; ``gap``.
+
+    ``smarg``: also every simple stable mode that breaks this (user) margin, wherever it lies — the table of the
+    poles of R with the user's margin (:func:`user_margin_table`); ``only_user``: only those the default table
+    with ``beside`` does not hold.
 
     Balanced ``Ge = (A, B, Ce, De)`` (:func:`balanced_plant`); for each simple eigenvalue p outside the default
     margin with ``sep_p = σ_min(T22 − pI)`` of the ordered Schur form ``[p t; 0 T22]`` (:func:`leading_schur`):
@@ -105,7 +111,9 @@ def boundary_mode_table(model, beside: bool = False) -> dict | None:
     ev = np.linalg.eigvals(A)
     gap = boundary_gap(A)
     out_m = outside_margin(ev, model.dt, default_smarg(model.dt))
-    cand = np.flatnonzero(out_m | beside_boundary(ev, model.dt, gap) if beside else out_m)
+    base = out_m | beside_boundary(ev, model.dt, gap) if beside else out_m
+    user = outside_margin(ev, model.dt, smarg) if smarg is not None else np.zeros(ev.size, bool)
+    cand = np.flatnonzero((user & ~base) if only_user else (base | user))
     if not cand.size:
         return None
     nA, nC = float(np.linalg.norm(A, 2)), float(np.linalg.norm(Ce, 2))  # ||A||, not max(1, ·): scale-free
@@ -159,3 +167,34 @@ def _refined_eigenvector(A: np.ndarray, p: complex, v: np.ndarray) -> np.ndarray
     x = x / nx
     x = x * (np.vdot(x, v) / abs(np.vdot(x, v))) if abs(np.vdot(x, v)) > 0 else x  # v's phase
     return x if np.linalg.norm(M @ x) <= np.linalg.norm(M @ v) else v
+
+
+def user_margin_table(model, smarg: float) -> dict | None:
+    """The simple plant modes a user margin ``smarg`` tighter than the default makes poles of R that the judge's table
+    (:func:`boundary_mode_table` with ``beside``) does not hold: stable modes with ``smarg < Re p`` (``|p|``) that lie
+    farther than the grid's gap from the boundary — with the same entries and tests (δ_c per column; the row's δ_i
+    is :func:`.postconditions.mode_decisions`'). None when there are none (always with the default margin or a
+    looser one). Read for the poles of R only, by the judge (:func:`.postconditions.user_margin_decisions`) and
+    the factoriser (:func:`.stable_factor._judged_plant_poles`), so that every mode the user's margin forbids is
+    decided by one rule, its residue against the derived rounding, whatever its distance to the boundary: the
+    staircase's fixed :data:`~fmu_fdi.margin.R_POLE_TOL` of the data read a fault coupled at 1e-10 of its column
+    to s = −1e-4 as none, while the same coupling at −1e-6 (inside the gap) was moved
+    (tests/test_judge_beside_smarg.py). The grid and the figures do not read these modes: the grid never comes
+    within the gap of them (``|Re p|`` > gap), so what the user's residual shows beside them is read as it runs,
+    and ``leakage()`` stays independent of ``smarg``."""
+    if smarg is None or not model.n or float(smarg) >= default_smarg(model.dt):
+        return None  # a margin no tighter than the default forbids no mode the default table lacks (no work)
+    return boundary_mode_table(model, beside=True, smarg=smarg, only_user=True)
+
+
+def merged_tables(a: dict | None, b: dict | None) -> dict | None:
+    """Two mode tables of the same plant (:func:`boundary_mode_table`) as one: the per-mode entries of ``b`` after
+    those of ``a``; None when both are."""
+    if a is None or b is None:
+        return a if b is None else b
+    out = dict(a)
+    for key in ("poles", "unexcited", "delta_c", "coupling", "coupling_tol", "conds", "outside"):
+        out[key] = np.concatenate([a[key], b[key]])
+    for key in ("dirs", "seps"):
+        out[key] = list(a[key]) + list(b[key])
+    return out

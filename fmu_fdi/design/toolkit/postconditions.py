@@ -47,11 +47,12 @@ i.e. the gain used is the grid estimate of ``||R_fj,i||∞`` (peak over Λ of th
   residual moved with u 2.5e-3 times as much as with a fault);
 - stability of every block of R with the margin ``smarg`` (inclusive, as the peer toolbox:
   ``Re p ≤ smarg`` continuous, ``|p| ≤ smarg`` discrete): the eigenvalues of Q's realisation
-  (the filter that runs) and the poles of R (:func:`_r_poles`): a plant mode on or beyond the stability
-  boundary is a pole of ``R_i``'s column c unless its residue is within its derived rounding bound —
+  (the filter that runs) and the poles of R (:func:`_r_poles`): a simple plant mode on or beyond the stability
+  boundary, or (``R_w``, ``R_f``) one that breaks a user ``smarg`` anywhere (:func:`user_margin_decisions`), is a
+  pole of ``R_i``'s column c unless its residue is within its derived rounding bound —
   ``||Q_i(p) c_p|| ≤ δ_i`` or ``|y_pᴴ b_c| ≤ δ_c``, the grid's own decision (:func:`mode_decisions`) — and
-  the other margin-violating modes are those of the series realisation ``Q·Ge`` that are both controllable
-  and observable;
+  the other margin-violating modes (Q's, and plant modes the table cannot decide: repeated, clustered) are those
+  of the series realisation ``Q·Ge`` that are both controllable and observable;
 - a required fault is no rounding noise in its row: the cosine
   ``γ_j = max_λ ||R_fj(λ)|| / (||Q_y(λ)|| ||Gf_j(λ)||) ≥ FDtol`` (scale free, over the points
   where the bound is at least 1e-6 of its median, away from zeros of ``Gf_j``), and the row
@@ -81,6 +82,9 @@ from ...lti import LTI, _pole_scales, frequency_grid, structurally_observed
 from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
 from .plant_modes import BOUNDARY_GAP, EIGVEC_BOUND, boundary_gap, leading_schur  # noqa: F401  (BOUNDARY_GAP: here)
 from .plant_modes import boundary_mode_table as _boundary_modes
+from .plant_modes import merged_tables as _merged_tables
+from .plant_modes import user_margin_table as _user_margin_table
+
 
 class NumericalDesignError(DesignError):
     """A design broke a numerical post-condition (decoupling, basis rank, stability of the
@@ -376,6 +380,25 @@ def mode_decisions(model, Q: LTI, groups, qpeaks, beside: bool = False, modes=Fa
     return out
 
 
+def user_margin_decisions(model, Q: LTI, groups, qpeaks, smarg: float, decisions: dict | None) -> dict | None:
+    """``decisions`` (:func:`mode_decisions` on the judge's table, the grid's) with the plant modes a user margin
+    ``smarg`` tighter than the default adds (:func:`.plant_modes.user_margin_table`: stable modes breaking it beyond
+    the grid's gap) decided by the same rule, for the poles of R (:func:`_r_poles`) — so that a mode the user's margin
+    forbids is a pole of R exactly where its residue exceeds its derived rounding (``||Q_i(p) c_p|| > δ_i`` and
+    ``|y_pᴴ b_c| > δ_c``), whatever its distance to the boundary. The decision is per mode, so the merged table's
+    entries for the judge's own modes are the grid's, unchanged. ``decisions`` itself (the same object) where the
+    margin adds no mode: every design with the default margin. ``groups``, ``qpeaks``: as the grid's decisions
+    (the judged row groups and their peak gains on the grid)."""
+    extra = _user_margin_table(model, smarg) if model.n else None
+    if extra is None:
+        return decisions
+    more = mode_decisions(model, Q, groups, qpeaks, modes=extra)
+    if decisions is None:
+        return more
+    return {"modes": _merged_tables(decisions["modes"], extra),
+            **{k: np.concatenate([decisions[k], more[k]], axis=0) for k in ("residue", "delta_i", "removed")}}
+
+
 def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarray, Qv: np.ndarray,
                              Ge: np.ndarray, decisions: dict | None = None) -> list:
     """``R = Q·Ge`` at the points ``lam`` with, in each row group i and input column c, the plant's boundary modes
@@ -665,8 +688,12 @@ def _r_poles(model, Q: LTI, smarg: float, decisions: dict | None = None) -> tupl
     (tests/test_synthesis_judge.py, a row with ``||Q(p) c_p|| = 1e-9``, 1e6 δ_i). And conversely (random seed 111:
     z = 1.105 coupled to u, d and fa1 at 1e-15 of ||b_c|| against δ_c = 2e-12; tests/test_synthesis_matching_order.py's
     unstable seed 23: s = 0.688 cancelled by a static row to 5.6e-17, δ_i = 1.7e-15) a mode cancelled to rounding
-    is no pole, as the grid reads those rows without it. The staircase still decides Q's own poles, the stable
-    plant modes that break a user ``smarg`` (R_w, R_f), and a boundary mode the table cannot decide (repeated,
+    is no pole, as the grid reads those rows without it. The same holds for every simple stable plant mode that
+    breaks a user ``smarg`` in R_w, R_f (``decisions`` of :func:`user_margin_decisions`): nothing in δ_i or δ_c
+    depends on where p lies, only on ``sep_p``, ``cond_p``, ``||A||`` and the row, so one rule decides a mode
+    at s = −1e-2, −1e-4 and −1e-6 alike (tests/test_judge_beside_smarg.py: a fault coupled at 1e-10 of its column,
+    numpy's residue 1.9e-11 of the weakest fault's peak, was no pole by the staircase beyond the grid's gap and a
+    pole inside it). The staircase still decides Q's own poles and a plant mode the table cannot decide (repeated,
     clustered or with a void bound: δ_i = ∞ for some row).
     """
     Ge = model.augmented()
@@ -704,8 +731,9 @@ def _r_poles(model, Q: LTI, smarg: float, decisions: dict | None = None) -> tupl
 
 
 def _mode_kind(p: complex, dt: float) -> str:
-    """'unstable' (:func:`_beyond`), 'marginal' (outside the default margin) or 'slow' (a stable mode within the gap
-    of the boundary, :func:`.plant_modes.beside_boundary`, that breaks a user ``smarg``)."""
+    """'unstable' (:func:`_beyond`), 'marginal' (outside the default margin) or 'slow' (a stable mode that breaks a
+    user ``smarg``: within the gap of the boundary, :func:`.plant_modes.beside_boundary`, or beyond it,
+    :func:`.plant_modes.user_margin_table`)."""
     if _beyond(p, dt):
         return "unstable"
     return "marginal" if outside_margin(np.array([p]), dt, default_smarg(dt))[0] else "slow"
@@ -1313,7 +1341,8 @@ def check_generator(gen, *, decouple=("u", "d"), structure=None, faults=None, bl
             return _finish(fig, failures, adv, own_gen, raise_error)
     fig["scales"] = scales.tolist()
 
-    _stability(model, gen.Q, smarg, fig, failures, fj["decisions"])
+    decisions = user_margin_decisions(model, gen.Q, judged, fj["peaks"]["Q"], smarg, fj["decisions"])
+    _stability(model, gen.Q, smarg, fig, failures, decisions)
     _decoupling(model, fj, judged, names, col, S, decouple, dec_tol, fig, failures)
     _strong_visibility(fj["at_freqs"], judged, names, col, S, freqs, FDGainTol, fig, failures)
 

@@ -184,9 +184,33 @@ def _stable_internal_form(model: FDIModel, Q: LTI, *, poles, sdeg, smarg, keep_s
         return Q, _merged(slow, info)
     N, q, info = stable_joint_factor(model, Q, poles=poles, sdeg=sdeg, smarg=smarg,
                                      keep_stable_poles=keep_stable_poles)
+    Qn, info = _user_margin_pass(model, N[:, :q].minreal() if info else Q, info, poles, sdeg, smarg, good)
     if not info:
         return Q, slow
-    return N[:, :q].minreal(), _merged(slow, info)
+    return Qn, _merged(slow, info)
+
+
+def _user_margin_pass(model: FDIModel, Q: LTI, info: dict, poles, sdeg, smarg, good) -> tuple[LTI, dict]:
+    """After :func:`stable_joint_factor`, under a user ``smarg`` tighter than the default: the plant modes that break
+    it and that the judge calls poles of ``[R_w R_f]`` (:func:`_judged_plant_poles`, the residue rule) moved by
+    :func:`_move_plant_poles` — the joint factorisation works on the minimal realisation of ``[Q R]`` at
+    :data:`CANCEL_RTOL`, which drops a plant mode a fault couples to more weakly than that (tests/
+    test_judge_beside_smarg.py: fx at 1e-10 of its column to s = −1e-2 … −1e-6, ``sdeg = −0.1``,
+    ``keep_stable_poles=False``: the joint factor left it in R_f, numpy's residue 2e-11 of the weakest fault's
+    peak — returned by the old judge beyond the grid's gap, refused inside it). Only where Q's own poles are then
+    in the region (the plant-pole step assumes a stable Q); ``(Q, info)`` unchanged otherwise, and always with
+    the default margin or a looser one (default-margin designs are untouched)."""
+    from .postconditions import default_smarg
+
+    dt = float(model.dt)
+    if smarg is None or float(smarg) >= default_smarg(dt) or not all(good(z.real, z.imag) for z in Q.poles()):
+        return Q, info
+    Q2, more = _move_plant_poles(model, Q, moved_pole_targets(model, poles, sdeg, smarg), good, float(smarg))
+    if not more:
+        return Q, info
+    if not info:
+        return Q2, more
+    return Q2, {**info, "moved_poles": info["moved_poles"] + more["moved_poles"], "moved": info["moved"] + more["moved"]}
 
 
 #: a filter realisation is re-realised when its resolvent at a plant pole on the stability boundary is
@@ -465,8 +489,16 @@ def _judged_plant_poles(model: FDIModel, Q: LTI, margin: float, kept: np.ndarray
     at 1e-10 of its column, ``smarg = −0.05``: the staircase left it, the judge refused the design ('R stability'):
     the row does not cancel it, ``||Q(p) c_p|| = 0.13`` against δ_i = 2.7e-12, and fx couples to it at 5.3e-11
     against δ_c = 1.2e-13; numpy: residue 1.9e-11 of the weakest fault's peak, a tail ρ/δ = 1.9e-4 of it; moved
-    here, the design is returned and numpy reads R's residue there at rounding)."""
+    here, the design is returned and numpy reads R's residue there at rounding).
+
+    **One rule with the user's margin.** The table also holds every other simple stable mode that breaks ``margin``
+    (:func:`.plant_modes.boundary_mode_table` with ``smarg``: the modes of :func:`.plant_modes.user_margin_table`),
+    which the judge reads the same way (:func:`.postconditions.user_margin_decisions`): beyond the grid's gap the
+    staircase read the same 1e-10 coupling as none at s = −1e-4 and −1e-2 (numpy: R_f kept the mode with residue
+    1.9e-11 / 2.0e-11 of the weakest peak, 2.1e-10 at z = 0.99), so the verdict jumped at the gap's edge. With the
+    default margin (or a looser one) the table is the beside-boundary one, unchanged."""
     from ...margin import outside_margin
+    from .plant_modes import boundary_mode_table
     from .postconditions import _eval_points, mode_decisions, _nrm, _values
 
     if not model.n:
@@ -476,7 +508,8 @@ def _judged_plant_poles(model: FDIModel, Q: LTI, margin: float, kept: np.ndarray
     Qv = Qv[np.all(np.isfinite(Qv), axis=(1, 2))]
     if not Qv.shape[0]:
         return np.zeros(0, complex)
-    dec = mode_decisions(model, Q, [list(range(Q.p))], [float(np.max(_nrm(Qv)))], beside=True)
+    modes = boundary_mode_table(model, beside=True, smarg=margin)
+    dec = mode_decisions(model, Q, [list(range(Q.p))], [float(np.max(_nrm(Qv)))], modes=modes)
     if dec is None:
         return np.zeros(0, complex)
     sl = model.group_slices()
