@@ -422,13 +422,15 @@ def peak_gains(A, B, C, D, discrete: bool, freqs) -> np.ndarray:
     """``σ_max(G(λ))`` at ``λ = jω`` (continuous; ``ω = inf`` reads D) or ``λ = e^{jω}`` (discrete, ω in
     rad/sample), ``G(λ) = C(λI − A)⁻¹B + D``: one batched LU solve per point (the points are few)."""
     freqs = np.atleast_1d(np.asarray(freqs, dtype=float))
-    out = np.full(freqs.size, float(np.linalg.norm(D, 2)) if D.size else 0.0)
+    out = np.empty(freqs.size)
     fin = np.ones(freqs.size, bool) if discrete else np.isfinite(freqs)
+    if not np.all(fin):
+        out[~fin] = np.linalg.svd(D, compute_uv=False)[0]
     if np.any(fin):
         lam = np.exp(1j * freqs[fin]) if discrete else 1j * freqs[fin]
         n = A.shape[0]
         X = np.linalg.solve(lam[:, None, None] * np.eye(n) - A, np.broadcast_to(B.astype(complex), (lam.size,) + B.shape))
-        out[fin] = np.linalg.norm(C @ X + D, 2, axis=(1, 2))
+        out[fin] = np.linalg.svd(C @ X + D, compute_uv=False)[:, 0]
     return out
 
 
@@ -449,21 +451,16 @@ def gain_crossings(A, B, C, D, discrete: bool, gamma: float) -> np.ndarray:
     n, m, p = A.shape[0], B.shape[1], C.shape[0]
     _, A, Bs, Cs = slycot.tb01id(n, m, p, 0.0, A.copy(), B / gamma, C.copy(), job="A")[:4]
     Ds = D / gamma
-    Z = np.zeros
-    Ip, Im = np.eye(p), np.eye(m)
-    if discrete:
-        M = np.block([[A, Z((n, n)), Bs, Z((n, p))], [Z((n, n)), np.eye(n), Z((n, m)), Z((n, p))],
-                      [Cs, Z((p, n)), Ds, -Ip], [Z((m, n)), Bs.T, -Im, Ds.T]])
-        N = np.zeros_like(M)
-        N[:n, :n] = np.eye(n)
-        N[n:2 * n, n:2 * n] = A.T
-        N[n:2 * n, 2 * n + m:] = Cs.T
-    else:
-        M = np.block([[A, Z((n, n)), Bs, Z((n, p))], [Z((n, n)), A.T, Z((n, m)), Cs.T],
-                      [Cs, Z((p, n)), Ds, -Ip], [Z((m, n)), Bs.T, -Im, Ds.T]])
-        N = np.zeros_like(M)
-        N[:n, :n] = np.eye(n)
-        N[n:2 * n, n:2 * n] = -np.eye(n)
+    x, z, u, v = slice(0, n), slice(n, 2 * n), slice(2 * n, 2 * n + m), slice(2 * n + m, 2 * n + m + p)
+    M, N = np.zeros((2, 2 * n + m + p, 2 * n + m + p))
+    M[x, x], M[x, u] = A, Bs  # λx = Ax + Bu
+    M[v, x], M[v, u], M[v, v] = Cs, Ds, -np.eye(p)  # Cx + Du = v
+    M[u, z], M[u, v], M[u, u] = Bs.T, Ds.T, -np.eye(m)  # Bᵀz + Dᵀv = u
+    N[x, x] = np.eye(n)
+    if discrete:  # z = λ(Aᵀz + Cᵀv)
+        M[z, z], N[z, z], N[z, v] = np.eye(n), A.T, Cs.T
+    else:  # −λz = Aᵀz + Cᵀv
+        M[z, z], M[z, v], N[z, z] = A.T, Cs.T, -np.eye(n)
     alpha, beta = sla.eigvals(M, N, homogeneous_eigvals=True)
     keep = beta != 0
     lam = alpha[keep] / beta[keep]
