@@ -145,7 +145,8 @@ def fault_noise_gap(gen: ResidualGenerator, S=None, atol: float = np.sqrt(np.fin
 
     Every norm is read on a slice (rows of the group, columns of the block) of the ONE minimal
     realisation of the internal form ``R = Q·[Gu Gd Gw Gf; I 0 0 0]`` the generator keeps
-    (``gen._R``), reduced by :meth:`~fmu_fdi.lti.LTI.minreal` before AB13DD: the same transfer
+    (``gen._R``), reduced by :meth:`~fmu_fdi.lti.LTI.minreal` before :meth:`~fmu_fdi.lti.LTI.hinfnorm` (AB13DD,
+    certified to be the peak, not a local one: approximate audit seed 176): the same transfer
     functions as side-by-side copies of separately realised columns, on at most the filter-times-
     plant realisation's states (approximate audit seed 68, one afdi_bank member: the noise block
     of separately realised columns had 240 states where the member's internal form has ~60, and
