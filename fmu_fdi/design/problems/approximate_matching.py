@@ -1503,8 +1503,8 @@ def _verified(model, gen, rows, fnm, MF, lam, norm, systems, err, budget, smarg,
         if e <= limit:
             return e, None
         return e, {**out, "error_limit": limit,
-                   "reason": f"the least-order filter's error {e:.6g} (the optimal filter's {err:.6g}) exceeds "
-                             f"the {budget.says()}: the optimal filter is returned"}
+                   "reason": f"the least-order filter's error {e:.6g} exceeds the optimal filter's {err:.6g} "
+                             f"beyond the design's budget ({budget.says()}): the optimal filter is returned"}
 
     err2, refused = error_refused(Qm, {})
     if refused:
