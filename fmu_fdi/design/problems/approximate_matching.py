@@ -1789,7 +1789,7 @@ def _shipped_filter(model, Mr, Y, Gh, F, Qfull, MF, fnm, scale, a, shifts, atol,
 
     fixed, tried = fixed_rounding(False), []
 
-    def decoupled(k):  # the taken candidate cands[k], or one within the leak margin whose error is as admissible
+    def decoupled(k, fixed=fixed):  # cands[k] or one within the leak margin, its error as admissible (β: estimate)
         return _decoupled_candidate(model, Mr, cands, k, tried, read, lam, size, fixed, compare, fnm, MF, norm,
                                      Y, budget, smarg, dec_tol)
 
