@@ -1,7 +1,7 @@
 """Approximate audit of seeds 160-199 (benchmarks/approximate_random_judged.py 20 160 / 20 180, --timeout=120, numpy
-judge of tests/test_approximate_random.py): 174 ok / 0 refused / 3 broken on ae569eb. The broken calls were pinned as
-strict xfails (a fix makes them XPASS: move them to a passing test with their cause); seed 176's is fixed (hinf17). Neither cause is in the exact
-synthesis core (nullspace, banks, pencil): both are diagnosed below, with the fix proposed to the files' owners.
+judge of tests/test_approximate_random.py): 174 ok / 0 refused / 3 broken on ae569eb. All three are fixed: seed 176's
+afdi_bank here (the certified H∞ norm); seeds 173 and 199 in tests/test_amm_shipped_leak.py (the shipped
+realisation). Neither cause was in the exact synthesis core (nullspace, banks, pencil): the diagnoses as found.
 
 - **Seed 176, afdi_bank** (rows [0 1 1 1 1], [1 1 1 0 1], [1 1 1 1 0]; n 28, continuous): row 2's reported gap
   ``info['gaps'][1]`` = 0.316983 where numpy reads 0.383986 (the member's own ``gap_estimate`` is 0.3839857). The gap
@@ -38,19 +38,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from test_approximate_random import check_case  # noqa: E402
 
-BROKEN = {
-    (173, "amm_ref"): "approximate_matching._shipped_filter ships the minimal realisation of Y·Φ·Q0, which leaks "
-                      "9.46e-5 where Y·Φ·Q0 itself leaks 1.28e-9",
-    (199, "amm_ref"): "as seed 173: the shipped minimal realisation leaks 1.21e-7 where Y·Φ·Q0 leaks 4.5e-10",
-}
-
 
 def _broken(seed, call):
     return [f"{what}: {detail}" for what, st, detail in check_case(seed, calls=(call,)) if st == "broken"]
-
-
-def _pin(key):
-    return pytest.mark.xfail(strict=True, raises=AssertionError, reason="issue 17: " + BROKEN[key])
 
 
 @pytest.mark.parametrize("seed", [176, 148])
@@ -62,9 +52,3 @@ def test_afdi_bank_gaps_are_numpys(seed):
     (``lti.certified_peak``: the Hamiltonian pencil's crossings at the attained level, climbed from)."""
     assert not _broken(seed, "afdi")
 
-
-@pytest.mark.slow
-@pytest.mark.parametrize("seed", [pytest.param(s, marks=_pin((s, "amm_ref"))) for s in (173, 199)])
-def test_matching_a_detection_row_keeps_u_and_d_decoupled(seed):
-    """~9 s (173), ~3 s (199): the exact detection row (the reference), the matching and numpy's judge."""
-    assert not _broken(seed, "amm_ref")
