@@ -29,9 +29,9 @@ numpy as below, nice 10 beside another audit, load ~2):
     679-708        30/0/0           30/0/0           21/23/0         21/23/0          102/46/0
     709-738        30/0/0           30/0/0           29/18/0         29/18/0          118/36/0
 
-no timeout, no false refusal; median 0.5-0.9 s per model, slowest 9.7 s (691), 9.0 s (687), 7.8 s (712). The two refused nullspace_design calls (546, 642; n = 1) name
-``rank [Gd Gf_fa] = rank Gd = 1``, as numpy reads it; every bank refusal's "normal rank of Gd = p" matched numpy's
-rank of [Gd G_X] (206 messages).
+no timeout, no false refusal; median 0.5-0.9 s per model, slowest 9.7 s (691), 9.0 s (687), 7.8 s (712). The two refused
+nullspace_design calls (546, 642; n = 1) name ``rank [Gd Gf_fa] = rank Gd = 1``, as numpy reads it; every bank refusal's
+"normal rank of Gd = p" matched numpy's rank of [Gd G_X] (206 messages).
 
 With ``--matching`` it audits instead the seeded model-matching families of
 tests/test_synthesis_matching_order.py (a least-order detection row's fault response as the

@@ -429,7 +429,8 @@ def peak_gains(A, B, C, D, discrete: bool, freqs) -> np.ndarray:
     if np.any(fin):
         lam = np.exp(1j * freqs[fin]) if discrete else 1j * freqs[fin]
         n = A.shape[0]
-        X = np.linalg.solve(lam[:, None, None] * np.eye(n) - A, np.broadcast_to(B.astype(complex), (lam.size,) + B.shape))
+        X = np.linalg.solve(lam[:, None, None] * np.eye(n) - A,
+                            np.broadcast_to(B.astype(complex), (lam.size,) + B.shape))
         out[fin] = np.linalg.svd(C @ X + D, compute_uv=False)[:, 0]
     return out
 
@@ -474,7 +475,8 @@ def gain_crossings(A, B, C, D, discrete: bool, gamma: float) -> np.ndarray:
     return w[np.r_[True, np.diff(w) > np.sqrt(EPS) * np.maximum(w[1:], 1.0 if discrete else EPS)]] if w.size else w
 
 
-def certified_peak(A, B, C, D, discrete: bool, gamma: float, freq: float, rtol: float = HINF_RTOL) -> tuple[float, float]:
+def certified_peak(A, B, C, D, discrete: bool, gamma: float, freq: float,
+                   rtol: float = HINF_RTOL) -> tuple[float, float]:
     """The peak gain of ``G = C(λI − A)⁻¹B + D`` (no pole on the boundary) to relative accuracy ``rtol``, from a
     candidate ``(gamma, freq)`` (AB13DD's; freq in rad/sample in discrete time, ``inf``: D): ``(γ, ω)``.
 
@@ -494,7 +496,8 @@ def certified_peak(A, B, C, D, discrete: bool, gamma: float, freq: float, rtol: 
     k = int(np.argmax(vals))
     lo, wlo = float(vals[k]), float(pts[k])
     # a level below which the gain counts as zero: eps times the gain's own scale at high frequency
-    floor = EPS * (float(np.linalg.norm(D)) + float(np.linalg.norm(C) * np.linalg.norm(B)) / max(float(np.linalg.norm(A)), EPS))
+    floor = EPS * (float(np.linalg.norm(D))
+                   + float(np.linalg.norm(C) * np.linalg.norm(B)) / max(float(np.linalg.norm(A)), EPS))
     for _ in range(HINF_MAXIT):
         level = max(lo * (1.0 + rtol), floor)
         cross = gain_crossings(A, B, C, D, discrete, level)

@@ -54,9 +54,10 @@ def test_returned_error_within_reltol_of_the_certified_level(second, reltol):
 def test_a_shipped_filter_beyond_the_certified_budget_is_refused(monkeypatch, delta):
     """The shipped filter replaced by (1 + δ)·Q, |δ| = 2e-2, at the stage's output (the stages after it then judge
     it as they judge any filter they are handed): its error, read by numpy, exceeds γ_lo (1 + reltol) (premise,
-    asserted; the optimum is flat in Q(0) = 1/2 — |[Q − 1, Q]| at ω = 0 — so δ moves it by ~δ²: 2e-4 > reltol). Old code: returned — no stage compared the error with the certified level, each with the filter before
-    it, and Q = 0's error (1) is far above. Now refused, the message naming the limit; were it returned, numpy's
-    error would have to be within the budget."""
+    asserted; the optimum is flat in Q(0) = 1/2 — |[Q − 1, Q]| at ω = 0 — so δ moves it by ~δ²: 2e-4 > reltol). Old
+    code: returned — no stage compared the error with the certified level, each with the filter before it, and Q = 0's
+    error (1) is far above. Now refused, the message naming the limit; were it returned, numpy's error would have to be
+    within the budget."""
     model = _sensor_and_noise()
     gen0 = am.approximate_model_matching(model, MR, reltol=RELTOL)
     lo = gen0.info["gamma_bracket"][0]

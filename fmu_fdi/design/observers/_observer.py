@@ -326,8 +326,8 @@ class RiccatiFilter:
     Kf: np.ndarray     # filter (measurement-update) gain, discrete time; equals L in continuous time
     Sigma: np.ndarray  # innovation covariance (discrete) or intensity (continuous)
     #: the forward measure the answer was accepted by: ``forward`` = ‖P_K − P‖_F / ‖P‖_F (P_K the error covariance of
-    #: the filter run with L, by its Lyapunov/Stein equation), at most FORWARD_RTOL; ``newton_steps`` taken to get there;
-    #: ``gain_forward`` = ‖ΔL‖_F / ‖L‖_F, L's forward error to first order (ΔL from P_K − P; stated, not bounded)
+    #: the filter run with L, by its Lyapunov/Stein equation), at most FORWARD_RTOL; ``newton_steps`` taken to get
+    #: there; ``gain_forward`` = ‖ΔL‖_F / ‖L‖_F, L's forward error to first order (ΔL from P_K − P; stated, not bounded)
     accuracy: dict = field(default_factory=dict)
 
 

@@ -108,10 +108,10 @@ def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
     form: the error covariance of the filter run with that gain), ``X_F − X`` is the forward error to first order,
     and it must be within :data:`.riccati_newton.FORWARD_RTOL` of ``X``'s scale — else Newton's full steps
     ``X ← X_F`` from it while the correction halves; an answer they cannot bring within the line is not returned.
-    ``figures`` (if given) receives the returned answer's ``residual``, ``forward`` and ``steps`` — or, on None,
-    the best ``forward`` met and ``why``. ``forward=False`` leaves the forward measure to a caller that reads it on
-    another form of the equation (the Kalman filter's, on its unfactored ``Qx`` in its own coordinates). That the returned closed loop is stable with the caller's margin (that
-    ``X`` is the stabilising solution) is the caller's check."""
+    ``figures`` (if given) receives the returned answer's ``residual``, ``forward`` and ``steps`` — or, on None, the
+    best ``forward`` met and ``why``. ``forward=False`` leaves the forward measure to a caller that reads it on another
+    form of the equation (the Kalman filter's, on its unfactored ``Qx`` in its own coordinates). That the returned
+    closed loop is stable with the caller's margin (that ``X`` is the stabilising solution) is the caller's check."""
     Q, R, S = C.T @ C, D.T @ D, C.T @ D
 
     starts = []  # (relative residual, answer) of the direct solvers' answers outside RICCATI_RTOL

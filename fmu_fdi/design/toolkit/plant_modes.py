@@ -77,7 +77,8 @@ def leading_schur(A: np.ndarray, select, real: bool = False) -> tuple[np.ndarray
     return sla.schur(np.asarray(A).astype(complex), output="complex", sort=select)
 
 
-def boundary_mode_table(model, beside: bool = False, smarg: float | None = None, only_user: bool = False) -> dict | None:
+def boundary_mode_table(model, beside: bool = False, smarg: float | None = None,
+                        only_user: bool = False) -> dict | None:
     """The simple plant modes on or beyond the stability boundary whose cancellation the judge can decide, with
     what :func:`.postconditions._without_cancelled_modes` tests them by (None when there are none).
 

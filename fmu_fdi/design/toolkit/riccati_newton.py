@@ -272,8 +272,9 @@ def forward_refined(A, B, Q, R, S, X, dt: float, rtol: float = FORWARD_RTOL, ste
     While the correction ``Δ`` is above the line, the full step ``X ← X + Δ = X_F`` is taken (Kleinman's iterate:
     from a stabilising gain every iterate is stabilising, ``X_F ⪰ X*``); the iteration stops after ``steps`` steps or
     when ``‖Δ‖`` has not fallen below its least value for :data:`FORWARD_STALL` steps (the rounding floor
-    ``~n·eps·size/sep`` of an ill-conditioned equation: no iterate is certain to ``rtol``). ``figures`` (if given) receives ``forward`` (the last ``‖Δ‖_F / scale``), ``steps`` (the
-    steps taken), the accepted answer's ``correction`` Δ, and on a refusal ``why`` (with ``sep`` and ``floor``)."""
+    ``~n·eps·size/sep`` of an ill-conditioned equation: no iterate is certain to ``rtol``). ``figures`` (if given)
+    receives ``forward`` (the last ``‖Δ‖_F / scale``), ``steps`` (the steps taken), the accepted answer's ``correction``
+    Δ, and on a refusal ``why`` (with ``sep`` and ``floor``)."""
     figures = {} if figures is None else figures
     if X is None or not np.all(np.isfinite(X)):
         figures.update(forward=np.inf, steps=0, why="no finite answer")

@@ -210,7 +210,8 @@ def _user_margin_pass(model: FDIModel, Q: LTI, info: dict, poles, sdeg, smarg, g
         return Q, info
     if not info:
         return Q2, more
-    return Q2, {**info, "moved_poles": info["moved_poles"] + more["moved_poles"], "moved": info["moved"] + more["moved"]}
+    return Q2, {**info, "moved_poles": info["moved_poles"] + more["moved_poles"],
+                "moved": info["moved"] + more["moved"]}
 
 
 #: a filter realisation is re-realised when its resolvent at a plant pole on the stability boundary is
