@@ -429,8 +429,12 @@ def peak_gains(A, B, C, D, discrete: bool, freqs) -> np.ndarray:
     if np.any(fin):
         lam = np.exp(1j * freqs[fin]) if discrete else 1j * freqs[fin]
         n = A.shape[0]
-        X = np.linalg.solve(lam[:, None, None] * np.eye(n) - A,
-                            np.broadcast_to(B.astype(complex), (lam.size,) + B.shape))
+        try:
+            X = np.linalg.solve(lam[:, None, None] * np.eye(n) - A,
+                                np.broadcast_to(B.astype(complex), (lam.size,) + B.shape))
+        except np.linalg.LinAlgError:  # λI − A exactly singular at a point: a pole on the axis to rounding
+            raise DesignError(f"H-infinity norm of an order-{n} realisation: λI − A is singular at one of the "
+                              f"frequencies {freqs[fin]} (a pole on the stability boundary to rounding)") from None
         out[fin] = np.linalg.svd(C @ X + D, compute_uv=False)[:, 0]
     return out
 

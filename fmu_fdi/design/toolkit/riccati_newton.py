@@ -217,7 +217,7 @@ def closed_loop_correction(A, B, Q, R, S, X, dt: float):
     D = _lyapunov(Acl, -Rx, dt)
     if D is None:
         return None
-    return D / t[:, None] / t[None, :], F * t[None, :]
+    return D / t[:, None] / t[None, :], F / t[None, :]  # u = F̃ x̃ = F̃ T⁻¹ x (x = T x̃): F = F̃ T⁻¹
 
 
 def _extended_residual(A, B, Q, R, S, X, dt: float):
