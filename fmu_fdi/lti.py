@@ -507,10 +507,9 @@ def certified_peak(A, B, C, D, discrete: bool, gamma: float, freq: float,
         cross = gain_crossings(A, B, C, D, discrete, level)
         if cross.size == 0:
             break
-        both = (cross[:-1] > 0) & np.isfinite(cross[1:])
-        mids = np.where(both, np.sqrt(np.abs(cross[:-1] * cross[1:])), 0.5 * (cross[:-1] + cross[1:]))
-        if discrete:
-            mids = 0.5 * (cross[:-1] + cross[1:])
+        mids = 0.5 * (cross[:-1] + cross[1:])  # discrete: arithmetic; continuous: geometric between positive ends
+        if not discrete:
+            mids = np.where(cross[:-1] > 0, np.sqrt(cross[:-1] * cross[1:]), mids)
         pts = np.r_[cross, mids]
         vals = peak_gains(A, B, C, D, discrete, pts)
         k = int(np.argmax(vals))

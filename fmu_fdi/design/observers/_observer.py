@@ -325,8 +325,9 @@ class RiccatiFilter:
     L: np.ndarray      # observer gain of the predictor form: eig(A − L C) stable
     Kf: np.ndarray     # filter (measurement-update) gain, discrete time; equals L in continuous time
     Sigma: np.ndarray  # innovation covariance (discrete) or intensity (continuous)
-    #: the forward measure the answer was accepted by: ``forward`` = ‖P_K − P‖_F / ‖P‖_F (P_K the error covariance of
-    #: the filter run with L, by its Lyapunov/Stein equation), at most FORWARD_RTOL; ``newton_steps`` taken to get
+    #: the forward measure the answer was accepted by: ``forward`` = ‖P_K − P‖_F / scale (P_K the error covariance of
+    #: the filter run with L, by its Lyapunov/Stein equation; scale = max(‖P‖_F, ‖Qx‖_F/(2‖A‖_F)), discrete
+    #: ‖Qx‖_F/(1 + ‖A‖_F²): riccati_newton.solution_scale), at most FORWARD_RTOL; ``newton_steps`` taken to get
     #: there; ``gain_forward`` = ‖ΔL‖_F / ‖L‖_F, L's forward error to first order (ΔL from P_K − P; stated, not bounded)
     accuracy: dict = field(default_factory=dict)
 
@@ -492,10 +493,9 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
     Rf = sla.cholesky(R / gamma) if R.size else np.zeros((0, 0))
     Cf = np.vstack([H, np.zeros((Rf.shape[0], n_c))])
     Df = np.vstack([np.zeros((n_c, Rf.shape[1])), Rf])
-    got: dict = {}
     with np.errstate(all="ignore"), warnings.catch_warnings():  # SB02OD's wrapper divides α/β at infinite eigenvalues
         warnings.simplefilter("ignore", RuntimeWarning)
-        P1 = spectral_riccati(A1.T.copy(), C1.T.copy(), Cf, Df, dt, figures=got, forward=False)
+        P1 = spectral_riccati(A1.T.copy(), C1.T.copy(), Cf, Df, dt, forward=False)
     if P1 is None:
         raise no_solution(_refusal("the reduced filter Riccati equation", {}))
     P = T1 @ (gamma * (P1 + P1.T) / 2) @ T1.T

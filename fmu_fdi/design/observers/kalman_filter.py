@@ -65,9 +65,10 @@ def kalman(model: FDIModel, Qw=None, Rv=None, *, atol: float = 0.0) -> ResidualG
         Filter from ``[y; u]`` to e (one residual group). ``info``: ``gain`` (L of the
         predictor form above), ``filter_gain`` K_f, ``P``, ``innovation_covariance`` Σ,
         ``whitening`` Σ^{-1/2}, ``innovation_kind`` ('covariance' or 'intensity'),
-        ``noise_model``, ``poles``, ``detected_faults``; ``riccati_accuracy``: ``forward`` = ‖P_K − P‖_F/‖P‖_F, P_K
+        ``noise_model``, ``poles``, ``detected_faults``; ``riccati_accuracy``: ``forward`` = ‖P_K − P‖_F/scale, P_K
         the error covariance of the filter run with the returned gain (its Lyapunov/Stein equation) — the forward
-        error of P to first order, at most ``FORWARD_RTOL`` = 1e-6 — the ``newton_steps`` taken to get there, and
+        error of P to first order, scale = max(‖P‖_F, the Lyapunov lower bound from Qx; riccati_newton.solution_scale),
+        at most ``FORWARD_RTOL`` = 1e-6 — the ``newton_steps`` taken to get there, and
         ``gain_forward``, the gain's relative forward error to first order (from the same correction).
 
     Raises

@@ -107,7 +107,8 @@ def spectral_riccati(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
     (:func:`.riccati_newton.forward_refined`): the loop closed with its gain ``F(X)`` has the cost ``X_F`` (filter
     form: the error covariance of the filter run with that gain), ``X_F − X`` is the forward error to first order,
     and it must be within :data:`.riccati_newton.FORWARD_RTOL` of ``X``'s scale — else Newton's full steps
-    ``X ← X_F`` from it while the correction halves; an answer they cannot bring within the line is not returned.
+    ``X ← X_F`` from it while the correction keeps reaching a new least value (:func:`.riccati_newton.forward_refined`);
+    an answer they cannot bring within the line is not returned.
     ``figures`` (if given) receives the returned answer's ``residual``, ``forward`` and ``steps`` — or, on None, the
     best ``forward`` met and ``why``. ``forward=False`` leaves the forward measure to a caller that reads it on another
     form of the equation (the Kalman filter's, on its unfactored ``Qx`` in its own coordinates). That the returned

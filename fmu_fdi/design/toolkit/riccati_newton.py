@@ -256,7 +256,7 @@ def solution_scale(A, Q, X, dt: float) -> float:
 #: Newton's full steps allowed by :func:`forward_refined`: Kleinman's iteration from a start far from the solution
 #: first converges linearly (tests/test_kalman_riccati.py seed 46 trial 1: a direct answer with residual 5e-9 and
 #: forward error 0.36 needs 11 steps, of which the last three are quadratic); a refusal costs them all only where the
-#: correction keeps halving
+#: correction keeps reaching a new least value (it stops after FORWARD_STALL steps without one)
 FORWARD_STEPS = 16
 #: ... and it stops when the correction has not gone below its least value for this many steps: the rounding floor,
 #: where the corrections of an ill-conditioned equation wander (seed 47 trial 0: 1.0e-6 … 2.8e-6 for 15 steps); the
