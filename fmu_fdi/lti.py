@@ -15,7 +15,7 @@ from typing import Iterable, Sequence
 import numpy as np
 import scipy.linalg as sla
 
-from .freqresp import eigenvalues
+from .freqresp import dense_values, eigenvalues
 from .errors import DesignError
 from .linalg import EPS, is_finite, shifted_hessenberg_solve
 
@@ -420,22 +420,18 @@ class LTI:
 # ------------------------------------------------------------------- H-infinity norm certificate
 def peak_gains(A, B, C, D, discrete: bool, freqs) -> np.ndarray:
     """``σ_max(G(λ))`` at ``λ = jω`` (continuous; ``ω = inf`` reads D) or ``λ = e^{jω}`` (discrete, ω in
-    rad/sample), ``G(λ) = C(λI − A)⁻¹B + D``: one batched LU solve per point (the points are few)."""
+    rad/sample), ``G(λ) = C(λI − A)⁻¹B + D`` by :func:`.freqresp.dense_values` (one LU solve per point)."""
     freqs = np.atleast_1d(np.asarray(freqs, dtype=float))
     out = np.empty(freqs.size)
     fin = np.ones(freqs.size, bool) if discrete else np.isfinite(freqs)
     if not np.all(fin):
         out[~fin] = np.linalg.svd(D, compute_uv=False)[0]
     if np.any(fin):
-        lam = np.exp(1j * freqs[fin]) if discrete else 1j * freqs[fin]
-        n = A.shape[0]
-        try:
-            X = np.linalg.solve(lam[:, None, None] * np.eye(n) - A,
-                                np.broadcast_to(B.astype(complex), (lam.size,) + B.shape))
-        except np.linalg.LinAlgError:  # λI − A exactly singular at a point: a pole on the axis to rounding
-            raise DesignError(f"H-infinity norm of an order-{n} realisation: λI − A is singular at one of the "
-                              f"frequencies {freqs[fin]} (a pole on the stability boundary to rounding)") from None
-        out[fin] = np.linalg.svd(C @ X + D, compute_uv=False)[:, 0]
+        G = dense_values(A, B, C, D, np.exp(1j * freqs[fin]) if discrete else 1j * freqs[fin])
+        if not np.all(np.isfinite(G)):  # λI − A exactly singular at a point: a pole on the axis to rounding
+            raise DesignError(f"H-infinity norm of an order-{A.shape[0]} realisation: λI − A is singular at one of "
+                              f"the frequencies {freqs[fin]} (a pole on the stability boundary to rounding)")
+        out[fin] = np.linalg.svd(G, compute_uv=False)[:, 0]
     return out
 
 
