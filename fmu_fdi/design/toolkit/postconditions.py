@@ -389,7 +389,7 @@ def user_margin_decisions(model, Q: LTI, groups, qpeaks, smarg: float, decisions
     entries for the judge's own modes are the grid's, unchanged. ``decisions`` itself (the same object) where the
     margin adds no mode: every design with the default margin. ``groups``, ``qpeaks``: as the grid's decisions
     (the judged row groups and their peak gains on the grid)."""
-    extra = _user_margin_table(model, smarg) if model.n else None
+    extra = _user_margin_table(model, smarg)  # (None without states or with a margin no tighter than the default)
     if extra is None:
         return decisions
     more = mode_decisions(model, Q, groups, qpeaks, modes=extra)
