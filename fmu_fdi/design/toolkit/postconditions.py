@@ -623,30 +623,10 @@ def shifted_triangular_solve(T: np.ndarray, lam: np.ndarray, B: np.ndarray, left
 
 
 def _nrm(X: np.ndarray) -> np.ndarray:
-    """2-norms of a stack of matrices (K, p, m) -> (K,).
-
-    A row or a column (p = 1 or m = 1: a single-row residual, one fault column) is a vector, whose 2-norm is its
-    Euclidean norm ``t·sqrt(Σ|x_i/t|²)``, t = max|x_i| (scaled: no overflow or underflow of the squares) — no SVD
-    per point (numpy's stacked SVD was ~15 % of a bank design: structured_bank on exact seed 382, cProfile). Both are
-    backward stable: the sum's relative error is at most (k + 2)·u for k entries (Higham, *Accuracy and Stability*,
-    sec. 3.1, plus the scaling and the square root) and the SVD's σ_max about the same, so a figure moves by a few
-    units of rounding against the SVD's (tests/test_judge_norms.py). A point with a non-finite entry keeps the SVD's
-    answer."""
-    K, p, m = X.shape
-    if p == 0 or m == 0:
-        return np.zeros(K)
-    if min(p, m) > 1:
-        return np.linalg.norm(X, ord=2, axis=(1, 2))
-    A = np.abs(X).reshape(K, p * m)
-    t = np.max(A, axis=1)
-    ok = np.isfinite(t) & (t > 0)
-    out = np.where(np.isfinite(t), 0.0, t)
-    s = t[ok]
-    out[ok] = s * np.sqrt(np.sum(np.square(A[ok] / s[:, None]), axis=1))
-    bad = ~np.isfinite(t)
-    if np.any(bad):
-        out[bad] = np.linalg.norm(X[bad], ord=2, axis=(1, 2))
-    return out
+    """2-norms of a stack of matrices (K, p, m) -> (K,)."""
+    if X.shape[1] == 0 or X.shape[2] == 0:
+        return np.zeros(X.shape[0])
+    return np.linalg.norm(X, ord=2, axis=(1, 2))
 
 
 def _cosine(resp: np.ndarray, bound: np.ndarray, floor: float = 1e-6) -> float:
