@@ -33,9 +33,9 @@ hinf18 (28 Nov, ``--base 253b4cb --designs``, one BLAS thread, load 7–10 from 
 ~2 ms —, n 20-40 0.97, n 80 0.97), designs 6.43 -> 6.17 s (0.96). With the first commit (merge removed, refusal
 only): run 1 calls 1.04, designs 1.02; run 2 calls 0.96, its designs 7.25 -> 29.15 s a load burst (other runs of
 mine beside it), re-timed alone twice: 7.26 -> 7.22 s, 6.80 -> 7.18 s, no refusal raised in 180 certificates.
-No norm moved by 1e-8; four by rounding: one audit system 2.2e-16, random n 40 (continuous, discrete) 4.1e-12 and 1.55e-11, n 80
-1.8e-12 — the gain evaluated at a neighbouring point (in the first the frequency moved by one ulp); numpy's
-refined peak is at least as near the new value in two of the three random ones.
+No norm moved by 1e-8; four by rounding: one audit system 2.2e-16, random n 40 (continuous, discrete) 4.1e-12 and
+1.55e-11, n 80 1.8e-12 — the gain evaluated at a neighbouring point (in the first the frequency moved by one ulp);
+numpy's refined peak is nearer the new value in two of the three random ones.
 """
 import os
 
