@@ -218,7 +218,7 @@ def test_crossings_closer_than_sqrt_eps_are_both_kept():
 
 
 # ------------------------------------------------------------------------------------------------ discrete
-@pytest.mark.parametrize("zeta", [1e-5, 1e-6, 1e-7])
+@pytest.mark.parametrize("zeta", [1e-5, 1e-6, 1e-7] + [pytest.param(z, marks=extended) for z in (1e-9, 1e-10)])
 def test_a_light_resonance_in_discrete_time(zeta):
     """The Tustin image (T = 0.5) of the section at ωn = 1: its stored data's peak by a decimal scan of the
     resonance window (v = tan(θ/2) within ±30 times the pole's distance to the circle, mapped), from AB13DD's
