@@ -557,9 +557,8 @@ class _LightModes:
     (TB01ID's factors rounded: exact, the same transfer function to the last bit). Each step divides the error by
     ``κ·eps ≤ ρ ≪ 1``; it ends at ``eps + ρ_x``, ``ρ_x = ext_eps·s_A/d``. Measured (tests/test_hinfnorm_damping
     ``mixed``, seeds 0–3, against a 50-digit evaluation of the stored data), worst relative error with double
-    readings only → with these: ζ = 1e-8
-    1.2e-8 → 1.3e-12, 1e-9 1.3e-7 → 3.5e-11, 1e-10 4.0e-7 → 1.7e-10; 1e-11 1.2e-5 → refused (main, AB13DD and
-    merged crossings: 7.8e-3, 7.6e-3, 25 %, 42 % low).
+    readings only → with these: ζ = 1e-8 1.2e-8 → 1.3e-12, 1e-9 1.3e-7 → 3.5e-11, 1e-10 4.0e-7 → 1.7e-10; 1e-11
+    1.2e-5 → refused (main, AB13DD and merged crossings: 7.8e-3, 7.6e-3, 25 %, 42 % low).
 
     :meth:`settle` then scans each light mode's resonance with these readings — 81 points over ``Im λ ± 10d``
     (``arg λ``), five rounds of 21 points on the best point's two neighbouring steps (the step ends at ``d/4e5``:
