@@ -449,11 +449,10 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
         return np.zeros((0, 0))
     SRi = sla.solve(R, S.T, assume_a="pos").T if S.size else np.zeros((n, R.shape[0]))
     Ab = A - SRi @ C
-    Qb = Qx - SRi @ S.T
+    M = SRi @ S.T
+    Qb = Qx - M
     Qb = (Qb + Qb.T) / 2
-    lam, V = sla.eigh(Qb)  # Q̄ ⪯ Qx: its rank is decided relative to ||Qx||, not to its own rounding
-    keep = lam > default_rtol(Qb.shape) * max(float(np.linalg.norm(Qx, 2)), np.finfo(float).tiny)
-    G = V[:, keep] * np.sqrt(lam[keep])
+    G = noise_factor(Qx, (M + M.T) / 2, Qb)
     scale = max(1.0, float(np.linalg.norm(A, 2)))
     if G.shape[1]:
         Z, n_c = observable_staircase(Ab.T, (G / np.linalg.norm(G, 2)).T)
@@ -501,6 +500,39 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
     P = T1 @ (gamma * (P1 + P1.T) / 2) @ T1.T
     P = (P + P.T) / 2
     return P
+
+
+def noise_factor(Qx: np.ndarray, M: np.ndarray, Qb: np.ndarray) -> np.ndarray:
+    """``G`` with ``G Gᵀ = Q̄ = Qx − M`` (``M = S R⁻¹ Sᵀ``) on the directions the data can tell from zero.
+
+    The rank of ``Q̄`` is decided in the graded scaling ``H = D⁻¹ Q̄ D⁻¹``, ``D = diag(d)``,
+    ``d_i = √max(Qx_ii, M_ii)`` — not relative to ``‖Qx‖``. Derivation: ``Q̄`` is formed from ``Qx`` (itself formed
+    as ``Bw Qw Bwᵀ``) and ``M`` by sums of products, whose rounding is componentwise, ``|δQ̄_ij| ≤ c·eps·(|Qx|_ij +
+    |M|_ij)`` (``c`` the inner dimensions); both terms are positive semidefinite, ``|Qx_ij| ≤ √(Qx_ii Qx_jj)`` and
+    likewise ``M``, so ``|δQ̄_ij| ≤ 2c·eps·d_i d_j``: ``H``'s rounding ``E`` has ``|E_ij| ≤ 2c·eps``, ``‖E‖₂ ≤ 2c·n·eps``
+    against terms ``D⁻¹QxD⁻¹``, ``D⁻¹MD⁻¹`` of unit diagonal at most. An eigenvalue of ``H`` below
+    ``default_rtol = 1e3·n·eps`` times their norm is therefore indistinguishable from rounding (a cancellation
+    ``Qx ≈ M``: fully correlated noise), while the noise of a state scaled by ``s`` — intensity ``s²`` of ``‖Qx‖`` —
+    is a unit diagonal entry of ``H`` and kept at every ``s`` (the data is exact; what it says about that state is
+    not rounding). The decision relative to ``‖Qx‖`` (before) dropped it below ``s ≈ 1e-7``: for an integrator (a
+    random walk) that noise drives, the filter was refused as having no stabilising solution, for a slow mode
+    (``−1e-6``) refused as too ill-conditioned (tests/test_kalman_noise_rank.py). The eigenvalues of ``H`` are
+    computed by ``eigh`` to ``eps·‖H‖`` (``‖H‖ ≤ n``), so the decision is as accurate as the data; ``G = D V Λ^½``
+    on the kept ones. States with ``d_i = 0`` see no noise exactly (``Q̄``'s row is zero)."""
+    n = Qb.shape[0]
+    d = np.sqrt(np.clip(np.maximum(np.diag(Qx), np.diag(M)), 0.0, None))
+    on = d > 0
+    if not np.any(on):
+        return np.zeros((n, 0))
+    di = d[on]
+    H = Qb[np.ix_(on, on)] / di[:, None] / di[None, :]
+    terms = max(float(np.linalg.norm(Qx[np.ix_(on, on)] / di[:, None] / di[None, :], 2)),
+                float(np.linalg.norm(M[np.ix_(on, on)] / di[:, None] / di[None, :], 2)))
+    lam, V = sla.eigh((H + H.T) / 2)
+    keep = lam > default_rtol(H.shape) * terms
+    G = np.zeros((n, int(np.sum(keep))))
+    G[on] = di[:, None] * V[:, keep] * np.sqrt(lam[keep])
+    return G
 
 
 def _forward_checked(A, C, Qx, R, S, P, dt: float, no_solution, what: str, accuracy: dict) -> np.ndarray:
