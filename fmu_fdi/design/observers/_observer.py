@@ -37,7 +37,7 @@ from ...linalg import EPS, default_rtol, ordered_schur
 from ...lti import LTI
 from ...model import FDIModel
 from ..toolkit.approximate import RICCATI_RTOL, spectral_riccati
-from ..toolkit.riccati_newton import FORWARD_RTOL, forward_refined
+from ..toolkit.riccati_newton import FORWARD_RTOL, boundary_gap, forward_refined, riccati_residual
 from ..toolkit.pencil import controllable_staircase
 
 
@@ -369,11 +369,24 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
             f"(the pair (A − S R⁻¹ C, Qx − S R⁻¹ Sᵀ) must have no uncontrollable mode with "
             f"{'|z| = 1' if dt else 'Re s = 0'})")
 
-    P = _deflated_riccati(A, C, Qx, R, S, dt, no_solution)
+    def failed(detail: str) -> DesignError:
+        """A solve that failed after the deflation: non-existence or a numerical failure, decided by the data."""
+        exists, why = _existence(A, C, Qx, R, S, dt)
+        if exists is False:
+            return no_solution(f"{why}; {detail}")
+        if exists:
+            return DesignError(
+                f"{what}: the filter Riccati equation has a stabilising solution — {why} — but it was not computed "
+                f"to the accuracy a gain needs, a numerical failure: {detail}. States scaled over many decades or "
+                f"modes the outputs hardly see cause this: rescale the states")
+        return DesignError(f"{what}: the filter Riccati equation was not solved ({detail}); whether a stabilising "
+                           f"solution exists was not decided ({why})")
+
+    P = _deflated_riccati(A, C, Qx, R, S, dt, no_solution, failed)
     Sigma = _innovation_covariance(C, P, R, dt, what)
     accuracy = {"forward": 0.0, "newton_steps": 0}
     if n:
-        P = _forward_checked(A, C, Qx, R, S, P, dt, no_solution, what, accuracy)
+        P = _forward_checked(A, C, Qx, R, S, P, dt, failed, what, accuracy)
         Sigma = _innovation_covariance(C, P, R, dt, what)
     if dt:
         Kf = sla.solve(Sigma, C @ P, assume_a="pos").T
@@ -384,7 +397,7 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
     poles = np.linalg.eigvals(A - L @ C) if n else np.zeros(0)
     bad = unstable(poles, dt, max(1.0, float(np.linalg.norm(A, 2)) if n else 1.0))
     if bad.size:
-        raise no_solution(f"the solver's solution leaves the modes {fmt_modes(bad)} of A − L C unstable")
+        raise failed(f"the solver's solution leaves the modes {fmt_modes(bad)} of A − L C unstable")
     # the gain's forward error to first order, from P's correction Δ = P_K − P: continuous ΔL = Δ Cᵀ R⁻¹; discrete
     # (L = (A P Cᵀ + S) Σ⁻¹, Σ = C P Cᵀ + R) ΔL = (A Δ Cᵀ − L C Δ Cᵀ) Σ⁻¹
     D = accuracy.pop("correction", None)
@@ -412,7 +425,7 @@ def _innovation_covariance(C, P, R, dt: float, what: str) -> np.ndarray:
     return Sigma
 
 
-def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
+def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, failed) -> np.ndarray:
     """Stabilising ``P`` of the filter Riccati equation, the states no noise reaches deflated.
 
     Removing the cross-covariance (Anderson & Moore 1979, sec. 5.5) gives the equivalent
@@ -496,7 +509,7 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
         warnings.simplefilter("ignore", RuntimeWarning)
         P1 = spectral_riccati(A1.T.copy(), C1.T.copy(), Cf, Df, dt, forward=False)
     if P1 is None:
-        raise no_solution(_refusal("the reduced filter Riccati equation", {}))
+        raise failed(_refusal("the reduced filter Riccati equation", {}))
     P = T1 @ (gamma * (P1 + P1.T) / 2) @ T1.T
     P = (P + P.T) / 2
     return P
@@ -535,7 +548,7 @@ def noise_factor(Qx: np.ndarray, M: np.ndarray, Qb: np.ndarray) -> np.ndarray:
     return G
 
 
-def _forward_checked(A, C, Qx, R, S, P, dt: float, no_solution, what: str, accuracy: dict) -> np.ndarray:
+def _forward_checked(A, C, Qx, R, S, P, dt: float, failed, what: str, accuracy: dict) -> np.ndarray:
     """``P`` (or its Newton refinement) accepted by the forward measure on the caller's filter equation, else a
     DesignError naming the figures; ``accuracy`` receives ``forward``, ``newton_steps`` and the ``correction``."""
     # The forward measure is read on the caller's equation — its coordinates and its Qx, S — not on the reduced one:
@@ -546,29 +559,83 @@ def _forward_checked(A, C, Qx, R, S, P, dt: float, no_solution, what: str, accur
     # Refined there by Newton's full steps (toolkit.riccati_newton.forward_refined) where it is not within
     # FORWARD_RTOL; measured in benchmarks/riccati_forward.py.
     full: dict = {}
-    P = forward_refined(A.T.copy(), C.T.copy(), Qx, R, S, P, dt, FORWARD_RTOL, figures=full)
-    if P is None:
+    refined = forward_refined(A.T.copy(), C.T.copy(), Qx, R, S, P, dt, FORWARD_RTOL, figures=full)
+    if refined is None:
         if np.isfinite(full.get("forward", np.inf)):
             raise DesignError(f"{what}: {_refusal('the filter Riccati equation', full)}")
-        raise no_solution(_refusal("the filter Riccati equation", full))
+        # the reduced equation was solved within RICCATI_RTOL, but its answer's gain does not stabilise the caller's
+        # loop: a residual (backward) line passed another matrix than the stabilising solution — name its figures
+        res = riccati_residual(A.T, C.T, Qx, R, S, P, dt)
+        loop = ""
+        if res is not None:
+            ev = np.linalg.eigvals(A + res[1].T @ C)
+            worst = ev[np.argmax(np.abs(ev))] if dt else ev[np.argmax(ev.real)]
+            loop = (f"; its relative residual on this equation is {res[0]:.3g} and its gain leaves the filter's loop "
+                    f"with the mode {fmt_modes([worst])}")
+        raise failed(f"the reduced equation's answer, accepted by its residual, is not the stabilising solution{loop} "
+                     f"(no stabilising start for Newton's refinement)")
     accuracy.update(forward=float(full["forward"]), newton_steps=int(full["steps"]), correction=full["correction"])
-    return P
+    return refined
+
+
+def _existence(A, C, Qx, R, S, dt: float) -> tuple[bool | None, str]:
+    """``(exists, why)``: whether the filter equation has a stabilising solution, decided by the data — ``(A, C)``
+    detectable (:func:`detectable_split`'s staircase) and the Hamiltonian (symplectic) pencil's eigenvalues off the
+    stability boundary by more than the tolerance of :func:`~fmu_fdi.design.toolkit.riccati_newton.boundary_gap`
+    (``√(N·eps)·‖pencil‖``: a boundary eigenvalue is a double one and moves by that much under rounding) —
+    ``exists = None`` where the pencil's eigenvalues could not be computed. Read only for a failure's message."""
+    # detectability in the coordinates of A's diagonal balancing with C's rows normalised (both leave it unchanged):
+    # on states scaled over decades the staircase's rank decisions, relative to ‖[A; C]‖, would read another pair
+    t = sla.matrix_balance(A, permute=False, separate=True)[1][0] if A.size else np.ones(0)
+    Cb = C * t[None, :]
+    Cb = Cb / np.maximum(np.linalg.norm(Cb, axis=1), np.finfo(float).tiny)[:, None]
+    try:
+        detectable_split(A * (1 / t)[:, None] * t[None, :], Cb, dt)
+    except DesignError as exc:
+        return False, str(exc)
+    gap = boundary_gap(A.T.copy(), C.T.copy(), Qx, R, S, dt)
+    if gap is None:
+        return None, "the Hamiltonian pencil's eigenvalues could not be computed"
+    where = "unit circle" if dt else "imaginary axis"
+    if gap["distance"] <= gap["tol"]:
+        return False, (f"the Hamiltonian pencil has the eigenvalue {fmt_modes([gap['nearest']])}, "
+                       f"{gap['distance']:.3g} from the {where}, within the tolerance {gap['tol']:.3g} (√(N·eps) times "
+                       f"the pencil's norm, how far rounding moves a double eigenvalue): a mode on the stability "
+                       f"boundary that the noise does not reach or the outputs do not see, to working accuracy")
+    return True, (f"(A, C) is detectable and the Hamiltonian pencil's eigenvalues lie at least {gap['distance']:.3g} "
+                  f"from the {where}, beyond the tolerance {gap['tol']:.3g}")
+
+
+#: a refused answer's correction this many times the rounding floor (riccati_newton._condition: SB03MD's sep is an
+#: estimate, within a factor ~n of the separation, and the floor a first-order bound) is not held up by rounding: the
+#: iteration had not converged — a numerical failure of the method, not the equation's conditioning
+NOT_CONVERGED_FACTOR = 1e2
 
 
 def _refusal(what: str, got: dict) -> str:
     """The reason no answer of ``what`` was accepted, with the figures of the closest one."""
     fwd = got.get("forward", np.inf)
     if np.isfinite(fwd):
-        cond = (f"; the closed loop's Lyapunov separation is sep = {got['sep']:.3g} (balanced coordinates), so the "
-                f"rounding of the residual alone can move P by up to {got['floor']:.3g} of ‖P‖_F"
-                if "sep" in got else "")
-        return (f"{what} is too ill-conditioned for an accurate gain: the stabilising solution exists (a solver's "
-                f"answer has a relative residual within RICCATI_RTOL = {RICCATI_RTOL:g} and a stabilising gain) but "
-                f"the closest answer's closed-loop correction ‖P_K − P‖_F (P_K the error covariance of the filter run "
-                f"with its gain: the forward error of P to first order) is {fwd:.3g} of ‖P‖_F, above FORWARD_RTOL = "
-                f"{FORWARD_RTOL:g} ({got.get('why', '')}){cond}. Nearly unobservable or undetectable modes, or "
-                f"states scaled over many decades, cause this: rescale the states or remove the modes the outputs "
-                f"hardly see")
+        head = (f"the stabilising solution exists (a solver's answer has a relative residual within RICCATI_RTOL = "
+                f"{RICCATI_RTOL:g} and a stabilising gain) but the closest answer's closed-loop correction ‖P_K − P‖_F "
+                f"(P_K the error covariance of the filter run with its gain: the forward error of P to first order) is "
+                f"{fwd:.3g} of ‖P‖_F, above FORWARD_RTOL = {FORWARD_RTOL:g} ({got.get('why', '')})")
+        if "sep" not in got:
+            return (f"{what} was not solved to the accuracy a gain needs: {head}. Nearly unobservable or undetectable "
+                    f"modes, or states scaled over many decades, cause this: rescale the states")
+        fb = got.get("forward_balanced", fwd)
+        cond = (f"; in the coordinates of the diagonal balancing of the closed loop its Lyapunov separation is "
+                f"sep = {got['sep']:.3g} against the residual's terms {got['size']:.3g}, so the rounding of the residual "
+                f"alone can move P there by up to {got['floor']:.3g} of its scale (the correction there: {fb:.3g})")
+        if fb > NOT_CONVERGED_FACTOR * got["floor"]:
+            return (f"{what} was not solved to the accuracy a gain needs, a numerical failure: {head}{cond} — the "
+                    f"correction is far above that floor, so it is not the equation's conditioning that stops it but "
+                    f"Newton's iteration from the solvers' answer, which did not converge in the steps allowed (a slow "
+                    f"mode the noise hardly reaches, or states scaled over many decades, cause this: rescale the "
+                    f"states)")
+        return (f"{what} is too ill-conditioned for an accurate gain: {head}{cond}. Nearly unobservable or "
+                f"undetectable modes, or states scaled over many decades, cause this: rescale the states or remove "
+                f"the modes the outputs hardly see")
     return (f"no solution of {what} with a residual within RICCATI_RTOL = {RICCATI_RTOL:g} of its terms and a "
             f"stabilising gain (scipy's QZ solver, SLICOT SB02OD, Newton's method from an answer of theirs with a "
             f"stable closed loop)")
