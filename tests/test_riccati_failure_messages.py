@@ -142,3 +142,56 @@ def test_condition_floor_is_read_in_one_coordinate_system(seed, trial):
     scale = max(np.linalg.norm(Xt), np.linalg.norm(Qt) / ((1 + a * a) if dt else 2 * a))
     floor = n * np.finfo(float).eps * size / (sep * scale)
     assert floor / n <= got["floor"] <= floor * n, (got["floor"], floor)
+
+
+def test_a_solver_failure_on_an_existing_solution_is_named_a_numerical_failure(monkeypatch):
+    """The failure path itself: the reduced solve is made to return an answer that is not the stabilising solution
+    (``P = 0`` for a plant with an unstable mode: its gain leaves the loop unstable, as the unbalanced solve's answers
+    did on the problems above), so the forward refinement has no stabilising start. The equation has a stabilising
+    solution — scipy's CARE solves it with a stable loop — so the refusal must say so and name the failure's figures,
+    not 'no stabilising solution' (253b4cb's message)."""
+    A, C, Qx, R = np.array([[1.0, 1.0], [0.0, -2.0]]), np.array([[1.0, 0.5]]), np.eye(2), np.eye(1)
+    P = sla.solve_continuous_are(A.T, C.T, Qx, R)
+    assert np.all(np.linalg.eigvals(A - P @ C.T @ np.linalg.solve(R, C)).real < 0)
+    monkeypatch.setattr(_observer, "spectral_riccati", lambda A1, *args, **kw: np.zeros_like(A1))
+    with pytest.raises(DesignError) as err:
+        filter_riccati(A, C, Qx, R, np.zeros((2, 1)), 0.0)
+    msg = str(err.value)
+    assert "no stabilising solution" not in msg, msg
+    assert "has a stabilising solution" in msg and "numerical failure" in msg and "relative residual" in msg, msg
+
+
+def test_existence_tolerance_is_relative_to_the_pencils_eigenvalue_scale():
+    """tests/test_riccati_forward.py's deflated problem 15/0 (a DARE, n = 29): its pencil's nearest eigenvalue is 0.00487
+    from the unit circle; the first tolerance (√(N·eps) times the pencil's norm, 0.00631) read it as on the circle and
+    the refusal said 'no stabilising solution'. It has one: the design returns it, judged by scipy's Stein equation of
+    the filter run with its gain (forward error within JUDGE_LINE) with a stable loop."""
+    from test_riccati_forward import JUDGE_LINE, deflated_problem, forward_error
+
+    A, C, Qx, R, dt = deflated_problem(15, 0)
+    S = np.zeros((A.shape[0], C.shape[0]))
+    exists, why = _observer._existence(A, C, Qx, R, S, dt)
+    assert exists is True, why
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        f = filter_riccati(A, C, Qx, R, S, dt)
+    assert forward_error(A, C, Qx, R, dt, f.P, f.L) <= JUDGE_LINE
+    assert np.all(np.abs(np.linalg.eigvals(A - f.L @ C)) < 1.0)
+
+
+# deflated problems of tests/test_riccati_forward.py refused on 253b4cb ('no stabilising solution (no solution of the
+# reduced filter Riccati equation …)'): the staircase and the reduced solve ran in the caller's coordinates
+DEFLATED_REFUSED_ON_OLD = [(2, 0), (2, 1), (2, 2), (15, 0), (15, 1), (15, 2), (54, 0), (54, 1)]
+
+
+@pytest.mark.parametrize("seed, trial", DEFLATED_REFUSED_ON_OLD)
+def test_deflated_problems_are_solved_in_balanced_coordinates(seed, trial):
+    from test_riccati_forward import JUDGE_LINE, deflated_problem, forward_error
+
+    A, C, Qx, R, dt = deflated_problem(seed, trial)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        f = filter_riccati(A, C, Qx, R, np.zeros((A.shape[0], C.shape[0])), dt)
+    assert forward_error(A, C, Qx, R, dt, f.P, f.L) <= JUDGE_LINE
+    ev = np.linalg.eigvals(A - f.L @ C)
+    assert np.all(np.abs(ev) < 1.0) if dt else np.all(ev.real < 0.0)

@@ -356,21 +356,24 @@ def boundary_gap(A, B, Q, R, S, dt: float) -> dict | None:
     Sin 1984). The pencil is the extended one of Van Dooren (1981) as scipy forms it (no ``R⁻¹``), continuous
     ``[A 0 B; −Q −Aᵀ −S; Sᵀ Bᵀ R] − λ·diag(I, I, 0)``, discrete ``[A 0 B; −Q I −S; Sᵀ 0 R] − λ[I 0 0; 0 Aᵀ 0; 0 −Bᵀ 0]``,
     scaled and balanced (below; every step leaves the eigenvalues unchanged), its finite eigenvalues by QZ (backward
-    stable: those of a pencil within ``c·eps`` of its norm ``ν``).
+    stable: those of a pencil within ``c·eps`` of its norms).
 
     Tolerance: an eigenvalue on the boundary is one of a pair ``(λ, −λ̄)`` (``(λ, 1/λ̄)``) that coincide, generically a
-    2×2 Jordan block, and a perturbation of size ``ε = N·eps·ν`` (``N`` the pencil's order) moves such an eigenvalue
-    by ``O(√(ε·ν))`` = ``√(N·eps)·ν`` (Puiseux; Lidskii), a simple one by only ``O(ε)``: so an eigenvalue within
-    ``tol = √(N·eps)·ν`` of the axis (discrete: ``| |λ| − 1 | ≤ √(N·eps)·ν`` with ``ν`` relative to the unit disc's
-    scale, ``max(1, ν)``) cannot be told from one on it — the data is within its rounding of an equation without a
-    stabilising solution — and one beyond it is off the boundary to working accuracy. Stabilisability (the filter's
-    detectability) is the caller's separate test."""
+    2×2 Jordan block, and a perturbation of relative size ``δ = N·eps`` (``N`` the pencil's order; QZ's backward
+    error relative to ``‖L‖``, ``‖M‖``) moves such an eigenvalue by ``O(√δ)`` times the pencil's eigenvalue scale
+    ``‖L‖₂/‖M‖₂`` (Puiseux; Lidskii), a simple one by only ``O(δ)``: so an eigenvalue within ``tol = √(N·eps)·‖L‖/‖M‖``
+    of the axis (discrete: ``| |λ| − 1 | ≤ tol``, the ratio then dimensionless like the circle's radius) cannot be told
+    from one on it — the data is within its rounding of an equation without a stabilising solution — and one beyond
+    it is off the boundary to working accuracy. (A first form, ``√(N·eps)·max(‖L‖, ‖M‖)``, multiplied by the norm
+    once too often: the deflated problem 15/0 of tests/test_riccati_forward.py, a DARE whose nearest eigenvalue is
+    0.00487 from the circle and which is solved to a forward error below 1e-6, read as on it.) Stabilisability (the
+    filter's detectability) is the caller's separate test."""
     n, m = A.shape[0], B.shape[1]
     if n == 0:
         return {"distance": np.inf, "nearest": None, "tol": 0.0}
     # the eigenvalues are invariant under a state similarity, an input transformation (B V, Vᵀ R V, S V) and the
     # scaling X → γX ((Q, S, R)/γ): the pencil is formed after the diagonal balancing of A, R → I (Cholesky) and the γ
-    # that equates ‖Q‖ and ‖B R⁻¹ Bᵀ‖ (the two quadratic terms), so that its norm ν measures the data, not its units
+    # that equates ‖Q‖ and ‖B R⁻¹ Bᵀ‖ (the two quadratic terms), so that its norms measure the data, not its units
     t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
     A, B, Q, S = A * (1 / t)[:, None] * t[None, :], B / t[:, None], Q * t[:, None] * t[None, :], S * t[:, None]
     try:
@@ -402,12 +405,12 @@ def boundary_gap(A, B, Q, R, S, dt: float) -> dict | None:
         alpha, beta = sla.eigvals(L, M, homogeneous_eigvals=True)
     except (np.linalg.LinAlgError, ValueError):
         return None
-    nu = max(float(np.linalg.norm(L, 2)), float(np.linalg.norm(M, 2)), np.finfo(float).tiny)
+    ratio = float(np.linalg.norm(L, 2)) / max(float(np.linalg.norm(M, 2)), np.finfo(float).tiny)
     finite = np.abs(beta) > N * np.finfo(float).eps * np.abs(alpha)
     if not np.any(finite):
         return {"distance": np.inf, "nearest": None, "tol": 0.0}
     lam = alpha[finite] / beta[finite]
     dist = np.abs(np.abs(lam) - 1.0) if dt else np.abs(lam.real)
     k = int(np.argmin(dist))
-    tol = np.sqrt(N * np.finfo(float).eps) * (max(1.0, nu) if dt else nu)
+    tol = np.sqrt(N * np.finfo(float).eps) * ratio
     return {"distance": float(dist[k]), "nearest": complex(lam[k]), "tol": float(tol)}
