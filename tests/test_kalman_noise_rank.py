@@ -119,3 +119,30 @@ def test_noise_factor_reproduces_graded_covariances_and_drops_rounding():
         d = np.sqrt(np.diag(Qx))
         # eigh's backward error on the unit-diagonal H is ~n·eps, times the square root's rounding: 1e-12 is 1e3 above
         assert np.max(np.abs(G @ G.T - Qx) / np.outer(d, d)) <= 1e-12
+
+
+# random detectable problems scaled over nine decades (tests/test_riccati_failure_messages.scaled_random_case) that
+# kalman() on b237635 refused, "(A, C) is not detectable: the modes [0.243537] are unobservable … and unstable" (23 of
+# 300; the modes named are not even eigenvalues of A: the staircase read the pair in the caller's coordinates)
+DETECTABLE_REFUSED_ON_OLD = [11, 57, 69, 102]
+
+
+@pytest.mark.parametrize("seed", DETECTABLE_REFUSED_ON_OLD)
+def test_kalman_reads_detectability_in_balanced_coordinates(seed):
+    from fmu_fdi import FDIModel
+    from fmu_fdi.design.observers.kalman_filter import kalman
+    from test_riccati_failure_messages import scaled_random_case
+
+    A, C, Qx, R, dt, Pstar, (At, Ct, Qt, Pt) = scaled_random_case(seed)
+    n, p = A.shape[0], C.shape[0]
+    # the judge that (A, C) is detectable: numpy's PBH rank of the unscaled pair at every eigenvalue of Ã (Ct random:
+    # observable, smallest singular value far above rounding)
+    for lam in np.linalg.eigvals(At):
+        assert np.linalg.svd(np.vstack([At - lam * np.eye(n), Ct]), compute_uv=False)[-1] > 1e-8
+    lam, V = np.linalg.eigh(Qt)
+    Bw = np.diag(np.sqrt(np.diag(Qx) / np.diag(Qt))) @ V * np.sqrt(np.clip(lam, 0.0, None))  # Bw Bwᵀ = Qx
+    model = FDIModel.from_matrices(A, np.zeros((n, 1)), C, np.zeros((p, 1)), Bw=Bw, dt=dt)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        gen = kalman(model, 1.0, R)
+    assert per_state_error(A, C, Bw @ Bw.T, R, np.array(gen.info["gain"]), dt, Pstar) <= PER_STATE_LINE
