@@ -208,20 +208,15 @@ def detectable_split(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A
 
 def check_detectable(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)", fixed_reason: str = "",
                      atol: float = 0.0) -> None:
-    """A DesignError naming the unstable unobservable modes where ``(A, C)`` is not detectable (:func:`detectable_split`),
-    decided in the coordinates of ``A``'s diagonal balancing (``T⁻¹AT``, ``CT``; LAPACK GEBAL, exact) with ``C``'s rows
-    normalised — detectability is invariant under both. In the caller's coordinates the staircase's rank decisions
-    are relative to ``‖[A; C]‖``, and on states scaled over decades they read another pair: 23 of 300 random
-    detectable problems scaled over nine decades (tests/test_riccati_failure_messages.scaled_random_case) were
-    refused by ``kalman`` as 'not detectable', a stable mode read as an unobservable one at +0.24. A caller's absolute
-    rank tolerance ``atol`` refers to its own coordinates: with it the pair is read there."""
-    if A.size == 0 or atol > 0:
-        detectable_split(A, C, dt, what=what, fixed_reason=fixed_reason, atol=atol)
-        return
-    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
-    Cb = C * t[None, :]
-    Cb = Cb / np.maximum(np.linalg.norm(Cb, axis=1), np.finfo(float).tiny)[:, None]
-    detectable_split(A * (1 / t)[:, None] * t[None, :], Cb, dt, what=what, fixed_reason=fixed_reason)
+    """A DesignError naming the unstable unobservable modes where ``(A, C)`` is not detectable (:func:`detectable_split`)
+    in the caller's coordinates nor in those of ``A``'s diagonal balancing (``T⁻¹AT``, ``CT``; LAPACK GEBAL, exact)
+    with ``C``'s rows normalised (:func:`observable_order`) — detectability is invariant under both. In the caller's
+    coordinates alone the staircase's rank decisions are relative to ``‖[A; C]‖``, and on states scaled over decades
+    they read another pair: 23 of 300 random detectable problems scaled over nine decades
+    (tests/test_riccati_failure_messages.scaled_random_case) were refused by ``kalman`` as 'not detectable', a stable
+    mode read as an unobservable one at +0.24. A caller's absolute rank tolerance ``atol`` refers to its own
+    coordinates: with it the pair is read there only."""
+    observable_order(A, C, dt, what=what, fixed_reason=fixed_reason, atol=atol)
 
 
 def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str = "(A, C)",
@@ -238,13 +233,105 @@ def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str =
     observer with one output), where that method does not apply, Varga's Schur method
     (SLICOT SB01BD) is used instead.
 
+    The result is checked on the loop the model runs: the eigenvalues of the whole ``A − L C`` (numpy) must be the
+    requested poles and the fixed modes within the placement's own tolerance (below), and stable. Where the answer
+    in the caller's coordinates fails that (or its staircase refuses the pair), the pair is read once more in
+    :func:`balanced_pair`'s coordinates ``(T⁻¹AT, N C T)`` (exact scalings; ``L = T L̃ N``): on states scaled over
+    decades the staircase's rank decisions in the caller's coordinates read another pair — 27 of 300 random pairs
+    scaled over nine decades came back with ``A − L C`` unstable, 23 refused as 'not detectable'; none now
+    (tests/test_observer_scaled_pairs.py). The caller's coordinates come first so that every placement they get
+    right is unchanged (KNV's gain for the same poles depends on the coordinates).
+
     Raises
     ------
     DesignError
         Unstable unobservable modes (named, with ``fixed_reason`` appended); a pole count
         that differs from the number of observable modes; a placement that misses the
-        requested poles.
+        requested poles (in either coordinates).
     """
+    try:
+        gain = _observer_gain_unbalanced(A, C, poles, dt, what=what, fixed_reason=fixed_reason, atol=atol)
+    except DesignError as exc:
+        gain, first = None, exc
+    else:
+        first = _placement_missed(A, C, gain, dt, what)
+        if first is None:
+            return gain
+    t, r = balanced_pair(A, C, atol)
+    if np.all(t == 1.0) and np.all(r == 1.0):
+        raise first
+    Ab, Cb = A * (1 / t)[:, None] * t[None, :], C * t[None, :] * r[:, None]
+    gain = _observer_gain_unbalanced(Ab, Cb, poles, dt, what=what, fixed_reason=fixed_reason, atol=atol)
+    gain = ObserverGain(t[:, None] * gain.L * r[None, :], gain.poles, gain.fixed, gain.method)  # A − LC = T(Ã − L̃C̃)T⁻¹
+    missed = _placement_missed(A, C, gain, dt, what)
+    if missed is not None:
+        raise missed
+    return gain
+
+
+def _placement_missed(A: np.ndarray, C: np.ndarray, gain: "ObserverGain", dt: float, what: str) -> DesignError | None:
+    """None if the eigenvalues of the whole loop ``A − L C`` (numpy) are ``gain.poles ∪ gain.fixed`` within the
+    tolerance :func:`_observer_gain_unbalanced` uses for the observable block (Bauer–Fike: ``max(1e3·eps·κ, √eps)``
+    of the loop's size, both read after the loop's diagonal balancing, ``κ`` its eigenvector condition; ``1e3·eps^(1/k)`` for a pole of multiplicity ``k``) and
+    stable; else the DesignError naming what it missed."""
+    n = A.shape[0]
+    if n == 0:
+        return None
+    # read in the loop's own diagonal balancing (exact; the eigenvalues are the loop's): in the caller's coordinates
+    # ‖A‖ of a pair scaled over decades (1e7) would make the tolerance as large as the poles themselves
+    Acl = A - gain.L @ C
+    Acl = sla.matrix_balance(Acl, permute=False)[0]
+    ev, X = np.linalg.eig(Acl)
+    target = np.concatenate([np.asarray(gain.poles, complex), np.asarray(gain.fixed, complex)])
+    bad = unstable(ev, dt, max(1.0, float(np.linalg.norm(Acl, 2))))
+    mult = max(int(np.sum(np.abs(target - q) <= 1e-12 * max(1.0, abs(q)))) for q in target)
+    size = max(1.0, float(np.linalg.norm(Acl, 2)))
+    kappa = np.linalg.cond(X) if mult == 1 else np.inf
+    tol = (max(1e3 * EPS * kappa, np.sqrt(EPS)) if np.isfinite(kappa) else 1e3 * EPS ** (1.0 / mult)) * size
+    err = pole_error(ev, target) if ev.size == target.size else np.inf
+    if bad.size or not err <= tol:
+        return DesignError(f"pole placement for {what} gives a loop A − L C whose eigenvalues miss the requested poles "
+                           f"and fixed modes by {err:.3g} (tolerance {tol:.3g})"
+                           + (f", the modes {fmt_modes(bad)} unstable" if bad.size else "")
+                           + ": the pair is too badly scaled or too close to unobservable; rescale the states")
+    return None
+
+
+def balanced_pair(A: np.ndarray, C: np.ndarray, atol: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, r)``: ``A``'s diagonal balancing ``T = diag(t)`` (LAPACK GEBAL, powers of 2: exact) and the scaling
+    ``N = diag(r)`` normalising the rows of ``C T`` — the coordinates ``(T⁻¹AT, N C T)`` in which the observability
+    staircase's rank decisions (relative to ``‖[A; C]‖``) read the pair the model describes. Observability,
+    detectability and the closed-loop eigenvalues of ``A − L C`` with ``L = T L̃ N`` are invariant under both; in the
+    caller's coordinates, on 300 random pairs scaled over nine decades (tests/test_riccati_failure_messages.py's
+    ``scaled_random_case``) the staircase refused 23 detectable ones as 'not detectable' and ``observer_gain``
+    returned 27 gains whose ``A − L C`` was unstable (its check read the observable block only). Ones where a
+    caller's absolute rank tolerance ``atol`` refers to its own coordinates, or there are no states."""
+    n = A.shape[0]
+    if n == 0 or atol > 0:
+        return np.ones(n), np.ones(C.shape[0])
+    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
+    r = 1.0 / np.maximum(np.linalg.norm(C * t[None, :], axis=1), np.finfo(float).tiny)
+    return t, r
+
+
+def observable_order(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)", fixed_reason: str = "",
+                     atol: float = 0.0) -> int:
+    """The observable order ``n_o`` of the staircase :func:`observer_gain` reads first (the caller's coordinates),
+    or, where that refuses the pair as not detectable, of :func:`balanced_pair`'s coordinates; a DesignError where
+    ``(A, C)`` is not detectable in either."""
+    try:
+        return detectable_split(A, C, dt, what=what, fixed_reason=fixed_reason, atol=atol)[1]
+    except DesignError:
+        t, r = balanced_pair(A, C, atol)
+        if np.all(t == 1.0) and np.all(r == 1.0):
+            raise
+    return detectable_split(A * (1 / t)[:, None] * t[None, :], C * t[None, :] * r[:, None], dt, what=what,
+                            fixed_reason=fixed_reason, atol=atol)[1]
+
+
+def _observer_gain_unbalanced(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str = "(A, C)",
+                              fixed_reason: str = "", atol: float = 0.0) -> ObserverGain:
+    """:func:`observer_gain` in the coordinates it is given (the staircase, the placement and its check there)."""
     n = A.shape[0]
     Z, n_o, fixed = detectable_split(A, C, dt, what=what, fixed_reason=fixed_reason, atol=atol)
     At = Z.T @ A @ Z
