@@ -114,9 +114,10 @@ def main(n_ammp: int = 30, audit: str = "0-40") -> None:
                 out = [("check_case", "crash", repr(exc))]
             recs = RECORDS[before:]
             fwd_refusals = sum(1 for r in recs if r["forward_on"] and not r["accepted"] and r.get("residual_only"))
-            print(f"audit seed {seed}: {[(c, s) for c, s, *_ in out]} riccati calls {sum(r['forward_on'] for r in recs)}"
-                  f", forward refusals {fwd_refusals}, stepped {sum(1 for r in recs if r['accepted'] and r['steps'])}"
-                  f" ({time.perf_counter() - t0:.1f} s)", flush=True)
+            calls = sum(r["forward_on"] for r in recs)
+            stepped = sum(1 for r in recs if r["accepted"] and r["steps"])
+            print(f"audit seed {seed}: {[(c, s) for c, s, *_ in out]} riccati calls {calls}, forward refusals "
+                  f"{fwd_refusals}, stepped {stepped} ({time.perf_counter() - t0:.1f} s)", flush=True)
         _summary(f"audit {audit}:", RECORDS[start:])
 
 

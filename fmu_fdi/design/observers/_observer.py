@@ -208,8 +208,8 @@ def detectable_split(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A
 
 def check_detectable(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)", fixed_reason: str = "",
                      atol: float = 0.0) -> None:
-    """A DesignError naming the unstable unobservable modes where ``(A, C)`` is not detectable (:func:`detectable_split`)
-    in the caller's coordinates nor in those of ``A``'s diagonal balancing (``T⁻¹AT``, ``CT``; LAPACK GEBAL, exact)
+    """A DesignError naming the unstable unobservable modes where ``(A, C)`` is not detectable
+    (:func:`detectable_split`) in the caller's coordinates nor in those of ``A``'s diagonal balancing (``T⁻¹AT``, ``CT``; LAPACK GEBAL, exact)
     with ``C``'s rows normalised (:func:`observable_order`) — detectability is invariant under both. In the caller's
     coordinates alone the staircase's rank decisions are relative to ``‖[A; C]‖``, and on states scaled over decades
     they read another pair: 23 of 300 random detectable problems scaled over nine decades
@@ -262,7 +262,8 @@ def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str =
         raise first
     Ab, Cb = A * (1 / t)[:, None] * t[None, :], C * t[None, :] * r[:, None]
     gain = _observer_gain_unbalanced(Ab, Cb, poles, dt, what=what, fixed_reason=fixed_reason, atol=atol)
-    gain = ObserverGain(t[:, None] * gain.L * r[None, :], gain.poles, gain.fixed, gain.method)  # A − LC = T(Ã − L̃C̃)T⁻¹
+    # A − L C = T (Ã − L̃ C̃) T⁻¹ with L = T L̃ N
+    gain = ObserverGain(t[:, None] * gain.L * r[None, :], gain.poles, gain.fixed, gain.method)
     missed = _placement_missed(A, C, gain, dt, what)
     if missed is not None:
         raise missed
@@ -272,8 +273,8 @@ def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str =
 def _placement_missed(A: np.ndarray, C: np.ndarray, gain: "ObserverGain", dt: float, what: str) -> DesignError | None:
     """None if the eigenvalues of the whole loop ``A − L C`` (numpy) are ``gain.poles ∪ gain.fixed`` within the
     tolerance :func:`_observer_gain_unbalanced` uses for the observable block (Bauer–Fike: ``max(1e3·eps·κ, √eps)``
-    of the loop's size, both read after the loop's diagonal balancing, ``κ`` its eigenvector condition; ``1e3·eps^(1/k)`` for a pole of multiplicity ``k``) and
-    stable; else the DesignError naming what it missed."""
+    of the loop's size, both read after the loop's diagonal balancing, ``κ`` its eigenvector condition;
+    ``1e3·eps^(1/k)`` for a pole of multiplicity ``k``) and stable; else the DesignError naming what it missed."""
     n = A.shape[0]
     if n == 0:
         return None
@@ -579,8 +580,8 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, failed) -> np.ndar
     # T = diag(t) of powers of 2: exact): Ã = T⁻¹ĀT, C̃ = CT, Q̃ = T⁻¹Q̄T⁻¹, G̃ = T⁻¹G, P = T P̃ T. In the caller's
     # coordinates the staircase's rank decisions (relative to ‖[Ā; G]‖) and the direct solvers' subspaces met states
     # scaled over decades: the staircase took a noise direction of relative size 2e-8 for none where ‖Ā‖ = 1.5e7, and
-    # the reduced answer, within RICCATI_RTOL, did not stabilise the caller's loop (tests/test_riccati_failure_messages.py
-    # 18 of 300 random scaled problems; tests/test_riccati_forward.py deflated 8 of 180 refused) — none of them now.
+    # the reduced answer, within RICCATI_RTOL, did not stabilise the caller's loop
+    # (tests/test_riccati_failure_messages.py: 18 of 300 random scaled problems; tests/test_riccati_forward.py deflated 8 of 180 refused) — none of them now.
     # The graded rank decision of noise_factor is invariant under T (d_i and H scale together).
     t = sla.matrix_balance(Ab, permute=False, separate=True)[1][0]
     Ab, C, Qb, G = Ab / t[:, None] * t[None, :], C * t[None, :], Qb / t[:, None] / t[None, :], G / t[:, None]
@@ -739,8 +740,8 @@ def _refusal(what: str, got: dict) -> str:
                     f"modes, or states scaled over many decades, cause this: rescale the states")
         fb = got.get("forward_balanced", fwd)
         cond = (f"; in the coordinates of the diagonal balancing of the closed loop its Lyapunov separation is "
-                f"sep = {got['sep']:.3g} against the residual's terms {got['size']:.3g}, so the rounding of the residual "
-                f"alone can move P there by up to {got['floor']:.3g} of its scale (the correction there: {fb:.3g})")
+                f"sep = {got['sep']:.3g} against the residual's terms {got['size']:.3g}, so the rounding of the "
+                f"residual alone can move P there by up to {got['floor']:.3g} of its scale (the correction there: {fb:.3g})")
         if fb > NOT_CONVERGED_FACTOR * got["floor"]:
             return (f"{what} was not solved to the accuracy a gain needs, a numerical failure: {head}{cond} — the "
                     f"correction is far above that floor, so it is not the equation's conditioning that stops it but "
