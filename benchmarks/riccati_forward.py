@@ -26,6 +26,18 @@ runs), final code:
   1.54, total 1.58 s / 1.05 s = 1.51.
   With the correction's residual in double (dda05bc) 3 more filters were refused (43/2, 47/0, 51/1: its floor 1e-6 …
   6e-5 where the judge reads 1e-11 … 1.5e-7).
+
+27 Nov, kalman18 (60 seeds, baseline 253b4cb, R = 1, one BLAS thread, machine shared with four sessions; a third
+family, ``scaled``: tests/test_riccati_failure_messages.py's random problems scaled over nine decades), final code —
+Q̄'s rank in its graded scaling, deflation and reduced solve in Ā's balanced coordinates:
+- filter_riccati full:     175 / 5 both (Σ not positive definite); > 1e-6: 1 → 0 (58/2 1.4e-6 → 2.1e-7), max 1.40e-6
+  → 6.99e-7;
+- filter_riccati deflated: 172 / 8 → 180 / 0 (2/0–2, 15/0–2, 54/0–1 refused as 'no stabilising solution' before;
+  now forward errors 2.3e-12 … 8.9e-8); 0 above 1e-6 both; max 7.72e-7 → 5.97e-7;
+- filter_riccati scaled:   171 / 9 → 180 / 0; 0 above 1e-6 both; max 8.65e-7 → 1.37e-7;
+  time per solve current/baseline: geometric mean 1.071 over the 518 both design, total 5.03 s / 4.77 s = 1.053 (an
+  earlier run of the first two families, same code: 1.043, 0.981);
+- spectral_riccati (unchanged code): 178 / 2 and 180 / 0 both, figures identical; time 1.025 / 1.065 (noise).
 """
 import sys
 import time
@@ -43,6 +55,13 @@ from fmu_fdi.design.toolkit import approximate as new_approximate  # noqa: E402
 from riccati_refinement import baseline, timed_filter  # noqa: E402
 from test_kalman_riccati import _problem  # noqa: E402
 from test_riccati_forward import deflated_problem, filter_gain, forward_error  # noqa: E402
+from test_riccati_failure_messages import scaled_random_case  # noqa: E402
+
+
+def scaled_problem(seed: int, trial: int):
+    """tests/test_riccati_failure_messages.py's random problems scaled over nine decades (A, C, Qx and R in the scaled
+    coordinates), numbered ``3·seed + trial``."""
+    return scaled_random_case(3 * seed + trial)[:5]
 
 
 def filter_forward(module, data, repeats: int):
@@ -120,8 +139,8 @@ def compare(label: str, families, run, old, new, seeds: int, rev: str, repeats: 
 
 def main(seeds: int = 60, rev: str = "main", repeats: int = 1) -> None:
     old = baseline(rev)
-    compare("filter_riccati", (("full", _problem), ("deflated", deflated_problem)), filter_forward, old, new, seeds,
-            rev, repeats)
+    compare("filter_riccati", (("full", _problem), ("deflated", deflated_problem), ("scaled", scaled_problem)),
+            filter_forward, old, new, seeds, rev, repeats)
     # spectral_riccati alone (approximate.coouter_inverse, approximate_matching's filter DARE): the factored
     # control-form equations of both families, judged by the same closed-loop covariance of the gain it implies
     compare("spectral_riccati", (("full", factored(_problem)), ("deflated", factored(deflated_problem))),

@@ -37,7 +37,7 @@ from ...linalg import EPS, default_rtol, ordered_schur
 from ...lti import LTI
 from ...model import FDIModel
 from ..toolkit.approximate import RICCATI_RTOL, spectral_riccati
-from ..toolkit.riccati_newton import FORWARD_RTOL, forward_refined
+from ..toolkit.riccati_newton import FORWARD_RTOL, boundary_gap, forward_refined, riccati_residual
 from ..toolkit.pencil import controllable_staircase
 
 
@@ -206,6 +206,19 @@ def detectable_split(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A
     return Z, n_o, fixed
 
 
+def check_detectable(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)", fixed_reason: str = "",
+                     atol: float = 0.0) -> None:
+    """A DesignError naming the unstable unobservable modes where ``(A, C)`` is not detectable
+    (:func:`detectable_split`) in the caller's coordinates nor in those of ``A``'s diagonal balancing (``T⁻¹AT``, ``CT``; LAPACK GEBAL, exact)
+    with ``C``'s rows normalised (:func:`observable_order`) — detectability is invariant under both. In the caller's
+    coordinates alone the staircase's rank decisions are relative to ``‖[A; C]‖``, and on states scaled over decades
+    they read another pair: 23 of 300 random detectable problems scaled over nine decades
+    (tests/test_riccati_failure_messages.scaled_random_case) were refused by ``kalman`` as 'not detectable', a stable
+    mode read as an unobservable one at +0.24. A caller's absolute rank tolerance ``atol`` refers to its own
+    coordinates: with it the pair is read there only."""
+    observable_order(A, C, dt, what=what, fixed_reason=fixed_reason, atol=atol)
+
+
 def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str = "(A, C)",
                   fixed_reason: str = "", atol: float = 0.0) -> ObserverGain:
     """Output-injection gain ``L`` placing the observable eigenvalues of ``A − L C``.
@@ -220,13 +233,106 @@ def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str =
     observer with one output), where that method does not apply, Varga's Schur method
     (SLICOT SB01BD) is used instead.
 
+    The result is checked on the loop the model runs: the eigenvalues of the whole ``A − L C`` (numpy) must be the
+    requested poles and the fixed modes within the placement's own tolerance (below), and stable. Where the answer
+    in the caller's coordinates fails that (or its staircase refuses the pair), the pair is read once more in
+    :func:`balanced_pair`'s coordinates ``(T⁻¹AT, N C T)`` (exact scalings; ``L = T L̃ N``): on states scaled over
+    decades the staircase's rank decisions in the caller's coordinates read another pair — 27 of 300 random pairs
+    scaled over nine decades came back with ``A − L C`` unstable, 23 refused as 'not detectable'; none now
+    (tests/test_observer_scaled_pairs.py). The caller's coordinates come first so that every placement they get
+    right is unchanged (KNV's gain for the same poles depends on the coordinates).
+
     Raises
     ------
     DesignError
         Unstable unobservable modes (named, with ``fixed_reason`` appended); a pole count
         that differs from the number of observable modes; a placement that misses the
-        requested poles.
+        requested poles (in either coordinates).
     """
+    try:
+        gain = _observer_gain_unbalanced(A, C, poles, dt, what=what, fixed_reason=fixed_reason, atol=atol)
+    except DesignError as exc:
+        gain, first = None, exc
+    else:
+        first = _placement_missed(A, C, gain, dt, what)
+        if first is None:
+            return gain
+    t, r = balanced_pair(A, C, atol)
+    if np.all(t == 1.0) and np.all(r == 1.0):
+        raise first
+    Ab, Cb = A * (1 / t)[:, None] * t[None, :], C * t[None, :] * r[:, None]
+    gain = _observer_gain_unbalanced(Ab, Cb, poles, dt, what=what, fixed_reason=fixed_reason, atol=atol)
+    # A − L C = T (Ã − L̃ C̃) T⁻¹ with L = T L̃ N
+    gain = ObserverGain(t[:, None] * gain.L * r[None, :], gain.poles, gain.fixed, gain.method)
+    missed = _placement_missed(A, C, gain, dt, what)
+    if missed is not None:
+        raise missed
+    return gain
+
+
+def _placement_missed(A: np.ndarray, C: np.ndarray, gain: "ObserverGain", dt: float, what: str) -> DesignError | None:
+    """None if the eigenvalues of the whole loop ``A − L C`` (numpy) are ``gain.poles ∪ gain.fixed`` within the
+    tolerance :func:`_observer_gain_unbalanced` uses for the observable block (Bauer–Fike: ``max(1e3·eps·κ, √eps)``
+    of the loop's size, both read after the loop's diagonal balancing, ``κ`` its eigenvector condition;
+    ``1e3·eps^(1/k)`` for a pole of multiplicity ``k``) and stable; else the DesignError naming what it missed."""
+    n = A.shape[0]
+    if n == 0:
+        return None
+    # read in the loop's own diagonal balancing (exact; the eigenvalues are the loop's): in the caller's coordinates
+    # ‖A‖ of a pair scaled over decades (1e7) would make the tolerance as large as the poles themselves
+    Acl = A - gain.L @ C
+    Acl = sla.matrix_balance(Acl, permute=False)[0]
+    ev, X = np.linalg.eig(Acl)
+    target = np.concatenate([np.asarray(gain.poles, complex), np.asarray(gain.fixed, complex)])
+    bad = unstable(ev, dt, max(1.0, float(np.linalg.norm(Acl, 2))))
+    mult = max(int(np.sum(np.abs(target - q) <= 1e-12 * max(1.0, abs(q)))) for q in target)
+    size = max(1.0, float(np.linalg.norm(Acl, 2)))
+    kappa = np.linalg.cond(X) if mult == 1 else np.inf
+    tol = (max(1e3 * EPS * kappa, np.sqrt(EPS)) if np.isfinite(kappa) else 1e3 * EPS ** (1.0 / mult)) * size
+    err = pole_error(ev, target) if ev.size == target.size else np.inf
+    if bad.size or not err <= tol:
+        return DesignError(f"pole placement for {what} gives a loop A − L C whose eigenvalues miss the requested poles "
+                           f"and fixed modes by {err:.3g} (tolerance {tol:.3g})"
+                           + (f", the modes {fmt_modes(bad)} unstable" if bad.size else "")
+                           + ": the pair is too badly scaled or too close to unobservable; rescale the states")
+    return None
+
+
+def balanced_pair(A: np.ndarray, C: np.ndarray, atol: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, r)``: ``A``'s diagonal balancing ``T = diag(t)`` (LAPACK GEBAL, powers of 2: exact) and the scaling
+    ``N = diag(r)`` normalising the rows of ``C T`` — the coordinates ``(T⁻¹AT, N C T)`` in which the observability
+    staircase's rank decisions (relative to ``‖[A; C]‖``) read the pair the model describes. Observability,
+    detectability and the closed-loop eigenvalues of ``A − L C`` with ``L = T L̃ N`` are invariant under both; in the
+    caller's coordinates, on 300 random pairs scaled over nine decades (tests/test_riccati_failure_messages.py's
+    ``scaled_random_case``) the staircase refused 23 detectable ones as 'not detectable' and ``observer_gain``
+    returned 27 gains whose ``A − L C`` was unstable (its check read the observable block only). Ones where a
+    caller's absolute rank tolerance ``atol`` refers to its own coordinates, or there are no states."""
+    n = A.shape[0]
+    if n == 0 or atol > 0:
+        return np.ones(n), np.ones(C.shape[0])
+    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
+    r = 1.0 / np.maximum(np.linalg.norm(C * t[None, :], axis=1), np.finfo(float).tiny)
+    return t, r
+
+
+def observable_order(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)", fixed_reason: str = "",
+                     atol: float = 0.0) -> int:
+    """The observable order ``n_o`` of the staircase :func:`observer_gain` reads first (the caller's coordinates),
+    or, where that refuses the pair as not detectable, of :func:`balanced_pair`'s coordinates; a DesignError where
+    ``(A, C)`` is not detectable in either."""
+    try:
+        return detectable_split(A, C, dt, what=what, fixed_reason=fixed_reason, atol=atol)[1]
+    except DesignError:
+        t, r = balanced_pair(A, C, atol)
+        if np.all(t == 1.0) and np.all(r == 1.0):
+            raise
+    return detectable_split(A * (1 / t)[:, None] * t[None, :], C * t[None, :] * r[:, None], dt, what=what,
+                            fixed_reason=fixed_reason, atol=atol)[1]
+
+
+def _observer_gain_unbalanced(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str = "(A, C)",
+                              fixed_reason: str = "", atol: float = 0.0) -> ObserverGain:
+    """:func:`observer_gain` in the coordinates it is given (the staircase, the placement and its check there)."""
     n = A.shape[0]
     Z, n_o, fixed = detectable_split(A, C, dt, what=what, fixed_reason=fixed_reason, atol=atol)
     At = Z.T @ A @ Z
@@ -369,11 +475,24 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
             f"(the pair (A − S R⁻¹ C, Qx − S R⁻¹ Sᵀ) must have no uncontrollable mode with "
             f"{'|z| = 1' if dt else 'Re s = 0'})")
 
-    P = _deflated_riccati(A, C, Qx, R, S, dt, no_solution)
+    def failed(detail: str) -> DesignError:
+        """A solve that failed after the deflation: non-existence or a numerical failure, decided by the data."""
+        exists, why = _existence(A, C, Qx, R, S, dt)
+        if exists is False:
+            return no_solution(f"{why}; {detail}")
+        if exists:
+            return DesignError(
+                f"{what}: the filter Riccati equation has a stabilising solution — {why} — but it was not computed "
+                f"to the accuracy a gain needs, a numerical failure: {detail}. States scaled over many decades or "
+                f"modes the outputs hardly see cause this: rescale the states")
+        return DesignError(f"{what}: the filter Riccati equation was not solved ({detail}); whether a stabilising "
+                           f"solution exists was not decided ({why})")
+
+    P = _deflated_riccati(A, C, Qx, R, S, dt, no_solution, failed)
     Sigma = _innovation_covariance(C, P, R, dt, what)
     accuracy = {"forward": 0.0, "newton_steps": 0}
     if n:
-        P = _forward_checked(A, C, Qx, R, S, P, dt, no_solution, what, accuracy)
+        P = _forward_checked(A, C, Qx, R, S, P, dt, failed, what, accuracy)
         Sigma = _innovation_covariance(C, P, R, dt, what)
     if dt:
         Kf = sla.solve(Sigma, C @ P, assume_a="pos").T
@@ -384,7 +503,7 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
     poles = np.linalg.eigvals(A - L @ C) if n else np.zeros(0)
     bad = unstable(poles, dt, max(1.0, float(np.linalg.norm(A, 2)) if n else 1.0))
     if bad.size:
-        raise no_solution(f"the solver's solution leaves the modes {fmt_modes(bad)} of A − L C unstable")
+        raise failed(f"the solver's solution leaves the modes {fmt_modes(bad)} of A − L C unstable")
     # the gain's forward error to first order, from P's correction Δ = P_K − P: continuous ΔL = Δ Cᵀ R⁻¹; discrete
     # (L = (A P Cᵀ + S) Σ⁻¹, Σ = C P Cᵀ + R) ΔL = (A Δ Cᵀ − L C Δ Cᵀ) Σ⁻¹
     D = accuracy.pop("correction", None)
@@ -412,12 +531,14 @@ def _innovation_covariance(C, P, R, dt: float, what: str) -> np.ndarray:
     return Sigma
 
 
-def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
+def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, failed) -> np.ndarray:
     """Stabilising ``P`` of the filter Riccati equation, the states no noise reaches deflated.
 
     Removing the cross-covariance (Anderson & Moore 1979, sec. 5.5) gives the equivalent
-    equation with ``S = 0`` for ``Ā = A − S R⁻¹ C`` and ``Q̄ = Qx − S R⁻¹ Sᵀ = G Gᵀ``. An
-    orthogonal controllability staircase of ``(Ā, G)`` (:func:`observable_staircase` on the
+    equation with ``S = 0`` for ``Ā = A − S R⁻¹ C`` and ``Q̄ = Qx − S R⁻¹ Sᵀ = G Gᵀ`` (``G`` from
+    :func:`noise_factor`: the rank decided in ``Q̄``'s graded scaling). All that follows runs in the
+    coordinates of ``Ā``'s diagonal balancing (exact; the caller's coordinates below mean those), and ``P``
+    is mapped back. An orthogonal controllability staircase of ``(Ā, G)`` (:func:`observable_staircase` on the
     dual, ``G`` normalised so the rank decision is relative to ``||Ā||`` and 1) and an
     ordered real Schur form of its uncontrollable block give orthogonal ``T = [T₁ T₂]`` with
 
@@ -436,7 +557,9 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
     of tests/test_riccati_forward.py 32 of 172 answers had forward errors above 1e-6 in the caller's
     coordinates (up to 1.2e-2) with residuals within RICCATI_RTOL; the answer is therefore judged, and
     refined, on the caller's whole equation (its Qx, S, coordinates) after the reduced solve — 0 of 172
-    above 1e-6 (benchmarks/riccati_forward.py). Without the deflation,
+    above 1e-6 (benchmarks/riccati_forward.py). The balancing (kalman18) then designed the 8 deflated problems
+    of that set refused before, and 18 of 300 random problems scaled over nine decades
+    (tests/test_riccati_failure_messages.py), without Newton steps. Without the deflation,
     scipy's solvers reject e.g. ``Qx = 0`` with a slow stable mode (the solution ``P = 0``
     makes their relative symmetry check on ``U₁₁ᴴ U₂₁`` compare rounding with rounding).
     Uncontrollable modes on the stability boundary admit no stabilising solution and are
@@ -449,12 +572,20 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
         return np.zeros((0, 0))
     SRi = sla.solve(R, S.T, assume_a="pos").T if S.size else np.zeros((n, R.shape[0]))
     Ab = A - SRi @ C
-    Qb = Qx - SRi @ S.T
+    M = SRi @ S.T
+    Qb = Qx - M
     Qb = (Qb + Qb.T) / 2
-    lam, V = sla.eigh(Qb)  # Q̄ ⪯ Qx: its rank is decided relative to ||Qx||, not to its own rounding
-    keep = lam > default_rtol(Qb.shape) * max(float(np.linalg.norm(Qx, 2)), np.finfo(float).tiny)
-    G = V[:, keep] * np.sqrt(lam[keep])
-    scale = max(1.0, float(np.linalg.norm(A, 2)))
+    G = noise_factor(Qx, (M + M.T) / 2, Qb)
+    # the deflation and the reduced solve run in the coordinates of Ā's diagonal balancing, x = T x̃ (LAPACK GEBAL,
+    # T = diag(t) of powers of 2: exact): Ã = T⁻¹ĀT, C̃ = CT, Q̃ = T⁻¹Q̄T⁻¹, G̃ = T⁻¹G, P = T P̃ T. In the caller's
+    # coordinates the staircase's rank decisions (relative to ‖[Ā; G]‖) and the direct solvers' subspaces met states
+    # scaled over decades: the staircase took a noise direction of relative size 2e-8 for none where ‖Ā‖ = 1.5e7, and
+    # the reduced answer, within RICCATI_RTOL, did not stabilise the caller's loop
+    # (tests/test_riccati_failure_messages.py: 18 of 300 random scaled problems; tests/test_riccati_forward.py deflated 8 of 180 refused) — none of them now.
+    # The graded rank decision of noise_factor is invariant under T (d_i and H scale together).
+    t = sla.matrix_balance(Ab, permute=False, separate=True)[1][0]
+    Ab, C, Qb, G = Ab / t[:, None] * t[None, :], C * t[None, :], Qb / t[:, None] / t[None, :], G / t[:, None]
+    scale = max(1.0, float(np.linalg.norm(Ab, 2)))
     if G.shape[1]:
         Z, n_c = observable_staircase(Ab.T, (G / np.linalg.norm(G, 2)).T)
     else:
@@ -497,13 +628,47 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution) -> np.ndarray:
         warnings.simplefilter("ignore", RuntimeWarning)
         P1 = spectral_riccati(A1.T.copy(), C1.T.copy(), Cf, Df, dt, forward=False)
     if P1 is None:
-        raise no_solution(_refusal("the reduced filter Riccati equation", {}))
+        raise failed(_refusal("the reduced filter Riccati equation", {}))
     P = T1 @ (gamma * (P1 + P1.T) / 2) @ T1.T
+    P = P * t[:, None] * t[None, :]
     P = (P + P.T) / 2
     return P
 
 
-def _forward_checked(A, C, Qx, R, S, P, dt: float, no_solution, what: str, accuracy: dict) -> np.ndarray:
+def noise_factor(Qx: np.ndarray, M: np.ndarray, Qb: np.ndarray) -> np.ndarray:
+    """``G`` with ``G Gᵀ = Q̄ = Qx − M`` (``M = S R⁻¹ Sᵀ``) on the directions the data can tell from zero.
+
+    The rank of ``Q̄`` is decided in the graded scaling ``H = D⁻¹ Q̄ D⁻¹``, ``D = diag(d)``,
+    ``d_i = √max(Qx_ii, M_ii)`` — not relative to ``‖Qx‖``. Derivation: ``Q̄`` is formed from ``Qx`` (itself formed
+    as ``Bw Qw Bwᵀ``) and ``M`` by sums of products, whose rounding is componentwise, ``|δQ̄_ij| ≤ c·eps·(|Qx|_ij +
+    |M|_ij)`` (``c`` the inner dimensions); both terms are positive semidefinite, ``|Qx_ij| ≤ √(Qx_ii Qx_jj)`` and
+    likewise ``M``, so ``|δQ̄_ij| ≤ 2c·eps·d_i d_j``: ``H``'s rounding ``E`` has ``|E_ij| ≤ 2c·eps``, ``‖E‖₂ ≤ 2c·n·eps``
+    against terms ``D⁻¹QxD⁻¹``, ``D⁻¹MD⁻¹`` of unit diagonal at most. An eigenvalue of ``H`` below
+    ``default_rtol = 1e3·n·eps`` times their norm is therefore indistinguishable from rounding (a cancellation
+    ``Qx ≈ M``: fully correlated noise), while the noise of a state scaled by ``s`` — intensity ``s²`` of ``‖Qx‖`` —
+    is a unit diagonal entry of ``H`` and kept at every ``s`` (the data is exact; what it says about that state is
+    not rounding). The decision relative to ``‖Qx‖`` (before) dropped it below ``s ≈ 1e-7``: for an integrator (a
+    random walk) that noise drives, the filter was refused as having no stabilising solution, for a slow mode
+    (``−1e-6``) refused as too ill-conditioned (tests/test_kalman_noise_rank.py). The eigenvalues of ``H`` are
+    computed by ``eigh`` to ``eps·‖H‖`` (``‖H‖ ≤ n``), so the decision is as accurate as the data; ``G = D V Λ^½``
+    on the kept ones. States with ``d_i = 0`` see no noise exactly (``Q̄``'s row is zero)."""
+    n = Qb.shape[0]
+    d = np.sqrt(np.clip(np.maximum(np.diag(Qx), np.diag(M)), 0.0, None))
+    on = d > 0
+    if not np.any(on):
+        return np.zeros((n, 0))
+    di = d[on]
+    H = Qb[np.ix_(on, on)] / di[:, None] / di[None, :]
+    terms = max(float(np.linalg.norm(Qx[np.ix_(on, on)] / di[:, None] / di[None, :], 2)),
+                float(np.linalg.norm(M[np.ix_(on, on)] / di[:, None] / di[None, :], 2)))
+    lam, V = sla.eigh((H + H.T) / 2)
+    keep = lam > default_rtol(H.shape) * terms
+    G = np.zeros((n, int(np.sum(keep))))
+    G[on] = di[:, None] * V[:, keep] * np.sqrt(lam[keep])
+    return G
+
+
+def _forward_checked(A, C, Qx, R, S, P, dt: float, failed, what: str, accuracy: dict) -> np.ndarray:
     """``P`` (or its Newton refinement) accepted by the forward measure on the caller's filter equation, else a
     DesignError naming the figures; ``accuracy`` receives ``forward``, ``newton_steps`` and the ``correction``."""
     # The forward measure is read on the caller's equation — its coordinates and its Qx, S — not on the reduced one:
@@ -514,29 +679,78 @@ def _forward_checked(A, C, Qx, R, S, P, dt: float, no_solution, what: str, accur
     # Refined there by Newton's full steps (toolkit.riccati_newton.forward_refined) where it is not within
     # FORWARD_RTOL; measured in benchmarks/riccati_forward.py.
     full: dict = {}
-    P = forward_refined(A.T.copy(), C.T.copy(), Qx, R, S, P, dt, FORWARD_RTOL, figures=full)
-    if P is None:
+    refined = forward_refined(A.T.copy(), C.T.copy(), Qx, R, S, P, dt, FORWARD_RTOL, figures=full)
+    if refined is None:
         if np.isfinite(full.get("forward", np.inf)):
             raise DesignError(f"{what}: {_refusal('the filter Riccati equation', full)}")
-        raise no_solution(_refusal("the filter Riccati equation", full))
+        # the reduced equation was solved within RICCATI_RTOL, but its answer's gain does not stabilise the caller's
+        # loop: a residual (backward) line passed another matrix than the stabilising solution — name its figures
+        res = riccati_residual(A.T, C.T, Qx, R, S, P, dt)
+        loop = ""
+        if res is not None:
+            ev = np.linalg.eigvals(A + res[1].T @ C)
+            worst = ev[np.argmax(np.abs(ev))] if dt else ev[np.argmax(ev.real)]
+            loop = (f"; its relative residual on this equation is {res[0]:.3g} and its gain leaves the filter's loop "
+                    f"with the mode {fmt_modes([worst])}")
+        raise failed(f"the reduced equation's answer, accepted by its residual, is not the stabilising solution{loop} "
+                     f"(no stabilising start for Newton's refinement)")
     accuracy.update(forward=float(full["forward"]), newton_steps=int(full["steps"]), correction=full["correction"])
-    return P
+    return refined
+
+
+def _existence(A, C, Qx, R, S, dt: float) -> tuple[bool | None, str]:
+    """``(exists, why)``: whether the filter equation has a stabilising solution, decided by the data — ``(A, C)``
+    detectable (:func:`detectable_split`'s staircase) and the Hamiltonian (symplectic) pencil's eigenvalues off the
+    stability boundary by more than the tolerance of :func:`~fmu_fdi.design.toolkit.riccati_newton.boundary_gap`
+    (``√(N·eps)·‖pencil‖``: a boundary eigenvalue is a double one and moves by that much under rounding) —
+    ``exists = None`` where the pencil's eigenvalues could not be computed. Read only for a failure's message."""
+    try:
+        check_detectable(A, C, dt)
+    except DesignError as exc:
+        return False, str(exc)
+    gap = boundary_gap(A.T.copy(), C.T.copy(), Qx, R, S, dt)
+    if gap is None:
+        return None, "the Hamiltonian pencil's eigenvalues could not be computed"
+    where = "unit circle" if dt else "imaginary axis"
+    if gap["distance"] <= gap["tol"]:
+        return False, (f"the Hamiltonian pencil has the eigenvalue {fmt_modes([gap['nearest']])}, "
+                       f"{gap['distance']:.3g} from the {where}, within the tolerance {gap['tol']:.3g} (√(N·eps) times "
+                       f"the pencil's norm, how far rounding moves a double eigenvalue): a mode on the stability "
+                       f"boundary that the noise does not reach or the outputs do not see, to working accuracy")
+    return True, (f"(A, C) is detectable and the Hamiltonian pencil's eigenvalues lie at least {gap['distance']:.3g} "
+                  f"from the {where}, beyond the tolerance {gap['tol']:.3g}")
+
+
+#: a refused answer's correction this many times the rounding floor (riccati_newton._condition: SB03MD's sep is an
+#: estimate, within a factor ~n of the separation, and the floor a first-order bound) is not held up by rounding: the
+#: iteration had not converged — a numerical failure of the method, not the equation's conditioning
+NOT_CONVERGED_FACTOR = 1e2
 
 
 def _refusal(what: str, got: dict) -> str:
     """The reason no answer of ``what`` was accepted, with the figures of the closest one."""
     fwd = got.get("forward", np.inf)
     if np.isfinite(fwd):
-        cond = (f"; the closed loop's Lyapunov separation is sep = {got['sep']:.3g} (balanced coordinates), so the "
-                f"rounding of the residual alone can move P by up to {got['floor']:.3g} of ‖P‖_F"
-                if "sep" in got else "")
-        return (f"{what} is too ill-conditioned for an accurate gain: the stabilising solution exists (a solver's "
-                f"answer has a relative residual within RICCATI_RTOL = {RICCATI_RTOL:g} and a stabilising gain) but "
-                f"the closest answer's closed-loop correction ‖P_K − P‖_F (P_K the error covariance of the filter run "
-                f"with its gain: the forward error of P to first order) is {fwd:.3g} of ‖P‖_F, above FORWARD_RTOL = "
-                f"{FORWARD_RTOL:g} ({got.get('why', '')}){cond}. Nearly unobservable or undetectable modes, or "
-                f"states scaled over many decades, cause this: rescale the states or remove the modes the outputs "
-                f"hardly see")
+        head = (f"the stabilising solution exists (a solver's answer has a relative residual within RICCATI_RTOL = "
+                f"{RICCATI_RTOL:g} and a stabilising gain) but the closest answer's closed-loop correction ‖P_K − P‖_F "
+                f"(P_K the error covariance of the filter run with its gain: the forward error of P to first order) is "
+                f"{fwd:.3g} of ‖P‖_F, above FORWARD_RTOL = {FORWARD_RTOL:g} ({got.get('why', '')})")
+        if "sep" not in got:
+            return (f"{what} was not solved to the accuracy a gain needs: {head}. Nearly unobservable or undetectable "
+                    f"modes, or states scaled over many decades, cause this: rescale the states")
+        fb = got.get("forward_balanced", fwd)
+        cond = (f"; in the coordinates of the diagonal balancing of the closed loop its Lyapunov separation is "
+                f"sep = {got['sep']:.3g} against the residual's terms {got['size']:.3g}, so the rounding of the "
+                f"residual alone can move P there by up to {got['floor']:.3g} of its scale (the correction there: {fb:.3g})")
+        if fb > NOT_CONVERGED_FACTOR * got["floor"]:
+            return (f"{what} was not solved to the accuracy a gain needs, a numerical failure: {head}{cond} — the "
+                    f"correction is far above that floor, so it is not the equation's conditioning that stops it but "
+                    f"Newton's iteration from the solvers' answer, which did not converge in the steps allowed (a slow "
+                    f"mode the noise hardly reaches, or states scaled over many decades, cause this: rescale the "
+                    f"states)")
+        return (f"{what} is too ill-conditioned for an accurate gain: {head}{cond}. Nearly unobservable or "
+                f"undetectable modes, or states scaled over many decades, cause this: rescale the states or remove "
+                f"the modes the outputs hardly see")
     return (f"no solution of {what} with a residual within RICCATI_RTOL = {RICCATI_RTOL:g} of its terms and a "
             f"stabilising gain (scipy's QZ solver, SLICOT SB02OD, Newton's method from an answer of theirs with a "
             f"stable closed loop)")

@@ -44,7 +44,7 @@ from ...errors import DesignError
 from ...generator import ResidualGenerator
 from ...linalg import default_rtol, rank, right_null
 from ...model import FDIModel
-from ._observer import (check_pole_set, default_poles, detectable_split, observer_gain,
+from ._observer import (check_pole_set, default_poles, observable_order, observer_gain,
                         observer_generator, output_observer, residual_names)
 
 
@@ -139,8 +139,7 @@ def fault_detection_filter(model: FDIModel, poles=None, faults=None, *, atol: fl
         raise DesignError(f"the detection spaces are not invariant under A - D1 C (leak {leak:.3g}): the fault "
                           f"directions are too close to dependent for this placement")
     A_R, C_R = Wperp.T @ A0 @ Wperp, Cbar @ Wperp
-    _, n_o, _ = detectable_split(A_R, C_R, model.dt, what="the Beard–Jones filter", fixed_reason=fixed_reason,
-                                 atol=atol)
+    n_o = observable_order(A_R, C_R, model.dt, what="the Beard–Jones filter", fixed_reason=fixed_reason, atol=atol)
     rest = defaults[nk:nk + n_o]
     if given is not None:
         rest = given[nk:]

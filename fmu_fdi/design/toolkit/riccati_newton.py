@@ -299,7 +299,7 @@ def forward_refined(A, B, Q, R, S, X, dt: float, rtol: float = FORWARD_RTOL, ste
         stalled = 0 if fwd < best else stalled + 1
         best = min(best, fwd)
         if stalled == FORWARD_STALL or k == steps:
-            figures.update(_condition(A, B, Q, R, S, X, dt))
+            figures.update(_condition(A, B, Q, R, S, X, dt, D))
             figures["why"] = (f"the correction stays at {best:.3g} or above after {k} Newton steps"
                               if k < steps else f"{steps} Newton steps leave the correction at {fwd:.3g}")
             return None
@@ -307,25 +307,110 @@ def forward_refined(A, B, Q, R, S, X, dt: float, rtol: float = FORWARD_RTOL, ste
     return None
 
 
-def _condition(A, B, Q, R, S, X, dt: float) -> dict:
-    """``sep``, the separation of the closed-loop Lyapunov (Stein) operator ``Δ ↦ A_FᵀΔ + ΔA_F`` (``A_FᵀΔA_F − Δ``)
-    in the coordinates of the diagonal balancing of ``A_F`` (SLICOT SB03MD's estimate), and ``floor = n·eps·size /
-    (sep·scale)``: the forward error the rounding of a double-precision solver's residual (``~n·eps·size``,
-    :func:`riccati_residual`'s terms) can leave through the inverse operator — Byers' condition estimate of the
-    equation, relative to the solution's scale, i.e. what no answer computed in double is certain to beat. Read only
-    for a refusal's message (one more Schur form)."""
+def _condition(A, B, Q, R, S, X, dt: float, D=None) -> dict:
+    """Figures of an ill-conditioned equation, all in one coordinate system — that of the diagonal balancing ``T`` of
+    the closed loop ``A_F`` (``Ã = T⁻¹AT``, ``B̃ = T⁻¹B``, ``Q̃ = TQT``, ``S̃ = TS``, ``X̃ = TXT``, so ``𝓡̃ = T𝓡T`` and
+    ``Ã_F = T⁻¹A_F T``; exact, powers of 2): ``sep``, the separation of the closed-loop Lyapunov (Stein) operator
+    ``Δ ↦ Ã_FᵀΔ + ΔÃ_F`` (``Ã_FᵀΔÃ_F − Δ``) by SLICOT SB03MD's estimate; ``size``, the residual's terms there
+    (:func:`riccati_residual`'s ``2‖M‖ + ‖X‖ + ‖gain‖ + ‖Q‖``); ``floor = n·eps·size / (sep·scale)`` with ``scale`` =
+    :func:`solution_scale` there: the forward error, relative to the solution's scale in those coordinates, that the
+    rounding of a double-precision residual (``~n·eps·size``) can leave through the inverse operator — Byers'
+    condition estimate, what no answer computed in double is certain to beat; and, given the correction ``D`` (caller's
+    coordinates), ``forward_balanced = ‖T D T‖_F / scale``, the correction in the same coordinates, the figure the
+    floor compares with. (Before, ``floor`` divided the caller's coordinates' ``size`` and scale by the balanced
+    ``sep``: a ratio of figures of two equations.) Read only for a refusal's message (one more Schur form)."""
     import slycot
 
     out = _residual(A, B, Q, R, S, X, dt)
     if out is None:
         return {}
-    Acl = A + B @ out[2]
-    t = sla.matrix_balance(Acl, permute=False, separate=True)[1][0]
+    t = sla.matrix_balance(A + B @ out[2], permute=False, separate=True)[1][0]
+    At, Bt = A * (1 / t)[:, None] * t[None, :], B / t[:, None]
+    Qt, St, Xt = Q * t[:, None] * t[None, :], S * t[:, None], (X + X.T) / 2 * t[:, None] * t[None, :]
+    bal = _residual(At, Bt, Qt, R, St, Xt, dt)
+    if bal is None:
+        return {}
+    Acl = At + Bt @ bal[2]
     try:
-        sep = float(slycot.sb03md57((Acl / t[:, None] * t[None, :]).copy(), C=np.zeros_like(Acl),
-                                    dico="D" if dt else "C", job="S")[4])
+        sep = float(slycot.sb03md57(Acl.copy(), C=np.zeros_like(Acl), dico="D" if dt else "C", job="S")[4])
     except Exception:  # slycot raises its own error types; the figure is only for the message
         return {}
     n = A.shape[0]
-    floor = n * np.finfo(float).eps * out[1] / max(sep * solution_scale(A, Q, X, dt), np.finfo(float).tiny)
-    return {"sep": sep, "floor": float(floor)}
+    scale = solution_scale(At, Qt, Xt, dt)
+    floor = n * np.finfo(float).eps * bal[1] / max(sep * scale, np.finfo(float).tiny)
+    got = {"sep": sep, "size": float(bal[1]), "floor": float(floor)}
+    if D is not None:
+        got["forward_balanced"] = float(np.linalg.norm(D * t[:, None] * t[None, :])) / scale
+    return got
+
+
+# --------------------------------------------------------------------------------------- existence, from the pencil
+def boundary_gap(A, B, Q, R, S, dt: float) -> dict | None:
+    """How far the eigenvalues of the equation's Hamiltonian (continuous) or symplectic (discrete) pencil lie from the
+    stability boundary, and the tolerance below which an eigenvalue is on it to working accuracy: ``{'distance',
+    'nearest', 'tol'}``, or None where the eigenvalues cannot be computed.
+
+    With ``R > 0`` and ``[Q S; Sᵀ R] ⪰ 0`` the stabilising solution exists iff ``(A, B)`` is stabilisable and the pencil
+    has no eigenvalue on the imaginary axis (unit circle) — an uncontrollable or unobservable mode of the
+    decorrelated pair there (Zhou, Doyle & Glover, *Robust and Optimal Control*, Thm. 13.7 and 21.x; Chan, Goodwin &
+    Sin 1984). The pencil is the extended one of Van Dooren (1981) as scipy forms it (no ``R⁻¹``), continuous
+    ``[A 0 B; −Q −Aᵀ −S; Sᵀ Bᵀ R] − λ·diag(I, I, 0)``, discrete ``[A 0 B; −Q I −S; Sᵀ 0 R] − λ[I 0 0; 0 Aᵀ 0; 0 −Bᵀ 0]``,
+    scaled and balanced (below; every step leaves the eigenvalues unchanged), its finite eigenvalues by QZ (backward
+    stable: those of a pencil within ``c·eps`` of its norms).
+
+    Tolerance: an eigenvalue on the boundary is one of a pair ``(λ, −λ̄)`` (``(λ, 1/λ̄)``) that coincide, generically a
+    2×2 Jordan block, and a perturbation of relative size ``δ = N·eps`` (``N`` the pencil's order; QZ's backward
+    error relative to ``‖L‖``, ``‖M‖``) moves such an eigenvalue by ``O(√δ)`` times the pencil's eigenvalue scale
+    ``‖L‖₂/‖M‖₂`` (Puiseux; Lidskii), a simple one by only ``O(δ)``: so an eigenvalue within ``tol = √(N·eps)·‖L‖/‖M‖``
+    of the axis (discrete: ``| |λ| − 1 | ≤ tol``, the ratio then dimensionless like the circle's radius) cannot be told
+    from one on it — the data is within its rounding of an equation without a stabilising solution — and one beyond
+    it is off the boundary to working accuracy. (A first form, ``√(N·eps)·max(‖L‖, ‖M‖)``, multiplied by the norm
+    once too often: the deflated problem 15/0 of tests/test_riccati_forward.py, a DARE whose nearest eigenvalue is
+    0.00487 from the circle and which is solved to a forward error below 1e-6, read as on it.) Stabilisability (the
+    filter's detectability) is the caller's separate test."""
+    n, m = A.shape[0], B.shape[1]
+    if n == 0:
+        return {"distance": np.inf, "nearest": None, "tol": 0.0}
+    # the eigenvalues are invariant under a state similarity, an input transformation (B V, Vᵀ R V, S V) and the
+    # scaling X → γX ((Q, S, R)/γ): the pencil is formed after the diagonal balancing of A, R → I (Cholesky) and the γ
+    # that equates ‖Q‖ and ‖B R⁻¹ Bᵀ‖ (the two quadratic terms), so that its norms measure the data, not its units
+    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
+    A, B, Q, S = A * (1 / t)[:, None] * t[None, :], B / t[:, None], Q * t[:, None] * t[None, :], S * t[:, None]
+    try:
+        Lr = np.linalg.cholesky((R + R.T) / 2)
+    except np.linalg.LinAlgError:
+        return None
+    B, S, R = sla.solve_triangular(Lr, B.T, lower=True).T, sla.solve_triangular(Lr, S.T, lower=True).T, np.eye(m)
+    q, w = float(np.linalg.norm(Q, 2)), float(np.linalg.norm(B, 2)) ** 2
+    g = np.sqrt(q / w) if q > 0 and w > 0 else 1.0
+    B, Q, S = B * np.sqrt(g), Q / g, S / np.sqrt(g)
+    N = 2 * n + m
+    L, M = np.zeros((N, N)), np.zeros((N, N))
+    L[:n, :n], L[:n, 2 * n:], L[n:2 * n, :n], L[n:2 * n, 2 * n:] = A, B, -Q, -S
+    L[2 * n:, :n], L[2 * n:, 2 * n:] = S.T, R
+    M[:n, :n] = np.eye(n)
+    if dt:
+        L[n:2 * n, n:2 * n] = np.eye(n)
+        M[n:2 * n, n:2 * n], M[2 * n:, n:2 * n] = A.T, -B.T
+    else:
+        L[n:2 * n, n:2 * n], L[2 * n:, n:2 * n] = -A.T, B.T
+        M[n:2 * n, n:2 * n] = np.eye(n)
+    # and balanced as a pencil: the diagonal similarity of GEBAL on |L| + |M| off the diagonal (scipy's CARE/DARE
+    # balancing, without its symplectic constraint, which only the solution's subspace needs) — powers of 2, exact
+    W = np.abs(L) + np.abs(M)
+    np.fill_diagonal(W, 0.0)
+    d = sla.matrix_balance(W, permute=False, separate=True)[1][0]
+    L, M = L / d[:, None] * d[None, :], M / d[:, None] * d[None, :]
+    try:
+        alpha, beta = sla.eigvals(L, M, homogeneous_eigvals=True)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    ratio = float(np.linalg.norm(L, 2)) / max(float(np.linalg.norm(M, 2)), np.finfo(float).tiny)
+    finite = np.abs(beta) > N * np.finfo(float).eps * np.abs(alpha)
+    if not np.any(finite):
+        return {"distance": np.inf, "nearest": None, "tol": 0.0}
+    lam = alpha[finite] / beta[finite]
+    dist = np.abs(np.abs(lam) - 1.0) if dt else np.abs(lam.real)
+    k = int(np.argmin(dist))
+    tol = np.sqrt(N * np.finfo(float).eps) * ratio
+    return {"distance": float(dist[k]), "nearest": complex(lam[k]), "tol": float(tol)}
