@@ -27,9 +27,9 @@ assumed — give the baseline revision, e.g. main), judged by numpy on the retur
 against the optimal filter's (the one the stage lowered, captured from the same design; H∞: numpy grid peaks within
 1e-5 relative plus 1e-9 ||Mr||∞, H2: ||M⁻¹E||₂ within 1e-3), Q stable. Counts ok / refused / leak / BROKEN / crash
 and lists each design's row orders (optimal → returned) and numpy leak.
-Run: python benchmarks/mindeg_time.py --judged 0-29 [REV]   (``--judged cases [REV]``: the CASES only; ``--judged 1,3,5``:
-those seeds and the CASES). Each design runs with the caches cleared (freqresp's, the judge's u/d readings) on its own
-model, the module going first alternating from case to case.
+Run: python benchmarks/mindeg_time.py --judged 0-29 [REV]   (``--judged cases [REV]``: the CASES only;
+``--judged 1,3,5``: those seeds and the CASES). Each design runs with the caches cleared (freqresp's, the judge's
+u/d readings) on its own model, the module going first alternating from case to case.
 
 27 Nov, mindeg9 (same session, loaded 2-core machine; main = cfcd677): ``--judged 0-29``, random H∞ + H2 (60 designs):
 main ok 50 / refused 1 / leak 9 / BROKEN 0 / crash 0 → branch **56 / 1 / 3 / 0 / 0**. Main's leaks after mindeg (numpy,

@@ -84,8 +84,8 @@ def _numpy_judged(model, Mr, gen, opt, norm):
 
 @pytest.mark.slow
 def test_seed_1_truncations_stay_out_of_the_joint_pass_and_no_row_is_raised(monkeypatch):
-    """Random continuous H∞ seed 1 (two 17-state optimal rows; slow: 23 s at load 3, 77 s at load ~8). On 253b4cb: 4 verified
-    filters paired a truncation with another row's untried candidate, and the accepted filters went [14, 15] →
+    """Random continuous H∞ seed 1 (two 17-state optimal rows; slow: 23 s at load 3, 77 s at load ~8). On 253b4cb: 4
+    verified filters paired a truncation with another row's untried candidate, and the accepted filters went [14, 15] →
     [15, 15] → [15, 15] (row 1 raised). Now: a verified filter holding a truncation not yet accepted differs from the
     accepted ones in that row only; each accepted filter lowers the previous one (no row higher, one row lower)."""
     model, Mr, gen, opt, log = _spied_design(monkeypatch, 1, "inf")
