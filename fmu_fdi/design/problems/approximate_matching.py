@@ -1070,7 +1070,9 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, budget, smarg, de
     ``Q_i + Y N`` from Type 2 minimum dynamic covers (:func:`..toolkit.covers.left_cover2`; ``N`` the proper
     stable left null-space basis of the whole ``Ge = [Gu Gd Gf Gw; I 0 0 0]``) at ``MINDEG_RTOLS`` and the
     re-solve of (2) from its reference (:func:`_resolved_row`), stable ones only (an unstable least-order row
-    is not taken and ``reason`` says so), numerators refitted, near-cancelled modes truncated. The result is
+    is not taken and ``reason`` says so), numerators refitted, near-cancelled modes truncated; the rows are tried
+    jointly at their j-th candidate, then one by one, each only below the order it has (the optimal row's balanced
+    truncations, a row's last resort, in the one-by-one pass only). The result is
     kept only if its measured error is within ``reltol`` of the optimal filter's (an absolute floor of 1e-9
     ``||M Mr||`` for exactly matchable references) and, after the optimal filter's corrections, its post-conditions
     hold and — with ``required`` (:func:`required_faults`, what ``approximate_model_matching`` passes) — its u/d leak
@@ -1640,7 +1642,9 @@ def _weighted_redecoupling(model, Q, required, fnm, MF, lam, norm, systems, budg
     of :func:`_decoupling_refit` with the u/d equations weighted by each of ``LOWERED_UD_WEIGHTS`` in turn (the
     design's points ``lam``, thinned to ``REDECOUPLE_ROWS`` real equations per unknown), the first whose normalised
     leak (:func:`_leak_of`) is at most ``dec_tol`` and that :func:`_correction_refused` accepts (error within
-    the design's :class:`ErrorBudget`, post-conditions); else ``(Q, note)`` with the weighted refits' figures added.
+    the design's :class:`ErrorBudget`, post-conditions); then, with several rows, each leaking row refitted so on its
+    own realisation (``rows``, :func:`_row_redecoupling` with ``weighted``); else ``(Q, note)`` with the weighted
+    refits' figures added.
 
     Why: a lowered row's numerator was fitted to ``Q_i Ge`` on all columns alike (:func:`_refit_numerator`), so its
     fit error sits in the u/d columns as much as in the fault ones; a fault response kept to ``reltol`` of the optimum
