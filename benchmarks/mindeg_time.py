@@ -77,6 +77,19 @@ optimal filter [87, 87] → [30, 30] (the γ-iteration's half budget, approximat
 central controller), lowered [26, 26] → [27, 27], numpy 3.2e-8 → 6.7e-8; H2 seed 7, H∞ seed 17 and the 9 CASES the
 same orders. Time (same run): H∞ 17 7.1 → 9.5 s, H2 17 7.4 → 11.4 s, seed9 1.50 → 1.91 s (the truncations' refits,
 computed for every row with near-cancelled modes, eagerly); H∞ 7 15.7 → 14.3 s.
+27 Nov, amm18 (main 253b4cb loaded as REV, same run; each design cold, on its own model, the module going first
+alternating — before, the second design of a case read the first's cached spectra and values, and single-row designs
+running the same code in both modules came out 1.4 … 2.7 times faster second; load 3-8 on the 2-core machine beside
+other sessions): ``--judged 1,3,…,29 main`` — the two-row designs (a one-row filter has no joint pass and the same
+candidate list in both, so the even seeds run the same code) — and the CASES: main **39 ok / 0 / 0 / 0 / 0** → branch
+**39 / 0 / 0 / 0 / 0**. No row order higher anywhere; lower on 6: H∞ 1 [15, 15] → [14, 15], H2 1 [15, 15] → [14, 14],
+H2 13 [26, 13] → [24, 13], H∞ 19 [18, 18] → [17, 17], H∞ 29 [29, 29] → [28, 28], H2 29 [29, 28] → [28, 28] (numpy
+leak ≤ 7.1e-8 of the weakest fault, errors the optimal's); H2 13 keeps row 2 at 13, H2 17 [19, 5] and H∞ 17 [5, 8] as
+main. Time: H∞ 17 46.0 → 14.1 s (0.31: its joint pass no longer accepts [18, 24] through row 2's order-24
+truncation), H2 17 61.7 → 51.9 s; the 39 designs 564 → 618 s, geometric mean of the per-design ratios 1.04 (0.31 …
+2.15): the row pass now verifies a row beside the other's optimal row (H∞ 13: order 84, 1.2 s a verification where
+main's joint trials of two lowered rows cost 0.6 s — 30.9 vs 34.0 s run side by side) and offers truncations below a
+row's accepted order that main never tried.
 """
 import sys
 import time
