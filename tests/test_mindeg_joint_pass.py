@@ -119,7 +119,8 @@ def test_h2_seed_17_row_1_keeps_its_truncation_beside_the_optimal_row_2(monkeypa
     (1.060936e-7, limit 1.096533e-7) but no realisation of it tried is decoupled: numpy reads its leak at 1.9e-5 of the
     row's weakest fault (7.7e-5), its refits (shipped, balanced, balanced Schur, Schur; weights 10, 100) at 4.8e-7 …
     4.7e-6, the judge 1.4e-7 … 4.4e-7 plus sensitivities 2.2e-7 … 8.6e-6; of the best (balanced Schur) sensitivity,
-    the coordinate-free terms u·|D||G| 3.8e-8 and u·|C||Z| 3.3e-8 alone are 0.7 dec_tol."""
+    u·|D||G| 3.8e-8 (free of the coordinates) and u·|C||Z| 3.3e-8 (3.3e-8 … 5.8e-8 in every coordinates tried) alone
+    are 0.7 dec_tol."""
     model, Mr, gen, opt, log = _spied_design(monkeypatch, 17, "2")
     info = gen.info["mindeg"]
     assert info["lowered"] and info["row_orders"][0] <= 19 and info["row_orders"][1] <= 5, info["row_orders"]
