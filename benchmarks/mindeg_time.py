@@ -89,7 +89,8 @@ main. Time: H∞ 17 46.0 → 14.1 s (0.31: its joint pass no longer accepts [18,
 truncation), H2 17 61.7 → 51.9 s; the 39 designs 564 → 618 s, geometric mean of the per-design ratios 1.04 (0.31 …
 2.15): the row pass now verifies a row beside the other's optimal row (H∞ 13: order 84, 1.2 s a verification where
 main's joint trials of two lowered rows cost 0.6 s — 30.9 vs 34.0 s run side by side) and offers truncations below a
-row's accepted order that main never tried.
+row's accepted order that main never tried. Repeated (the two modules alternating, cold, best of two, load 3-4):
+H∞ 17 15.5 → 12.1 s (0.78), H∞ 13 12.6 → 17.4 s (1.39), H2 7 10.0 → 9.8 s (0.98; 2.0 in the run above was load).
 """
 import sys
 import time
