@@ -62,6 +62,10 @@ fallback (β_w, tried only where no candidate is within the rounding estimate β
 main ok 60 / refused 0 / leak 0 / BROKEN 0 / crash 0 → branch cb28e9d the same, every verdict and printed gamma_sub
 identical (an intermediate stop rule of the γ-iteration — measured error only — had moved H∞ seed 25 from 7.414298 to
 7.414590, within reltol of the bracket's 7.413943; the stop kept requires the level too, and gives main's 7.414298).
+
+27 Nov, amm18 (main 253b4cb from a git archive and the branch, concurrently, load ~5): ok 60 / 0 / 0 / 0 / 0 both,
+median 2.91 / 2.92 s, every verdict and gamma_sub identical (the branch changes mindeg's stage only, which this set
+does not run).
 """
 import sys
 import time

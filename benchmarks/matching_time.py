@@ -35,6 +35,7 @@ def baseline(rev: str, module: str = "matching"):
     spec = importlib.util.spec_from_loader(name, loader=None)
     mod = importlib.util.module_from_spec(spec)
     mod.__package__ = "fmu_fdi.design.problems"
+    sys.modules[name] = mod  # (a dataclass resolves its annotations through its module's entry)
     exec(compile(src, f"{rev}:{module}.py", "exec"), mod.__dict__)
     return mod
 
