@@ -218,20 +218,18 @@ def _actuator_set(b: float, c: float):
             for k in range(3)]
 
 
-@pytest.mark.parametrize("b, c", [
-    pytest.param(1e10, 1e4, marks=pytest.mark.xfail(strict=True, reason="issue 17, audit seed 243 (model_detection.py): "
-                                                                       "MDgap reported ∞ for a noise response read as "
-                                                                       "'rounding' against ||Q||∞ of the u columns")),
-    (1e10, 1e2), (1e2, 1e-2)])
+@pytest.mark.parametrize("b, c", [(1e10, 1e4), (1e10, 1e2), (1e2, 1e-2)])
 def test_model_detection_gap_is_numpys_whatever_the_input_units(b, c):
     """< 1 s. approximate_model_detection_bank's ``MDgap``, ``MDperf``, decoupling and stability, judged by
     test_approximate_random's judge_amd (numpy frequency responses, gap = β/γ with γ = ||Q_i [Gw; 0]||∞ read on a
     dense grid, ∞ where γ ≤ DEC_TOL·β: the normalised form's decoupling). Every filter here is
     ``Q_i = q (s + 1)/(s + a) [1, −b_i/(s + 1)]`` up to scaling, ``β_i = 0.3 b·||q/(s + a)||∞ = 1``, so its noise
     response ``γ = c/(0.3 b)`` is a transfer function of its own, whatever ``b``: 3.3e-6 for (1e10, 1e4) — a gap of
-    3e5 — where the old ``_noise_gain`` compared γ with 1e-9·||Q||∞·||Gw||∞ = 1e-9·(1 + 0.3 i)/0.3·c ≥ 3.3e-5
-    (||Q||∞ is the u columns' ``(1 + 0.3 i)/0.3``) and reported γ = 0, an infinite gap. (1e10, 1e2): γ = 3.3e-8 below
-    DEC_TOL — ∞ both ways; (1e2, 1e-2): the same filters in other units, a finite gap both ways."""
+    3e5 — where ``_noise_gain`` compared γ with 1e-9·||Q||∞·||Gw||∞ = 1e-9·(1 + 0.3 i)/0.3·c ≥ 3.3e-5 (||Q||∞ is the
+    u columns' ``(1 + 0.3 i)/0.3``) and reported γ = 0, an infinite gap on every filter (failed on c49e6c1, strict
+    xfail there); now the rounding scale is ``||Q_y||∞ ||Gw||∞`` (3.3e-7 here) and γ ≤ dec_tol·β counts as decoupled,
+    as the post-conditions read the normalised form. (1e10, 1e2): γ = 3.3e-8 below DEC_TOL — ∞ both ways, before and
+    after; (1e2, 1e-2): the same filters in other units, a finite gap both ways."""
     from fmu_fdi.design import approximate_model_detection_bank
     from test_approximate_random import judge_amd
 
