@@ -110,8 +110,8 @@ def _product_realisation(monkeypatch, seed: int):
 def test_seed206_judge_reads_the_stored_filters_leak(monkeypatch):
     """~15 s under load (10 s of it the design up to its shipping stage). The library's normalised u/d reading of
     the product realisation Y·Φ·Q0 (order 99) is a reading of the stored filter with an error bound: it may not
-    exceed numpy's refined reading of the same stored data by more than that bound. Numpy: ``Q(λ)`` and ``[Gu; I](λ)`` each by :func:`refined_values` on test_approximate_random's
-    grid (every fourth of its 1500 log points over the poles' band), the peak refined there
+    exceed numpy's refined reading of the same stored data by more than that bound. Numpy: ``Q(λ)`` and
+    ``[Gu; I](λ)`` each by :func:`refined_values` on test_approximate_random's grid (every fourth of its 1500 log points over the poles' band), the peak refined there
     (:func:`_refined_peak`); normalised by the weakest required fault's peak on the same grid (Mr's row requires
     every fault). Tolerance: 1.05 × numpy's figure (the two normalising fault peaks are read on different grids: a
     grid peak is low by at most a few percent, test_approximate_random's FIG_RTOL derivation) plus the judge's own
@@ -208,7 +208,8 @@ def test_optimum_of_matching_identity_is_attained(seed, rows):
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="issue 17, approximate seeds 26, 240 amm(Mr = I) (approximate_matching.py, "
                                        "amm18): refused 'error response differs from the designed one by 0.0519 / "
-                                       "0.18' where the optimum 1 (Q = 0's error) is attained by admissible nonzero filters")
+                                       "0.18' where the optimum 1 (Q = 0's error) is attained by admissible nonzero "
+                                       "filters")
 @pytest.mark.parametrize("seed", [26, 240])
 def test_matching_identity_is_designed(seed):
     """~6-15 s each under load. The design is returned and passes check_case's numpy judge (the refusal is false:
