@@ -108,14 +108,14 @@ def _product_realisation(monkeypatch, seed: int):
                                        "only the points near the unrefined readings' peak; a masked point keeps its "
                                        "double reading 2.09e-7 where the stored filter's leak is 6.3e-11")
 def test_seed206_judge_reads_the_stored_filters_leak(monkeypatch):
-    """~15 s under load (10 s of it the design up to its shipping stage). The library's normalised u/d reading of
-    the product realisation Y·Φ·Q0 (order 99) is a reading of the stored filter with an error bound: it may not
-    exceed numpy's refined reading of the same stored data by more than that bound. Numpy: ``Q(λ)`` and
-    ``[Gu; I](λ)`` each by :func:`refined_values` on test_approximate_random's grid (every fourth of its 1500 log
-    points over the poles' band), the peak refined there (:func:`_refined_peak`); normalised by the weakest
-    required fault's peak on the same grid (Mr's row requires every fault). Tolerance: 1.05 × numpy's figure (the two normalising fault peaks are read on different grids: a
-    grid peak is low by at most a few percent, test_approximate_random's FIG_RTOL derivation) plus the judge's own
-    ``decoupling_error``. On the code of this session: judge 2.16e-7 (error 4.8e-10), numpy 1.6e-10."""
+    """~15 s under load (10 s of it the design up to its shipping stage). The library's normalised u/d reading of the
+    product realisation Y·Φ·Q0 (order 99) is a reading of the stored filter with an error bound: it may not exceed
+    numpy's refined reading of the same stored data by more than that bound. Numpy: ``Q(λ)`` and ``[Gu; I](λ)`` each by
+    :func:`refined_values` on test_approximate_random's grid (every fourth of its 1500 log points over the poles' band),
+    the peak refined there (:func:`_refined_peak`); normalised by the weakest required fault's peak on the same grid
+    (Mr's row requires every fault). Tolerance: 1.05 × numpy's figure (the two normalising fault peaks are read on
+    different grids: a grid peak is low by at most a few percent, test_approximate_random's FIG_RTOL derivation) plus
+    the judge's own ``decoupling_error``. On the code of this session: judge 2.16e-7 (error 4.8e-10), numpy 1.6e-10."""
     from fmu_fdi.design.problems.approximate_matching import normalised_leak, required_faults
 
     model, Mr, Q = _product_realisation(monkeypatch, 206)
