@@ -12,9 +12,11 @@ own, so they stay strict xfails with their cause and the change proposed (the fi
   leaks 9.6e-5 — the case ship17's ``_decoupled_candidate`` was made for. It did not swap because the judge read the
   product's leak at 2.16e-7 (± 4.8e-10): ``postconditions._decoupled_values`` refines only the points whose double
   reading could reach the block's peak, the peak taken from the *unrefined* readings; a point whose double reading
-  over-states its value by more than its own first-order bound sets that peak, is refined and falls, and the points it
-  had masked are left at their double readings (1.0301 rad/s: 2.09e-7 read on the judge's grid of 222 points, 6.3e-11
-  when read alone or among its six neighbours) while their error is reported at the extended precision's bound.
+  over-states its value by more than its own first-order bound sets that peak (0.138 rad/s: read 1.18e-6, bound
+  7.5e-7, value 1.2e-10), is refined and falls, and the points it had masked are left at their double readings
+  (1.0301 rad/s: 2.09e-7 with a double bound 1.3e-7 — the value's own size — on the judge's grid of 222 points,
+  103 refined; 6.3e-11 when read alone or among its six neighbours) while their error is reported at the extended
+  precision's bound.
   Proposed (postconditions.py, judge18): refine until no unrefined point's reading plus bound reaches the refined peak
   (a loop over the existing test, refined points' bound then the extended one). Tried for the run by patching the
   module: the reading falls to the stored filter's, ``_decoupled_candidate`` ships the product and numpy's judge passes
