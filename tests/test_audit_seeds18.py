@@ -251,3 +251,27 @@ def test_model_detection_gap_is_numpys_whatever_the_input_units(b, c):
     models = _actuator_set(b, c)
     bank = approximate_model_detection_bank(models)
     assert judge_amd(bank, models) == []
+
+
+# ------------------------------------------------------------------------------------- seeds 268, 277
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 17, audit seeds 268, 277 (approximate_matching.py, amm18): the matching "
+                                       "error read on a grid that misses a lightly damped peak — reported below the "
+                                       "γ-iteration's own infeasible level")
+@pytest.mark.parametrize("seed", [268, 277])
+def test_matching_error_is_the_peak_beside_a_resonance(seed):
+    """~30-70 s under load. Approximate audit 260-279 (further seeds): ``amm(Mr = an exact detection row's Rf)``
+    reported the error 4.63869 (seed 268: continuous n 29, p 1, m 1, plant pair −0.1096 ± 6.9247j, ζ = 0.016) and
+    11.8347 (seed 277: discrete n 30, a pair 1.0e-3 inside the unit circle) where numpy's refined peak reads 4.72841
+    at 6.960 rad/s and 11.8606 at 2.129 rad/s — both *below* the γ-iteration's certified infeasible level (bracket
+    [4.71833, 4.71853], [11.85619, 11.85666]), which no filter's error can be. The designed ``Y Ĝ − F`` itself peaks
+    at 4.72841 there (numpy, the captured factors): SB10FD's central controller at the feasible level 4.71853 exceeds
+    its certificate ``< γ`` by 0.2 %, and both the check meant to catch that (``_hinf_at``: a 200-point grid) and the
+    returned figure (``_judged_error``: 400 points, 60-point refinement around the three highest) read a log grid
+    whose 4.7 % steps straddle a resonance of half-width ~1.6 % (values 2.6 and 3.6 at ±2 % of the peak), so the
+    returned filter's true error 4.72841 is above the design's own limit 4.71880 (reltol 1e-4) unseen. Proposed
+    (approximate_matching.py, amm18): ``_points`` adds every lightly damped pole's resonance frequencies of the systems
+    it grids (``postconditions._resonances``: |Im s|, |Im s| ± |Re s|/2, as the judge's grid does); tried for the run by
+    patching the module: both seeds then pass this judge (26 s, 46 s). A returned error below the bracket's lower end
+    is a mis-read the function could refuse on."""
+    assert check_case(seed, calls=("amm_ref",)) == [("amm(Mr=detection row)", "ok", "")]
