@@ -41,6 +41,7 @@ load 2-9 — the times are indicative):
     769-798      30/0/0           30/0/0           27/21/0         27/21/0        114/42/0   4.0 / 132 s (773)
     799-828      30/0/0           30/0/0           35/11/0         35/11/0        130/22/0   5.5 / 38.5 s (822)
     829-858      29/1/0           30/0/0           27/12/0         27/12/0        113/25/0   4.5 / 48.2 s (837)
+    859-888      30/0/0           30/0/0           35/10/0         35/10/0        130/20/0   1.2 / 9.1 s (863)
 
 no timeout, no false refusal. The refused nullspace_design (846, n = 1) names ``rank [Gd Gf_fa] = rank Gd = 1``, as
 numpy's rank test reads it. Seed 773's 132 s is its structured_bank on the 26 rows achievable_structure lists (order
