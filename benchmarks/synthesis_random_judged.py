@@ -33,6 +33,20 @@ no timeout, no false refusal; median 0.5-0.9 s per model, slowest 9.7 s (691), 9
 nullspace_design calls (546, 642; n = 1) name ``rank [Gd Gf_fa] = rank Gd = 1``, as numpy reads it; every bank refusal's
 "normal rank of Gd = p" matched numpy's rank of [Gd G_X] (206 messages).
 
+Measured 27-28 Nov (audit18, ``--timeout=300``, refusals re-judged by numpy, nice 10 beside four other helpers' work,
+load 2-9 — the times are indicative):
+
+    seeds    nullspace_design  structured_bank  dedicated_bank  generalized_bank  total     median / slowest
+    739-768      30/0/0           30/0/0           27/21/0         27/21/0        114/42/0   0.9 / 11.8 s (763)
+    769-798      30/0/0           30/0/0           27/21/0         27/21/0        114/42/0   4.0 / 132 s (773)
+    799-828      30/0/0           30/0/0           35/11/0         35/11/0        130/22/0   5.5 / 38.5 s (822)
+    829-858      29/1/0           30/0/0           27/12/0         27/12/0        113/25/0   4.5 / 48.2 s (837)
+    859-888      30/0/0           30/0/0           35/10/0         35/10/0        130/20/0   1.2 / 9.1 s (863)
+
+no timeout, no false refusal. The refused nullspace_design (846, n = 1) names ``rank [Gd Gf_fa] = rank Gd = 1``, as
+numpy's rank test reads it. Seed 773's 132 s is its structured_bank on the 26 rows achievable_structure lists (order
+858; 96-106 s alone at load 8, ~3.5 s a row, 90 of it in nullspace_design's noise pencil and its post-conditions).
+
 With ``--matching`` it audits instead the seeded model-matching families of
 tests/test_synthesis_matching_order.py (a least-order detection row's fault response as the
 reference, on stable plants and, with updating, on unstable ones), judged by that file's numpy

@@ -298,12 +298,13 @@ def distance_mapping(bank, models: Sequence[FDIModel], *, freqs=None, norm: str 
     return np.array([[_gain(Qi @ Gj, freqs, norm) for Gj in maps] for Qi in Qs])
 
 
-def noise_gaps(bank, models: Sequence[FDIModel], *, freqs=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def noise_gaps(bank, models: Sequence[FDIModel], *, freqs=None,
+               dec_tol: float = DEC_TOL) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Noise gaps of a model detection bank (FaultDetectionTools.jl ``mdgap``).
 
     ``gap_i = β_i / γ_i`` with ``β_i = min_{j≠i} ||Q_i [Gu_j; I]||∞`` (the peak over ``freqs`` if
     given) and ``γ_i = ||Q_i [Gw_i; 0]||∞``, the noise response of filter i when its own model
-    is true (∞ gap when the noise is decoupled exactly).
+    is true (∞ gap when the noise is decoupled: γ_i within ``dec_tol·β_i`` or its rounding, :func:`_noise_gain`).
 
     Returns
     -------
@@ -314,19 +315,26 @@ def noise_gaps(bank, models: Sequence[FDIModel], *, freqs=None) -> tuple[np.ndar
         raise DesignError(f"noise gaps need one filter per model: {len(Qs)} filters, {len(models)} models")
     perf = distance_mapping(Qs, models, freqs=freqs)
     beta = np.array([min(perf[i, j] for j in range(len(models)) if j != i) for i in range(len(Qs))])
-    gamma = np.array([_noise_gain(Qi, mi) for Qi, mi in zip(Qs, models)])
+    gamma = np.array([_noise_gain(Qi, mi, b * dec_tol) for Qi, mi, b in zip(Qs, models, beta)])
     gap = np.where(gamma > 0, beta / np.where(gamma > 0, gamma, 1.0), np.inf)
     return gap, beta, gamma
 
 
-def _noise_gain(Q: LTI, model: FDIModel) -> float:
-    """``γ = ||Q [Gw; 0]||∞``, or 0 when it is rounding of an exact decoupling: at most 1e-9 of the
-    bound ``||Q||∞ ||Gw||∞`` (the backward-error scale of the product, as in :mod:`..toolkit.postconditions`)."""
+def _noise_gain(Q: LTI, model: FDIModel, decoupled: float = 0.0) -> float:
+    """``γ = ||Q [Gw; 0]||∞``, or 0 where w counts as decoupled: γ at most ``decoupled`` (the caller's
+    ``dec_tol·β``: the normalised form's decoupling, where the post-conditions read a leak as none) or the
+    rounding of an exact decoupling, 1e-9 of ``||Q_y||∞ ||Gw||∞`` (the backward-error scale of the product, as in
+    :mod:`..toolkit.postconditions`). ``Q_y``: the columns of Q on the outputs y — ``[Gw; 0]`` has zero u rows, so
+    the product is ``Q_y Gw`` and the u columns round nothing of it. (With ``||Q||∞`` of every column, a filter
+    ``[q, −q Gu]`` whose known input has a large gain read its own noise response as rounding: approximate audit
+    seed 243, γ = 1.985e-7 against 1e-9·||Q||∞·||Gw||∞ = 3.8e-7 with ||Q||∞ = 2 from −q Gu, ||q||∞ ≤ 1.2e-6 —
+    an infinite gap where numpy reads 5.04e6; tests/test_audit_seeds18.py.)"""
     if not model.nw:
         return 0.0
     Gw = _w_map(model)
     gamma = _gain(Q @ Gw)
-    return 0.0 if gamma <= 1e-9 * _gain(Q) * _gain(Gw) else gamma
+    Qy = Q[:, np.arange(model.ny)]
+    return 0.0 if gamma <= max(decoupled, 1e-9 * _gain(Qy) * _gain(Gw)) else gamma
 
 
 def match_model(bank, model: FDIModel, *, freqs=None) -> tuple[np.ndarray, int]:
@@ -496,7 +504,7 @@ def approximate_model_detection_bank(models: Sequence[FDIModel], *, rdim: int | 
             raise type(exc)(f"filter {i + 1} (model '{mi.name}'): {msg}") from None
         member.info["postconditions"] = fig
         rows.append(row / beta)
-        gammas.append(_noise_gain(Q, mi))
+        gammas.append(_noise_gain(Q, mi, dec_tol))  # (β = 1: Q is scaled by 1/β above)
         members.append(member)
         figures.append(fig)
     bank = ResidualBank(members, "approximate_model_detection", info={"models": [mj.name for mj in models]})
