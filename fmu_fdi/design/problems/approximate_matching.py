@@ -2781,20 +2781,41 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
     ``(Aᵀ, C2ᵀ, Bᵀ, D21ᵀ)``: scipy's QZ solver, then SLICOT SB02OD on the factors (``R⁻¹``, of condition 1/ε² with
     the fictitious noise ε of regularised rows, never formed; Van Dooren, SIAM J. Sci. Stat. Comput. 2, 1981), then
     Newton's method from a stabilising answer of either (:mod:`..toolkit.riccati_newton`), an answer kept only if its
-    residual is within ``RICCATI_RTOL`` of the terms' size. Here also: P positive
-    semidefinite (to ``RICCATI_RTOL`` of ``max(||P||, ||B||²)``: an exactly estimable state has P = 0 to rounding) and
-    ``A − L C2`` stable (the stabilising solution); else DesignError (the regularisation ladder then tries the next
-    ε). scipy's solution of random seed 9's equation, taken unchecked before, was indefinite with norm 1e14 and a
-    relative residual 0.75; SB02OD's residual there is 3e-14 (P = 0: the problem is exactly matchable)."""
-    from ..toolkit.approximate import RICCATI_RTOL, spectral_riccati
+    residual is within ``RICCATI_RTOL`` of the terms' size and its closed-loop correction within ``FORWARD_RTOL``.
+    Here also: P positive semidefinite (to ``RICCATI_RTOL`` of ``max(||P||, ||B||²)``: an exactly estimable state has
+    P = 0 to rounding) and ``A − L C2`` stable (the stabilising solution); else DesignError (the regularisation ladder
+    then tries the next ε). scipy's solution of random seed 9's equation, taken unchecked before, was indefinite with
+    norm 1e14 and a relative residual 0.75; SB02OD's residual there is 3e-14 (P = 0: the problem is exactly matchable).
+
+    A closed loop ``A − L C2`` with an eigenvalue within ``ZERO_BOUNDARY_RTOL`` of the unit circle is accepted only if
+    the equation has a stabilising solution by the data (below): its eigenvalues are the noise channel's zeros
+    reflected inside, and a zero on the circle (``Ĝ = (0.5, 0.5, 1, −1)``: zero at 1) leaves ``P = 0`` with the loop at
+    ``1 − 1e-16`` — the maximal solution, not a stabilising one — which was returned as one.
+
+    The refusal says why (:func:`.._observer._existence`, on the equation's data in filter form: ``(A, C2)``
+    detectable and the symplectic pencil's eigenvalues off the unit circle by more than
+    :func:`~fmu_fdi.design.toolkit.riccati_newton.boundary_gap`'s tolerance — its ``(A, B, Q, R, S)`` are the control
+    form's ``(Aᵀ, C2ᵀ, BBᵀ, D21D21ᵀ, BD21ᵀ)``, the same dual as ``spectral_riccati``'s here): "no stabilising
+    solution" with the mode that prevents it, or "a stabilising solution exists" and a numerical failure with the
+    figures — the forward line's correction where an answer with a stabilising gain was refused by it (before, every
+    refusal said "no stabilising solution")."""
+    from ..observers._observer import _existence
+    from ..toolkit import approximate
+    from ..toolkit.approximate import RICCATI_RTOL, ZERO_BOUNDARY_RTOL, spectral_riccati
 
     n = A.shape[0]
+    figures: dict = {}
     # (slycot's SB02OD wrapper computes the closed-loop spectrum as α/β, dividing by β = 0 at the pencil's infinite
     # eigenvalues: not used here)
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        P = spectral_riccati(A.T.copy(), C2.T.copy(), B.T.copy(), D21.T.copy(), 1.0)
-    why = "no solution with a residual within RICCATI_RTOL (scipy, SLICOT SB02OD, Newton's method from either)"
+        P = spectral_riccati(A.T.copy(), C2.T.copy(), B.T.copy(), D21.T.copy(), 1.0, figures=figures)
+    exists = None
+
+    def existence():
+        return _existence(A, C2, B @ B.T, D21 @ D21.T, B @ D21.T, 1.0)
+
+    fwd = figures.get("forward", np.inf)
     if P is not None:
         Sig = C2 @ P @ C2.T + D21 @ D21.T
         try:
@@ -2805,10 +2826,34 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
         scale = max(float(np.linalg.norm(P, 2)), float(np.linalg.norm(B, 2)) ** 2, 1e-300)
         rho = float(np.max(np.abs(np.linalg.eigvals(A - L @ C2)))) if L is not None and n else np.inf
         if low >= -RICCATI_RTOL * scale and rho < 1.0:
-            return P
-        why = (f"smallest eigenvalue of P {low:.3g} (||P|| = {float(np.linalg.norm(P, 2)):.3g}), spectral radius of "
-               f"A − L C2 {rho:.6g}")
-    raise DesignError(f"discrete H2 synthesis: the filter Riccati equation has no stabilising solution ({why})")
+            if rho < 1.0 - ZERO_BOUNDARY_RTOL:
+                return P
+            exists = existence()
+            if exists[0] is not False:
+                return P
+        detail = (f"the answer (relative residual {figures.get('residual', np.nan):.3g}, closed-loop correction "
+                  f"{fwd:.3g} of its scale) is not the stabilising solution: smallest eigenvalue of P {low:.3g} "
+                  f"(||P|| = {float(np.linalg.norm(P, 2)):.3g}), spectral radius of A − L C2 {rho:.6g} (1 − ρ = {1.0 - rho:.3g})")
+    elif np.isfinite(fwd):
+        # refused by the forward line: a solver's answer within RICCATI_RTOL with a stabilising gain, whose
+        # closed-loop correction Newton's steps did not bring within the line
+        detail = (f"the closest answer's closed-loop correction ‖P_K − P‖_F (the forward error of P to first order) is "
+                  f"{fwd:.3g} of its scale after {figures.get('steps', 0)} Newton steps, above FORWARD_RTOL = "
+                  f"{approximate.FORWARD_RTOL:g} ({figures.get('why', '')}"
+                  + (f"; closed-loop separation {figures['sep']:.3g}, rounding floor {figures['floor']:.3g}"
+                     if "sep" in figures else "") + ")")
+    else:
+        detail = ("no answer with a residual within RICCATI_RTOL and a stabilising gain (scipy, SLICOT SB02OD, "
+                  "Newton's method from either)" + (f": {figures['why']}" if figures.get("why") else ""))
+    ok, why = exists if exists is not None else existence()
+    head = "discrete H2 synthesis: the filter Riccati equation"
+    if ok is False:
+        raise DesignError(f"{head} has no stabilising solution ({why}); {detail}")
+    if ok:
+        raise DesignError(f"{head} has a stabilising solution — {why} — but it was not computed to the accuracy the "
+                          f"filter needs, a numerical failure: {detail}")
+    raise DesignError(f"{head} was not solved ({detail}); whether a stabilising solution exists was not decided "
+                      f"({why})")
 
 
 def _hinf_at(Gh: LTI, F: LTI, gamma: float):
