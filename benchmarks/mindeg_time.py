@@ -98,6 +98,10 @@ sessions, so the CPU time decides): H∞ 13 CPU 16.69, 17.33, 16.81 → 14.44, 1
 14.7, 16.6, 17.0 → 18.7, 14.2, 13.1 s). Orders identical ([84, 84] → [24, 23]; [52, 52] → [5, 8]), numpy leak and
 error identical, 6 ok of 6 each. H∞ 13: the six row-1 candidates beside the order-84 row 2 (0.36 … 0.47 s each) and
 four row-2 candidates are refused on the row alone (0.01 … 0.05 s each); H∞ 17: three pre-checks, none refuses, 0.07 s.
+Further two-row designs, one run each (``--judged 7,13 6e796b4 2 1`` and ``--judged 1,19,29 6e796b4 inf 1``), CPU
+REV → current: H2 7 11.70 → 11.24 s, H2 13 18.55 → 17.20, H∞ 1 7.25 → 6.75, H∞ 19 7.40 → 6.90, H∞ 29 7.88 → 7.41
+(0.93 … 0.96); orders, numpy leak and error identical on all ten ([30, 30] → [28, 27], [84, 84] → [24, 13],
+[17, 17] → [14, 15], [57, 57] → [17, 17], [87, 87] → [28, 28]), 5/5 ok each.
 """
 import sys
 import time
