@@ -1077,7 +1077,9 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, budget, smarg, de
     ``||M Mr||`` for exactly matchable references) and, after the optimal filter's corrections, its post-conditions
     hold and — with ``required`` (:func:`required_faults`, what ``approximate_model_matching`` passes) — its u/d leak
     on the normalised form (rows at unit weakest required fault gain) is at most ``dec_tol`` (:func:`_verified`);
-    a row whose candidates all fail keeps its optimal row. When no row can be lowered the optimal filter is returned
+    a row whose candidates all fail keeps its optimal row. In the one-by-one pass a candidate whose u/d leak read on the
+    row alone is certainly above ``dec_tol`` (:func:`_row_leak_alone`) is refused without building the stacked
+    filter (random H∞ seed 13: six candidates beside an order-84 row). When no row can be lowered the optimal filter is returned
     unchanged; ``reason`` says why, candidate by candidate. A lowered filter's ``leak`` and its corrections' notes
     (``plant_mode_cancellation``, ``ud_redecoupling``) are in the returned info."""
     from ...margin import margin_limit
@@ -1171,6 +1173,7 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, budget, smarg, de
                 methods = ["least order" if c else "kept" for c in cands]
                 cands = [c[:min(j, len(c) - 1)] for c in cands]  # the lower ones, tried one by one
                 break
+    proper = norm == "2" and not dt  # (:func:`_verified` changes a continuous H2 filter's D: not the row alone)
     # then row by row: its covers, then its truncations, each below the order the row has now (lowest order first;
     # an equal or higher order is no lowering — main's row pass replaced seed 1's accepted order-14 row by an
     # order-15 cover that came before it in the list)
@@ -1182,6 +1185,11 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, budget, smarg, de
                     [f"row {i + 1}: its minimal realisation (order {Qi.n}) is already least order"]
             continue
         for rtol, Xi in cands[i]:  # lowest order first; the first whose filter passes the guard is taken
+            src = rtol if isinstance(rtol, str) else f"cover at rtol {rtol}"
+            alone = _row_leak_alone(model, Xi, smarg, dec_tol) if len(rows) > 1 and not proper else None
+            if alone is not None:  # certain to fail the stacked filter's post-conditions: not built, not verified
+                notes[i].append(f"row {i + 1}: the order-{Xi.n} candidate ({src}) is refused: {alone}")
+                continue
             trial = rows[:i] + [Xi] + rows[i + 1:]
             cand, verdict = _verified(model, gen, trial, fnm, MF, lam, norm, systems, err, budget, smarg, dec_tol,
                                       atol, required)
@@ -1195,7 +1203,6 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, budget, smarg, de
             if cand is not None:
                 rows, methods[i], best = trial, "least order", (cand, verdict)
                 break
-            src = rtol if isinstance(rtol, str) else f"cover at rtol {rtol}"
             notes[i].append(f"row {i + 1}: the order-{Xi.n} candidate ({src}) is refused: {verdict['reason']}")
         else:
             if methods[i] == "kept":
@@ -1209,6 +1216,37 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, budget, smarg, de
                 "row_methods": methods, **verdict,
                 "reason": "; ".join(why) if why else "every non-static row lowered to the least order of (2)"})
     return cand, out
+
+
+#: the row pass's pre-check (:func:`_row_leak_alone`) refuses a candidate row only where its u/d reading, less the
+#: reading's error bound, exceeds this many times ``dec_tol``: the stacked filter's row is the same transfer function
+#: in another realisation (its rounding moves the reading by the error bound, 1e-13 … 3e-9 on random H∞ seed 13), so
+#: a refusal is certain by a margin; a candidate within it goes to the full verification (:func:`_verified`)
+ROW_LEAK_MARGIN = 10.0
+
+
+def _row_leak_alone(model, Xi: LTI, smarg, dec_tol: float) -> str | None:
+    """Why a one-row change ``Xi`` of the row pass of :func:`_least_order` cannot pass :func:`_verified`'s
+    post-conditions, judged on the row alone — or None (not decided: the full verification decides).
+
+    The post-conditions (``check_generator(decouple=('u', 'd'), faults=[])``: the rows unscaled) read each row of a
+    stacked filter alone (:func:`..toolkit.postconditions._figures_by_group`): its u/d peak on the grid of its own
+    poles and the plant's, a lower bound of the row's ``‖[Q_i Gu  Q_i Gd; Q_i 0]‖∞`` — a function of the row's
+    transfer function. The stacked filter's row i *is* ``Xi`` (``vstack`` keeps each row's transfer function; its
+    ``minreal`` removes only modes within ``atol``), so a reading of ``Xi`` alone above ``dec_tol`` at a point is a
+    value the stacked row takes there too: that filter leaks above ``dec_tol`` (where its own grid missed that point,
+    accepting it would pass a real leak). Only a certain refusal is returned: the reading less its error bound (the
+    realisation's rounding) above :data:`ROW_LEAK_MARGIN` ``· dec_tol``; never an acceptance. Random H∞ seed 13: the
+    row pass verified six row-1 candidates beside the unlowered order-84 row 2 (0.36 … 0.47 s each), all refused for
+    row 1's leak 6.7e-6 … 1.13, the same readings as the joint pass's."""
+    fig = check_generator(ResidualGenerator(Xi, model, "approximate_model_matching"), decouple=("u", "d"), faults=[],
+                          smarg=smarg, dec_tol=dec_tol, raise_error=False)
+    d = (fig.get("decoupling_rows") or [0.0])[0]
+    e = (fig.get("decoupling_row_errors") or [0.0])[0]
+    if np.isfinite(d) and d - e > ROW_LEAK_MARGIN * dec_tol:
+        return (f"its u+d leak read on the row alone is {d:.3g} (± {e:.2g}), above {ROW_LEAK_MARGIN:g} dec_tol = "
+                f"{ROW_LEAK_MARGIN * dec_tol:.3g}: the stacked filter's row is the same transfer function")
+    return None
 
 
 #: relative rank tolerances of the covers tried by ``mindeg`` (working precision first): the optimal filter's
@@ -2781,20 +2819,41 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
     ``(Aᵀ, C2ᵀ, Bᵀ, D21ᵀ)``: scipy's QZ solver, then SLICOT SB02OD on the factors (``R⁻¹``, of condition 1/ε² with
     the fictitious noise ε of regularised rows, never formed; Van Dooren, SIAM J. Sci. Stat. Comput. 2, 1981), then
     Newton's method from a stabilising answer of either (:mod:`..toolkit.riccati_newton`), an answer kept only if its
-    residual is within ``RICCATI_RTOL`` of the terms' size. Here also: P positive
-    semidefinite (to ``RICCATI_RTOL`` of ``max(||P||, ||B||²)``: an exactly estimable state has P = 0 to rounding) and
-    ``A − L C2`` stable (the stabilising solution); else DesignError (the regularisation ladder then tries the next
-    ε). scipy's solution of random seed 9's equation, taken unchecked before, was indefinite with norm 1e14 and a
-    relative residual 0.75; SB02OD's residual there is 3e-14 (P = 0: the problem is exactly matchable)."""
-    from ..toolkit.approximate import RICCATI_RTOL, spectral_riccati
+    residual is within ``RICCATI_RTOL`` of the terms' size and its closed-loop correction within ``FORWARD_RTOL``.
+    Here also: P positive semidefinite (to ``RICCATI_RTOL`` of ``max(||P||, ||B||²)``: an exactly estimable state has
+    P = 0 to rounding) and ``A − L C2`` stable (the stabilising solution); else DesignError (the regularisation ladder
+    then tries the next ε). scipy's solution of random seed 9's equation, taken unchecked before, was indefinite with
+    norm 1e14 and a relative residual 0.75; SB02OD's residual there is 3e-14 (P = 0: the problem is exactly matchable).
+
+    A closed loop ``A − L C2`` with an eigenvalue within ``ZERO_BOUNDARY_RTOL`` of the unit circle is accepted only if
+    the equation has a stabilising solution by the data (below): its eigenvalues are the noise channel's zeros
+    reflected inside, and a zero on the circle (``Ĝ = (0.5, 0.5, 1, −1)``: zero at 1) leaves ``P = 0`` with the loop at
+    ``1 − 1e-16`` — the maximal solution, not a stabilising one — which was returned as one.
+
+    The refusal says why (:func:`.._observer._existence`, on the equation's data in filter form: ``(A, C2)``
+    detectable and the symplectic pencil's eigenvalues off the unit circle by more than
+    :func:`~fmu_fdi.design.toolkit.riccati_newton.boundary_gap`'s tolerance — its ``(A, B, Q, R, S)`` are the control
+    form's ``(Aᵀ, C2ᵀ, BBᵀ, D21D21ᵀ, BD21ᵀ)``, the same dual as ``spectral_riccati``'s here): "no stabilising
+    solution" with the mode that prevents it, or "a stabilising solution exists" and a numerical failure with the
+    figures — the forward line's correction where an answer with a stabilising gain was refused by it (before, every
+    refusal said "no stabilising solution")."""
+    from ..observers._observer import _existence
+    from ..toolkit import approximate
+    from ..toolkit.approximate import RICCATI_RTOL, ZERO_BOUNDARY_RTOL, spectral_riccati
 
     n = A.shape[0]
+    figures: dict = {}
     # (slycot's SB02OD wrapper computes the closed-loop spectrum as α/β, dividing by β = 0 at the pencil's infinite
     # eigenvalues: not used here)
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        P = spectral_riccati(A.T.copy(), C2.T.copy(), B.T.copy(), D21.T.copy(), 1.0)
-    why = "no solution with a residual within RICCATI_RTOL (scipy, SLICOT SB02OD, Newton's method from either)"
+        P = spectral_riccati(A.T.copy(), C2.T.copy(), B.T.copy(), D21.T.copy(), 1.0, figures=figures)
+    exists = None
+
+    def existence():
+        return _existence(A, C2, B @ B.T, D21 @ D21.T, B @ D21.T, 1.0)
+
+    fwd = figures.get("forward", np.inf)
     if P is not None:
         Sig = C2 @ P @ C2.T + D21 @ D21.T
         try:
@@ -2805,10 +2864,34 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
         scale = max(float(np.linalg.norm(P, 2)), float(np.linalg.norm(B, 2)) ** 2, 1e-300)
         rho = float(np.max(np.abs(np.linalg.eigvals(A - L @ C2)))) if L is not None and n else np.inf
         if low >= -RICCATI_RTOL * scale and rho < 1.0:
-            return P
-        why = (f"smallest eigenvalue of P {low:.3g} (||P|| = {float(np.linalg.norm(P, 2)):.3g}), spectral radius of "
-               f"A − L C2 {rho:.6g}")
-    raise DesignError(f"discrete H2 synthesis: the filter Riccati equation has no stabilising solution ({why})")
+            if rho < 1.0 - ZERO_BOUNDARY_RTOL:
+                return P
+            exists = existence()
+            if exists[0] is not False:
+                return P
+        detail = (f"the answer (relative residual {figures.get('residual', np.nan):.3g}, closed-loop correction "
+                  f"{fwd:.3g} of its scale) is not the stabilising solution: smallest eigenvalue of P {low:.3g} "
+                  f"(||P|| = {float(np.linalg.norm(P, 2)):.3g}), spectral radius of A − L C2 {rho:.6g} (1 − ρ = {1.0 - rho:.3g})")
+    elif np.isfinite(fwd):
+        # refused by the forward line: a solver's answer within RICCATI_RTOL with a stabilising gain, whose
+        # closed-loop correction Newton's steps did not bring within the line
+        detail = (f"the closest answer's closed-loop correction ‖P_K − P‖_F (the forward error of P to first order) is "
+                  f"{fwd:.3g} of its scale after {figures.get('steps', 0)} Newton steps, above FORWARD_RTOL = "
+                  f"{approximate.FORWARD_RTOL:g} ({figures.get('why', '')}"
+                  + (f"; closed-loop separation {figures['sep']:.3g}, rounding floor {figures['floor']:.3g}"
+                     if "sep" in figures else "") + ")")
+    else:
+        detail = ("no answer with a residual within RICCATI_RTOL and a stabilising gain (scipy, SLICOT SB02OD, "
+                  "Newton's method from either)" + (f": {figures['why']}" if figures.get("why") else ""))
+    ok, why = exists if exists is not None else existence()
+    head = "discrete H2 synthesis: the filter Riccati equation"
+    if ok is False:
+        raise DesignError(f"{head} has no stabilising solution ({why}); {detail}")
+    if ok:
+        raise DesignError(f"{head} has a stabilising solution — {why} — but it was not computed to the accuracy the "
+                          f"filter needs, a numerical failure: {detail}")
+    raise DesignError(f"{head} was not solved ({detail}); whether a stabilising solution exists was not decided "
+                      f"({why})")
 
 
 def _hinf_at(Gh: LTI, F: LTI, gamma: float):
