@@ -33,7 +33,8 @@ Every bank reading is covered (the members' grids and filters are the bank's gro
 member reads u and [d, excluded faults] as two blocks of one Ge; the bank reads u, d and each excluded fault as its
 own block, and only those whose plain reading is near a decision (often u alone, or one fault). The kept reading's
 key is the partition too, and a reading of fewer columns balances another realisation of Ge and refines other
-points, so it is no cache hit. The reuse needed postconditions.py (audit17's note): keep per (Q_i, λ) the last reading's Ge
+points, so it is no cache hit. The reuse needed postconditions.py (audit17's note): keep per (Q_i, λ) the last
+reading's Ge
 columns with their unrefined values, bounds and refined points, and serve a request for a subset of those columns
 from them where every point its own blocks' rule would refine was refined.
 
@@ -43,7 +44,8 @@ from them, refining only the points its own blocks need that were not refined fo
 (postconditions.plant_realisation gives every column one realisation per plant, whichever model lists it).
 ``--compare`` designs each seed with the bank check's readings served (this tree) and with them fresh (the store
 emptied for the bank check: what main computed), alternating after a warm-up design, best of ``--reps``
-each, one BLAS thread; prints both bank check times and the design times, their ratios, how many of the bank's readings were served, and the largest
+each, one BLAS thread; prints both bank check times and the design times, their ratios, how many of the bank's
+readings were served, and the largest
 difference of the bank's figures (decoupling_rows, structure_leak) between the two relative to the reading's own
 error bound (decoupling_row_errors, structure_leak_error).
 
@@ -65,7 +67,8 @@ Other seeds, ``--compare --reps=1 33 57 9 17`` (ddfb6c6, same day, lower load):
 
 Every reading of the bank's check is served (none computes a new plain reading) and the bank's figures are the fresh
 check's to the bit, except seed 33's, within 4.1e-3 of their own error bound (a last-bit difference of BLAS sums
-beside other columns, postconditions._decoupled_values). The check ratios exceed audit17's ceilings above (measured at load ~3 in another run): the
+beside other columns, postconditions._decoupled_values). The check ratios exceed audit17's ceilings above (measured
+at load ~3 in another run): the
 readings' share of the check is larger at this load. 412's design ratio is the load's (its check saves 3 s of 15).
 
 Run: python benchmarks/bank_check_speed.py [--reps=N] [--compare] [SEED ...]   (default seeds 379 403 412 382)

@@ -292,7 +292,8 @@ def judged(which, rev: str | None = None, norm: str | None = None, reps: int = 1
             model = make()
             key, msg, orders, worst, t = _judged_design(mod, model, Mr, kw)
             counts[name][key] += 1
-            print(f"{case:14s} {name:8s} {key:8s} {t[0]:6.2f} s (CPU {t[1]:6.2f} s)  orders {orders:24s} leak {worst[0]:.2g} "
+            print(f"{case:14s} {name:8s} {key:8s} {t[0]:6.2f} s (CPU {t[1]:6.2f} s)  orders {orders:24s} "
+                  f"leak {worst[0]:.2g} "
                   f"(optimal {worst[1]:.2g})  {msg}",
                   flush=True)
     for name, c in counts.items():

@@ -8,8 +8,8 @@ row with one excluded fault):
 
 - one realisation per plant, whatever the order of its inputs (the bank's model and a member's row model);
 - a served reading equals a fresh one of the same request (no new plain reading computed): the same points refined
-  and, at each point, the values within the bound both readings carry — each is within ``3N·u_x·||err||`` (refined point) or ``3N·u·||err||`` (plain
-  point) of the stored filter's exact value (postconditions._decoupled_reading's derivation), so they are within
+  and, at each point, the values within the bound both readings carry — each is within ``3N·u_x·||err||`` (refined
+  point) or ``3N·u·||err||`` (plain point) of the stored filter's exact value (postconditions._decoupled_reading's derivation), so they are within
   twice that of each other (the bounds themselves, reported beside the figures, within 1e-6 relative);
 - the bank's figures (info['postconditions']) with its readings served equal those of a check on an empty store;
   the bank's own check computes no new plain reading.

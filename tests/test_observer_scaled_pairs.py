@@ -4,8 +4,8 @@ the caller's.
 ``observer_gain`` split ``(A, C)`` by the observability staircase in the caller's coordinates, whose rank decisions
 are relative to ``‖[A; C]‖``, and checked the placement only in the staircase's coordinates. On 300 random pairs
 scaled over nine decades (tests/test_riccati_failure_messages.scaled_random_case: ``A = T Ã T⁻¹``, ``C = C̃ T⁻¹``,
-``Ã`` random, ``C̃`` random of full row rank — observable) 27 gains came back with ``A − L C`` unstable and 23 pairs were
-refused as 'not detectable'. The judge is numpy in the unscaled coordinates: the eigenvalues of
+``Ã`` random, ``C̃`` random of full row rank — observable) 27 gains came back with ``A − L C`` unstable and 23 pairs
+were refused as 'not detectable'. The judge is numpy in the unscaled coordinates: the eigenvalues of
 ``T⁻¹(A − L C)T = Ã − (T⁻¹L) C̃`` — a well-scaled matrix, computed to ~eps of its norm — against the poles requested.
 """
 from __future__ import annotations

@@ -163,8 +163,8 @@ def test_a_solver_failure_on_an_existing_solution_is_named_a_numerical_failure(m
 
 def test_existence_tolerance_is_relative_to_the_pencils_eigenvalue_scale():
     """tests/test_riccati_forward.py's deflated problem 15/0 (a DARE, n = 29): its pencil's nearest eigenvalue is
-    0.00487 from the unit circle; the first tolerance (√(N·eps) times the pencil's norm, 0.00631) read it as on the circle and
-    the refusal said 'no stabilising solution'. It has one: the design returns it, judged by scipy's Stein equation of
+    0.00487 from the unit circle; the first tolerance (√(N·eps) times the pencil's norm, 0.00631) read it as on the
+    circle and the refusal said 'no stabilising solution'. It has one: the design returns it, judged by scipy's Stein equation of
     the filter run with its gain (forward error within JUDGE_LINE) with a stable loop."""
     from test_riccati_forward import JUDGE_LINE, deflated_problem, forward_error
 

@@ -209,8 +209,8 @@ def detectable_split(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A
 def check_detectable(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)", fixed_reason: str = "",
                      atol: float = 0.0) -> None:
     """A DesignError naming the unstable unobservable modes where ``(A, C)`` is not detectable
-    (:func:`detectable_split`) in the caller's coordinates nor in those of ``A``'s diagonal balancing (``T⁻¹AT``, ``CT``; LAPACK GEBAL, exact)
-    with ``C``'s rows normalised (:func:`observable_order`) — detectability is invariant under both. In the caller's
+    (:func:`detectable_split`) in the caller's coordinates nor in those of ``A``'s diagonal balancing (``T⁻¹AT``,
+    ``CT``; LAPACK GEBAL, exact) with ``C``'s rows normalised (:func:`observable_order`) — detectability is invariant under both. In the caller's
     coordinates alone the staircase's rank decisions are relative to ``‖[A; C]‖``, and on states scaled over decades
     they read another pair: 23 of 300 random detectable problems scaled over nine decades
     (tests/test_riccati_failure_messages.scaled_random_case) were refused by ``kalman`` as 'not detectable', a stable
@@ -581,7 +581,8 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, failed) -> np.ndar
     # coordinates the staircase's rank decisions (relative to ‖[Ā; G]‖) and the direct solvers' subspaces met states
     # scaled over decades: the staircase took a noise direction of relative size 2e-8 for none where ‖Ā‖ = 1.5e7, and
     # the reduced answer, within RICCATI_RTOL, did not stabilise the caller's loop
-    # (tests/test_riccati_failure_messages.py: 18 of 300 random scaled problems; tests/test_riccati_forward.py deflated 8 of 180 refused) — none of them now.
+    # (tests/test_riccati_failure_messages.py: 18 of 300 random scaled problems; tests/test_riccati_forward.py
+    # deflated 8 of 180 refused) — none of them now.
     # The graded rank decision of noise_factor is invariant under T (d_i and H scale together).
     t = sla.matrix_balance(Ab, permute=False, separate=True)[1][0]
     Ab, C, Qb, G = Ab / t[:, None] * t[None, :], C * t[None, :], Qb / t[:, None] / t[None, :], G / t[:, None]
@@ -642,7 +643,8 @@ def noise_factor(Qx: np.ndarray, M: np.ndarray, Qb: np.ndarray) -> np.ndarray:
     ``d_i = √max(Qx_ii, M_ii)`` — not relative to ``‖Qx‖``. Derivation: ``Q̄`` is formed from ``Qx`` (itself formed
     as ``Bw Qw Bwᵀ``) and ``M`` by sums of products, whose rounding is componentwise, ``|δQ̄_ij| ≤ c·eps·(|Qx|_ij +
     |M|_ij)`` (``c`` the inner dimensions); both terms are positive semidefinite, ``|Qx_ij| ≤ √(Qx_ii Qx_jj)`` and
-    likewise ``M``, so ``|δQ̄_ij| ≤ 2c·eps·d_i d_j``: ``H``'s rounding ``E`` has ``|E_ij| ≤ 2c·eps``, ``‖E‖₂ ≤ 2c·n·eps``
+    likewise ``M``, so ``|δQ̄_ij| ≤ 2c·eps·d_i d_j``: ``H``'s rounding ``E`` has ``|E_ij| ≤ 2c·eps``,
+    ``‖E‖₂ ≤ 2c·n·eps``
     against terms ``D⁻¹QxD⁻¹``, ``D⁻¹MD⁻¹`` of unit diagonal at most. An eigenvalue of ``H`` below
     ``default_rtol = 1e3·n·eps`` times their norm is therefore indistinguishable from rounding (a cancellation
     ``Qx ≈ M``: fully correlated noise), while the noise of a state scaled by ``s`` — intensity ``s²`` of ``‖Qx‖`` —
@@ -741,7 +743,8 @@ def _refusal(what: str, got: dict) -> str:
         fb = got.get("forward_balanced", fwd)
         cond = (f"; in the coordinates of the diagonal balancing of the closed loop its Lyapunov separation is "
                 f"sep = {got['sep']:.3g} against the residual's terms {got['size']:.3g}, so the rounding of the "
-                f"residual alone can move P there by up to {got['floor']:.3g} of its scale (the correction there: {fb:.3g})")
+                f"residual alone can move P there by up to {got['floor']:.3g} of its scale (the correction there: "
+                f"{fb:.3g})")
         if fb > NOT_CONVERGED_FACTOR * got["floor"]:
             return (f"{what} was not solved to the accuracy a gain needs, a numerical failure: {head}{cond} — the "
                     f"correction is far above that floor, so it is not the equation's conditioning that stops it but "

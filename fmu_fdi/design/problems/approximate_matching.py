@@ -1079,8 +1079,8 @@ def _least_order(model, gen, fnm, MF, lam, norm, systems, err, budget, smarg, de
     on the normalised form (rows at unit weakest required fault gain) is at most ``dec_tol`` (:func:`_verified`);
     a row whose candidates all fail keeps its optimal row. In the one-by-one pass a candidate whose u/d leak read on the
     row alone is certainly above ``dec_tol`` (:func:`_row_leak_alone`) is refused without building the stacked
-    filter (random H∞ seed 13: six candidates beside an order-84 row). When no row can be lowered the optimal filter is returned
-    unchanged; ``reason`` says why, candidate by candidate. A lowered filter's ``leak`` and its corrections' notes
+    filter (random H∞ seed 13: six candidates beside an order-84 row). When no row can be lowered the optimal filter is
+    returned unchanged; ``reason`` says why, candidate by candidate. A lowered filter's ``leak`` and its corrections' notes
     (``plant_mode_cancellation``, ``ud_redecoupling``) are in the returned info."""
     from ...margin import margin_limit
     from ..toolkit.postconditions import default_smarg
@@ -2871,7 +2871,8 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
                 return P
         detail = (f"the answer (relative residual {figures.get('residual', np.nan):.3g}, closed-loop correction "
                   f"{fwd:.3g} of its scale) is not the stabilising solution: smallest eigenvalue of P {low:.3g} "
-                  f"(||P|| = {float(np.linalg.norm(P, 2)):.3g}), spectral radius of A − L C2 {rho:.6g} (1 − ρ = {1.0 - rho:.3g})")
+                  f"(||P|| = {float(np.linalg.norm(P, 2)):.3g}), spectral radius of A − L C2 {rho:.6g} "
+                  f"(1 − ρ = {1.0 - rho:.3g})")
     elif np.isfinite(fwd):
         # refused by the forward line: a solver's answer within RICCATI_RTOL with a stabilising gain, whose
         # closed-loop correction Newton's steps did not bring within the line

@@ -354,7 +354,8 @@ def boundary_gap(A, B, Q, R, S, dt: float) -> dict | None:
     has no eigenvalue on the imaginary axis (unit circle) — an uncontrollable or unobservable mode of the
     decorrelated pair there (Zhou, Doyle & Glover, *Robust and Optimal Control*, Thm. 13.7 and 21.x; Chan, Goodwin &
     Sin 1984). The pencil is the extended one of Van Dooren (1981) as scipy forms it (no ``R⁻¹``), continuous
-    ``[A 0 B; −Q −Aᵀ −S; Sᵀ Bᵀ R] − λ·diag(I, I, 0)``, discrete ``[A 0 B; −Q I −S; Sᵀ 0 R] − λ[I 0 0; 0 Aᵀ 0; 0 −Bᵀ 0]``,
+    ``[A 0 B; −Q −Aᵀ −S; Sᵀ Bᵀ R] − λ·diag(I, I, 0)``, discrete
+    ``[A 0 B; −Q I −S; Sᵀ 0 R] − λ[I 0 0; 0 Aᵀ 0; 0 −Bᵀ 0]``,
     scaled and balanced (below; every step leaves the eigenvalues unchanged), its finite eigenvalues by QZ (backward
     stable: those of a pencil within ``c·eps`` of its norms).
 
