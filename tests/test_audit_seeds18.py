@@ -259,12 +259,12 @@ def test_model_detection_gap_is_numpys_whatever_the_input_units(b, c):
 
 # ------------------------------------------------------------------------------------- seeds 268, 277
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 17, audit seeds 268, 277 (approximate_matching.py, amm18): the matching "
-                                       "error read on a grid that misses a lightly damped peak — reported below the "
-                                       "γ-iteration's own infeasible level")
 @pytest.mark.parametrize("seed", [268, 277])
 def test_matching_error_is_the_peak_beside_a_resonance(seed):
-    """~30-70 s under load. Approximate audit 260-279 (further seeds): ``amm(Mr = an exact detection row's Rf)``
+    """~30-70 s under load (27 s, 60 s measured by amm20). Strict xfail on a5e420c; passes since amm20's
+    ``_points`` reads every complex pole's resonance frequencies (below), and a reading below the bracket's certified
+    lower end is now refused (``_below_certified_refused``; fast constructed case: tests/test_amm_resonance_grid.py).
+    Approximate audit 260-279 (further seeds): ``amm(Mr = an exact detection row's Rf)``
     reported the error 4.63869 (seed 268: continuous n 29, p 1, m 1, plant pair −0.1096 ± 6.9247j, ζ = 0.016) and
     11.8347 (seed 277: discrete n 30, a pair 1.0e-3 inside the unit circle) where numpy's refined peak reads 4.72841
     at 6.960 rad/s and 11.8606 at 2.129 rad/s — both *below* the γ-iteration's certified infeasible level (bracket
