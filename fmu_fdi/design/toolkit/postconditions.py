@@ -1044,9 +1044,12 @@ def _plant_reading(Geb: LTI, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if not Geb.n:
         return _plant_values(Geb, lam), np.zeros((lam.size, Geb.p, Geb.m))
     B = np.broadcast_to(Geb.B.astype(np.clongdouble), (lam.size,) + Geb.B.shape)
-    Xe, We = _refined_solves(Geb.A, lam, B, Geb.C)
     if EXT_UNIT < EPS / 2:
+        # X_e refined in the extended type; W_e from the plain pass, given no right-hand side (its X is not used)
+        We = _refined_solves(Geb.A, lam, B[:, :, :0], Geb.C)[1]
         Xe = _refined_solves(Geb.A, lam, B, Geb.C, refine=np.ones(lam.size, bool))[0]
+    else:
+        Xe, We = _refined_solves(Geb.A, lam, B, Geb.C)
     aX = np.abs(Xe.astype(complex))
     EG = np.abs(We) @ (np.abs(Geb.A) @ aX) + np.abs(lam)[:, None, None] * (np.abs(We) @ aX) + np.abs(Geb.C) @ aX
     return _plant_values(Geb, lam, Xe), EG
