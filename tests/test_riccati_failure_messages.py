@@ -73,22 +73,23 @@ def test_an_equation_with_a_stabilising_solution_is_not_refused_as_having_none(s
 
 
 def test_existence_is_decided_by_detectability_and_the_pencil():
-    """``_existence`` on three pairs whose answer numpy gives: an unobservable unstable mode (not detectable); an
+    """``riccati_existence`` on three pairs whose answer numpy gives: an unobservable unstable mode (not detectable); an
     undamped oscillator no noise reaches (the explicit Hamiltonian ``[Aᵀ −CᵀR⁻¹C; −Qx −A]`` has eigenvalues ±1j on the
     axis, numpy); the eight-decade scaled pair of test_kalman_noise_rank (its Hamiltonian eigenvalues ±√2, ±√5/… are
     off the axis by ≥ 1, numpy, while its entries span 16 decades)."""
     S1 = np.zeros((2, 1))
-    exists, why = _observer._existence(np.diag([1.5, -1.0]), np.array([[0.0, 1.0]]), np.eye(2), np.eye(1), S1, 0.0)
+    exists, why = _observer.riccati_existence(np.diag([1.5, -1.0]), np.array([[0.0, 1.0]]), np.eye(2), np.eye(1), S1,
+                                              0.0)
     assert exists is False and "not detectable" in why
     A, C, Qx, R = np.array([[0.0, 1.0], [-1.0, 0.0]]), np.array([[1.0, 0.0]]), np.zeros((2, 2)), np.eye(1)
     H = np.block([[A.T, -C.T @ np.linalg.solve(R, C)], [-Qx, -A]])
     assert np.min(np.abs(np.linalg.eigvals(H).real)) <= 1e-12
-    exists, why = _observer._existence(A, C, Qx, R, S1, 0.0)
+    exists, why = _observer.riccati_existence(A, C, Qx, R, S1, 0.0)
     assert exists is False and "imaginary axis" in why
     A, C, Qx, R, _ = scaled_pair([-1.0, 0.0], 1e-8, 0.0)
     Ht = np.block([[np.diag([-1.0, 0.0]), -np.ones((2, 2))], [-np.eye(2), np.diag([1.0, 0.0])]])
     assert np.min(np.abs(np.linalg.eigvals(Ht).real)) >= 0.5  # in ξ: the same eigenvalues (a similarity)
-    exists, why = _observer._existence(A, C, Qx, R, S1, 0.0)
+    exists, why = _observer.riccati_existence(A, C, Qx, R, S1, 0.0)
     assert exists is True, why
 
 
@@ -170,7 +171,7 @@ def test_existence_tolerance_is_relative_to_the_pencils_eigenvalue_scale():
 
     A, C, Qx, R, dt = deflated_problem(15, 0)
     S = np.zeros((A.shape[0], C.shape[0]))
-    exists, why = _observer._existence(A, C, Qx, R, S, dt)
+    exists, why = _observer.riccati_existence(A, C, Qx, R, S, dt)
     assert exists is True, why
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)

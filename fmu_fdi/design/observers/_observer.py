@@ -37,7 +37,8 @@ from ...linalg import EPS, default_rtol, ordered_schur
 from ...lti import LTI
 from ...model import FDIModel
 from ..toolkit.approximate import RICCATI_RTOL, spectral_riccati
-from ..toolkit.riccati_newton import FORWARD_RTOL, boundary_gap, forward_refined, riccati_residual
+from ..toolkit.riccati_newton import (FORWARD_RTOL, DiagonalBalancing, boundary_gap, forward_refined,
+                                      riccati_residual)
 from ..toolkit.pencil import controllable_staircase
 
 
@@ -206,19 +207,6 @@ def detectable_split(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A
     return Z, n_o, fixed
 
 
-def check_detectable(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)", fixed_reason: str = "",
-                     atol: float = 0.0) -> None:
-    """A DesignError naming the unstable unobservable modes where ``(A, C)`` is not detectable
-    (:func:`detectable_split`) in the caller's coordinates nor in those of ``A``'s diagonal balancing (``T⁻¹AT``,
-    ``CT``; LAPACK GEBAL, exact) with ``C``'s rows normalised (:func:`observable_order`) — detectability is invariant under both. In the caller's
-    coordinates alone the staircase's rank decisions are relative to ``‖[A; C]‖``, and on states scaled over decades
-    they read another pair: 23 of 300 random detectable problems scaled over nine decades
-    (tests/test_riccati_failure_messages.scaled_random_case) were refused by ``kalman`` as 'not detectable', a stable
-    mode read as an unobservable one at +0.24. A caller's absolute rank tolerance ``atol`` refers to its own
-    coordinates: with it the pair is read there only."""
-    observable_order(A, C, dt, what=what, fixed_reason=fixed_reason, atol=atol)
-
-
 def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str = "(A, C)",
                   fixed_reason: str = "", atol: float = 0.0) -> ObserverGain:
     """Output-injection gain ``L`` placing the observable eigenvalues of ``A − L C``.
@@ -257,13 +245,13 @@ def observer_gain(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str =
         first = _placement_missed(A, C, gain, dt, what)
         if first is None:
             return gain
-    t, r = balanced_pair(A, C, atol)
-    if np.all(t == 1.0) and np.all(r == 1.0):
+    bal, r = balanced_pair(A, C, atol)
+    if bal.trivial and np.all(r == 1.0):
         raise first
-    Ab, Cb = A * (1 / t)[:, None] * t[None, :], C * t[None, :] * r[:, None]
-    gain = _observer_gain_unbalanced(Ab, Cb, poles, dt, what=what, fixed_reason=fixed_reason, atol=atol)
+    gain = _observer_gain_unbalanced(bal.similar(A), bal.right(C) * r[:, None], poles, dt, what=what,
+                                     fixed_reason=fixed_reason, atol=atol)
     # A − L C = T (Ã − L̃ C̃) T⁻¹ with L = T L̃ N
-    gain = ObserverGain(t[:, None] * gain.L * r[None, :], gain.poles, gain.fixed, gain.method)
+    gain = ObserverGain(bal.left(gain.L) * r[None, :], gain.poles, gain.fixed, gain.method)
     missed = _placement_missed(A, C, gain, dt, what)
     if missed is not None:
         raise missed
@@ -281,7 +269,7 @@ def _placement_missed(A: np.ndarray, C: np.ndarray, gain: "ObserverGain", dt: fl
     # read in the loop's own diagonal balancing (exact; the eigenvalues are the loop's): in the caller's coordinates
     # ‖A‖ of a pair scaled over decades (1e7) would make the tolerance as large as the poles themselves
     Acl = A - gain.L @ C
-    Acl = sla.matrix_balance(Acl, permute=False)[0]
+    Acl = DiagonalBalancing.of(Acl).similar(Acl)
     ev, X = np.linalg.eig(Acl)
     target = np.concatenate([np.asarray(gain.poles, complex), np.asarray(gain.fixed, complex)])
     bad = unstable(ev, dt, max(1.0, float(np.linalg.norm(Acl, 2))))
@@ -298,36 +286,44 @@ def _placement_missed(A: np.ndarray, C: np.ndarray, gain: "ObserverGain", dt: fl
     return None
 
 
-def balanced_pair(A: np.ndarray, C: np.ndarray, atol: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """``(t, r)``: ``A``'s diagonal balancing ``T = diag(t)`` (LAPACK GEBAL, powers of 2: exact) and the scaling
-    ``N = diag(r)`` normalising the rows of ``C T`` — the coordinates ``(T⁻¹AT, N C T)`` in which the observability
-    staircase's rank decisions (relative to ``‖[A; C]‖``) read the pair the model describes. Observability,
-    detectability and the closed-loop eigenvalues of ``A − L C`` with ``L = T L̃ N`` are invariant under both; in the
-    caller's coordinates, on 300 random pairs scaled over nine decades (tests/test_riccati_failure_messages.py's
-    ``scaled_random_case``) the staircase refused 23 detectable ones as 'not detectable' and ``observer_gain``
-    returned 27 gains whose ``A − L C`` was unstable (its check read the observable block only). Ones where a
-    caller's absolute rank tolerance ``atol`` refers to its own coordinates, or there are no states."""
+def balanced_pair(A: np.ndarray, C: np.ndarray, atol: float = 0.0) -> tuple[DiagonalBalancing, np.ndarray]:
+    """``(T, r)``: ``A``'s diagonal balancing ``T`` (:class:`~fmu_fdi.design.toolkit.riccati_newton.DiagonalBalancing`,
+    powers of 2: exact) and the scaling ``N = diag(r)`` normalising the rows of ``C T`` — the coordinates
+    ``(T⁻¹AT, N C T)`` in which the observability staircase's rank decisions (relative to ``‖[A; C]‖``) read the pair
+    the model describes. Observability, detectability and the closed-loop eigenvalues of ``A − L C`` with
+    ``L = T L̃ N`` are invariant under both; in the caller's coordinates, on 300 random pairs scaled over nine decades
+    (tests/test_riccati_failure_messages.py's ``scaled_random_case``) the staircase refused 23 detectable ones as 'not
+    detectable' and ``observer_gain`` returned 27 gains whose ``A − L C`` was unstable (its check read the observable
+    block only). ``T = I``, ``N = I`` where a caller's absolute rank tolerance ``atol`` refers to its own coordinates,
+    or there are no states."""
     n = A.shape[0]
     if n == 0 or atol > 0:
-        return np.ones(n), np.ones(C.shape[0])
-    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
-    r = 1.0 / np.maximum(np.linalg.norm(C * t[None, :], axis=1), np.finfo(float).tiny)
-    return t, r
+        return DiagonalBalancing(np.ones(n)), np.ones(C.shape[0])
+    bal = DiagonalBalancing.of(A)
+    r = 1.0 / np.maximum(np.linalg.norm(bal.right(C), axis=1), np.finfo(float).tiny)
+    return bal, r
 
 
 def observable_order(A: np.ndarray, C: np.ndarray, dt: float, *, what: str = "(A, C)", fixed_reason: str = "",
                      atol: float = 0.0) -> int:
     """The observable order ``n_o`` of the staircase :func:`observer_gain` reads first (the caller's coordinates),
-    or, where that refuses the pair as not detectable, of :func:`balanced_pair`'s coordinates; a DesignError where
-    ``(A, C)`` is not detectable in either."""
+    or, where that refuses the pair as not detectable, of :func:`balanced_pair`'s coordinates ``(T⁻¹AT, N C T)``; a
+    DesignError naming the unstable unobservable modes (:func:`detectable_split`) where ``(A, C)`` is not detectable in
+    either — the detectability test of the observer designs (detectability is invariant under both scalings).
+
+    In the caller's coordinates alone the staircase's rank decisions are relative to ``‖[A; C]‖``, and on states
+    scaled over decades they read another pair: 23 of 300 random detectable problems scaled over nine decades
+    (tests/test_riccati_failure_messages.scaled_random_case) were refused by ``kalman`` as 'not detectable', a stable
+    mode read as an unobservable one at +0.24. A caller's absolute rank tolerance ``atol`` refers to its own
+    coordinates: with it the pair is read there only."""
     try:
         return detectable_split(A, C, dt, what=what, fixed_reason=fixed_reason, atol=atol)[1]
     except DesignError:
-        t, r = balanced_pair(A, C, atol)
-        if np.all(t == 1.0) and np.all(r == 1.0):
+        bal, r = balanced_pair(A, C, atol)
+        if bal.trivial and np.all(r == 1.0):
             raise
-    return detectable_split(A * (1 / t)[:, None] * t[None, :], C * t[None, :] * r[:, None], dt, what=what,
-                            fixed_reason=fixed_reason, atol=atol)[1]
+    return detectable_split(bal.similar(A), bal.right(C) * r[:, None], dt, what=what, fixed_reason=fixed_reason,
+                            atol=atol)[1]
 
 
 def _observer_gain_unbalanced(A: np.ndarray, C: np.ndarray, poles, dt: float, *, what: str = "(A, C)",
@@ -477,7 +473,7 @@ def filter_riccati(A, C, Qx, R, S, dt: float, what: str = "the Kalman filter") -
 
     def failed(detail: str) -> DesignError:
         """A solve that failed after the deflation: non-existence or a numerical failure, decided by the data."""
-        exists, why = _existence(A, C, Qx, R, S, dt)
+        exists, why = riccati_existence(A, C, Qx, R, S, dt)
         if exists is False:
             return no_solution(f"{why}; {detail}")
         if exists:
@@ -584,8 +580,8 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, failed) -> np.ndar
     # (tests/test_riccati_failure_messages.py: 18 of 300 random scaled problems; tests/test_riccati_forward.py
     # deflated 8 of 180 refused) — none of them now.
     # The graded rank decision of noise_factor is invariant under T (d_i and H scale together).
-    t = sla.matrix_balance(Ab, permute=False, separate=True)[1][0]
-    Ab, C, Qb, G = Ab / t[:, None] * t[None, :], C * t[None, :], Qb / t[:, None] / t[None, :], G / t[:, None]
+    bal = DiagonalBalancing.of(Ab)
+    Ab, C, Qb, G = bal.similar(Ab), bal.right(C), bal.inv_congruent(Qb), bal.inv_left(G)
     scale = max(1.0, float(np.linalg.norm(Ab, 2)))
     if G.shape[1]:
         Z, n_c = observable_staircase(Ab.T, (G / np.linalg.norm(G, 2)).T)
@@ -631,7 +627,7 @@ def _deflated_riccati(A, C, Qx, R, S, dt: float, no_solution, failed) -> np.ndar
     if P1 is None:
         raise failed(_refusal("the reduced filter Riccati equation", {}))
     P = T1 @ (gamma * (P1 + P1.T) / 2) @ T1.T
-    P = P * t[:, None] * t[None, :]
+    P = bal.congruent(P)
     P = (P + P.T) / 2
     return P
 
@@ -700,14 +696,16 @@ def _forward_checked(A, C, Qx, R, S, P, dt: float, failed, what: str, accuracy: 
     return refined
 
 
-def _existence(A, C, Qx, R, S, dt: float) -> tuple[bool | None, str]:
-    """``(exists, why)``: whether the filter equation has a stabilising solution, decided by the data — ``(A, C)``
-    detectable (:func:`detectable_split`'s staircase) and the Hamiltonian (symplectic) pencil's eigenvalues off the
+def riccati_existence(A, C, Qx, R, S, dt: float) -> tuple[bool | None, str]:
+    """``(exists, why)``: whether the filter Riccati equation of :func:`filter_riccati` (data ``A, C, Qx, R, S`` in
+    filter form) has a stabilising solution, decided by the data — ``(A, C)`` detectable (:func:`observable_order`)
+    and the Hamiltonian (symplectic) pencil's eigenvalues off the
     stability boundary by more than the tolerance of :func:`~fmu_fdi.design.toolkit.riccati_newton.boundary_gap`
     (``√(N·eps)·‖pencil‖``: a boundary eigenvalue is a double one and moves by that much under rounding) —
-    ``exists = None`` where the pencil's eigenvalues could not be computed. Read only for a failure's message."""
+    ``exists = None`` where the pencil's eigenvalues could not be computed. Read only for a failure's message
+    (:func:`filter_riccati`'s, approximate_matching's filter DARE)."""
     try:
-        check_detectable(A, C, dt)
+        observable_order(A, C, dt)
     except DesignError as exc:
         return False, str(exc)
     gap = boundary_gap(A.T.copy(), C.T.copy(), Qx, R, S, dt)

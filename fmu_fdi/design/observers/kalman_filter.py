@@ -37,7 +37,7 @@ from ...errors import DesignError
 from ...generator import ResidualGenerator
 from ...linalg import EPS, inv_sqrtm_pd
 from ...model import FDIModel
-from ._observer import check_detectable, filter_riccati, observer_generator, output_observer, residual_names
+from ._observer import filter_riccati, observable_order, observer_generator, output_observer, residual_names
 
 
 def kalman(model: FDIModel, Qw=None, Rv=None, *, atol: float = 0.0) -> ResidualGenerator:
@@ -107,7 +107,7 @@ def kalman(model: FDIModel, Qw=None, Rv=None, *, atol: float = 0.0) -> ResidualG
         raise DesignError(
             f"the measurement noise covariance R = Dw Qw Dwᵀ + Rv is singular (eigenvalues {lam.tolist()}): "
             f"the steady-state Kalman filter needs every output direction to be noisy; make Rv positive definite")
-    check_detectable(model.A, model.C, model.dt, what="(A, C)",
+    observable_order(model.A, model.C, model.dt, what="(A, C)",
                      fixed_reason="no Kalman filter (no observer at all) has a stable error", atol=atol)
     kf = filter_riccati(model.A, model.C, Qx, R, S, model.dt, what="kalman")
     Q = output_observer(model, kf.L)

@@ -2898,7 +2898,7 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
     solution" with the mode that prevents it, or "a stabilising solution exists" and a numerical failure with the
     figures — the forward line's correction where an answer with a stabilising gain was refused by it (before, every
     refusal said "no stabilising solution")."""
-    from ..observers._observer import _existence
+    from ..observers._observer import riccati_existence
     from ..toolkit import approximate
     from ..toolkit.approximate import RICCATI_RTOL, ZERO_BOUNDARY_RTOL, spectral_riccati
 
@@ -2912,7 +2912,7 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
     exists = None
 
     def existence():
-        return _existence(A, C2, B @ B.T, D21 @ D21.T, B @ D21.T, 1.0)
+        return riccati_existence(A, C2, B @ B.T, D21 @ D21.T, B @ D21.T, 1.0)
 
     fwd = figures.get("forward", np.inf)
     if P is not None:

@@ -19,7 +19,7 @@ so the residual falls quadratically near the solution, and (for ``[Q S; Sᵀ R] 
 start every iterate is stabilising and those after the first decrease monotonically to the stabilising solution
 (Kleinman; Hewer). The Lyapunov/Stein
 equations are solved by SLICOT SB03MD (real Schur form of ``A_F``, Bartels–Stewart / Barraud), in the coordinates of
-a diagonal balancing of ``A`` (see :func:`newton_refined`). Far from the solution
+a diagonal balancing of ``A`` (:class:`DiagonalBalancing`; see :func:`newton_refined`). Far from the solution
 the full step can overshoot; then ``X_{k+1} = X_k + tΔ`` with a step ``t`` that lowers the residual: in continuous
 time the ``t ∈ [0, 2]`` that minimises it exactly, ``𝓡(X_k + tΔ) = (1 − t)𝓡(X_k) − t²ΔBR⁻¹BᵀΔ`` being a matrix polynomial (Benner & Byers,
 "An exact line search method for solving generalized continuous-time algebraic Riccati equations", IEEE TAC 43(1),
@@ -39,6 +39,74 @@ import scipy.linalg as sla
 #: refinement designs took 2–6 Lyapunov solves in all (from residuals 1e-7 … 1e-1 of the terms); the refused ones
 #: stagnate at 1e-8 … 1e-6
 NEWTON_STEPS = 8
+
+
+class DiagonalBalancing:
+    """The state coordinates ``x = T x̃`` of a square matrix's diagonal balancing: ``T = diag(t)``, ``t`` of LAPACK
+    GEBAL without permutation (Parlett & Reinsch 1969; ``scipy.linalg.matrix_balance(M, permute=False,
+    separate=True)``), which brings the norms of each row and column of ``T⁻¹MT`` near each other. Its entries are
+    powers of 2, so every map below is exact in floating point — the same numbers in other units, no rounding — and
+    the eigenvalues, observability, detectability and the Riccati equations' solutions (mapped back) are those of the
+    caller's data; what changes is the scale that the rank decisions and backward errors of the methods run there are
+    relative to (a state scaled over decades is no longer rounding beside the largest entry). Under ``x = T x̃``:
+
+        state matrix     Ã = T⁻¹AT                                   :meth:`similar`
+        input, output    B̃ = T⁻¹B,   C̃ = CT                           :meth:`inv_left`, :meth:`right`
+        control form     Q̃ = TQT,  S̃ = TS,  X̃ = TXT,  F̃ = FT          :meth:`congruent`, :meth:`left`, :meth:`right`
+          (cost ``xᵀQx + 2xᵀSu``, solution ``X``, gain ``u = Fx``; :meth:`control_form` maps ``(A, B, Q, S)``)
+        filter form      Q̃ = T⁻¹QT⁻¹,  G̃ = T⁻¹G,  P̃ = T⁻¹PT⁻¹,  L̃ = T⁻¹L   :meth:`inv_congruent`, :meth:`inv_left`
+          (noise covariance ``Q = GGᵀ``, solution ``P``, output injection ``L``)
+
+    and back by the inverse maps (``X = T⁻¹X̃T⁻¹``, ``F = F̃T⁻¹``, ``P = TP̃T``, ``L = TL̃``). A row scaling is applied
+    before a column scaling throughout."""
+
+    def __init__(self, t: np.ndarray):
+        self.t = np.asarray(t, float)
+
+    @classmethod
+    def of(cls, M: np.ndarray) -> "DiagonalBalancing":
+        """The diagonal balancing of the square ``M`` (GEBAL, no permutation); ``T = I`` without states."""
+        if M.shape[0] == 0:
+            return cls(np.ones(0))
+        return cls(sla.matrix_balance(M, permute=False, separate=True)[1][0])
+
+    @property
+    def trivial(self) -> bool:
+        """``T = I``: nothing to re-read."""
+        return bool(np.all(self.t == 1.0))
+
+    def similar(self, A: np.ndarray) -> np.ndarray:
+        """``T⁻¹AT``."""
+        return A * (1 / self.t)[:, None] * self.t[None, :]
+
+    def left(self, M: np.ndarray) -> np.ndarray:
+        """``TM``."""
+        return M * self.t[:, None]
+
+    def inv_left(self, M: np.ndarray) -> np.ndarray:
+        """``T⁻¹M``."""
+        return M / self.t[:, None]
+
+    def right(self, M: np.ndarray) -> np.ndarray:
+        """``MT``."""
+        return M * self.t[None, :]
+
+    def inv_right(self, M: np.ndarray) -> np.ndarray:
+        """``MT⁻¹``."""
+        return M / self.t[None, :]
+
+    def congruent(self, M: np.ndarray) -> np.ndarray:
+        """``TMT``."""
+        return M * self.t[:, None] * self.t[None, :]
+
+    def inv_congruent(self, M: np.ndarray) -> np.ndarray:
+        """``T⁻¹MT⁻¹``."""
+        return M / self.t[:, None] / self.t[None, :]
+
+    def control_form(self, A, B, Q, S) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(Ã, B̃, Q̃, S̃) = (T⁻¹AT, T⁻¹B, TQT, TS)``: the data of the module docstring's equations (``R``
+        unchanged); their solution is ``X̃ = TXT``, their gain ``F̃ = FT``."""
+        return self.similar(A), self.inv_left(B), self.congruent(Q), self.left(S)
 
 
 def riccati_residual(A, B, Q, R, S, X, dt: float) -> tuple[float, np.ndarray] | None:
@@ -108,24 +176,25 @@ def _exact_step(Rx: np.ndarray, V: np.ndarray) -> float:
 def newton_refined(A, B, Q, R, S, X0, dt: float, rtol: float, steps: int = NEWTON_STEPS) -> np.ndarray | None:
     """The stabilising solution refined from ``X0`` by Newton's method with line search (module docstring), or None.
 
-    The iteration runs in the coordinates of the diagonal balancing of ``A`` (``Ã = T⁻¹AT``, ``T`` diagonal of powers
-    of 2, LAPACK GEBAL: exact in floating point; ``B̃ = T⁻¹B``, ``Q̃ = TQT``, ``S̃ = TS``, ``X̃ = TXT``), where the
-    Schur method's backward error is relative to the balanced entries rather than to the largest entry of ``A``; the
-    answer ``X = T⁻¹X̃T⁻¹`` is judged in the caller's coordinates. It starts only if ``(X0 + X0ᵀ)/2`` is finite with a
-    stable closed loop ``A + B F(X0)``. Each step solves the Lyapunov/Stein equation of the current closed loop for
-    ``Δ``; the step ``t = 1`` is taken when it lowers the residual, else the line search's ``t``; the iteration stops
-    after ``steps`` steps, when the residual no longer falls by half (the rounding floor) or when a closed loop is not
-    stable. Returned: the last iterate, if its relative residual (:func:`riccati_residual`, the caller's coordinates)
-    is within ``rtol``, its closed loop stable and its least eigenvalue no lower than ``−rtol·‖X‖₂`` (the stabilising
-    solution is ⪰ 0 when ``[Q S; Sᵀ R] ⪰ 0``, as for factored data)."""
+    The iteration runs in the coordinates of the diagonal balancing of ``A`` (:class:`DiagonalBalancing`:
+    ``Ã = T⁻¹AT``, ``T`` diagonal of powers of 2, LAPACK GEBAL: exact in floating point; ``B̃ = T⁻¹B``, ``Q̃ = TQT``,
+    ``S̃ = TS``, ``X̃ = TXT``), where the Schur method's backward error is relative to the balanced entries rather than
+    to the largest entry of ``A``; the answer ``X = T⁻¹X̃T⁻¹`` is judged in the caller's coordinates. It starts only if
+    ``(X0 + X0ᵀ)/2`` is finite with a stable closed loop ``A + B F(X0)``. Each step solves the Lyapunov/Stein
+    equation of the current closed loop for ``Δ``; the step ``t = 1`` is taken when it lowers the residual, else the
+    line search's ``t``; the iteration stops after ``steps`` steps, when the residual no longer falls by half (the
+    rounding floor) or when a closed loop is not stable. Returned: the last iterate, if its relative residual
+    (:func:`riccati_residual`, the caller's coordinates) is within ``rtol``, its closed loop stable and its least
+    eigenvalue no lower than ``−rtol·‖X‖₂`` (the stabilising solution is ⪰ 0 when ``[Q S; Sᵀ R] ⪰ 0``, as for
+    factored data)."""
     if X0 is None or not np.all(np.isfinite(X0)) or A.shape[0] == 0:
         return None
-    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
-    X = _iterated(A * (1 / t)[:, None] * t[None, :], B / t[:, None], Q * t[:, None] * t[None, :], R,
-                  S * t[:, None], (X0 + X0.T) / 2 * t[:, None] * t[None, :], dt, steps)
+    bal = DiagonalBalancing.of(A)
+    At, Bt, Qt, St = bal.control_form(A, B, Q, S)
+    X = _iterated(At, Bt, Qt, R, St, bal.congruent((X0 + X0.T) / 2), dt, steps)
     if X is None:
         return None
-    X = X / t[:, None] / t[None, :]
+    X = bal.inv_congruent(X)
     X = (X + X.T) / 2
     res = riccati_residual(A, B, Q, R, S, X, dt)
     if res is None or not res[0] <= rtol or not _stable(A + B @ res[1], dt):
@@ -204,9 +273,9 @@ def closed_loop_correction(A, B, Q, R, S, X, dt: float):
     reads 1e-11 … 1.5e-7 — a false refusal. With the residual in long double (64-bit significand on x86, eps 1.1e-19)
     that floor falls ~2000×, and what is left is the Lyapunov solve's relative error ``~eps·‖A_F‖/sep`` of ``Δ``
     itself. (Where numpy's long double is double, the measure is double's, with its floor.)"""
-    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
-    At, Bt = A * (1 / t)[:, None] * t[None, :], B / t[:, None]
-    Qt, St, Xt = Q * t[:, None] * t[None, :], S * t[:, None], (X + X.T) / 2 * t[:, None] * t[None, :]
+    bal = DiagonalBalancing.of(A)
+    At, Bt, Qt, St = bal.control_form(A, B, Q, S)
+    Xt = bal.congruent((X + X.T) / 2)
     cur = _extended_residual(At, Bt, Qt, R, St, Xt, dt)
     if cur is None:
         return None
@@ -217,7 +286,7 @@ def closed_loop_correction(A, B, Q, R, S, X, dt: float):
     D = _lyapunov(Acl, -Rx, dt)
     if D is None:
         return None
-    return D / t[:, None] / t[None, :], F / t[None, :]  # u = F̃ x̃ = F̃ T⁻¹ x (x = T x̃): F = F̃ T⁻¹
+    return bal.inv_congruent(D), bal.inv_right(F)  # u = F̃ x̃ = F̃ T⁻¹ x (x = T x̃): F = F̃ T⁻¹
 
 
 def _extended_residual(A, B, Q, R, S, X, dt: float):
@@ -324,23 +393,23 @@ def _condition(A, B, Q, R, S, X, dt: float, D=None) -> dict:
     out = _residual(A, B, Q, R, S, X, dt)
     if out is None:
         return {}
-    t = sla.matrix_balance(A + B @ out[2], permute=False, separate=True)[1][0]
-    At, Bt = A * (1 / t)[:, None] * t[None, :], B / t[:, None]
-    Qt, St, Xt = Q * t[:, None] * t[None, :], S * t[:, None], (X + X.T) / 2 * t[:, None] * t[None, :]
-    bal = _residual(At, Bt, Qt, R, St, Xt, dt)
-    if bal is None:
+    bal = DiagonalBalancing.of(A + B @ out[2])
+    At, Bt, Qt, St = bal.control_form(A, B, Q, S)
+    Xt = bal.congruent((X + X.T) / 2)
+    res = _residual(At, Bt, Qt, R, St, Xt, dt)
+    if res is None:
         return {}
-    Acl = At + Bt @ bal[2]
+    Acl = At + Bt @ res[2]
     try:
         sep = float(slycot.sb03md57(Acl.copy(), C=np.zeros_like(Acl), dico="D" if dt else "C", job="S")[4])
     except Exception:  # slycot raises its own error types; the figure is only for the message
         return {}
     n = A.shape[0]
     scale = solution_scale(At, Qt, Xt, dt)
-    floor = n * np.finfo(float).eps * bal[1] / max(sep * scale, np.finfo(float).tiny)
-    got = {"sep": sep, "size": float(bal[1]), "floor": float(floor)}
+    floor = n * np.finfo(float).eps * res[1] / max(sep * scale, np.finfo(float).tiny)
+    got = {"sep": sep, "size": float(res[1]), "floor": float(floor)}
     if D is not None:
-        got["forward_balanced"] = float(np.linalg.norm(D * t[:, None] * t[None, :])) / scale
+        got["forward_balanced"] = float(np.linalg.norm(bal.congruent(D))) / scale
     return got
 
 
@@ -375,8 +444,7 @@ def boundary_gap(A, B, Q, R, S, dt: float) -> dict | None:
     # the eigenvalues are invariant under a state similarity, an input transformation (B V, Vᵀ R V, S V) and the
     # scaling X → γX ((Q, S, R)/γ): the pencil is formed after the diagonal balancing of A, R → I (Cholesky) and the γ
     # that equates ‖Q‖ and ‖B R⁻¹ Bᵀ‖ (the two quadratic terms), so that its norms measure the data, not its units
-    t = sla.matrix_balance(A, permute=False, separate=True)[1][0]
-    A, B, Q, S = A * (1 / t)[:, None] * t[None, :], B / t[:, None], Q * t[:, None] * t[None, :], S * t[:, None]
+    A, B, Q, S = DiagonalBalancing.of(A).control_form(A, B, Q, S)
     try:
         Lr = np.linalg.cholesky((R + R.T) / 2)
     except np.linalg.LinAlgError:
@@ -400,8 +468,8 @@ def boundary_gap(A, B, Q, R, S, dt: float) -> dict | None:
     # balancing, without its symplectic constraint, which only the solution's subspace needs) — powers of 2, exact
     W = np.abs(L) + np.abs(M)
     np.fill_diagonal(W, 0.0)
-    d = sla.matrix_balance(W, permute=False, separate=True)[1][0]
-    L, M = L / d[:, None] * d[None, :], M / d[:, None] * d[None, :]
+    pencil = DiagonalBalancing.of(W)
+    L, M = pencil.similar(L), pencil.similar(M)
     try:
         alpha, beta = sla.eigvals(L, M, homogeneous_eigvals=True)
     except (np.linalg.LinAlgError, ValueError):
