@@ -450,11 +450,16 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
     residue tested), and R_i' is read three ways, each with a bound e on its distance to R_i', per point and
     column (2-norm over the group's rows; γ = N·eps):
 
-    - R_i itself: ``e = ||(λI − T11)⁻¹|| (||K|| + d_K)(||B̃1_c|| + d_B)`` — the pole part it still holds;
-    - ``R_i − K W``: ``e = ||(λI − T11)⁻¹|| (d_K (||B̃1_c|| + d_B) + ||K|| d_B)`` — R_i's pole part, as its own
+    - R_i itself: ``e = ||(λI − T11)⁻¹|| min(||K|| + d_K, k_ρ)(||B̃1_c|| + d_B)`` — the pole part it still holds,
+      with ``k_ρ = ||V⁻¹|| (Σ_k (ρ_k + δ_i,k)²)^½`` a second bound on the true ``||K||`` from the residues ρ_k the
+      removal test read (:func:`_pole_part_gain`; it does not pass through Y: approximate-matching seed 32's
+      stiff simple-basis row, e_K = 309 against ρ = 1.4e-11, read R_i's bound as 3.9e3 and kept the mode-free
+      reading, 1.2e-4 … 3.1e-4 off the exact rational R(0), where R_i is ≤ 2.8e-7 off it);
+    - ``R_i − K W``: ``e = ||(λI − T11)⁻¹|| (d_K' (||B̃1_c|| + d_B) + ||K|| d_B)`` — R_i's pole part, as its own
       evaluation forms it, is known only to the rounding of the row's zero and of the column's coupling, so
       ``d_K = max(e_K, δ_i)`` and ``d_B = e_B̃1 + δ_c ||[1 z]||`` (the removal tests' bounds; random seed 73: the
       subtracted reading read 1.1e-6 beside z = 1 with e_K, e_B̃1 alone ~1e-15, the mode-free one 1.4e-9);
+      ``d_K' = min(d_K, ||K|| + k_ρ)``;
     - the mode-free realisation ``Q_i Ge' − Φ Y B̃1`` (no pole at p is formed):
       ``e = γ(||Q_i|| ||Ge'_c|| + ||Φ|| ||Y|| ||B̃1_c||) + ||Q_i|| e_Ge' + ||Φ|| (e_Y ||B̃1_c|| + ||Y|| e_B̃1)``,
 
@@ -566,9 +571,12 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
             dK = max(eK, float(np.linalg.norm(np.where(np.isfinite(delta_i[pat]), delta_i[pat], 0.0))))
             dB = eB1 + np.linalg.norm(modes["delta_c"][pat][:, cols], axis=0)
             nK, nB1 = float(np.linalg.norm(K, 2)), np.linalg.norm(B1t, axis=0)
+            # ||K|| of the data as stored, also from the removal test's own residues (docstring, "Three readings")
+            kres = _pole_part_gain(T11, decisions["residue"][pat, i], delta_i[pat])
+            kb, dKs = min(nK + dK, kres), min(dK, nK + kres)
             readings = np.stack([raw, sub, free])                                  # (3, K, rows, cols)
-            errs = np.stack([nInv11[:, None] * (nK + dK) * (nB1 + dB)[None, :],
-                             nInv11[:, None] * (dK * (nB1 + dB) + nK * dB)[None, :], e_free])
+            errs = np.stack([nInv11[:, None] * kb * (nB1 + dB)[None, :],
+                             nInv11[:, None] * (dKs * (nB1 + dB) + nK * dB)[None, :], e_free])
             if not (np.all(np.isfinite(readings)) and np.all(np.isfinite(errs))):
                 masks[np.ix_(np.flatnonzero(pattern), [i], cols)] = False
                 continue
@@ -592,6 +600,29 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
         if np.any(masks[k] & modes["coupled"][None, :]):
             removed.append((p, masks[k]))
     return removed
+
+
+def _pole_part_gain(T11: np.ndarray, residue: np.ndarray, delta: np.ndarray) -> float:
+    """A bound on ``||K||``, ``K = Q_i C1`` on the removed modes' invariant subspace (:func:`_without_cancelled_modes`:
+    the pole part of ``R_i`` is ``K (λI − T11)⁻¹ B̃1``), from the residues the removal test evaluated directly.
+
+    With ``T11 V = V diag(p_k)`` (V: unit eigenvectors of the triangular T11, so ``U1 V_k = v_k``, the unit eigenvector
+    of A, and ``C1 V_k = c_k``), ``K V_k = Q_i(p_k) c_k`` exactly, hence ``K = [Q_i(p_k) c_k] V⁻¹`` and
+
+        ||K||₂ ≤ ||V⁻¹||₂ · ( Σ_k (ρ_k + δ_i,k)² )^½,
+
+    ρ_k = ``||Q_i(p_k) c_k||`` as :func:`_row_cancels` read it and δ_i,k its derived rounding bound (the true residue of
+    the stored data is within ρ_k + δ_i,k to first order). ∞ where a residue or bound is not finite. This bound does
+    not pass through the Sylvester solution Y of K's evaluation ``D_q C1 + C_q Y``, whose forward error bound
+    ``||C_q|| e_Y`` is void on a stiff realisation of the row: approximate-matching seed 32's simple-basis filter
+    (poles −1.4e7 … −2.2e-4) has ``e_K`` = 309 where its residue at the plant pair 0.3 ± 0.78j is 1.4e-11 ± 1.3e-8
+    (50-digit evaluation of the stored data: 2.1e-11)."""
+    rho = np.asarray(residue, float) + np.asarray(delta, float)
+    if not rho.size or not np.all(np.isfinite(rho)):
+        return np.inf
+    V = np.linalg.eig(T11)[1]
+    smin = float(np.linalg.svd(V, compute_uv=False)[-1])
+    return float(np.linalg.norm(rho)) / smin if smin > 0 else np.inf
 
 
 def shifted_triangular_solve(T: np.ndarray, lam: np.ndarray, B: np.ndarray, left: bool = False) -> np.ndarray:
