@@ -2,7 +2,8 @@
 ``benchmarks/synthesis_random_judged.py`` 739-798 (and 799-828), approximate ``benchmarks/approximate_random_judged.py``
 200-239 (and 240-259), and the re-run of approximate seed 26 ``amm(Mr = I)``. The exact sets came back clean. Of the
 findings below, seed 243's is fixed here (model_detection.py); seeds 206 and 26/240 are in files this audit does not
-own, so they stay strict xfails with their cause and the change proposed (the figures: the commit messages).
+own, so they stay strict xfails with their cause and the change proposed (the figures: the commit messages). Seed
+206's is fixed since (judge19, postconditions.py: the proposal below); its two tests pass.
 
 - **Seed 206, approximate_model_matching with Mr = an exact detection row's Rf** (continuous n 30, p 3, m 4, no d,
   a fault-only mode at +1; an achievable request: the reference row is admissible) — refused "the returned filter leaks
@@ -106,9 +107,6 @@ def _product_realisation(monkeypatch, seed: int):
 
 # ------------------------------------------------------------------------------------------ seed 206
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 17, audit seed 206 (postconditions.py, judge18): the u/d reading refines "
-                                       "only the points near the unrefined readings' peak; a masked point keeps its "
-                                       "double reading 2.09e-7 where the stored filter's leak is 6.3e-11")
 def test_seed206_judge_reads_the_stored_filters_leak(monkeypatch):
     """~15 s under load (10 s of it the design up to its shipping stage). The library's normalised u/d reading of the
     product realisation Y·Φ·Q0 (order 99) is a reading of the stored filter with an error bound: it may not exceed
@@ -117,7 +115,8 @@ def test_seed206_judge_reads_the_stored_filters_leak(monkeypatch):
     the peak refined there (:func:`_refined_peak`); normalised by the weakest required fault's peak on the same grid
     (Mr's row requires every fault). Tolerance: 1.05 × numpy's figure (the two normalising fault peaks are read on
     different grids: a grid peak is low by at most a few percent, test_approximate_random's FIG_RTOL derivation) plus
-    the judge's own ``decoupling_error``. On the code of this session: judge 2.16e-7 (error 4.8e-10), numpy 1.6e-10."""
+    the judge's own ``decoupling_error``. On audit18's code: judge 2.16e-7 (error 4.8e-10), numpy 1.6e-10 (a strict
+    xfail); passes since judge19 refines until no double reading reaches the refined peak."""
     from fmu_fdi.design.problems.approximate_matching import normalised_leak, required_faults
 
     model, Mr, Q = _product_realisation(monkeypatch, 206)
@@ -142,13 +141,11 @@ def test_seed206_judge_reads_the_stored_filters_leak(monkeypatch):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 17, audit seed 206 (postconditions.py, judge18; shipped by "
-                                       "approximate_matching.py): an achievable reference refused, u leak 9.88e-5")
 def test_seed206_matching_the_detection_row_is_designed():
     """~35 s under load. check_case's numpy judge (test_approximate_random.judge_amm) on
-    ``approximate_model_matching(model, Mr = the exact detection row's Rf)``: refused on this session's code (the
+    ``approximate_model_matching(model, Mr = the exact detection row's Rf)``: refused on audit18's code (the
     shipped minimal realisation leaks 9.6e-5, the judge's over-read of the product's leak keeps it; module
-    docstring); with the judge's reading refined to its peak the design passes."""
+    docstring; a strict xfail); with the judge's reading refined to its peak (judge19) the design passes."""
     assert check_case(206, calls=("amm_ref",)) == [("amm(Mr=detection row)", "ok", "")]
 
 

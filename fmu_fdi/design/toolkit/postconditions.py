@@ -450,11 +450,16 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
     residue tested), and R_i' is read three ways, each with a bound e on its distance to R_i', per point and
     column (2-norm over the group's rows; γ = N·eps):
 
-    - R_i itself: ``e = ||(λI − T11)⁻¹|| (||K|| + d_K)(||B̃1_c|| + d_B)`` — the pole part it still holds;
-    - ``R_i − K W``: ``e = ||(λI − T11)⁻¹|| (d_K (||B̃1_c|| + d_B) + ||K|| d_B)`` — R_i's pole part, as its own
+    - R_i itself: ``e = ||(λI − T11)⁻¹|| min(||K|| + d_K, k_ρ)(||B̃1_c|| + d_B)`` — the pole part it still holds,
+      with ``k_ρ = ||V⁻¹|| (Σ_k (ρ_k + δ_i,k)²)^½`` a second bound on the true ``||K||`` from the residues ρ_k the
+      removal test read (:func:`_pole_part_gain`; it does not pass through Y: approximate-matching seed 32's
+      stiff simple-basis row, e_K = 309 against ρ = 1.4e-11, read R_i's bound as 3.9e3 and kept the mode-free
+      reading, 1.2e-4 … 3.1e-4 off the exact rational R(0), where R_i is ≤ 2.8e-7 off it);
+    - ``R_i − K W``: ``e = ||(λI − T11)⁻¹|| (d_K' (||B̃1_c|| + d_B) + ||K|| d_B)`` — R_i's pole part, as its own
       evaluation forms it, is known only to the rounding of the row's zero and of the column's coupling, so
       ``d_K = max(e_K, δ_i)`` and ``d_B = e_B̃1 + δ_c ||[1 z]||`` (the removal tests' bounds; random seed 73: the
       subtracted reading read 1.1e-6 beside z = 1 with e_K, e_B̃1 alone ~1e-15, the mode-free one 1.4e-9);
+      ``d_K' = min(d_K, ||K|| + k_ρ)``;
     - the mode-free realisation ``Q_i Ge' − Φ Y B̃1`` (no pole at p is formed):
       ``e = γ(||Q_i|| ||Ge'_c|| + ||Φ|| ||Y|| ||B̃1_c||) + ||Q_i|| e_Ge' + ||Φ|| (e_Y ||B̃1_c|| + ||Y|| e_B̃1)``,
 
@@ -566,9 +571,12 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
             dK = max(eK, float(np.linalg.norm(np.where(np.isfinite(delta_i[pat]), delta_i[pat], 0.0))))
             dB = eB1 + np.linalg.norm(modes["delta_c"][pat][:, cols], axis=0)
             nK, nB1 = float(np.linalg.norm(K, 2)), np.linalg.norm(B1t, axis=0)
+            # ||K|| of the data as stored, also from the removal test's own residues (docstring, "Three readings")
+            kres = _pole_part_gain(T11, decisions["residue"][pat, i], delta_i[pat])
+            kb, dKs = min(nK + dK, kres), min(dK, nK + kres)
             readings = np.stack([raw, sub, free])                                  # (3, K, rows, cols)
-            errs = np.stack([nInv11[:, None] * (nK + dK) * (nB1 + dB)[None, :],
-                             nInv11[:, None] * (dK * (nB1 + dB) + nK * dB)[None, :], e_free])
+            errs = np.stack([nInv11[:, None] * kb * (nB1 + dB)[None, :],
+                             nInv11[:, None] * (dKs * (nB1 + dB) + nK * dB)[None, :], e_free])
             if not (np.all(np.isfinite(readings)) and np.all(np.isfinite(errs))):
                 masks[np.ix_(np.flatnonzero(pattern), [i], cols)] = False
                 continue
@@ -592,6 +600,29 @@ def _without_cancelled_modes(model, Q: LTI, groups, lam: np.ndarray, R: np.ndarr
         if np.any(masks[k] & modes["coupled"][None, :]):
             removed.append((p, masks[k]))
     return removed
+
+
+def _pole_part_gain(T11: np.ndarray, residue: np.ndarray, delta: np.ndarray) -> float:
+    """A bound on ``||K||``, ``K = Q_i C1`` on the removed modes' invariant subspace (:func:`_without_cancelled_modes`:
+    the pole part of ``R_i`` is ``K (λI − T11)⁻¹ B̃1``), from the residues the removal test evaluated directly.
+
+    With ``T11 V = V diag(p_k)`` (V: unit eigenvectors of the triangular T11, so ``U1 V_k = v_k``, the unit eigenvector
+    of A, and ``C1 V_k = c_k``), ``K V_k = Q_i(p_k) c_k`` exactly, hence ``K = [Q_i(p_k) c_k] V⁻¹`` and
+
+        ||K||₂ ≤ ||V⁻¹||₂ · ( Σ_k (ρ_k + δ_i,k)² )^½,
+
+    ρ_k = ``||Q_i(p_k) c_k||`` as :func:`_row_cancels` read it and δ_i,k its derived rounding bound (the true residue of
+    the stored data is within ρ_k + δ_i,k to first order). ∞ where a residue or bound is not finite. This bound does
+    not pass through the Sylvester solution Y of K's evaluation ``D_q C1 + C_q Y``, whose forward error bound
+    ``||C_q|| e_Y`` is void on a stiff realisation of the row: approximate-matching seed 32's simple-basis filter
+    (poles −1.4e7 … −2.2e-4) has ``e_K`` = 309 where its residue at the plant pair 0.3 ± 0.78j is 1.4e-11 ± 1.3e-8
+    (50-digit evaluation of the stored data: 2.1e-11)."""
+    rho = np.asarray(residue, float) + np.asarray(delta, float)
+    if not rho.size or not np.all(np.isfinite(rho)):
+        return np.inf
+    V = np.linalg.eig(T11)[1]
+    smin = float(np.linalg.svd(V, compute_uv=False)[-1])
+    return float(np.linalg.norm(rho)) / smin if smin > 0 else np.inf
 
 
 def shifted_triangular_solve(T: np.ndarray, lam: np.ndarray, B: np.ndarray, left: bool = False) -> np.ndarray:
@@ -905,11 +936,14 @@ def _decoupled_reading(model, Q: LTI, g, lam: np.ndarray, blocks: dict, R: np.nd
         e(λ) = 3N·u_x·( |W||λI − A_q||Z| + |W||B_q||G| + |C_q||Z| + |D_q||G| + |Q_g(λ)| E_G ),
         E_G = |W_e||λI − A_e||X_e| + |C_e||X_e|,   W = C_q (λI − A_q)^{-1},
 
-    (``W_e``, ``X_e`` Ge's resolvents, N the larger order, u_x = :data:`EXT_UNIT`; Frobenius norm over the block),
-    each block's peak over the points its bound. **Invariance:** a diagonal state scaling by powers of 2 leaves the
-    data and this reading exactly as they are; an output scaling of the row by c rounds ``C_q``, ``D_q`` by ``u``
-    relative and moves the normalised reading by at most ``u·(|C_q||Z| + |D_q||G|)/g``; any other similarity T
-    (computed in floating point) is new data, whose leak differs from this one's by at most the two realisations'
+    (``W_e``, ``X_e`` Ge's resolvents, N the larger order, u_x = :data:`EXT_UNIT`; Frobenius norm over the block);
+    at a point left at its double reading (:func:`_refine_mask`) the same with u for u_x. A block's bound is that of
+    its peak ``P = max_k r_k``: the largest point bound ``e_k`` among the points with ``r_k + e_k ≥ P`` (the true
+    peak lies in ``[P − e_p, max_k (r_k + e_k)]``, p the peak's point). **Invariance:** a diagonal state scaling by
+    powers of 2 leaves the data and this reading exactly as they are; an output scaling of the row by c rounds
+    ``C_q``, ``D_q`` by ``u`` relative and moves the normalised reading by at most ``u·(|C_q||Z| + |D_q||G|)/g``; any
+    other similarity T (computed in floating point) is new data, whose leak differs from this one's by at most the two
+    realisations'
     **sensitivities** ``u·( |W||A_q||Z| + |W||B_q||G| + |C_q||Z| + |D_q||G| )`` (first order in relative
     perturbations u of every entry of the stored data), plus T's own rounding: the leak a double-precision
     evaluation or simulation of this realisation can show beside the stored filter's (seed 4's shipped filter:
@@ -924,23 +958,29 @@ def _decoupled_reading(model, Q: LTI, g, lam: np.ndarray, blocks: dict, R: np.nd
     at = np.cumsum([0] + [blocks[x].size for x in labels])
     local = {x: np.arange(at[k], at[k + 1]) for k, x in enumerate(labels)}  # each block's columns in G
     Geb = plant_realisation(model.augmented())[:, cols]
-    val, err, sens = _decoupled_values(Qi, Geb, lam, list(local.values()))
+    val, err, sens, refined = _decoupled_values(Qi, Geb, lam, list(local.values()), True)
     fine = np.all(np.isfinite(val), axis=(1, 2)) & np.all(np.isfinite(err), axis=(1, 2))
     if not np.any(fine):
         return
     block = R[:, g, :]
     block[np.ix_(fine, np.arange(rows.size), cols)] = val[fine]
     R[:, g, :] = block
-    N = max(Qi.n, Geb.n, 1)
+    # each point's bound as it was read: 3N·u_x·||err|| refined, 3N·u·||err|| at its double reading
+    unit = 3 * max(Qi.n, Geb.n, 1) * np.where(refined, EXT_UNIT, EPS / 2)[fine]
     peak = lambda X, c: float(np.max(np.linalg.norm(X[fine][:, :, c], axis=(1, 2)), initial=0.0))  # noqa: E731
-    ud = np.concatenate([local[x] for x in ("u", "d") if x in local] or [np.zeros(0, int)])
-    if ud.size:
-        peaks["ud_error"][i] = 3 * N * EXT_UNIT * peak(err, ud)
-        peaks["ud_sensitivity"][i] = EPS / 2 * peak(sens, ud)
+
+    def error(c):  # the bound on the block's peak P = max r_k: max e_k over the points with r_k + e_k ≥ P
+        r, e = np.linalg.norm(val[fine][:, :, c], axis=(1, 2)), unit * np.linalg.norm(err[fine][:, :, c], axis=(1, 2))
+        return float(np.max(e[r + e >= np.max(r)], initial=0.0))
+
+    ud = [local[x] for x in ("u", "d") if x in local]
+    if ud:
+        peaks["ud_error"][i] = max(error(c) for c in ud)
+        peaks["ud_sensitivity"][i] = EPS / 2 * peak(sens, np.concatenate(ud))
     for x in labels:
         if x in ("u", "d"):
             continue
-        e, s = 3 * N * EXT_UNIT * peak(err, local[x]), EPS / 2 * peak(sens, local[x])
+        e, s = error(local[x]), EPS / 2 * peak(sens, local[x])
         if x == "w":
             peaks["w_error"][i], peaks["w_sensitivity"][i] = e, s
         else:
@@ -974,11 +1014,14 @@ _UD_CACHE: OrderedDict = OrderedDict()
 UD_CACHE_SIZE = 64
 
 
-def _decoupled_values(Qi: LTI, Geb: LTI, lam: np.ndarray, blocks: list):
+def _decoupled_values(Qi: LTI, Geb: LTI, lam: np.ndarray, blocks: list, with_refined: bool = False):
     """:func:`_decoupled_reading`'s values ``(R_X, the error matrix, the sensitivity matrix)`` (points × rows ×
-    columns; the last two before their factors 3N·u_x and u) of the row ``Qi`` on the columns ``Geb`` (of
-    :func:`plant_realisation`); ``blocks``: the column indices of each block, whose peak decides where a point is
-    refined (:func:`_refine_mask`).
+    columns; the last two before their factors — 3N·u_x at a refined point, 3N·u at a double reading — and u) of the
+    row ``Qi`` on the columns ``Geb`` (of :func:`plant_realisation`), and with ``with_refined`` the mask of the
+    refined points; ``blocks``: the column indices of each block, whose peak decides where a point is refined
+    (:func:`_refine_mask`, repeated with the refined values until no point left at its double reading can reach a
+    block's peak: a double reading that over-states its value sets the first peak, is refined and falls, and the
+    points it masked are tested again — approximate audit seed 206, tests/test_judge_refine_to_peak.py).
 
     Every figure is a function of its column alone (the plain reading :func:`_plain_values`, and the refined value
     of a column at a point), except where a point is refined, which depends on the blocks. So the reading is kept
@@ -991,7 +1034,8 @@ def _decoupled_values(Qi: LTI, Geb: LTI, lam: np.ndarray, blocks: list):
     info['postconditions'] the same to the bit, benchmarks/bank_check_speed.py --compare)."""
     Qb = Qi.balanced()[0] if Qi.n else Qi
     if not Qb.n:  # a static row: nothing to refine
-        return _plain_values(Qb, Geb, lam)
+        out = _plain_values(Qb, Geb, lam)
+        return (*out, np.zeros(lam.size, bool)) if with_refined else out
     key = content_key(Qb.A, Qb.B, Qb.C, Qb.D, Geb.A, Geb.C, lam)
     ckeys = [content_key(Geb.B[:, c], Geb.D[:, c]) for c in range(Geb.m)]
     entry = recall(_UD_CACHE, key)
@@ -1012,9 +1056,12 @@ def _decoupled_values(Qi: LTI, Geb: LTI, lam: np.ndarray, blocks: list):
                                 rval=np.concatenate([entry.rval, np.full(v.shape, np.nan, complex)], axis=2))
     idx = np.array([entry.cols[k] for k in ckeys], int)
     val, err, sens = entry.val[:, :, idx].copy(), entry.err[:, :, idx], entry.sens[:, :, idx]
-    if EXT_UNIT < EPS / 2:
-        need = _refine_mask(val, err, blocks, max(Qb.n, Geb.n, 1))
-        todo = need & ~np.all(entry.refined[:, idx], axis=1)
+    need = np.zeros(lam.size, bool)
+    while EXT_UNIT < EPS / 2:
+        more = _refine_mask(val, err, blocks, max(Qb.n, Geb.n, 1), need)
+        if not np.any(more):
+            break
+        todo = more & ~np.all(entry.refined[:, idx], axis=1)
         if np.any(todo):
             sub = np.unique(idx)
             pos = [int(np.flatnonzero(idx == s_)[0]) for s_ in sub]  # a request column of each stored one
@@ -1022,9 +1069,10 @@ def _decoupled_values(Qi: LTI, Geb: LTI, lam: np.ndarray, blocks: list):
             rval[np.ix_(todo, np.arange(Qb.p), sub)] = _refined_values(Qb, Geb[:, pos], lam[todo])
             refined[np.ix_(todo, sub)] = True
             entry = SimpleNamespace(**{**vars(entry), "rval": rval, "refined": refined})
-        val[need] = entry.rval[need][:, :, idx]
+        val[more] = entry.rval[more][:, :, idx]
+        need |= more
     remember(_UD_CACHE, key, entry, UD_CACHE_SIZE)
-    return val, err, sens
+    return (val, err, sens, need) if with_refined else (val, err, sens)
 
 
 def _plant_values(Geb: LTI, lam: np.ndarray, Xe=None) -> np.ndarray:
@@ -1078,18 +1126,23 @@ def _plain_values(Qb: LTI, Geb: LTI, lam: np.ndarray):
     return val, err, sens
 
 
-def _refine_mask(val: np.ndarray, err: np.ndarray, blocks: list, N: int) -> np.ndarray:
-    """The points a reading refines: where the double reading's own bound ``3N·u·err`` could move a block's peak (by
-    more than 1e-3 of the value); elsewhere it is within that of the stored filter's value already."""
+def _refine_mask(val: np.ndarray, err: np.ndarray, blocks: list, N: int, refined=None) -> np.ndarray:
+    """The points a reading refines next, among those not ``refined`` (default none): where a double reading's own
+    bound ``3N·u·err`` could move a block's peak (by more than 1e-3 of the value); elsewhere it is within that of the
+    stored filter's value already. The peak's lower end ``max_k (r_k − e_k)`` is taken with each point's bound as it
+    was read (3N·u_x·err where refined), so a call with the refined values returns the points the refinement
+    unmasked, none once no double reading can reach the refined peak (:func:`_decoupled_values`' loop)."""
+    done = np.zeros(val.shape[0], bool) if refined is None else np.asarray(refined, bool)
+    unit = 3 * N * np.where(done, EXT_UNIT, EPS / 2)
     need = np.zeros(val.shape[0], bool)
     for idx in blocks:
         if not idx.size:
             continue
         r = np.linalg.norm(val[:, :, idx], axis=(1, 2))
-        e = 3 * N * EPS / 2 * np.linalg.norm(err[:, :, idx], axis=(1, 2))
+        e = unit * np.linalg.norm(err[:, :, idx], axis=(1, 2))
         ok = np.isfinite(r) & np.isfinite(e)
         top = float(np.max(np.where(ok, r - e, -np.inf), initial=-np.inf))
-        need |= ok & (e > 1e-3 * r) & (r + e >= top)
+        need |= ok & ~done & (e > 1e-3 * r) & (r + e >= top)
     return need
 
 
