@@ -566,9 +566,13 @@ class _LightModes:
     located badly is read at its height; beyond ``10d`` the mode's term is below a tenth of its peak. A mode whose
     ``ρ_x`` still exceeds ``rtol`` (ζ ≲ 1e-11·s_A/|λ| on x86; 2.2e-8 where longdouble is double) and whose scanned
     gains widened by ``ρ_x`` reach the peak is refused with a :class:`~fmu_fdi.errors.DesignError` naming it — for
-    the working precision it is a pole on the boundary — instead of a figure off by up to ``ρ_x``. (Modes with
-    ``d < 1e3·eps·max(1, s_A)`` are boundary poles: :meth:`LTI.hinfnorm` returns ``inf`` before.) A reading whose
-    refinement does not converge to ``rtol/10`` is refused the same way."""
+    the working precision it is a pole on the boundary — instead of a figure off by up to ``ρ_x``; so is such a mode
+    beside which the peak itself was read (a reading over-read by ``ρ_x`` there can exceed the scan's best by more
+    than rtol). (Modes with ``d < 1e3·eps·max(1, s_A)`` are boundary poles: :meth:`LTI.hinfnorm` returns ``inf``
+    before.) A reading whose refinement does not converge to ``rtol/10`` is refused the same way — except beside a
+    mode with ``ρ_x > rtol``, whose readings are known only to ``ρ_x`` and are decided by :meth:`settle` as above:
+    where longdouble is double (Windows, ARM macOS; there ``ρ_x = ρ`` for every light mode) that rule refused light
+    modes far below the peak (tests/test_double_host.py: ζ = 1e-10, the gain there 0.8 of the peak)."""
 
     def __init__(self, A, B, C, D, discrete: bool, rtol: float):
         self.A, self.B, self.C, self.D, self.discrete, self.rtol = A, B, C, D, discrete, rtol
@@ -584,6 +588,8 @@ class _LightModes:
         light = light[np.argsort(where[light], kind="stable")]
         self.poles, self.dist, self.where = poles[light], dist[light], where[light]
         self.radius = np.maximum(10.0 * self.dist, EPS * self.size / rtol)
+        with np.errstate(divide="ignore"):
+            self.rho_x = EXT_EPS * self.size / self.dist  # what an extended reading near each mode is fixed to
         self.balanced = (A, B, C)
         if self.poles.size and B.shape[1] and C.shape[0]:
             import slycot
@@ -605,14 +611,19 @@ class _LightModes:
         out = peak_gains(self.A, self.B, self.C, self.D, self.discrete, freqs)
         if self.poles.size:
             fin = np.isfinite(freqs)
-            near = np.zeros(freqs.size, bool)
-            near[fin] = np.any(np.abs(self._points(freqs[fin])[:, None] - self.poles[None, :])
-                               <= 1.5 * self.radius[None, :], axis=1)
+            close = np.zeros((freqs.size, self.poles.size), bool)
+            close[fin] = np.abs(self._points(freqs[fin])[:, None] - self.poles[None, :]) <= 1.5 * self.radius[None, :]
+            near = np.any(close, axis=1)
             if np.any(near):
                 at = freqs[near]
                 out[near], moved = _extended_gains(*self.balanced, self.D, self.discrete, at)
-                if np.any(moved > 0.1 * self.rtol):
-                    i = int(np.argmax(moved))
+                # a point near a mode whose extended reading is fixed only to rho_x > rtol need not converge to
+                # rtol/10: its reading is known to rho_x, and settle() refuses the mode if it may be the peak (where
+                # longdouble is double, every light mode; on x86 ζ ≲ 1e-11). Elsewhere non-convergence is refused.
+                loose = np.any(close[near] & (self.rho_x > self.rtol)[None, :], axis=1)
+                bad = np.where(loose, 0.0, moved)
+                if np.any(bad > 0.1 * self.rtol):
+                    i = int(np.argmax(bad))
                     k = int(np.argmin(np.abs(self._points(at[i:i + 1]) - self.poles)))
                     self._refuse(k, out[near][i], at[i], f"the extended-precision reading there did not converge "
                                                          f"(its last step moved the gain by {moved[i]:.3g})")
@@ -640,12 +651,20 @@ class _LightModes:
                     best, wbest = float(g[j]), float(w[j])
                 step = w[1] - w[0] if w.size > 1 else d
                 w = w[j] + step * np.linspace(-1.0, 1.0, 21)
-            rho_x = EXT_EPS * self.size / d
+            rho_x = self.rho_x[k]
             if rho_x > self.rtol and best * (1.0 + rho_x) >= max(lo, best) * (1.0 - self.rtol):
                 self._refuse(k, best, wbest, f"may be the peak ({max(lo, best):.9g}), read by extended precision "
                                              f"only to {rho_x:.3g} relative (ext_eps·{self.size:.3g}/{d:.3g})")
             if best > lo:
                 lo, wlo = best, wbest
+        # the peak itself read beside such a mode is that mode's reading, fixed only to its rho_x: even where the
+        # scan's best stays below it (a reading over-read by rho_x, the scan's under-read), it is no figure to rtol
+        if np.isfinite(wlo):
+            at = np.abs(self._points(np.array([wlo]))[0] - self.poles) <= 1.5 * self.radius
+            for k in np.flatnonzero(at & (self.rho_x > self.rtol)):
+                self._refuse(int(k), lo, wlo, f"is where the peak was read, by extended precision only to "
+                                              f"{self.rho_x[k]:.3g} relative (ext_eps·{self.size:.3g}/"
+                                              f"{self.dist[k]:.3g})")
         return lo, wlo
 
 

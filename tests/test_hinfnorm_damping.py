@@ -27,6 +27,7 @@ more.
 """
 from __future__ import annotations
 
+import re
 from decimal import Decimal, localcontext
 
 import numpy as np
@@ -39,10 +40,42 @@ from fmu_fdi.linalg import EPS
 from fmu_fdi.lti import LTI, certified_peak, gain_crossings
 
 TOL = 3e-8
-#: the cases below ζ ≈ 2e-8 are read in longdouble (lti._LightModes); where it is double they are refused instead
+#: the cases below ζ ≈ 2e-8 are read in longdouble (lti._LightModes); where it is double (Windows, ARM macOS; run
+#: here by tests/test_double_host.py's simulated host) such a peak is refused instead — the cases marked ``light``
+#: then accept a refusal naming the mode (:func:`read_or_refused`), never a figure off by more than TOL
 EXT_EPS = float(np.finfo(np.longdouble).eps)
-extended = pytest.mark.skipif(EXT_EPS >= EPS, reason="numpy's longdouble is double on this platform")
+DOUBLE_HOST = EXT_EPS >= EPS
+extended = pytest.mark.skipif(DOUBLE_HOST, reason="asserts the extended reading's accuracy (ext_eps/ζ = 1.1e-9 at "
+                                                 "ζ = 1e-10); numpy's longdouble is double on this platform")
+MODE_REFUSAL = r"not computable to .*at the mode λ.*pole on the boundary"
 PREC = 50
+
+
+def read_or_refused(call, light_case: bool):
+    """``call()`` → ``(g, f)``; ``None`` for a refusal naming the mode where that is allowed: a ``light_case``
+    (ζ ≤ 1e-8, below what double readings fix to rtol) on a host whose longdouble is double."""
+    if not (light_case and DOUBLE_HOST):
+        return call()
+    try:
+        return call()
+    except DesignError as exc:
+        assert re.search(MODE_REFUSAL, str(exc)), str(exc)
+        return None
+
+
+def assert_peak(G: LTI, peak: float, zeta: float, what: str, start=(1.0, np.inf), start_name: str = "from D"):
+    """``hinfnorm`` and ``certified_peak`` from the candidate ``start`` (gain, frequency; rad/sample in discrete
+    time) both return the peak to TOL, and the gain at their frequency is the peak to TOL (decimal) — or, where
+    :func:`read_or_refused` allows it, refuse naming the mode."""
+    for how, call in (("hinfnorm", G.hinfnorm),
+                      (start_name, lambda: certified_peak(G.A, G.B, G.C, G.D, bool(G.dt), *start))):
+        got = read_or_refused(call, zeta <= 1e-8)
+        if got is None:
+            continue
+        g, f = got
+        f = f / G.dt if G.dt and how != "hinfnorm" else f
+        assert_within(g, peak, f"{what} {how}")
+        assert_within(decimal_gain(G, f), peak, f"{what} {how}: the gain at {f!r}")
 
 
 # ------------------------------------------------------------------------------------------------ decimal judge
@@ -160,8 +193,7 @@ def assert_within(got: float, peak: float, what: str):
 
 
 # ------------------------------------------------------------------------------------------------ continuous
-CASES = [(z, wn) for z in (1e-5, 1e-6, 1e-7) for wn in (1.0, 37.0)] + \
-        [pytest.param(z, wn, marks=extended) for z in (1e-8, 1e-9, 1e-10) for wn in (1.0, 37.0)]
+CASES = [(z, wn) for z in (1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10) for wn in (1.0, 37.0)]
 
 
 @pytest.mark.parametrize("zeta,wn", CASES)
@@ -170,11 +202,7 @@ def test_a_light_resonance_beside_the_feedthrough(zeta, wn):
     and states scaled over six decades: the closed-form peak, and the gain at the returned frequency."""
     peak, _ = section_peak(1.0, 1.4 * zeta, wn, zeta)
     for T in (None, np.diag([1e-3, 1e3])):
-        G = light(zeta, wn, T)
-        for how, (g, f) in (("hinfnorm", G.hinfnorm()),
-                            ("from D", certified_peak(G.A, G.B, G.C, G.D, False, 1.0, np.inf))):
-            assert_within(g, peak, f"zeta {zeta} wn {wn} {how}")
-            assert_within(decimal_gain(G, f), peak, f"zeta {zeta} wn {wn} {how}: the gain at {f!r}")
+        assert_peak(light(zeta, wn, T), peak, zeta, f"zeta {zeta} wn {wn}")
 
 
 def shoulder(zeta: float, wn: float, below: float) -> float:
@@ -218,7 +246,7 @@ def test_crossings_closer_than_sqrt_eps_are_both_kept():
 
 
 # ------------------------------------------------------------------------------------------------ discrete
-@pytest.mark.parametrize("zeta", [1e-5, 1e-6, 1e-7] + [pytest.param(z, marks=extended) for z in (1e-9, 1e-10)])
+@pytest.mark.parametrize("zeta", [1e-5, 1e-6, 1e-7, 1e-9, 1e-10])
 def test_a_light_resonance_in_discrete_time(zeta):
     """The Tustin image (T = 0.5) of the section at ωn = 1: its stored data's peak by a decimal scan of the
     resonance window (v = tan(θ/2) within ±30 times the pole's distance to the circle, mapped), from AB13DD's
@@ -227,11 +255,7 @@ def test_a_light_resonance_in_discrete_time(zeta):
     lam = np.linalg.eigvals(G.A)[0]
     v0, dv = np.tan(abs(np.angle(lam)) / 2), 30 * (1 - abs(lam)) * (1 + np.tan(abs(np.angle(lam)) / 2) ** 2) / 2
     peak = decimal_window_peak(G, v0, dv)
-    for how, (g, f) in (("hinfnorm", G.hinfnorm()),
-                        ("from Nyquist", certified_peak(G.A, G.B, G.C, G.D, True, 1.0, np.pi))):
-        f = f if how == "hinfnorm" else f / G.dt
-        assert_within(g, peak, f"discrete zeta {zeta} {how}")
-        assert_within(decimal_gain(G, f), peak, f"discrete zeta {zeta} {how}: the gain at {f!r}")
+    assert_peak(G, peak, zeta, f"discrete zeta {zeta}", start=(1.0, np.pi), start_name="from Nyquist")
 
 
 # ------------------------------------------------------------------------------------------------ several modes
@@ -262,16 +286,11 @@ def judged_peak(G: LTI, zeta: float) -> float:
 
 
 @pytest.mark.parametrize("zeta,seed,close", [(1e-6, 0, True), (1e-6, 1, True), (1e-7, 2, True),
-                                             (1e-6, 3, False), (1e-7, 4, False), (1e-7, 5, False)] +
-                         [pytest.param(*c, marks=extended) for c in ((1e-9, 6, True), (1e-9, 7, False),
-                                                                     (1e-10, 1, False), (1e-10, 3, False))])
+                                             (1e-6, 3, False), (1e-7, 4, False), (1e-7, 5, False),
+                                             (1e-9, 6, True), (1e-9, 7, False), (1e-10, 1, False), (1e-10, 3, False)])
 def test_close_and_ill_scaled_modes(zeta, seed, close):
     G = mixed(zeta, seed, close)
-    peak = judged_peak(G, zeta)
-    for how, (g, f) in (("hinfnorm", G.hinfnorm()),
-                        ("from D", certified_peak(G.A, G.B, G.C, G.D, False, 1.0, np.inf))):
-        assert_within(g, peak, f"zeta {zeta} seed {seed} close {close} {how}")
-        assert_within(decimal_gain(G, f), peak, f"zeta {zeta} seed {seed} {how}: the gain at {f!r}")
+    assert_peak(G, judged_peak(G, zeta), zeta, f"zeta {zeta} seed {seed} close {close}")
 
 
 # ------------------------------------------------------------------------------------------------ refusals

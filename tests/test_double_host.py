@@ -1,0 +1,107 @@
+"""A host whose ``np.longdouble`` is plain double (Windows, ARM macOS), simulated in a subprocess: what it returns is
+right or refused, never wrong.
+
+The library's extended-precision readings (the judge's refined u/d readings, ``postconditions.EXT_UNIT``; the Riccati
+residual; the H∞ light-mode readings, ``lti.EXT_EPS``) fall back to double where longdouble is double. On x86 that
+configuration is reached by :data:`PATCH`, run before anything imports fmu_fdi: every use of the extended type in the
+package looks up ``np.longdouble`` / ``np.clongdouble`` (at call time, or at module import for the two constants,
+which the subprocess checks), and ``benchmarks/double_host_audit.py`` scans the source for any other way to it
+(``float128``, a dtype string ``'g'``, …) — none today. That script runs the judged random audits on both hosts.
+
+Here, in one subprocess (~4 s, most of it importing), on the simulated host:
+
+* a mode of damping 1e-10 whose resonance stays far below the peak (tests/test_hinfnorm_damping's case): the peak is
+  read, to the certificate's TOL against a 50-digit decimal evaluation — before, every light mode whose double
+  reading did not converge to rtol/10 was refused, whether or not it could be the peak (on this host, every mode
+  with ζ ≲ 2e-8: ``lti._LightModes.gains``);
+* a mode of damping 1e-9 that *is* the peak (mixed and scaled states): refused naming the mode, or read to TOL;
+* a few random designs (exact seeds 21 and 0, every call of test_synthesis_random.check_case on two listed rows;
+  approximate seed 0's AFD) judged by those files' numpy judges: none broken, and each returned (a refusal would be
+  allowed on such a host, but then this test would judge nothing: it says so).
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+# (no fmu_fdi import at module level: benchmarks/double_host_audit.py imports PATCH from here before simulating)
+TESTS = Path(__file__).resolve().parent
+
+#: the simulated host: numpy's extended types made double before fmu_fdi (or scipy) is imported
+PATCH = "import numpy; numpy.longdouble = numpy.float64; numpy.clongdouble = numpy.complex128"
+
+_SCRIPT = PATCH + """
+import json, re, sys
+import numpy as np
+from fmu_fdi import lti
+from fmu_fdi.design.toolkit import postconditions
+from fmu_fdi.errors import DesignError
+from fmu_fdi.lti import LTI
+import test_approximate_random as ta
+import test_hinfnorm_damping as th
+import test_synthesis_random as ts
+
+out = {"host": [lti.EXT_EPS, postconditions.EXT_UNIT, np.dtype(np.longdouble).name, np.dtype(np.clongdouble).name]}
+
+
+def reading(G, peak_of):
+    try:
+        g, f = G.hinfnorm()
+    except DesignError as exc:
+        return ["refused", str(exc)]
+    return ["read", g, peak_of(G), th.decimal_gain(G, f)]
+
+
+below = th.section(1.0, 1e-10, 1.0, 1e-10) + LTI(np.array([[-1.0]]), np.array([[1.0]]), np.array([[3.2]]),
+                                                  np.zeros((1, 1)))
+out["below"] = reading(below, lambda G: th.decimal_gain(G, 0.0))
+out["at_peak"] = reading(th.mixed(1e-9, 6, True), lambda G: th.judged_peak(G, 1e-9))
+out["exact"] = [[s] + list(r) for s in (21, 0) for r in ts.check_case(s, max_rows=2)]
+out["approx"] = [[0] + list(r) for r in ta.check_case(0, calls=("afd",))]
+print(json.dumps(out))
+"""
+
+
+def simulated_host(script: str, timeout: float = 120) -> dict:
+    """Run ``script`` (which starts with :data:`PATCH`) in a fresh interpreter importing this tree's fmu_fdi (the
+    tests' parent) and the tests' helpers; its last stdout line, as JSON."""
+    root = str(TESTS.parent)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, str(TESTS), os.environ.get("PYTHONPATH", "")]),
+               OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=timeout,
+                         cwd=str(TESTS))
+    assert res.returncode == 0, res.stderr[-3000:]
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def test_simulated_double_host_returns_right_figures_or_refuses():
+    from test_hinfnorm_damping import MODE_REFUSAL, TOL
+
+    import re
+
+    import numpy as np
+
+    got = simulated_host(_SCRIPT)
+    eps = float(np.finfo(float).eps)
+    assert got["host"] == [eps, eps / 2, "float64", "complex128"], got["host"]
+
+    # the light mode below the peak: read, not refused (this host, before: refused for the mode's non-convergence)
+    assert got["below"][0] == "read", got["below"]
+    _, g, peak, at_f = got["below"]
+    assert abs(g - peak) <= TOL * peak and abs(at_f - peak) <= TOL * peak, got["below"]
+
+    # the light mode at the peak: a refusal naming it, or the figure to TOL
+    if got["at_peak"][0] == "refused":
+        assert re.search(MODE_REFUSAL, got["at_peak"][1]), got["at_peak"]
+    else:
+        _, g, peak, at_f = got["at_peak"]
+        assert abs(g - peak) <= TOL * peak and abs(at_f - peak) <= TOL * peak, got["at_peak"]
+
+    for family in ("exact", "approx"):
+        broken = [r for r in got[family] if r[2] not in ("ok", "refused")]
+        assert not broken, broken
+        returned = [r for r in got[family] if r[2] == "ok"]
+        assert returned, f"{family}: every design refused on the simulated host — nothing judged: {got[family]}"
