@@ -18,6 +18,10 @@ Here, in one subprocess (~4 s, most of it importing), on the simulated host:
 * a few random designs (exact seeds 21 and 0, every call of test_synthesis_random.check_case on two listed rows;
   approximate seed 0's AFD) judged by those files' numpy judges: none broken, and each returned (a refusal would be
   allowed on such a host, but then this test would judge nothing: it says so).
+
+A strict xfail pins what is still wrong there (not in this engineer's files): the Kalman filter's Riccati answer on
+tests/test_riccati_forward.py's deflated problem 42/0 is accepted with a forward error 3.3e-6 above its 1e-6 line
+(``riccati_newton.forward_refined`` reads the correction with a residual in double there).
 """
 from __future__ import annotations
 
@@ -26,6 +30,8 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 # (no fmu_fdi import at module level: benchmarks/double_host_audit.py imports PATCH from here before simulating)
 TESTS = Path(__file__).resolve().parent
@@ -105,3 +111,33 @@ def test_simulated_double_host_returns_right_figures_or_refuses():
         assert not broken, broken
         returned = [r for r in got[family] if r[2] == "ok"]
         assert returned, f"{family}: every design refused on the simulated host — nothing judged: {got[family]}"
+
+
+_RICCATI = PATCH + """
+import json
+import numpy as np
+from fmu_fdi.design.observers import _observer
+from fmu_fdi.errors import DesignError
+from test_riccati_forward import deflated_problem, forward_error
+
+A, C, Qx, R, dt = deflated_problem(42, 0)
+try:
+    f = _observer.filter_riccati(A, C, Qx, R, np.zeros((A.shape[0], C.shape[0])), dt)
+    print(json.dumps(["designed", forward_error(A, C, Qx, R, dt, f.P, f.L), f.accuracy["forward"]]))
+except DesignError as exc:
+    print(json.dumps(["refused", str(exc)]))
+"""
+
+
+@pytest.mark.xfail(strict=True, reason="riccati_newton.forward_refined accepts a correction read with a residual in "
+                                       "double where longdouble is double: its reading (8.7e-7) is below the line, the "
+                                       "answer's forward error is 3.3e-6 (mend20's file; see the report)")
+def test_simulated_double_host_kalman_riccati_meets_its_forward_line_or_refuses():
+    """tests/test_riccati_forward.py's deflated problem 42/0 by ``filter_riccati`` on the simulated host: the forward
+    error the independent judge reads (scipy's Lyapunov equation of the filter run with the returned gain) is within
+    FORWARD_RTOL = 1e-6 plus the judge's own floor on this problem (≤ 6e-7: the native host's answer, whose
+    extended-residual correction reads 2.4e-10, is judged 5.97e-7) — or the solve is refused. Natively it is designed
+    and judged 5.97e-7; on the simulated host it is designed, judged 3.32e-6, its own figure 8.7e-7."""
+    got = simulated_host(_RICCATI)
+    if got[0] == "designed":
+        assert got[1] <= 1e-6 + 1e-6, got
