@@ -355,8 +355,9 @@ class LTI:
         The peak is at most ``rtol`` (relative) above an attained gain ``γ_lo``, and the value returned is within
         ``rtol`` of ``γ_lo`` (AB13DD's own figure where it is, else ``γ_lo``): within ``2·rtol`` of the peak;
         a realisation whose peak cannot be certified raises :class:`~fmu_fdi.errors.DesignError`, and so does one
-        whose peak may lie at a mode so lightly damped (``ζ ≲ 1e-11`` on x86, 2.2e-8 where longdouble is double)
-        that even extended-precision readings do not fix the gain there to ``rtol`` (:class:`_LightModes`).
+        whose peak may lie at a mode so lightly damped (``ζ ≲ 1e-11`` on x86; where longdouble is double, none in
+        continuous time — read in double-double — and ``ζ ≲ 2.2e-8`` in discrete time) that even extended-precision
+        readings do not fix the gain there to ``rtol`` (:class:`_LightModes`).
         Returns ``(inf, freq)`` for a pole on the stability boundary (``0.0``: the frequency is not
         located).
         """
@@ -554,25 +555,32 @@ class _LightModes:
     refinement steps whose residual ``B − (sI − A)X`` is formed in longdouble from the stored data and the point
     ``s`` itself in longdouble (``jω``; ``cos ω + j sin ω``, on the circle to longdouble's rounding, not double's —
     a point off the circle by eps moves the gain near the mode by eps/d), on the realisation scaled by powers of 2
-    (TB01ID's factors rounded: exact, the same transfer function to the last bit). Each step divides the error by
+    (TB01ID's factors rounded: exact, the same transfer function to the last bit). Where longdouble is double
+    (Windows, ARM macOS) continuous-time points are read in double-double instead (:func:`_double_double_gains`:
+    error-free transformations, ``ext_eps = n²·eps²``); discrete-time ones stay plain there (``ext_eps = eps``:
+    the point ``e^{jω}`` would need cos and sin beyond double). Each step divides the error by
     ``κ·eps ≤ ρ ≪ 1``; it ends at ``eps + ρ_x``, ``ρ_x = ext_eps·s_A/d``. Measured (tests/test_hinfnorm_damping
     ``mixed``, seeds 0–3, against a 50-digit evaluation of the stored data), worst relative error with double
     readings only → with these: ζ = 1e-8 1.2e-8 → 1.3e-12, 1e-9 1.3e-7 → 3.5e-11, 1e-10 4.0e-7 → 1.7e-10; 1e-11
-    1.2e-5 → refused (main, AB13DD and merged crossings: 7.8e-3, 7.6e-3, 25 %, 42 % low).
+    1.2e-5 → refused (main, AB13DD and merged crossings: 7.8e-3, 7.6e-3, 25 %, 42 % low). In double-double on a
+    simulated double-longdouble host (tests/test_double_host.py's patch), the sections and ``mixed`` cases at
+    ζ = 1e-8 … 1e-12: worst 1.45e-9 (ζ = 1e-12, ωn = 37), none refused.
 
     :meth:`settle` then scans each light mode's resonance with these readings — 81 points over ``Im λ ± 10d``
     (``arg λ``), five rounds of 21 points on the best point's two neighbouring steps (the step ends at ``d/4e5``:
     a Lorentzian top read ``(step/d)²/2 < 1e-11`` low) — so that a top the pencil's double-precision crossings
     located badly is read at its height; beyond ``10d`` the mode's term is below a tenth of its peak. A mode whose
-    ``ρ_x`` still exceeds ``rtol`` (ζ ≲ 1e-11·s_A/|λ| on x86; 2.2e-8 where longdouble is double) and whose scanned
-    gains widened by ``ρ_x`` reach the peak is refused with a :class:`~fmu_fdi.errors.DesignError` naming it — for
-    the working precision it is a pole on the boundary — instead of a figure off by up to ``ρ_x``; so is such a mode
+    ``ρ_x`` still exceeds ``rtol`` (ζ ≲ 1e-11·s_A/|λ| on x86; 2.2e-8 in discrete time where longdouble is double,
+    none in continuous time there) and whose scanned gains widened by ``ρ_x`` reach the peak is refused with a
+    :class:`~fmu_fdi.errors.DesignError` naming it — for the working precision it is a pole on the boundary —
+    instead of a figure off by up to ``ρ_x``; so is such a mode
     beside which the peak itself was read (a reading over-read by ``ρ_x`` there can exceed the scan's best by more
     than rtol). (Modes with ``d < 1e3·eps·max(1, s_A)`` are boundary poles: :meth:`LTI.hinfnorm` returns ``inf``
     before.) A reading whose refinement does not converge to ``rtol/10`` is refused the same way — except beside a
     mode with ``ρ_x > rtol``, whose readings are known only to ``ρ_x`` and are decided by :meth:`settle` as above:
-    where longdouble is double (Windows, ARM macOS; there ``ρ_x = ρ`` for every light mode) that rule refused light
-    modes far below the peak (tests/test_double_host.py: ζ = 1e-10, the gain there 0.8 of the peak)."""
+    where longdouble is double (Windows, ARM macOS) ``ρ_x = ρ`` for every light mode of a discrete-time system
+    (before the double-double readings, of every system) and that rule refused light modes far below the peak
+    (tests/test_hinfnorm_damping.py: ζ = 1e-10, the gain there 0.8 of the peak)."""
 
     def __init__(self, A, B, C, D, discrete: bool, rtol: float):
         self.A, self.B, self.C, self.D, self.discrete, self.rtol = A, B, C, D, discrete, rtol
@@ -588,8 +596,8 @@ class _LightModes:
         light = light[np.argsort(where[light], kind="stable")]
         self.poles, self.dist, self.where = poles[light], dist[light], where[light]
         self.radius = np.maximum(10.0 * self.dist, EPS * self.size / rtol)
-        with np.errstate(divide="ignore"):
-            self.rho_x = EXT_EPS * self.size / self.dist  # what an extended reading near each mode is fixed to
+        with np.errstate(divide="ignore"):  # what an extended reading near each mode is fixed to
+            self.rho_x = _ext_eps(A.shape[0], discrete) * self.size / self.dist
         self.balanced = (A, B, C)
         if self.poles.size and B.shape[1] and C.shape[0]:
             import slycot
@@ -674,6 +682,8 @@ def _extended_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray, np.n
     ``X += (sI − A)⁻¹(B − (sI − A)X)`` with the residual and ``C X + D`` in longdouble, ``s`` in longdouble. The
     steps contract by ``κ·eps`` down to a floor ``κ·ext_eps``. Returns the gains and, per point, how much the last
     step moved ``C X`` relative to the gain (the caller refuses a reading it moved by more than ``rtol/10``)."""
+    if _double_double(discrete):
+        return _double_double_gains(A, B, C, D, freqs)
     ld, cld = np.longdouble, np.clongdouble
     Al, Bl, Cl, Dl = A.astype(ld), B.astype(ld), C.astype(ld), D.astype(ld)
     out, moved = np.empty(freqs.size), np.empty(freqs.size)
@@ -689,6 +699,115 @@ def _extended_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray, np.n
         G = (Cl @ X + Dl).astype(complex)
         out[i] = np.linalg.svd(G, compute_uv=False)[0]
         moved[i] = float(np.linalg.norm((Cl @ dX.astype(cld)).astype(complex))) / max(out[i], np.finfo(float).tiny)
+    return out, moved
+
+
+# ------------------------------------------------------------------------------ double-double residuals
+# Accuracy beyond double on every host, whatever numpy's longdouble is (the x87 80-bit format on x86 Linux; plain
+# double on Windows and ARM macOS), from error-free transformations:
+# ``two_sum(a, b) = (s, e)`` with ``s = fl(a + b)`` and ``a + b = s + e`` exactly (Knuth, TAOCP vol. 2, §4.2.2);
+# ``two_prod(a, b) = (p, e)`` with ``p = fl(a·b)`` and ``a·b = p + e`` exactly (Dekker, "A floating-point technique for
+# extending the available precision", Numer. Math. 18, 1971: Veltkamp's split by ``2^27 + 1``; exact barring overflow of
+# ``(2^27 + 1)·a``, i.e. for ``|a| < 1e300``, and underflow of the partial products). :func:`dot2` is Ogita, Rump &
+# Oishi's Dot2 ("Accurate sum and dot product", SIAM J. Sci. Comput. 26(6), 2005, Alg. 5.3) with the sums taken
+# pairwise: every error term is kept, and only the error terms are summed in plain double, so ``|hi + lo − A·X| ≤
+# (n + 2⌈log₂ n⌉)·u²·|A||X|`` to first order (``u = eps/2``): as if computed in twice the working precision.
+
+#: Veltkamp's splitting constant 2^27 + 1 (binary64: a 53-bit significand split into two 26-bit halves)
+_SPLITTER = 134217729.0
+
+
+def two_sum(a, b):
+    """``(s, e)``: ``s = fl(a + b)``, ``e = a + b − s`` exactly (Knuth's branch-free TwoSum)."""
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+def two_prod(a, b):
+    """``(p, e)``: ``p = fl(a·b)``, ``e = a·b − p`` exactly (Dekker's TwoProduct with Veltkamp's split)."""
+    p = a * b
+    c = _SPLITTER * a
+    ah = c - (c - a)
+    al = a - ah
+    c = _SPLITTER * b
+    bh = c - (c - b)
+    bl = b - bh
+    return p, al * bl - (((p - ah * bh) - al * bh) - ah * bl)
+
+
+def dot2(A: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``A·X`` (real, (r, n) by (n, c)) as an unevaluated sum ``hi + lo`` accurate to ``(n + 2⌈log₂ n⌉)·u²·|A||X|``
+    (module docstring): every product split exactly by :func:`two_prod`, the products summed pairwise by
+    :func:`two_sum` (⌈log₂ n⌉ vector steps), the exact errors of both gathered in ``lo`` by plain sums."""
+    A, X = np.asarray(A, float), np.asarray(X, float)
+    P, E = two_prod(A[:, :, None], X[None, :, :])  # (r, n, c)
+    lo = E.sum(axis=1)
+    if not P.shape[1]:
+        return np.zeros((A.shape[0], X.shape[1])), lo
+    while P.shape[1] > 1:
+        if P.shape[1] % 2:
+            P = np.concatenate([P, np.zeros((P.shape[0], 1, P.shape[2]))], axis=1)
+        P, q = two_sum(P[:, 0::2], P[:, 1::2])
+        lo = lo + q.sum(axis=1)
+    return P[:, 0], lo
+
+
+def compensated_sum(terms) -> tuple[np.ndarray, np.ndarray]:
+    """``Σ terms`` (equal-shaped arrays) as ``hi + lo``: Sum2 (Ogita, Rump & Oishi Alg. 4.4), ``|hi + lo − Σ| ≤
+    γ_k²·Σ|terms|`` for k terms."""
+    terms = list(terms)
+    hi, lo = np.array(terms[0], float), np.zeros(np.shape(terms[0]))
+    for t in terms[1:]:
+        hi, q = two_sum(hi, t)
+        lo = lo + q
+    return hi, lo
+
+
+def _double_double(discrete: bool) -> bool:
+    """Whether :func:`_extended_gains` reads in double-double (:func:`dot2` and the other error-free transformations
+    above) instead of longdouble: where longdouble is double (Windows, ARM macOS), in continuous time (``s = jω`` is
+    exact there; a point ``e^{jω}`` on the unit circle to more than double's precision would need cos and sin in
+    double-double)."""
+    return EXT_EPS >= EPS and not discrete
+
+
+def _ext_eps(n: int, discrete: bool) -> float:
+    """The relative precision of :func:`_extended_gains`' residual — longdouble's eps, or for the double-double reading
+    (:func:`_double_double`) Dot2's ``(n + 2⌈log₂ n⌉)·u²`` bounded by ``n²·eps²`` (n ≥ 2; 1 for n = 1)."""
+    return max(n, 2) ** 2 * EPS ** 2 if _double_double(discrete) else EXT_EPS
+
+
+def _double_double_gains(A, B, C, D, freqs) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_extended_gains` in continuous time with the residual and the iterate in double-double (error-free
+    transformations, the section above): ``s = jω`` exact, ``X = X_h + X_l`` (real and imaginary parts
+    apart), ``r = B + A X + ωX_i − j ωX_r`` — real part ``B + A X_r + ω X_i``, imaginary ``A X_i − ω X_r`` — with
+    ``A X_h`` by Dot2, ``ω X_h`` by TwoProduct, the ``X_l`` terms in double (they are ``eps·|X|`` already) and the
+    sum by Sum2; ``C X + D`` the same way. Each step ``X += LU⁻¹ r`` contracts by ``κ·eps`` to the residual's floor
+    ``(n + 2⌈log₂ n⌉)·u²·|sI − A||X|`` — below longdouble's on x86."""
+    out, moved = np.empty(freqs.size), np.empty(freqs.size)
+    n = A.shape[0]
+    for i, w in enumerate(np.asarray(freqs, float)):
+        lu = sla.lu_factor(1j * w * np.eye(n) - A, check_finite=False)
+        X = sla.lu_solve(lu, B.astype(complex), check_finite=False)
+        xr, xi = X.real.copy(), X.imag.copy()
+        lr, li = np.zeros_like(xr), np.zeros_like(xi)
+        for _ in range(3):
+            arh, arl = dot2(A, xr)
+            aih, ail = dot2(A, xi)
+            wip, wie = two_prod(w, xi)
+            wrp, wre = two_prod(w, xr)
+            rr = sum(compensated_sum([B, arh, wip, arl, wie, A @ lr, w * li]))
+            ri = sum(compensated_sum([aih, -wrp, ail, -wre, A @ li, -w * lr]))
+            dX = sla.lu_solve(lu, rr + 1j * ri, check_finite=False)
+            xr, e = two_sum(xr, dX.real)
+            xr, lr = two_sum(xr, lr + e)
+            xi, e = two_sum(xi, dX.imag)
+            xi, li = two_sum(xi, li + e)
+        gr = sum(compensated_sum([D, *dot2(C, xr), C @ lr]))
+        gi = sum(compensated_sum([*dot2(C, xi), C @ li]))
+        out[i] = np.linalg.svd(gr + 1j * gi, compute_uv=False)[0]
+        moved[i] = float(np.linalg.norm(C @ dX)) / max(out[i], np.finfo(float).tiny)
     return out, moved
 
 

@@ -14,8 +14,10 @@ Here, in one subprocess (~4 s, most of it importing), on the simulated host:
   read, to the certificate's TOL against a 50-digit decimal evaluation — before, every light mode whose double
   reading did not converge to rtol/10 was refused, whether or not it could be the peak (on this host, every mode
   with ζ ≲ 2e-8: ``lti._LightModes.gains``);
-* a mode of damping 1e-9 that *is* the peak (mixed and scaled states): refused naming the mode, or read to TOL;
-* a few random designs (exact seeds 21 and 0, every call of test_synthesis_random.check_case on two listed rows;
+* a mode of damping 1e-9 that *is* the peak (mixed and scaled states): read to TOL — in double-double there
+  (``lti._double_double_gains``; before, refused naming the mode); the same mode in discrete time (Tustin image),
+  where the point on the circle is not exact in double-double: refused naming the mode, or read to TOL;
+* a few random designs (exact seed 21, every call of test_synthesis_random.check_case on two listed rows;
   approximate seed 0's AFD) judged by those files' numpy judges: none broken, and each returned (a refusal would be
   allowed on such a host, but then this test would judge nothing: it says so).
 
@@ -65,7 +67,11 @@ below = th.section(1.0, 1e-10, 1.0, 1e-10) + LTI(np.array([[-1.0]]), np.array([[
                                                   np.zeros((1, 1)))
 out["below"] = reading(below, lambda G: th.decimal_gain(G, 0.0))
 out["at_peak"] = reading(th.mixed(1e-9, 6, True), lambda G: th.judged_peak(G, 1e-9))
-out["exact"] = [[s] + list(r) for s in (21, 0) for r in ts.check_case(s, max_rows=2)]
+Gd = th.tustin(th.light(1e-9, 1.0), 0.5)
+lam = np.linalg.eigvals(Gd.A)[0]
+v0, dv = np.tan(abs(np.angle(lam)) / 2), 30 * (1 - abs(lam)) * (1 + np.tan(abs(np.angle(lam)) / 2) ** 2) / 2
+out["discrete"] = reading(Gd, lambda G: th.decimal_window_peak(G, v0, dv))
+out["exact"] = [[s] + list(r) for s in (21,) for r in ts.check_case(s, max_rows=2)]
 out["approx"] = [[0] + list(r) for r in ta.check_case(0, calls=("afd",))]
 print(json.dumps(out))
 """
@@ -99,12 +105,16 @@ def test_simulated_double_host_returns_right_figures_or_refuses():
     _, g, peak, at_f = got["below"]
     assert abs(g - peak) <= TOL * peak and abs(at_f - peak) <= TOL * peak, got["below"]
 
-    # the light mode at the peak: a refusal naming it, or the figure to TOL
-    if got["at_peak"][0] == "refused":
-        assert re.search(MODE_REFUSAL, got["at_peak"][1]), got["at_peak"]
+    # the light mode at the peak: read to TOL (continuous time, double-double)
+    assert got["at_peak"][0] == "read", got["at_peak"]
+    _, g, peak, at_f = got["at_peak"]
+    assert abs(g - peak) <= TOL * peak and abs(at_f - peak) <= TOL * peak, got["at_peak"]
+    # discrete time: a refusal naming the mode, or the figure to TOL
+    if got["discrete"][0] == "refused":
+        assert re.search(MODE_REFUSAL, got["discrete"][1]), got["discrete"]
     else:
-        _, g, peak, at_f = got["at_peak"]
-        assert abs(g - peak) <= TOL * peak and abs(at_f - peak) <= TOL * peak, got["at_peak"]
+        _, g, peak, at_f = got["discrete"]
+        assert abs(g - peak) <= TOL * peak and abs(at_f - peak) <= TOL * peak, got["discrete"]
 
     for family in ("exact", "approx"):
         broken = [r for r in got[family] if r[2] not in ("ok", "refused")]
@@ -141,3 +151,31 @@ def test_simulated_double_host_kalman_riccati_meets_its_forward_line_or_refuses(
     got = simulated_host(_RICCATI)
     if got[0] == "designed":
         assert got[1] <= 1e-6 + 1e-6, got
+
+
+def test_double_double_products_are_exact_to_their_bound():
+    """lti's double-double helpers on this host: TwoProduct exact, and Dot2's ``hi + lo`` within ``(n + 2⌈log₂ n⌉)
+    ·u²·|A||X|`` of the exact product (rational arithmetic, ``fractions``), on entries spread over 16 decades
+    (seeded); Sum2 keeps the 1 that plain summation of 1e16 + 1 − 1e16 loses."""
+    from fractions import Fraction
+
+    import numpy as np
+
+    from fmu_fdi.lti import compensated_sum, dot2, two_prod
+
+    rng = np.random.default_rng(7)
+    a, b = rng.standard_normal(50) * 10 ** rng.uniform(-8, 8, 50), rng.standard_normal(50)
+    p, e = two_prod(a, b)
+    assert all(Fraction(x) * Fraction(y) == Fraction(pp) + Fraction(ee) for x, y, pp, ee in zip(a, b, p, e))
+    u = 2.0 ** -53
+    for n in (1, 2, 5, 33):
+        A, X = rng.standard_normal((3, n)) * 10 ** rng.uniform(-8, 8, (3, n)), rng.standard_normal((n, 2))
+        hi, lo = dot2(A, X)
+        bound = (n + 2 * np.ceil(np.log2(n))) * u * u
+        for i in range(3):
+            for j in range(2):
+                terms = [Fraction(A[i, k]) * Fraction(X[k, j]) for k in range(n)]
+                err = abs(Fraction(hi[i, j]) + Fraction(lo[i, j]) - sum(terms))
+                assert err <= Fraction(bound) * sum(abs(t) for t in terms), (n, i, j, float(err))
+    s_hi, s_lo = compensated_sum([np.array([1e16]), np.array([1.0]), np.array([-1e16])])
+    assert s_hi + s_lo == 1.0
