@@ -355,9 +355,9 @@ class LTI:
         The peak is at most ``rtol`` (relative) above an attained gain ``γ_lo``, and the value returned is within
         ``rtol`` of ``γ_lo`` (AB13DD's own figure where it is, else ``γ_lo``): within ``2·rtol`` of the peak;
         a realisation whose peak cannot be certified raises :class:`~fmu_fdi.errors.DesignError`, and so does one
-        whose peak may lie at a mode so lightly damped (``ζ ≲ 1e-11`` on x86; where longdouble is double, none in
-        continuous time — read in double-double — and ``ζ ≲ 2.2e-8`` in discrete time) that even extended-precision
-        readings do not fix the gain there to ``rtol`` (:class:`_LightModes`).
+        whose peak may lie at a mode so lightly damped (``ζ ≲ 1e-11`` on x86; where longdouble is double the
+        readings are double-double, ``ζ ≲ 1e-28·n²·s_A/|λ|``: in practice only boundary poles) that even
+        extended-precision readings do not fix the gain there to ``rtol`` (:class:`_LightModes`).
         Returns ``(inf, freq)`` for a pole on the stability boundary (``0.0``: the frequency is not
         located).
         """
@@ -556,31 +556,31 @@ class _LightModes:
     ``s`` itself in longdouble (``jω``; ``cos ω + j sin ω``, on the circle to longdouble's rounding, not double's —
     a point off the circle by eps moves the gain near the mode by eps/d), on the realisation scaled by powers of 2
     (TB01ID's factors rounded: exact, the same transfer function to the last bit). Where longdouble is double
-    (Windows, ARM macOS) continuous-time points are read in double-double instead (:func:`_double_double_gains`:
-    error-free transformations, ``ext_eps = n²·eps²``); discrete-time ones stay plain there (``ext_eps = eps``:
-    the point ``e^{jω}`` would need cos and sin beyond double). Each step divides the error by
+    (Windows, ARM macOS) the points are read in double-double instead (:func:`_double_double_gains`: error-free
+    transformations, ``ext_eps = n²·eps²``; in discrete time at the rational point ``(1 − v² + 2jv)/(1 + v²)``,
+    ``v = tan(ω/2)``, exactly on the circle). Each step divides the error by
     ``κ·eps ≤ ρ ≪ 1``; it ends at ``eps + ρ_x``, ``ρ_x = ext_eps·s_A/d``. Measured (tests/test_hinfnorm_damping
     ``mixed``, seeds 0–3, against a 50-digit evaluation of the stored data), worst relative error with double
     readings only → with these: ζ = 1e-8 1.2e-8 → 1.3e-12, 1e-9 1.3e-7 → 3.5e-11, 1e-10 4.0e-7 → 1.7e-10; 1e-11
     1.2e-5 → refused (main, AB13DD and merged crossings: 7.8e-3, 7.6e-3, 25 %, 42 % low). In double-double on a
-    simulated double-longdouble host (tests/test_double_host.py's patch), the sections and ``mixed`` cases at
-    ζ = 1e-8 … 1e-12: worst 1.45e-9 (ζ = 1e-12, ωn = 37), none refused.
+    simulated double-longdouble host (tests/test_double_host.py's patch), the sections, ``mixed`` cases and
+    Tustin images at ζ = 1e-8 … 1e-12: worst 1.45e-9 (ζ = 1e-12, ωn = 37), none refused.
 
     :meth:`settle` then scans each light mode's resonance with these readings — 81 points over ``Im λ ± 10d``
     (``arg λ``), five rounds of 21 points on the best point's two neighbouring steps (the step ends at ``d/4e5``:
     a Lorentzian top read ``(step/d)²/2 < 1e-11`` low) — so that a top the pencil's double-precision crossings
     located badly is read at its height; beyond ``10d`` the mode's term is below a tenth of its peak. A mode whose
-    ``ρ_x`` still exceeds ``rtol`` (ζ ≲ 1e-11·s_A/|λ| on x86; 2.2e-8 in discrete time where longdouble is double,
-    none in continuous time there) and whose scanned gains widened by ``ρ_x`` reach the peak is refused with a
+    ``ρ_x`` still exceeds ``rtol`` (ζ ≲ 1e-11·s_A/|λ| on x86; where longdouble is double, read in double-double,
+    ζ ≲ 1e-28·n²·s_A/|λ|) and whose scanned gains widened by ``ρ_x`` reach the peak is refused with a
     :class:`~fmu_fdi.errors.DesignError` naming it — for the working precision it is a pole on the boundary —
     instead of a figure off by up to ``ρ_x``; so is such a mode
     beside which the peak itself was read (a reading over-read by ``ρ_x`` there can exceed the scan's best by more
     than rtol). (Modes with ``d < 1e3·eps·max(1, s_A)`` are boundary poles: :meth:`LTI.hinfnorm` returns ``inf``
     before.) A reading whose refinement does not converge to ``rtol/10`` is refused the same way — except beside a
     mode with ``ρ_x > rtol``, whose readings are known only to ``ρ_x`` and are decided by :meth:`settle` as above:
-    where longdouble is double (Windows, ARM macOS) ``ρ_x = ρ`` for every light mode of a discrete-time system
-    (before the double-double readings, of every system) and that rule refused light modes far below the peak
-    (tests/test_hinfnorm_damping.py: ζ = 1e-10, the gain there 0.8 of the peak)."""
+    where longdouble is double (Windows, ARM macOS), before the double-double readings, ``ρ_x = ρ`` for every light
+    mode and that rule refused light modes far below the peak (tests/test_hinfnorm_damping.py: ζ = 1e-10, the gain
+    there 0.8 of the peak)."""
 
     def __init__(self, A, B, C, D, discrete: bool, rtol: float):
         self.A, self.B, self.C, self.D, self.discrete, self.rtol = A, B, C, D, discrete, rtol
@@ -683,7 +683,7 @@ def _extended_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray, np.n
     steps contract by ``κ·eps`` down to a floor ``κ·ext_eps``. Returns the gains and, per point, how much the last
     step moved ``C X`` relative to the gain (the caller refuses a reading it moved by more than ``rtol/10``)."""
     if _double_double(discrete):
-        return _double_double_gains(A, B, C, D, freqs)
+        return _double_double_gains(A, B, C, D, discrete, freqs)
     ld, cld = np.longdouble, np.clongdouble
     Al, Bl, Cl, Dl = A.astype(ld), B.astype(ld), C.astype(ld), D.astype(ld)
     out, moved = np.empty(freqs.size), np.empty(freqs.size)
@@ -766,10 +766,8 @@ def compensated_sum(terms) -> tuple[np.ndarray, np.ndarray]:
 
 def _double_double(discrete: bool) -> bool:
     """Whether :func:`_extended_gains` reads in double-double (:func:`dot2` and the other error-free transformations
-    above) instead of longdouble: where longdouble is double (Windows, ARM macOS), in continuous time (``s = jω`` is
-    exact there; a point ``e^{jω}`` on the unit circle to more than double's precision would need cos and sin in
-    double-double)."""
-    return EXT_EPS >= EPS and not discrete
+    above) instead of longdouble: where longdouble is double (Windows, ARM macOS)."""
+    return EXT_EPS >= EPS
 
 
 def _ext_eps(n: int, discrete: bool) -> float:
@@ -778,28 +776,45 @@ def _ext_eps(n: int, discrete: bool) -> float:
     return max(n, 2) ** 2 * EPS ** 2 if _double_double(discrete) else EXT_EPS
 
 
-def _double_double_gains(A, B, C, D, freqs) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_extended_gains` in continuous time with the residual and the iterate in double-double (error-free
-    transformations, the section above): ``s = jω`` exact, ``X = X_h + X_l`` (real and imaginary parts
-    apart), ``r = B + A X + ωX_i − j ωX_r`` — real part ``B + A X_r + ω X_i``, imaginary ``A X_i − ω X_r`` — with
-    ``A X_h`` by Dot2, ``ω X_h`` by TwoProduct, the ``X_l`` terms in double (they are ``eps·|X|`` already) and the
-    sum by Sum2; ``C X + D`` the same way. Each step ``X += LU⁻¹ r`` contracts by ``κ·eps`` to the residual's floor
-    ``(n + 2⌈log₂ n⌉)·u²·|sI − A||X|`` — below longdouble's on x86."""
+def _double_double_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_extended_gains` with the residual and the iterate in double-double (error-free transformations, the
+    section above). The point is ``s = (a + jb)/q`` with ``a, b, q`` exact in double-double: continuous ``a = 0``,
+    ``b = ω``, ``q = 1``; discrete ``v = tan(ω/2)``, ``a = 1 − v²``, ``b = 2v``, ``q = 1 + v²`` — on the unit circle
+    exactly (``a² + b² = q²``), at ``2·atan(v)``, within an ulp of ω. The residual of ``(sI − A)X = B`` times q,
+    ``r = qB + qAX − (a + jb)X`` (real part ``qB + qAX_r − aX_r + bX_i``, imaginary ``qAX_i − aX_i − bX_r``), with
+    ``X = X_h + X_l`` (real and imaginary parts apart), ``A X_h`` by Dot2, the products of the double-double
+    scalars with the high parts by TwoProduct, the terms of relative size eps (low parts) in double and the sum by
+    Sum2; ``C X + D`` the same way. Each step ``X += LU⁻¹ r/q`` contracts by ``κ·eps`` to the residual's floor
+    ``~(n + 2⌈log₂ n⌉)·u²·q·|sI − A||X|`` — below longdouble's on x86."""
     out, moved = np.empty(freqs.size), np.empty(freqs.size)
     n = A.shape[0]
     for i, w in enumerate(np.asarray(freqs, float)):
-        lu = sla.lu_factor(1j * w * np.eye(n) - A, check_finite=False)
+        if discrete:
+            v = float(np.tan(w / 2.0))
+            p, e = two_prod(v, v)
+            qh, ql = two_sum(1.0, p)
+            ah, al = two_sum(1.0, -p)
+            ql, al, b = ql + e, al - e, 2.0 * v
+        else:
+            qh, ql, ah, al, b = 1.0, 0.0, 0.0, 0.0, w
+        lu = sla.lu_factor((ah + 1j * b) / qh * np.eye(n) - A, check_finite=False)
         X = sla.lu_solve(lu, B.astype(complex), check_finite=False)
         xr, xi = X.real.copy(), X.imag.copy()
         lr, li = np.zeros_like(xr), np.zeros_like(xi)
+        qB, qBe = two_prod(qh, B)
         for _ in range(3):
-            arh, arl = dot2(A, xr)
-            aih, ail = dot2(A, xi)
-            wip, wie = two_prod(w, xi)
-            wrp, wre = two_prod(w, xr)
-            rr = sum(compensated_sum([B, arh, wip, arl, wie, A @ lr, w * li]))
-            ri = sum(compensated_sum([aih, -wrp, ail, -wre, A @ li, -w * lr]))
-            dX = sla.lu_solve(lu, rr + 1j * ri, check_finite=False)
+            terms = []
+            for x, lx, y, ly, sign in ((xr, lr, xi, li, 1.0), (xi, li, xr, lr, -1.0)):
+                th, tl = dot2(A, x)  # A·X_h, then A·X_l in double
+                tl = tl + A @ lx
+                qt, qte = two_prod(qh, th)
+                ax, axe = two_prod(ah, x)
+                by, bye = two_prod(b, y)
+                part = [qt, -ax, sign * by, qte, -axe, sign * bye, qh * tl + ql * th, -(ah * lx + al * x),
+                        sign * b * ly]
+                terms.append(part + ([qB, qBe, ql * B] if sign > 0 else []))
+            rr, ri = (sum(compensated_sum(t)) for t in terms)
+            dX = sla.lu_solve(lu, (rr + 1j * ri) / (qh + ql), check_finite=False)
             xr, e = two_sum(xr, dX.real)
             xr, lr = two_sum(xr, lr + e)
             xi, e = two_sum(xi, dX.imag)

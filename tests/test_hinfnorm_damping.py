@@ -27,7 +27,6 @@ more.
 """
 from __future__ import annotations
 
-import re
 from decimal import Decimal, localcontext
 
 import numpy as np
@@ -41,39 +40,21 @@ from fmu_fdi.lti import LTI, certified_peak, gain_crossings
 
 TOL = 3e-8
 #: the cases below ζ ≈ 2e-8 are read in longdouble (lti._LightModes); where it is double (Windows, ARM macOS; run
-#: here by tests/test_double_host.py's simulated host) continuous-time ones are read in double-double instead (to
-#: n²·eps²·s_A/d: every case here) and a discrete-time peak there is refused — which :func:`read_or_refused` accepts
-#: for those, never a figure off by more than TOL
+#: here under tests/test_double_host.py's simulated host) in double-double instead, to n²·eps²·s_A/d: every case here
+#: is then read to TOL, the refusal cases too (test_a_peak_rounding_cannot_fix_is_refused_naming_the_mode)
 EXT_EPS = float(np.finfo(np.longdouble).eps)
 DOUBLE_HOST = EXT_EPS >= EPS
 extended = pytest.mark.skipif(DOUBLE_HOST, reason="asserts the extended reading's accuracy (ext_eps/ζ = 1.1e-9 at "
                                                  "ζ = 1e-10); numpy's longdouble is double on this platform")
-MODE_REFUSAL = r"not computable to .*at the mode λ.*pole on the boundary"
 PREC = 50
 
 
-def read_or_refused(call, light_case: bool, discrete: bool = False):
-    """``call()`` → ``(g, f)``; ``None`` for a refusal naming the mode where that is allowed: a discrete
-    ``light_case`` (ζ ≤ 1e-8, below what double readings fix to rtol) on a host whose longdouble is double."""
-    if not (light_case and DOUBLE_HOST and discrete):
-        return call()
-    try:
-        return call()
-    except DesignError as exc:
-        assert re.search(MODE_REFUSAL, str(exc)), str(exc)
-        return None
-
-
-def assert_peak(G: LTI, peak: float, zeta: float, what: str, start=(1.0, np.inf), start_name: str = "from D"):
+def assert_peak(G: LTI, peak: float, what: str, start=(1.0, np.inf), start_name: str = "from D"):
     """``hinfnorm`` and ``certified_peak`` from the candidate ``start`` (gain, frequency; rad/sample in discrete
-    time) both return the peak to TOL, and the gain at their frequency is the peak to TOL (decimal) — or, where
-    :func:`read_or_refused` allows it, refuse naming the mode."""
+    time) both return the peak to TOL, and the gain at their frequency is the peak to TOL (decimal)."""
     for how, call in (("hinfnorm", G.hinfnorm),
                       (start_name, lambda: certified_peak(G.A, G.B, G.C, G.D, bool(G.dt), *start))):
-        got = read_or_refused(call, zeta <= 1e-8, bool(G.dt))
-        if got is None:
-            continue
-        g, f = got
+        g, f = call()
         f = f / G.dt if G.dt and how != "hinfnorm" else f
         assert_within(g, peak, f"{what} {how}")
         assert_within(decimal_gain(G, f), peak, f"{what} {how}: the gain at {f!r}")
@@ -203,7 +184,7 @@ def test_a_light_resonance_beside_the_feedthrough(zeta, wn):
     and states scaled over six decades: the closed-form peak, and the gain at the returned frequency."""
     peak, _ = section_peak(1.0, 1.4 * zeta, wn, zeta)
     for T in (None, np.diag([1e-3, 1e3])):
-        assert_peak(light(zeta, wn, T), peak, zeta, f"zeta {zeta} wn {wn}")
+        assert_peak(light(zeta, wn, T), peak, f"zeta {zeta} wn {wn}")
 
 
 def shoulder(zeta: float, wn: float, below: float) -> float:
@@ -253,10 +234,15 @@ def test_a_light_resonance_in_discrete_time(zeta):
     resonance window (v = tan(θ/2) within ±30 times the pole's distance to the circle, mapped), from AB13DD's
     candidate and from the Nyquist frequency."""
     G = tustin(light(zeta, 1.0), 0.5)
+    assert_peak(G, discrete_peak(G), f"discrete zeta {zeta}", start=(1.0, np.pi), start_name="from Nyquist")
+
+
+def discrete_peak(G: LTI) -> float:
+    """The peak of a Tustin-imaged section by a decimal scan of the resonance window (v = tan(θ/2) within ±30
+    times the pole's distance to the circle, mapped)."""
     lam = np.linalg.eigvals(G.A)[0]
     v0, dv = np.tan(abs(np.angle(lam)) / 2), 30 * (1 - abs(lam)) * (1 + np.tan(abs(np.angle(lam)) / 2) ** 2) / 2
-    peak = decimal_window_peak(G, v0, dv)
-    assert_peak(G, peak, zeta, f"discrete zeta {zeta}", start=(1.0, np.pi), start_name="from Nyquist")
+    return decimal_window_peak(G, v0, dv)
 
 
 # ------------------------------------------------------------------------------------------------ several modes
@@ -291,7 +277,7 @@ def judged_peak(G: LTI, zeta: float) -> float:
                                              (1e-9, 6, True), (1e-9, 7, False), (1e-10, 1, False), (1e-10, 3, False)])
 def test_close_and_ill_scaled_modes(zeta, seed, close):
     G = mixed(zeta, seed, close)
-    assert_peak(G, judged_peak(G, zeta), zeta, f"zeta {zeta} seed {seed} close {close}")
+    assert_peak(G, judged_peak(G, zeta), f"zeta {zeta} seed {seed} close {close}")
 
 
 # ------------------------------------------------------------------------------------------------ refusals
@@ -303,11 +289,12 @@ def test_close_and_ill_scaled_modes(zeta, seed, close):
 def test_a_peak_rounding_cannot_fix_is_refused_naming_the_mode(G, what, zeta):
     """ζ = 1e-11, 1e-12: even an extended-precision reading near the mode is fixed only to ext_eps·s_A/d ≥ 1e-8,
     or its refinement does not converge (the mixed realisations): a DesignError naming the mode. (The old code
-    returned figures 0.4 … 0.8 % low on ``mixed`` at ζ = 1e-11.) Where longdouble is double, continuous-time readings
-    are double-double (n²·eps²·s_A/d ≤ 8e-19 here): those peaks are read, to TOL of the decimal judge's."""
-    if DOUBLE_HOST and not G.dt:
-        peak = section_peak(1.0, 1.4 * zeta, 1.0, zeta)[0] if G.n == 2 else judged_peak(G, zeta)
-        assert_peak(G, peak, zeta, what)
+    returned figures 0.4 … 0.8 % low on ``mixed`` at ζ = 1e-11.) Where longdouble is double, the readings are
+    double-double (n²·eps²·s_A/d ≤ 2e-18 here): those peaks are read, to TOL of the decimal judge's."""
+    if DOUBLE_HOST:
+        peak = (discrete_peak(G) if G.dt else section_peak(1.0, 1.4 * zeta, 1.0, zeta)[0] if G.n == 2
+                else judged_peak(G, zeta))
+        assert_peak(G, peak, what, start=(1.0, np.pi) if G.dt else (1.0, np.inf))
         return
     with pytest.raises(DesignError, match=r"not computable to 1\.0e-08.*at the mode λ.*pole on the boundary"):
         G.hinfnorm()
