@@ -28,6 +28,19 @@ Run: python benchmarks/double_host_audit.py [--exact=FIRST:LAST] [--approx=FIRST
 it goes — a run stopped by ``timeout`` keeps every finished seed — and the parent prints, per host and call,
 ok / refused / broken, then every design whose verdict differs between the hosts with both details.)
 ``--compare`` only re-reads DIR's files and prints the comparison.
+
+Measured 28 Nov (host20, ``--timeout=300``, nice, one BLAS thread, load 3-10), ok / refused / broken:
+
+    set                     simulated double host   native          verdicts that differ
+    exact 1-30              124 / 22 / 0            124 / 22 / 0    0
+    approximate 1-20        87 / 0 / 0              87 / 0 / 0      0
+    approximate 200-209     42 / 0 / 1              42 / 0 / 1      0
+
+The one broken call on both hosts is seed 206's amm(Mr = detection row), a false refusal already pinned as a strict
+xfail (tests/test_audit_seeds18.py), not a returned design; no design returned on the simulated host fails the judge.
+The exact set ran once with lti before and once after this session's light-mode change: identical. Kinds of refusal
+seen only on the simulated host elsewhere (benchmarks/double_host_riccati.py): the Kalman Riccati solve of 2 of 180
+problems (43/2, 51/1: 'too ill-conditioned for an accurate gain').
 """
 from __future__ import annotations
 
@@ -144,10 +157,16 @@ def read(path: Path) -> dict:
     return got
 
 
+def _wrong(detail: str) -> bool:
+    """A broken verdict of a returned design the judge fails (not a false refusal, not another exception)."""
+    return not (detail.startswith("achievable request refused") or "instead of DesignError" in detail
+                or "false refusal" in detail or "rank test cannot decide" in detail)
+
+
 def compare(out: Path, hosts=("double", "native"), sets=("exact", "approx")) -> int:
     """Print per set and host ok / refused / broken (timeouts apart), and each design whose verdict differs; returns
-    the number of broken designs on the simulated double host."""
-    broken_double = 0
+    the number of designs the simulated double host returned that fail the judge (the requirement: none)."""
+    wrong_double = 0
     for which in sets:
         res = {h: read(out / f"{h}_{which}.jsonl") for h in hosts}
         if not any(res.values()):
@@ -165,8 +184,11 @@ def compare(out: Path, hosts=("double", "native"), sets=("exact", "approx")) -> 
                 tot += cnt
                 print(f"    {'':6s}{c:34s} {cnt['ok']:4d} {cnt['refused']:7d} {cnt['broken']:6d} {cnt['timeout']:7d}")
             print(f"    {'':6s}{'total':34s} {tot['ok']:4d} {tot['refused']:7d} {tot['broken']:6d} {tot['timeout']:7d}")
+            bad = [k for k, (st, d) in res[h].items() if k[0] in seeds and st == "broken" and _wrong(d)]
+            print(f"    of the broken: {len(bad)} returned designs failing the judge, the rest refusals of achievable "
+                  f"requests or other exceptions")
             if h == "double":
-                broken_double += tot["broken"]
+                wrong_double += len(bad)
         if len(hosts) == 2:
             a, b = hosts
             changed = [k for k in sorted(res[a]) if k[0] in seeds and k in res[b] and res[a][k][0] != res[b][k][0]]
@@ -178,7 +200,7 @@ def compare(out: Path, hosts=("double", "native"), sets=("exact", "approx")) -> 
             for k in sorted(res[h]):
                 if k[0] in seeds and res[h][k][0] == "broken":
                     print(f"  BROKEN on {h}: seed {k[0]} {k[1]}: {res[h][k][1][:400]}")
-    return broken_double
+    return wrong_double
 
 
 def main(argv) -> int:
@@ -199,9 +221,9 @@ def main(argv) -> int:
                 print(f"=== {which} seeds {spec} on the {h} host", flush=True)
                 subprocess.run([sys.executable, __file__, "--worker", h, which, spec,
                                 f"--timeout={opts.get('timeout', 0)}", f"--out={out}"], check=False)
-    broken = compare(out, hosts)
-    print(f"\nbroken designs on the simulated double host: {broken}")
-    return 1 if broken else 0
+    wrong = compare(out, hosts)
+    print(f"\nreturned designs failing the judge on the simulated double host: {wrong}")
+    return 1 if wrong else 0
 
 
 if __name__ == "__main__":
