@@ -356,7 +356,7 @@ class LTI:
         ``rtol`` of ``γ_lo`` (AB13DD's own figure where it is, else ``γ_lo``): within ``2·rtol`` of the peak;
         a realisation whose peak cannot be certified raises :class:`~fmu_fdi.errors.DesignError`, and so does one
         whose peak may lie at a mode so lightly damped (``ζ ≲ 1e-11`` on x86; where longdouble is double the
-        readings are double-double, ``ζ ≲ 1e-28·n²·s_A/|λ|``: in practice only boundary poles) that even
+        readings are double-double, ``ζ ≲ 5e-24·n²·s_A/|λ|``: below the boundary-pole cut for n < 200) that even
         extended-precision readings do not fix the gain there to ``rtol`` (:class:`_LightModes`).
         Returns ``(inf, freq)`` for a pole on the stability boundary (``0.0``: the frequency is not
         located).
@@ -571,7 +571,7 @@ class _LightModes:
     a Lorentzian top read ``(step/d)²/2 < 1e-11`` low) — so that a top the pencil's double-precision crossings
     located badly is read at its height; beyond ``10d`` the mode's term is below a tenth of its peak. A mode whose
     ``ρ_x`` still exceeds ``rtol`` (ζ ≲ 1e-11·s_A/|λ| on x86; where longdouble is double, read in double-double,
-    ζ ≲ 1e-28·n²·s_A/|λ|) and whose scanned gains widened by ``ρ_x`` reach the peak is refused with a
+    ζ ≲ 5e-24·n²·s_A/|λ|) and whose scanned gains widened by ``ρ_x`` reach the peak is refused with a
     :class:`~fmu_fdi.errors.DesignError` naming it — for the working precision it is a pole on the boundary —
     instead of a figure off by up to ``ρ_x``; so is such a mode
     beside which the peak itself was read (a reading over-read by ``ρ_x`` there can exceed the scan's best by more
@@ -597,7 +597,7 @@ class _LightModes:
         self.poles, self.dist, self.where = poles[light], dist[light], where[light]
         self.radius = np.maximum(10.0 * self.dist, EPS * self.size / rtol)
         with np.errstate(divide="ignore"):  # what an extended reading near each mode is fixed to
-            self.rho_x = _ext_eps(A.shape[0], discrete) * self.size / self.dist
+            self.rho_x = _ext_eps(A.shape[0]) * self.size / self.dist
         self.balanced = (A, B, C)
         if self.poles.size and B.shape[1] and C.shape[0]:
             import slycot
@@ -626,8 +626,8 @@ class _LightModes:
                 at = freqs[near]
                 out[near], moved = _extended_gains(*self.balanced, self.D, self.discrete, at)
                 # a point near a mode whose extended reading is fixed only to rho_x > rtol need not converge to
-                # rtol/10: its reading is known to rho_x, and settle() refuses the mode if it may be the peak (where
-                # longdouble is double, every light mode; on x86 ζ ≲ 1e-11). Elsewhere non-convergence is refused.
+                # rtol/10: its reading is known to rho_x, and settle() refuses the mode if it may be the peak (on x86
+                # ζ ≲ 1e-11; in double-double, where longdouble is double, none). Elsewhere non-convergence is refused.
                 loose = np.any(close[near] & (self.rho_x > self.rtol)[None, :], axis=1)
                 bad = np.where(loose, 0.0, moved)
                 if np.any(bad > 0.1 * self.rtol):
@@ -682,7 +682,7 @@ def _extended_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray, np.n
     ``X += (sI − A)⁻¹(B − (sI − A)X)`` with the residual and ``C X + D`` in longdouble, ``s`` in longdouble. The
     steps contract by ``κ·eps`` down to a floor ``κ·ext_eps``. Returns the gains and, per point, how much the last
     step moved ``C X`` relative to the gain (the caller refuses a reading it moved by more than ``rtol/10``)."""
-    if _double_double(discrete):
+    if DOUBLE_DOUBLE:
         return _double_double_gains(A, B, C, D, discrete, freqs)
     ld, cld = np.longdouble, np.clongdouble
     Al, Bl, Cl, Dl = A.astype(ld), B.astype(ld), C.astype(ld), D.astype(ld)
@@ -738,7 +738,7 @@ def two_prod(a, b):
 
 def dot2(A: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``A·X`` (real, (r, n) by (n, c)) as an unevaluated sum ``hi + lo`` accurate to ``(n + 2⌈log₂ n⌉)·u²·|A||X|``
-    (module docstring): every product split exactly by :func:`two_prod`, the products summed pairwise by
+    (the section's comment): every product split exactly by :func:`two_prod`, the products summed pairwise by
     :func:`two_sum` (⌈log₂ n⌉ vector steps), the exact errors of both gathered in ``lo`` by plain sums."""
     A, X = np.asarray(A, float), np.asarray(X, float)
     P, E = two_prod(A[:, :, None], X[None, :, :])  # (r, n, c)
@@ -764,16 +764,15 @@ def compensated_sum(terms) -> tuple[np.ndarray, np.ndarray]:
     return hi, lo
 
 
-def _double_double(discrete: bool) -> bool:
-    """Whether :func:`_extended_gains` reads in double-double (:func:`dot2` and the other error-free transformations
-    above) instead of longdouble: where longdouble is double (Windows, ARM macOS)."""
-    return EXT_EPS >= EPS
+#: whether :func:`_extended_gains` reads in double-double (:func:`dot2` and the other error-free transformations
+#: above) instead of longdouble: where longdouble is double (Windows, ARM macOS)
+DOUBLE_DOUBLE = EXT_EPS >= EPS
 
 
-def _ext_eps(n: int, discrete: bool) -> float:
-    """The relative precision of :func:`_extended_gains`' residual — longdouble's eps, or for the double-double reading
-    (:func:`_double_double`) Dot2's ``(n + 2⌈log₂ n⌉)·u²`` bounded by ``n²·eps²`` (n ≥ 2; 1 for n = 1)."""
-    return max(n, 2) ** 2 * EPS ** 2 if _double_double(discrete) else EXT_EPS
+def _ext_eps(n: int) -> float:
+    """The relative precision of :func:`_extended_gains`' residual — longdouble's eps, or in double-double
+    (:data:`DOUBLE_DOUBLE`) Dot2's ``(n + 2⌈log₂ n⌉)·u²``, bounded by ``max(n, 2)²·eps²``."""
+    return max(n, 2) ** 2 * EPS ** 2 if DOUBLE_DOUBLE else EXT_EPS
 
 
 def _double_double_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray, np.ndarray]:
