@@ -1,9 +1,9 @@
 """The judged audits on a simulated host whose ``np.longdouble`` is plain double (Windows, ARM macOS), beside the
 native host, in the same run.
 
-On such hosts numpy's longdouble *is* float64: the judge's refined readings (``postconditions.EXT_UNIT``), the Riccati
-residual (``riccati_newton``) and the H∞ light-mode readings (``lti.EXT_EPS``, ``lti._extended_gains``) then read in
-double. This script simulates that host on an x86 machine without touching the library: a worker subprocess runs
+On such hosts numpy's longdouble *is* float64: the judge's refined readings (``postconditions.EXT_UNIT``) and the
+Riccati residual (``riccati_newton``) then read in double; the H∞ light-mode readings (``lti._extended_gains``) switch
+to double-double there (``lti.DOUBLE_DOUBLE``). This script simulates that host on an x86 machine without touching the library: a worker subprocess runs
 
     import numpy; numpy.longdouble = numpy.float64; numpy.clongdouble = numpy.complex128
 
