@@ -38,7 +38,8 @@ Measured 28 Nov (host20, ``--timeout=300``, nice, one BLAS thread, load 3-10), o
 
 The one broken call on both hosts is seed 206's amm(Mr = detection row), a false refusal already pinned as a strict
 xfail (tests/test_audit_seeds18.py), not a returned design; no design returned on the simulated host fails the judge.
-The exact set ran once with lti before and once after this session's light-mode change: identical. Kinds of refusal
+The exact set ran with lti before and after this session's light-mode change, and exact 1-30 and approximate 1-20
+again with the final lti (double-double light-mode readings, f057257): the same counts. Kinds of refusal
 seen only on the simulated host elsewhere (benchmarks/double_host_riccati.py): the Kalman Riccati solve of 2 of 180
 problems (43/2, 51/1: 'too ill-conditioned for an accurate gain').
 """
