@@ -3,7 +3,8 @@ native host, in the same run.
 
 On such hosts numpy's longdouble *is* float64: the judge's refined readings (``postconditions.EXT_UNIT``) and the
 Riccati residual (``riccati_newton``) then read in double; the H∞ light-mode readings (``lti._extended_gains``) switch
-to double-double there (``lti.DOUBLE_DOUBLE``). This script simulates that host on an x86 machine without touching the library: a worker subprocess runs
+to double-double there (``lti.DOUBLE_DOUBLE``). This script simulates that host on an x86 machine without touching
+the library: a worker subprocess runs
 
     import numpy; numpy.longdouble = numpy.float64; numpy.clongdouble = numpy.complex128
 
