@@ -11,7 +11,7 @@ so the filters that decouple u are ``Q = q [1  −1/(s + 3)]`` (q a stable row o
 admissible row, the fault response ``q [1/(s + 1)  1/(s + 2)]`` of rank 1 at every λ. For ``Mr = I₂`` every
 admissible error is at least ``σ_2(I) = 1 = ||Mr||∞`` (Weyl), Q = 0's error: refused, the message naming the rank
 and the bound. ``Mr`` of rank 1, and ``Mr = diag(1, 0.5)`` (bound σ_2 = 0.5 < 1), are designed, their errors below
-Q = 0's by numpy.
+Q = 0's by numpy. On five audit seeds whose ``Mr = I`` is now refused, the fault rows they reach are designed.
 """
 from __future__ import annotations
 
@@ -131,3 +131,21 @@ def test_noise_at_infinity_is_refused_by_the_iterations_certificate():
     assert m, str(exc.value)
     at_infinity = float(np.min(np.hypot(1.0, np.linspace(-2, 2, 4001))))  # min over x of ||[0·x − 1, x]||
     assert abs(float(m.group(1)) - at_infinity) <= 1e-9 and abs(float(m.group(2)) - 1.0) <= 1e-8
+
+
+@pytest.mark.parametrize("seed, rank", [(2, 4), (6, 1), (8, 2), (12, 3), (16, 3)])
+def test_audit_seeds_match_as_many_fault_rows_as_they_reach(seed, rank):
+    """~2-6 s each. Approximate audit seeds 2, 6, 8, 12, 16 (plant modes at s = 1, 1, ±2j, 1, 0 that R must cancel),
+    whose ``Mr = I`` is now refused (rank ``rank`` < nf; tests/test_refine_modes.py designed it before): the first
+    ``rank`` rows of I — the rank bound σ_{rank+1} = 0 — are designed and meet test_approximate_random's numpy judge
+    (judge_amm: u/d decoupled, R and Q stable, Q nonzero, the reported error numpy's within ERR_RTOL and no worse than
+    Q = 0's by more than it). The rank is numpy's (test_audit_seeds18._admissible_fault_rank at 40 grid points)."""
+    from test_approximate_random import _points, judge_amm, noisy_case
+    from test_audit_seeds18 import _admissible_fault_rank
+
+    model = noisy_case(seed)
+    lam = _points(model)
+    assert _admissible_fault_rank(model, lam[:: max(1, lam.size // 40)]) == rank < model.nf
+    Mr = LTI.static(np.eye(model.nf)[:rank], model.dt)
+    gen = approximate_model_matching(model, Mr)
+    assert judge_amm(gen, model, Mr, None) == []
