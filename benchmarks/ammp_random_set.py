@@ -66,6 +66,11 @@ identical (an intermediate stop rule of the γ-iteration — measured error only
 27 Nov, amm18 (main 253b4cb from a git archive and the branch, concurrently, load ~5): ok 60 / 0 / 0 / 0 / 0 both,
 median 2.91 / 2.92 s, every verdict and gamma_sub identical (the branch changes mindeg's stage only, which this set
 does not run).
+
+28 Nov, amm21 (ac7dadb from a git archive and the branch, run concurrently, load ~5-10): ok 60 / 0 / 0 / 0 / 0 both,
+every verdict and gamma_sub identical; total design time 439.47 → 439.78 s (1.001; per-design geometric mean 1.013,
+noise). The new refusal of references no admissible filter approaches (approximate_matching._unapproachable_reference)
+refuses none of these (their Mr has 1-2 rows, the admissible fault rank 2-4); its stage costs 0.5 ms median, 17 ms max.
 """
 import sys
 import time

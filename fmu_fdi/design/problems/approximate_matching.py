@@ -90,6 +90,14 @@ the filter passes its post-conditions and its re-measured error is no worse than
 within ``reltol`` (``info['mindeg']`` says what was done, and why not when a row cannot be lowered:
 already least order, an unstable least-order row, a refused candidate).
 
+**References no filter approaches** (refused). Every admissible fault response ``Y Q0 [Gf; 0]`` has rank at most r,
+the normal rank of ``Q0 [Gf; 0]``, so every admissible H∞ error is at least ``sup_λ σ_{r+1}(Mr(λ))`` (Weyl); where that
+reaches ``||Mr||∞`` — Q = 0's error, e.g. ``Mr = I`` on more faults than the decoupled residuals reach — the optimum
+is the zero filter, no fault detection filter, and the design is refused before the γ-iteration with r and both
+figures (:func:`_unapproachable_reference`; in H2 only for r = 0, the H2 rank bound being below ``||Mr||₂``
+otherwise); the γ-iteration's certified lower bound reaching ``||[Mr 0]||∞`` is refused too
+(:func:`_certified_at_zero_filter`).
+
 Not covered: zeros of ``G1`` on the imaginary axis / unit circle (the optimum is not
 attained by a stable filter): refused with a :class:`~fmu_fdi.errors.DesignError` that
 names them.
@@ -117,8 +125,8 @@ from slycot.exceptions import SlycotError
 
 from ...errors import DesignError
 from ...generator import ResidualGenerator
-from ...linalg import EPS, single_blas_thread
-from ...lti import LTI, blockdiag, frequency_grid, hstack, vstack
+from ...linalg import EPS, default_rtol, single_blas_thread
+from ...lti import HINF_RTOL, LTI, blockdiag, frequency_grid, hstack, vstack
 from ...model import FDIModel
 from ..toolkit._basis import check_poles, pick_poles
 from ..toolkit.approximate import drop_negligible_unstable_modes, transmission_zeros
@@ -234,8 +242,11 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         ``dropped_rows``, ``regularised_rows``, ``regularisation_eps``, ``reference_lowpass``
         (H2: Mr updated by ``a/(s + a)`` to make the H2 norm finite), ``order``, ``row_orders``
         (McMillan degree of each row), ``poles``, ``postconditions``, ``zero_filter_error`` (``||M [Mr 0]||``, the error of Q = 0: the returned error
-        exceeds it only within ``reltol``, and a note then says the reference cannot be approached,
-        :func:`_zero_filter_error`), ``plant_mode_cancellation`` (the exact
+        exceeds it only within ``reltol``, and a note then says so, :func:`_zero_filter_error`), ``rank_bound``
+        (``rank``: the normal rank r of the admissible filters' fault response ``Q0 [Gf; 0]``, ``reference_rows``;
+        where r is below Mr's rank, H∞: ``bound`` = ``sup σ_{r+1}(Mr)``, a lower bound of every admissible error,
+        ``zero_filter_error`` = ``||Mr||∞`` and the tolerance ``rtol`` of their comparison;
+        :func:`_unapproachable_reference`), ``plant_mode_cancellation`` (the exact
         cancellation of the plant's boundary modes in R, :func:`_plant_mode_cancellation`), ``ud_redecoupling``
         (the u/d leak on the normalised form — rows at unit weakest required fault gain, a fault required where the
         row of Mr is nonzero — and, where it exceeded ``dec_tol``, the numerator's refit: ``refined``,
@@ -256,8 +267,11 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     ------
     DesignError
         Mr of the wrong shape, sample time, unstable or improper; no residual decouples u
-        and d; zeros of the reduced system on the stability boundary; SLICOT's Riccati
-        solvers failing at every level/regularisation; a returned filter whose error
+        and d; a reference no admissible filter approaches better than Q = 0 — H∞: the admissible fault response
+        has normal rank r and ``sup σ_{r+1}(Mr) = ||Mr||∞`` (:func:`_unapproachable_reference`; H2: only r = 0, the
+        H2 rank bound being below ``||Mr||₂`` otherwise), or the γ-iteration certifies an infimum at ``||[Mr 0]||∞``
+        (:func:`_certified_at_zero_filter`) — naming the rank, the bound and ``||Mr||∞``; zeros of the reduced
+        system on the stability boundary; SLICOT's Riccati solvers failing at every level/regularisation; a returned filter whose error
         response is not the designed one (realisation accuracy: beyond the evaluation's rounding bound, and its own
         error above the designed one's by more than ``reltol``) or that fails its
         post-conditions, among them a u/d leak on the normalised form (rows at unit weakest required fault gain)
@@ -292,6 +306,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     Q0, G1, basis = reduced_system(model, atol, nullspace=nullspace, simple=simple, HDesign=HDesign, rows=Mr.p,
                                    smarg=smarg)
     Q0, G1 = stable_reduced_system(model, Q0, G1, smarg, atol)
+    rank_bound = _unapproachable_reference(model, G1, Mr, norm, HDesign is not None)
     F = hstack([Mr, LTI.zero(Mr.p, model.nw, dt)]) if model.nw else Mr
     a = 1.0 if dt else -sdeg  # (discrete time: the interactor's shift is 1/z, M's pole sdeg is placed below)
     Gh, Phi, K, dropped, left = interactor(G1, a, atol)
@@ -309,6 +324,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
     # exceeds the infimum by O(ε ||Y||) (the returned error is measured without it). The
     # smallest ε of 1e-6, 1e-5, 1e-4, 1e-3 times ||Ĝ||∞ whose Riccati equations SLICOT solves
     Y, info, eps = _solve_regularised(Gh, F, left, norm, iteration_reltol(reltol))
+    if norm == "inf" and not left:  # (regularised: the bracket certifies the problem with the fictitious noise)
+        _certified_at_zero_filter(info)
     if left:  # the error without the fictitious noise
         E0 = Y @ Gh - F
         gamma_opt0 = _h2_quad(lambda L: _values(E0, L), [Gh, Y, F], dt) if norm == "2" else \
@@ -400,6 +417,7 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         **basis,
     })
     gen.info["zero_filter_error"] = zero_error
+    gen.info["rank_bound"] = rank_bound
     gen.info["error_budget"] = budget.as_info()
     gen.info["plant_mode_cancellation"] = cancelled
     gen.info["ud_redecoupling"] = redecoupled
@@ -526,6 +544,99 @@ def _shipped_budget(budget: ErrorBudget, e_s: float, gap: float | None, norm: st
                        f"{budget.certified_by} {budget.base:.9g})", budget.designed)
 
 
+def _unapproachable_reference(model, G1: LTI, Mr: LTI, norm: str, restricted: bool = False) -> dict:
+    """Stage of :func:`approximate_model_matching`, before the γ-iteration: refuse a reference that no admissible
+    filter approaches better than Q = 0 does. Returns the figures (``info['rank_bound']``).
+
+    Every admissible filter is ``Q = Y Q0`` with Y stable (step 1; ``Y H Q0`` with ``HDesign``), so at every point λ
+    of the stability boundary its fault response ``Q Gf = Y G1f``, ``G1f = Q0 [Gf; 0]`` (G1's fault columns, stable),
+    has rank at most ``r``, the normal rank of ``G1f`` (a rational matrix's rank at a point where it is finite never
+    exceeds its normal rank). Weyl's inequality ``σ_{i+j−1}(A + B) ≤ σ_i(A) + σ_j(B)`` with ``A = Mr − Q Gf``,
+    ``B = Q Gf``, ``i = 1``, ``j = r + 1`` (``σ_{r+1}(B) = 0``) gives, for every admissible Q,
+
+        ||Q [Gf Gw; 0 0] − [Mr 0]||∞ ≥ sup_λ ||Q Gf(λ) − Mr(λ)|| ≥ β_r = sup_λ σ_{r+1}(Mr(λ)),           (3)
+
+    (Eckart–Young–Mirsky: the best rank-r approximation; Golub and Van Loan, *Matrix Computations*, 4th ed., Thm
+    2.4.8, Cor. 8.6.2), while Q = 0's error is ``||Mr||∞ = sup_λ σ_1(Mr(λ))`` (w is not decoupled: its columns only
+    add). Where ``β_r`` reaches ``||Mr||∞`` the optimum *is* Q = 0's error: no filter does better than none, and a
+    returned "optimal" filter would be an arbitrary one within ``reltol`` of zero's error (approximate audit seeds 26,
+    240, 270, 282 with ``Mr = I`` on 5 faults and 2, 1, 3, 2 admissible rows: the γ-iteration's near-optimal Y at that
+    degenerate optimum, of peak gain 1.45e3, was then refused for numerical reasons that were not the cause — an
+    error response 0.0519 off the designed one, a u/d leak 1.9e-7, an R residue 2.75e-11 against its bound 2.54e-11).
+    Refused (DesignError) with r, ``β_r`` and ``||Mr||∞``. Where ``β_r < ||Mr||∞`` the design proceeds (its optimum
+    lies in ``[β_r, ||Mr||∞]`` and may be below Q = 0's), and the γ-iteration's certificate is checked against Q = 0
+    once more (:func:`_certified_at_zero_filter`: noise, or a bound (3) the grid misses).
+
+    Readings. r: :func:`_normal_rank` of ``G1f`` (the interactor's rule on the same G1: four points off the axes,
+    singular values above 1e-9 of the largest). ``β_r``: the largest ``σ_{r+1}(Mr(λ))`` (numpy's SVD) on the
+    design's grid of the plant, G1 and Mr (:func:`_points`) plus Mr's own peak frequency (:meth:`LTI.hinfnorm`,
+    which gives ``||Mr||∞``); a grid reading can only under-read the supremum, so the grid never causes a false
+    refusal. Refused iff ``β_r ≥ ||Mr||∞ (1 − τ)``, with τ the sum of the two readings' relative errors:
+    ``2·HINF_RTOL`` (the norm, within 2·HINF_RTOL of the peak), the worst-case first-order rounding of each value
+    ``Mr(λ)`` (:func:`_evaluation_rounding`, deterministic constant; by Weyl a singular value moves by at most the
+    perturbation's norm) over ``||Mr||∞``, and the SVD's backward error (``linalg.default_rtol`` of Mr's shape,
+    LAPACK's ``p(m, n)·eps·σ_1`` with three digits of headroom). For ``Mr = I`` and ``r < nf``, ``β_r = ||Mr||∞ = 1``
+    exactly.
+
+    H2 (``norm='2'``): Q = 0's error is ``||[Mr 0]||₂`` (updated by the low-pass where the reference is), and the
+    bound of (3) in the Frobenius norm, ``||E||₂² ≥ (1/2π) ∫ Σ_{i>r} σ_i(Mr(λ))² dω``, is *below* it whenever r ≥ 1
+    and Mr ≠ 0 — each direction matched lowers the H2 error, so the H2 problem with a rank-deficient ``G1f`` has an
+    optimum better than Q = 0's and is designed. The refusal is then made only where ``r = 0`` (no admissible filter
+    sees a fault: ``||E||₂² = ||Mr||₂² + ||Q Gw||₂²``, the optimum is Q = 0 in every norm)."""
+    r = _normal_rank(G1[:, :model.nf]) if model.nf and G1.p else 0
+    out = {"rank": int(r), "reference_rows": int(Mr.p)}
+    if r >= min(Mr.p, Mr.m) or (norm == "2" and r > 0):
+        return out  # ((3) is zero, or — H2 — below Q = 0's error)
+    dt = model.dt
+    peak, w_peak = Mr.hinfnorm()
+    lam = _points([model.lti(), G1, Mr], dt)
+    if np.isfinite(w_peak) and w_peak >= 0:
+        lam = np.append(lam, np.exp(1j * w_peak * dt) if dt else 1j * w_peak)
+    values = _values(Mr, lam)
+    if not dt:  # (ω → ∞: Mr's feedthrough, its value there)
+        values = np.concatenate([values, Mr.D[None].astype(complex)])
+    sv = np.linalg.svd(values, compute_uv=False)
+    bound = float(np.max(sv[:, r]))
+    if not peak > 0:
+        return {**out, "bound": bound, "zero_filter_error": float(peak)}
+    rounding = float(np.max(_evaluation_rounding(Mr, lam, worst=True), initial=0.0))
+    tau = 2 * HINF_RTOL + default_rtol(Mr.shape) + rounding / peak
+    out.update(bound=bound, zero_filter_error=float(peak), rtol=float(tau))
+    if bound >= peak * (1 - tau):
+        who = "filter Y·H·Q0 (HDesign) that decouples u and d" if restricted else "filter that decouples u and d"
+        raise DesignError(
+            f"approximate_model_matching: Mr cannot be approached by any {who}: their fault response Q·Gf has normal "
+            f"rank {r} (that of Q0·[Gf; 0]) of Mr's {Mr.p} rows, so every admissible Q has "
+            f"||Q [Gf Gw; 0 0] − [Mr 0]||∞ ≥ sup_λ σ_{r + 1}(Mr(λ)) = {bound:.9g}, which reaches ||Mr||∞ = "
+            f"{peak:.9g} (within {tau:.2g}), the error of Q = 0: no filter does better than none"
+            f"{' in either norm' if norm == '2' else ''}; choose Mr with at most {r} independent "
+            f"row{'s' if r != 1 else ''} (σ_{r + 1}(Mr) below ||Mr||∞ at its peak), or fewer faults to match")
+    return out
+
+
+def _certified_at_zero_filter(info: dict) -> None:
+    """Stage of :func:`approximate_model_matching`, after the H∞ γ-iteration on the unregularised problem: refuse
+    where the iteration certifies that no filter beats Q = 0. Its lower bound ``γ_lo`` (``info['lower_bound']``: the
+    error at s = ∞ no Y can change, ``||D_F − D_F D̂⁺ D̂||`` in continuous time, or a level SLICOT refused; none where a
+    measured error fell below a refused level) bounds the infimum of (1) from below — every admissible ``Y G1`` is a
+    ``Ŷ Ĝ`` of the reduced problem (``Ŷ = Y Φ⁻¹ m^K``, stable: each row of Φ⁻¹ has at most K factors ``1/m``), so the
+    reduced problem's infimum is at most (1)'s — and Q = 0 (Ŷ = 0) has the error ``||F||∞ = ||[Mr 0]||∞``. Refused
+    (DesignError) iff ``γ_lo ≥ ||F||∞ (1 − HINF_F_RTOL)``: the iteration itself does not tell levels within
+    ``HINF_F_RTOL`` of ``||F||∞`` apart (above it a refusal is numerical, :func:`solve_standard`; the norm is read
+    within 2·HINF_RTOL). The rank bound (:func:`_unapproachable_reference`) catches the cases it names before the
+    iteration; this one catches the others (noise whose decoupling costs every fault direction, a supremum (3) the
+    grid missed). Not applied with fictitious noise (its bracket certifies the regularised problem, whose infimum is
+    above (1)'s by O(ε ||Y||)) nor in H2 (no bracket; the H2 optimum is exact)."""
+    lb, fnorm = float(info.get("lower_bound", 0.0)), float(info.get("fnorm", 0.0))
+    if fnorm > 0 and lb >= fnorm * (1 - HINF_F_RTOL):
+        raise DesignError(
+            f"approximate_model_matching: Mr cannot be approached by any filter that decouples u and d: the "
+            f"γ-iteration certifies every admissible filter's error at least {lb:.9g} (its lower bound: a level with no "
+            f"solution, or the error at infinity), which reaches ||[Mr 0]||∞ = {fnorm:.9g} (within HINF_F_RTOL = "
+            f"{HINF_F_RTOL:g}), the error of Q = 0: no filter does better than none; choose Mr in the directions the "
+            f"decoupled residuals reach (Q0·[Gf; 0]), or a smaller noise weight")
+
+
 #: :func:`_zero_filter_error`: an error above Q = 0's by more than ``reltol`` plus this fraction of it (the rounding of
 #: two refined peaks read on the same points, ~1e-12 of the error, with margin) is refused
 ZERO_FILTER_SLACK = 1e-9
@@ -538,12 +649,12 @@ def _zero_filter_error(model, err, MF, lam, norm, systems, reltol) -> float:
     most this, and a filter within ``reltol`` of the optimum has ``err ≤ (1 + reltol)·||M [Mr 0]||``:
 
     - above that (plus :data:`ZERO_FILTER_SLACK`) the design missed its optimum: DesignError, naming both errors;
-    - above ``||M [Mr 0]||`` but within ``reltol`` of it: the reference cannot be approached — no admissible filter
-      does better than the zero one in this norm (e.g. ``Mr = I`` on more faults than the residual space reaches,
-      ``nf > p − rank Gd``: some direction of Mr is never matched, whatever Q), and the returned filter, optimal
-      within ``reltol``, is worse than Q = 0 by less than ``reltol``. It is returned (it matches the directions it
-      can reach; Q = 0 would be no residual at all) with a note saying so (approximate audit seed 110: nf = 5,
-      p = 3, Mr = I: error 1.0000777 against Q = 0's 1)."""
+    - above ``||M [Mr 0]||`` but within ``reltol`` of it: the optimum is within ``reltol`` of Q = 0's error, and the
+      returned filter, optimal within ``reltol``, is worse than Q = 0 by less than ``reltol``. It is returned with a
+      note saying so. Where the optimum *is* Q = 0's error the design never gets here: the rank bound
+      (:func:`_unapproachable_reference`, e.g. ``Mr = I`` on more faults than the decoupled residuals reach) and the
+      γ-iteration's certificate (:func:`_certified_at_zero_filter`) refuse it (before amm21, approximate audit seed
+      110, nf = 5, p = 3, Mr = I, was returned here with the error 1.0000777 against Q = 0's 1)."""
     def values(L):
         return -_values(MF, L)
 
@@ -552,9 +663,8 @@ def _zero_filter_error(model, err, MF, lam, norm, systems, reltol) -> float:
         raise DesignError(f"approximate_model_matching: the returned filter's error {err:.6g} exceeds that of Q = 0, "
                           f"||M [Mr 0]|| = {zero:.6g}, by more than reltol = {reltol:g}: the optimum was not reached")
     if err > zero:
-        note(f"the reference cannot be approached: no admissible filter has an error below that of Q = 0 "
-             f"(||M [Mr 0]|| = {zero:.6g}); the returned filter's {err:.6g} exceeds it by {err / zero - 1:.3g} "
-             f"(within reltol = {reltol:g}) — it matches only the directions of Mr the residuals can reach")
+        note(f"the returned filter's error {err:.6g} exceeds that of Q = 0 (||M [Mr 0]|| = {zero:.6g}) by "
+             f"{err / zero - 1:.3g}, within reltol = {reltol:g}: the optimum is within reltol of Q = 0's error")
     return zero
 
 
@@ -2778,9 +2888,11 @@ def solve_standard(Gh: LTI, F: LTI, norm: str, reltol: float) -> tuple[LTI, dict
     lo = float(np.linalg.norm(dres, 2)) if not dt else 0.0
     fnorm = float(F.hinfnorm()[0])
     hi = 1.01 * fnorm + 1e-12
-    if F.n + Gh.n == 0:
-        return LTI.static(Y0, dt), {"gamma": lo, "bracket": (lo, lo)}
+    if F.n + Gh.n == 0:  # (a constant error: ||D_F − Y0 D̂|| is its least value, in either time domain)
+        return LTI.static(Y0, dt), {"gamma": lo, "bracket": (lo, lo), "fnorm": fnorm,
+                                    "lower_bound": float(np.linalg.norm(dres, 2))}
     hi0 = hi
+    bound = lo  # a certified lower bound of the infimum: the error at s = ∞ (Parrott), then each refused level
     lo = max(lo, hi * 1e-9)
     best = _hinf_at(Gh, F, hi)
     if best is None or best[2] is False:
@@ -2811,16 +2923,18 @@ def solve_standard(Gh: LTI, F: LTI, norm: str, reltol: float) -> tuple[LTI, dict
         if not feasible and mid > fnorm * (1 + HINF_F_RTOL):
             feasible = True  # (Y = 0 proves it: the refusal is numerical)
         if not feasible:
-            lo = mid
+            lo = bound = mid
             continue
         hi = mid
         if got is not None and got[1] < ebest:
             Ybest, ebest = got[:2]
     if ebest < lo:  # the last refusal was numerical: the measured error bounds γopt from above
         lo = hi = ebest
+        bound = 0.0  # (no refusal is a certificate then)
     else:  # SB10's certificate ||E|| < γ holds to the accuracy of its Riccati solutions (~1e-6)
         hi = max(hi, ebest)
-    return Ybest, {"gamma": ebest, "bracket": (lo, hi)}
+    # ``lower_bound``: the infimum is at least this (0 where nothing certifies one); ``fnorm``: ||F||∞, Y = 0's error
+    return Ybest, {"gamma": ebest, "bracket": (lo, hi), "lower_bound": float(bound), "fnorm": fnorm}
 
 
 #: :func:`solve_standard`: a level above ``||F||∞·(1 + HINF_F_RTOL)`` is feasible (Y = 0; SLICOT AB13DD's norm is
