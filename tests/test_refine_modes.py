@@ -147,17 +147,15 @@ def test_audit_seed_13_meets_the_judge():
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [2, 6, 8, 12, 16])
-def test_audit_matches_to_the_identity_are_designed(seed):
-    """Mr = I (one row per fault, rows of different scales; the audit counts a refusal of it as 'refused', not
-    'broken', so _assert_case would pass one): these were refused for a fault-only mode kept in R_f at a residue
-    above its rounding bound δ_i (seed 2: 5.3e-12 > 1.3e-12, s = 1; 6: 1.9e-14 > 6.9e-15, s = 1; 8: 3.2e-13 >
-    5.0e-14, ±2j; 12: 2.3e-12 > 1.7e-12, s = 1). The exact cancellation designs them, and the numpy judge passes
-    them. Seed 16 (an integrator: 3.9e-14 after the correction against δ_i = 3.6e-14, once refused) is designed now and
-    passes the numpy judge too. Seed 8, refused
-    at the first integration (residue 3.23e-14 after the correction against δ_i = 2.55e-14), is designed on the merged
-    code without the correction (the stage does not keep it): its shipped filter passes the numpy judge as returned."""
+def test_audit_matches_to_the_identity_are_refused_by_their_rank_bound(seed):
+    """Mr = I on these seeds (admissible fault-response ranks 4, 1, 2, 3, 3 for 5, 5, 5, 4, 4 faults): every filter
+    that decouples u and d has ||Q Gf - I||_inf >= sigma_{r+1}(I) = 1 = ||I||_inf, the error of Q = 0, so the design
+    refuses early, naming the rank and the bound (approximate_matching._unapproachable_reference). Their boundary
+    modes (s = 1, 1, +-2j, 1, 0: once refused for a fault-only mode kept in R_f above its rounding bound) are still
+    designed and judged by numpy with Mr = the first r rows of I in tests/test_amm_unapproachable.py."""
     (what, status, detail), = check_case(seed, calls=("amm_eye",))
-    assert status == "ok", detail
+    assert status == "refused", (status, detail)
+    assert "cannot be approached" in detail and "normal rank" in detail, detail
 
 
 @pytest.mark.parametrize("dt", [0.0, 0.1], ids=["continuous", "discrete"])

@@ -3005,7 +3005,7 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
     reflected inside, and a zero on the circle (``Ĝ = (0.5, 0.5, 1, −1)``: zero at 1) leaves ``P = 0`` with the loop at
     ``1 − 1e-16`` — the maximal solution, not a stabilising one — which was returned as one.
 
-    The refusal says why (:func:`.._observer._existence`, on the equation's data in filter form: ``(A, C2)``
+    The refusal says why (:func:`..observers._observer.riccati_existence`, on the equation's data in filter form: ``(A, C2)``
     detectable and the symplectic pencil's eigenvalues off the unit circle by more than
     :func:`~fmu_fdi.design.toolkit.riccati_newton.boundary_gap`'s tolerance — its ``(A, B, Q, R, S)`` are the control
     form's ``(Aᵀ, C2ᵀ, BBᵀ, D21D21ᵀ, BD21ᵀ)``, the same dual as ``spectral_riccati``'s here): "no stabilising
