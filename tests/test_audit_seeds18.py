@@ -26,8 +26,8 @@ own, so they stay strict xfails with their cause and the change proposed (the fi
   at -5.7e-16) — refused "the returned filter's error response differs from the designed one by 0.0519 (relative
   0.0519, limit 0.001; 0.892 times its rounding estimate ...)". A refusal for the wrong reason: the optimum is
   ``||Mr||∞ = 1`` exactly (the admissible filters span p + m − rank [Gu Gd; I 0] = 2 < 5 rows, so ``Q·Gf − I`` is
-  singular-valued ≥ 1 at every frequency, and Q = 0 attains 1) and a nonzero admissible stable filter within 1e-6 of it exists
-  (below: ε times the exact detection row, judged by numpy). The γ-iteration's bracket is [1, 1.000048]; its
+  singular-valued ≥ 1 at every frequency, and Q = 0 attains 1) and a nonzero admissible stable filter within 1e-6 of
+  it exists (below: ε times the exact detection row, judged by numpy). The γ-iteration's bracket is [1, 1.000048]; its
   near-optimal Y (peak gain 1.45e3, order 53) at that degenerate optimum is realised with the fault-only integrator's
   cancellation lost (the minimal realisation shipped regardless: residue 2.4e-9 > its rounding bound 1.41e-9, R not
   stable). Decided (amm21, a product decision): Q = 0 is then the optimum, no detection filter, so the design is

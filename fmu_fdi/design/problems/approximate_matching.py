@@ -271,13 +271,13 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
         has normal rank r and ``sup σ_{r+1}(Mr) = ||Mr||∞`` (:func:`_unapproachable_reference`; H2: only r = 0, the
         H2 rank bound being below ``||Mr||₂`` otherwise), or the γ-iteration certifies an infimum at ``||[Mr 0]||∞``
         (:func:`_certified_at_zero_filter`) — naming the rank, the bound and ``||Mr||∞``; zeros of the reduced
-        system on the stability boundary; SLICOT's Riccati solvers failing at every level/regularisation; a returned filter whose error
-        response is not the designed one (realisation accuracy: beyond the evaluation's rounding bound, and its own
-        error above the designed one's by more than ``reltol``) or that fails its
-        post-conditions, among them a u/d leak on the normalised form (rows at unit weakest required fault gain)
-        above ``dec_tol`` as a double-precision evaluation of the returned realisation can show it — the judge's
-        reading plus the realisation's sensitivity — where no refit or better-conditioned realisation meets it
-        (:func:`_ud_leak_refused`: row, reading, sensitivity, that gain, dec_tol); a returned filter whose error
+        system on the stability boundary; SLICOT's Riccati solvers failing at every level/regularisation; a returned
+        filter whose error response is not the designed one (realisation accuracy: beyond the evaluation's rounding
+        bound, and its own error above the designed one's by more than ``reltol``) or that fails its post-conditions,
+        among them a u/d leak on the normalised form (rows at unit weakest required fault gain) above ``dec_tol`` as a
+        double-precision evaluation of the returned realisation can show it — the judge's reading plus the realisation's
+        sensitivity — where no refit or better-conditioned realisation meets it (:func:`_ud_leak_refused`: row, reading,
+        sensitivity, that gain, dec_tol); a returned filter whose error
         exceeds ``info['error_budget']``'s limit (the certified optimum times ``1 + reltol``), or the zero
         filter's ``||M [Mr 0]||`` by more than ``reltol`` (:func:`_zero_filter_error`: both errors);
         an option's bad value,
@@ -631,8 +631,8 @@ def _certified_at_zero_filter(info: dict) -> None:
     if fnorm > 0 and lb >= fnorm * (1 - HINF_F_RTOL):
         raise DesignError(
             f"approximate_model_matching: Mr cannot be approached by any filter that decouples u and d: the "
-            f"γ-iteration certifies every admissible filter's error at least {lb:.9g} (its lower bound: a level with no "
-            f"solution, or the error at infinity), which reaches ||[Mr 0]||∞ = {fnorm:.9g} (within HINF_F_RTOL = "
+            f"γ-iteration certifies every admissible filter's error at least {lb:.9g} (its lower bound: a level with "
+            f"no solution, or the error at infinity), which reaches ||[Mr 0]||∞ = {fnorm:.9g} (within HINF_F_RTOL = "
             f"{HINF_F_RTOL:g}), the error of Q = 0: no filter does better than none; choose Mr in the directions the "
             f"decoupled residuals reach (Q0·[Gf; 0]), or a smaller noise weight")
 
@@ -3005,8 +3005,8 @@ def _filter_dare(A: np.ndarray, B: np.ndarray, C2: np.ndarray, D21: np.ndarray) 
     reflected inside, and a zero on the circle (``Ĝ = (0.5, 0.5, 1, −1)``: zero at 1) leaves ``P = 0`` with the loop at
     ``1 − 1e-16`` — the maximal solution, not a stabilising one — which was returned as one.
 
-    The refusal says why (:func:`..observers._observer.riccati_existence`, on the equation's data in filter form: ``(A, C2)``
-    detectable and the symplectic pencil's eigenvalues off the unit circle by more than
+    The refusal says why (:func:`..observers._observer.riccati_existence`, on the equation's data in filter form:
+    ``(A, C2)`` detectable and the symplectic pencil's eigenvalues off the unit circle by more than
     :func:`~fmu_fdi.design.toolkit.riccati_newton.boundary_gap`'s tolerance — its ``(A, B, Q, R, S)`` are the control
     form's ``(Aᵀ, C2ᵀ, BBᵀ, D21D21ᵀ, BD21ᵀ)``, the same dual as ``spectral_riccati``'s here): "no stabilising
     solution" with the mode that prevents it, or "a stabilising solution exists" and a numerical failure with the
