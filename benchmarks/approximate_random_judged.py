@@ -47,6 +47,12 @@ error reported below the γ-iteration's certified infeasible level (4.63869 for 
 — the design's grids straddle a lightly damped peak, and the true error exceeds the design's limit (strict xfails,
 approximate_matching.py).
 
+Measured 28 Nov (audit20, ``--timeout=120``, nice 10 beside four other helpers' work and a CI run, load 3-10 — times
+indicative):
+
+    seeds    AFD     afdi_bank  amm(Mr=row)  amm(Mr=I)  model detection  total ok/refused/broken  median / slowest
+    300-319  20/0/0  20/0/0     20/0/0       20/0/0     7/0/0            87/0/0                   27.7 / 102 s (317)
+
 With ``--gap-time SEED [SEED …]`` it times instead, per seed, the afdi_bank of the audit (the rows
 check_case picks) and then the bank's gaps read two ways in the same run: the baseline
 ``analysis.fault_noise_gap`` on the stacked bank (rows of the bank's internal form, which carry every
