@@ -52,6 +52,10 @@ a CI run, load 3-10 — the times are indicative):
 
     seeds    nullspace_design  structured_bank  dedicated_bank  generalized_bank  total     median / slowest
     889-918      30/0/0           30/0/0           35/12/0         35/12/0        130/24/0   2.4 / 24.7 s (896)
+    919-948      30/0/0           30/0/0           35/10/0         35/10/0        130/20/0   3.6 / 46.0 s (927)
+    949-978      30/0/0           30/0/0           36/15/0         36/15/0        132/30/0   4.1 / 61.0 s (963)
+
+no timeout, no false refusal (every refusal re-judged by numpy's rank test).
 
 With ``--matching`` it audits instead the seeded model-matching families of
 tests/test_synthesis_matching_order.py (a least-order detection row's fault response as the
