@@ -47,6 +47,17 @@ no timeout, no false refusal. The refused nullspace_design (846, n = 1) names ``
 numpy's rank test reads it. Seed 773's 132 s is its structured_bank on the 26 rows achievable_structure lists (order
 858; 96-106 s alone at load 8, ~3.5 s a row, 90 of it in nullspace_design's noise pencil and its post-conditions).
 
+Measured 28 Nov (audit20, ``--timeout=300``, refusals re-judged by numpy, nice 10 beside four other helpers' work and
+a CI run, load 3-10 — the times are indicative):
+
+    seeds    nullspace_design  structured_bank  dedicated_bank  generalized_bank  total     median / slowest
+    889-918      30/0/0           30/0/0           35/12/0         35/12/0        130/24/0   2.4 / 24.7 s (896)
+    919-948      30/0/0           30/0/0           35/10/0         35/10/0        130/20/0   3.6 / 46.0 s (927)
+    949-978      30/0/0           30/0/0           36/15/0         36/15/0        132/30/0   4.1 / 61.0 s (963)
+    979-1008     30/0/0           30/0/0           33/19/0         33/19/0        126/38/0   2.0 / 57.8 s (1003)
+
+no timeout, no false refusal (every refusal re-judged by numpy's rank test).
+
 With ``--matching`` it audits instead the seeded model-matching families of
 tests/test_synthesis_matching_order.py (a least-order detection row's fault response as the
 reference, on stable plants and, with updating, on unstable ones), judged by that file's numpy
