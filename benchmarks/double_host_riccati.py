@@ -27,6 +27,11 @@ script; ricc21 (the library's, same N, same figures) in one run:
 (designed / refused, answers the judge reads above 1e-6, the largest). With the double-double residual the double
 host designs and refuses exactly what the native host does, and no answer is above the line. On random symmetric X
 the two residuals agree to the rounding of the result (47/0: 3.9e-16 relative; 3/1: 6.9e-19).
+
+spectral_riccati too (ricc21: benchmarks/riccati_forward.py 60 under PATCH, with and without DOUBLE_DOUBLE, and
+natively; same session): full 173 / 7, 47/0 at 1.43e-6 → 178 / 2 as natively, the one answer above 1e-6 then 51/0
+(4.9e-6 there, 7.5e-6 natively: the judge's gain floor, Σ's condition 1.6e16); deflated 180 / 0, max 9.16e-7 on all.
+The double-double residual costs 0.2–1.9 ms a call at n = 6–30 (7–12× long double's on x86), on those hosts only.
 """
 import json
 import os
