@@ -21,9 +21,10 @@ Here, in one subprocess (~4 s, most of it importing), on the simulated host:
   approximate seed 0's AFD) judged by those files' numpy judges: none broken, and each returned (a refusal would be
   allowed on such a host, but then this test would judge nothing: it says so).
 
-A strict xfail pins what is still wrong there (not in this engineer's files): the Kalman filter's Riccati answer on
-tests/test_riccati_forward.py's deflated problem 42/0 is accepted with a forward error 3.3e-6 above its 1e-6 line
-(``riccati_newton.forward_refined`` reads the correction with a residual in double there).
+* the Kalman filter's Riccati answer on tests/test_riccati_forward.py's deflated problem 42/0 (a subprocess of its
+  own): designed and within its forward line — before, with the residual of ``riccati_newton.forward_refined`` in
+  double there, it was accepted at a forward error 3.3e-6 (a strict xfail); the residual is now formed in
+  double-double on such hosts (``riccati_newton._double_double_residual``).
 """
 from __future__ import annotations
 
@@ -33,7 +34,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
 
 # (no fmu_fdi import at module level: benchmarks/double_host_audit.py imports PATCH from here before simulating)
 TESTS = Path(__file__).resolve().parent
@@ -129,15 +129,14 @@ except DesignError as exc:
 """
 
 
-@pytest.mark.xfail(strict=True, reason="riccati_newton.forward_refined accepts a correction read with a residual in "
-                                       "double where longdouble is double: its reading (8.7e-7) is below the line, the "
-                                       "answer's forward error is 3.3e-6 (mend20's file; see the report)")
 def test_simulated_double_host_kalman_riccati_meets_its_forward_line_or_refuses():
     """tests/test_riccati_forward.py's deflated problem 42/0 by ``filter_riccati`` on the simulated host: the forward
     error the independent judge reads (scipy's Lyapunov equation of the filter run with the returned gain) is within
     FORWARD_RTOL = 1e-6 plus the judge's own floor on this problem (≤ 6e-7: the native host's answer, whose
     extended-residual correction reads 2.4e-10, is judged 5.97e-7) — or the solve is refused. Natively it is designed
-    and judged 5.97e-7; on the simulated host it is designed, judged 3.32e-6, its own figure 8.7e-7."""
+    and judged 5.97e-7. On the simulated host, before the residual was formed in double-double there
+    (``riccati_newton._double_double_residual``), it was designed and judged 3.32e-6 with its own figure 8.7e-7;
+    now it is designed, judged 4.66e-7, its own figure 1.8e-12."""
     got = simulated_host(_RICCATI)
     if got[0] == "designed":
         assert got[1] <= 1e-6 + 1e-6, got

@@ -64,11 +64,14 @@ def test_seed_17_rows_are_lowered_and_re_decoupled():
     realisation that sensitivity alone is 3.4e-7 (Schur coordinates 1.7e-7): every refit of it stayed above dec_tol
     and main kept row 1's optimal row ([52, 8]). Its balanced realisation (same order: nothing to truncate, so main
     never tried it) has sensitivity 3.0e-8 and its refit reads 5.1e-8: row 1 is lowered to 5. Returned: row orders
-    [5, 8], below dec_tol by numpy, the optimal error."""
+    [5, 8], below dec_tol by numpy, the optimal error (on a host whose longdouble is double, [5, 7], leaks 2.1e-13 and
+    5.0e-11 by a refined numpy reading: each order at most [5, 8] is asserted)."""
     Mr, g0, g1, worst = _judged(17, "inf")
     info = g1.info["mindeg"]
     assert worst <= DEC_TOL, worst
-    assert info["row_orders"] == [5, 8] and row_degrees(g1.Q) == [5, 8]
+    # each row's order at most [5, 8] (the least order may only improve: the simulated double host returns [5, 7])
+    assert len(info["row_orders"]) == 2 and all(o <= c for o, c in zip(info["row_orders"], [5, 8])), info["row_orders"]
+    assert row_degrees(g1.Q) == info["row_orders"], (row_degrees(g1.Q), info["row_orders"])
     assert info["ud_redecoupling"]["refined"]
     _same_error(g0, g1, Mr, "inf")
     assert stable(g1.Q)

@@ -101,3 +101,75 @@ def test_refinement_without_a_stabilising_start_refuses():
     C = np.array([[0.0, 1.0]])  # the mode 1.5 is unobservable: (A, C) not detectable
     with pytest.raises(DesignError, match="no stabilising solution"):
         filter_riccati(A, C, np.eye(2), np.eye(1), np.zeros((2, 1)), 0.0)
+
+
+def _exact_residual(A, B, Q, R, S, X, dt):
+    """𝓡(X) (riccati_newton's module docstring) in rational arithmetic from the doubles given: the judge. ``G`` is
+    2 × 2, inverted by its adjugate."""
+    from fractions import Fraction
+
+    def fr(M):
+        return [[Fraction(float(v)) for v in row] for row in np.atleast_2d(M)]
+
+    def mul(P, Q_):
+        return [[sum(P[i][k] * Q_[k][j] for k in range(len(Q_))) for j in range(len(Q_[0]))] for i in range(len(P))]
+
+    def add(*Ms):
+        return [[sum(M[i][j] for M in Ms) for j in range(len(Ms[0][0]))] for i in range(len(Ms[0]))]
+
+    def neg(M):
+        return [[-v for v in row] for row in M]
+
+    def tr(M):
+        return [list(r) for r in zip(*M)]
+
+    A, B, Q, R, S, X = (fr(M) for M in (A, B, Q, R, S, X))
+    if dt:
+        K, G, quad = add(mul(mul(tr(A), X), B), S), add(R, mul(mul(tr(B), X), B)), add(mul(mul(tr(A), X), A), neg(X))
+    else:
+        K, G, quad = add(mul(X, B), S), R, add(mul(tr(A), X), mul(X, A))
+    det = G[0][0] * G[1][1] - G[0][1] * G[1][0]
+    Gi = [[G[1][1] / det, -G[0][1] / det], [-G[1][0] / det, G[0][0] / det]]
+    Rx = add(quad, neg(mul(mul(K, Gi), tr(K))), Q)
+    return np.array([[float(v) for v in row] for row in Rx])
+
+
+@pytest.mark.parametrize("dt", [0.0, 0.1])
+def test_double_double_residual_is_exact_to_its_bound(dt):
+    """``riccati_newton._double_double_residual`` (the residual on hosts whose longdouble is double; callable on any
+    host) against 𝓡(X) in rational arithmetic, at scipy's solution of a seeded equation with states scaled over 6
+    decades, where the terms (~1e6 of 𝓡's size) cancel. Bound (its docstring): the final rounding ``eps·|𝓡|`` plus
+    ``c·n²·eps²`` of the terms' size ``T = |Aᵀ||X|(|A|) + |X| + |K||G⁻¹Kᵀ| + |Q|`` (n = 4, Dot2's ``(n + 2⌈log₂ n⌉)u²``
+    ≤ n²eps², κ(G) ~ 10 so the refined ``G⁻¹Kᵀ`` is ~(κ·eps)² of its size; c = 16 covers the handful of chained
+    Dot2/Sum2 steps). Plain double's residual misses that bound (its rounding is ~n·eps·T), which shows the bound
+    discriminates."""
+    import scipy.linalg as sla
+
+    from fmu_fdi.design.toolkit.riccati_newton import _double_double_residual
+
+    rng = np.random.default_rng(21)
+    n, m = 4, 2
+    T = np.diag(10.0 ** np.array([-3, -1, 1, 3]))
+    A = np.linalg.solve(T, rng.standard_normal((n, n))) @ T - (0.5 if not dt else 0.0) * np.eye(n)
+    if dt:
+        A = A / (1.2 * max(abs(np.linalg.eigvals(A))))
+    B = np.linalg.solve(T, rng.standard_normal((n, m)))
+    Q = T @ np.diag(rng.uniform(0.5, 2, n)) @ T
+    R, S = np.diag([1.0, 3.0]), np.zeros((n, m))
+    X = (sla.solve_discrete_are if dt else sla.solve_continuous_are)(A, B, Q, R)
+    X = (X + X.T) / 2
+    exact = _exact_residual(A, B, Q, R, S, X, dt)
+    got, F = _double_double_residual(A, B, Q, R, S, X, dt)
+
+    aA, aX = abs(A), abs(X)
+    K = (A.T @ X @ B + S) if dt else (X @ B + S)
+    G = R + B.T @ X @ B if dt else R
+    terms = (aA.T @ aX @ aA if dt else 2 * aA.T @ aX) + aX + abs(K) @ abs(np.linalg.solve(G, K.T)) + abs(Q)
+    eps = np.finfo(float).eps
+    assert np.max(abs(exact)) < 1e-6 * np.max(terms)  # the terms cancel: the case the extended residual is for
+    bound = eps * abs(exact) + 16 * n ** 2 * eps ** 2 * terms
+    assert np.all(abs(got - exact) <= bound), np.max(abs(got - exact) / bound)
+    np.testing.assert_allclose(F, -np.linalg.solve(G, K.T), rtol=1e-12, atol=0)
+
+    plain = ((A.T @ X @ A - X) if dt else (A.T @ X + X @ A)) - K @ np.linalg.solve(G, K.T) + Q
+    assert np.any(abs(plain - exact) > bound)

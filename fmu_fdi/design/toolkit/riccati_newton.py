@@ -35,6 +35,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
+from ...lti import DOUBLE_DOUBLE, compensated_sum, dot2
+
 #: at most this many Newton steps from one start: the 17 seeded problems of tests/test_kalman_riccati.py that the
 #: refinement designs took 2–6 Lyapunov solves in all (from residuals 1e-7 … 1e-1 of the terms); the refused ones
 #: stagnate at 1e-8 … 1e-6
@@ -272,7 +274,8 @@ def closed_loop_correction(A, B, Q, R, S, X, dt: float):
     tests/test_riccati_forward.py (scipy's Lyapunov of the closed loop with its positive semidefinite right side)
     reads 1e-11 … 1.5e-7 — a false refusal. With the residual in long double (64-bit significand on x86, eps 1.1e-19)
     that floor falls ~2000×, and what is left is the Lyapunov solve's relative error ``~eps·‖A_F‖/sep`` of ``Δ``
-    itself. (Where numpy's long double is double, the measure is double's, with its floor.)"""
+    itself. (Where numpy's long double is double — Windows, ARM macOS — the residual is formed in double-double instead,
+:func:`_double_double_residual`, with a floor lower still.)"""
     bal = DiagonalBalancing.of(A)
     At, Bt, Qt, St = bal.control_form(A, B, Q, S)
     Xt = bal.congruent((X + X.T) / 2)
@@ -290,11 +293,17 @@ def closed_loop_correction(A, B, Q, R, S, X, dt: float):
 
 
 def _extended_residual(A, B, Q, R, S, X, dt: float):
-    """``(𝓡(X), F(X))`` with the residual's products and sums in ``np.longdouble`` (rounded to double at the end) and
-    the gain term ``K G⁻¹ Kᵀ`` from ``G⁻¹Kᵀ`` solved in double and refined once with a long-double residual
-    (``G`` is ``R``, discrete ``R + BᵀXB``); ``F`` in double. None when ``X`` is not finite or ``G`` is singular."""
+    """``(𝓡(X), F(X))`` with the residual's products and sums beyond double (rounded to double at the end) and the
+    gain term ``K G⁻¹ Kᵀ`` from ``Y = G⁻¹Kᵀ`` solved in double and refined once against an extended residual (``G`` is
+    ``R``, discrete ``R + BᵀXB``); ``F = −Y`` in double. None when ``X`` is not finite or ``G`` is singular.
+
+    In ``np.longdouble`` where that is wider than double (x86: 64-bit significand, eps 1.1e-19), so the residual's
+    rounding is ``~n·1.1e-19`` of its terms; where it is double (Windows, ARM macOS: :data:`DOUBLE_DOUBLE`) in
+    double-double by :func:`_double_double_residual`, whose floor is lower still."""
     if X is None or not np.all(np.isfinite(X)):
         return None
+    if DOUBLE_DOUBLE:
+        return _double_double_residual(A, B, Q, R, S, X, dt)
     ld = np.longdouble
     Al, Bl, Ql, Rl, Sl, Xl = (np.asarray(M, ld) for M in (A, B, Q, R, S, X))
     if dt:
@@ -310,6 +319,66 @@ def _extended_residual(A, B, Q, R, S, X, dt: float):
         return None
     Rx = (AX - Xl if dt else AX + AX.T) - K @ Yl + Ql
     return np.asarray(Rx, float), -Y
+
+
+def _dd_times(Mh, Ml, N):
+    """``(Mh + Ml)·N`` as ``hi + lo``, ``N`` double: Dot2 on the high part, the low part's product (relative size
+    eps) in double, the three summed by Sum2."""
+    h, lo = dot2(Mh, N)
+    return compensated_sum([h, lo, Ml @ N])
+
+
+def _times_dd(N, Mh, Ml):
+    """``N·(Mh + Ml)`` as ``hi + lo`` (:func:`_dd_times` from the left)."""
+    h, lo = dot2(N, Mh)
+    return compensated_sum([h, lo, N @ Ml])
+
+
+def _double_double_residual(A, B, Q, R, S, X, dt: float):
+    """:func:`_extended_residual` in double-double, for hosts whose ``np.longdouble`` is double.
+
+        continuous:  ``𝓡(X) = AᵀX + XA − K G⁻¹Kᵀ + Q``,    ``K = XB + S``,      ``G = R``;
+        discrete:    ``𝓡(X) = AᵀXA − X − K G⁻¹Kᵀ + Q``,    ``K = AᵀXB + S``,    ``G = R + BᵀXB``.
+
+    Every product of data by an unevaluated sum ``hi + lo`` is Dot2 on ``hi`` plus the ``lo`` product in double, every
+    sum Sum2 — the error-free transformations of :mod:`fmu_fdi.lti` (TwoSum, Knuth; TwoProduct with Veltkamp's split,
+    Dekker, "A floating-point technique for extending the available precision", Numer. Math. 18, 1971; Dot2 and
+    Sum2, Ogita, Rump & Oishi, "Accurate sum and dot product", SIAM J. Sci. Comput. 26(6), 2005, Alg. 5.3 and 4.4).
+    ``Y = G⁻¹Kᵀ`` is solved in double and refined once, ``Y + Y_l`` with ``Y_l = G⁻¹(Kᵀ − G Y)`` (that residual in
+    double-double), so ``K Y`` is taken to ``~(κ(G)·eps)²`` of its size. The bound, to first order (``u = eps/2``,
+    ``γ = (n + 2⌈log₂ n⌉)·u²`` per Dot2, the few Sum2 steps and products of low parts adding ``O(u²)`` of the same
+    terms):
+
+        ``|𝓡̂ − 𝓡(X)| ≤ u·|𝓡(X)| + c·γ·(|A||X||A| or 2|A||X|, + |K||Y| + |X| + |Q|) + |K|·|Y + Y_l − G⁻¹Kᵀ|``
+
+    (``c`` a small constant; ``u·|𝓡(X)|`` is the final rounding to double): where the terms cancel to a residual far
+    below them the floor is ``~n·eps²`` of the terms — below long double's ``~n·1.1e-19`` on x86 — instead of plain
+    double's ``~n·eps``. Measured (benchmarks/double_host_riccati.py, simulated host): the Kalman filter's forward
+    verdicts on the seeded families then match the native host's exactly."""
+    Z = np.zeros_like
+    if dt:
+        XBh, XBl = _dd_times(X, Z(X), B)
+        ATh, ATl = _times_dd(A.T, XBh, XBl)
+        Kh, Kl = compensated_sum([ATh, ATl, S])
+        BTh, BTl = _times_dd(B.T, XBh, XBl)
+        Gh, Gl = compensated_sum([BTh, BTl, R])
+        AXh, AXl = _dd_times(*_times_dd(A.T, X, Z(X)), A)
+        quad = [AXh, AXl, -X]
+    else:
+        XBh, XBl = _dd_times(X, Z(X), B)
+        Kh, Kl = compensated_sum([XBh, XBl, S])
+        Gh, Gl = np.array(R, float), Z(R)
+        AXh, AXl = _times_dd(A.T, X, Z(X))
+        quad = [AXh, AXl, AXh.T, AXl.T]  # AᵀX + XA = AᵀX + (AᵀX)ᵀ: X is symmetric
+    try:
+        Y = np.linalg.solve(Gh, Kh.T)
+        rh, rl = compensated_sum([Kh.T, Kl.T, *(-v for v in _dd_times(Gh, Gl, Y))])
+        Yl = np.linalg.solve(Gh, rh + rl)
+    except np.linalg.LinAlgError:
+        return None
+    KYh, KYl = _times_dd(Kh, Y, Yl)
+    Rh, Rl = compensated_sum(quad + [-KYh, -KYl, -(Kl @ Y), np.asarray(Q, float)])
+    return Rh + Rl, -Y
 
 
 def solution_scale(A, Q, X, dt: float) -> float:
