@@ -2,7 +2,7 @@
 subprocess (tests/test_double_host.py's :data:`PATCH`): a leak the judge accepts is one it proves.
 
 The case: random H∞ matching seed 4 (tests/test_synthesis_ammp.py's ``_random_case``, ``norm='inf'``,
-``reltol=1e-6``), designed on the simulated host (~6 s). Its filters are decoupling cancellations (``|Q_g|·|Ge|`` ~4e6
+``reltol=1e-6``), designed on the simulated host (~7 s). Its filters are decoupling cancellations (``|Q_g|·|Ge|`` ~4e6
 times the weakest fault gain), whose double reading has a bound of the size of dec_tol = 1e-7. Before
 (d4fb7a0), where longdouble is double nothing was refined: the returned filter's u/d leak read 4.65e-9 ± 1.77e-7
 by the judge's defaults and was accepted against dec_tol 1e-7, unproven (host20 saw 2.2e-8 ± 1.8e-7 on this seed in
