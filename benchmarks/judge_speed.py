@@ -32,6 +32,9 @@ runs, ``--base`` = the commit before): the accurate reading of excluded faults 0
 _without_cancelled_modes + the plain figures first 1.36, check_generator's report from its own figures 1.22, np.dot in
 the refinement 1.17.
 
+28 Nov (judge21, double-double refined reading where longdouble is double), ``--reps=1 --base=d4fb7a0`` on x86:
+every case the same verdict, max rel diff 0.00e+00 (the x87 path untouched), total 1.81 s vs 1.80 s.
+
 Run: python benchmarks/judge_speed.py [--reps=N] [--base=REF] [--exact SEED ...] [--profile LABEL]
 (``--base=REF``: the baseline's git ref, default main — e.g. a commit of this branch, to time one change alone)
 (``--profile LABEL``: a cProfile of this tree's judge on that case instead, top 25 by cumulative time)

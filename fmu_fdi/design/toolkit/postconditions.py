@@ -78,7 +78,7 @@ import scipy.linalg as sla
 from ...errors import DesignError
 from ...freqresp import content_key, recall, remember, transfer_values
 from ...linalg import EPS, single_blas_thread
-from ...lti import LTI, _pole_scales, frequency_grid, structurally_observed
+from ...lti import LTI, _pole_scales, compensated_sum, dot2, frequency_grid, structurally_observed, two_prod, two_sum
 from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
 from .plant_modes import BOUNDARY_GAP, EIGVEC_BOUND, boundary_gap, leading_schur  # noqa: F401  (BOUNDARY_GAP: here)
 from .plant_modes import boundary_mode_table as _boundary_modes
@@ -792,12 +792,22 @@ def _column_names(model) -> list:
 #: unit roundoff of the extended type the u/d reading refines its residuals in (:func:`_decoupled_reading`): 2^-64 where
 #: numpy's longdouble is the x87 80-bit format, EPS/2 where it is double (the reading is then the plain one)
 EXT_UNIT = float(np.finfo(np.longdouble).eps) / 2
+#: whether the refined reading is formed in double-double (:func:`_dd_refined_values`) instead of longdouble: where
+#: longdouble is double (Windows, ARM macOS)
+DD_READING = EXT_UNIT >= EPS / 2
+#: the unit the refined reading's bound is charged at (``u_x`` of :func:`_decoupled_reading`): :data:`EXT_UNIT` where
+#: longdouble is extended; 2^-64 (x87's) in double-double, an upper bound on its residual's unit derived in
+#: :func:`_dd_refined_values`, so the same points are refined and proven as on x86
+REFINED_UNIT = 2.0 ** -64 if DD_READING else EXT_UNIT
 
 
-def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.ndarray, refine=None, steps: int = 2):
+def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.ndarray, refine=None, steps: int = 2,
+                    rhs_lo=None):
     """Per point λ_k: ``X_k = (λ_k I − A)^{-1} rhs_k`` (rhs: (K, n, c) in the extended type) and ``W_k = left·(λ_k I −
     A)^{-1}``, in double; at the points of the mask ``refine`` (default none) X_k refined in the extended type and W_k
-    not computed. Non-finite where ``λ_k I − A`` is singular.
+    not computed. Non-finite where ``λ_k I − A`` is singular. With ``rhs_lo`` (complex, rhs's shape) the right-hand
+    side is the double-double ``rhs + rhs_lo`` and X_k is refined in double-double (:func:`_dd_refine`), returned as
+    the pair ``(X_hi, X_lo)``.
 
     Each point: the LU factorisation with partial pivoting of ``λI − H`` (``A = U H Uᵀ``, the Hessenberg form of
     :func:`fmu_fdi.freqresp.hessenberg_form`, O(n²) per point); refined: ``steps`` steps of iterative refinement whose
@@ -807,7 +817,8 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
     from ...freqresp import hessenberg_form
 
     K, n, c = rhs.shape
-    X = np.full((K, n, c), np.nan, np.clongdouble if refine is not None else complex)
+    X = np.full((K, n, c), np.nan, np.clongdouble if refine is not None and rhs_lo is None else complex)
+    Xlo = np.zeros((K, n, c), complex)
     W = np.full((K, left.shape[0], n), np.nan, complex)
     H, U = hessenberg_form(A)
     Ax = A.astype(np.longdouble)
@@ -835,6 +846,9 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
             X[k] = x
             W[k] = solve(leftT, trans=1).T
             continue
+        if rhs_lo is not None:
+            X[k], Xlo[k] = _dd_refine(np.asarray(A, float), lk, b, rhs_lo[k], x, solve, steps)
+            continue
         x = x.astype(np.clongdouble)
         for _ in range(steps):  # (A real: its products with the real and imaginary parts, no complex copy of A;
             # np.dot, whose longdouble loop is ~10x numpy's generic matmul loop for that type: 0.04 ms against 0.36 ms
@@ -843,7 +857,55 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
             Axx = Ar[:, :c] + 1j * Ar[:, c:]
             x = x + solve((b - (np.clongdouble(lk) * x - Axx)).astype(complex))
         X[k] = x
-    return X, W
+    return ((X, Xlo) if rhs_lo is not None else X), W
+
+
+def _cplx(re: np.ndarray, im: np.ndarray) -> np.ndarray:
+    """``re + j·im`` exactly (no complex multiplication)."""
+    z = np.empty(np.shape(re), complex)
+    z.real, z.imag = re, im
+    return z
+
+
+def _dd_matmul(M: np.ndarray, hi: np.ndarray, lo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``M·(hi + lo)`` (M real (r, n), hi and lo complex (n, c)) as ``(hi, lo)``: :func:`fmu_fdi.lti.dot2` on the real
+    and imaginary parts of ``hi``, ``M·lo`` in double added to the low part; error ``≤ (n + 2⌈log₂ n⌉)·u²·|M||hi| +
+    u·|M||lo|`` (≈ ``(n + 2⌈log₂ n⌉ + 1)·u²·|M||x|``, |lo| ≤ u|hi|)."""
+    c = hi.shape[1]
+    h, e = dot2(M, np.concatenate([hi.real, hi.imag], axis=1))
+    e = e + np.asarray(M, float) @ np.concatenate([lo.real, lo.imag], axis=1)
+    return _cplx(h[:, :c], h[:, c:]), _cplx(e[:, :c], e[:, c:])
+
+
+def _dd_add(ah, al, bh, bl) -> tuple[np.ndarray, np.ndarray]:
+    """``(ah + al) + (bh + bl)`` as ``(hi, lo)``: :func:`fmu_fdi.lti.two_sum` of the high parts (componentwise on
+    complex arrays), the low parts in double, renormalised."""
+    s, e = two_sum(ah, bh)
+    return two_sum(s, e + (al + bl))
+
+
+def _dd_refine(A: np.ndarray, lk: complex, bh: np.ndarray, bl: np.ndarray, x: np.ndarray, solve, steps: int):
+    """``steps`` steps of iterative refinement of ``x ≈ (λI − A)^{-1}(bh + bl)`` with the residual and the iterate in
+    double-double: ``r = b − λx + Ax``, ``x = xh + xl``; ``A·x`` by :func:`_dd_matmul`, ``λ·xh`` by TwoProduct of its
+    four real products (``λ·xl`` in double, a term of relative size u), the four terms of each part (b, Ax, the two
+    products) by Sum2 (:func:`fmu_fdi.lti.compensated_sum`) and the low terms in double; the correction solved in
+    double by ``solve`` and added by :func:`_dd_add`. The residual's error: ``≤ (n + 2⌈log₂ n⌉ + 4)·u²·(|b| +
+    |λ||x| + |A||x|)`` to first order."""
+    lr, li = lk.real, lk.imag
+    xh, xl = x, np.zeros_like(x)
+    for _ in range(steps):
+        ah, al = _dd_matmul(A, xh, xl)
+        p1, e1 = two_prod(lr, xh.real)
+        p2, e2 = two_prod(li, xh.imag)
+        p3, e3 = two_prod(lr, xh.imag)
+        p4, e4 = two_prod(li, xh.real)
+        sr, qr = compensated_sum([bh.real, ah.real, -p1, p2])
+        si, qi = compensated_sum([bh.imag, ah.imag, -p3, -p4])
+        lo_r = qr + bl.real + al.real - e1 + e2 - (lr * xl.real - li * xl.imag)
+        lo_i = qi + bl.imag + al.imag - e3 - e4 - (lr * xl.imag + li * xl.real)
+        d = solve(_cplx(sr + lo_r, si + lo_i))
+        xh, xl = _dd_add(xh, xl, d, np.zeros_like(d))
+    return xh, xl
 
 
 #: :func:`_decoupled_blocks`: a reading of a decoupled block below this fraction of the row's weakest fault gain
@@ -929,14 +991,15 @@ def _decoupled_reading(model, Q: LTI, g, lam: np.ndarray, blocks: dict, R: np.nd
     **The reading.** The product first: ``Z = (λI − A_q)^{-1} (B_q G)``, ``R_X = C_q Z + D_q G``, ``G`` the re-read
     columns of Ge (Q_g balanced by TB01ID, Ge by :func:`plant_realisation`: diagonal similarities by powers of 2,
     the same data), each
-    solve refined in the extended type (:func:`_refined_solves`, :data:`EXT_UNIT`) and the sums formed there. Its
+    solve refined in the extended type (:func:`_refined_solves`, :data:`EXT_UNIT`; in double-double where longdouble
+    is double, :func:`_dd_refined_values`) and the sums formed there. Its
     error, to first order (GEPP's componentwise backward error ``|ΔL| ≤ γ_3N |L|`` of each system, refined to the
     extended precision; Higham Thm 9.3 and ch. 12):
 
         e(λ) = 3N·u_x·( |W||λI − A_q||Z| + |W||B_q||G| + |C_q||Z| + |D_q||G| + |Q_g(λ)| E_G ),
         E_G = |W_e||λI − A_e||X_e| + |C_e||X_e|,   W = C_q (λI − A_q)^{-1},
 
-    (``W_e``, ``X_e`` Ge's resolvents, N the larger order, u_x = :data:`EXT_UNIT`; Frobenius norm over the block);
+    (``W_e``, ``X_e`` Ge's resolvents, N the larger order, u_x = :data:`REFINED_UNIT`; Frobenius norm over the block);
     at a point left at its double reading (:func:`_refine_mask`) the same with u for u_x. A block's bound is that of
     its peak ``P = max_k r_k``: the largest point bound ``e_k`` among the points with ``r_k + e_k ≥ P`` (the true
     peak lies in ``[P − e_p, max_k (r_k + e_k)]``, p the peak's point). **Invariance:** a diagonal state scaling by
@@ -966,7 +1029,7 @@ def _decoupled_reading(model, Q: LTI, g, lam: np.ndarray, blocks: dict, R: np.nd
     block[np.ix_(fine, np.arange(rows.size), cols)] = val[fine]
     R[:, g, :] = block
     # each point's bound as it was read: 3N·u_x·||err|| refined, 3N·u·||err|| at its double reading
-    unit = 3 * max(Qi.n, Geb.n, 1) * np.where(refined, EXT_UNIT, EPS / 2)[fine]
+    unit = 3 * max(Qi.n, Geb.n, 1) * np.where(refined, REFINED_UNIT, EPS / 2)[fine]
     peak = lambda X, c: float(np.max(np.linalg.norm(X[fine][:, :, c], axis=(1, 2)), initial=0.0))  # noqa: E731
 
     def error(c):  # the bound on the block's peak P = max r_k: max e_k over the points with r_k + e_k ≥ P
@@ -1057,7 +1120,7 @@ def _decoupled_values(Qi: LTI, Geb: LTI, lam: np.ndarray, blocks: list, with_ref
     idx = np.array([entry.cols[k] for k in ckeys], int)
     val, err, sens = entry.val[:, :, idx].copy(), entry.err[:, :, idx], entry.sens[:, :, idx]
     need = np.zeros(lam.size, bool)
-    while EXT_UNIT < EPS / 2:
+    while REFINED_UNIT < EPS / 2:
         more = _refine_mask(val, err, blocks, max(Qb.n, Geb.n, 1), need)
         if not np.any(more):
             break
@@ -1133,7 +1196,7 @@ def _refine_mask(val: np.ndarray, err: np.ndarray, blocks: list, N: int, refined
     was read (3N·u_x·err where refined), so a call with the refined values returns the points the refinement
     unmasked, none once no double reading can reach the refined peak (:func:`_decoupled_values`' loop)."""
     done = np.zeros(val.shape[0], bool) if refined is None else np.asarray(refined, bool)
-    unit = 3 * N * np.where(done, EXT_UNIT, EPS / 2)
+    unit = 3 * N * np.where(done, REFINED_UNIT, EPS / 2)
     need = np.zeros(val.shape[0], bool)
     for idx in blocks:
         if not idx.size:
@@ -1146,12 +1209,49 @@ def _refine_mask(val: np.ndarray, err: np.ndarray, blocks: list, N: int, refined
     return need
 
 
-def _refined_values(Qb: LTI, Geb: LTI, lam: np.ndarray) -> np.ndarray:
+def _refined_values(Qb: LTI, Geb: LTI, lam: np.ndarray, dd: bool = DD_READING) -> np.ndarray:
     """``R_X`` of the row ``Qb`` on the columns ``Geb`` at the points λ with the row's solves refined in the
-    extended type (:func:`_refined_solves`)."""
+    extended type (:func:`_refined_solves`); with ``dd`` (default where longdouble is double) in double-double
+    (:func:`_dd_refined_values`)."""
+    if dd:
+        return _dd_refined_values(Qb, Geb, lam)
     G = _plant_values(Geb, lam)
     Zr = _refined_solves(Qb.A, lam, Qb.B.astype(np.longdouble) @ G, Qb.C, refine=np.ones(lam.size, bool))[0]
     return (Qb.C.astype(np.longdouble) @ Zr + Qb.D.astype(np.longdouble) @ G).astype(complex)
+
+
+def _dd_refined_values(Qb: LTI, Geb: LTI, lam: np.ndarray, steps: int = 3) -> np.ndarray:
+    """:func:`_refined_values` in double-double, on every host: ``X_e = (λI − A_e)^{-1} B_e``, ``G = C_e X_e + D_e``,
+    ``Z = (λI − A_q)^{-1}(B_q G)``, ``R_X = C_q Z + D_q G``, each solve refined by :func:`_dd_refine`, each product by
+    :func:`_dd_matmul` and each sum by TwoSum; the value rounded to double at the end.
+
+    **Its unit.** Each refined solve converges (contraction ``~3N·u·|| |(λI − A)^{-1}| |λI − A| ||`` per step, as in
+    :func:`_refined_solves`) to the solution of the stored system to its residual's error, ``(n + 2⌈log₂ n⌉ +
+    4)·u²`` times ``|b| + |λI − A||x|`` (:func:`_dd_refine`); the products and sums add ``(n + 2⌈log₂ n⌉ + 2)·u²``
+    times ``|C_q||Z| + |D_q||G|`` and ``|B_q||G|``: the error terms of :func:`_decoupled_reading`'s bound, each with
+    the factor ``(N + 2⌈log₂ N⌉ + 4)·u² ≤ 3N·2^-64`` for every N ≥ 1 (``u² = 2^-106``: the ratio is ≥ 2^42·3N/(3N +
+    4) ≫ 1, room for the refinement's remaining contraction ``(3N·u·κ)^steps`` with ``κ`` the componentwise condition
+    up to 1e8 at ``steps = 3``). So the reading is charged at :data:`REFINED_UNIT` = 2^-64, as x87's — the same
+    points are refined and proven as on x86. The final rounding to double, ``u·|R_X|``, is relative to the value
+    itself (the bound on x86 leaves out its own the same way)."""
+    K = lam.size
+    Gh = np.broadcast_to(np.asarray(Geb.D, float).astype(complex), (K,) + Geb.D.shape).copy()
+    Gl = np.zeros_like(Gh)
+    if Geb.n:
+        B = np.broadcast_to(np.asarray(Geb.B, float).astype(complex), (K,) + Geb.B.shape)
+        Xh, Xl = _refined_solves(Geb.A, lam, B, Geb.C, refine=np.ones(K, bool), steps=steps,
+                                 rhs_lo=np.zeros(B.shape, complex))[0]
+        for k in range(K):
+            Gh[k], Gl[k] = _dd_add(*_dd_matmul(Geb.C, Xh[k], Xl[k]), Gh[k], Gl[k])
+    Rh, Rl = np.zeros((K, Qb.p, Geb.m), complex), np.zeros((K, Qb.p, Geb.m), complex)
+    Bh, Bl = np.zeros((K, Qb.n, Geb.m), complex), np.zeros((K, Qb.n, Geb.m), complex)
+    for k in range(K):
+        Bh[k], Bl[k] = _dd_matmul(Qb.B, Gh[k], Gl[k])
+        Rh[k], Rl[k] = _dd_matmul(Qb.D, Gh[k], Gl[k])
+    Zh, Zl = _refined_solves(Qb.A, lam, Bh, Qb.C, refine=np.ones(K, bool), steps=steps, rhs_lo=Bl)[0]
+    for k in range(K):
+        Rh[k], Rl[k] = _dd_add(*_dd_matmul(Qb.C, Zh[k], Zl[k]), Rh[k], Rl[k])
+    return Rh + Rl
 
 
 @single_blas_thread  # as the designs: small matrices, where threaded BLAS spin-waits on a loaded machine
