@@ -70,12 +70,12 @@ def test_seed338_judge_reads_the_stored_filters_leak(monkeypatch):
     """~1-2 min under load (15-60 s of it the design up to its shipping stage, the rest numpy's refined evaluation of
     the order-125 filter; 255 s on every fourth point). The library's normalised u/d reading of the product
     realisation Y·Φ·Q0 is a reading of the stored filter with an error bound: it may not exceed numpy's refined
-    reading of the same stored data by more than that bound. Numpy: :func:`_numpy_leak` on every 16th point of test_approximate_random's grid (1500 log points
-    over the poles' band; the leak is ~1e-10 everywhere, four decades below the reading compared). Tolerance: 1.05 ×
-    numpy's figure (the two normalising fault peaks are read on different grids: a grid peak is low by at most a few
-    percent, test_approximate_random's FIG_RTOL derivation) plus the judge's own ``decoupling_error``. On this
-    session's base (tB): judge 1.14e-6 (error 1.3e-10), numpy 1.64e-10 — failed; with judge19's refinement (landed
-    with judge20) the judge reads 3.15e-11 and this passes."""
+    reading of the same stored data by more than that bound. Numpy: :func:`_numpy_leak` on every 16th point of
+    test_approximate_random's grid (1500 log points over the poles' band; the leak is ~1e-10 everywhere, four
+    decades below the reading compared). Tolerance: 1.05 × numpy's figure (the two normalising fault peaks are read
+    on different grids: a grid peak is low by at most a few percent, test_approximate_random's FIG_RTOL derivation)
+    plus the judge's own ``decoupling_error``. On this session's base (tB): judge 1.14e-6 (error 1.3e-10), numpy
+    1.64e-10 — failed; with judge19's refinement (landed with judge20) the judge reads 3.15e-11 and this passes."""
     from fmu_fdi.design.problems.approximate_matching import normalised_leak, required_faults
 
     model, Mr, Q = _product_realisation(monkeypatch, 338)
