@@ -753,6 +753,20 @@ def dot2(A: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return P[:, 0], lo
 
 
+def times_dd(N: np.ndarray, Mh: np.ndarray, Ml: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``N·(Mh + Ml)`` (``N`` double, ``Mh + Ml`` double-double, real) as ``hi + lo``: :func:`dot2` on the high part,
+    the low part's product (relative size u) in double, the three summed by :func:`compensated_sum`; error
+    ``≲ (n + 2⌈log₂ n⌉ + 1)·u²·|N||M|``."""
+    h, lo = dot2(N, Mh)
+    return compensated_sum([h, lo, np.asarray(N, float) @ Ml])
+
+
+def dd_times(Mh: np.ndarray, Ml: np.ndarray, N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(Mh + Ml)·N`` as ``hi + lo`` (:func:`times_dd` from the right)."""
+    h, lo = dot2(Mh, N)
+    return compensated_sum([h, lo, Ml @ np.asarray(N, float)])
+
+
 def compensated_sum(terms) -> tuple[np.ndarray, np.ndarray]:
     """``Σ terms`` (equal-shaped arrays) as ``hi + lo``: Sum2 (Ogita, Rump & Oishi Alg. 4.4), ``|hi + lo − Σ| ≤
     γ_k²·Σ|terms|`` for k terms."""

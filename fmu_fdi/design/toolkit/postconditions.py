@@ -78,7 +78,8 @@ import scipy.linalg as sla
 from ...errors import DesignError
 from ...freqresp import content_key, recall, remember, transfer_values
 from ...linalg import EPS, single_blas_thread
-from ...lti import LTI, _pole_scales, compensated_sum, dot2, frequency_grid, structurally_observed, two_prod, two_sum
+from ...lti import (LTI, _pole_scales, compensated_sum, frequency_grid, structurally_observed, times_dd, two_prod,
+                   two_sum)
 from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
 from .plant_modes import BOUNDARY_GAP, EIGVEC_BOUND, boundary_gap, leading_schur  # noqa: F401  (BOUNDARY_GAP: here)
 from .plant_modes import boundary_mode_table as _boundary_modes
@@ -868,12 +869,10 @@ def _cplx(re: np.ndarray, im: np.ndarray) -> np.ndarray:
 
 
 def _dd_matmul(M: np.ndarray, hi: np.ndarray, lo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``M·(hi + lo)`` (M real (r, n), hi and lo complex (n, c)) as ``(hi, lo)``: :func:`fmu_fdi.lti.dot2` on the real
-    and imaginary parts of ``hi``, ``M·lo`` in double added to the low part; error ``≤ (n + 2⌈log₂ n⌉)·u²·|M||hi| +
-    u·|M||lo|`` (≈ ``(n + 2⌈log₂ n⌉ + 1)·u²·|M||x|``, |lo| ≤ u|hi|)."""
+    """``M·(hi + lo)`` (M real (r, n), hi and lo complex (n, c)) as ``(hi, lo)``: :func:`fmu_fdi.lti.times_dd` on the
+    real and imaginary parts side by side; error ``≲ (n + 2⌈log₂ n⌉ + 1)·u²·|M||x|``."""
     c = hi.shape[1]
-    h, e = dot2(M, np.concatenate([hi.real, hi.imag], axis=1))
-    e = e + np.asarray(M, float) @ np.concatenate([lo.real, lo.imag], axis=1)
+    h, e = times_dd(M, np.concatenate([hi.real, hi.imag], axis=1), np.concatenate([lo.real, lo.imag], axis=1))
     return _cplx(h[:, :c], h[:, c:]), _cplx(e[:, :c], e[:, c:])
 
 

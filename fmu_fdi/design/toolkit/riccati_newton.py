@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from ...lti import DOUBLE_DOUBLE, compensated_sum, dot2
+from ...lti import DOUBLE_DOUBLE, compensated_sum, dd_times, times_dd
 
 #: at most this many Newton steps from one start: the 17 seeded problems of tests/test_kalman_riccati.py that the
 #: refinement designs took 2–6 Lyapunov solves in all (from residuals 1e-7 … 1e-1 of the terms); the refused ones
@@ -321,19 +321,6 @@ def _extended_residual(A, B, Q, R, S, X, dt: float):
     return np.asarray(Rx, float), -Y
 
 
-def _dd_times(Mh, Ml, N):
-    """``(Mh + Ml)·N`` as ``hi + lo``, ``N`` double: Dot2 on the high part, the low part's product (relative size
-    eps) in double, the three summed by Sum2."""
-    h, lo = dot2(Mh, N)
-    return compensated_sum([h, lo, Ml @ N])
-
-
-def _times_dd(N, Mh, Ml):
-    """``N·(Mh + Ml)`` as ``hi + lo`` (:func:`_dd_times` from the left)."""
-    h, lo = dot2(N, Mh)
-    return compensated_sum([h, lo, N @ Ml])
-
-
 def _double_double_residual(A, B, Q, R, S, X, dt: float):
     """:func:`_extended_residual` in double-double, for hosts whose ``np.longdouble`` is double.
 
@@ -357,26 +344,26 @@ def _double_double_residual(A, B, Q, R, S, X, dt: float):
     verdicts on the seeded families then match the native host's exactly."""
     Z = np.zeros_like
     if dt:
-        XBh, XBl = _dd_times(X, Z(X), B)
-        ATh, ATl = _times_dd(A.T, XBh, XBl)
+        XBh, XBl = dd_times(X, Z(X), B)
+        ATh, ATl = times_dd(A.T, XBh, XBl)
         Kh, Kl = compensated_sum([ATh, ATl, S])
-        BTh, BTl = _times_dd(B.T, XBh, XBl)
+        BTh, BTl = times_dd(B.T, XBh, XBl)
         Gh, Gl = compensated_sum([BTh, BTl, R])
-        AXh, AXl = _dd_times(*_times_dd(A.T, X, Z(X)), A)
+        AXh, AXl = dd_times(*times_dd(A.T, X, Z(X)), A)
         quad = [AXh, AXl, -X]
     else:
-        XBh, XBl = _dd_times(X, Z(X), B)
+        XBh, XBl = dd_times(X, Z(X), B)
         Kh, Kl = compensated_sum([XBh, XBl, S])
         Gh, Gl = np.array(R, float), Z(R)
-        AXh, AXl = _times_dd(A.T, X, Z(X))
+        AXh, AXl = times_dd(A.T, X, Z(X))
         quad = [AXh, AXl, AXh.T, AXl.T]  # AᵀX + XA = AᵀX + (AᵀX)ᵀ: X is symmetric
     try:
         Y = np.linalg.solve(Gh, Kh.T)
-        rh, rl = compensated_sum([Kh.T, Kl.T, *(-v for v in _dd_times(Gh, Gl, Y))])
+        rh, rl = compensated_sum([Kh.T, Kl.T, *(-v for v in dd_times(Gh, Gl, Y))])
         Yl = np.linalg.solve(Gh, rh + rl)
     except np.linalg.LinAlgError:
         return None
-    KYh, KYl = _times_dd(Kh, Y, Yl)
+    KYh, KYl = times_dd(Kh, Y, Yl)
     Rh, Rl = compensated_sum(quad + [-KYh, -KYl, -(Kl @ Y), np.asarray(Q, float)])
     return Rh + Rl, -Y
 
