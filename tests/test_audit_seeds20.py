@@ -30,6 +30,10 @@ pinned here with their cause (seed 338's two tests pass since judge19's refineme
   0.615, limit 0.001; 28.2 times its rounding estimate ...)": the degenerate optimum of seeds 26, 240, 270, 282
   (tests/test_audit_seeds18.py; Q = 0's error 1 is optimal and a nonzero admissible filter attains it, below).
   Owner: approximate_matching.py (amm21, the Q = 0-optimal matching).
+
+Since (amm22, on integ20 135bd96): seed 327 is designed (the least-leaking realisation within dec_tol ships where the
+taken one cannot be re-decoupled) and seed 336 is refused early naming its rank bound, the product decision for
+seeds 26, 240, 270, 282 (amm21's ``_unapproachable_reference``).
 """
 from __future__ import annotations
 
@@ -99,29 +103,33 @@ def test_seed338_matching_the_detection_row_is_designed():
 
 # ------------------------------------------------------------------------------------------ seed 327
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 17, approximate audit seed 327 (approximate_matching.py, amm21): the "
-                                       "product realisation meets the final u/d rule (4.4e-8 <= dec_tol) but "
-                                       "_decoupled_candidate only replaces within 0.1·dec_tol; the minimal one "
-                                       "(2.07e-7) is refused")
 def test_seed327_matching_the_detection_row_is_designed():
-    """~50-70 s under load. check_case's numpy judge on ``approximate_model_matching(model, Mr = the exact detection
-    row's Rf)``: refused on this session's code (module docstring); with SHIPPED_LEAK_MARGIN = 0.5 it passes (48 s)."""
+    """~30-70 s under load (31 s measured). check_case's numpy judge on ``approximate_model_matching(model, Mr = the
+    exact detection row's Rf)``. Strict xfail on integ20 135bd96 (refused: the minimal realisation's u/d leak 2.07e-7
+    > dec_tol, module docstring); since amm22, ``_decoupled_candidate`` lists the candidates within dec_tol but not
+    its 0.1·dec_tol margin, and approximate_model_matching ships the least-leaking one that meets the final rule where
+    the taken one's re-decoupling fails: the product realisation (order 115, 4.4e-8), numpy's judge passes it."""
     assert check_case(327, calls=("amm_ref",)) == [("amm(Mr=detection row)", "ok", "")]
 
 
 # ------------------------------------------------------------------------------------------ seed 336
 def test_seed336_optimum_of_matching_identity_is_attained():
-    """~2 s. The refusal of seed 336's ``amm(Mr = I)`` is false: test_audit_seeds18's proof for seeds 26, 240, 270,
-    282 (the admissible filters span 1 row for 4 faults, so the optimum is Q = 0's error 1, and ε times the exact
-    detection row attains it within 1e-6, judged by numpy)."""
+    """~2 s. Why the refusal of seed 336's ``amm(Mr = I)`` is right: test_audit_seeds18's proof for seeds 26, 240,
+    270, 282 — the admissible filters span 1 row for 4 faults, so the optimum is Q = 0's error 1 (no admissible filter
+    does better than the zero filter, of no use for detection), and ε times the exact detection row attains it within
+    1e-6, judged by numpy."""
     from test_audit_seeds18 import test_optimum_of_matching_identity_is_attained
 
     test_optimum_of_matching_identity_is_attained(336, 1)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 17, approximate audit seed 336 amm(Mr = I) (approximate_matching.py, "
-                                       "amm21): refused ('error response differs ... by 0.615') where the optimum 1 "
-                                       "(Q = 0's error) is attained by admissible nonzero filters")
-def test_seed336_matching_identity_is_designed():
-    """~5-10 s under load (5.4 s measured). The design is returned and passes check_case's numpy judge."""
-    assert check_case(336, calls=("amm_eye",)) == [("amm(Mr=I)", "ok", "")]
+def test_seed336_matching_identity_is_refused_with_its_rank_bound():
+    """~4 s. Strict xfail on integ20 before amm21's refusal ("the design is returned and passes the numpy judge"; it
+    was refused with 'error response differs from the designed one by 0.615'); the product decision since (seeds 26,
+    240, 270, 282: test_audit_seeds18.test_matching_identity_is_refused_with_its_rank_bound): refused early by
+    ``approximate_matching._unapproachable_reference`` with a DesignError naming the admissible fault response's normal
+    rank — numpy's, 1 for 4 faults — and the bound ``σ_2(I) = 1 = ||I||∞`` (test_audit_seeds18's
+    :func:`refused_with_rank_bound`)."""
+    from test_audit_seeds18 import noisy_case, refused_with_rank_bound
+
+    assert refused_with_rank_bound(noisy_case(336)) == 1
