@@ -385,8 +385,8 @@ def approximate_model_matching(model: FDIModel, Mr, *, norm: str = "inf", sdeg: 
                              dec_tol)
             if mended[2]["leak_after"] <= dec_tol:
                 note(f"the {what} realisation (order {S.n}) is shipped: the one the response comparison took "
-                     f"(order {Q.n}) leaks u/d {redecoupled['leak_after']:.3g} (reading + sensitivity, the worst row) > "
-                     f"dec_tol = {dec_tol:g} after its re-decoupling ({redecoupled['reason']}), and this one, of "
+                     f"(order {Q.n}) leaks u/d {redecoupled['leak_after']:.3g} (reading + sensitivity, the worst "
+                     f"row) > dec_tol = {dec_tol:g} after its re-decoupling ({redecoupled['reason']}), and this one, of "
                      f"least leak ({x:.3g} as read beside it) among those whose error is as admissible, meets "
                      f"dec_tol ({mended[2]['leak_after']:.3g} after its stages)")
                 Q, cancelled, redecoupled, budget = mended
