@@ -1,0 +1,109 @@
+"""The judge's bound on a *plain* (double) reading of a decoupled block does not hold where the filter's A is
+reduced to Hessenberg form (finding of judge21, measured by judge22; pinned as a strict xfail).
+
+``_plain_values`` reads ``R_X = C_q Z + D_q G``, ``Z = (λI − A_q)^{-1}(B_q G)``, with the LU of ``λI − H``,
+``A_q = U H Uᵀ`` (:func:`fmu_fdi.freqresp.hessenberg_form`), and charges it ``3N·u·err``, ``err`` built from
+``|W||λI − A_q||Z|`` (``_decoupled_reading``'s docstring: GEPP's componentwise backward error ``|ΔM| ≤ γ_3N|M|``).
+That backward error is the one of an LU of ``λI − A_q`` itself. The Householder reduction to Hessenberg form has a
+*normwise* backward error, ``U(H + ΔH)Uᵀ = A_q + ΔA`` with ``||ΔA||_F ≲ c·n²·u·||A_q||_F`` (Higham, *Accuracy and
+Stability*, 2nd ed., §19.3; Golub & Van Loan §7.4), spread over every entry: on a balanced A whose entries span
+1.3e-5 … 1.2e4 (||A||_F = 4.9e4, seed 4's row filter of order 22) that is far above ``u·|A_q|`` at the small
+entries, so the componentwise bound is not a bound. Measured (x86, this file's independent reading as the truth):
+
+- H∞ matching seed 4 (tests/test_synthesis_ammp.py ``_random_case``, default options), the judge's reading of the
+  shipped filter (``check_generator(gen, raise_error=False, normalize=False)``), the u/d block: the plain reading
+  exceeds its bound at 87 of 144 points, by up to 13.1× (a point reads 1.18e-9 where the value is 6.75e-12 and the
+  bound is 9.1e-11); a reading of the design's own candidate (inside ``approximate_model_matching``) by up to 34.8×.
+  The same solves by a dense GEPP of ``λI − A_q`` (scipy ``solve``, same balanced data) stay within the same bound
+  (ratio ≤ 2.4e-3), although ``|L||U|/|λI − A|`` reaches 6.7e3 entrywise there: the cause is the reduction's
+  normwise backward error, not GEPP's growth.
+- Adding the reduction's term ``||W_i||₂·||A_q||_F·||Z_j||₂`` to err restores the bound at every point (ratio ≤
+  0.084) and raises it by 329× (median) … 1.8e3× at seed 4; at seed 7 (order 29) by 1.5× … 1.9×.
+- Verdicts: after ``_decoupled_values``' refine loop, no point left at its double reading had a true error that let it
+  reach its block's refined peak (seed 4: max ratio 1.09 at unrefined points, whose ``reading + true error`` ≤
+  1.2e-12 against the peak 6.8e-12; seed 7: ≤ 3.3e-3) — the over-stated readings set a peak, were refined and fell.
+  A reading that *under-states* by more than its bound could however stay masked below a peak it reaches.
+
+The truth here: every solve of ``(λI − A) X = B`` by Gaussian elimination with partial pivoting in numpy's
+clongdouble, refined twice with clongdouble residuals (numpy only; agrees with a dense double LU refined eight times
+to 1e-4 of the block's peak — far below the 13× excess asserted against).
+"""
+import numpy as np
+import pytest
+
+import fmu_fdi.design.toolkit.postconditions as pc
+from fmu_fdi.design.problems.approximate_matching import approximate_model_matching
+from fmu_fdi.design.toolkit.postconditions import EPS, check_generator
+from test_synthesis_ammp import _random_case
+
+pytestmark = pytest.mark.skipif(np.finfo(np.longdouble).eps >= np.finfo(float).eps,
+                                reason="numpy's longdouble is double here: no independent truth to compare with")
+
+
+def _ld_solve(M, B):
+    """``M^{-1} B`` by Gaussian elimination with partial pivoting in clongdouble (numpy only)."""
+    M, X = M.astype(np.clongdouble), B.astype(np.clongdouble)
+    n = M.shape[0]
+    for j in range(n):
+        p = j + int(np.argmax(np.abs(M[j:, j])))
+        M[[j, p]], X[[j, p]] = M[[p, j]], X[[p, j]]
+        f = M[j + 1:, j] / M[j, j]
+        M[j + 1:, j:] -= f[:, None] * M[j, j:][None, :]
+        X[j + 1:] -= f[:, None] * X[j][None, :]
+    for j in range(n - 1, -1, -1):
+        X[j] = (X[j] - M[j, j + 1:] @ X[j + 1:]) / M[j, j]
+    return X
+
+
+def _ld_response(S, lam):
+    """``S(λ)`` at the points lam, each solve by :func:`_ld_solve` refined twice with clongdouble residuals."""
+    LD = np.clongdouble
+    A, B, C, D = (X.astype(np.longdouble) for X in (S.A, S.B, S.C, S.D))
+    out = np.empty((lam.size, S.p, S.m), LD)
+    for k, lk in enumerate(lam):
+        L = LD(lk) * np.eye(S.n) - A
+        X = _ld_solve(L, B)
+        for _ in range(2):
+            X = X + _ld_solve(L, B - (LD(lk) * X - A @ X))
+        out[k] = C @ X + D
+    return out
+
+
+@pytest.fixture(scope="module")
+def readings():
+    """The (row, plant columns, points, blocks) of each decoupled reading of seed 4's shipped filter by the judge."""
+    model, Mr = _random_case(4)
+    gen = approximate_model_matching(model, Mr)
+    calls, orig = [], pc._decoupled_values
+
+    def spy(Qi, Geb, lam, blocks, with_refined=False):
+        calls.append((Qi, Geb, lam, blocks))
+        return orig(Qi, Geb, lam, blocks, with_refined)
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(pc, "_decoupled_values", spy)
+    try:
+        check_generator(gen, raise_error=False, normalize=False)
+    finally:
+        mp.undo()
+    assert calls
+    return calls
+
+
+@pytest.mark.xfail(strict=True, reason="the plain bound 3N·u·err omits the Hessenberg reduction's normwise backward "
+                                       "error: exceeded by up to 13× at 87 of 144 points (seed 4)")
+def test_plain_reading_lies_within_its_bound_at_every_point(readings):
+    """At every point and block, ``|plain reading − value|_F ≤ 3N·u·||err||_F`` (``_plain_values``, the bound
+    ``_refine_mask`` masks points by), the value from :func:`_ld_response` (whose own error, ~1e-19 relative times
+    the same conditioning, is ~1e-4 of the bound at most)."""
+    worst = 0.0
+    for Qi, Geb, lam, blocks in readings:
+        Qb = Qi.balanced()[0]
+        N = max(Qb.n, Geb.n, 1)
+        val, err, _ = pc._plain_values(Qb, Geb, lam)
+        true = (_ld_response(Qb, lam) @ _ld_response(Geb, lam)).astype(complex)
+        for b in blocks:
+            d = np.linalg.norm((val - true)[:, :, b], axis=(1, 2))
+            e = 3 * N * EPS / 2 * np.linalg.norm(err[:, :, b], axis=(1, 2))
+            worst = max(worst, float(np.max(d / e)))
+    assert worst <= 1.0, f"plain reading off by {worst:.3g} times its bound"
