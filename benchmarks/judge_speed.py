@@ -8,7 +8,9 @@ built once (with this tree's code); then, per judge and repetition, the caches t
 judged: ``check_generator(copy, structure=S, raise_error=False)`` then ``report(copy)``, both judges with one BLAS
 thread (as the designs call them; threaded BLAS on these small matrices spin-waits on a loaded machine). Best of ``--reps`` (default
 2) per judge; printed: both times, their ratio (main / this tree), whether the verdicts (failed conditions) agree and
-the largest relative difference of the figures ``decoupling``, ``structure_leak``, ``leakage`` and the fault gains.
+the largest relative difference of the figures ``decoupling``, ``structure_leak``, ``leakage`` and the fault gains,
+and the fraction of the points the decoupled readings (``_decoupled_values``) read refined, over all of a judge's
+readings (served readings included).
 
 Cases: approximate audit afdi_bank seed 78 (tests/test_approximate_random.py's ``noisy_case``, the rows the audit
 picks), random H∞ matching seeds 4 and 7 (benchmarks/ammp_random_set.py's models and references; S = every fault),
@@ -109,11 +111,24 @@ def judge(mod, gen, S):
     if hasattr(mod, "_UD_CACHE"):
         mod._UD_CACHE.clear()
     g = copy.deepcopy(gen)
-    with threadpool_limits(limits=1, user_api="blas"):  # both judges as the designs call them: one BLAS thread
-        t = time.perf_counter()
-        fig = mod.check_generator(g, structure=S, raise_error=False)
-        rep = mod.report(g)
-        return time.perf_counter() - t, fig, rep
+    orig, tally = mod._decoupled_values, [0, 0]
+
+    def counted(Qi, Geb, lam, blocks, with_refined=False):  # the points each decoupled reading read refined
+        out = orig(Qi, Geb, lam, blocks, True)
+        tally[0], tally[1] = tally[0] + int(np.sum(out[3])), tally[1] + lam.size
+        return out if with_refined else out[:3]
+
+    mod._decoupled_values = counted
+    try:
+        with threadpool_limits(limits=1, user_api="blas"):  # both judges as the designs call them: one BLAS thread
+            t = time.perf_counter()
+            fig = mod.check_generator(g, structure=S, raise_error=False)
+            rep = mod.report(g)
+            t = time.perf_counter() - t
+    finally:
+        mod._decoupled_values = orig
+    fig["_refined"] = tally[0] / max(tally[1], 1)
+    return t, fig, rep
 
 
 def rel(a, b) -> float:
@@ -126,7 +141,8 @@ def rel(a, b) -> float:
 def run(reps: int, exact_seeds, ref: str = "main") -> None:
     old = main_module(ref)
     print(f"baseline: {ref}'s postconditions.py")
-    print(f"{'case':26s} {'main s':>7s} {'this s':>7s} {'ratio':>6s} {'same verdict':>12s} {'max rel diff':>12s}")
+    print(f"{'case':26s} {'main s':>7s} {'this s':>7s} {'ratio':>6s} {'same verdict':>12s} {'max rel diff':>12s} "
+          f"{'refined main → this':>19s}")
     tot_old = tot_new = 0.0
     for label, gen, S in cases(exact_seeds):
         t_old, t_new = [], []
@@ -140,7 +156,7 @@ def run(reps: int, exact_seeds, ref: str = "main") -> None:
         diff = max(diff, rel(r_old["peaks"]["f"], r_new["peaks"]["f"]))
         tot_old, tot_new = tot_old + min(t_old), tot_new + min(t_new)
         print(f"{label:26s} {min(t_old):7.2f} {min(t_new):7.2f} {min(t_old) / min(t_new):6.2f} {str(same):>12s} "
-              f"{diff:12.2e}" + ("" if same else f"  main {f_old.get('failed_conditions')} this "
+              f"{diff:12.2e} {f_old['_refined']:9.1%} → {f_new['_refined']:6.1%}" + ("" if same else f"  main {f_old.get('failed_conditions')} this "
                                                 f"{f_new.get('failed_conditions')}"))
     print(f"{'total':26s} {tot_old:7.2f} {tot_new:7.2f} {tot_old / tot_new:6.2f}")
 

@@ -9,8 +9,10 @@ row with one excluded fault):
 - one realisation per plant, whatever the order of its inputs (the bank's model and a member's row model);
 - a served reading equals a fresh one of the same request (no new plain reading computed): the same points refined
   and, at each point, the values within the bound both readings carry — each is within ``3N·u_x·||err||`` (refined
-  point) or ``3N·u·||err||`` (plain point) of the stored filter's exact value (postconditions._decoupled_reading's derivation), so they are within
-  twice that of each other (the bounds themselves, reported beside the figures, within 1e-6 relative);
+  point) or ``3N·u·||err||`` (plain point) of the stored filter's exact value (postconditions._decoupled_reading's
+  derivation), so they are within the sum of the two bounds of each other (the sensitivities, reported beside the
+  figures, within 1e-6 relative; the bounds, which measure each reading's own residual since judge23, within
+  5.3e-3 here);
 - the bank's figures (info['postconditions']) with its readings served equal those of a check on an empty store;
   the bank's own check computes no new plain reading.
 """
@@ -133,15 +135,19 @@ def test_served_reading_equals_a_fresh_one(bank17, monkeypatch):
                 assert np.array_equal(need, sneed)
                 kinds["served plain where the first reading refined"] += int(np.sum(first_refined & ~need))
                 kinds["refined anew"] += int(np.sum(need & ~first_refined))
-                # err, sens: first-order bounds (reported beside the figures, deciding nothing) read from the
-                # computed |Z|, whose rounding differs between the two readings; 1e-6 relative keeps every reported
-                # bound the same to far more digits than it is meaningful (measured here: ≤ 8e-12)
-                for a, b in ((se, fe), (ss, fs)):
-                    na, nb = np.linalg.norm(a, axis=(1, 2)), np.linalg.norm(b, axis=(1, 2))
-                    assert np.all(np.abs(na - nb) <= 1e-6 * np.maximum(na, nb))
-                # values: each within its bound of the exact value (3N·u_x·||err|| refined, 3N·u·||err|| plain)
-                e = np.linalg.norm(fe, axis=(1, 2)) * 3 * N * np.where(need, pc.EXT_UNIT, EPS / 2)
-                assert np.all(np.linalg.norm(sv - fv, axis=(1, 2)) <= 2 * e)
+                # sens: a first-order figure (reported beside the figures, deciding nothing) read from the computed
+                # |Z|, whose rounding differs between the two readings; 1e-6 relative keeps it the same to far more
+                # digits than it is meaningful (measured here: ≤ 8e-12). err is not compared so: since judge23 it
+                # adds each reading's *measured* residual |W r̂| (postconditions._plain_values), a rounding-sized
+                # quantity of that reading's own solve (here the two differ by ≤ 5.3e-3 of err); each is a bound
+                # of its own reading's error (tests/test_judge_plain_bound.py), which is what is checked below
+                na, nb = np.linalg.norm(ss, axis=(1, 2)), np.linalg.norm(fs, axis=(1, 2))
+                assert np.all(np.abs(na - nb) <= 1e-6 * np.maximum(na, nb))
+                # values: each within its own bound of the exact value (3N·u_x·||err|| refined, 3N·u·||err|| plain),
+                # so within the sum of the two bounds of each other
+                unit = 3 * N * np.where(need, pc.EXT_UNIT, EPS / 2)
+                e = (np.linalg.norm(fe, axis=(1, 2)) + np.linalg.norm(se, axis=(1, 2))) * unit
+                assert np.all(np.linalg.norm(sv - fv, axis=(1, 2)) <= e)
     # both ways a request's refined points differ from the first reading's occur on this bank
     assert all(v > 0 for v in kinds.values()), kinds
 

@@ -999,7 +999,11 @@ def _decoupled_reading(model, Q: LTI, g, lam: np.ndarray, blocks: dict, R: np.nd
         E_G = |W_e||λI − A_e||X_e| + |C_e||X_e|,   W = C_q (λI − A_q)^{-1},
 
     (``W_e``, ``X_e`` Ge's resolvents, N the larger order, u_x = :data:`REFINED_UNIT`; Frobenius norm over the block);
-    at a point left at its double reading (:func:`_refine_mask`) the same with u for u_x. A block's bound is that of
+    at a point left at its double reading (:func:`_refine_mask`) the same with u for u_x, plus the a-posteriori term
+    ``|W r̂|`` of that reading's residual ``r̂ = B_q G − (λI − A_q) Z`` against the stored A_q (:func:`_plain_values`:
+    the solve's backward error is the Hessenberg reduction's, normwise, not GEPP's componentwise one; the other terms
+    pay for ``r̂``'s rounding; at a refined point the term enters scaled by u_x/u, a small over-statement). A block's
+    bound is that of
     its peak ``P = max_k r_k``: the largest point bound ``e_k`` among the points with ``r_k + e_k ≥ P`` (the true
     peak lies in ``[P − e_p, max_k (r_k + e_k)]``, p the peak's point). **Invariance:** a diagonal state scaling by
     powers of 2 leaves the data and this reading exactly as they are; an output scaling of the row by c rounds
@@ -1091,9 +1095,12 @@ def _decoupled_values(Qi: LTI, Geb: LTI, lam: np.ndarray, blocks: list, with_ref
     and points takes their plain values and bounds, decides its own refined points from them by its own blocks, as
     a fresh reading would, and refines only the points not refined before for those columns. Served and fresh
     readings are the same computation on the same data; they differ only where BLAS sums a column's products in
-    another order beside other columns, each within its bound e of the stored filter's value, hence within 2e of each
-    other (tests/test_judge_ud_reuse.py; on the banks of exact seeds 379, 403, 412, 382 every figure of
-    info['postconditions'] the same to the bit, benchmarks/bank_check_speed.py --compare)."""
+    another order beside other columns, each within its bound of the stored filter's value, hence within the sum of
+    the two bounds of each other; the bounds themselves differ by their measured residual terms (each reading's own
+    solve's rounding, :func:`_plain_values`: ≤ 5.3e-3 relative on exact seed 17's bank), so a point within that of
+    the refinement's threshold could be refined by one and not the other — each reading within its own bound either
+    way (tests/test_judge_ud_reuse.py; on the banks of exact seeds 379, 403, 412, 382 every figure of
+    info['postconditions'] the same to the bit before judge23, benchmarks/bank_check_speed.py --compare)."""
     Qb = Qi.balanced()[0] if Qi.n else Qi
     if not Qb.n:  # a static row: nothing to refine
         out = _plain_values(Qb, Geb, lam)
@@ -1162,13 +1169,67 @@ def _plant_reading(Geb: LTI, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         Xe, We = _refined_solves(Geb.A, lam, B, Geb.C)
     aX = np.abs(Xe.astype(complex))
     EG = np.abs(We) @ (np.abs(Geb.A) @ aX) + np.abs(lam)[:, None, None] * (np.abs(We) @ aX) + np.abs(Geb.C) @ aX
+    if EXT_UNIT >= EPS / 2:  # X_e at its double reading: its solve's backward error measured (:func:`_plain_values`)
+        n = max(Geb.n, 1)
+        EG = EG + _residual_term(Geb.A, lam, Xe, We, B.astype(complex), 3 * n, 3 * n) / (3 * n * EPS / 2)
     return _plant_values(Geb, lam, Xe), EG
+
+
+def _residual_term(A: np.ndarray, lam: np.ndarray, X: np.ndarray, W: np.ndarray, b: np.ndarray, paid_A: float,
+                   paid_lam: float) -> np.ndarray:
+    """The a-posteriori part of a plain reading's bound (:func:`_plain_values`): ``|W r̂| + u·(max(0, n + 4 −
+    paid_A)·|W||A||X| + max(0, 7 − paid_lam)·|λ||W||X|)``, ``r̂ = fl(b − (λX − AX))`` the residual of the computed
+    solutions ``X ≈ (λI − A)^{-1} b`` against the *stored* A, in double, and ``W ≈ C(λI − A)^{-1}`` (points ×
+    rows × columns). ``r̂``'s rounding is ``|r̂ − r| ≤ (n + 2)u|A||X| + (2 + 2√2)u|λ||X| + 2u|b|`` to first order
+    (real inner products of length n, Higham 2nd ed. §3.1; a complex product ``√2·γ_2``, Lemma 3.5; two
+    subtractions), and ``|b| ≤ (|λ| + |A|)|X|`` to first order: ``(n + 4)u`` on ``|W||A||X|``, ``7u`` on
+    ``|λ||W||X|``, of which the caller's own terms charge ``paid_A·u`` and ``paid_lam·u``; the rest is added here."""
+    lam3 = lam[:, None, None]
+    r = b - (lam3 * X - A @ X)
+    aW, aX = np.abs(W), np.abs(X)
+    out = np.abs(W @ r)
+    n = A.shape[0]
+    more_A, more_lam = max(0.0, n + 4 - paid_A), max(0.0, 7 - paid_lam)
+    if more_A:
+        out = out + more_A * EPS / 2 * (aW @ (np.abs(A) @ aX))
+    if more_lam:
+        out = out + more_lam * EPS / 2 * np.abs(lam3) * (aW @ aX)
+    return out
 
 
 def _plain_values(Qb: LTI, Geb: LTI, lam: np.ndarray):
     """The plain (double) reading ``R_X = C_q Z + D_q G``, ``Z = (λI − A_q)^{-1}(B_q G)``, of the balanced row
     ``Qb`` on the columns ``Geb``, with its error and sensitivity matrices (:func:`_decoupled_reading`); ``G``
-    refined (:func:`_plant_values`)."""
+    refined (:func:`_plant_values`). The error matrix ``err`` is such that ``3N·u·err`` (u = EPS/2, N = max(n_q, n_e,
+    1)) bounds the reading's error entrywise to first order:
+
+    **Why a residual.** :func:`_refined_solves` factors ``λI − H``, ``A_q = U H Uᵀ`` (Householder, dgehrd). GEPP's
+    componentwise backward error ``|ΔM| ≤ γ_3n|L||U|`` (Higham, *Accuracy and Stability*, 2nd ed., Thm 9.3) is on
+    ``λI − H``; mapped back, ``U ΔH Uᵀ`` and the reduction's own error (``Ĥ = Uᵀ(A_q + E)U``, ``||E||_2 ≤
+    c·n²·u·||A_q||_2`` with c a modest constant: Golub & Van Loan, *Matrix Computations*, 4th ed., §7.4.3, after
+    Wilkinson, *The Algebraic Eigenvalue Problem*, p. 351; Higham Lemma 19.3 for a product of Householder
+    reflections; the applications of U and Uᵀ per point add ``γ_n``-normwise terms) are *normwise*: spread over every entry of a graded A_q (a balanced filter's entries
+    span 1e-5 … 1e4), they exceed ``u·|A_q|`` at its small entries, and the componentwise charge ``3N·u·|W||λI −
+    A_q||Z|`` alone was exceeded 13× (random H∞ matching seed 4, tests/test_judge_plain_bound.py). No constant c
+    has to be trusted here: the backward error the solve made is *measured*. With ``b̂`` the right-hand side rounded
+    to double, ``r = b̂ − (λI − A_q) Ẑ`` exactly, ``Ẑ − Z = −(λI − A_q)^{-1} r + (λI − A_q)^{-1}(b̂ − B_q G)``, so
+
+        R̂_X − R_X = −W r + W (b̂ − B_q G) + Q_g(λ) δG + (rounding of C_q Ẑ + D_q G),     W = C_q (λI − A_q)^{-1},
+
+    exactly but for those roundings. ``r`` is computed in double (:func:`_residual_term`, ``r̂``); replacing W by the
+    computed ``Ŵ`` changes ``W r`` at second order (two first-order quantities), the order the bound is derived to
+    (as every term of :func:`_decoupled_reading`'s bound uses the computed W and Z). Hence, to first order,
+
+        |R̂_X − R_X| ≤ |Ŵ r̂| + |Ŵ||r̂ − r| + u|Ŵ||B_q||G| + |Q_g(λ)||δG| + γ_{n+1}|C_q||Ẑ| + γ_{m+1}|D_q||G|,
+
+    ``|r̂ − r| ≤ (n + 4)u|A_q||Ẑ| + 7u|λ||Ẑ|`` (:func:`_residual_term`, with ``|b̂| ≤ (|λ| + |A_q|)|Ẑ|``), the
+    last term ``(m + 2)u`` with G rounded to double (m = Ge's rows): the terms of :func:`_decoupled_reading`'s bound
+    at ``3N·u`` pay for every rounding where ``3N ≥ n + 4``, ``3N ≥ 7`` and ``3N ≥ m + 2`` (where not, the
+    difference is added here and in :func:`_residual_term`), and ``|Ŵ r̂|`` for the solve's backward error,
+    whatever its structure. The bound is then as sharp as the first-order error itself where the reduction's error
+    dominates (seed 4: within 0.94 of it) and grows little elsewhere (median 1.0–1.3× the componentwise one on seeds
+    4, 206). ``G``'s own error ``δG`` is :func:`_plant_reading`'s ``E_G`` (its double reading measured the same way
+    where longdouble is double)."""
     G, EG = _plant_reading(Geb, lam)
     aG = np.abs(G.astype(complex))
     if not Qb.n:
@@ -1183,6 +1244,10 @@ def _plain_values(Qb: LTI, Geb: LTI, lam: np.ndarray):
     # Ge's rounding enters as Q(λ)·δG: |Q(λ)| (W·B_q + D_q, to first order), not |W||B_q|, which is 1e4 times
     # larger where Q's value is a cancellation (random matching seed 4)
     err = WAZ + np.abs(lam)[:, None, None] * (aW @ aZ) + common + np.abs(W @ Qb.B + Qb.D) @ EG
+    N = max(Qb.n, Geb.n, 1)
+    err = err + _residual_term(Qb.A, lam, Z, W, rhs.astype(complex), 3 * N, 3 * N) / (3 * N * EPS / 2)
+    if Qb.m + 2 > 3 * N:  # D_q G's rounding beyond what its term pays at 3N·u
+        err = err + (Qb.m + 2 - 3 * N) / (3 * N) * (aD @ aG)
     sens = WAZ + common
     val = Qb.C @ Z + Qb.D @ G.astype(complex)
     return val, err, sens
