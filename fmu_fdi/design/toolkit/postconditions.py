@@ -803,10 +803,11 @@ REFINED_UNIT = 2.0 ** -64 if DD_READING else EXT_UNIT
 
 
 def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.ndarray, refine=None, steps: int = 2,
-                    rhs_lo=None):
+                    rhs_lo=None, with_left: bool = False):
     """Per point λ_k: ``X_k = (λ_k I − A)^{-1} rhs_k`` (rhs: (K, n, c) in the extended type) and ``W_k = left·(λ_k I −
     A)^{-1}``, in double; at the points of the mask ``refine`` (default none) X_k refined in the extended type and W_k
-    not computed. Non-finite where ``λ_k I − A`` is singular. With ``rhs_lo`` (complex, rhs's shape) the right-hand
+    not computed unless ``with_left`` (then from the same LU, bit for bit the plain pass's W_k). Non-finite where
+    ``λ_k I − A`` is singular. With ``rhs_lo`` (complex, rhs's shape) the right-hand
     side is the double-double ``rhs + rhs_lo`` and X_k is refined in double-double (:func:`_dd_refine`), returned as
     the pair ``(X_hi, X_lo)``.
 
@@ -843,9 +844,10 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
 
         b = rhs[k]
         x = solve(b.astype(complex))
+        if refine is None or with_left:
+            W[k] = solve(leftT, trans=1).T
         if refine is None:
             X[k] = x
-            W[k] = solve(leftT, trans=1).T
             continue
         if rhs_lo is not None:
             X[k], Xlo[k] = _dd_refine(np.asarray(A, float), lk, b, rhs_lo[k], x, solve, steps)
@@ -1161,10 +1163,8 @@ def _plant_reading(Geb: LTI, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if not Geb.n:
         return _plant_values(Geb, lam), np.zeros((lam.size, Geb.p, Geb.m))
     B = np.broadcast_to(Geb.B.astype(np.clongdouble), (lam.size,) + Geb.B.shape)
-    if EXT_UNIT < EPS / 2:
-        # X_e refined in the extended type; W_e from the plain pass, given no right-hand side (its X is not used)
-        We = _refined_solves(Geb.A, lam, B[:, :, :0], Geb.C)[1]
-        Xe = _refined_solves(Geb.A, lam, B, Geb.C, refine=np.ones(lam.size, bool))[0]
+    if EXT_UNIT < EPS / 2:  # X_e refined in the extended type, W_e from the same LU per point
+        Xe, We = _refined_solves(Geb.A, lam, B, Geb.C, refine=np.ones(lam.size, bool), with_left=True)
     else:
         Xe, We = _refined_solves(Geb.A, lam, B, Geb.C)
     aX = np.abs(Xe.astype(complex))
