@@ -37,6 +37,22 @@ the refinement 1.17.
 28 Nov (judge21, double-double refined reading where longdouble is double), ``--reps=1 --base=d4fb7a0`` on x86:
 every case the same verdict, max rel diff 0.00e+00 (the x87 path untouched), total 1.81 s vs 1.80 s.
 
+28 Nov (judge23, the plain reading's bound adds its measured residual |W r̂|), ``--reps=3 --base=main`` (7bc7918),
+one BLAS thread both ways, beside a test run (times indicative, ratios same run):
+
+    case                        main s  this s  ratio same verdict max rel diff refined main → this
+    afdi_bank seed 78             0.22    0.22   1.04         True     0.00e+00      0.0% →   0.0%
+    H∞ matching seed 4            0.08    0.08   0.98         True     0.00e+00     59.0% →  59.0%
+    H∞ matching seed 7            0.21    0.21   1.00         True     0.00e+00     91.3% →  91.3%
+    structured_bank seed 3        0.19    0.20   0.97         True     0.00e+00     73.3% →  73.3%
+    structured_bank seed 10       0.08    0.08   1.00         True     0.00e+00    100.0% → 100.0%
+    structured_bank seed 26       0.16    0.16   0.99         True     0.00e+00     47.1% →  48.3%
+    total                         0.95    0.95   1.00
+
+(the normwise alternative, ``||W_i||·||A_q||_F·||Z_j||``, would have raised the bound 329× median and refined nearly
+every point). Then ``_plant_reading`` taking W_e from the refine pass's LU: ``--reps=5 --base=8b9da85`` total 1.05,
+every figure identical.
+
 Run: python benchmarks/judge_speed.py [--reps=N] [--base=REF] [--exact SEED ...] [--profile LABEL]
 (``--base=REF``: the baseline's git ref, default main — e.g. a commit of this branch, to time one change alone)
 (``--profile LABEL``: a cProfile of this tree's judge on that case instead, top 25 by cumulative time)
