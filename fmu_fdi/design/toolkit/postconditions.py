@@ -1102,7 +1102,7 @@ def _decoupled_values(Qi: LTI, Geb: LTI, lam: np.ndarray, blocks: list, with_ref
     solve's rounding, :func:`_plain_values`: ≤ 5.3e-3 relative on exact seed 17's bank), so a point within that of
     the refinement's threshold could be refined by one and not the other — each reading within its own bound either
     way (tests/test_judge_ud_reuse.py; on the banks of exact seeds 379, 403, 412, 382 every figure of
-    info['postconditions'] the same to the bit before judge23, benchmarks/bank_check_speed.py --compare)."""
+    info['postconditions'] the same to the bit, before judge23 and after, benchmarks/bank_check_speed.py --compare)."""
     Qb = Qi.balanced()[0] if Qi.n else Qi
     if not Qb.n:  # a static row: nothing to refine
         out = _plain_values(Qb, Geb, lam)
