@@ -105,10 +105,36 @@ def readings():
     return calls
 
 
-def test_plain_reading_lies_within_its_bound_at_every_point(readings):
-    """At every point and block, ``|plain reading − value|_F ≤ 3N·u·||err||_F`` (``_plain_values``, the bound
-    ``_refine_mask`` masks points by), the value from :func:`_ld_response` (whose own error, ~1e-19 relative times
-    the same conditioning, is ~1e-4 of the bound at most)."""
+class _Stop(Exception):
+    pass
+
+
+@pytest.fixture(scope="module")
+def candidate_reading():
+    """The second decoupled reading inside seed 4's design (its order-70 candidate, where the old bound was exceeded
+    34.8×; 5.31× in the first); the design is stopped there."""
+    model, Mr = _random_case(4)
+    calls, orig = [], pc._decoupled_values
+
+    def spy(Qi, Geb, lam, blocks, with_refined=False):
+        calls.append((Qi, Geb, lam, blocks))
+        if len(calls) == 2:
+            raise _Stop
+        return orig(Qi, Geb, lam, blocks, with_refined)
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(pc, "_decoupled_values", spy)
+    try:
+        approximate_model_matching(model, Mr)
+    except _Stop:
+        pass
+    finally:
+        mp.undo()
+    assert calls and orig is pc._decoupled_values
+    return calls[1:2]
+
+
+def _worst_ratio(readings) -> float:
     worst = 0.0
     for Qi, Geb, lam, blocks in readings:
         Qb = Qi.balanced()[0]
@@ -119,4 +145,21 @@ def test_plain_reading_lies_within_its_bound_at_every_point(readings):
             d = np.linalg.norm((val - true)[:, :, b], axis=(1, 2))
             e = 3 * N * EPS / 2 * np.linalg.norm(err[:, :, b], axis=(1, 2))
             worst = max(worst, float(np.max(d / e)))
+    return worst
+
+
+def test_plain_reading_lies_within_its_bound_at_every_point(readings):
+    """At every point and block, ``|plain reading − value|_F ≤ 3N·u·||err||_F`` (``_plain_values``, the bound
+    ``_refine_mask`` masks points by), the value from :func:`_ld_response` (whose own error, ~1e-19 relative times
+    the same conditioning, is ~1e-4 of the bound at most). Measured 0.94 (13.1 on 7bc7918)."""
+    worst = _worst_ratio(readings)
+    assert worst <= 1.0, f"plain reading off by {worst:.3g} times its bound"
+
+
+@pytest.mark.slow
+def test_plain_reading_of_the_designs_candidate_lies_within_its_bound(candidate_reading):
+    """The same on the design's own order-70 candidate (~12 s: the design up to its second reading, the clongdouble
+    truth at 169 points). Measured 0.98
+    (34.8 on 7bc7918)."""
+    worst = _worst_ratio(candidate_reading)
     assert worst <= 1.0, f"plain reading off by {worst:.3g} times its bound"
