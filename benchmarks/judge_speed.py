@@ -172,8 +172,8 @@ def run(reps: int, exact_seeds, ref: str = "main") -> None:
         diff = max(diff, rel(r_old["peaks"]["f"], r_new["peaks"]["f"]))
         tot_old, tot_new = tot_old + min(t_old), tot_new + min(t_new)
         print(f"{label:26s} {min(t_old):7.2f} {min(t_new):7.2f} {min(t_old) / min(t_new):6.2f} {str(same):>12s} "
-              f"{diff:12.2e} {f_old['_refined']:9.1%} → {f_new['_refined']:6.1%}" + ("" if same else f"  main {f_old.get('failed_conditions')} this "
-                                                f"{f_new.get('failed_conditions')}"))
+              f"{diff:12.2e} {f_old['_refined']:9.1%} → {f_new['_refined']:6.1%}"
+              + ("" if same else f"  main {f_old.get('failed_conditions')} this {f_new.get('failed_conditions')}"))
     print(f"{'total':26s} {tot_old:7.2f} {tot_new:7.2f} {tot_old / tot_new:6.2f}")
 
 
