@@ -15,7 +15,7 @@ from typing import Iterable, Sequence
 import numpy as np
 import scipy.linalg as sla
 
-from .freqresp import dense_values, eigenvalues
+from .freqresp import dense_values, eigenvalues, hessenberg_form
 from .errors import DesignError
 from .linalg import EPS, is_finite, shifted_hessenberg_solve
 
@@ -778,6 +778,206 @@ def compensated_sum(terms) -> tuple[np.ndarray, np.ndarray]:
     return hi, lo
 
 
+def dd_add(ah, al, bh, bl) -> tuple[np.ndarray, np.ndarray]:
+    """``(ah + al) + (bh + bl)`` as ``(hi, lo)``: :func:`two_sum` of the high parts (componentwise on complex arrays),
+    the low parts in double, renormalised (``|lo| ≤ u·|hi|`` per real part)."""
+    s, e = two_sum(ah, bh)
+    return two_sum(s, e + (al + bl))
+
+
+def _cplx(re: np.ndarray, im: np.ndarray) -> np.ndarray:
+    """``re + j·im`` exactly (no complex multiplication)."""
+    z = np.empty(np.shape(re), complex)
+    z.real, z.imag = re, im
+    return z
+
+
+#: the most products one :func:`dot2` call of :func:`stack_times_dd` holds (its ``(r, n, columns)`` temporaries):
+#: 2^18 (2 MB each) — measured at n = 29, 87, 125 with 144–250 points of 10 columns: batches of 2^20 or more products
+#: are slower (memory traffic), 2^16 … 2^18 the fastest
+DD_BATCH = 2 ** 18
+
+
+def stack_times_dd(M: np.ndarray, Xh: np.ndarray, Xl=None) -> tuple[np.ndarray, np.ndarray]:
+    """``M·(X_h[k] + X_l[k])`` for every k of a stack of complex double-double matrices (``(K, n, c)``; ``X_l`` None:
+    zero), M real ``(r, n)``: ``(hi, lo)``, each ``(K, r, c)``. One :func:`times_dd` over the columns of all points
+    (real and imaginary parts side by side), in blocks of at most :data:`DD_BATCH` products: numpy does the loop over
+    the points, and each column is summed on its own, so every entry is :func:`times_dd`'s of its column — error
+    ``≤ (2n + 2⌈log₂ n⌉ + 2)·u²·|M||X|`` to first order (Dot2's ``(n + 2⌈log₂ n⌉)·u²`` on the high part, ``γ_n·|M||X_l|
+    ≤ n·u²·|M||X|`` for the low part's product in double, Sum2's ``≤ 2u²`` on the three)."""
+    M = np.asarray(M, float)
+    K, n, c = Xh.shape
+    r = M.shape[0]
+
+    def columns(X):  # (n, K·2c): point k's real parts in columns 2ck … 2ck + c − 1, its imaginary parts after them
+        return np.concatenate([X.real, X.imag], axis=2).transpose(1, 0, 2).reshape(n, 2 * K * c)
+
+    H = columns(Xh)
+    L = np.zeros_like(H) if Xl is None else columns(Xl)
+    hi, lo = np.empty((r, H.shape[1])), np.empty((r, H.shape[1]))
+    width = max(1, DD_BATCH // max(r * n, 1))
+    for j in range(0, H.shape[1], width):
+        hi[:, j:j + width], lo[:, j:j + width] = times_dd(M, H[:, j:j + width], L[:, j:j + width])
+    hi, lo = (v.reshape(r, K, 2 * c).transpose(1, 0, 2) for v in (hi, lo))
+    return _cplx(hi[..., :c], hi[..., c:]), _cplx(lo[..., :c], lo[..., c:])
+
+
+@dataclass(frozen=True)
+class RationalPoints:
+    """Points ``λ_k = (a_k + j·b_k)/q_k`` held exactly: ``a = ah + al`` and ``q = qh + ql`` double-double, ``b`` double
+    (arrays of one length K). :meth:`of` takes complex doubles (``a = Re λ``, ``b = Im λ``, ``q = 1``: exact);
+    :meth:`on_circle` the points ``e^{jω}`` as ``(1 − v² + 2jv)/(1 + v²)``, ``v = tan(ω/2)`` — on the unit circle
+    exactly (``a² + b² = q²``), at ``2·atan(v)``, within an ulp of ω (a point off the circle by eps moves the gain
+    near a mode at distance d from it by eps/d)."""
+
+    ah: np.ndarray
+    al: np.ndarray
+    b: np.ndarray
+    qh: np.ndarray
+    ql: np.ndarray
+
+    @classmethod
+    def of(cls, lam) -> "RationalPoints":
+        lam = np.atleast_1d(np.asarray(lam, complex))
+        zero = np.zeros(lam.size)
+        return cls(lam.real.copy(), zero, lam.imag.copy(), np.ones(lam.size), zero)
+
+    @classmethod
+    def on_circle(cls, w) -> "RationalPoints":
+        v = np.tan(np.atleast_1d(np.asarray(w, float)) / 2.0)
+        p, e = two_prod(v, v)
+        qh, ql = two_sum(1.0, p)
+        ah, al = two_sum(1.0, -p)
+        return cls(ah, al - e, 2.0 * v, qh, ql + e)
+
+    def __len__(self) -> int:
+        return self.b.size
+
+    def __getitem__(self, idx) -> "RationalPoints":
+        return RationalPoints(self.ah[idx], self.al[idx], self.b[idx], self.qh[idx], self.ql[idx])
+
+    def rounded(self) -> np.ndarray:
+        """The points in complex double (to factor ``λI − A`` in double)."""
+        return (self.ah + 1j * self.b) / self.qh
+
+
+def shifted_solvers(A: np.ndarray, lam, hessenberg: bool = True) -> list:
+    """Per point λ_k a function ``R ↦ (λ_k I − A)^{-1} R`` in double (complex), None where the factorisation meets an
+    exactly zero pivot. ``hessenberg``: the LU with partial pivoting of ``λI − H``, ``A = U H Uᵀ`` the Hessenberg form
+    of :func:`.freqresp.hessenberg_form` (one reduction, then O(n²) per point: LAPACK zgbtrf on the band with one
+    subdiagonal); else the dense LU with partial pivoting of ``λI − A`` (zgetrf, O(n³) per point)."""
+    A = np.asarray(A, float)
+    n = A.shape[0]
+    out = []
+    if not hessenberg:
+        getrf, getrs = sla.get_lapack_funcs(("getrf", "getrs"), (np.zeros(1, complex),))
+        for lk in np.asarray(lam, complex):
+            lu, piv, info = getrf(lk * np.eye(n) - A)
+            out.append(None if info != 0 else (lambda R, lu=lu, piv=piv: getrs(lu, piv, R)[0]))
+        return out
+    H, U = hessenberg_form(A)
+    low, up = min(1, n - 1), n - 1
+    i, j = np.triu_indices(n, -low)
+    band = np.zeros((2 * low + up + 1, n), complex, order="F")
+    band[low + up + i - j, j] = -np.asarray(H, float)[i, j]
+    gbtrf, gbtrs = sla.get_lapack_funcs(("gbtrf", "gbtrs"), (band,))
+    Ut = np.ascontiguousarray(U.T)
+    for lk in np.asarray(lam, complex):
+        ab = band.copy(order="F")
+        ab[low + up] += lk
+        lu, piv, info = gbtrf(ab, low, up)
+        out.append(None if info != 0 else
+                   (lambda R, lu=lu, piv=piv: U @ gbtrs(lu, low, up, np.asarray(Ut @ R, complex), piv)[0]))
+    return out
+
+
+def refine_dd(A: np.ndarray, points: RationalPoints, Rh: np.ndarray, Rl, X: np.ndarray, solvers,
+              steps: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Iterative refinement in double-double of ``(λ_k I − A) X_k = R_k`` at every point of ``points`` at once:
+    ``steps`` steps ``X += (λI − A)^{-1} r`` from ``X`` (double, ``(K, n, c)`` complex), the residual r formed in
+    double-double for all points together, each correction solved in double by the point's ``solvers[k]`` (e.g. of
+    :func:`shifted_solvers`; None: the point's results are NaN). ``R = R_h + R_l`` is a complex double-double
+    right-hand side (``R_l`` None: zero), A real. Returns ``(X_h, X_l, D)``: the iterate as an unevaluated sum
+    (``|X_l| ≤ u·|X_h|``) and the last correction D (how far the last step moved).
+
+    **The residual.** With ``λ = (a + jb)/q`` exact (:class:`RationalPoints`) and ``x = x_h + x_l`` it is formed times
+    q, ``q·r = q·R + q·Ax − (a + jb)·x`` (real part ``qR_r + q(Ax)_r − a·x_r + b·x_i``, imaginary ``qR_i + q(Ax)_i −
+    a·x_i − b·x_r``): ``Ax`` by :func:`stack_times_dd` (Dot2 over the columns of every point at once), the products
+    of the scalars' high parts with the high parts by :func:`two_prod` (exact), the terms of relative size u (low
+    parts) in double, the four high terms of each part by Sum2 (:func:`compensated_sum`); then rounded to double
+    and divided by q for the correction. Its error, to first order (``u = eps/2``)::
+
+        |q·r̂ − q·r| ≤ (2n + 2⌈log₂ n⌉ + 8)·u²·(|q|·|R| + |a + jb|·|x| + |q|·|A||x|)
+
+    — :func:`stack_times_dd`'s ``(2n + 2⌈log₂ n⌉ + 2)·u²`` on ``|A||x|``, Sum2's ``γ_4²`` on the four high terms,
+    and the low terms' products and sums (each within ``u²`` of its term, the dropped products of two low parts
+    too): at most ``(2n + 2⌈log₂ n⌉ + 8)·u²`` times ``|R| + |λI − A||x|`` relative to r (``|λ| = |a + jb|/|q|``).
+
+    **What it guarantees.** Refinement with a solver whose error contracts (``c·u·‖ |(λI − A)^{-1}|·|ΔM| ‖ ≪ 1``, ΔM
+    the solver's backward error) converges, each step dividing the error by that factor, to the solution of the
+    stored system to the residual's precision (Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd ed.,
+    ch. 12): after enough steps ``|X − X_true| ≲ |(λI − A)^{-1}|·(2n + 2⌈log₂ n⌉ + 8)·u²·(|R| + |λI − A||X|)``. The
+    routine does not measure the contraction: its callers charge the reading
+    (:func:`fmu_fdi.design.toolkit.postconditions._dd_refined_values` at ``REFINED_UNIT``; :class:`_LightModes` by the
+    last step's move). Per column the arithmetic is that of one point alone: batching changes no rounding."""
+    K, n, c = Rh.shape
+    Rl = np.zeros((K, n, c), complex) if Rl is None else Rl
+    qh, ql, ah, al, b = (np.asarray(v, float)[:, None, None] for v in (points.qh, points.ql, points.ah, points.al,
+                                                                          points.b))
+    xh, xl = np.array(X, complex), np.zeros((K, n, c), complex)
+    xh[np.array([s is None for s in solvers], bool)] = np.nan
+    d = np.zeros((K, n, c), complex)
+
+    def part(R, Rlo, t, tlo, x, xlo, y, ylo, sign):  # a part of q·r (docstring), rounded to double
+        p1, e1 = two_prod(qh, R)
+        p2, e2 = two_prod(qh, t)
+        p3, e3 = two_prod(ah, x)
+        p4, e4 = two_prod(b, y)
+        s, q = compensated_sum([p1, p2, -p3, sign * p4])
+        low = (q + e1 + e2 - e3 + sign * e4 + (qh * Rlo + ql * R) + (qh * tlo + ql * t) - (ah * xlo + al * x)
+               + sign * (b * ylo))
+        return s + low
+
+    q = qh + ql
+    for _ in range(steps):
+        th, tl = stack_times_dd(A, xh, xl)
+        r = _cplx(part(Rh.real, Rl.real, th.real, tl.real, xh.real, xl.real, xh.imag, xl.imag, 1.0) / q,
+                  part(Rh.imag, Rl.imag, th.imag, tl.imag, xh.imag, xl.imag, xh.real, xl.real, -1.0) / q)
+        for k, solve in enumerate(solvers):
+            if solve is not None:
+                d[k] = solve(r[k])
+        xh, xl = dd_add(xh, xl, d, 0.0)
+    return xh, xl, d
+
+
+#: the most entries the factorisations of one block of points of :func:`dd_refined_solves` hold: 2^21 (32 MB complex;
+#: order 125: 130 points a block)
+DD_FACTOR_ENTRIES = 2 ** 21
+
+
+def dd_refined_solves(A: np.ndarray, points: RationalPoints, Rh: np.ndarray, Rl=None, steps: int = 3,
+                      hessenberg: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(λ_k I − A)^{-1}(R_h[k] + R_l[k])`` at every point (``Rh``, ``Rl``: ``(K, n, c)`` complex; ``Rl`` None: zero)
+    in double-double: each point's ``λI − A`` factored in double (:func:`shifted_solvers`), the first solve in double,
+    then :func:`refine_dd` (its docstring: what it guarantees) — in blocks of points whose factorisations hold at
+    most :data:`DD_FACTOR_ENTRIES` entries. Returns ``(X_h, X_l, D)`` as :func:`refine_dd`; NaN at a point where
+    ``λI − A`` is exactly singular."""
+    K, n, c = Rh.shape
+    if n == 0 or K == 0:
+        return tuple(np.zeros((K, n, c), complex) for _ in range(3))
+    Xh, Xl, D = (np.full((K, n, c), np.nan, complex) for _ in range(3))
+    lam = points.rounded()
+    block = max(1, DD_FACTOR_ENTRIES // (n * (n + 2)))
+    for s in range(0, K, block):
+        idx = slice(s, min(K, s + block))
+        solvers = shifted_solvers(A, lam[idx], hessenberg)
+        X0 = np.stack([np.full((n, c), np.nan, complex) if f is None else f(np.asarray(R, complex))
+                       for f, R in zip(solvers, Rh[idx])])
+        Xh[idx], Xl[idx], D[idx] = refine_dd(A, points[idx], Rh[idx], None if Rl is None else Rl[idx], X0, solvers,
+                                             steps)
+    return Xh, Xl, D
+
+
 #: whether :func:`_extended_gains` reads in double-double (:func:`dot2` and the other error-free transformations
 #: above) instead of longdouble: where longdouble is double (Windows, ARM macOS)
 DOUBLE_DOUBLE = EXT_EPS >= EPS
@@ -785,57 +985,28 @@ DOUBLE_DOUBLE = EXT_EPS >= EPS
 
 def _ext_eps(n: int) -> float:
     """The relative precision of :func:`_extended_gains`' residual — longdouble's eps, or in double-double
-    (:data:`DOUBLE_DOUBLE`) Dot2's ``(n + 2⌈log₂ n⌉)·u²``, bounded by ``max(n, 2)²·eps²``."""
+    (:data:`DOUBLE_DOUBLE`) :func:`refine_dd`'s ``(2n + 2⌈log₂ n⌉ + 8)·u²``, bounded by ``max(n, 2)²·eps²`` (``=
+    4·max(n, 2)²·u²``)."""
     return max(n, 2) ** 2 * EPS ** 2 if DOUBLE_DOUBLE else EXT_EPS
 
 
 def _double_double_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_extended_gains` with the residual and the iterate in double-double (error-free transformations, the
-    section above). The point is ``s = (a + jb)/q`` with ``a, b, q`` exact in double-double: continuous ``a = 0``,
-    ``b = ω``, ``q = 1``; discrete ``v = tan(ω/2)``, ``a = 1 − v²``, ``b = 2v``, ``q = 1 + v²`` — on the unit circle
-    exactly (``a² + b² = q²``), at ``2·atan(v)``, within an ulp of ω. The residual of ``(sI − A)X = B`` times q,
-    ``r = qB + qAX − (a + jb)X`` (real part ``qB + qAX_r − aX_r + bX_i``, imaginary ``qAX_i − aX_i − bX_r``), with
-    ``X = X_h + X_l`` (real and imaginary parts apart), ``A X_h`` by Dot2, the products of the double-double
-    scalars with the high parts by TwoProduct, the terms of relative size eps (low parts) in double and the sum by
-    Sum2; ``C X + D`` the same way. Each step ``X += LU⁻¹ r/q`` contracts by ``κ·eps`` to the residual's floor
-    ``~(n + 2⌈log₂ n⌉)·u²·q·|sI − A||X|`` — below longdouble's on x86."""
-    out, moved = np.empty(freqs.size), np.empty(freqs.size)
-    n = A.shape[0]
-    for i, w in enumerate(np.asarray(freqs, float)):
-        if discrete:
-            v = float(np.tan(w / 2.0))
-            p, e = two_prod(v, v)
-            qh, ql = two_sum(1.0, p)
-            ah, al = two_sum(1.0, -p)
-            ql, al, b = ql + e, al - e, 2.0 * v
-        else:
-            qh, ql, ah, al, b = 1.0, 0.0, 0.0, 0.0, w
-        lu = sla.lu_factor((ah + 1j * b) / qh * np.eye(n) - A, check_finite=False)
-        X = sla.lu_solve(lu, B.astype(complex), check_finite=False)
-        xr, xi = X.real.copy(), X.imag.copy()
-        lr, li = np.zeros_like(xr), np.zeros_like(xi)
-        qB, qBe = two_prod(qh, B)
-        for _ in range(3):
-            terms = []
-            for x, lx, y, ly, sign in ((xr, lr, xi, li, 1.0), (xi, li, xr, lr, -1.0)):
-                th, tl = dot2(A, x)  # A·X_h, then A·X_l in double
-                tl = tl + A @ lx
-                qt, qte = two_prod(qh, th)
-                ax, axe = two_prod(ah, x)
-                by, bye = two_prod(b, y)
-                part = [qt, -ax, sign * by, qte, -axe, sign * bye, qh * tl + ql * th, -(ah * lx + al * x),
-                        sign * b * ly]
-                terms.append(part + ([qB, qBe, ql * B] if sign > 0 else []))
-            rr, ri = (sum(compensated_sum(t)) for t in terms)
-            dX = sla.lu_solve(lu, (rr + 1j * ri) / (qh + ql), check_finite=False)
-            xr, e = two_sum(xr, dX.real)
-            xr, lr = two_sum(xr, lr + e)
-            xi, e = two_sum(xi, dX.imag)
-            xi, li = two_sum(xi, li + e)
-        gr = sum(compensated_sum([D, *dot2(C, xr), C @ lr]))
-        gi = sum(compensated_sum([*dot2(C, xi), C @ li]))
-        out[i] = np.linalg.svd(gr + 1j * gi, compute_uv=False)[0]
-        moved[i] = float(np.linalg.norm(C @ dX)) / max(out[i], np.finfo(float).tiny)
+    """:func:`_extended_gains` with the residual and the iterate in double-double: :func:`dd_refined_solves` (the dense
+    LU of ``sI − A`` in double, three steps, the residual of all points at once) at the exact points of
+    :class:`RationalPoints` — continuous ``s = jω`` (``a = 0``, ``b = ω``, ``q = 1``), discrete ``(1 − v² + 2jv)/(1 +
+    v²)``, ``v = tan(ω/2)``, on the unit circle exactly; ``C X + D`` by :func:`stack_times_dd` and Sum2. Each step
+    contracts by ``κ·eps`` to the residual's floor ``~(2n + 2⌈log₂ n⌉ + 8)·u²·q·(|B| + |sI − A||X|)`` — below
+    longdouble's on x86. ``moved``: the last correction's ``‖C dX‖`` relative to the gain."""
+    freqs = np.asarray(freqs, float)
+    K = freqs.size
+    pts = RationalPoints.on_circle(freqs) if discrete else RationalPoints.of(1j * freqs)
+    Bs = np.broadcast_to(np.asarray(B, float).astype(complex), (K,) + B.shape)
+    Xh, Xl, dX = dd_refined_solves(A, pts, Bs, None, steps=3, hessenberg=False)
+    Gh, Gl = stack_times_dd(C, Xh, Xl)
+    Dk = np.broadcast_to(np.asarray(D, float), Gh.shape)
+    G = _cplx(sum(compensated_sum([Dk, Gh.real, Gl.real])), sum(compensated_sum([Gh.imag, Gl.imag])))
+    out = np.linalg.svd(G, compute_uv=False)[:, 0]
+    moved = np.linalg.norm(np.asarray(C, float) @ dX, axis=(1, 2)) / np.maximum(out, np.finfo(float).tiny)
     return out, moved
 
 
