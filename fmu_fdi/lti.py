@@ -356,7 +356,7 @@ class LTI:
         ``rtol`` of ``γ_lo`` (AB13DD's own figure where it is, else ``γ_lo``): within ``2·rtol`` of the peak;
         a realisation whose peak cannot be certified raises :class:`~fmu_fdi.errors.DesignError`, and so does one
         whose peak may lie at a mode so lightly damped (``ζ ≲ 1e-11`` on x86; where longdouble is double the
-        readings are double-double, ``ζ ≲ 5e-24·n²·s_A/|λ|``: below the boundary-pole cut for n < 200) that even
+        readings are double-double, ``ζ ≲ 2.4e-21·(1 + n/650)·s_A/|λ|``: far below the boundary-pole cut) that even
         extended-precision readings do not fix the gain there to ``rtol`` (:class:`_LightModes`).
         Returns ``(inf, freq)`` for a pole on the stability boundary (``0.0``: the frequency is not
         located).
@@ -557,7 +557,7 @@ class _LightModes:
     a point off the circle by eps moves the gain near the mode by eps/d), on the realisation scaled by powers of 2
     (TB01ID's factors rounded: exact, the same transfer function to the last bit). Where longdouble is double
     (Windows, ARM macOS) the points are read in double-double instead (:func:`_double_double_gains`: error-free
-    transformations, ``ext_eps = n²·eps²``; in discrete time at the rational point ``(1 − v² + 2jv)/(1 + v²)``,
+    transformations, ``ext_eps`` = :func:`residual_unit` ``≈ (1968 + 3n)·u²``; in discrete time at the rational point ``(1 − v² + 2jv)/(1 + v²)``,
     ``v = tan(ω/2)``, exactly on the circle). Each step divides the error by
     ``κ·eps ≤ ρ ≪ 1``; it ends at ``eps + ρ_x``, ``ρ_x = ext_eps·s_A/d``. Measured (tests/test_hinfnorm_damping
     ``mixed``, seeds 0–3, against a 50-digit evaluation of the stored data), worst relative error with double
@@ -571,7 +571,7 @@ class _LightModes:
     a Lorentzian top read ``(step/d)²/2 < 1e-11`` low) — so that a top the pencil's double-precision crossings
     located badly is read at its height; beyond ``10d`` the mode's term is below a tenth of its peak. A mode whose
     ``ρ_x`` still exceeds ``rtol`` (ζ ≲ 1e-11·s_A/|λ| on x86; where longdouble is double, read in double-double,
-    ζ ≲ 5e-24·n²·s_A/|λ|) and whose scanned gains widened by ``ρ_x`` reach the peak is refused with a
+    ζ ≲ 2.4e-21·(1 + n/650)·s_A/|λ|) and whose scanned gains widened by ``ρ_x`` reach the peak is refused with a
     :class:`~fmu_fdi.errors.DesignError` naming it — for the working precision it is a pole on the boundary —
     instead of a figure off by up to ``ρ_x``; so is such a mode
     beside which the peak itself was read (a reading over-read by ``ρ_x`` there can exceed the scan's best by more
@@ -753,6 +753,72 @@ def dot2(A: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return P[:, 0], lo
 
 
+#: :func:`sliced_dot`: the most slices of each factor before the rest is left to :func:`dot2` (6 slices of β ≥ 21 bits:
+#: the entries within 2^-73 of their row's (column's) largest are split exactly; a smaller one is rare)
+SLICES = 6
+
+
+def _slices(M: np.ndarray, axis: int, beta: int) -> tuple[list, np.ndarray]:
+    """``M = Σ_s M_s + R`` exactly: ``M_s`` the entries of the remainder rounded to multiples of ``w_s = 2^(e + 1 −
+    s·β)``, ``e`` per row (``axis = 1``) or column (``axis = 0``) with ``max|M| < 2^e`` — so ``M_s/w_s`` are integers of
+    magnitude ≤ 2^(β−1) (Ozaki, Ogita, Oishi & Rump, "Error-free transformations of matrix multiplication by using
+    fast routines of matrix multiplication", Numer. Algorithms 59, 2012); at most :data:`SLICES`, fewer where the
+    remainder R vanishes. Scaling by powers of 2 and rounding to an integer are exact; so is each difference."""
+    e = np.frexp(np.max(np.abs(M), axis=axis, keepdims=True))[1]
+    out, R = [], np.array(M, float)
+    for s in range(1, SLICES + 1):
+        if not R.any():
+            break
+        sh = e + 1 - s * beta
+        S = np.ldexp(np.rint(np.ldexp(R, -sh)), sh)
+        out.append(S)
+        R = R - S
+    return out, R
+
+
+def sliced_dot(A: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``A·X`` (real, ``(r, n)`` by ``(n, c)``) as an unevaluated sum ``hi + lo`` from matrix products in double (BLAS)
+    that are exact: A split by rows and X by columns (:func:`_slices`, ``β = ⌊(55 − ⌈log₂(n·S)⌉)/2⌋``, S =
+    :data:`SLICES`), so each product ``A_s X_t`` is ``w_s,i·w_t,j`` times a sum of n integer products each ≤
+    ``2^(2β−2)`` — every partial sum an integer below 2^53 times that power of 2, exact in any order (FMA or not),
+    and the products of equal ``s + t`` (one unit) add exactly too (≤ S of them). The remainders (entries below
+    ``2^-(Sβ − 53)`` of their row's or column's largest) by :func:`dot2` on the rows/columns where they are not zero:
+    ``A·X = Σ_g G_g + R_A·X + (A − R_A)·R_X``, the ≤ 2S − 1 group sums ``G_g`` exact and the two Dot2 pairs summed by
+    Sum2 (:func:`compensated_sum`, m terms, ``γ_{m−1}²`` of their absolute sum; Ogita, Rump & Oishi 2005, Prop. 4.5).
+    Each entry's slices have ``Σ_s |A_s| ≤ 3(1 + 2^(2−β))|a|`` (the first ≤ 2|a|, the rest within half a unit of the
+    first's), so the sum's terms are ``≤ 10·|A||X|`` and the error
+
+        ``|hi + lo − A·X| ≤ (10·(m − 1)² + 2n + 4⌈log₂ n⌉)·u²·|A||X|``, ``m ≤ 2S + 3`` (first order, ``u = eps/2``).
+
+    Where the data's exponents leave the safe range (any |entry| ≥ 2^400 or the scales below 2^-400: a unit could
+    underflow) or an entry is not finite, :func:`dot2` on everything."""
+    A, X = np.asarray(A, float), np.asarray(X, float)
+    r, n = A.shape
+    c = X.shape[1]
+    if not n or not r or not c:
+        return np.zeros((r, c)), np.zeros((r, c))
+    big = max(float(np.max(np.abs(A))), float(np.max(np.abs(X))))
+    small = min(float(np.min(np.max(np.abs(A), axis=1))), float(np.min(np.max(np.abs(X), axis=0))))
+    if not (np.isfinite(big) and big < 2.0 ** 400 and (small == 0.0 or small > 2.0 ** -400)):
+        return _dot2_blocked(A, X)
+    beta = (55 - int(np.ceil(np.log2(n * SLICES)))) // 2
+    As, RA = _slices(A, 1, beta)
+    Xs, RX = _slices(X, 0, beta)
+    groups = {}
+    for s, As_ in enumerate(As):
+        for t, Xt in enumerate(Xs):
+            P = As_ @ Xt
+            groups[s + t] = groups[s + t] + P if s + t in groups else P
+    terms = [groups[g] for g in sorted(groups)]
+    for L, R in ((RA, X), (A - RA, RX)):  # R_A·X over A's columns with a remainder; (A − R_A)·R_X over X's rows
+        lo_rows = np.flatnonzero(np.any(L != 0, axis=0)) if R is X else np.flatnonzero(np.any(R != 0, axis=1))
+        if lo_rows.size:
+            terms.extend(_dot2_blocked(L[:, lo_rows], R[lo_rows]))
+    if not terms:
+        return np.zeros((r, c)), np.zeros((r, c))
+    return compensated_sum(terms)
+
+
 def times_dd(N: np.ndarray, Mh: np.ndarray, Ml: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``N·(Mh + Ml)`` (``N`` double, ``Mh + Ml`` double-double, real) as ``hi + lo``: :func:`dot2` on the high part,
     the low part's product (relative size u) in double, the three summed by :func:`compensated_sum`; error
@@ -792,19 +858,32 @@ def _cplx(re: np.ndarray, im: np.ndarray) -> np.ndarray:
     return z
 
 
-#: the most products one :func:`dot2` call of :func:`stack_times_dd` holds (its ``(r, n, columns)`` temporaries):
-#: 2^18 (2 MB each) — measured at n = 29, 87, 125 with 144–250 points of 10 columns: batches of 2^20 or more products
-#: are slower (memory traffic), 2^16 … 2^18 the fastest
+#: the most products one :func:`dot2` call holds in :func:`sliced_dot`'s remainders (its ``(r, n, columns)``
+#: temporaries): 2^18 (2 MB each) — measured at n = 29, 87, 125 with 144–250 points of 10 columns: batches of 2^20 or
+#: more products are slower (memory traffic), 2^16 … 2^18 the fastest
 DD_BATCH = 2 ** 18
+#: the most entries of X one :func:`sliced_dot` call of :func:`stack_times_dd` slices (each slice a copy): 2^20
+DD_COLUMNS = 2 ** 20
+
+
+def _dot2_blocked(A: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`dot2` in column blocks of at most :data:`DD_BATCH` products (the same numbers: each column on its own)."""
+    width = max(1, DD_BATCH // max(A.shape[0] * A.shape[1], 1))
+    if X.shape[1] <= width:
+        return dot2(A, X)
+    parts = [dot2(A, X[:, j:j + width]) for j in range(0, X.shape[1], width)]
+    return np.concatenate([p[0] for p in parts], axis=1), np.concatenate([p[1] for p in parts], axis=1)
 
 
 def stack_times_dd(M: np.ndarray, Xh: np.ndarray, Xl=None) -> tuple[np.ndarray, np.ndarray]:
     """``M·(X_h[k] + X_l[k])`` for every k of a stack of complex double-double matrices (``(K, n, c)``; ``X_l`` None:
-    zero), M real ``(r, n)``: ``(hi, lo)``, each ``(K, r, c)``. One :func:`times_dd` over the columns of all points
-    (real and imaginary parts side by side), in blocks of at most :data:`DD_BATCH` products: numpy does the loop over
-    the points, and each column is summed on its own, so every entry is :func:`times_dd`'s of its column — error
-    ``≤ (2n + 2⌈log₂ n⌉ + 2)·u²·|M||X|`` to first order (Dot2's ``(n + 2⌈log₂ n⌉)·u²`` on the high part, ``γ_n·|M||X_l|
-    ≤ n·u²·|M||X|`` for the low part's product in double, Sum2's ``≤ 2u²`` on the three)."""
+    zero), M real ``(r, n)``: ``(hi, lo)``, each ``(K, r, c)``. The columns of all points side by side (real and
+    imaginary parts apart), in blocks of at most :data:`DD_COLUMNS` entries: the high part by :func:`sliced_dot`
+    (exact BLAS products), the low part's product in double, the three summed by Sum2 — error ``≤ (10(m − 1)² + 3n
+    + 4⌈log₂ n⌉ + 2)·u²·|M||X|`` to first order (:func:`sliced_dot`'s, ``m ≤ 2·SLICES + 3``; ``γ_n·|M||X_l| ≤
+    n·u²·|M||X|`` for the low part; Sum2's ``≤ 2u²``). Batching changes no rounding: a column's slices are scaled by
+    its own exponent, and what the other columns add to its sums (a slice or remainder row it does not need) are
+    exact zeros."""
     M = np.asarray(M, float)
     K, n, c = Xh.shape
     r = M.shape[0]
@@ -812,12 +891,13 @@ def stack_times_dd(M: np.ndarray, Xh: np.ndarray, Xl=None) -> tuple[np.ndarray, 
     def columns(X):  # (n, K·2c): point k's real parts in columns 2ck … 2ck + c − 1, its imaginary parts after them
         return np.concatenate([X.real, X.imag], axis=2).transpose(1, 0, 2).reshape(n, 2 * K * c)
 
-    H = columns(Xh)
-    L = np.zeros_like(H) if Xl is None else columns(Xl)
+    H, L = columns(Xh), None if Xl is None else columns(Xl)
     hi, lo = np.empty((r, H.shape[1])), np.empty((r, H.shape[1]))
-    width = max(1, DD_BATCH // max(r * n, 1))
+    width = max(1, DD_COLUMNS // max(n, 1))
     for j in range(0, H.shape[1], width):
-        hi[:, j:j + width], lo[:, j:j + width] = times_dd(M, H[:, j:j + width], L[:, j:j + width])
+        h, e = sliced_dot(M, H[:, j:j + width])
+        low = [] if L is None else [M @ L[:, j:j + width]]
+        hi[:, j:j + width], lo[:, j:j + width] = compensated_sum([h, e, *low])
     hi, lo = (v.reshape(r, K, 2 * c).transpose(1, 0, 2) for v in (hi, lo))
     return _cplx(hi[..., :c], hi[..., c:]), _cplx(lo[..., :c], lo[..., c:])
 
@@ -891,6 +971,12 @@ def shifted_solvers(A: np.ndarray, lam, hessenberg: bool = True) -> list:
     return out
 
 
+def residual_unit(n: int) -> float:
+    """``c_n·u²``, the relative error of :func:`refine_dd`'s residual at order n (its docstring):
+    ``(10·(2·SLICES + 2)² + 3n + 4⌈log₂ n⌉ + 8)·u²`` (``u = eps/2``)."""
+    return (10 * (2 * SLICES + 2) ** 2 + 3 * n + 4 * int(np.ceil(np.log2(max(n, 1)))) + 8) * (EPS / 2) ** 2
+
+
 def refine_dd(A: np.ndarray, points: RationalPoints, Rh: np.ndarray, Rl, X: np.ndarray, solvers,
               steps: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Iterative refinement in double-double of ``(λ_k I − A) X_k = R_k`` at every point of ``points`` at once:
@@ -902,21 +988,23 @@ def refine_dd(A: np.ndarray, points: RationalPoints, Rh: np.ndarray, Rl, X: np.n
 
     **The residual.** With ``λ = (a + jb)/q`` exact (:class:`RationalPoints`) and ``x = x_h + x_l`` it is formed times
     q, ``q·r = q·R + q·Ax − (a + jb)·x`` (real part ``qR_r + q(Ax)_r − a·x_r + b·x_i``, imaginary ``qR_i + q(Ax)_i −
-    a·x_i − b·x_r``): ``Ax`` by :func:`stack_times_dd` (Dot2 over the columns of every point at once), the products
+    a·x_i − b·x_r``): ``Ax`` by :func:`stack_times_dd` (exact BLAS products over the columns of every point at once,
+    :func:`sliced_dot`), the products
     of the scalars' high parts with the high parts by :func:`two_prod` (exact), the terms of relative size u (low
     parts) in double, the four high terms of each part by Sum2 (:func:`compensated_sum`); then rounded to double
     and divided by q for the correction. Its error, to first order (``u = eps/2``)::
 
-        |q·r̂ − q·r| ≤ (2n + 2⌈log₂ n⌉ + 8)·u²·(|q|·|R| + |a + jb|·|x| + |q|·|A||x|)
+        |q·r̂ − q·r| ≤ c_n·u²·(|q|·|R| + |a + jb|·|x| + |q|·|A||x|),   c_n = 10(m − 1)² + 3n + 4⌈log₂ n⌉ + 8
 
-    — :func:`stack_times_dd`'s ``(2n + 2⌈log₂ n⌉ + 2)·u²`` on ``|A||x|``, Sum2's ``γ_4²`` on the four high terms,
-    and the low terms' products and sums (each within ``u²`` of its term, the dropped products of two low parts
-    too): at most ``(2n + 2⌈log₂ n⌉ + 8)·u²`` times ``|R| + |λI − A||x|`` relative to r (``|λ| = |a + jb|/|q|``).
+    (:func:`residual_unit`: ``c_n·u²``) — :func:`stack_times_dd`'s ``(10(m − 1)² + 3n + 4⌈log₂ n⌉ + 2)·u²`` on
+    ``|A||x|`` (``m ≤ 2·SLICES + 3`` = 15: c_n ≤ 1968 + 3n + 4⌈log₂ n⌉), Sum2's ``γ_4²`` on the four high terms, and
+    the low terms' products and sums (each within ``u²`` of its term, the dropped products of two low parts too):
+    at most ``c_n·u²`` times ``|R| + |λI − A||x|`` relative to r (``|λ| = |a + jb|/|q|``).
 
     **What it guarantees.** Refinement with a solver whose error contracts (``c·u·‖ |(λI − A)^{-1}|·|ΔM| ‖ ≪ 1``, ΔM
     the solver's backward error) converges, each step dividing the error by that factor, to the solution of the
     stored system to the residual's precision (Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd ed.,
-    ch. 12): after enough steps ``|X − X_true| ≲ |(λI − A)^{-1}|·(2n + 2⌈log₂ n⌉ + 8)·u²·(|R| + |λI − A||X|)``. The
+    ch. 12): after enough steps ``|X − X_true| ≲ |(λI − A)^{-1}|·c_n·u²·(|R| + |λI − A||X|)``. The
     routine does not measure the contraction: its callers charge the reading
     (:func:`fmu_fdi.design.toolkit.postconditions._dd_refined_values` at ``REFINED_UNIT``; :class:`_LightModes` by the
     last step's move). Per column the arithmetic is that of one point alone: batching changes no rounding."""
@@ -985,9 +1073,8 @@ DOUBLE_DOUBLE = EXT_EPS >= EPS
 
 def _ext_eps(n: int) -> float:
     """The relative precision of :func:`_extended_gains`' residual — longdouble's eps, or in double-double
-    (:data:`DOUBLE_DOUBLE`) :func:`refine_dd`'s ``(2n + 2⌈log₂ n⌉ + 8)·u²``, bounded by ``max(n, 2)²·eps²`` (``=
-    4·max(n, 2)²·u²``)."""
-    return max(n, 2) ** 2 * EPS ** 2 if DOUBLE_DOUBLE else EXT_EPS
+    (:data:`DOUBLE_DOUBLE`) :func:`refine_dd`'s residual, :func:`residual_unit` (``≤ (1968 + 3n + 4⌈log₂ n⌉)·u²``)."""
+    return residual_unit(n) if DOUBLE_DOUBLE else EXT_EPS
 
 
 def _double_double_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray, np.ndarray]:
@@ -995,7 +1082,7 @@ def _double_double_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray,
     LU of ``sI − A`` in double, three steps, the residual of all points at once) at the exact points of
     :class:`RationalPoints` — continuous ``s = jω`` (``a = 0``, ``b = ω``, ``q = 1``), discrete ``(1 − v² + 2jv)/(1 +
     v²)``, ``v = tan(ω/2)``, on the unit circle exactly; ``C X + D`` by :func:`stack_times_dd` and Sum2. Each step
-    contracts by ``κ·eps`` to the residual's floor ``~(2n + 2⌈log₂ n⌉ + 8)·u²·q·(|B| + |sI − A||X|)`` — below
+    contracts by ``κ·eps`` to the residual's floor ``~c_n·u²·q·(|B| + |sI − A||X|)`` (:func:`residual_unit`) — below
     longdouble's on x86. ``moved``: the last correction's ``‖C dX‖`` relative to the gain."""
     freqs = np.asarray(freqs, float)
     K = freqs.size
