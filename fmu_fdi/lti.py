@@ -906,9 +906,10 @@ def stack_times_dd(M: np.ndarray, Xh: np.ndarray, Xl=None) -> tuple[np.ndarray, 
 class RationalPoints:
     """Points ``λ_k = (a_k + j·b_k)/q_k`` held exactly: ``a = ah + al`` and ``q = qh + ql`` double-double, ``b`` double
     (arrays of one length K). :meth:`of` takes complex doubles (``a = Re λ``, ``b = Im λ``, ``q = 1``: exact);
-    :meth:`on_circle` the points ``e^{jω}`` as ``(1 − v² + 2jv)/(1 + v²)``, ``v = tan(ω/2)`` — on the unit circle
-    exactly (``a² + b² = q²``), at ``2·atan(v)``, within an ulp of ω (a point off the circle by eps moves the gain
-    near a mode at distance d from it by eps/d)."""
+    :meth:`on_circle` the points ``e^{jω}`` as ``(1 − v² + 2jv)/(1 + v²)``, ``v = tan(ω/2)`` — ``v² = p + e`` exactly
+    (TwoProduct), ``a`` and ``q`` from it by TwoSum with one rounding of the two error terms' sum, so ``|a² + b² − q²|
+    ≲ 8u²·q²``: on the unit circle to ~u² (a point off it by eps moved the gain near a mode at distance d by eps/d),
+    at ``2·atan(v)``, within an ulp of ω."""
 
     ah: np.ndarray
     al: np.ndarray
@@ -1081,7 +1082,7 @@ def _double_double_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray,
     """:func:`_extended_gains` with the residual and the iterate in double-double: :func:`dd_refined_solves` (the dense
     LU of ``sI − A`` in double, three steps, the residual of all points at once) at the exact points of
     :class:`RationalPoints` — continuous ``s = jω`` (``a = 0``, ``b = ω``, ``q = 1``), discrete ``(1 − v² + 2jv)/(1 +
-    v²)``, ``v = tan(ω/2)``, on the unit circle exactly; ``C X + D`` by :func:`stack_times_dd` and Sum2. Each step
+    v²)``, ``v = tan(ω/2)``, on the unit circle to ~u²; ``C X + D`` by :func:`stack_times_dd` and Sum2. Each step
     contracts by ``κ·eps`` to the residual's floor ``~c_n·u²·q·(|B| + |sI − A||X|)`` (:func:`residual_unit`) — below
     longdouble's on x86. ``moved``: the last correction's ``‖C dX‖`` relative to the gain."""
     freqs = np.asarray(freqs, float)

@@ -90,9 +90,9 @@ def decimal_gain2(G: LTI, v) -> Decimal:
 
 
 def decimal_eliminate(M: list, N: int, cols: int = 1) -> list:
-    """The solutions of ``M[:, :N] x = M[:, N + j]`` (rows of Decimals, the ``cols`` right-hand sides after the N
-    columns of the matrix), by Gaussian elimination with partial pivoting in the current decimal context (M is
-    overwritten): a list of ``cols`` solution lists."""
+    """The solutions of ``M[:, :N] x = M[:, N + j]`` (rows of Decimals — or Fractions: then exact — the ``cols``
+    right-hand sides after the N columns of the matrix), by Gaussian elimination with partial pivoting in the current
+    decimal context (M is overwritten): a list of ``cols`` solution lists."""
     for col in range(N):
         piv = max(range(col, N), key=lambda r: abs(M[r][col]))
         M[col], M[piv] = M[piv], M[col]
