@@ -8,11 +8,12 @@ fmu_fdi is imported), a baseline's (``--base``, default main) against this tree'
    tests/test_hinfnorm_damping.decimal_gain2), worst relative error of each;
 2. the judge's refined reading (``postconditions._dd_refined_values``; the baseline's from its postconditions.py) on
    random H∞ matching seeds 4 and 7 (benchmarks/ammp_random_set.py's models, ``norm='inf'``): the design timed with
-   each routine swapped in (the design's own judgements read through it; the two alternate, best of R), then ``check_generator`` + ``report`` of
-   the returned filter with each (caches cleared, best of R); figures compared. Every refined reading made in the
-   first design and the final judgement (candidates of higher order among them) is read by both routines; printed: the largest ``|new − base|`` in units of the judge's bound ``3N·2^-64·err``
-   at that entry, and on 3 points of the largest call both against a 50-digit decimal evaluation (Gaussian
-   elimination with partial pivoting in :mod:`decimal`, the real 2n form of each complex solve) in the same unit.
+   each routine swapped in (the design's own judgements read through it; the two alternate, best of R), then
+   ``check_generator`` of the returned filter with each (caches cleared, best of R); figures compared. Every refined
+   reading made in the first design and the final judgement (candidates of higher order among them) is read by both
+   routines; printed: the largest ``|new − base|`` in units of the judge's bound ``3N·2^-64·err`` at that entry, and
+   on 3 points of the largest call both against a 50-digit decimal evaluation (Gaussian elimination with partial
+   pivoting in :mod:`decimal`, the real 2n form of each complex solve) in the same unit.
 
 Measured 28 Nov (dd23, base = main 7bc7918, one BLAS thread, load 5-7 from other sessions: ratios from one run):
 
