@@ -863,8 +863,9 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
 
 def _dd_refine(A: np.ndarray, lk: complex, bh: np.ndarray, bl: np.ndarray, x: np.ndarray, solve, steps: int):
     """``steps`` steps of iterative refinement of ``x ≈ (λI − A)^{-1}(bh + bl)`` in double-double at one point:
-    :func:`fmu_fdi.lti.refine_dd` (its docstring: the residual's error ``(2n + 2⌈log₂ n⌉ + 8)·u²·(|b| + |λI −
-    A||x|)`` and what the refinement guarantees), ``solve`` the point's double solve. Returns ``(x_h, x_l)``."""
+    :func:`fmu_fdi.lti.refine_dd` (its docstring: the residual's error ``c_n·u²·(|b| + |λI − A||x|)``,
+    :func:`fmu_fdi.lti.residual_unit`, and what the refinement guarantees), ``solve`` the point's double solve.
+    Returns ``(x_h, x_l)``."""
     xh, xl, _ = refine_dd(A, RationalPoints.of(lk), bh[None], bl[None], x[None], [solve], steps)
     return xh[0], xl[0]
 
@@ -1189,12 +1190,13 @@ def _dd_refined_values(Qb: LTI, Geb: LTI, lam: np.ndarray, steps: int = 3) -> np
     sum by :func:`fmu_fdi.lti.dd_add`; the value rounded to double at the end.
 
     **Its unit.** Each refined solve converges (contraction ``~3N·u·|| |(λI − A)^{-1}| |λI − A| ||`` per step, as in
-    :func:`_refined_solves`) to the solution of the stored system to its residual's error, ``(2n + 2⌈log₂ n⌉ +
-    8)·u²`` times ``|b| + |λI − A||x|`` (:func:`fmu_fdi.lti.refine_dd`); the products and sums add ``(2n + 2⌈log₂ n⌉
-    + 4)·u²`` times ``|C_q||Z| + |D_q||G|`` and ``|B_q||G|`` (:func:`fmu_fdi.lti.stack_times_dd`'s ``(2n + 2⌈log₂ n⌉
-    + 2)·u²``, TwoSum's renormalisation ``2u²``): the error terms of :func:`_decoupled_reading`'s bound, each with the
-    factor ``(2N + 2⌈log₂ N⌉ + 8)·u² ≤ 3N·2^-64`` for every N ≥ 1 (``u² = 2^-106``: the ratio is ≥ 2^42·3N/(2N +
-    2⌈log₂ N⌉ + 8) ≥ 2^40 ≫ 1, room for the refinement's remaining contraction ``(3N·u·κ)^steps`` with ``κ`` the
+    :func:`_refined_solves`) to the solution of the stored system to its residual's error, ``c_n·u²`` times ``|b| +
+    |λI − A||x|`` (:func:`fmu_fdi.lti.refine_dd`; ``c_n = 1968 + 3n + 4⌈log₂ n⌉``, :func:`fmu_fdi.lti.residual_unit`,
+    the 1960 a worst case of the exact slice products' Sum2 — measured ≤ 1.4 against fractions); the products and sums
+    add ``(c_n − 4)·u²`` times ``|C_q||Z| + |D_q||G|`` and ``|B_q||G|`` (:func:`fmu_fdi.lti.stack_times_dd`'s
+    ``(1962 + 3n + 4⌈log₂ n⌉)·u²``, TwoSum's renormalisation ``2u²``): the error terms of :func:`_decoupled_reading`'s
+    bound, each with the factor ``c_N·u² ≤ 3N·2^-64`` for every N ≥ 1 (``u² = 2^-106``: the ratio 2^42·3N/c_N is ≥
+    2^42·3/1971 > 2^32 ≫ 1, room for the refinement's remaining contraction ``(3N·u·κ)^steps`` with ``κ`` the
     componentwise condition up to 1e8 at ``steps = 3``). So the reading is charged at :data:`REFINED_UNIT` = 2^-64, as
     x87's — the same points are refined and proven as on x86. The final rounding to double, ``u·|R_X|``, is relative
     to the value itself (the bound on x86 leaves out its own the same way)."""
