@@ -38,6 +38,14 @@ Measured 28 Nov (host20, ``--timeout=300``, nice, one BLAS thread, load 3-10), o
     approximate 1-20        87 / 0 / 0              87 / 0 / 0      0
     approximate 200-209     42 / 0 / 1              42 / 0 / 1      0
 
+28 Nov (dd23: every double-double product from exact BLAS slice products, the refinement of all points at once;
+``--timeout=300``, one BLAS thread, load ~5), ok / refused / broken, and total time per host:
+    exact 1-30              124 / 22 / 0  27.8 s    124 / 22 / 0  28.2 s    0
+    approximate 1-20        67 / 20 / 0   41.6 s    67 / 20 / 0   41.6 s    0
+    approximate 200-209     33 / 10 / 0   110.8 s   33 / 10 / 0   118.3 s   0
+(approximate: amm(Mr = I) is refused on every seed since amm21's rank bound; seed 206's broken call passes since
+judge19.)
+
 The one broken call on both hosts is seed 206's amm(Mr = detection row), a false refusal already pinned as a strict
 xfail (tests/test_audit_seeds18.py), not a returned design; no design returned on the simulated host fails the judge.
 The exact set ran with lti before and after this session's light-mode change, and exact 1-30 and approximate 1-20

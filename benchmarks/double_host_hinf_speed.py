@@ -14,6 +14,10 @@ Measured 28 Nov (host20, R = 2, one BLAS thread, load ~6-8): every case 10.2-14.
 residual is ~40 numpy calls on arrays of a few entries, for ~190 points per light mode (the scan of
 ``_LightModes.settle``); the norms agree to 1.4e-10 (both within TOL of the decimal judge). Only systems with a
 light mode (eps·s_A/d > rtol) take this path; the x86 path is unchanged.
+
+28 Nov (dd23: the residual of all points at once, its products exact BLAS slice products, ``lti.sliced_dot``), R = 2,
+one BLAS thread, load ~5-7: geometric mean double/native 0.89 (0.55-1.14 per case; totals 0.22 s / 0.21 s); the norms
+agree to 1.4e-10. Before/after on the simulated host in one run: benchmarks/double_host_dd_speed.py.
 """
 import json
 import subprocess

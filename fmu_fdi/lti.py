@@ -15,7 +15,7 @@ from typing import Iterable, Sequence
 import numpy as np
 import scipy.linalg as sla
 
-from .freqresp import dense_values, eigenvalues
+from .freqresp import dense_values, eigenvalues, hessenberg_form
 from .errors import DesignError
 from .linalg import EPS, is_finite, shifted_hessenberg_solve
 
@@ -356,7 +356,7 @@ class LTI:
         ``rtol`` of ``γ_lo`` (AB13DD's own figure where it is, else ``γ_lo``): within ``2·rtol`` of the peak;
         a realisation whose peak cannot be certified raises :class:`~fmu_fdi.errors.DesignError`, and so does one
         whose peak may lie at a mode so lightly damped (``ζ ≲ 1e-11`` on x86; where longdouble is double the
-        readings are double-double, ``ζ ≲ 5e-24·n²·s_A/|λ|``: below the boundary-pole cut for n < 200) that even
+        readings are double-double, ``ζ ≲ 2.4e-21·(1 + n/650)·s_A/|λ|``: far below the boundary-pole cut) that even
         extended-precision readings do not fix the gain there to ``rtol`` (:class:`_LightModes`).
         Returns ``(inf, freq)`` for a pole on the stability boundary (``0.0``: the frequency is not
         located).
@@ -557,8 +557,8 @@ class _LightModes:
     a point off the circle by eps moves the gain near the mode by eps/d), on the realisation scaled by powers of 2
     (TB01ID's factors rounded: exact, the same transfer function to the last bit). Where longdouble is double
     (Windows, ARM macOS) the points are read in double-double instead (:func:`_double_double_gains`: error-free
-    transformations, ``ext_eps = n²·eps²``; in discrete time at the rational point ``(1 − v² + 2jv)/(1 + v²)``,
-    ``v = tan(ω/2)``, exactly on the circle). Each step divides the error by
+    transformations, ``ext_eps`` = :func:`residual_unit` ``≈ (1968 + 3n)·u²``; in discrete time at the rational point
+    ``(1 − v² + 2jv)/(1 + v²)``, ``v = tan(ω/2)``, on the circle to ~u²). Each step divides the error by
     ``κ·eps ≤ ρ ≪ 1``; it ends at ``eps + ρ_x``, ``ρ_x = ext_eps·s_A/d``. Measured (tests/test_hinfnorm_damping
     ``mixed``, seeds 0–3, against a 50-digit evaluation of the stored data), worst relative error with double
     readings only → with these: ζ = 1e-8 1.2e-8 → 1.3e-12, 1e-9 1.3e-7 → 3.5e-11, 1e-10 4.0e-7 → 1.7e-10; 1e-11
@@ -571,7 +571,7 @@ class _LightModes:
     a Lorentzian top read ``(step/d)²/2 < 1e-11`` low) — so that a top the pencil's double-precision crossings
     located badly is read at its height; beyond ``10d`` the mode's term is below a tenth of its peak. A mode whose
     ``ρ_x`` still exceeds ``rtol`` (ζ ≲ 1e-11·s_A/|λ| on x86; where longdouble is double, read in double-double,
-    ζ ≲ 5e-24·n²·s_A/|λ|) and whose scanned gains widened by ``ρ_x`` reach the peak is refused with a
+    ζ ≲ 2.4e-21·(1 + n/650)·s_A/|λ|) and whose scanned gains widened by ``ρ_x`` reach the peak is refused with a
     :class:`~fmu_fdi.errors.DesignError` naming it — for the working precision it is a pole on the boundary —
     instead of a figure off by up to ``ρ_x``; so is such a mode
     beside which the peak itself was read (a reading over-read by ``ρ_x`` there can exceed the scan's best by more
@@ -753,6 +753,73 @@ def dot2(A: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return P[:, 0], lo
 
 
+#: :func:`sliced_dot`: the most slices of each factor before the rest is left to :func:`dot2` (6 slices of β ≥ 21 bits:
+#: the entries within 2^-73 of their row's (column's) largest are split exactly; a smaller one is rare)
+SLICES = 6
+
+
+def _slices(M: np.ndarray, axis: int, beta: int) -> tuple[list, np.ndarray]:
+    """``M = Σ_s M_s + R`` exactly: ``M_s`` the entries of the remainder rounded to multiples of ``w_s = 2^(e + 1 −
+    s·β)``, ``e`` per row (``axis = 1``) or column (``axis = 0``) with ``max|M| < 2^e`` — so ``M_s/w_s`` are integers of
+    magnitude ≤ 2^(β−1) (Ozaki, Ogita, Oishi & Rump, "Error-free transformations of matrix multiplication by using
+    fast routines of matrix multiplication", Numer. Algorithms 59, 2012); at most :data:`SLICES`, fewer where the
+    remainder R vanishes. Scaling by powers of 2 and rounding to an integer are exact; so is each difference."""
+    e = np.frexp(np.max(np.abs(M), axis=axis, keepdims=True))[1]
+    out, R = [], np.array(M, float)
+    for s in range(1, SLICES + 1):
+        if not R.any():
+            break
+        sh = e + 1 - s * beta
+        S = np.ldexp(np.rint(np.ldexp(R, -sh)), sh)
+        out.append(S)
+        R = R - S
+    return out, R
+
+
+def sliced_dot(A: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``A·X`` (real, ``(r, n)`` by ``(n, c)``) as an unevaluated sum ``hi + lo`` from matrix products in double (BLAS)
+    that are exact: A split by rows and X by columns (:func:`_slices`, ``β = ⌊(55 − ⌈log₂(n·S)⌉)/2⌋``, S =
+    :data:`SLICES`), so each product ``A_s X_t`` is ``w_s,i·w_t,j`` times a sum of n integer products each ≤
+    ``2^(2β−2)`` — every partial sum an integer below 2^53 times that power of 2, exact in any order (FMA or not),
+    and the products of equal ``s + t`` (one unit) add exactly too (≤ S of them). The remainders (entries below
+    ``2^-(Sβ − 53)`` of their row's or column's largest) by :func:`dot2` on the rows/columns where they are not zero:
+    ``A·X = Σ_g G_g + R_A·X + (A − R_A)·R_X``, the ≤ 2S − 1 group sums ``G_g`` exact and the two Dot2 pairs summed by
+    Sum2 (:func:`compensated_sum`, m terms, ``γ_{m−1}²`` of their absolute sum; Ogita, Rump & Oishi 2005, Prop. 4.5).
+    Each entry's slices have ``Σ_s |A_s| ≤ 3(1 + 2^(2−β))|a|`` (the first ≤ 2|a|, the rest within half a unit of the
+    first's), so the sum's terms are ``≤ 10·|A||X|`` and the error
+
+        ``|hi + lo − A·X| ≤ (10·(m − 1)² + 2n + 4⌈log₂ n⌉)·u²·|A||X|``, ``m ≤ 2S + 3`` (first order, ``u = eps/2``).
+
+    Where the data's exponents leave the safe range (any |entry| ≥ 2^400, or a row's or column's largest below
+    2^-300: the units ``w_s,i·w_t,j ≥ 2^(e_i + e_j + 2 − 2Sβ)`` must stay ≥ 2^-1074, the subnormal step, for the
+    sums to be exact) or an entry is not finite, :func:`dot2` on everything."""
+    A, X = np.asarray(A, float), np.asarray(X, float)
+    r, n = A.shape
+    c = X.shape[1]
+    if not n or not r or not c:
+        return np.zeros((r, c)), np.zeros((r, c))
+    scales = np.concatenate([np.max(np.abs(A), axis=1), np.max(np.abs(X), axis=0)])
+    big, nonzero = float(np.max(scales)), scales[scales > 0]
+    if not (np.isfinite(big) and big < 2.0 ** 400 and (not nonzero.size or float(np.min(nonzero)) > 2.0 ** -300)):
+        return _dot2_blocked(A, X)
+    beta = (55 - int(np.ceil(np.log2(n * SLICES)))) // 2
+    As, RA = _slices(A, 1, beta)
+    Xs, RX = _slices(X, 0, beta)
+    groups = {}
+    for s, As_ in enumerate(As):
+        for t, Xt in enumerate(Xs):
+            P = As_ @ Xt
+            groups[s + t] = groups[s + t] + P if s + t in groups else P
+    terms = [groups[g] for g in sorted(groups)]
+    for L, R in ((RA, X), (A - RA, RX)):  # R_A·X over A's columns with a remainder; (A − R_A)·R_X over X's rows
+        lo_rows = np.flatnonzero(np.any(L != 0, axis=0)) if R is X else np.flatnonzero(np.any(R != 0, axis=1))
+        if lo_rows.size:
+            terms.extend(_dot2_blocked(L[:, lo_rows], R[lo_rows]))
+    if not terms:
+        return np.zeros((r, c)), np.zeros((r, c))
+    return compensated_sum(terms)
+
+
 def times_dd(N: np.ndarray, Mh: np.ndarray, Ml: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``N·(Mh + Ml)`` (``N`` double, ``Mh + Ml`` double-double, real) as ``hi + lo``: :func:`dot2` on the high part,
     the low part's product (relative size u) in double, the three summed by :func:`compensated_sum`; error
@@ -778,6 +845,229 @@ def compensated_sum(terms) -> tuple[np.ndarray, np.ndarray]:
     return hi, lo
 
 
+def dd_add(ah, al, bh, bl) -> tuple[np.ndarray, np.ndarray]:
+    """``(ah + al) + (bh + bl)`` as ``(hi, lo)``: :func:`two_sum` of the high parts (componentwise on complex arrays),
+    the low parts in double, renormalised (``|lo| ≤ u·|hi|`` per real part)."""
+    s, e = two_sum(ah, bh)
+    return two_sum(s, e + (al + bl))
+
+
+def _cplx(re: np.ndarray, im: np.ndarray) -> np.ndarray:
+    """``re + j·im`` exactly (no complex multiplication)."""
+    z = np.empty(np.shape(re), complex)
+    z.real, z.imag = re, im
+    return z
+
+
+#: the most products one :func:`dot2` call holds in :func:`sliced_dot`'s remainders (its ``(r, n, columns)``
+#: temporaries): 2^18 (2 MB each) — measured at n = 29, 87, 125 with 144–250 points of 10 columns: batches of 2^20 or
+#: more products are slower (memory traffic), 2^16 … 2^18 the fastest
+DD_BATCH = 2 ** 18
+#: the most entries of X one :func:`sliced_dot` call of :func:`stack_times_dd` slices (each slice a copy): 2^20
+DD_COLUMNS = 2 ** 20
+
+
+def _dot2_blocked(A: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`dot2` in column blocks of at most :data:`DD_BATCH` products (the same numbers: each column on its own)."""
+    width = max(1, DD_BATCH // max(A.shape[0] * A.shape[1], 1))
+    if X.shape[1] <= width:
+        return dot2(A, X)
+    parts = [dot2(A, X[:, j:j + width]) for j in range(0, X.shape[1], width)]
+    return np.concatenate([p[0] for p in parts], axis=1), np.concatenate([p[1] for p in parts], axis=1)
+
+
+def stack_times_dd(M: np.ndarray, Xh: np.ndarray, Xl=None) -> tuple[np.ndarray, np.ndarray]:
+    """``M·(X_h[k] + X_l[k])`` for every k of a stack of complex double-double matrices (``(K, n, c)``; ``X_l`` None:
+    zero), M real ``(r, n)``: ``(hi, lo)``, each ``(K, r, c)``. The columns of all points side by side (real and
+    imaginary parts apart), in blocks of at most :data:`DD_COLUMNS` entries: the high part by :func:`sliced_dot`
+    (exact BLAS products), the low part's product in double, the three summed by Sum2 — error ``≤ (10(m − 1)² + 3n
+    + 4⌈log₂ n⌉ + 2)·u²·|M||X|`` to first order (:func:`sliced_dot`'s, ``m ≤ 2·SLICES + 3``; ``γ_n·|M||X_l| ≤
+    n·u²·|M||X|`` for the low part; Sum2's ``≤ 2u²``). Batching changes no rounding: a column's slices are scaled by
+    its own exponent, and what the other columns add to its sums (a slice or remainder row it does not need) are
+    exact zeros."""
+    M = np.asarray(M, float)
+    K, n, c = Xh.shape
+    r = M.shape[0]
+
+    def columns(X):  # (n, K·2c): point k's real parts in columns 2ck … 2ck + c − 1, its imaginary parts after them
+        return np.concatenate([X.real, X.imag], axis=2).transpose(1, 0, 2).reshape(n, 2 * K * c)
+
+    H, L = columns(Xh), None if Xl is None else columns(Xl)
+    hi, lo = np.empty((r, H.shape[1])), np.empty((r, H.shape[1]))
+    width = max(1, DD_COLUMNS // max(n, 1))
+    for j in range(0, H.shape[1], width):
+        h, e = sliced_dot(M, H[:, j:j + width])
+        low = [] if L is None else [M @ L[:, j:j + width]]
+        hi[:, j:j + width], lo[:, j:j + width] = compensated_sum([h, e, *low])
+    hi, lo = (v.reshape(r, K, 2 * c).transpose(1, 0, 2) for v in (hi, lo))
+    return _cplx(hi[..., :c], hi[..., c:]), _cplx(lo[..., :c], lo[..., c:])
+
+
+@dataclass(frozen=True)
+class RationalPoints:
+    """Points ``λ_k = (a_k + j·b_k)/q_k`` held exactly: ``a = ah + al`` and ``q = qh + ql`` double-double, ``b`` double
+    (arrays of one length K). :meth:`of` takes complex doubles (``a = Re λ``, ``b = Im λ``, ``q = 1``: exact);
+    :meth:`on_circle` the points ``e^{jω}`` as ``(1 − v² + 2jv)/(1 + v²)``, ``v = tan(ω/2)`` — ``v² = p + e`` exactly
+    (TwoProduct), ``a`` and ``q`` from it by TwoSum with one rounding of the two error terms' sum, so ``|a² + b² − q²|
+    ≲ 8u²·q²``: on the unit circle to ~u² (a point off it by eps moved the gain near a mode at distance d by eps/d),
+    at ``2·atan(v)``, within an ulp of ω."""
+
+    ah: np.ndarray
+    al: np.ndarray
+    b: np.ndarray
+    qh: np.ndarray
+    ql: np.ndarray
+
+    @classmethod
+    def of(cls, lam) -> "RationalPoints":
+        lam = np.atleast_1d(np.asarray(lam, complex))
+        zero = np.zeros(lam.size)
+        return cls(lam.real.copy(), zero, lam.imag.copy(), np.ones(lam.size), zero)
+
+    @classmethod
+    def on_circle(cls, w) -> "RationalPoints":
+        v = np.tan(np.atleast_1d(np.asarray(w, float)) / 2.0)
+        p, e = two_prod(v, v)
+        qh, ql = two_sum(1.0, p)
+        ah, al = two_sum(1.0, -p)
+        return cls(ah, al - e, 2.0 * v, qh, ql + e)
+
+    def __len__(self) -> int:
+        return self.b.size
+
+    def __getitem__(self, idx) -> "RationalPoints":
+        return RationalPoints(self.ah[idx], self.al[idx], self.b[idx], self.qh[idx], self.ql[idx])
+
+    def rounded(self) -> np.ndarray:
+        """The points in complex double (to factor ``λI − A`` in double)."""
+        return (self.ah + 1j * self.b) / self.qh
+
+
+def shifted_solvers(A: np.ndarray, lam, hessenberg: bool = True) -> list:
+    """Per point λ_k a function ``R ↦ (λ_k I − A)^{-1} R`` in double (complex), None where the factorisation meets an
+    exactly zero pivot. ``hessenberg``: the LU with partial pivoting of ``λI − H``, ``A = U H Uᵀ`` the Hessenberg form
+    of :func:`.freqresp.hessenberg_form` (one reduction, then O(n²) per point: LAPACK zgbtrf on the band with one
+    subdiagonal); else the dense LU with partial pivoting of ``λI − A`` (zgetrf, O(n³) per point)."""
+    A = np.asarray(A, float)
+    n = A.shape[0]
+    out = []
+    if not hessenberg:
+        getrf, getrs = sla.get_lapack_funcs(("getrf", "getrs"), (np.zeros(1, complex),))
+        for lk in np.asarray(lam, complex):
+            lu, piv, info = getrf(lk * np.eye(n) - A)
+            out.append(None if info != 0 else (lambda R, lu=lu, piv=piv: getrs(lu, piv, R)[0]))
+        return out
+    H, U = hessenberg_form(A)
+    low, up = min(1, n - 1), n - 1
+    i, j = np.triu_indices(n, -low)
+    band = np.zeros((2 * low + up + 1, n), complex, order="F")
+    band[low + up + i - j, j] = -np.asarray(H, float)[i, j]
+    gbtrf, gbtrs = sla.get_lapack_funcs(("gbtrf", "gbtrs"), (band,))
+    Ut = np.ascontiguousarray(U.T)
+    for lk in np.asarray(lam, complex):
+        ab = band.copy(order="F")
+        ab[low + up] += lk
+        lu, piv, info = gbtrf(ab, low, up)
+        out.append(None if info != 0 else
+                   (lambda R, lu=lu, piv=piv: U @ gbtrs(lu, low, up, np.asarray(Ut @ R, complex), piv)[0]))
+    return out
+
+
+def residual_unit(n: int) -> float:
+    """``c_n·u²``, the relative error of :func:`refine_dd`'s residual at order n (its docstring):
+    ``(10·(2·SLICES + 2)² + 3n + 4⌈log₂ n⌉ + 8)·u²`` (``u = eps/2``)."""
+    return (10 * (2 * SLICES + 2) ** 2 + 3 * n + 4 * int(np.ceil(np.log2(max(n, 1)))) + 8) * (EPS / 2) ** 2
+
+
+def refine_dd(A: np.ndarray, points: RationalPoints, Rh: np.ndarray, Rl, X: np.ndarray, solvers,
+              steps: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Iterative refinement in double-double of ``(λ_k I − A) X_k = R_k`` at every point of ``points`` at once:
+    ``steps`` steps ``X += (λI − A)^{-1} r`` from ``X`` (double, ``(K, n, c)`` complex), the residual r formed in
+    double-double for all points together, each correction solved in double by the point's ``solvers[k]`` (e.g. of
+    :func:`shifted_solvers`; None: the point's results are NaN). ``R = R_h + R_l`` is a complex double-double
+    right-hand side (``R_l`` None: zero), A real. Returns ``(X_h, X_l, D)``: the iterate as an unevaluated sum
+    (``|X_l| ≤ u·|X_h|``) and the last correction D (how far the last step moved).
+
+    **The residual.** With ``λ = (a + jb)/q`` exact (:class:`RationalPoints`) and ``x = x_h + x_l`` it is formed times
+    q, ``q·r = q·R + q·Ax − (a + jb)·x`` (real part ``qR_r + q(Ax)_r − a·x_r + b·x_i``, imaginary ``qR_i + q(Ax)_i −
+    a·x_i − b·x_r``): ``Ax`` by :func:`stack_times_dd` (exact BLAS products over the columns of every point at once,
+    :func:`sliced_dot`), the products
+    of the scalars' high parts with the high parts by :func:`two_prod` (exact), the terms of relative size u (low
+    parts) in double, the four high terms of each part by Sum2 (:func:`compensated_sum`); then rounded to double
+    and divided by q for the correction. Its error, to first order (``u = eps/2``)::
+
+        |q·r̂ − q·r| ≤ c_n·u²·(|q|·|R| + |a + jb|·|x| + |q|·|A||x|),   c_n = 10(m − 1)² + 3n + 4⌈log₂ n⌉ + 8
+
+    (:func:`residual_unit`: ``c_n·u²``) — :func:`stack_times_dd`'s ``(10(m − 1)² + 3n + 4⌈log₂ n⌉ + 2)·u²`` on
+    ``|A||x|`` (``m ≤ 2·SLICES + 3`` = 15: c_n ≤ 1968 + 3n + 4⌈log₂ n⌉), Sum2's ``γ_4²`` on the four high terms, and
+    the low terms' products and sums (each within ``u²`` of its term, the dropped products of two low parts too):
+    at most ``c_n·u²`` times ``|R| + |λI − A||x|`` relative to r (``|λ| = |a + jb|/|q|``).
+
+    **What it guarantees.** Refinement with a solver whose error contracts (``c·u·‖ |(λI − A)^{-1}|·|ΔM| ‖ ≪ 1``, ΔM
+    the solver's backward error) converges, each step dividing the error by that factor, to the solution of the
+    stored system to the residual's precision (Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd ed.,
+    ch. 12): after enough steps ``|X − X_true| ≲ |(λI − A)^{-1}|·c_n·u²·(|R| + |λI − A||X|)``. The
+    routine does not measure the contraction: its callers charge the reading
+    (:func:`fmu_fdi.design.toolkit.postconditions._dd_refined_values` at ``REFINED_UNIT``; :class:`_LightModes` by the
+    last step's move). Per column the arithmetic is that of one point alone: batching changes no rounding."""
+    K, n, c = Rh.shape
+    Rl = np.zeros((K, n, c), complex) if Rl is None else Rl
+    qh, ql, ah, al, b = (np.asarray(v, float)[:, None, None] for v in (points.qh, points.ql, points.ah, points.al,
+                                                                          points.b))
+    xh, xl = np.array(X, complex), np.zeros((K, n, c), complex)
+    xh[np.array([s is None for s in solvers], bool)] = np.nan
+    d = np.zeros((K, n, c), complex)
+
+    def part(R, Rlo, t, tlo, x, xlo, y, ylo, sign):  # a part of q·r (docstring), rounded to double
+        p1, e1 = two_prod(qh, R)
+        p2, e2 = two_prod(qh, t)
+        p3, e3 = two_prod(ah, x)
+        p4, e4 = two_prod(b, y)
+        s, q = compensated_sum([p1, p2, -p3, sign * p4])
+        low = (q + e1 + e2 - e3 + sign * e4 + (qh * Rlo + ql * R) + (qh * tlo + ql * t) - (ah * xlo + al * x)
+               + sign * (b * ylo))
+        return s + low
+
+    q = qh + ql
+    for _ in range(steps):
+        th, tl = stack_times_dd(A, xh, xl)
+        r = _cplx(part(Rh.real, Rl.real, th.real, tl.real, xh.real, xl.real, xh.imag, xl.imag, 1.0) / q,
+                  part(Rh.imag, Rl.imag, th.imag, tl.imag, xh.imag, xl.imag, xh.real, xl.real, -1.0) / q)
+        for k, solve in enumerate(solvers):
+            if solve is not None:
+                d[k] = solve(r[k])
+        xh, xl = dd_add(xh, xl, d, 0.0)
+    return xh, xl, d
+
+
+#: the most entries the factorisations of one block of points of :func:`dd_refined_solves` hold: 2^21 (32 MB complex;
+#: order 125: 130 points a block)
+DD_FACTOR_ENTRIES = 2 ** 21
+
+
+def dd_refined_solves(A: np.ndarray, points: RationalPoints, Rh: np.ndarray, Rl=None, steps: int = 3,
+                      hessenberg: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(λ_k I − A)^{-1}(R_h[k] + R_l[k])`` at every point (``Rh``, ``Rl``: ``(K, n, c)`` complex; ``Rl`` None: zero)
+    in double-double: each point's ``λI − A`` factored in double (:func:`shifted_solvers`), the first solve in double,
+    then :func:`refine_dd` (its docstring: what it guarantees) — in blocks of points whose factorisations hold at
+    most :data:`DD_FACTOR_ENTRIES` entries. Returns ``(X_h, X_l, D)`` as :func:`refine_dd`; NaN at a point where
+    ``λI − A`` is exactly singular."""
+    K, n, c = Rh.shape
+    if n == 0 or K == 0:
+        return tuple(np.zeros((K, n, c), complex) for _ in range(3))
+    Xh, Xl, D = (np.full((K, n, c), np.nan, complex) for _ in range(3))
+    lam = points.rounded()
+    block = max(1, DD_FACTOR_ENTRIES // (n * (n + 2)))
+    for s in range(0, K, block):
+        idx = slice(s, min(K, s + block))
+        solvers = shifted_solvers(A, lam[idx], hessenberg)
+        X0 = np.stack([np.full((n, c), np.nan, complex) if f is None else f(np.asarray(R, complex))
+                       for f, R in zip(solvers, Rh[idx])])
+        Xh[idx], Xl[idx], D[idx] = refine_dd(A, points[idx], Rh[idx], None if Rl is None else Rl[idx], X0, solvers,
+                                             steps)
+    return Xh, Xl, D
+
+
 #: whether :func:`_extended_gains` reads in double-double (:func:`dot2` and the other error-free transformations
 #: above) instead of longdouble: where longdouble is double (Windows, ARM macOS)
 DOUBLE_DOUBLE = EXT_EPS >= EPS
@@ -785,57 +1075,27 @@ DOUBLE_DOUBLE = EXT_EPS >= EPS
 
 def _ext_eps(n: int) -> float:
     """The relative precision of :func:`_extended_gains`' residual — longdouble's eps, or in double-double
-    (:data:`DOUBLE_DOUBLE`) Dot2's ``(n + 2⌈log₂ n⌉)·u²``, bounded by ``max(n, 2)²·eps²``."""
-    return max(n, 2) ** 2 * EPS ** 2 if DOUBLE_DOUBLE else EXT_EPS
+    (:data:`DOUBLE_DOUBLE`) :func:`refine_dd`'s residual, :func:`residual_unit` (``≤ (1968 + 3n + 4⌈log₂ n⌉)·u²``)."""
+    return residual_unit(n) if DOUBLE_DOUBLE else EXT_EPS
 
 
 def _double_double_gains(A, B, C, D, discrete: bool, freqs) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_extended_gains` with the residual and the iterate in double-double (error-free transformations, the
-    section above). The point is ``s = (a + jb)/q`` with ``a, b, q`` exact in double-double: continuous ``a = 0``,
-    ``b = ω``, ``q = 1``; discrete ``v = tan(ω/2)``, ``a = 1 − v²``, ``b = 2v``, ``q = 1 + v²`` — on the unit circle
-    exactly (``a² + b² = q²``), at ``2·atan(v)``, within an ulp of ω. The residual of ``(sI − A)X = B`` times q,
-    ``r = qB + qAX − (a + jb)X`` (real part ``qB + qAX_r − aX_r + bX_i``, imaginary ``qAX_i − aX_i − bX_r``), with
-    ``X = X_h + X_l`` (real and imaginary parts apart), ``A X_h`` by Dot2, the products of the double-double
-    scalars with the high parts by TwoProduct, the terms of relative size eps (low parts) in double and the sum by
-    Sum2; ``C X + D`` the same way. Each step ``X += LU⁻¹ r/q`` contracts by ``κ·eps`` to the residual's floor
-    ``~(n + 2⌈log₂ n⌉)·u²·q·|sI − A||X|`` — below longdouble's on x86."""
-    out, moved = np.empty(freqs.size), np.empty(freqs.size)
-    n = A.shape[0]
-    for i, w in enumerate(np.asarray(freqs, float)):
-        if discrete:
-            v = float(np.tan(w / 2.0))
-            p, e = two_prod(v, v)
-            qh, ql = two_sum(1.0, p)
-            ah, al = two_sum(1.0, -p)
-            ql, al, b = ql + e, al - e, 2.0 * v
-        else:
-            qh, ql, ah, al, b = 1.0, 0.0, 0.0, 0.0, w
-        lu = sla.lu_factor((ah + 1j * b) / qh * np.eye(n) - A, check_finite=False)
-        X = sla.lu_solve(lu, B.astype(complex), check_finite=False)
-        xr, xi = X.real.copy(), X.imag.copy()
-        lr, li = np.zeros_like(xr), np.zeros_like(xi)
-        qB, qBe = two_prod(qh, B)
-        for _ in range(3):
-            terms = []
-            for x, lx, y, ly, sign in ((xr, lr, xi, li, 1.0), (xi, li, xr, lr, -1.0)):
-                th, tl = dot2(A, x)  # A·X_h, then A·X_l in double
-                tl = tl + A @ lx
-                qt, qte = two_prod(qh, th)
-                ax, axe = two_prod(ah, x)
-                by, bye = two_prod(b, y)
-                part = [qt, -ax, sign * by, qte, -axe, sign * bye, qh * tl + ql * th, -(ah * lx + al * x),
-                        sign * b * ly]
-                terms.append(part + ([qB, qBe, ql * B] if sign > 0 else []))
-            rr, ri = (sum(compensated_sum(t)) for t in terms)
-            dX = sla.lu_solve(lu, (rr + 1j * ri) / (qh + ql), check_finite=False)
-            xr, e = two_sum(xr, dX.real)
-            xr, lr = two_sum(xr, lr + e)
-            xi, e = two_sum(xi, dX.imag)
-            xi, li = two_sum(xi, li + e)
-        gr = sum(compensated_sum([D, *dot2(C, xr), C @ lr]))
-        gi = sum(compensated_sum([*dot2(C, xi), C @ li]))
-        out[i] = np.linalg.svd(gr + 1j * gi, compute_uv=False)[0]
-        moved[i] = float(np.linalg.norm(C @ dX)) / max(out[i], np.finfo(float).tiny)
+    """:func:`_extended_gains` with the residual and the iterate in double-double: :func:`dd_refined_solves` (the dense
+    LU of ``sI − A`` in double, three steps, the residual of all points at once) at the exact points of
+    :class:`RationalPoints` — continuous ``s = jω`` (``a = 0``, ``b = ω``, ``q = 1``), discrete ``(1 − v² + 2jv)/(1 +
+    v²)``, ``v = tan(ω/2)``, on the unit circle to ~u²; ``C X + D`` by :func:`stack_times_dd` and Sum2. Each step
+    contracts by ``κ·eps`` to the residual's floor ``~c_n·u²·q·(|B| + |sI − A||X|)`` (:func:`residual_unit`) — below
+    longdouble's on x86. ``moved``: the last correction's ``‖C dX‖`` relative to the gain."""
+    freqs = np.asarray(freqs, float)
+    K = freqs.size
+    pts = RationalPoints.on_circle(freqs) if discrete else RationalPoints.of(1j * freqs)
+    Bs = np.broadcast_to(np.asarray(B, float).astype(complex), (K,) + B.shape)
+    Xh, Xl, dX = dd_refined_solves(A, pts, Bs, None, steps=3, hessenberg=False)
+    Gh, Gl = stack_times_dd(C, Xh, Xl)
+    Dk = np.broadcast_to(np.asarray(D, float), Gh.shape)
+    G = _cplx(sum(compensated_sum([Dk, Gh.real, Gl.real])), sum(compensated_sum([Gh.imag, Gl.imag])))
+    out = np.linalg.svd(G, compute_uv=False)[:, 0]
+    moved = np.linalg.norm(np.asarray(C, float) @ dX, axis=(1, 2)) / np.maximum(out, np.finfo(float).tiny)
     return out, moved
 
 

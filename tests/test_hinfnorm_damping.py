@@ -82,21 +82,32 @@ def decimal_gain2(G: LTI, v) -> Decimal:
             for k in range(n):
                 M[i][k] = M[n + i][n + k] = (lr if i == k else 0) - A[i][k]
             M[i][n + i], M[n + i][i], M[i][N] = -li, li, _dec(G.B[i, 0])
-        for col in range(N):
-            piv = max(range(col, N), key=lambda r: abs(M[r][col]))
-            M[col], M[piv] = M[piv], M[col]
-            for r in range(col + 1, N):
-                f = M[r][col] / M[col][col]
-                if f:
-                    for k in range(col, N + 1):
-                        M[r][k] -= f * M[col][k]
-        x = [Decimal(0)] * N
-        for r in range(N - 1, -1, -1):
-            x[r] = (M[r][N] - sum(M[r][k] * x[k] for k in range(r + 1, N))) / M[r][r]
+        x = decimal_eliminate(M, N)[0]
         c = [_dec(a) for a in G.C[0]]
         gr = _dec(G.D[0, 0]) + sum(c[i] * x[i] for i in range(n))
         gi = sum(c[i] * x[n + i] for i in range(n))
         return gr * gr + gi * gi
+
+
+def decimal_eliminate(M: list, N: int, cols: int = 1) -> list:
+    """The solutions of ``M[:, :N] x = M[:, N + j]`` (rows of Decimals — or Fractions: then exact — the ``cols``
+    right-hand sides after the N columns of the matrix), by Gaussian elimination with partial pivoting in the current
+    decimal context (M is overwritten): a list of ``cols`` solution lists."""
+    for col in range(N):
+        piv = max(range(col, N), key=lambda r: abs(M[r][col]))
+        M[col], M[piv] = M[piv], M[col]
+        for r in range(col + 1, N):
+            f = M[r][col] / M[col][col]
+            if f:
+                for k in range(col, N + cols):
+                    M[r][k] -= f * M[col][k]
+    out = []
+    for j in range(cols):
+        x = [Decimal(0)] * N
+        for r in range(N - 1, -1, -1):
+            x[r] = (M[r][N + j] - sum(M[r][k] * x[k] for k in range(r + 1, N))) / M[r][r]
+        out.append(x)
+    return out
 
 
 def decimal_gain(G: LTI, w: float) -> float:

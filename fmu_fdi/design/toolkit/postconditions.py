@@ -78,8 +78,8 @@ import scipy.linalg as sla
 from ...errors import DesignError
 from ...freqresp import content_key, recall, remember, transfer_values
 from ...linalg import EPS, single_blas_thread
-from ...lti import (LTI, _pole_scales, compensated_sum, frequency_grid, structurally_observed, times_dd, two_prod,
-                   two_sum)
+from ...lti import (LTI, RationalPoints, _pole_scales, dd_add, dd_refined_solves, frequency_grid, refine_dd,
+                   stack_times_dd, structurally_observed)
 from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
 from .plant_modes import BOUNDARY_GAP, EIGVEC_BOUND, boundary_gap, leading_schur  # noqa: F401  (BOUNDARY_GAP: here)
 from .plant_modes import boundary_mode_table as _boundary_modes
@@ -863,50 +863,13 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
     return ((X, Xlo) if rhs_lo is not None else X), W
 
 
-def _cplx(re: np.ndarray, im: np.ndarray) -> np.ndarray:
-    """``re + j·im`` exactly (no complex multiplication)."""
-    z = np.empty(np.shape(re), complex)
-    z.real, z.imag = re, im
-    return z
-
-
-def _dd_matmul(M: np.ndarray, hi: np.ndarray, lo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``M·(hi + lo)`` (M real (r, n), hi and lo complex (n, c)) as ``(hi, lo)``: :func:`fmu_fdi.lti.times_dd` on the
-    real and imaginary parts side by side; error ``≲ (n + 2⌈log₂ n⌉ + 1)·u²·|M||x|``."""
-    c = hi.shape[1]
-    h, e = times_dd(M, np.concatenate([hi.real, hi.imag], axis=1), np.concatenate([lo.real, lo.imag], axis=1))
-    return _cplx(h[:, :c], h[:, c:]), _cplx(e[:, :c], e[:, c:])
-
-
-def _dd_add(ah, al, bh, bl) -> tuple[np.ndarray, np.ndarray]:
-    """``(ah + al) + (bh + bl)`` as ``(hi, lo)``: :func:`fmu_fdi.lti.two_sum` of the high parts (componentwise on
-    complex arrays), the low parts in double, renormalised."""
-    s, e = two_sum(ah, bh)
-    return two_sum(s, e + (al + bl))
-
-
 def _dd_refine(A: np.ndarray, lk: complex, bh: np.ndarray, bl: np.ndarray, x: np.ndarray, solve, steps: int):
-    """``steps`` steps of iterative refinement of ``x ≈ (λI − A)^{-1}(bh + bl)`` with the residual and the iterate in
-    double-double: ``r = b − λx + Ax``, ``x = xh + xl``; ``A·x`` by :func:`_dd_matmul`, ``λ·xh`` by TwoProduct of its
-    four real products (``λ·xl`` in double, a term of relative size u), the four terms of each part (b, Ax, the two
-    products) by Sum2 (:func:`fmu_fdi.lti.compensated_sum`) and the low terms in double; the correction solved in
-    double by ``solve`` and added by :func:`_dd_add`. The residual's error: ``≤ (n + 2⌈log₂ n⌉ + 4)·u²·(|b| +
-    |λ||x| + |A||x|)`` to first order."""
-    lr, li = lk.real, lk.imag
-    xh, xl = x, np.zeros_like(x)
-    for _ in range(steps):
-        ah, al = _dd_matmul(A, xh, xl)
-        p1, e1 = two_prod(lr, xh.real)
-        p2, e2 = two_prod(li, xh.imag)
-        p3, e3 = two_prod(lr, xh.imag)
-        p4, e4 = two_prod(li, xh.real)
-        sr, qr = compensated_sum([bh.real, ah.real, -p1, p2])
-        si, qi = compensated_sum([bh.imag, ah.imag, -p3, -p4])
-        lo_r = qr + bl.real + al.real - e1 + e2 - (lr * xl.real - li * xl.imag)
-        lo_i = qi + bl.imag + al.imag - e3 - e4 - (lr * xl.imag + li * xl.real)
-        d = solve(_cplx(sr + lo_r, si + lo_i))
-        xh, xl = _dd_add(xh, xl, d, np.zeros_like(d))
-    return xh, xl
+    """``steps`` steps of iterative refinement of ``x ≈ (λI − A)^{-1}(bh + bl)`` in double-double at one point:
+    :func:`fmu_fdi.lti.refine_dd` (its docstring: the residual's error ``c_n·u²·(|b| + |λI − A||x|)``,
+    :func:`fmu_fdi.lti.residual_unit`, and what the refinement guarantees), ``solve`` the point's double solve.
+    Returns ``(x_h, x_l)``."""
+    xh, xl, _ = refine_dd(A, RationalPoints.of(lk), bh[None], bl[None], x[None], [solve], steps)
+    return xh[0], xl[0]
 
 
 #: :func:`_decoupled_blocks`: a reading of a decoupled block below this fraction of the row's weakest fault gain
@@ -1287,35 +1250,34 @@ def _refined_values(Qb: LTI, Geb: LTI, lam: np.ndarray, dd: bool = DD_READING) -
 
 def _dd_refined_values(Qb: LTI, Geb: LTI, lam: np.ndarray, steps: int = 3) -> np.ndarray:
     """:func:`_refined_values` in double-double, on every host: ``X_e = (λI − A_e)^{-1} B_e``, ``G = C_e X_e + D_e``,
-    ``Z = (λI − A_q)^{-1}(B_q G)``, ``R_X = C_q Z + D_q G``, each solve refined by :func:`_dd_refine`, each product by
-    :func:`_dd_matmul` and each sum by TwoSum; the value rounded to double at the end.
+    ``Z = (λI − A_q)^{-1}(B_q G)``, ``R_X = C_q Z + D_q G`` at all the points at once — each solve by
+    :func:`fmu_fdi.lti.dd_refined_solves` (the LU of ``λI − H`` on the Hessenberg form, as :func:`_refined_solves`,
+    then ``steps`` steps of :func:`fmu_fdi.lti.refine_dd`), each product by :func:`fmu_fdi.lti.stack_times_dd` and each
+    sum by :func:`fmu_fdi.lti.dd_add`; the value rounded to double at the end.
 
     **Its unit.** Each refined solve converges (contraction ``~3N·u·|| |(λI − A)^{-1}| |λI − A| ||`` per step, as in
-    :func:`_refined_solves`) to the solution of the stored system to its residual's error, ``(n + 2⌈log₂ n⌉ +
-    4)·u²`` times ``|b| + |λI − A||x|`` (:func:`_dd_refine`); the products and sums add ``(n + 2⌈log₂ n⌉ + 2)·u²``
-    times ``|C_q||Z| + |D_q||G|`` and ``|B_q||G|``: the error terms of :func:`_decoupled_reading`'s bound, each with
-    the factor ``(N + 2⌈log₂ N⌉ + 4)·u² ≤ 3N·2^-64`` for every N ≥ 1 (``u² = 2^-106``: the ratio is ≥ 2^42·3N/(3N +
-    4) ≫ 1, room for the refinement's remaining contraction ``(3N·u·κ)^steps`` with ``κ`` the componentwise condition
-    up to 1e8 at ``steps = 3``). So the reading is charged at :data:`REFINED_UNIT` = 2^-64, as x87's — the same
-    points are refined and proven as on x86. The final rounding to double, ``u·|R_X|``, is relative to the value
-    itself (the bound on x86 leaves out its own the same way)."""
+    :func:`_refined_solves`) to the solution of the stored system to its residual's error, ``c_n·u²`` times ``|b| +
+    |λI − A||x|`` (:func:`fmu_fdi.lti.refine_dd`; ``c_n = 1968 + 3n + 4⌈log₂ n⌉``, :func:`fmu_fdi.lti.residual_unit`,
+    the 1960 a worst case of the exact slice products' Sum2 — measured ≤ 1.4 against fractions); the products and sums
+    add ``(c_n − 4)·u²`` times ``|C_q||Z| + |D_q||G|`` and ``|B_q||G|`` (:func:`fmu_fdi.lti.stack_times_dd`'s
+    ``(1962 + 3n + 4⌈log₂ n⌉)·u²``, TwoSum's renormalisation ``2u²``): the error terms of :func:`_decoupled_reading`'s
+    bound, each with the factor ``c_N·u² ≤ 3N·2^-64`` for every N ≥ 1 (``u² = 2^-106``: the ratio 2^42·3N/c_N is ≥
+    2^42·3/1971 > 2^32 ≫ 1, room for the refinement's remaining contraction ``(3N·u·κ)^steps`` with ``κ`` the
+    componentwise condition up to 1e8 at ``steps = 3``). So the reading is charged at :data:`REFINED_UNIT` = 2^-64, as
+    x87's — the same points are refined and proven as on x86. The final rounding to double, ``u·|R_X|``, is relative
+    to the value itself (the bound on x86 leaves out its own the same way)."""
     K = lam.size
+    pts = RationalPoints.of(lam)
     Gh = np.broadcast_to(np.asarray(Geb.D, float).astype(complex), (K,) + Geb.D.shape).copy()
     Gl = np.zeros_like(Gh)
     if Geb.n:
         B = np.broadcast_to(np.asarray(Geb.B, float).astype(complex), (K,) + Geb.B.shape)
-        Xh, Xl = _refined_solves(Geb.A, lam, B, Geb.C, refine=np.ones(K, bool), steps=steps,
-                                 rhs_lo=np.zeros(B.shape, complex))[0]
-        for k in range(K):
-            Gh[k], Gl[k] = _dd_add(*_dd_matmul(Geb.C, Xh[k], Xl[k]), Gh[k], Gl[k])
-    Rh, Rl = np.zeros((K, Qb.p, Geb.m), complex), np.zeros((K, Qb.p, Geb.m), complex)
-    Bh, Bl = np.zeros((K, Qb.n, Geb.m), complex), np.zeros((K, Qb.n, Geb.m), complex)
-    for k in range(K):
-        Bh[k], Bl[k] = _dd_matmul(Qb.B, Gh[k], Gl[k])
-        Rh[k], Rl[k] = _dd_matmul(Qb.D, Gh[k], Gl[k])
-    Zh, Zl = _refined_solves(Qb.A, lam, Bh, Qb.C, refine=np.ones(K, bool), steps=steps, rhs_lo=Bl)[0]
-    for k in range(K):
-        Rh[k], Rl[k] = _dd_add(*_dd_matmul(Qb.C, Zh[k], Zl[k]), Rh[k], Rl[k])
+        Xh, Xl, _ = dd_refined_solves(Geb.A, pts, B, None, steps)
+        Gh, Gl = dd_add(*stack_times_dd(Geb.C, Xh, Xl), Gh, Gl)
+    Rh, Rl = stack_times_dd(Qb.D, Gh, Gl)
+    if Qb.n:
+        Zh, Zl, _ = dd_refined_solves(Qb.A, pts, *stack_times_dd(Qb.B, Gh, Gl), steps)
+        Rh, Rl = dd_add(*stack_times_dd(Qb.C, Zh, Zl), Rh, Rl)
     return Rh + Rl
 
 
