@@ -83,19 +83,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from fmu_fdi import DesignError, approximate_model_matching  # noqa: E402
 from fmu_fdi.design.problems.approximate_matching import fault_noise_map  # noqa: E402
 from fmu_fdi.lti import LTI, hstack  # noqa: E402
-from synthesis_models import random_model  # noqa: E402
-from test_synthesis_ammp import _numpy_leak_and_faults  # noqa: E402
+from test_synthesis_ammp import _numpy_leak_and_faults, _random_case  # noqa: E402
 
 #: the judge's decoupling tolerance on Varga's normalised form (postconditions.DEC_TOL)
 DEC_TOL = 1e-7
-
-
-def reference(model, seed: int) -> LTI:
-    rng = np.random.default_rng(100 + seed)
-    r = 1 + seed % 2
-    pole = np.array([[0.5]]) if model.dt else np.array([[-2.0]])
-    return LTI(np.kron(np.eye(r), pole), rng.normal(size=(r, model.nf)), np.eye(r), np.zeros((r, model.nf)),
-               model.dt)
 
 
 def error_values(gen, Mr, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -163,8 +154,7 @@ def run(N: int = 30, verbose: bool = True) -> dict:
     reasons: dict[str, int] = {}
     times = []
     for seed in range(N):
-        model = random_model(seed)
-        Mr = reference(model, seed)
+        model, Mr = _random_case(seed)  # (a random stable first-order Mr of 1-2 rows)
         ginf = None
         for norm in ("inf", "2"):
             t = time.perf_counter()
