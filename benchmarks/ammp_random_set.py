@@ -71,6 +71,15 @@ does not run).
 every verdict and gamma_sub identical; total design time 439.47 → 439.78 s (1.001; per-design geometric mean 1.013,
 noise). The new refusal of references no admissible filter approaches (approximate_matching._unapproachable_reference)
 refuses none of these (their Mr has 1-2 rows, the admissible fault rank 2-4); its stage costs 0.5 ms median, 17 ms max.
+
+28 Nov, amm23 (7bc7918 from a git archive and the branch, run concurrently, ``20``): two runs, ok 40 / 0 / 0 / 0 / 0
+both, every verdict and gamma_sub identical both times. Run 1 (a78a7a4 + the batched H2 quadrature, load ~4): total
+design time 149.57 → 146.31 s (0.978; H∞ 95.97 → 97.94, H2 53.60 → 48.37); run 2 (03f1cb3, beside other sessions,
+load ~9): 313.32 → 299.82 s (0.957; per-design geometric mean H∞ 1.052, H2 0.795). The H∞ cost is the distance reading
+of _unapproachable_reference (29 ms median, 156 ms max per design after its lazy certification; 131 ms before it);
+H2 gains from _h2_quad's one call for every node. The distance bound it computes is below every returned H∞ error and
+close to it on four of the 20 (seeds 1, 8, 11, 12: 3.842543, 1.309548, 5.19502, 0.801031 against gamma_sub 3.843,
+1.31, 5.195, 0.8012).
 """
 import sys
 import time
