@@ -618,9 +618,10 @@ def _unapproachable_reference(model, G1: LTI, Mr: LTI, norm: str, restricted: bo
     16 with ``Mr = [I_r 0]``, r their admissible rank, returned errors 1.00001 … 1.00003 against Q = 0's 1 with a note:
     the first r fault columns of G1 lose rank at the fault-only plant mode s = 1, 1, ±2j, 1 and at s = 0 (seed 16), so
     ``d = 1`` there — on the axis for 8 and 16, inside the right half plane for 2, 6, 12, where no boundary grid sees
-    it: on the axis their ``d`` stays ≤ 0.9999). Refused (DesignError) with the reading, ``β`` and ``||Mr||∞``. Where
-    ``β < ||Mr||∞`` the design proceeds (its optimum lies in ``[β, ||Mr||∞]``), and the γ-iteration's certificate is
-    checked against Q = 0 once more (:func:`_certified_at_zero_filter`).
+    it: on the axis their ``d`` peaks at 0.99894, 0.99530, 0.99997, 0.99300 for seeds 2, 6, 8, 12). Refused
+    (DesignError) with the reading, ``β`` and ``||Mr||∞``. Where ``β < ||Mr||∞`` the design proceeds (its optimum lies
+    in ``[β, ||Mr||∞]``), and the γ-iteration's certificate is checked against Q = 0 once more
+    (:func:`_certified_at_zero_filter`).
 
     Readings; each can only under-read (3), so neither the points chosen nor rounding cause a false refusal:
 
