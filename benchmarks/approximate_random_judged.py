@@ -68,6 +68,7 @@ check_case picks) and then the bank's gaps read two ways in the same run: the ba
 member's states) against ``banks.row_gaps`` (each row on its own member); prints both times, their
 ratio and the largest relative difference of the gaps.
 """
+import re
 import sys
 from pathlib import Path
 
@@ -92,8 +93,59 @@ def _desc(seed: int) -> str:
     return f"n={m.n} p={m.ny} m={m.nu} nd={m.nd} nw={m.nw} nf={m.nf} {'disc' if m.dt else 'cont'}"
 
 
+#: the rank a rank-bound refusal names (approximate_matching._unapproachable_reference's message)
+_RANK_CLAIM = re.compile(r"normal rank (\d+) \(that of Q0")
+
+
+def rank_refusals_judged(seed: int, results):
+    """``results`` of check_case with every ``amm(Mr=I)`` refusal that names the rank bound judged again by numpy:
+    every admissible filter is ``Y·Q0`` (Q0 a left null-space basis of ``[Gu Gd; I 0]``), so its fault response has
+    normal rank at most ``r = rank [Gd Gf] − rank Gd`` (output rows; u is known), and with ``Mr = I`` on nf faults
+    Weyl's bound ``sup σ_{r+1}(Mr) = 1 = ‖Mr‖∞`` makes Q = 0 optimal exactly when r < nf. Numpy's r:
+    test_audit_achievable_rank's normal-rank test (unit-norm columns, four generic points, RANK_TOL = 1e-8, a decision
+    inside UNDECIDED fails loudly). A refusal is broken when numpy's r is nf (some admissible filter does better than
+    none) or differs from the r the message names."""
+    if not any(what == "amm(Mr=I)" and st == "refused" for what, st, _ in results):
+        return results
+    import numpy as np
+
+    from test_audit_achievable_rank import RANK_TOL, UNDECIDED, _normalised
+    from test_synthesis_random import _extended, _freqresp
+
+    model = noisy_case(seed)
+    rng = np.random.default_rng(0)
+    lam = rng.uniform(0.3, 3.0, 4) * np.exp(1j * rng.uniform(0.2, 1.3, 4))
+    A, B, Ce, De = _extended(model)
+    G = _freqresp(A, B, Ce[:model.ny], De[:model.ny], lam)
+    d = list(range(model.nu, model.nu + model.nd))
+    f = list(range(model.nu + model.nd + model.nw, B.shape[1]))
+
+    def rank(M):
+        s = np.linalg.svd(_normalised(M), compute_uv=False) if M.size else np.zeros(0)
+        ratios = s / s[0] if s.size and s[0] > 0 else s
+        return int(np.sum(ratios > RANK_TOL)), [x for x in ratios if UNDECIDED[0] < x < UNDECIDED[1]]
+
+    r, undecided = 0, []
+    for Gk in G:
+        rd, ud = rank(Gk[:, d])
+        rdf, udf = rank(Gk[:, d + f])
+        r, undecided = max(r, rdf - rd), undecided + ud + udf
+    out = []
+    for what, st, detail in results:
+        claim = _RANK_CLAIM.search(detail) if what == "amm(Mr=I)" and st == "refused" else None
+        if claim:
+            if undecided:
+                st, detail = "broken", f"rank test cannot decide {undecided[:2]}; " + detail
+            elif r >= model.nf or r != int(claim.group(1)):
+                st, detail = "broken", (f"false refusal (numpy's normal rank of Q0·[Gf; 0] is {r} of nf = "
+                                        f"{model.nf}): " + detail)
+        out.append((what, st, detail))
+    return out
+
+
 def run(N: int = 20, first: int = 0, verbose: bool = False):
-    return tally(range(first, first + N), check_case, _desc, kind=_kind, width=34, verbose=verbose)
+    return tally(range(first, first + N), lambda seed: rank_refusals_judged(seed, check_case(seed)), _desc,
+                 kind=_kind, width=34, verbose=verbose)
 
 
 def gap_time(seeds) -> None:
