@@ -1,0 +1,79 @@
+"""Audit of seeds nobody had run (issue 17, fifteenth session), judged by numpy: exact
+``benchmarks/synthesis_random_judged.py`` from seed 1009, approximate ``benchmarks/approximate_random_judged.py`` from
+seed 360, and the exact model-matching families (``--matching``) from seed 236 (the tallies: those scripts' docstrings
+and the commit messages). Two findings:
+
+- **Exact matching seed 1149, unstable family with updating** (tests/test_synthesis_matching_order.py's
+  ``_random_model(1149, unstable=True)``: discrete, n 6, p 3, m 2, nd 1, two faults; plant poles 0.667 … 0.976 and
+  1.043) — ``model_matching(model, Rf, updating=True)`` with ``Rf`` the fault response of a degree-2 detection row
+  (an exact solution of degree 2 exists: that row) was refused "u+d leak 1.03e-07 (± 1.6e-12) × the weakest fault
+  gain > dec_tol = 1e-07". Numpy read the same: the least-order row from the pencil basis of the augmented system
+  ``[Gu Gd Gf; 0 0 Mr; I 0 0]`` leaks 6.7e-8 on u, d and misses Mr by 1.7e-7 (Rf itself equals Q*·Gf to 6e-14).
+  Cause: the staircase's rank decisions at the core's relative tolerance (mm_tol 1e-9; at 1e-11 it reads index 7
+  instead of 2) truncate entries of that size, amplified in the row by the plant's gain (‖Ge‖ 187 near z = 1). Fixed
+  in ``least_solve._refined_row``: the stable least-order solution's numerator is refitted (poles kept) to the
+  matching equation itself on the plant's data (grid, plus points beside the plant poles outside the region, where a
+  residue of R counts 1e4-fold), taken only when that lowers the equation's largest residual: leak 1.36e-11, match
+  2.0e-11 (numpy, below).
+- **Approximate seed 458, approximate_model_matching with Mr = an exact detection row's Rf** (continuous n 16, p 4,
+  m 5, nd 2, nf 5; a fault-only integrator at −2.5e-16) — refused "the returned filter's error response differs from
+  the designed one by 0.531 (relative 0.081, limit 0.001; 0.725 times its rounding estimate, at most 3.87 of the
+  error's size; the candidates' gaps are 4.97, 0.0508 times their worst-case first-order rounding bound)": an
+  achievable request (the reference row itself is admissible, error ‖Q_ref·Gw‖∞ = 10.6). Owner:
+  approximate_matching.py (``_shipped_filter``); pinned as a strict xfail.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from test_approximate_random import check_case  # noqa: E402
+from test_synthesis_matching_order import _detection_reference  # noqa: E402
+from test_synthesis_random import _extended, _freqresp  # noqa: E402
+
+# dec_tol of the issue's judge (absolute on the row normalised to its weakest fault gain 1). Numpy's reading of
+# Q(λ)·Ge(λ) errs by ≲ γ_{3n}·‖Q‖·‖Ge‖ (GEPP on the balanced λI − A, Higham Thm 9.3): n ≤ 8, ‖Q‖ ≤ 2.3, ‖Ge‖ ≤ 187
+# on the grid ≥ 1e-3 off the plant's poles — ≤ 1e-11 of the weakest fault gain (0.85): the tolerance is the
+# contract itself, with four decades to spare over the reading's error.
+TOL = 1e-7
+
+
+def test_seed1149_unstable_reference_is_matched_without_leak():
+    """~0.5 s. The matched filter decouples u, d to TOL of its weakest fault gain and matches M·Rf to TOL of its
+    peak, at no higher order than the reference row (2), all read by numpy on 3000 points of the unit circle
+    ≥ 1e-3 off the plant's poles. Old code: DesignError "u+d leak 1.03e-07 … > dec_tol" (numpy read the row of the
+    pencil basis at 6.7e-8 leak, 1.7e-7 mismatch); new: 1.36e-11, 2.0e-11."""
+    from fmu_fdi.design.problems.matching import model_matching
+
+    model, ref = _detection_reference(1149, unstable=True)
+    gen = model_matching(model, ref.Rf, updating=True)
+    assert gen.info["row_orders"][0] <= ref.Q.n
+    lam = np.exp(1j * np.linspace(0.0, np.pi, 3000))
+    ev = np.linalg.eigvals(model.A)
+    lam = lam[np.min(np.abs(lam[:, None] - ev[None, :]), axis=1) > 1e-3]
+    R = _freqresp(gen.Q.A, gen.Q.B, gen.Q.C, gen.Q.D, lam) @ _freqresp(*_extended(model), lam)
+    M = gen.info["M"]
+    want = _freqresp(M.A, M.B, M.C, M.D, lam) @ _freqresp(ref.Rf.A, ref.Rf.B, ref.Rf.C, ref.Rf.D, lam)
+    ud, f0 = model.nu + model.nd, model.nu + model.nd + model.nw
+    weakest = min(float(np.abs(R[:, :, f0 + j]).max()) for j in range(model.nf))
+    assert weakest > 0.1  # the normalised row's faults: 0.85 and 1.63
+    assert float(np.abs(R[:, :, :ud]).max()) <= TOL * weakest
+    assert float(np.abs(R[:, :, f0:] - want).max()) <= TOL * float(np.abs(want).max())
+    eig = np.linalg.eigvals(gen.Q.A) if gen.Q.n else np.zeros(0)
+    assert np.all(np.abs(eig) < 1.0)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 17: approximate_matching._shipped_filter refuses an achievable "
+                                       "reference (error response 'differs from the designed one by 0.531')")
+def test_seed458_detection_row_reference_is_designed():
+    """~10-25 s under load (5.5 s of it the refused design). test_approximate_random's check_case on the call
+    alone: designed, and its numpy judge (decoupling, R stable, the reported error equal to numpy's, no worse than
+    the reference row's own 10.6) passes."""
+    res = check_case(458, calls=("amm_ref",))
+    assert [st for _, st, _ in res] == ["ok"], res
