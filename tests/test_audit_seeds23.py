@@ -20,7 +20,19 @@ and the commit messages). Two findings:
   the designed one by 0.531 (relative 0.081, limit 0.001; 0.725 times its rounding estimate, at most 3.87 of the
   error's size; the candidates' gaps are 4.97, 0.0508 times their worst-case first-order rounding bound)": an
   achievable request (the reference row itself is admissible, error ‖Q_ref·Gw‖∞ = 10.6). Owner:
-  approximate_matching.py (``_shipped_filter``); pinned as a strict xfail.
+  approximate_matching.py (``_shipped_filter``); pinned as a strict xfail. With ``SHIPPED_ACCURACY`` lifted to 1
+  (patched for the run) the candidate ships, decoupled and stable by numpy, error 4.34379 by numpy against the
+  reported 4.37613 (0.74 % apart, above the judge's ERR_RTOL 1e-3): the comparison cannot resolve the candidates
+  (its own rounding bound is 3.87 times the error's size), and the reported figure is not the shipped filter's.
+- **Approximate seed 479, the same call** (discrete n 9, p 3, m 6, nd 2, nf 4; plant poles 0.93 … 0.985, lightly
+  damped pairs at 0.985 ± 0.031j, 0.979 ± 0.011j) — refused "u/d leak 1.29e-05 (± 1.7e-09) plus the realisation's
+  rounding sensitivity 1.8e-11 = 1.29e-05 of its weakest required fault's gain 2.23e-05 > dec_tol": the reference
+  row's fault columns peak at 1, 1.58, 42.6, 50.5 but its noise gain is ‖Q_ref·Gw‖∞ = 20787, so the optimal filter
+  is near Q = 0 (error ‖Mr‖∞ ≥ 50.5) and its weakest fault column shrinks to 2.2e-5 of the reference's, below which
+  its u/d rounding is no longer dec_tol. The refusal names the leak, not the condition (matching near Q = 0's
+  error: amm23's topic, approximate_matching.py). Pinned as a strict xfail on the audit's verdict; if the fix is a
+  refusal naming a near-zero optimum, test_approximate_random.check_case must count that refusal of ``amm_ref``
+  as justified (it now counts every refusal of the detection-row reference as broken).
 """
 from __future__ import annotations
 
@@ -76,4 +88,13 @@ def test_seed458_detection_row_reference_is_designed():
     alone: designed, and its numpy judge (decoupling, R stable, the reported error equal to numpy's, no worse than
     the reference row's own 10.6) passes."""
     res = check_case(458, calls=("amm_ref",))
+    assert [st for _, st, _ in res] == ["ok"], res
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 17: approximate_model_matching refuses the detection-row reference for "
+                                       "a u/d leak of a near-zero optimal filter (weakest fault gain 2.2e-5)")
+def test_seed479_detection_row_reference_is_designed():
+    """~10-20 s under load (6 s of it the refused design). As seed 458's test."""
+    res = check_case(479, calls=("amm_ref",))
     assert [st for _, st, _ in res] == ["ok"], res
