@@ -1,7 +1,8 @@
 """Audit of seeds nobody had run (issue 17, fifteenth session), judged by numpy: exact
 ``benchmarks/synthesis_random_judged.py`` from seed 1009, approximate ``benchmarks/approximate_random_judged.py`` from
 seed 360, and the exact model-matching families (``--matching``) from seed 236 (the tallies: those scripts' docstrings
-and the commit messages). Two findings:
+and the commit messages). Four findings; the first fixed here, the other three (approximate_matching.py and the
+judge, files this audit does not own) pinned as strict xfails:
 
 - **Exact matching seed 1149, unstable family with updating** (tests/test_synthesis_matching_order.py's
   ``_random_model(1149, unstable=True)``: discrete, n 6, p 3, m 2, nd 1, two faults; plant poles 0.667 … 0.976 and
