@@ -53,8 +53,11 @@ judge, files this audit does not own) pinned as strict xfails:
   plant poles up to 0.986, 0.992, 0.996 and a marginal 1.0) — found in the session's last half hour: the row
   [0 1 1 1 0] (fs1 and fc decoupled), listed by ``achievable_structure`` and by numpy's normal-rank test, is refused
   "nullspace design fails its post-conditions (decoupling): residual 1: u+d leak 1.49e-06 (± 5.4e-10) × the
-  weakest fault gain > dec_tol" (4.7 s alone). Not diagnosed (nullspace.py / pencil.py, this audit's files: next
-  session); pinned as a strict xfail.
+  weakest fault gain > dec_tol" (4.7 s alone). The refusal reads the filter right: numpy's product of the last
+  checked generator (order 44, one row; 3,990 points on the unit circle ≥ 1e-3 off the plant's poles) leaks u, d
+  9.96e-7 (at z = e^{1.266j}, away from the marginal pole), the excluded fc 8.4e-7 and fs1 2.5e-8, for required
+  gains fs2 1.0, fa1 5.46, fa2 3.86 — the null-space row itself is inaccurate at 1e-6. Cause not found in the time
+  left (nullspace.py / pencil.py, this audit's files: next session); pinned as a strict xfail.
 """
 from __future__ import annotations
 
