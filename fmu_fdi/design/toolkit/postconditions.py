@@ -1240,7 +1240,10 @@ def _refine_mask(val: np.ndarray, err: np.ndarray, blocks: list, N: int, refined
 def _refined_values(Qb: LTI, Geb: LTI, lam: np.ndarray, dd: bool = DD_READING) -> np.ndarray:
     """``R_X`` of the row ``Qb`` on the columns ``Geb`` at the points λ with the row's solves refined in the
     extended type (:func:`_refined_solves`); with ``dd`` (default where longdouble is double) in double-double
-    (:func:`_dd_refined_values`)."""
+    (:func:`_dd_refined_values`). Two steps converge on the ill-scaled cases measured against a 40–50-digit truth
+    from the stored data (tests/test_judge_refined_bound.py: H∞ matching seed 4, order 22; audit seed 338, order
+    125): error ≤ 4.0e-3 resp. 1.6e-3 of the refined bound ``3N·u_x·||err||`` at every point measured, the same
+    at 1, 3 or 5 steps."""
     if dd:
         return _dd_refined_values(Qb, Geb, lam)
     G = _plant_values(Geb, lam)
