@@ -78,7 +78,7 @@ import scipy.linalg as sla
 from ...errors import DesignError
 from ...freqresp import content_key, recall, remember, transfer_values
 from ...linalg import EPS, single_blas_thread
-from ...lti import (LTI, RationalPoints, _pole_scales, dd_add, dd_refined_solves, frequency_grid, refine_dd,
+from ...lti import (LTI, RationalPoints, _pole_scales, dd_add, dd_refined_solves, frequency_grid,
                    stack_times_dd, structurally_observed)
 from ...margin import R_POLE_TOL, _reachable, default_smarg, margin_reduced, near_poles, outside_margin  # noqa: F401
 from .plant_modes import BOUNDARY_GAP, EIGVEC_BOUND, boundary_gap, leading_schur  # noqa: F401  (BOUNDARY_GAP: here)
@@ -803,13 +803,12 @@ REFINED_UNIT = 2.0 ** -64 if DD_READING else EXT_UNIT
 
 
 def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.ndarray, refine=None, steps: int = 2,
-                    rhs_lo=None, with_left: bool = False):
+                    with_left: bool = False):
     """Per point λ_k: ``X_k = (λ_k I − A)^{-1} rhs_k`` (rhs: (K, n, c) in the extended type) and ``W_k = left·(λ_k I −
     A)^{-1}``, in double; at the points of the mask ``refine`` (default none) X_k refined in the extended type and W_k
     not computed unless ``with_left`` (then from the same LU, bit for bit the plain pass's W_k). Non-finite where
-    ``λ_k I − A`` is singular. With ``rhs_lo`` (complex, rhs's shape) the right-hand
-    side is the double-double ``rhs + rhs_lo`` and X_k is refined in double-double (:func:`_dd_refine`), returned as
-    the pair ``(X_hi, X_lo)``.
+    ``λ_k I − A`` is singular. (Where longdouble is double the judge refines in double-double instead:
+    :func:`_dd_refined_values`.)
 
     Each point: the LU factorisation with partial pivoting of ``λI − H`` (``A = U H Uᵀ``, the Hessenberg form of
     :func:`fmu_fdi.freqresp.hessenberg_form`, O(n²) per point); refined: ``steps`` steps of iterative refinement whose
@@ -819,8 +818,7 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
     from ...freqresp import hessenberg_form
 
     K, n, c = rhs.shape
-    X = np.full((K, n, c), np.nan, np.clongdouble if refine is not None and rhs_lo is None else complex)
-    Xlo = np.zeros((K, n, c), complex)
+    X = np.full((K, n, c), np.nan, np.clongdouble if refine is not None else complex)
     W = np.full((K, left.shape[0], n), np.nan, complex)
     H, U = hessenberg_form(A)
     Ax = A.astype(np.longdouble)
@@ -849,9 +847,6 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
         if refine is None:
             X[k] = x
             continue
-        if rhs_lo is not None:
-            X[k], Xlo[k] = _dd_refine(np.asarray(A, float), lk, b, rhs_lo[k], x, solve, steps)
-            continue
         x = x.astype(np.clongdouble)
         for _ in range(steps):  # (A real: its products with the real and imaginary parts, no complex copy of A;
             # np.dot, whose longdouble loop is ~10x numpy's generic matmul loop for that type: 0.04 ms against 0.36 ms
@@ -860,16 +855,7 @@ def _refined_solves(A: np.ndarray, lam: np.ndarray, rhs: np.ndarray, left: np.nd
             Axx = Ar[:, :c] + 1j * Ar[:, c:]
             x = x + solve((b - (np.clongdouble(lk) * x - Axx)).astype(complex))
         X[k] = x
-    return ((X, Xlo) if rhs_lo is not None else X), W
-
-
-def _dd_refine(A: np.ndarray, lk: complex, bh: np.ndarray, bl: np.ndarray, x: np.ndarray, solve, steps: int):
-    """``steps`` steps of iterative refinement of ``x ≈ (λI − A)^{-1}(bh + bl)`` in double-double at one point:
-    :func:`fmu_fdi.lti.refine_dd` (its docstring: the residual's error ``c_n·u²·(|b| + |λI − A||x|)``,
-    :func:`fmu_fdi.lti.residual_unit`, and what the refinement guarantees), ``solve`` the point's double solve.
-    Returns ``(x_h, x_l)``."""
-    xh, xl, _ = refine_dd(A, RationalPoints.of(lk), bh[None], bl[None], x[None], [solve], steps)
-    return xh[0], xl[0]
+    return X, W
 
 
 #: :func:`_decoupled_blocks`: a reading of a decoupled block below this fraction of the row's weakest fault gain
