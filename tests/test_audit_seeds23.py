@@ -37,10 +37,10 @@ judge, files this audit does not own) pinned as strict xfails:
   rounding sensitivity 1.8e-11 = 1.29e-05 of its weakest required fault's gain 2.23e-05 > dec_tol": the reference
   row's fault columns peak at 1, 1.58, 42.6, 50.5 but its noise gain is ‖Q_ref·Gw‖∞ = 20787, so the optimal filter
   is near Q = 0 (error ‖Mr‖∞ ≥ 50.5) and its weakest fault column shrinks to 2.2e-5 of the reference's, below which
-  its u/d rounding is no longer dec_tol. The refusal names the leak, not the condition (matching near Q = 0's
-  error: amm23's topic, approximate_matching.py). Pinned as a strict xfail on the audit's verdict; if the fix is a
-  refusal naming a near-zero optimum, test_approximate_random.check_case must count that refusal of ``amm_ref``
-  as justified (it now counts every refusal of the detection-row reference as broken).
+  its u/d rounding is no longer dec_tol. Pinned as a strict xfail; it XPASSed on integ23 (f42920d). Bisected
+  (amm24): refused on main 7bc7918, on amm23's commits and on dd23's tip; designed from judge23's 8b9da85 on (the
+  plain reading's bound adds its measured residual |W r̂|) — the design now ships an order-36 filter at error
+  66.08268 = γ_opt (zero filter 66.08356), normalised u/d leak 3.2e-10, judged ok by numpy: a passing test.
 - **Approximate seed 500, the same call** (continuous n 11, p 3, m 3, nd 2, nf 5; a fault-only integrator at
   2.2e-16) — refused "the returned filter's error was read as 15.6870387, below the γ-iteration's certified
   infeasible level 15.6881036": the post-condition is right about the reading. With ``_below_certified_refused``
@@ -148,10 +148,12 @@ def test_seed458_shipped_response_is_read_as_the_product():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 17: approximate_model_matching refuses the detection-row reference for "
-                                       "a u/d leak of a near-zero optimal filter (weakest fault gain 2.2e-5)")
 def test_seed479_detection_row_reference_is_designed():
-    """~10-20 s under load (6 s of it the refused design). As seed 458's test."""
+    """~2-5 s under load. As seed 458's test (a strict xfail until judge23's bound; XPASSed on integ23 f42920d).
+    Cause, bisected on this check alone: refused (u/d leak 1.29e-5 of the weakest fault gain 2.23e-5) on main 7bc7918,
+    on amm23's a78a7a4, 03f1cb3, ac0cfcd and on dd23's b3e8179; designed from judge23's 8b9da85 on (postconditions:
+    the plain reading's bound adds its measured residual |W r̂|; its parent is 7bc7918). Now: order 36, error
+    66.08268 (= γ_opt, below the zero filter's 66.08356), normalised u/d leak 3.2e-10, no plant-mode cancellation."""
     res = check_case(479, calls=("amm_ref",))
     assert [st for _, st, _ in res] == ["ok"], res
 
