@@ -2994,15 +2994,17 @@ def _refined_peak(values, lam: np.ndarray, dt: float, climb: bool = False) -> fl
     order = np.argsort(w)
     w, sig = w[order], sig[order]
     seen_w, seen_s = [w], [sig]
-    for i in np.argsort(sig)[-3:]:
-        lo, hi = w[max(i - 1, 0)], w[min(i + 1, w.size - 1)]
+
+    def refined(lo, hi):  # the peak of 60 points in [lo, hi], kept with the points seen
         ww = np.linspace(lo, hi, 60)
-        L = np.exp(1j * ww * dt) if dt else 1j * ww
-        v = _nrm(values(L))
+        v = _nrm(values(np.exp(1j * ww * dt) if dt else 1j * ww))
         v[~np.isfinite(v)] = 0.0
         seen_w.append(ww)
         seen_s.append(v)
-        best = max(best, float(np.max(v, initial=0.0)))
+        return float(np.max(v, initial=0.0))
+
+    for i in np.argsort(sig)[-3:]:
+        best = max(best, refined(w[max(i - 1, 0)], w[min(i + 1, w.size - 1)]))
     for _ in range(2 if climb else 0):
         aw, as_ = np.concatenate(seen_w), np.concatenate(seen_s)
         order = np.argsort(aw, kind="stable")
@@ -3014,13 +3016,7 @@ def _refined_peak(values, lam: np.ndarray, dt: float, climb: bool = False) -> fl
         hi = aw[i + 1 + right[0]] if right.size else aw[-1]
         if not lo < hi:
             break
-        ww = np.linspace(lo, hi, 60)
-        L = np.exp(1j * ww * dt) if dt else 1j * ww
-        v = _nrm(values(L))
-        v[~np.isfinite(v)] = 0.0
-        seen_w.append(ww)
-        seen_s.append(v)
-        best = max(best, float(np.max(v, initial=0.0)))
+        best = max(best, refined(lo, hi))
     return best
 
 
