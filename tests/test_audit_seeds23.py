@@ -40,6 +40,9 @@ judge, files this audit does not own) pinned as strict xfails:
   agree to 1.7e-7) — a displaced integrator r·δp/λ² that Q's cancellation turns into c/λ. Taking the β_w tier's gap
   only where the bound is below SHIPPED_ACCURACY of the size lets the comparison pass, but the judged error then
   reads 4.37613 > limit 4.34405 on the same values: not fixable in approximate_matching.py alone (reverted).
+  Against the stored plant's exact value (Fractions, |Ge| 1.45e8 at 1e-9, 1.33e7 at 1.09e-8 rad/s) the library's
+  reading errs 7.2 and 0.167, numpy's 17.6 and 0.0093: neither product is exact there (Q's cancellation of the
+  integrator direction amplifies Ge's relative error 1e-8); a refined (double-double) plant reading is what helps.
 - **Approximate seed 479, the same call** (discrete n 9, p 3, m 6, nd 2, nf 4; plant poles 0.93 … 0.985, lightly
   damped pairs at 0.985 ± 0.031j, 0.979 ± 0.011j) — refused "u/d leak 1.29e-05 (± 1.7e-09) plus the realisation's
   rounding sensitivity 1.8e-11 = 1.29e-05 of its weakest required fault's gain 2.23e-05 > dec_tol": the reference
