@@ -195,7 +195,10 @@ def test_seed1331_listed_row_is_designed():
       fac(z)·Q1(z)·Ge(z) leaks 1.0e-8 — the design is right; but the series realisation ``fac @ Q1`` (order 48)
       reads 9.1e-6 and its minreal (the stored Q) 1.0e-6; scaling Q1 by a constant or balancing the series
       before minreal does not change it (7.3e-6, 1.0e-6);
-    - _refined leaves it (1.0e-6), _boundary_modes_cancelled's re-realisation (order 44) 1.0e-6: refused.
+    - _refined leaves it (1.0e-6) without trying the refit: on its own grid (76 usable of 202 points) the leak
+      reads 2.0e-4 of the weakest fault, above REFINE_MAX_LEAK 1e-4 (points nearer the plant's poles than
+      numpy's 1e-3 amplify it); _boundary_modes_cancelled's four candidates read 1.49e-6 … 1.73e-6 (order
+      48, 44) by _verdict: refused.
     Cause: realising the product of two ill-scaled systems (Q1's gain ~1e9 against fac's ~1e-9) in one state
     space: the coupling block B_fac·C_Q1 makes the product's resolvent ill-conditioned, and its values lose
     ~2 decades against the product of the values. Fix to try (nullspace.py, audit24's file; next session):
